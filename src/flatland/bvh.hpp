@@ -1,0 +1,70 @@
+// Nearest-hit queries against all segments of a scene: a bounding volume hierarchy over the
+// segments' control-point boxes, with a linear scan for scenes too small to profit.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "flatland/bezier.hpp"
+#include "flatland/intersect.hpp"
+
+namespace flatland {
+
+enum class SegmentKind : std::uint8_t { Line, Cubic };
+
+// What the ray caster needs of a segment. Lines keep their end points in shape.p[0] and p[3].
+struct SegmentGeometry {
+  SegmentKind kind = SegmentKind::Line;
+  Cubic shape;
+};
+
+constexpr std::uint32_t kNoSegment = 0xffffffffu;
+
+struct SceneHit {
+  std::uint32_t segment = kNoSegment;
+  double t = 0.0;
+  double distance = 0.0;
+};
+
+// Where a ray starts: on a segment (so that segment is tested with the deflated query, and a line
+// never hits itself) or in free space (segment = kNoSegment).
+struct RayOrigin {
+  std::uint32_t segment = kNoSegment;
+  double t = 0.0;
+};
+
+class SegmentAccelerator {
+ public:
+  SegmentAccelerator() = default;
+  explicit SegmentAccelerator(std::vector<SegmentGeometry> segments);
+
+  // Nearest hit with distance in (0, infinity), or segment == kNoSegment for a miss.
+  SceneHit closest_hit(const Ray& ray, const RayOrigin& from) const;
+  // The same answer by testing every segment; for tests and tiny scenes.
+  SceneHit closest_hit_brute_force(const Ray& ray, const RayOrigin& from) const;
+
+  std::span<const SegmentGeometry> segments() const { return segments_; }
+  bool uses_hierarchy() const { return !nodes_.empty(); }
+  bool has_cubics() const { return has_cubics_; }
+
+ private:
+  struct Node {
+    Box bounds;
+    // Interior: children at index+1 and second_child; leaf: first/count into order_.
+    std::uint32_t second_child_or_first = 0;
+    std::uint32_t count = 0;  // 0 for interior nodes
+  };
+
+  bool test_segment(std::uint32_t index, const Ray& ray, const RayOrigin& from, double max_distance,
+                    SegmentHit* hit) const;
+  std::uint32_t build_node(std::uint32_t first, std::uint32_t count,
+                           std::vector<Box>& boxes, std::vector<Vec2>& centers);
+
+  std::vector<SegmentGeometry> segments_;
+  std::vector<std::uint32_t> order_;
+  std::vector<Node> nodes_;
+  bool has_cubics_ = false;
+};
+
+}  // namespace flatland

@@ -1,0 +1,93 @@
+// A flatland scene: materials and curves (chains of straight or cubic Bezier segments), validated
+// and flattened into the segment list the ray caster and the solver share.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "flatland/bezier.hpp"
+#include "flatland/bvh.hpp"
+#include "flatland/result.hpp"
+#include "flatland/vec2.hpp"
+
+namespace flatland {
+
+// Up to three colour channels; a grey scene uses channel 0 only (Scene::channels == 1).
+using Spectrum = std::array<double, 3>;
+
+// Continuity of the illumination at a node of a curve (a joint between segments or a node of the
+// storage mesh). Value jump (C-1), continuous value (C0), continuous slope (C1).
+enum class Continuity : std::int8_t { Jump = -1, C0 = 0, C1 = 1 };
+
+// Which sides of a curve emit and reflect. The front is to the left of the direction of travel
+// along the control points. A side that is not named absorbs everything it receives.
+enum class Sides : std::uint8_t { Front, Back, Both };
+enum class Side : std::uint8_t { Front = 0, Back = 1 };
+
+struct Material {
+  std::string name;
+  Spectrum reflectivity{0.0, 0.0, 0.0};  // each channel in [0,1)
+  Spectrum emittance{0.0, 0.0, 0.0};     // power per unit length leaving each emitting side
+};
+
+struct Curve {
+  std::string id;
+  std::uint32_t material = 0;
+  SegmentKind kind = SegmentKind::Line;
+  // The points as written: a polyline's vertices, or a Bezier chain's 3k+1 control points.
+  std::vector<Vec2> points;
+  // Continuity at the joints between consecutive segments (segment_count - 1 entries).
+  std::vector<Continuity> joints;
+  Sides sides = Sides::Front;
+  Spectrum emittance{0.0, 0.0, 0.0};  // the material's, or the curve's own override
+  std::uint32_t first_segment = 0;    // index into Scene::segments
+  std::uint32_t segment_count = 0;
+  double length = 0.0;
+  std::vector<double> segment_start;  // cumulative arc length at each segment start (+ total)
+
+  bool has_side(Side s) const {
+    return sides == Sides::Both || (s == Side::Front ? sides == Sides::Front : sides == Sides::Back);
+  }
+};
+
+struct SceneSegment {
+  SegmentGeometry geometry;
+  std::uint32_t curve = 0;
+  std::uint32_t index_in_curve = 0;
+  ArcLengthTable arc_length;
+  double length = 0.0;
+  double speed_bound = 0.0;  // >= max |C'(t)|, for rejection sampling in arc length
+};
+
+struct Scene {
+  std::string name;
+  std::string source;  // file the scene came from, for messages
+  int channels = 1;    // 1 (grey) or 3 (colour)
+  std::vector<Material> materials;
+  std::vector<Curve> curves;
+  std::vector<SceneSegment> segments;
+  Box bounds;
+  double scale = 1.0;  // bounding-box diagonal: every geometric tolerance is relative to it
+
+  const Material& material_of(const Curve& c) const { return materials[c.material]; }
+  bool has_cubics() const;
+  bool is_emitter(const Curve& c) const;
+  // Total emitted power summed over channels and emitting sides.
+  double emitted_power() const;
+};
+
+// Parse and validate a scene (format version 1, docs/scene-format.md). `source` names the text in
+// error messages (usually the file path). Errors look like
+//   "scenes2d/room.json: curves[2].bezier: expected 3k+1 points, got 5"
+//   "scenes2d/room.json:14:9: parse error: ..."
+Result<Scene> parse_scene(std::string_view text, std::string_view source);
+Result<Scene> load_scene(const std::string& path);
+
+// Build the derived data (segments, lengths, bounds, scale) from curves and materials that are
+// already filled in and valid; used by the parser and by code that edits a scene (the viewer).
+Status finalize_scene(Scene& scene);
+
+}  // namespace flatland

@@ -1,0 +1,50 @@
+// Two-dimensional vectors in double precision: the only geometric primitive of the core.
+#pragma once
+
+#include <cmath>
+
+namespace flatland {
+
+struct Vec2 {
+  double x = 0.0;
+  double y = 0.0;
+};
+
+constexpr Vec2 operator+(Vec2 a, Vec2 b) { return {a.x + b.x, a.y + b.y}; }
+constexpr Vec2 operator-(Vec2 a, Vec2 b) { return {a.x - b.x, a.y - b.y}; }
+constexpr Vec2 operator-(Vec2 a) { return {-a.x, -a.y}; }
+constexpr Vec2 operator*(double s, Vec2 a) { return {s * a.x, s * a.y}; }
+constexpr Vec2 operator*(Vec2 a, double s) { return {s * a.x, s * a.y}; }
+constexpr bool operator==(Vec2 a, Vec2 b) { return a.x == b.x && a.y == b.y; }
+
+constexpr double dot(Vec2 a, Vec2 b) { return a.x * b.x + a.y * b.y; }
+// z component of the 3D cross product: positive when b is counter-clockwise from a.
+constexpr double cross(Vec2 a, Vec2 b) { return a.x * b.y - a.y * b.x; }
+// a rotated by +90 degrees: the left normal of a direction of travel.
+constexpr Vec2 perp(Vec2 a) { return {-a.y, a.x}; }
+inline double length(Vec2 a) { return std::hypot(a.x, a.y); }
+constexpr double length_squared(Vec2 a) { return dot(a, a); }
+inline Vec2 normalized(Vec2 a) { return (1.0 / length(a)) * a; }
+constexpr Vec2 lerp(Vec2 a, Vec2 b, double t) { return {a.x + t * (b.x - a.x), a.y + t * (b.y - a.y)}; }
+inline bool is_finite(Vec2 a) { return std::isfinite(a.x) && std::isfinite(a.y); }
+
+// Axis-aligned box; an empty box has lower > upper.
+struct Box {
+  Vec2 lower{INFINITY, INFINITY};
+  Vec2 upper{-INFINITY, -INFINITY};
+
+  void extend(Vec2 p) {
+    lower = {std::fmin(lower.x, p.x), std::fmin(lower.y, p.y)};
+    upper = {std::fmax(upper.x, p.x), std::fmax(upper.y, p.y)};
+  }
+  void extend(const Box& b) {
+    extend(b.lower);
+    extend(b.upper);
+  }
+  bool empty() const { return lower.x > upper.x || lower.y > upper.y; }
+  Vec2 center() const { return 0.5 * (lower + upper); }
+  Vec2 extent() const { return upper - lower; }
+  double diagonal() const { return empty() ? 0.0 : length(upper - lower); }
+};
+
+}  // namespace flatland
