@@ -1,1 +1,165 @@
+// The command-line contract: exit codes, one-line errors naming what is wrong, no partial files.
+#include <sys/wait.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "test_support.hpp"
+
+namespace flatland {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct CommandRun {
+  int exit_code = -1;
+  std::string out;
+  std::string err;
+};
+
+std::string read_file(const fs::path& path) {
+  std::ifstream in(path);
+  std::stringstream buffer;
+  buffer << in.rdbuf();
+  return buffer.str();
+}
+
+class Cli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    directory_ = fs::temp_directory_path() /
+                 ("flatland-cli-" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
+    fs::remove_all(directory_);
+    fs::create_directories(directory_);
+  }
+  void TearDown() override { fs::remove_all(directory_); }
+
+  CommandRun run(const std::string& arguments) {
+    const fs::path out = directory_ / "stdout.txt";
+    const fs::path err = directory_ / "stderr.txt";
+    const std::string command = std::string(FLATLAND_BINARY) + " " + arguments + " >" +
+                                out.string() + " 2>" + err.string() + " </dev/null";
+    const int status = std::system(command.c_str());
+    CommandRun result;
+    result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    result.out = read_file(out);
+    result.err = read_file(err);
+    return result;
+  }
+
+  std::string scene(const std::string& name) { return testing::source_path("scenes2d/" + name); }
+  fs::path directory_;
+};
+
+int lines(const std::string& text) {
+  int count = 0;
+  for (char c : text) count += c == '\n';
+  return count;
+}
+
+TEST_F(Cli, HelpListsCommandsAndOptions) {
+  const CommandRun top = run("--help");
+  EXPECT_EQ(top.exit_code, 0);
+  EXPECT_NE(top.out.find("solve"), std::string::npos);
+  const CommandRun solve = run("solve --help");
+  EXPECT_EQ(solve.exit_code, 0);
+  for (const char* option : {"--photons", "--seed", "--threads", "--basis", "--elements",
+                             "--tolerance", "--samples", "--out", "--picture"})
+    EXPECT_NE(solve.out.find(option), std::string::npos) << option;
+}
+
+TEST_F(Cli, BadInputGetsOneLineAndExitCodeTwo) {
+  const std::string good = scene("penumbra.json");
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"", "subcommand"},
+      {"frobnicate", "frobnicate"},
+      {"solve", "scene"},
+      {"solve " + good + " --bogus", "--bogus"},
+      {"solve " + good + " --photons abc", "--photons"},
+      {"solve " + good + " --photons 0", "--photons"},
+      {"solve " + good + " --photons 1.5", "--photons"},
+      {"solve " + good + " --tolerance nan", "--tolerance"},
+      {"solve " + good + " --tolerance 2", "--tolerance"},
+      {"solve " + good + " --elements 0", "--elements"},
+      {"solve " + good + " --basis quintic", "--basis"},
+      {"solve " + good + " --samples -3", "--samples"},
+      {"solve " + (directory_ / "missing.json").string(), "missing.json"},
+      {"solve " + directory_.string(), directory_.filename().string()},
+  };
+  for (const auto& [arguments, mentions] : cases) {
+    const CommandRun r = run(arguments);
+    EXPECT_EQ(r.exit_code, 2) << arguments << "\n" << r.err;
+    EXPECT_EQ(lines(r.err), 1) << arguments << "\n" << r.err;
+    EXPECT_NE(r.err.find(mentions), std::string::npos) << arguments << "\n" << r.err;
+  }
+}
+
+TEST_F(Cli, MalformedSceneNamesFileAndLine) {
+  const fs::path bad = directory_ / "broken.json";
+  std::ofstream(bad) << "{\n  \"flatland\": 1,\n  \"curves\": [ oops ]\n}\n";
+  const CommandRun r = run("solve " + bad.string());
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_EQ(lines(r.err), 1) << r.err;
+  EXPECT_NE(r.err.find("broken.json:3"), std::string::npos) << r.err;
+}
+
+TEST_F(Cli, FailedWriteLeavesNoFile) {
+  const fs::path out = directory_ / "no-such-dir" / "result.json";
+  const CommandRun r = run("solve " + scene("penumbra.json") + " --photons 20000 --out " + out.string());
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_FALSE(fs::exists(out));
+  EXPECT_NE(r.err.find("no-such-dir"), std::string::npos) << r.err;
+}
+
+TEST_F(Cli, SolveWritesResultAndPicture) {
+  const fs::path out = directory_ / "result.json";
+  const fs::path picture = directory_ / "result.png";
+  const CommandRun r = run("solve " + scene("mixed.json") + " --photons 100000 --samples 7 --seed 5 --out " +
+                    out.string() + " --picture " + picture.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("photons/s"), std::string::npos);
+  EXPECT_NE(r.out.find("emitted"), std::string::npos);
+  const nlohmann::json result = nlohmann::json::parse(read_file(out));
+  EXPECT_EQ(result["flatland_result"], 1);
+  EXPECT_EQ(result["settings"]["photons"], 100000);
+  EXPECT_EQ(result["settings"]["seed"], 5);
+  for (const char* key : {"photons", "rounds", "seconds", "emitted_power", "absorbed_power",
+                          "escaped_power", "unshot_power"})
+    EXPECT_TRUE(result["stats"].contains(key)) << key;
+  const auto& stats = result["stats"];
+  EXPECT_NEAR(stats["emitted_power"].get<double>(),
+              stats["absorbed_power"].get<double>() + stats["escaped_power"].get<double>() +
+                  stats["unshot_power"].get<double>(),
+              1e-9 * stats["emitted_power"].get<double>());
+  ASSERT_FALSE(result["curves"].empty());
+  bool saw_two_sided = false;
+  for (const auto& curve : result["curves"]) {
+    ASSERT_EQ(curve["samples"].size(), 7u);
+    const double length = curve["length"].get<double>();
+    const auto& first = curve["samples"][0];
+    EXPECT_NEAR(first["s"].get<double>(), 0.5 * length / 7, 1e-12 * length);
+    EXPECT_TRUE(first.contains("B"));
+    if (curve["sides"] == "both") {
+      saw_two_sided = true;
+      EXPECT_TRUE(first.contains("B_back"));
+    }
+  }
+  EXPECT_TRUE(saw_two_sided) << "mixed.json should have a two-sided curve";
+  // A PNG signature.
+  const std::string png = read_file(picture);
+  ASSERT_GT(png.size(), 8u);
+  EXPECT_EQ(png.substr(1, 3), "PNG");
+  // No temporary files left behind.
+  int files = 0;
+  for (const auto& entry : fs::directory_iterator(directory_)) files += entry.is_regular_file();
+  EXPECT_EQ(files, 4);  // result.json, result.png, stdout.txt, stderr.txt
+}
+
+}  // namespace
+}  // namespace flatland

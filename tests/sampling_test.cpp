@@ -1,1 +1,134 @@
+#include "flatland/sampling.hpp"
+
+#include <array>
+#include <cmath>
+#include <numbers>
+#include <vector>
+
 #include <gtest/gtest.h>
+
+#include "test_support.hpp"
+
+namespace flatland {
+namespace {
+
+TEST(Sampling, RngStreamsReproduceAndDiffer) {
+  Rng a(42, 3, 7);
+  Rng b(42, 3, 7);
+  Rng c(42, 3, 8);
+  Rng d(42, 4, 7);
+  int same_c = 0;
+  int same_d = 0;
+  for (int i = 0; i < 1000; ++i) {
+    const std::uint64_t x = a.next();
+    ASSERT_EQ(x, b.next());
+    same_c += x == c.next();
+    same_d += x == d.next();
+  }
+  EXPECT_EQ(same_c, 0);
+  EXPECT_EQ(same_d, 0);
+}
+
+TEST(Sampling, UniformHasMeanAndVarianceOfU01) {
+  Rng rng(1, 0, 0);
+  const int n = 1'000'000;
+  double sum = 0.0;
+  double sum2 = 0.0;
+  for (int i = 0; i < n; ++i) {
+    const double u = rng.uniform_open();
+    ASSERT_GT(u, 0.0);
+    ASSERT_LT(u, 1.0);
+    sum += u;
+    sum2 += u * u;
+  }
+  // Standard errors: mean sqrt(1/12 / n), second moment sqrt(4/45 / n); allow 5 of them.
+  EXPECT_NEAR(sum / n, 0.5, 5 * std::sqrt(1.0 / 12 / n));
+  EXPECT_NEAR(sum2 / n, 1.0 / 3, 5 * std::sqrt(4.0 / 45 / n));
+}
+
+TEST(Sampling, DiffuseDirectionsFollowCosineOverTwo) {
+  // Chi-square of the angle from the normal against the CDF (1 + sin theta) / 2, for a normal
+  // that is not axis-aligned.
+  const Vec2 normal = normalized(Vec2{0.3, -0.8});
+  const Vec2 tangent{normal.y, -normal.x};
+  Rng rng(5, 0, 0);
+  const int bins = 64;
+  const int n = 400'000;
+  std::vector<double> observed(bins, 0.0);
+  std::vector<double> expected(bins, 0.0);
+  int within_30_degrees = 0;
+  for (int i = 0; i < n; ++i) {
+    const Vec2 d = square_to_diffuse(rng.uniform(), normal);
+    ASSERT_NEAR(length(d), 1.0, 1e-14);
+    ASSERT_GE(dot(d, normal), 0.0);
+    const double theta = std::atan2(dot(d, tangent), dot(d, normal));
+    const int bin = std::min(bins - 1, static_cast<int>((theta / std::numbers::pi + 0.5) * bins));
+    observed[bin] += 1;
+    within_30_degrees += std::fabs(theta) <= std::numbers::pi / 6;
+  }
+  for (int b = 0; b < bins; ++b) {
+    const double a = (static_cast<double>(b) / bins - 0.5) * std::numbers::pi;
+    const double c = (static_cast<double>(b + 1) / bins - 0.5) * std::numbers::pi;
+    expected[b] = n * 0.5 * (std::sin(c) - std::sin(a));
+  }
+  EXPECT_LT(testing::chi_square(observed, expected), testing::chi_square_critical(bins - 1));
+  // Half the power leaves within +-30 degrees of the normal: (sin 30 - sin -30) / 2 = 1/2.
+  const double sigma = std::sqrt(0.25 / n);
+  EXPECT_NEAR(static_cast<double>(within_30_degrees) / n, 0.5, 5 * sigma);
+}
+
+TEST(Sampling, DiffusePdfIntegratesToOneAndInverts) {
+  const Vec2 normal = normalized(Vec2{-1.0, 2.0});
+  // Integral of the pdf over the circle by the midpoint rule.
+  const int steps = 100000;
+  double integral = 0.0;
+  for (int i = 0; i < steps; ++i) {
+    const double phi = 2 * std::numbers::pi * (i + 0.5) / steps;
+    integral += square_to_diffuse_pdf(normal, {std::cos(phi), std::sin(phi)});
+  }
+  EXPECT_NEAR(integral * 2 * std::numbers::pi / steps, 1.0, 1e-8);
+  for (double u : {0.001, 0.2, 0.5, 0.77, 0.999}) {
+    EXPECT_NEAR(square_to_diffuse_invert(normal, square_to_diffuse(u, normal)), u, 1e-13);
+  }
+}
+
+TEST(Sampling, FractionOfDirectionsHittingASegmentIsTheFormFactor) {
+  // From the origin with normal +y, the segment from (a, h) to (b, h): the fraction of diffuse
+  // directions through it is (sin theta_b - sin theta_a) / 2 with sin theta = x / sqrt(x^2 + h^2).
+  const double a = -0.4;
+  const double b = 1.7;
+  const double h = 0.9;
+  const double exact = 0.5 * (b / std::hypot(b, h) - a / std::hypot(a, h));
+  Rng rng(9, 0, 0);
+  const int n = 1'000'000;
+  int hits = 0;
+  for (int i = 0; i < n; ++i) {
+    const Vec2 d = square_to_diffuse(rng.uniform(), {0.0, 1.0});
+    if (d.y <= 0.0) continue;
+    const double x = d.x / d.y * h;
+    hits += x >= a && x <= b;
+  }
+  const double sigma = std::sqrt(exact * (1 - exact) / n);
+  EXPECT_NEAR(static_cast<double>(hits) / n, exact, 5 * sigma);
+}
+
+TEST(Sampling, DiscreteDistributionFollowsWeightsAndSkipsZeros) {
+  const std::vector<double> weights = {0.0, 3.0, 0.0, 1.0, 6.0, 0.0};
+  const DiscreteDistribution distribution(weights);
+  EXPECT_DOUBLE_EQ(distribution.total(), 10.0);
+  EXPECT_DOUBLE_EQ(distribution.pmf(4), 0.6);
+  // The extremes of u never give an index of zero weight.
+  EXPECT_EQ(distribution.sample(0.0), 1u);
+  EXPECT_EQ(distribution.sample(std::nextafter(1.0, 0.0)), 4u);
+  Rng rng(3, 0, 0);
+  const int n = 200'000;
+  std::vector<double> counts(weights.size(), 0.0);
+  for (int i = 0; i < n; ++i) counts[distribution.sample(rng.uniform())] += 1;
+  EXPECT_EQ(counts[0] + counts[2] + counts[5], 0.0);
+  const std::vector<double> observed = {counts[1], counts[3], counts[4]};
+  const std::vector<double> expected = {0.3 * n, 0.1 * n, 0.6 * n};
+  EXPECT_LT(testing::chi_square(observed, expected), testing::chi_square_critical(2));
+}
+
+}  // namespace
+}  // namespace flatland

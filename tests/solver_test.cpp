@@ -1,1 +1,316 @@
+#include "flatland/solver.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <vector>
+
 #include <gtest/gtest.h>
+
+#include "flatland/result_io.hpp"
+#include "test_support.hpp"
+
+namespace flatland {
+namespace {
+
+// A unit circle of four cubic arcs, counter-clockwise so its front faces inward.
+std::string circle_enclosure(double reflectivity, double emittance) {
+  const double k = 0.5522847498307936;
+  char text[1024];
+  std::snprintf(text, sizeof text, R"({
+    "flatland": 1,
+    "materials": {"glow": {"reflectivity": %.17g, "emittance": %.17g}},
+    "curves": [{"id": "circle", "material": "glow", "bezier": [
+      [1,0],[1,%.17g],[%.17g,1],[0,1],[%.17g,1],[-1,%.17g],[-1,0],
+      [-1,%.17g],[%.17g,-1],[0,-1],[%.17g,-1],[1,%.17g],[1,0]]}]})",
+                reflectivity, emittance, k, k, -k, k, -k, -k, k, -k);
+  return text;
+}
+
+Solver make_solver(const Scene& scene, const SolverSettings& settings) {
+  Result<Solver> solver = Solver::create(scene, settings);
+  EXPECT_TRUE(solver.ok()) << (solver.ok() ? "" : solver.error().message);
+  return std::move(solver).value();
+}
+
+// Closed enclosure with uniform E and rho: B = E / (1 - rho) everywhere. The reflected part
+// rho H of a coefficient is a sum over photons of binomial hits: its relative standard deviation
+// is about sqrt((1 - p_k) / (n p_k)) with p_k its share of the curve; stopping at tolerance t
+// leaves a further relative bias of at most t.
+void check_enclosure(double rho, double tolerance, BasisKind basis) {
+  const Scene scene = testing::scene_from_text(circle_enclosure(rho, 1.0));
+  SolverSettings settings;
+  settings.photons = 2'000'000;
+  settings.tolerance = tolerance;
+  settings.basis = basis;
+  settings.elements = 16;
+  settings.seed = 12;
+  Solver solver = make_solver(scene, settings);
+  solver.run();
+  ASSERT_EQ(solver.stop_reason(), StopReason::Converged);
+  const EnergyBooks books = solver.books();
+  // Watertight: no photon leaves a closed curve, not even through its joints.
+  EXPECT_EQ(books.escaped, 0.0);
+  EXPECT_NEAR(books.imbalance(), 0.0, 1e-9 * books.emitted);
+
+  const double exact = 1.0 / (1.0 - rho);
+  const double reflected = exact - 1.0;
+  const CurveStorage& storage = solver.storage(0);
+  const double shortest = *std::min_element(storage.basis_length.begin(), storage.basis_length.end());
+  const double p = shortest / scene.curves[0].length;
+  const double n = static_cast<double>(solver.photons_shot());
+  const double sigma = reflected * std::sqrt((1 - p) / (n * p));
+  for (int j = 0; j < 200; ++j) {
+    const CurvePoint point = point_at_arc_length(scene, scene.curves[0], (j + 0.5) * scene.curves[0].length / 200);
+    const double b = solver.radiosity(0, Side::Front, point.u)[0];
+    EXPECT_NEAR(b, exact, 5 * sigma + tolerance * exact) << "at sample " << j;
+  }
+}
+
+TEST(Solver, ClosedEnclosureMatchesClosedFormConstant) { check_enclosure(0.5, 1e-4, BasisKind::Constant); }
+TEST(Solver, ClosedEnclosureMatchesClosedFormCubic) { check_enclosure(0.5, 1e-4, BasisKind::Cubic); }
+TEST(Solver, StiffEnclosureMatchesClosedForm) { check_enclosure(0.9, 1e-4, BasisKind::Linear); }
+
+// One bounce from a black line emitter onto a flat receiver, optionally with a black occluder.
+// Irradiance at (x, 0) (normal +y): H(x) = E (1/2) * measure, in sin(theta), of the visible part of
+// the emitter, theta measured from the normal; the occluder sits between them, so the visible part
+// is the emitter's interval minus the occluder's.
+struct PenumbraSetup {
+  double emitter_left = -0.5, emitter_right = 0.5, emitter_height = 2.0;
+  double occluder_left = -0.2, occluder_right = 0.6, occluder_height = 1.0;
+  double floor_left = -3.0, floor_right = 3.0;
+  double rho = 0.5;
+  bool occluded = true;
+
+  std::string scene_text() const {
+    char curves[1024];
+    std::snprintf(curves, sizeof curves,
+                  R"({"id": "lamp", "material": "lamp", "line": [[%.17g,%.17g],[%.17g,%.17g]]},
+                     {"id": "floor", "material": "floor", "line": [[%.17g,0],[%.17g,0]]})",
+                  emitter_right, emitter_height, emitter_left, emitter_height, floor_left,
+                  floor_right);
+    std::string text = R"({"flatland": 1, "materials": {"lamp": {"emittance": 1}, "black": {},
+                           "floor": {"reflectivity": )" + std::to_string(rho) + R"(}}, "curves": [)" + curves;
+    if (occluded) {
+      char occluder[256];
+      std::snprintf(occluder, sizeof occluder,
+                    R"(, {"id": "occluder", "material": "black", "sides": "both", "line": [[%.17g,%.17g],[%.17g,%.17g]]})",
+                    occluder_left, occluder_height, occluder_right, occluder_height);
+      text += occluder;
+    }
+    return text + "]}";
+  }
+
+  double irradiance(double x) const {
+    auto sine = [x](double px, double py) { return (px - x) / std::hypot(px - x, py); };
+    const double a = sine(emitter_left, emitter_height);
+    const double b = sine(emitter_right, emitter_height);
+    double visible = b - a;
+    if (occluded) {
+      const double c = std::max(a, sine(occluder_left, occluder_height));
+      const double d = std::min(b, sine(occluder_right, occluder_height));
+      if (d > c) visible -= d - c;
+    }
+    return 0.5 * visible;
+  }
+};
+
+void check_penumbra(const PenumbraSetup& setup, BasisKind basis) {
+  const Scene scene = testing::scene_from_text(setup.scene_text());
+  ASSERT_EQ(scene.curves[1].id, "floor");
+  SolverSettings settings;
+  settings.photons = 1'000'000;
+  settings.basis = basis;
+  settings.elements = 24;
+  settings.seed = 3;
+  Solver solver = make_solver(scene, settings);
+  // The floor receives light only in the first round (everything else is black and the floor is
+  // flat), so its coefficients are final after it.
+  ASSERT_TRUE(solver.step_round());
+  const double n = static_cast<double>(solver.photons_shot());
+  const double emitted = solver.books().emitted;
+  const double q = emitted / n;  // power per photon
+
+  const CurveStorage& storage = solver.storage(1);
+  const std::vector<double> b = solver.radiosity_coefficients(1, Side::Front);
+  ASSERT_EQ(b.size(), storage.basis.size());
+  // Expected lumped coefficient: rho * integral(phi_k H ds) / integral(phi_k ds), by a fine
+  // midpoint rule along the floor (u runs over [0, 1], ds = L du).
+  const double length = setup.floor_right - setup.floor_left;
+  const int steps = 200'000;
+  std::vector<double> expected_power(storage.basis.size(), 0.0);
+  std::array<double, SplineBasis::kMaxDegree + 1> phi{};
+  for (int i = 0; i < steps; ++i) {
+    const double u = (i + 0.5) / steps;
+    const double h = setup.irradiance(setup.floor_left + u * length);
+    const std::size_t first = storage.basis.evaluate(u, phi.data());
+    for (int j = 0; j <= storage.basis.degree(); ++j)
+      expected_power[first + j] += phi[j] * h * length / steps;
+  }
+  double worst = 0.0;
+  for (std::size_t k = 0; k < b.size(); ++k) {
+    const double expected_b = setup.rho * expected_power[k] / storage.basis_length[k];
+    // sigma of the received power <= sqrt(q E[R_k]) (deposit weights lie in [0, 1]).
+    const double sigma = setup.rho * std::sqrt(q * expected_power[k]) / storage.basis_length[k];
+    const double z = std::fabs(b[k] - expected_b) / std::max(sigma, 1e-300);
+    worst = std::max(worst, z);
+    EXPECT_LT(z, 5.0) << "coefficient " << k << ": " << b[k] << " vs " << expected_b;
+  }
+  EXPECT_GT(worst, 0.0);  // the estimate is noisy, not a copy of the expectation
+}
+
+TEST(Solver, OneBounceOnFloorMatchesClosedForm) {
+  PenumbraSetup setup;
+  setup.occluded = false;
+  check_penumbra(setup, BasisKind::Constant);
+  check_penumbra(setup, BasisKind::Cubic);
+}
+
+TEST(Solver, OneBouncePenumbraMatchesClosedForm) {
+  PenumbraSetup setup;
+  check_penumbra(setup, BasisKind::Constant);
+  check_penumbra(setup, BasisKind::Linear);
+  check_penumbra(setup, BasisKind::Cubic);
+}
+
+TEST(Solver, EnergyBooksBalanceOnEveryExampleScene) {
+  int scenes = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(testing::source_path("scenes2d"))) {
+    if (entry.path().extension() != ".json") continue;
+    ++scenes;
+    const Scene scene = testing::scene_from_file("scenes2d/" + entry.path().filename().string());
+    for (BasisKind basis : {BasisKind::Constant, BasisKind::Cubic}) {
+      SolverSettings settings;
+      settings.photons = 200'000;
+      settings.basis = basis;
+      Solver solver = make_solver(scene, settings);
+      solver.run();
+      EXPECT_TRUE(solver.stop_reason() == StopReason::Converged ||
+                  solver.stop_reason() == StopReason::BudgetSpent)
+          << entry.path() << ": " << to_string(solver.stop_reason()) << " " << solver.books_error();
+      const EnergyBooks books = solver.books();
+      EXPECT_NEAR(books.imbalance(), 0.0, 1e-9 * books.emitted) << entry.path();
+      EXPECT_GE(books.absorbed, 0.0);
+      EXPECT_GE(books.escaped, 0.0);
+      EXPECT_LE(solver.photons_shot(), settings.photons);
+    }
+  }
+  EXPECT_GE(scenes, 5);
+}
+
+TEST(Solver, SameSeedGivesIdenticalResultsOnAnyThreadCount) {
+  const Scene scene = testing::scene_from_file("scenes2d/mixed.json");
+  std::vector<std::string> dumps;
+  for (unsigned threads : {1u, 2u, 3u}) {
+    SolverSettings settings;
+    settings.photons = 300'000;
+    settings.threads = threads;
+    settings.seed = 99;
+    Solver solver = make_solver(scene, settings);
+    solver.run();
+    nlohmann::json result = result_to_json(solver, 50);
+    result["stats"].erase("seconds");
+    result["settings"].erase("threads");
+    dumps.push_back(result.dump());
+  }
+  EXPECT_EQ(dumps[0], dumps[1]);
+  EXPECT_EQ(dumps[0], dumps[2]);
+  // A different seed gives a different (noisy) answer.
+  SolverSettings other;
+  other.photons = 300'000;
+  other.seed = 100;
+  Solver solver = make_solver(scene, other);
+  solver.run();
+  nlohmann::json result = result_to_json(solver, 50);
+  result["stats"].erase("seconds");
+  result["settings"].erase("threads");
+  result["settings"]["seed"] = 99;
+  EXPECT_NE(dumps[0], result.dump());
+}
+
+TEST(Solver, SourcesAndPositionsFollowPowerAndArcLength) {
+  // A straight emitter and a two-sided cubic emitter of strongly varying speed; all black, so the
+  // first round holds every photon. Sources must follow E * L per side, positions on the cubic
+  // must be uniform in arc length (not in t), directions cos/2 about the side's normal.
+  const Scene scene = testing::scene_from_text(R"({
+    "flatland": 1,
+    "materials": {"a": {"emittance": 1}, "b": {"emittance": 0.5}},
+    "curves": [
+      {"id": "bar", "material": "a", "line": [[-3,0],[-1,0]]},
+      {"id": "swoosh", "material": "b", "sides": "both",
+       "bezier": [[0,0],[0.02,0.01],[3,0.2],[3,3]]}]})");
+  const int n = 300'000;
+  SolverSettings settings;
+  settings.photons = n;
+  Solver solver = make_solver(scene, settings);
+  solver.record_paths(n);
+  ASSERT_TRUE(solver.step_round());
+  ASSERT_EQ(solver.photons_shot(), static_cast<std::uint64_t>(n));
+  const std::vector<PhotonPath>& paths = solver.paths();
+  ASSERT_EQ(paths.size(), static_cast<std::size_t>(n));
+
+  const double bar = 2.0 * 1.0;
+  const double swoosh = scene.curves[1].length * 0.5;  // per side
+  std::vector<double> sources(3, 0.0);
+  const int bins = 40;
+  std::vector<double> positions(bins, 0.0);
+  const SceneSegment& segment = scene.segments[scene.curves[1].first_segment];
+  for (const PhotonPath& path : paths) {
+    if (path.source_curve == 0) {
+      sources[0] += 1;
+    } else {
+      sources[path.source_side == Side::Front ? 1 : 2] += 1;
+      const double s = arc_length(segment.geometry.shape, 0.0, path.source_t);
+      positions[std::min(bins - 1, static_cast<int>(s / segment.length * bins))] += 1;
+    }
+  }
+  const double total = bar + 2 * swoosh;
+  const std::vector<double> expected_sources = {n * bar / total, n * swoosh / total, n * swoosh / total};
+  EXPECT_LT(testing::chi_square(sources, expected_sources), testing::chi_square_critical(2));
+  const double on_swoosh = sources[1] + sources[2];
+  const std::vector<double> uniform(bins, on_swoosh / bins);
+  EXPECT_LT(testing::chi_square(positions, uniform), testing::chi_square_critical(bins - 1));
+}
+
+TEST(Solver, BudgetIsRespectedAndUnshotReported) {
+  const Scene scene = testing::scene_from_text(circle_enclosure(0.99, 1.0));
+  SolverSettings settings;
+  settings.photons = 50'000;
+  settings.tolerance = 1e-6;
+  Solver solver = make_solver(scene, settings);
+  solver.run();
+  EXPECT_EQ(solver.stop_reason(), StopReason::BudgetSpent);
+  EXPECT_EQ(solver.photons_shot(), settings.photons);
+  const EnergyBooks books = solver.books();
+  EXPECT_GT(books.unshot, 1e-6 * books.emitted);
+  EXPECT_NEAR(books.imbalance(), 0.0, 1e-9 * books.emitted);
+}
+
+TEST(Solver, CancelStopsBeforeTheRoundEnds) {
+  const Scene scene = testing::scene_from_text(circle_enclosure(0.5, 1.0));
+  SolverSettings settings;
+  settings.photons = 10'000'000;
+  Solver solver = make_solver(scene, settings);
+  std::atomic<bool> cancel{true};
+  solver.run(&cancel);
+  EXPECT_EQ(solver.stop_reason(), StopReason::Cancelled);
+  EXPECT_EQ(solver.rounds(), 0u);
+}
+
+TEST(Solver, SettingsOutOfRangeAreErrors) {
+  SolverSettings settings;
+  settings.tolerance = std::nan("");
+  EXPECT_FALSE(validate(settings).ok());
+  settings.tolerance = 1.0;
+  EXPECT_FALSE(validate(settings).ok());
+  settings = SolverSettings{};
+  settings.elements = 0;
+  EXPECT_FALSE(validate(settings).ok());
+  settings = SolverSettings{};
+  settings.photons = 0;
+  EXPECT_FALSE(validate(settings).ok());
+  EXPECT_TRUE(validate(SolverSettings{}).ok());
+}
+
+}  // namespace
+}  // namespace flatland

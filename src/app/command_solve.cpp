@@ -1,1 +1,153 @@
-// (being written)
+// flatland solve: progressive Monte Carlo shooting on one scene.
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <thread>
+
+#include "app/commands.hpp"
+#include "app/picture.hpp"
+#include "app/progress.hpp"
+#include "flatland/result_io.hpp"
+#include "flatland/scene.hpp"
+
+namespace flatland::app {
+
+Result<std::uint64_t> parse_count(const std::string& text, const std::string& option) {
+  const std::string hint = option + ": expected a whole number such as 250000 or 1e6, got '" + text + "'";
+  if (text.empty()) return Error{hint};
+  char* end = nullptr;
+  const double value = std::strtod(text.c_str(), &end);
+  if (end == text.c_str() || *end != '\0' || !std::isfinite(value)) return Error{hint};
+  if (value != std::floor(value)) return Error{hint};
+  if (value < 1.0) return Error{option + ": must be at least 1, got '" + text + "'"};
+  if (value > 0x1.0p53) return Error{option + ": at most 2^53, got '" + text + "'"};
+  return static_cast<std::uint64_t>(value);
+}
+
+CLI::App* add_solve_command(CLI::App& parent, SolveOptions& o) {
+  CLI::App* cmd = parent.add_subcommand(
+      "solve",
+      "Solve a scene by progressive Monte Carlo shooting and report the radiosity along every curve.");
+  cmd->add_option("scene", o.scene, "Scene file (JSON, docs/scene-format.md)")->required();
+  cmd->add_option("--photons", o.photons,
+                  "Total photon budget over all rounds, e.g. 250000 or 1e6")
+      ->capture_default_str();
+  cmd->add_option("--seed", o.settings.seed,
+                  "Random seed; the same seed gives bit-identical results on any thread count")
+      ->capture_default_str();
+  cmd->add_option("--threads", o.settings.threads, "Worker threads (0: every core)")
+      ->capture_default_str()
+      ->check(CLI::Range(0u, 1024u));
+  cmd->add_option("--basis", o.basis,
+                  "Illumination along each curve: constant, linear or cubic (B-splines)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"constant", "linear", "cubic"}));
+  cmd->add_option("--elements", o.settings.elements,
+                  "Storage elements per curve (shared among its segments by arc length, at least "
+                  "one each)")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 1 << 16));
+  cmd->add_option("--tolerance", o.settings.tolerance,
+                  "Stop when the unshot power falls below this fraction of the emitted power")
+      ->capture_default_str();
+  cmd->add_option("--samples", o.samples,
+                  "Radiosity samples per curve in the result, at arc length (j + 0.5) L / K")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 1000000));
+  cmd->add_option("--out", o.out, "Write the result as JSON to this file (docs/result-format.md)");
+  cmd->add_option("--picture", o.picture,
+                  "Write a PNG picture of the curves coloured by their radiosity");
+  cmd->add_flag("--quiet", o.quiet, "No progress line and no summary (errors only)");
+  return cmd;
+}
+
+namespace {
+
+void print_summary(const Solver& solver, const SolveOptions& o) {
+  const Scene& scene = solver.scene();
+  std::size_t cubic_segments = 0;
+  for (const SceneSegment& segment : scene.segments)
+    if (segment.geometry.kind == SegmentKind::Cubic) ++cubic_segments;
+  const EnergyBooks books = solver.books();
+  const double rate = solver.seconds() > 0.0
+                          ? static_cast<double>(solver.photons_shot()) / solver.seconds()
+                          : 0.0;
+  std::printf("scene     %s (%s): %zu curves, %zu segments (%zu cubic), %s\n", scene.name.c_str(),
+              scene.source.c_str(), scene.curves.size(), scene.segments.size(), cubic_segments,
+              scene.channels == 1 ? "grey" : "colour");
+  std::printf("method    %s basis, %d elements per curve, uniform positions, point rays\n",
+              to_string(solver.settings().basis), solver.settings().elements);
+  std::printf("solved    %s photons in %u rounds, %.3f s, %s photons/s on %u threads\n",
+              human_count(static_cast<double>(solver.photons_shot())).c_str(), solver.rounds(),
+              solver.seconds(), human_count(rate).c_str(), solver.thread_count());
+  std::printf("stopped   %s: unshot power %.3g%% of emitted (tolerance %.3g%%)\n",
+              to_string(solver.stop_reason()), 100.0 * books.unshot / books.emitted,
+              100.0 * solver.settings().tolerance);
+  std::printf("energy    emitted %.6g = absorbed %.6g + escaped %.6g + unshot %.6g (imbalance %.2g)\n",
+              books.emitted, books.absorbed, books.escaped, books.unshot, books.imbalance());
+  (void)o;
+}
+
+}  // namespace
+
+int run_solve(SolveOptions& o) {
+  Result<std::uint64_t> photons = parse_count(o.photons, "--photons");
+  if (!photons) {
+    std::fprintf(stderr, "flatland: error: %s\n", photons.error().message.c_str());
+    return kExitUsage;
+  }
+  o.settings.photons = *photons;
+  o.settings.basis = o.basis == "constant" ? BasisKind::Constant
+                     : o.basis == "linear" ? BasisKind::Linear
+                                           : BasisKind::Cubic;
+  if (Status status = validate(o.settings); !status) {
+    std::fprintf(stderr, "flatland: error: %s\n", status.error().message.c_str());
+    return kExitUsage;
+  }
+
+  Result<Scene> scene = load_scene(o.scene);
+  if (!scene) {
+    std::fprintf(stderr, "flatland: error: %s\n", scene.error().message.c_str());
+    return kExitUsage;
+  }
+  Result<Solver> created = Solver::create(*scene, o.settings);
+  if (!created) {
+    std::fprintf(stderr, "flatland: error: %s\n", created.error().message.c_str());
+    return kExitUsage;
+  }
+  Solver& solver = *created;
+
+  {
+    ProgressLine line(!o.quiet);
+    solver.run(&interrupt_flag(), [&](const SolverProgress& p) { line.update(p); });
+  }
+  if (solver.stop_reason() == StopReason::Cancelled) {
+    std::fprintf(stderr, "flatland: interrupted after %llu photons; nothing written\n",
+                 static_cast<unsigned long long>(solver.photons_shot()));
+    return kExitInterrupted;
+  }
+  if (solver.stop_reason() == StopReason::BooksUnbalanced) {
+    std::fprintf(stderr, "flatland: internal error: %s\n", solver.books_error().c_str());
+    return kExitFailure;
+  }
+  if (!o.quiet) print_summary(solver, o);
+
+  if (!o.out.empty()) {
+    const std::string text = result_to_json(solver, o.samples).dump(1) + "\n";
+    if (Status status = write_file_atomically(o.out, text); !status) {
+      std::fprintf(stderr, "flatland: error: %s\n", status.error().message.c_str());
+      return kExitUsage;
+    }
+    if (!o.quiet) std::printf("wrote     %s\n", o.out.c_str());
+  }
+  if (!o.picture.empty()) {
+    if (Status status = write_picture(solver, o.picture); !status) {
+      std::fprintf(stderr, "flatland: error: %s\n", status.error().message.c_str());
+      return kExitUsage;
+    }
+    if (!o.quiet) std::printf("wrote     %s\n", o.picture.c_str());
+  }
+  return kExitOk;
+}
+
+}  // namespace flatland::app

@@ -1,1 +1,130 @@
-// (being written)
+#include "flatland/result_io.hpp"
+
+#include <algorithm>
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <random>
+
+#include <unistd.h>
+
+namespace flatland {
+
+CurvePoint point_at_arc_length(const Scene& scene, const Curve& curve, double s) {
+  // The last segment whose start is <= s; clamp s into the curve.
+  s = std::clamp(s, 0.0, curve.length);
+  const auto begin = curve.segment_start.begin();
+  const auto end = begin + curve.segment_count;
+  auto it = std::upper_bound(begin, end, s);
+  const auto index = static_cast<std::uint32_t>(std::max<std::ptrdiff_t>(0, (it - begin) - 1));
+  const SceneSegment& segment = scene.segments[curve.first_segment + index];
+  CurvePoint point;
+  point.segment_in_curve = index;
+  point.t = segment.arc_length.parameter_at(segment.geometry.shape, s - curve.segment_start[index]);
+  point.u = index + point.t;
+  point.position = evaluate(segment.geometry.shape, point.t);
+  return point;
+}
+
+nlohmann::json spectrum_to_json(const Spectrum& value, int channels) {
+  if (channels == 1) return value[0];
+  return nlohmann::json::array({value[0], value[1], value[2]});
+}
+
+nlohmann::json result_to_json(const Solver& solver, int samples_per_curve) {
+  const Scene& scene = solver.scene();
+  const SolverSettings& settings = solver.settings();
+  const EnergyBooks books = solver.books();
+  nlohmann::json result;
+  result["flatland_result"] = 1;
+  result["scene"] = {{"name", scene.name}, {"file", scene.source}, {"channels", scene.channels}};
+  result["settings"] = {
+      {"method", "shooting"},
+      {"photons", settings.photons},
+      {"seed", settings.seed},
+      {"threads", solver.thread_count()},
+      {"basis", to_string(settings.basis)},
+      {"elements", settings.elements},
+      {"tolerance", settings.tolerance},
+      {"sampling", "uniform"},
+      {"estimator", "lumped"},
+      {"samples", samples_per_curve},
+  };
+  result["stats"] = {
+      {"photons", solver.photons_shot()},
+      {"rounds", solver.rounds()},
+      {"seconds", solver.seconds()},
+      {"stop_reason", to_string(solver.stop_reason())},
+      {"emitted_power", books.emitted},
+      {"absorbed_power", books.absorbed},
+      {"escaped_power", books.escaped},
+      {"unshot_power", books.unshot},
+  };
+  nlohmann::json curves = nlohmann::json::array();
+  for (std::uint32_t c = 0; c < scene.curves.size(); ++c) {
+    const Curve& curve = scene.curves[c];
+    const bool two_sided = curve.sides == Sides::Both;
+    const Side main_side = curve.sides == Sides::Back ? Side::Back : Side::Front;
+    nlohmann::json samples = nlohmann::json::array();
+    for (int j = 0; j < samples_per_curve; ++j) {
+      const double s = (j + 0.5) * curve.length / samples_per_curve;
+      const CurvePoint point = point_at_arc_length(scene, curve, s);
+      nlohmann::json sample = {{"s", s},
+                               {"x", point.position.x},
+                               {"y", point.position.y},
+                               {"B", spectrum_to_json(solver.radiosity(c, main_side, point.u),
+                                                      scene.channels)}};
+      if (two_sided)
+        sample["B_back"] =
+            spectrum_to_json(solver.radiosity(c, Side::Back, point.u), scene.channels);
+      samples.push_back(std::move(sample));
+    }
+    const char* sides = curve.sides == Sides::Both ? "both"
+                        : curve.sides == Sides::Back ? "back"
+                                                     : "front";
+    curves.push_back({{"id", curve.id}, {"length", curve.length}, {"sides", sides},
+                      {"samples", std::move(samples)}});
+  }
+  result["curves"] = std::move(curves);
+  return result;
+}
+
+Status write_file_atomically(const std::string& path, const std::string& contents) {
+  namespace fs = std::filesystem;
+  const fs::path target(path);
+  if (target.filename().empty()) return Error{path + ": not a file name"};
+  std::error_code ec;
+  if (fs::is_directory(target, ec)) return Error{path + ": is a directory; give a file name"};
+  const fs::path directory = target.parent_path().empty() ? fs::path(".") : target.parent_path();
+  if (!fs::is_directory(directory, ec))
+    return Error{path + ": directory " + directory.string() + " does not exist"};
+
+  // A unique temporary name in the same directory, so the rename is atomic.
+  std::random_device device;
+  const fs::path temporary =
+      directory / ("." + target.filename().string() + ".tmp" + std::to_string(::getpid()) + "-" +
+                   std::to_string(device()));
+  {
+    std::ofstream out(temporary, std::ios::binary | std::ios::trunc);
+    if (!out) return Error{path + ": cannot write: " + std::strerror(errno)};
+    out.write(contents.data(), static_cast<std::streamsize>(contents.size()));
+    out.flush();
+    if (!out) {
+      const std::string reason = std::strerror(errno);
+      out.close();
+      fs::remove(temporary, ec);
+      return Error{path + ": write failed: " + reason};
+    }
+  }
+  fs::rename(temporary, target, ec);
+  if (ec) {
+    std::error_code ignored;
+    fs::remove(temporary, ignored);
+    return Error{path + ": cannot replace file: " + ec.message()};
+  }
+  return ok_status();
+}
+
+}  // namespace flatland

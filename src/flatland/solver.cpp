@@ -1,1 +1,474 @@
-// (being written)
+#include "flatland/solver.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <thread>
+
+namespace flatland {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double seconds_since(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+constexpr std::uint64_t kMinPhotonsPerRound = 1;
+constexpr int kMaxElements = 1 << 16;
+
+}  // namespace
+
+const char* to_string(StopReason reason) {
+  switch (reason) {
+    case StopReason::Running: return "running";
+    case StopReason::Converged: return "converged";
+    case StopReason::BudgetSpent: return "photon budget spent";
+    case StopReason::Cancelled: return "cancelled";
+    case StopReason::BooksUnbalanced: return "energy books unbalanced";
+  }
+  return "?";
+}
+
+Status validate(const SolverSettings& settings) {
+  if (settings.photons < 1)
+    return Error{"--photons: must be at least 1"};
+  if (settings.photons > (std::uint64_t{1} << 50))
+    return Error{"--photons: at most 2^50 (about 1.1e15) photons per solve"};
+  if (settings.elements < 1 || settings.elements > kMaxElements)
+    return Error{"--elements: must be between 1 and " + std::to_string(kMaxElements)};
+  if (!std::isfinite(settings.tolerance) || settings.tolerance <= 0.0 || settings.tolerance >= 1.0)
+    return Error{"--tolerance: must be a number in (0, 1), e.g. 1e-3"};
+  if (settings.threads > 1024) return Error{"--threads: at most 1024 (0 uses every core)"};
+  return ok_status();
+}
+
+void Solver::Accumulator::reset(std::size_t size) {
+  received.assign(size, 0);
+  escaped = {};
+  black = {};
+  shot = {};
+}
+
+Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings) {
+  if (Status status = validate(settings); !status) return status.error();
+  if (scene.curves.empty() || scene.segments.empty())
+    return Error{scene.source + ": the scene has no curves"};
+
+  Solver solver;
+  solver.scene_ = &scene;
+  solver.settings_ = settings;
+  solver.channels_ = scene.channels;
+  solver.threads_ = settings.threads != 0 ? settings.threads
+                                          : std::max(1u, std::thread::hardware_concurrency());
+
+  std::vector<SegmentGeometry> geometry;
+  geometry.reserve(scene.segments.size());
+  for (const SceneSegment& segment : scene.segments) {
+    geometry.push_back(segment.geometry);
+    SegmentInfo info;
+    info.curve = segment.curve;
+    info.index_in_curve = segment.index_in_curve;
+    info.kind = segment.geometry.kind;
+    if (info.kind == SegmentKind::Line)
+      info.line_tangent = normalized(segment.geometry.shape.p[3] - segment.geometry.shape.p[0]);
+    solver.segment_info_.push_back(info);
+  }
+  solver.accelerator_ = SegmentAccelerator(std::move(geometry));
+
+  const auto channels = static_cast<std::size_t>(solver.channels_);
+  double reflecting_length = 0.0;
+  double weighted_reflectivity = 0.0;
+  solver.block_offset_.assign(scene.curves.size() * 2, kNoBlock);
+  solver.block_reflectivity_.assign(scene.curves.size() * 2, Spectrum{});
+  for (std::uint32_t c = 0; c < scene.curves.size(); ++c) {
+    const Curve& curve = scene.curves[c];
+    std::vector<double> lengths;
+    for (std::uint32_t i = 0; i < curve.segment_count; ++i)
+      lengths.push_back(scene.segments[curve.first_segment + i].length);
+    solver.segment_choice_.emplace_back(lengths);
+    solver.storage_.push_back(
+        build_curve_storage(scene, curve, settings.basis, settings.elements));
+    const Material& material = scene.material_of(curve);
+    for (Side side : {Side::Front, Side::Back}) {
+      if (!curve.has_side(side)) continue;
+      const std::uint32_t block = c * 2 + static_cast<std::uint32_t>(side);
+      solver.block_offset_[block] = static_cast<std::uint32_t>(solver.coefficient_count_);
+      solver.block_reflectivity_[block] = material.reflectivity;
+      solver.coefficient_count_ += solver.storage_[c].basis.size();
+      double mean = 0.0;
+      for (std::size_t ch = 0; ch < channels; ++ch) mean += material.reflectivity[ch];
+      weighted_reflectivity += curve.length * mean / static_cast<double>(channels);
+      reflecting_length += curve.length;
+    }
+  }
+  if (reflecting_length > 0.0) solver.initial_ratio_ = weighted_reflectivity / reflecting_length;
+
+  // The first round shoots the emitted power: on each emitting side E times the basis integrals.
+  solver.received_.assign(solver.coefficient_count_ * channels, 0.0);
+  solver.unshot_.assign(solver.coefficient_count_ * channels, 0.0);
+  for (std::uint32_t c = 0; c < scene.curves.size(); ++c) {
+    const Curve& curve = scene.curves[c];
+    const CurveStorage& storage = solver.storage_[c];
+    for (Side side : {Side::Front, Side::Back}) {
+      const std::uint32_t offset = solver.block_offset(c, side);
+      if (offset == kNoBlock) continue;
+      for (std::size_t k = 0; k < storage.basis.size(); ++k)
+        for (std::size_t ch = 0; ch < channels; ++ch)
+          solver.unshot_[(offset + k) * channels + ch] = curve.emittance[ch] * storage.basis_length[k];
+      for (std::size_t ch = 0; ch < channels; ++ch)
+        solver.emitted_[ch] += curve.emittance[ch] * curve.length;
+    }
+  }
+  for (std::size_t ch = 0; ch < channels; ++ch) solver.emitted_total_ += solver.emitted_[ch];
+  if (!(solver.emitted_total_ > 0.0))
+    return Error{scene.source + ": no curve emits light (give a material or curve an emittance > 0)"};
+  return solver;
+}
+
+bool Solver::has_side(std::uint32_t curve, Side side) const {
+  return block_offset(curve, side) != kNoBlock;
+}
+
+std::uint64_t Solver::photons_for_round(double unshot) const {
+  // Photons of (about) equal power in every round: this round gets the share of the remaining
+  // budget that its power is of all the power still to be shot. With the observed decay ratio r
+  // of the unshot power, that is about U / (1 - r) (the geometric tail; ignoring where the
+  // tolerance cuts it off keeps a reserve, so the budget is never spent one round too early).
+  const std::uint64_t remaining = settings_.photons - photons_shot_;
+  const double ratio =
+      std::clamp(rounds_ == 0 ? initial_ratio_ : unshot / previous_unshot_, 0.0, 0.999999);
+  const double share = 1.0 - ratio;
+  auto photons = static_cast<std::uint64_t>(std::llround(static_cast<double>(remaining) * share));
+  photons = std::max(photons, std::min(remaining, kMinPhotonsPerRound));
+  return std::min(photons, remaining);
+}
+
+bool Solver::begin_round() {
+  const auto channels = static_cast<std::size_t>(channels_);
+  std::vector<double> weights(block_offset_.size(), 0.0);
+  round_.photon_units.assign(block_offset_.size(), {});
+  std::vector<Spectrum> block_unshot(block_offset_.size(), Spectrum{});
+  for (std::uint32_t c = 0; c < scene_->curves.size(); ++c) {
+    for (Side side : {Side::Front, Side::Back}) {
+      const std::uint32_t offset = block_offset(c, side);
+      if (offset == kNoBlock) continue;
+      const std::uint32_t block = c * 2 + static_cast<std::uint32_t>(side);
+      const std::size_t count = storage_[c].basis.size();
+      for (std::size_t k = 0; k < count; ++k)
+        for (std::size_t ch = 0; ch < channels; ++ch)
+          block_unshot[block][ch] += unshot_[(offset + k) * channels + ch];
+      for (std::size_t ch = 0; ch < channels; ++ch) weights[block] += block_unshot[block][ch];
+    }
+  }
+  round_.sources.assign(weights);
+  const double unshot = round_.sources.total();
+  current_unshot_fraction_ = unshot / emitted_total_;
+  if (!(unshot > settings_.tolerance * emitted_total_)) {
+    stop_reason_ = StopReason::Converged;
+    return false;
+  }
+  if (photons_shot_ >= settings_.photons) {
+    stop_reason_ = StopReason::BudgetSpent;
+    return false;
+  }
+  round_.photons = photons_for_round(unshot);
+
+  // Fixed point: unshot * scale < 2^61, and scale a power of two so units convert exactly.
+  round_.scale = std::ldexp(1.0, 60 - std::ilogb(unshot));
+  // A photon from block j carries U_j / (n p_j) with p_j = w_j / U: its channels sum to U / n.
+  for (std::size_t block = 0; block < weights.size(); ++block) {
+    if (!(weights[block] > 0.0)) continue;
+    const double factor = unshot / (static_cast<double>(round_.photons) * weights[block]);
+    for (std::size_t ch = 0; ch < channels; ++ch)
+      round_.photon_units[block][ch] =
+          std::llround(block_unshot[block][ch] * factor * round_.scale);
+  }
+  return true;
+}
+
+void Solver::shoot_batch(std::uint64_t batch, std::uint64_t count, Accumulator& acc,
+                         std::vector<PhotonPath>* paths, std::size_t path_limit) const {
+  Rng rng(settings_.seed, rounds_, batch);
+  const auto channels = static_cast<std::size_t>(channels_);
+  const double scale = scene_->scale;
+  for (std::uint64_t i = 0; i < count; ++i) {
+    // Source side of a curve, by unshot power.
+    const auto block = static_cast<std::uint32_t>(round_.sources.sample(rng.uniform()));
+    const std::uint32_t curve_index = block / 2;
+    const bool back = (block & 1u) != 0;
+    const Curve& curve = scene_->curves[curve_index];
+    const std::array<std::int64_t, 3>& units = round_.photon_units[block];
+    for (std::size_t ch = 0; ch < channels; ++ch) acc.shot[ch] += units[ch];
+
+    // Position uniform in arc length: a segment by length, then t with density |C'(t)| / L by
+    // rejection against the speed bound (exact; a line's speed is constant).
+    const std::uint32_t segment_index =
+        curve.first_segment +
+        static_cast<std::uint32_t>(segment_choice_[curve_index].sample(rng.uniform()));
+    const SceneSegment& segment = scene_->segments[segment_index];
+    const Cubic& shape = segment.geometry.shape;
+    double t = 0.0;
+    Vec2 origin;
+    Vec2 tangent;
+    if (segment.geometry.kind == SegmentKind::Line) {
+      t = rng.uniform_open();
+      origin = lerp(shape.p[0], shape.p[3], t);
+      tangent = segment_info_[segment_index].line_tangent;
+    } else {
+      for (;;) {
+        t = rng.uniform_open();
+        const Vec2 velocity = derivative(shape, t);
+        const double speed = length(velocity);
+        if (rng.uniform() * segment.speed_bound < speed) {
+          tangent = (1.0 / speed) * velocity;
+          break;
+        }
+      }
+      origin = evaluate(shape, t);
+    }
+    const Vec2 normal = back ? -perp(tangent) : perp(tangent);
+    const Ray ray{origin, square_to_diffuse(rng.uniform(), normal)};
+
+    const SceneHit hit = accelerator_.closest_hit(ray, RayOrigin{segment_index, t});
+    PhotonPath* path = nullptr;
+    if (paths != nullptr && paths->size() < path_limit) {
+      path = &paths->emplace_back();
+      path->origin = origin;
+      path->source_curve = curve_index;
+      path->source_side = back ? Side::Back : Side::Front;
+      path->source_segment = segment_index;
+      path->source_t = t;
+      for (std::size_t ch = 0; ch < channels; ++ch)
+        path->power[ch] = static_cast<double>(units[ch]) / round_.scale;
+    }
+    if (hit.segment == kNoSegment) {
+      for (std::size_t ch = 0; ch < channels; ++ch) acc.escaped[ch] += units[ch];
+      if (path != nullptr) {
+        path->escaped = true;
+        path->end = origin + ray.direction;
+      }
+      continue;
+    }
+    // Which side was hit: the ray arrives on the front when it travels against the front normal,
+    // i.e. when cross(C'(t), d) < 0.
+    const SegmentInfo& info = segment_info_[hit.segment];
+    const SceneSegment& receiver = scene_->segments[hit.segment];
+    const Vec2 hit_tangent = info.kind == SegmentKind::Line
+                                 ? info.line_tangent
+                                 : unit_tangent(receiver.geometry.shape, hit.t, scale);
+    const Side side = cross(hit_tangent, ray.direction) < 0.0 ? Side::Front : Side::Back;
+    if (path != nullptr) {
+      path->end = ray.origin + hit.distance * ray.direction;
+      path->hit_curve = info.curve;
+      path->hit_side = side;
+    }
+    const std::uint32_t offset = block_offset(info.curve, side);
+    if (offset == kNoBlock) {
+      for (std::size_t ch = 0; ch < channels; ++ch) acc.black[ch] += units[ch];
+      continue;
+    }
+    // Deposit on the basis functions alive at u; the last share takes the remainder so every
+    // photon's units land exactly.
+    const SplineBasis& basis = storage_[info.curve].basis;
+    std::array<double, SplineBasis::kMaxDegree + 1> phi{};
+    const std::size_t first = basis.evaluate(info.index_in_curve + hit.t, phi.data());
+    const int degree = basis.degree();
+    std::int64_t* target = acc.received.data() + (offset + first) * channels;
+    for (std::size_t ch = 0; ch < channels; ++ch) {
+      std::int64_t left = units[ch];
+      for (int j = 0; j < degree; ++j) {
+        const std::int64_t share =
+            std::llround(phi[static_cast<std::size_t>(j)] * static_cast<double>(units[ch]));
+        target[static_cast<std::size_t>(j) * channels + ch] += share;
+        left -= share;
+      }
+      target[static_cast<std::size_t>(degree) * channels + ch] += left;
+    }
+  }
+}
+
+void Solver::end_round(std::span<const Accumulator> accumulators) {
+  const auto channels = static_cast<std::size_t>(channels_);
+  const double inverse_scale = 1.0 / round_.scale;
+  std::array<std::int64_t, 3> escaped{};
+  std::array<std::int64_t, 3> black{};
+  for (const Accumulator& acc : accumulators)
+    for (std::size_t ch = 0; ch < channels; ++ch) {
+      escaped[ch] += acc.escaped[ch];
+      black[ch] += acc.black[ch];
+    }
+  // Power shot this round leaves the pool; what was received comes back as rho times itself.
+  double previous_pool = 0.0;
+  for (double value : unshot_) previous_pool += value;
+  for (std::uint32_t c = 0; c < scene_->curves.size(); ++c) {
+    for (Side side : {Side::Front, Side::Back}) {
+      const std::uint32_t offset = block_offset(c, side);
+      if (offset == kNoBlock) continue;
+      const Spectrum& rho = block_reflectivity_[c * 2 + static_cast<std::uint32_t>(side)];
+      const std::size_t count = storage_[c].basis.size();
+      for (std::size_t k = 0; k < count; ++k) {
+        for (std::size_t ch = 0; ch < channels; ++ch) {
+          const std::size_t index = (offset + k) * channels + ch;
+          std::int64_t units = 0;
+          for (const Accumulator& acc : accumulators) units += acc.received[index];
+          const double power = static_cast<double>(units) * inverse_scale;
+          received_[index] += power;
+          unshot_[index] = rho[ch] * power;
+          absorbed_[ch] += power - unshot_[index];
+        }
+      }
+    }
+  }
+  for (std::size_t ch = 0; ch < channels; ++ch) {
+    escaped_[ch] += static_cast<double>(escaped[ch]) * inverse_scale;
+    absorbed_[ch] += static_cast<double>(black[ch]) * inverse_scale;
+  }
+  photons_shot_ += round_.photons;
+  previous_unshot_ = previous_pool;
+  ++rounds_;
+
+  // Always-on check of the books. Fixed-point quantisation moves at most half a unit per photon
+  // and channel, 2^-61 of the round's power each; allow that plus double round-off.
+  const EnergyBooks totals = books();
+  const double allowed =
+      emitted_total_ * (1e-12 + static_cast<double>(photons_shot_) * 3.0 * 0x1.0p-60);
+  if (!(std::fabs(totals.imbalance()) <= allowed)) {
+    char message[256];
+    std::snprintf(message, sizeof message,
+                  "energy books do not balance after round %u: emitted %.17g, absorbed %.17g, "
+                  "escaped %.17g, unshot %.17g",
+                  rounds_, totals.emitted, totals.absorbed, totals.escaped, totals.unshot);
+    books_error_ = message;
+    stop_reason_ = StopReason::BooksUnbalanced;
+  }
+}
+
+bool Solver::step_round(const std::atomic<bool>* cancel, const ProgressCallback& progress,
+                        double progress_interval) {
+  if (stopped() || !begin_round()) return false;
+  const Clock::time_point start = Clock::now();
+  const std::uint64_t batches = (round_.photons + kBatchSize - 1) / kBatchSize;
+  const unsigned workers =
+      static_cast<unsigned>(std::min<std::uint64_t>(threads_, batches));
+  std::vector<Accumulator> accumulators(workers);
+  for (Accumulator& acc : accumulators) acc.reset(coefficient_count_ * static_cast<std::size_t>(channels_));
+
+  std::atomic<std::uint64_t> next_batch{0};
+  std::atomic<std::uint64_t> photons_done{0};
+  std::atomic<bool> aborted{false};
+  // Paths are recorded per batch (the first batches of the round) and joined in batch order.
+  const std::uint64_t path_batches = std::min<std::uint64_t>(batches, (path_limit_ + kBatchSize - 1) / kBatchSize);
+  std::vector<std::vector<PhotonPath>> batch_paths(path_batches);
+  auto work = [&](Accumulator& acc, bool reports) {
+    Clock::time_point last_report = Clock::now();
+    for (;;) {
+      if (cancel != nullptr && cancel->load(std::memory_order_relaxed)) {
+        aborted.store(true);
+        return;
+      }
+      const std::uint64_t batch = next_batch.fetch_add(1);
+      if (batch >= batches) return;
+      const std::uint64_t first = batch * kBatchSize;
+      const std::uint64_t count = std::min(kBatchSize, round_.photons - first);
+      std::vector<PhotonPath>* paths = nullptr;
+      std::size_t limit = 0;
+      if (batch < path_batches) {
+        paths = &batch_paths[batch];
+        limit = static_cast<std::size_t>(std::min<std::uint64_t>(count, path_limit_ - first));
+        paths->reserve(limit);
+      }
+      shoot_batch(batch, count, acc, paths, limit);
+      photons_done.fetch_add(count, std::memory_order_relaxed);
+      if (reports && progress && seconds_since(last_report) >= progress_interval) {
+        last_report = Clock::now();
+        SolverProgress p = this->progress();
+        p.photons += photons_done.load(std::memory_order_relaxed);
+        p.seconds += seconds_since(start);
+        progress(p);
+      }
+    }
+  };
+  {
+    std::vector<std::jthread> pool;
+    for (unsigned w = 1; w < workers; ++w) pool.emplace_back(work, std::ref(accumulators[w]), false);
+    work(accumulators[0], true);
+  }
+  seconds_ += seconds_since(start);
+  if (aborted.load()) {
+    stop_reason_ = StopReason::Cancelled;
+    return false;
+  }
+  end_round(accumulators);
+  paths_.clear();
+  for (std::vector<PhotonPath>& batch : batch_paths) paths_.insert(paths_.end(), batch.begin(), batch.end());
+  if (progress) progress(this->progress());
+  return true;
+}
+
+void Solver::run(const std::atomic<bool>* cancel, const ProgressCallback& progress,
+                 double progress_interval) {
+  while (step_round(cancel, progress, progress_interval)) {
+  }
+}
+
+EnergyBooks Solver::books() const {
+  EnergyBooks books;
+  for (int ch = 0; ch < channels_; ++ch) {
+    books.emitted += emitted_[static_cast<std::size_t>(ch)];
+    books.absorbed += absorbed_[static_cast<std::size_t>(ch)];
+    books.escaped += escaped_[static_cast<std::size_t>(ch)];
+  }
+  for (double value : unshot_) books.unshot += value;
+  return books;
+}
+
+SolverProgress Solver::progress() const {
+  SolverProgress p;
+  p.photons = photons_shot_;
+  p.budget = settings_.photons;
+  p.rounds = rounds_;
+  p.unshot_fraction = books().unshot / emitted_total_;
+  p.seconds = seconds_;
+  return p;
+}
+
+std::vector<double> Solver::radiosity_coefficients(std::uint32_t curve, Side side) const {
+  const std::uint32_t offset = block_offset(curve, side);
+  if (offset == kNoBlock) return {};
+  const auto channels = static_cast<std::size_t>(channels_);
+  const CurveStorage& storage = storage_[curve];
+  const Spectrum& rho = block_reflectivity_[curve * 2 + static_cast<std::uint32_t>(side)];
+  std::vector<double> coefficients(storage.basis.size() * channels);
+  // Lumped estimate: reflected power per unit length b_k = rho p_k / integral(phi_k ds).
+  for (std::size_t k = 0; k < storage.basis.size(); ++k)
+    for (std::size_t ch = 0; ch < channels; ++ch)
+      coefficients[k * channels + ch] =
+          rho[ch] * received_[(offset + k) * channels + ch] / storage.basis_length[k];
+  return coefficients;
+}
+
+Spectrum Solver::radiosity(std::uint32_t curve, Side side, double u) const {
+  Spectrum result{};
+  const std::uint32_t offset = block_offset(curve, side);
+  if (offset == kNoBlock) return result;
+  const auto channels = static_cast<std::size_t>(channels_);
+  const CurveStorage& storage = storage_[curve];
+  const Spectrum& rho = block_reflectivity_[curve * 2 + static_cast<std::uint32_t>(side)];
+  std::array<double, SplineBasis::kMaxDegree + 1> phi{};
+  const std::size_t first = storage.basis.evaluate(u, phi.data());
+  for (std::size_t ch = 0; ch < channels; ++ch) {
+    double reflected = 0.0;
+    for (int j = 0; j <= storage.basis.degree(); ++j) {
+      const std::size_t k = first + static_cast<std::size_t>(j);
+      reflected += phi[static_cast<std::size_t>(j)] * received_[(offset + k) * channels + ch] /
+                   storage.basis_length[k];
+    }
+    result[ch] = scene_->curves[curve].emittance[ch] + rho[ch] * reflected;
+  }
+  return result;
+}
+
+}  // namespace flatland

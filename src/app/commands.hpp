@@ -1,0 +1,40 @@
+// The subcommands of the flatland executable. Each adds its options to the parser and runs;
+// exit codes: 0 success, 1 internal failure, 2 bad input (one-line message), 130 interrupted.
+#pragma once
+
+#include <atomic>
+#include <string>
+
+#include <CLI/CLI.hpp>
+
+#include "flatland/solver.hpp"
+
+namespace flatland::app {
+
+inline constexpr int kExitOk = 0;
+inline constexpr int kExitFailure = 1;
+inline constexpr int kExitUsage = 2;
+inline constexpr int kExitInterrupted = 130;
+
+// Set by SIGINT / SIGTERM; long work checks it between batches.
+std::atomic<bool>& interrupt_flag();
+
+struct SolveOptions {
+  std::string scene;
+  std::string photons = "1e6";  // parsed by parse_count, so "1e6" and "250000" both work
+  SolverSettings settings;
+  std::string basis = "cubic";
+  int samples = 100;
+  std::string out;
+  std::string picture;
+  bool quiet = false;
+};
+
+CLI::App* add_solve_command(CLI::App& parent, SolveOptions& options);
+int run_solve(SolveOptions& options);
+
+// "1e6", "250000", "2.5e5" -> 250000; anything not a whole number in [1, 2^53] is an error
+// naming the option.
+Result<std::uint64_t> parse_count(const std::string& text, const std::string& option);
+
+}  // namespace flatland::app

@@ -1,0 +1,74 @@
+// Where illumination lives: along each curve, a spline of degree p (0 constant, 1 linear, 3 cubic)
+// in the curve parameter u = segment index + t, written in a B-spline basis {phi_k}.
+//
+// The knot multiplicity at a node encodes the continuity chosen there: multiplicity m gives
+// C^(p-m), so for cubics m = 2 is C1, 3 is C0 and 4 is C-1 (a value jump); a linear spline is C0
+// at single knots and jumps at double ones; a constant spline jumps everywhere. B-splines are
+// nonnegative and sum to one, so deposits weighted by phi_k(u) conserve energy exactly and
+// nonnegative coefficients give a nonnegative function.
+#pragma once
+
+#include <cstddef>
+#include <span>
+#include <vector>
+
+#include "flatland/scene.hpp"
+
+namespace flatland {
+
+enum class BasisKind { Constant = 0, Linear = 1, Cubic = 3 };
+
+const char* to_string(BasisKind kind);
+inline int degree_of(BasisKind kind) { return static_cast<int>(kind); }
+
+// A node of the storage mesh: an interior breakpoint in u and the continuity wanted there.
+struct MeshNode {
+  double u = 0.0;
+  Continuity continuity = Continuity::C1;
+};
+
+class SplineBasis {
+ public:
+  static constexpr int kMaxDegree = 3;
+
+  SplineBasis() = default;
+  // Breakpoints run from u_begin to u_end; `nodes` are the interior ones, increasing.
+  SplineBasis(int degree, double u_begin, double u_end, std::span<const MeshNode> nodes);
+
+  int degree() const { return degree_; }
+  std::size_t size() const { return size_; }
+  const std::vector<double>& knots() const { return knots_; }
+  double u_begin() const { return knots_.front(); }
+  double u_end() const { return knots_.back(); }
+
+  // The degree+1 basis functions that may be nonzero at u (clamped into [u_begin, u_end]):
+  // writes phi_first(u) .. phi_(first+degree)(u) into values and returns first.
+  std::size_t evaluate(double u, double* values) const;
+
+  // The multiplicity a node of the given continuity gets in a spline of this degree.
+  static int multiplicity(int degree, Continuity continuity);
+
+ private:
+  std::size_t find_span(double u) const;
+
+  int degree_ = 0;
+  std::size_t size_ = 0;
+  std::vector<double> knots_;
+};
+
+// The storage mesh of one curve: its basis and the integrals of each basis function over arc
+// length (the lumped "areas" that turn deposited power into power per unit length).
+struct CurveStorage {
+  SplineBasis basis;
+  std::vector<double> basis_length;  // integral of phi_k ds over the curve
+  std::vector<MeshNode> nodes;       // interior nodes (joints and element boundaries)
+};
+
+// About `elements` elements per curve, shared among its segments in proportion to their arc
+// length (at least one each) and of equal arc length within a segment. Joints take the curve's
+// joint continuity; element boundaries inside a segment are C1 (the most a piecewise cubic with
+// selected discontinuities offers).
+CurveStorage build_curve_storage(const Scene& scene, const Curve& curve, BasisKind kind,
+                                 int elements);
+
+}  // namespace flatland

@@ -1,0 +1,35 @@
+// The result file of `flatland solve` (format "flatland_result": 1, docs/result-format.md) and the
+// atomic file writing every output goes through.
+#pragma once
+
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "flatland/result.hpp"
+#include "flatland/scene.hpp"
+#include "flatland/solver.hpp"
+
+namespace flatland {
+
+// A point of a curve found by arc length: the segment, its parameter, the curve parameter
+// u = segment index + t, and the position.
+struct CurvePoint {
+  std::uint32_t segment_in_curve = 0;
+  double t = 0.0;
+  double u = 0.0;
+  Vec2 position;
+};
+CurvePoint point_at_arc_length(const Scene& scene, const Curve& curve, double s);
+
+// Radiosity as JSON: a number for grey scenes, [r,g,b] for colour ones.
+nlohmann::json spectrum_to_json(const Spectrum& value, int channels);
+
+// The whole result document: scene, settings, stats and K samples per curve at s_j = (j+0.5) L/K.
+nlohmann::json result_to_json(const Solver& solver, int samples_per_curve);
+
+// Writes `contents` to a temporary file beside `path`, then renames it over `path`: a failed or
+// interrupted write never leaves a partial file. The error names the path and the reason.
+Status write_file_atomically(const std::string& path, const std::string& contents);
+
+}  // namespace flatland

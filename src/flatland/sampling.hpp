@@ -1,0 +1,94 @@
+// Random numbers and the samplers of the shooter, in Sample / Pdf / Invert sets.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "flatland/vec2.hpp"
+
+namespace flatland {
+
+// SplitMix64 (Steele, Lea, Flood 2014): a bijective mixer, used to seed streams.
+constexpr std::uint64_t splitmix64(std::uint64_t& state) {
+  std::uint64_t z = (state += 0x9e3779b97f4a7c15ull);
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+  return z ^ (z >> 31);
+}
+
+// xoshiro256** (Blackman, Vigna 2018). A stream is named by (seed, a, b) — for the solver the
+// round and the batch — so any batch of any run can be replayed on its own, on any thread.
+class Rng {
+ public:
+  Rng(std::uint64_t seed, std::uint64_t stream_a, std::uint64_t stream_b) {
+    std::uint64_t mix = seed;
+    const std::uint64_t key = splitmix64(mix) ^ (stream_a * 0xd1342543de82ef95ull);
+    mix = key;
+    const std::uint64_t key2 = splitmix64(mix) ^ (stream_b * 0x9e3779b97f4a7c15ull);
+    mix = key2;
+    for (auto& word : state_) word = splitmix64(mix);
+  }
+
+  std::uint64_t next() {
+    const std::uint64_t result = rotl(state_[1] * 5, 7) * 9;
+    const std::uint64_t t = state_[1] << 17;
+    state_[2] ^= state_[0];
+    state_[3] ^= state_[1];
+    state_[1] ^= state_[2];
+    state_[0] ^= state_[3];
+    state_[2] ^= t;
+    state_[3] = rotl(state_[3], 45);
+    return result;
+  }
+
+  // Uniform in [0, 1) with 53 random bits.
+  double uniform() { return static_cast<double>(next() >> 11) * 0x1.0p-53; }
+  // Uniform in (0, 1): never exactly 0, so a sampled curve parameter never lands on a joint.
+  double uniform_open() { return (static_cast<double>(next() >> 11) + 0.5) * 0x1.0p-53; }
+
+ private:
+  static constexpr std::uint64_t rotl(std::uint64_t x, int k) { return (x << k) | (x >> (64 - k)); }
+  std::uint64_t state_[4];
+};
+
+// Diffuse emission in 2D: the angle theta from the normal has pdf cos(theta)/2 on [-pi/2, pi/2]
+// and CDF (1 + sin theta)/2, so sin theta = 2u - 1. Without trigonometry:
+// dir = s * tangent + sqrt(1 - s^2) * normal with s = 2u - 1. (The 3D rule cos theta = sqrt(u)
+// would put zero density along the normal.)
+inline Vec2 square_to_diffuse(double u, Vec2 normal) {
+  const double s = 2.0 * u - 1.0;
+  const double c = std::sqrt(std::fmax(0.0, 1.0 - s * s));
+  const Vec2 tangent{normal.y, -normal.x};  // normal rotated -90 degrees
+  return s * tangent + c * normal;
+}
+// Density per radian of a direction; zero behind the surface.
+inline double square_to_diffuse_pdf(Vec2 normal, Vec2 direction) {
+  return std::fmax(0.0, dot(normal, direction)) * 0.5;
+}
+// The u that square_to_diffuse maps to the given direction (in front of the surface).
+inline double square_to_diffuse_invert(Vec2 normal, Vec2 direction) {
+  const Vec2 tangent{normal.y, -normal.x};
+  return 0.5 * (dot(tangent, direction) + 1.0);
+}
+
+// A discrete distribution by prefix sums and binary search; weights must be finite and >= 0.
+class DiscreteDistribution {
+ public:
+  DiscreteDistribution() = default;
+  explicit DiscreteDistribution(std::span<const double> weights) { assign(weights); }
+  void assign(std::span<const double> weights);
+
+  double total() const { return total_; }
+  bool empty() const { return !(total_ > 0.0); }
+  std::size_t size() const { return cumulative_.size(); }
+  // Index i with probability weights[i] / total (u in [0,1)); never an index of zero weight.
+  std::size_t sample(double u) const;
+  double pmf(std::size_t i) const;
+
+ private:
+  std::vector<double> cumulative_;  // inclusive prefix sums
+  double total_ = 0.0;
+};
+
+}  // namespace flatland

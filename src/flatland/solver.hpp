@@ -1,0 +1,186 @@
+// Progressive Monte Carlo shooting (DESIGN.md section 5), as a steppable, observable object that the
+// command line, the viewer and the tests all drive.
+//
+// A round shoots the current unshot power with photons of equal power: it picks a source (a side of
+// a curve) with probability proportional to its unshot power, a position on it uniformly in arc
+// length, a diffuse direction, and traces the photon to its nearest hit, where the power is
+// deposited on the receiver's storage basis (weights phi_k(u), summing to one). After the round
+// the unshot power becomes rho times what was received, and the next round shoots that, until it
+// falls below tolerance x emitted power or the photon budget is spent.
+//
+// Determinism: photon i of a round belongs to batch i / kBatchSize, whose random stream is named
+// by (seed, round, batch). Deposits are accumulated in 64-bit fixed point (units of 2^-k of the
+// round's power, k chosen so the round cannot overflow), and integer addition does not depend on
+// order, so any number of threads gives bit-identical results.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "flatland/basis.hpp"
+#include "flatland/bvh.hpp"
+#include "flatland/result.hpp"
+#include "flatland/sampling.hpp"
+#include "flatland/scene.hpp"
+
+namespace flatland {
+
+struct SolverSettings {
+  std::uint64_t photons = 1'000'000;  // total budget over all rounds
+  std::uint64_t seed = 1;
+  unsigned threads = 0;  // 0: all hardware threads
+  BasisKind basis = BasisKind::Cubic;
+  int elements = 16;        // storage elements per curve (about; at least one per segment)
+  double tolerance = 1e-3;  // stop when unshot power < tolerance x emitted power
+};
+
+// Checks ranges; the message names the setting and the accepted range.
+Status validate(const SolverSettings& settings);
+
+// Power summed over channels. emitted = absorbed + escaped + unshot after every round.
+struct EnergyBooks {
+  double emitted = 0.0;
+  double absorbed = 0.0;
+  double escaped = 0.0;
+  double unshot = 0.0;
+  double imbalance() const { return emitted - (absorbed + escaped + unshot); }
+};
+
+enum class StopReason { Running, Converged, BudgetSpent, Cancelled, BooksUnbalanced };
+const char* to_string(StopReason reason);
+
+struct SolverProgress {
+  std::uint64_t photons = 0;  // shot so far
+  std::uint64_t budget = 0;
+  std::uint32_t rounds = 0;   // completed
+  double unshot_fraction = 1.0;  // unshot / emitted at the start of the current round
+  double seconds = 0.0;          // wall time spent shooting
+};
+using ProgressCallback = std::function<void(const SolverProgress&)>;
+
+// One photon's flight, kept for inspection (the viewer draws these; tests check the samplers).
+struct PhotonPath {
+  Vec2 origin;
+  Vec2 end;          // the hit point, or origin + direction for a photon that escaped
+  bool escaped = false;
+  std::uint32_t source_curve = 0;
+  Side source_side = Side::Front;
+  std::uint32_t source_segment = 0;  // index into Scene::segments
+  double source_t = 0.0;
+  std::uint32_t hit_curve = 0;       // meaningless when escaped
+  Side hit_side = Side::Front;
+  Spectrum power{};                  // power carried (channels as in the scene)
+};
+
+class Solver {
+ public:
+  static constexpr std::uint64_t kBatchSize = 4096;
+
+  static Result<Solver> create(const Scene& scene, const SolverSettings& settings);
+
+  // Shoot one whole round; returns false (and does nothing) once the solve has stopped.
+  // `progress` is called from the calling thread about every `progress_interval` seconds.
+  bool step_round(const std::atomic<bool>* cancel = nullptr, const ProgressCallback& progress = {},
+                  double progress_interval = 0.25);
+  // Rounds until converged, budget spent or cancelled.
+  void run(const std::atomic<bool>* cancel = nullptr, const ProgressCallback& progress = {},
+           double progress_interval = 0.25);
+
+  bool stopped() const { return stop_reason_ != StopReason::Running; }
+  StopReason stop_reason() const { return stop_reason_; }
+  const std::string& books_error() const { return books_error_; }
+
+  const Scene& scene() const { return *scene_; }
+  const SolverSettings& settings() const { return settings_; }
+  unsigned thread_count() const { return threads_; }
+  std::uint64_t photons_shot() const { return photons_shot_; }
+  std::uint32_t rounds() const { return rounds_; }
+  double seconds() const { return seconds_; }
+  EnergyBooks books() const;
+  SolverProgress progress() const;
+
+  // Keep the paths of the first `count` photons of every round (0, the default, keeps none).
+  void record_paths(std::size_t count) { path_limit_ = count; }
+  // Paths of the last completed round, in photon order.
+  const std::vector<PhotonPath>& paths() const { return paths_; }
+
+  // Storage of each curve (basis, integrals of the basis functions over arc length).
+  const CurveStorage& storage(std::uint32_t curve) const { return storage_[curve]; }
+  bool has_side(std::uint32_t curve, Side side) const;
+  // Radiosity coefficients of a curve side (lumped estimate): coefficient k, channel c at
+  // [k * channels + c]; B(u) = E + sum_k b_k phi_k(u). Empty for a side that does not reflect.
+  std::vector<double> radiosity_coefficients(std::uint32_t curve, Side side) const;
+  // Radiosity (emitted + reflected power per unit length) leaving a side at curve parameter u.
+  Spectrum radiosity(std::uint32_t curve, Side side, double u) const;
+
+ private:
+  Solver() = default;
+
+  struct SegmentInfo {
+    std::uint32_t curve = 0;
+    std::uint32_t index_in_curve = 0;
+    SegmentKind kind = SegmentKind::Line;
+    Vec2 line_tangent;  // unit tangent of a straight segment
+  };
+  // Integer deposits of one thread during one round.
+  struct Accumulator {
+    std::vector<std::int64_t> received;  // [coefficient * channels + channel]
+    std::array<std::int64_t, 3> escaped{};
+    std::array<std::int64_t, 3> black{};  // absorbed by sides that do not reflect
+    std::array<std::int64_t, 3> shot{};
+    void reset(std::size_t size);
+  };
+  struct Round {
+    std::uint64_t photons = 0;
+    double scale = 0.0;  // fixed-point units per unit of power
+    DiscreteDistribution sources;  // over blocks (curve * 2 + side)
+    std::vector<std::array<std::int64_t, 3>> photon_units;  // per block
+  };
+
+  static constexpr std::uint32_t kNoBlock = 0xffffffffu;
+  std::uint32_t block_offset(std::uint32_t curve, Side side) const {
+    return block_offset_[curve * 2 + static_cast<std::uint32_t>(side)];
+  }
+  bool begin_round();
+  void shoot_batch(std::uint64_t batch, std::uint64_t count, Accumulator& accumulator,
+                   std::vector<PhotonPath>* paths, std::size_t path_limit) const;
+  void end_round(std::span<const Accumulator> accumulators);
+  std::uint64_t photons_for_round(double unshot) const;
+
+  const Scene* scene_ = nullptr;
+  SolverSettings settings_;
+  unsigned threads_ = 1;
+  int channels_ = 1;
+  SegmentAccelerator accelerator_;
+  std::vector<SegmentInfo> segment_info_;
+  std::vector<DiscreteDistribution> segment_choice_;  // per curve, by segment length
+  std::vector<CurveStorage> storage_;
+  std::vector<std::uint32_t> block_offset_;  // first coefficient of each (curve, side), or kNoBlock
+  std::vector<Spectrum> block_reflectivity_;
+  std::size_t coefficient_count_ = 0;
+
+  std::vector<double> received_;  // all rounds, [coefficient * channels + channel]
+  std::vector<double> unshot_;    // current pool, same layout
+  Spectrum emitted_{};
+  Spectrum absorbed_{};
+  Spectrum escaped_{};
+  double emitted_total_ = 0.0;
+  double initial_ratio_ = 0.5;
+  double previous_unshot_ = 0.0;
+  Round round_;
+  std::size_t path_limit_ = 0;
+  std::vector<PhotonPath> paths_;
+
+  std::uint64_t photons_shot_ = 0;
+  std::uint32_t rounds_ = 0;
+  double seconds_ = 0.0;
+  double current_unshot_fraction_ = 1.0;
+  StopReason stop_reason_ = StopReason::Running;
+  std::string books_error_;
+};
+
+}  // namespace flatland
