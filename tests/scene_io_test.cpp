@@ -1,1 +1,830 @@
+// Scene files and derived scene data: every default, every error path (with its location in the
+// text), the example scenes, and a fuzz run that must never crash or throw.
 #include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <functional>
+#include <numbers>
+#include <random>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "flatland/scene.hpp"
+
+namespace flatland {
+namespace {
+
+using Json = nlohmann::ordered_json;
+
+const std::string kSourceDir = FLATLAND_SOURCE_DIR;
+
+// A valid grey scene: a lamp above a floor.
+constexpr const char* kMinimal = R"({
+  "flatland": 1,
+  "materials": {"lamp": {"emittance": 1}, "wall": {"reflectivity": 0.5}},
+  "curves": [
+    {"id": "lamp", "material": "lamp", "line": [[1, 1], [0, 1]]},
+    {"id": "floor", "material": "wall", "line": [[0, 0], [1, 0]]}
+  ]
+})";
+
+Result<Scene> parse(std::string_view text) { return parse_scene(text, "test.json"); }
+
+// The minimal scene after an edit of its JSON value.
+std::string edited(const std::function<void(Json&)>& edit) {
+  Json j = Json::parse(kMinimal);
+  edit(j);
+  return j.dump();
+}
+
+// The error message of a text that must fail, checked for the one-line "test.json..." shape.
+std::string error_of(std::string_view text) {
+  const Result<Scene> r = parse(text);
+  if (r.ok()) {
+    ADD_FAILURE() << "expected an error for: " << text;
+    return "";
+  }
+  const std::string& message = r.error().message;
+  EXPECT_EQ(message.rfind("test.json", 0), 0u) << message;
+  EXPECT_EQ(message.find('\n'), std::string::npos) << message;
+  return message;
+}
+
+#define EXPECT_CONTAINS(haystack, needle)                                             \
+  do {                                                                                \
+    const std::string haystack_ = (haystack);                                         \
+    EXPECT_NE(haystack_.find(needle), std::string::npos)                              \
+        << "message: " << haystack_ << "\nexpected to contain: " << (needle);         \
+  } while (false)
+
+// Lengths by brute force: the sum of many chords converges to the arc length as O(h^2).
+double chord_length(const Cubic& c, int chords) {
+  double total = 0.0;
+  Vec2 previous = evaluate(c, 0.0);
+  for (int k = 1; k <= chords; ++k) {
+    const Vec2 next = evaluate(c, k / double(chords));
+    total += length(next - previous);
+    previous = next;
+  }
+  return total;
+}
+
+// ------------------------------------------------------------------------------------------------
+// Defaults
+
+TEST(SceneIo, MinimalSceneAndDefaults) {
+  const Result<Scene> r = parse_scene(kMinimal, "some/dir/my_room.json");
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  const Scene& s = *r;
+  EXPECT_EQ(s.name, "my_room");  // file stem when "name" is absent
+  EXPECT_EQ(s.source, "some/dir/my_room.json");
+  EXPECT_EQ(s.description, "");
+  EXPECT_EQ(s.channels, 1);
+  ASSERT_EQ(s.materials.size(), 2u);
+  EXPECT_EQ(s.materials[0].name, "lamp");  // file order
+  EXPECT_EQ(s.materials[1].name, "wall");
+  // Defaults: reflectivity 0 and emittance 0, broadcast to all three channels.
+  EXPECT_EQ(s.materials[0].reflectivity, (Spectrum{0, 0, 0}));
+  EXPECT_EQ(s.materials[0].emittance, (Spectrum{1, 1, 1}));
+  EXPECT_EQ(s.materials[1].reflectivity, (Spectrum{0.5, 0.5, 0.5}));
+  EXPECT_EQ(s.materials[1].emittance, (Spectrum{0, 0, 0}));
+  ASSERT_EQ(s.curves.size(), 2u);
+  EXPECT_EQ(s.curves[0].id, "lamp");
+  EXPECT_EQ(s.curves[0].material, 0u);
+  EXPECT_EQ(s.curves[1].material, 1u);
+  EXPECT_EQ(s.curves[0].sides, Sides::Front);
+  EXPECT_EQ(s.curves[0].kind, SegmentKind::Line);
+  EXPECT_EQ(s.curves[0].emittance, (Spectrum{1, 1, 1}));  // the material's
+  EXPECT_EQ(s.curves[1].emittance, (Spectrum{0, 0, 0}));
+  EXPECT_TRUE(s.curves[0].joints.empty());
+  EXPECT_FALSE(s.has_cubics());
+}
+
+TEST(SceneIo, NameAndDescription) {
+  const Result<Scene> r = parse(edited([](Json& j) {
+    j["name"] = "Lamp over floor";
+    j["description"] = "two lines";
+  }));
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  EXPECT_EQ(r->name, "Lamp over floor");
+  EXPECT_EQ(r->description, "two lines");
+  // No file stem at all: a generic name.
+  const Result<Scene> unnamed = parse_scene(kMinimal, "");
+  ASSERT_TRUE(unnamed.ok());
+  EXPECT_EQ(unnamed->name, "scene");
+}
+
+TEST(SceneIo, ColourWhenAnyValueIsAnArray) {
+  // One [r,g,b] anywhere (here a curve override) makes the scene colour; greys are broadcast.
+  const Result<Scene> r = parse(edited([](Json& j) { j["curves"][1]["emittance"] = {0.0, 0.25, 0.0}; }));
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  EXPECT_EQ(r->channels, 3);
+  EXPECT_EQ(r->materials[1].reflectivity, (Spectrum{0.5, 0.5, 0.5}));
+  EXPECT_EQ(r->curves[1].emittance, (Spectrum{0.0, 0.25, 0.0}));
+  const Result<Scene> reflect = parse(edited([](Json& j) {
+    j["materials"]["wall"]["reflectivity"] = {0.1, 0.2, 0.3};
+  }));
+  ASSERT_TRUE(reflect.ok());
+  EXPECT_EQ(reflect->channels, 3);
+  EXPECT_EQ(reflect->materials[1].reflectivity, (Spectrum{0.1, 0.2, 0.3}));
+  EXPECT_EQ(reflect->materials[0].emittance, (Spectrum{1, 1, 1}));
+}
+
+TEST(SceneIo, CurveEmittanceOverridesTheMaterial) {
+  const Result<Scene> r = parse(edited([](Json& j) { j["curves"][0]["emittance"] = 3.5; }));
+  ASSERT_TRUE(r.ok());
+  EXPECT_EQ(r->curves[0].emittance, (Spectrum{3.5, 3.5, 3.5}));
+  EXPECT_EQ(r->materials[0].emittance, (Spectrum{1, 1, 1}));
+}
+
+TEST(SceneIo, Sides) {
+  for (const auto& [text, sides] : std::vector<std::pair<std::string, Sides>>{
+           {"front", Sides::Front}, {"back", Sides::Back}, {"both", Sides::Both}}) {
+    const Result<Scene> r = parse(edited([&](Json& j) { j["curves"][1]["sides"] = text; }));
+    ASSERT_TRUE(r.ok());
+    EXPECT_EQ(r->curves[1].sides, sides);
+  }
+  Curve c;
+  c.sides = Sides::Back;
+  EXPECT_FALSE(c.has_side(Side::Front));
+  EXPECT_TRUE(c.has_side(Side::Back));
+}
+
+TEST(SceneIo, DefaultJointsFollowTangentContinuity) {
+  // A polyline: collinear vertices join with C1, corners and reversals with a jump.
+  const Result<Scene> r = parse(edited([](Json& j) {
+    j["curves"][1]["line"] = Json::parse("[[0,0],[1,0],[2,0],[2,1],[2,0.5]]");
+  }));
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  EXPECT_EQ(r->curves[1].joints,
+            (std::vector<Continuity>{Continuity::C1, Continuity::Jump, Continuity::Jump}));
+  // A Bezier chain: the joint is C1 where the handles are collinear, a jump at a corner.
+  const Result<Scene> b = parse(edited([](Json& j) {
+    j["curves"][1].erase("line");
+    j["curves"][1]["bezier"] = Json::parse(
+        "[[0,0],[1,0],[2,1],[3,1], [4,1],[5,0],[6,0], [6,1],[7,1],[8,1]]");
+  }));
+  ASSERT_TRUE(b.ok()) << b.error().message;
+  EXPECT_EQ(b->curves[1].joints, (std::vector<Continuity>{Continuity::C1, Continuity::Jump}));
+  // Tangent continuity is tested on directions, so unequal handle lengths still give C1, and a
+  // coincident handle (P2 == P3) uses the limiting tangent from inside the segment.
+  const Result<Scene> h = parse(edited([](Json& j) {
+    j["curves"][1].erase("line");
+    j["curves"][1]["bezier"] = Json::parse("[[0,0],[1,1],[2,0],[2,0], [2,0],[3,-1],[4,-1]]");
+  }));
+  ASSERT_TRUE(h.ok()) << h.error().message;
+  EXPECT_EQ(h->curves[1].joints, (std::vector<Continuity>{Continuity::C1}));
+}
+
+TEST(SceneIo, ExplicitJoints) {
+  const Result<Scene> all = parse(edited([](Json& j) {
+    j["curves"][1]["line"] = Json::parse("[[0,0],[1,0],[2,0]]");
+    j["curves"][1]["joints"] = "C-1";
+  }));
+  ASSERT_TRUE(all.ok());
+  EXPECT_EQ(all->curves[1].joints, (std::vector<Continuity>{Continuity::Jump}));
+  const Result<Scene> each = parse(edited([](Json& j) {
+    j["curves"][1]["line"] = Json::parse("[[0,0],[1,0],[1,1],[0,1]]");
+    j["curves"][1]["joints"] = {"C0", "C1"};
+  }));
+  ASSERT_TRUE(each.ok());
+  EXPECT_EQ(each->curves[1].joints, (std::vector<Continuity>{Continuity::C0, Continuity::C1}));
+  // A one-segment curve has no joints: a string applies to none, an empty array is exact.
+  EXPECT_TRUE(parse(edited([](Json& j) { j["curves"][1]["joints"] = "C0"; })).ok());
+  EXPECT_TRUE(parse(edited([](Json& j) { j["curves"][1]["joints"] = Json::array(); })).ok());
+}
+
+// ------------------------------------------------------------------------------------------------
+// Derived data (finalize_scene), checked against independent answers
+
+TEST(Scene, PolylineSegmentsLengthsAndBounds) {
+  const Result<Scene> r = parse(edited([](Json& j) {
+    j["curves"][1]["line"] = Json::parse("[[0,0],[3,0],[3,4]]");
+  }));
+  ASSERT_TRUE(r.ok());
+  const Scene& s = *r;
+  ASSERT_EQ(s.segments.size(), 3u);
+  const Curve& c = s.curves[1];
+  EXPECT_EQ(c.first_segment, 1u);
+  EXPECT_EQ(c.segment_count, 2u);
+  EXPECT_DOUBLE_EQ(c.length, 7.0);
+  ASSERT_EQ(c.segment_start.size(), 3u);
+  EXPECT_DOUBLE_EQ(c.segment_start[0], 0.0);
+  EXPECT_DOUBLE_EQ(c.segment_start[1], 3.0);
+  EXPECT_DOUBLE_EQ(c.segment_start[2], 7.0);
+  const SceneSegment& second = s.segments[2];
+  EXPECT_EQ(second.curve, 1u);
+  EXPECT_EQ(second.index_in_curve, 1u);
+  EXPECT_EQ(second.geometry.kind, SegmentKind::Line);
+  EXPECT_EQ(second.geometry.shape.p[0], (Vec2{3, 0}));
+  EXPECT_EQ(second.geometry.shape.p[3], (Vec2{3, 4}));
+  EXPECT_DOUBLE_EQ(second.length, 4.0);
+  EXPECT_NEAR(second.arc_length.total(), 4.0, 1e-12);
+  EXPECT_GE(second.speed_bound, 4.0 * (1 - 1e-15));  // |C'| of a constant-speed line is its length
+  EXPECT_DOUBLE_EQ(s.segments[0].length, 1.0);
+  // Bounds: union of the segments' boxes, from (0,0) to (3,4); scale = diagonal = 5.
+  EXPECT_EQ(s.bounds.lower, (Vec2{0, 0}));
+  EXPECT_EQ(s.bounds.upper, (Vec2{3, 4}));
+  EXPECT_DOUBLE_EQ(s.scale, 5.0);
+}
+
+TEST(Scene, BezierLengthsMatchChordSums) {
+  // A quarter of the unit circle (the usual 4-point approximation) followed by a straight piece
+  // whose control points are unevenly spaced (length 2 regardless of the spacing).
+  const double k = 0.5522847498307936;
+  const Result<Scene> r = parse(edited([&](Json& j) {
+    j["curves"][1].erase("line");
+    j["curves"][1]["bezier"] = {{1, 0}, {1, k}, {k, 1}, {0, 1}, {-0.1, 1}, {-1.9, 1}, {-2, 1}};
+  }));
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  const Scene& s = *r;
+  EXPECT_TRUE(s.has_cubics());
+  const Curve& c = s.curves[1];
+  ASSERT_EQ(c.segment_count, 2u);
+  const SceneSegment& arc = s.segments[c.first_segment];
+  const SceneSegment& straight = s.segments[c.first_segment + 1];
+  EXPECT_EQ(arc.geometry.kind, SegmentKind::Cubic);
+  EXPECT_NEAR(arc.length, chord_length(arc.geometry.shape, 20000), 1e-8);
+  EXPECT_NEAR(arc.length, std::numbers::pi / 2, 1e-3);  // the approximation is within 3e-4
+  EXPECT_NEAR(straight.length, 2.0, 1e-12);
+  EXPECT_NEAR(c.length, arc.length + 2.0, 1e-12);
+  EXPECT_NEAR(c.segment_start[1], arc.length, 1e-15);
+  EXPECT_EQ(c.joints, (std::vector<Continuity>{Continuity::C1}));
+  // speed_bound bounds |C'| (sampled densely).
+  for (const SceneSegment* seg : {&arc, &straight}) {
+    double fastest = 0.0;
+    for (int i = 0; i <= 1000; ++i) fastest = std::max(fastest, length(derivative(seg->geometry.shape, i / 1000.0)));
+    EXPECT_GE(seg->speed_bound, fastest);
+    EXPECT_LE(seg->speed_bound, 1.1 * fastest);
+  }
+  // Bounds include the control points' boxes.
+  EXPECT_LE(s.bounds.lower.x, -2.0);
+  EXPECT_GE(s.bounds.upper.x, 1.0);
+}
+
+TEST(Scene, EmittedPowerCountsLengthSidesAndChannels) {
+  // Grey: lamp of length 2 with E = 1.5 emitting from both sides: 2 * 2 * 1.5 = 6.
+  const Result<Scene> grey = parse(edited([](Json& j) {
+    j["curves"][0]["line"] = Json::parse("[[2,1],[0,1]]");
+    j["curves"][0]["emittance"] = 1.5;
+    j["curves"][0]["sides"] = "both";
+  }));
+  ASSERT_TRUE(grey.ok());
+  EXPECT_TRUE(grey->is_emitter(grey->curves[0]));
+  EXPECT_FALSE(grey->is_emitter(grey->curves[1]));
+  EXPECT_DOUBLE_EQ(grey->emitted_power(), 6.0);
+  // Colour: E = [1, 2, 3] on a unit line, one side: 1 + 2 + 3 = 6.
+  const Result<Scene> colour = parse(edited([](Json& j) {
+    j["materials"]["lamp"]["emittance"] = {1, 2, 3};
+  }));
+  ASSERT_TRUE(colour.ok());
+  EXPECT_EQ(colour->channels, 3);
+  EXPECT_DOUBLE_EQ(colour->emitted_power(), 6.0);
+  // A grey scene counts channel 0 only, though all three hold the value.
+  const Result<Scene> one = parse(kMinimal);
+  ASSERT_TRUE(one.ok());
+  EXPECT_DOUBLE_EQ(one->emitted_power(), 1.0);
+  // An emitter is a curve with positive emittance in a used channel.
+  Scene s = *colour;
+  s.curves[0].emittance = {0.0, 0.0, 0.5};
+  EXPECT_TRUE(s.is_emitter(s.curves[0]));
+  s.channels = 1;
+  EXPECT_FALSE(s.is_emitter(s.curves[0]));
+}
+
+TEST(Scene, FinalizeAHandBuiltScene) {
+  Scene s;
+  s.materials.push_back(Material{"m", {0.5, 0.5, 0.5}, {1, 1, 1}});
+  Curve c;
+  c.id = "c";
+  c.kind = SegmentKind::Cubic;
+  c.points = {{0, 0}, {1, 0}, {2, 0}, {3, 0}, {3, 1}, {3, 2}, {3, 3}};
+  s.curves.push_back(c);
+  ASSERT_TRUE(finalize_scene(s).ok());
+  EXPECT_EQ(s.curves[0].joints, (std::vector<Continuity>{Continuity::Jump}));  // filled in
+  EXPECT_DOUBLE_EQ(s.curves[0].length, 6.0);
+  // Finalizing twice gives the same segments (the viewer re-finalizes after edits).
+  ASSERT_TRUE(finalize_scene(s).ok());
+  EXPECT_EQ(s.segments.size(), 2u);
+  // Wrong joint count, bad material index, malformed chain: errors that name the field.
+  Scene bad = s;
+  bad.curves[0].joints = {Continuity::C0, Continuity::C0};
+  EXPECT_CONTAINS(finalize_scene(bad).error().message, "curves[0].joints: expected 1 entries");
+  bad = s;
+  bad.curves[0].material = 7;
+  EXPECT_CONTAINS(finalize_scene(bad).error().message, "curves[0].material:");
+  bad = s;
+  bad.curves[0].points.pop_back();
+  EXPECT_CONTAINS(finalize_scene(bad).error().message, "curves[0].bezier: expected 3k+1 points");
+  bad = s;
+  bad.curves[0].points[1] = {NAN, 0};
+  EXPECT_CONTAINS(finalize_scene(bad).error().message, "curves[0].bezier[1]: coordinates must be finite");
+  bad = s;
+  bad.curves.clear();
+  EXPECT_FALSE(finalize_scene(bad).ok());
+  // Coordinates far from double's limits only.
+  bad = s;
+  bad.curves[0].points[6] = {1.7e308, 0};
+  EXPECT_CONTAINS(finalize_scene(bad).error().message,
+                  "curves[0].bezier[6]: coordinate too large: (1.7e+308, 0); coordinates must lie within +-1e100");
+  bad = s;
+  for (Vec2& p : bad.curves[0].points) p = 1e-102 * p;
+  EXPECT_CONTAINS(finalize_scene(bad).error().message, "curves: the scene is only 4.24264e-102 across");
+  bad = s;
+  for (Vec2& p : bad.curves[0].points) p = 1e99 * p;  // large but valid
+  EXPECT_TRUE(finalize_scene(bad).ok());
+  EXPECT_NEAR(bad.curves[0].length, 6e99, 1e87);
+}
+
+// ------------------------------------------------------------------------------------------------
+// Errors: syntax and structure
+
+TEST(SceneIoErrors, SyntaxErrorHasLineAndColumn) {
+  // The stray comma makes the closing brace on line 3, column 1 unexpected.
+  EXPECT_CONTAINS(error_of("{\n  \"flatland\": 1,\n}"), "test.json:3:1: parse error: ");
+  EXPECT_CONTAINS(error_of(""), "test.json:1:1: parse error: ");
+  EXPECT_CONTAINS(error_of("{\"flatland\": 1} x"), "test.json:1:17: parse error: ");
+  // Columns count characters, not bytes (the e-acute is two bytes in UTF-8).
+  EXPECT_CONTAINS(error_of("{\"\xC3\xA9\": 1 ,,}"), "test.json:1:10: parse error: ");
+  // Nothing of the library's internal prefix leaks into the message.
+  EXPECT_EQ(error_of("[").find("json.exception"), std::string::npos);
+}
+
+TEST(SceneIoErrors, RootMustBeAnObject) {
+  EXPECT_CONTAINS(error_of("[1, 2]"), "test.json:1:1: a scene file must be a JSON object");
+  EXPECT_CONTAINS(error_of("42"), "got a number");
+}
+
+TEST(SceneIoErrors, Version) {
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j.erase("flatland"); })),
+                  "missing \"flatland\": 1, the format version; this program reads version 1");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["flatland"] = 2; })),
+                  "flatland: unsupported format version 2; this program reads version 1 only");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["flatland"] = 1.5; })), "unsupported format version 1.5");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["flatland"] = "1"; })),
+                  "flatland: expected the format version as a number (1), got a string");
+  // A newer file reports its version before complaining about keys it does not know.
+  EXPECT_CONTAINS(error_of(edited([](Json& j) {
+                    j["flatland"] = 2;
+                    j["lights"] = Json::array();
+                  })),
+                  "unsupported format version 2");
+  // 1.0 is the number 1.
+  EXPECT_TRUE(parse(edited([](Json& j) { j["flatland"] = 1.0; })).ok());
+}
+
+TEST(SceneIoErrors, UnknownKeysGetAHint) {
+  EXPECT_CONTAINS(error_of(edited([](Json& j) {
+                    j["curves"][0]["matrial"] = "lamp";
+                    j["curves"][0].erase("material");
+                  })),
+                  "curves[0]: unknown key \"matrial\"; did you mean \"material\"?");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curve"] = Json::array(); })),
+                  "unknown key \"curve\"; did you mean \"curves\"?");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["materials"]["wall"]["reflectivty"] = 0.2; })),
+                  "materials.wall: unknown key \"reflectivty\"; did you mean \"reflectivity\"?");
+  // Nothing close: list what is accepted.
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["materials"]["wall"]["zzzzzzzz"] = 0.2; })),
+                  "unknown key \"zzzzzzzz\"; the keys here are \"reflectivity\", \"emittance\"");
+}
+
+TEST(SceneIoErrors, DuplicateKeys) {
+  EXPECT_CONTAINS(error_of("{\"flatland\": 1,\n \"flatland\": 1}"),
+                  "test.json:2:2: duplicate key \"flatland\" (first at line 1, column 2)");
+  const std::string nested = R"({"flatland": 1, "materials": {"lamp": {"emittance": 1, "emittance": 2}},
+    "curves": [{"id": "a", "material": "lamp", "line": [[0,0],[1,0]]}]})";
+  EXPECT_CONTAINS(error_of(nested), "test.json:1:56: materials.lamp: duplicate key \"emittance\"");
+  // Duplicate material names are duplicate keys too.
+  const std::string names = R"({"flatland": 1, "materials": {"lamp": {"emittance": 1}, "lamp": {}},
+    "curves": [{"id": "a", "material": "lamp", "line": [[0,0],[1,0]]}]})";
+  EXPECT_CONTAINS(error_of(names), "materials: duplicate key \"lamp\"");
+}
+
+TEST(SceneIoErrors, WrongTypes) {
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["name"] = 3; })),
+                  "name: expected the scene's name (a string), got a number");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["description"] = Json::array(); })),
+                  "description: expected a description (a string), got an array");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["materials"] = Json::array(); })),
+                  "materials: expected an object of named materials");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["materials"]["wall"] = 0.5; })),
+                  "materials.wall: expected a material object");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["materials"]["wall"]["reflectivity"] = "0.5"; })),
+                  "materials.wall.reflectivity: expected a number (grey) or [r, g, b] (colour), got a string");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["materials"]["wall"]["reflectivity"] = {0.5, 0.5}; })),
+                  "materials.wall.reflectivity: expected a number (grey) or [r, g, b] (colour), got an array of 2 elements");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["materials"]["wall"]["reflectivity"] = {0.5, nullptr, 0.5}; })),
+                  "materials.wall.reflectivity[1]: expected a number, got null");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"] = Json::object(); })),
+                  "curves: expected an array of curves, got an object");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"][1] = "floor"; })),
+                  "curves[1]: expected a curve object");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"][1]["id"] = 7; })),
+                  "curves[1].id: expected an id (a string), got a number");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"][1]["material"] = true; })),
+                  "curves[1].material: expected a material name (a string), got a boolean");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"][1]["line"] = 1; })),
+                  "curves[1].line: expected an array of points [[x, y], ...], got a number");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"][1]["line"][1] = "x"; })),
+                  "curves[1].line[1]: expected a point [x, y], got a string");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"][1]["line"][1] = {1, 2, 3}; })),
+                  "curves[1].line[1]: expected a point [x, y], got an array of 3 elements");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"][1]["line"][1] = {1, "2"}; })),
+                  "curves[1].line[1][1]: expected a number, got a string");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"][1]["sides"] = 2; })),
+                  "curves[1].sides: expected \"front\", \"back\" or \"both\" (a string), got a number");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"][1]["joints"] = 1; })),
+                  "curves[1].joints: expected \"C1\", \"C0\" or \"C-1\" for every joint");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"][1]["emittance"] = Json::object(); })),
+                  "curves[1].emittance: expected a number (grey) or [r, g, b] (colour), got an object");
+}
+
+TEST(SceneIoErrors, MissingFields) {
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j.erase("materials"); })), "missing \"materials\"");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j.erase("curves"); })), "missing \"curves\"");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"][1].erase("id"); })),
+                  "curves[1]: missing \"id\"; give the curve a unique \"id\"");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"][1].erase("material"); })),
+                  "curves[1]: missing \"material\"");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"][1].erase("line"); })),
+                  "curves[1]: missing geometry; give \"line\"");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"][1]["bezier"] = Json::parse("[[0,0],[1,0],[2,0],[3,0]]"); })),
+                  "curves[1]: has both \"line\" and \"bezier\"; give exactly one");
+}
+
+TEST(SceneIoErrors, EmptyCollectionsAndNames) {
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"] = Json::array(); })),
+                  "curves: the scene has no curves; add at least one");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["materials"] = Json::object(); })),
+                  "materials: no materials defined");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["materials"][""] = Json::object(); })),
+                  "materials[\"\"]: a material name must not be empty");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"][1]["id"] = ""; })),
+                  "curves[1].id: the id must not be empty");
+}
+
+TEST(SceneIoErrors, DuplicateIdsNameBothCurves) {
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"][1]["id"] = "lamp"; })),
+                  "curves[1].id: duplicate id \"lamp\" (curves[0] and curves[1]); give each curve its own id");
+}
+
+TEST(SceneIoErrors, UnknownMaterialSuggestsTheClosest) {
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"][1]["material"] = "wal"; })),
+                  "curves[1].material: unknown material \"wal\"; did you mean \"wall\"? (defined: \"lamp\", \"wall\")");
+  // Transpositions count as one edit.
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"][1]["material"] = "lmap"; })),
+                  "did you mean \"lamp\"?");
+  const std::string far = error_of(edited([](Json& j) { j["curves"][1]["material"] = "concrete"; }));
+  EXPECT_EQ(far.find("did you mean"), std::string::npos) << far;
+  EXPECT_CONTAINS(far, "unknown material \"concrete\" (defined: \"lamp\", \"wall\")");
+}
+
+TEST(SceneIoErrors, ReflectivityAndEmittanceRanges) {
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["materials"]["wall"]["reflectivity"] = 1; })),
+                  "materials.wall.reflectivity: must be below 1: a surface that reflects everything "
+                  "never converges (got 1); use at most 0.99");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["materials"]["wall"]["reflectivity"] = {0.5, 1.25, 0.5}; })),
+                  "materials.wall.reflectivity[1]: must be below 1");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["materials"]["wall"]["reflectivity"] = -0.1; })),
+                  "materials.wall.reflectivity: must be in [0, 1), got -0.1");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["materials"]["lamp"]["emittance"] = -1; })),
+                  "materials.lamp.emittance: must be >= 0 (power per unit length), got -1");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"][0]["emittance"] = {1, -2, 1}; })),
+                  "curves[0].emittance[1]: must be >= 0");
+  // Just below 1 is accepted.
+  EXPECT_TRUE(parse(edited([](Json& j) { j["materials"]["wall"]["reflectivity"] = 0.999999; })).ok());
+}
+
+TEST(SceneIoErrors, NumbersThatOverflowAreRejectedWithTheirPlace) {
+  const std::string text = R"({"flatland": 1, "materials": {"lamp": {"emittance": 1}},
+  "curves": [{"id": "a", "material": "lamp", "line": [[0, 0], [1e999, 0]]}]})";
+  EXPECT_CONTAINS(error_of(text), "test.json:2:64: curves[0].line[1][0]: the number 1e999 is too large "
+                                  "for a double (it overflows to infinity); use a finite value");
+  EXPECT_CONTAINS(error_of(R"({"flatland": 1, "materials": {"lamp": {"emittance": -12.5e400}}})"),
+                  "materials.lamp.emittance: the number -12.5e400 is too large");
+  // Underflow is harmless: it reads as 0.
+  const std::string tiny = R"({"flatland": 1, "materials": {"lamp": {"emittance": 1}},
+  "curves": [{"id": "a", "material": "lamp", "line": [[1e-999, 0], [1, 0]]}]})";
+  EXPECT_TRUE(parse(tiny).ok());
+}
+
+TEST(SceneIoErrors, Lines) {
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"][1]["line"] = Json::parse("[[0,0]]"); })),
+                  "curves[1].line: a line needs at least 2 points, got 1");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"][1]["line"] = Json::parse("[[0,0],[1,0],[1,0]]"); })),
+                  "curves[1].line[2]: coincides with the previous point (line[1]), which would make a "
+                  "zero-length segment; remove one of them");
+  // Nearly coincident (closer than 1e-12 of the scene's size) is caught by finalize_scene.
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"][1]["line"] = Json::parse("[[0,0],[1,0],[1,1e-14]]"); })),
+                  "curves[1].line[2]: coincides with the previous point, so segment 1 has zero length");
+}
+
+TEST(SceneIoErrors, Beziers) {
+  auto with_bezier = [](const char* points) {
+    return edited([&](Json& j) {
+      j["curves"][1].erase("line");
+      j["curves"][1]["bezier"] = Json::parse(points);
+    });
+  };
+  EXPECT_CONTAINS(error_of(with_bezier("[[0,0],[1,0],[2,0],[3,0],[4,0]]")),
+                  "curves[1].bezier: expected 3k+1 points, got 5");
+  EXPECT_CONTAINS(error_of(with_bezier("[[0,0]]")), "curves[1].bezier: expected 3k+1 points, got 1");
+  EXPECT_CONTAINS(error_of(with_bezier("[]")), "curves[1].bezier: expected 3k+1 points, got 0");
+  EXPECT_CONTAINS(error_of(with_bezier("[[2,2],[2,2],[2,2],[2,2]]")),
+                  "curves[1].bezier: all points coincide, so the curve has zero length");
+  EXPECT_CONTAINS(error_of(with_bezier("[[0,0],[1,0],[2,0],[3,0],[3,0],[3,0],[3,0]]")),
+                  "curves[1].bezier[3]: segment 1 (control points 3 to 6) has zero length");
+  // P0=(0,0), P1=(1,1), P2=(0,1), P3=(1,0): C'(1/2) = 3 (d0/4 + d1/2 + d2/4) = 0, a cusp.
+  EXPECT_CONTAINS(error_of(with_bezier("[[0,0],[1,1],[0,1],[1,0]]")),
+                  "curves[1].bezier[0]: segment 0 has a cusp at t = 0.5, point (0.5, 0.75), where the "
+                  "normal flips; split the curve at t = 0.5");
+  // The same cusp in the second segment of a chain is located at that segment's first point.
+  EXPECT_CONTAINS(error_of(with_bezier("[[-3,0],[-2,0],[-1,0],[0,0],[1,1],[0,1],[1,0]]")),
+                  "curves[1].bezier[3]: segment 1 has a cusp at t = 0.5");
+  // Coincident end handles (C'(0) = 0) are not a cusp: the curve is smooth there.
+  EXPECT_TRUE(parse(with_bezier("[[0,0],[0,0],[1,1],[2,0]]")).ok());
+  // A closed loop in one segment (P0 == P3) is fine.
+  EXPECT_TRUE(parse(with_bezier("[[0,0],[1,1],[-1,1],[0,0]]")).ok());
+}
+
+TEST(SceneIoErrors, JointsAndSides) {
+  EXPECT_CONTAINS(error_of(edited([](Json& j) {
+                    j["curves"][1]["line"] = Json::parse("[[0,0],[1,0],[2,0]]");
+                    j["curves"][1]["joints"] = {"C1", "C0"};
+                  })),
+                  "curves[1].joints: expected 1 entry (one per joint between the 2 segments), got 2");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"][1]["joints"] = {"C1"}; })),
+                  "curves[1].joints: expected 0 entries (one per joint between the 1 segment), got 1");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) {
+                    j["curves"][1]["line"] = Json::parse("[[0,0],[1,0],[2,0]]");
+                    j["curves"][1]["joints"] = {"c1"};
+                  })),
+                  "curves[1].joints[0]: unknown continuity \"c1\"; did you mean \"C1\"? (accepted: \"C1\", \"C0\", \"C-1\")");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) {
+                    j["curves"][1]["line"] = Json::parse("[[0,0],[1,0],[2,0]]");
+                    j["curves"][1]["joints"] = {3};
+                  })),
+                  "curves[1].joints[0]: expected \"C1\", \"C0\" or \"C-1\" (a string), got a number");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"][1]["sides"] = "fornt"; })),
+                  "curves[1].sides: unknown value \"fornt\"; did you mean \"front\"? (accepted: \"front\", \"back\", \"both\")");
+}
+
+TEST(SceneIoErrors, NoEmitter) {
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["materials"]["lamp"]["emittance"] = 0; })),
+                  "curves: no curve emits light, so nothing would be lit");
+  // An emitting material that no curve uses does not count.
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"][0]["material"] = "wall"; })),
+                  "nothing would be lit");
+  // A per-curve override can make an emitter out of a non-emitting material.
+  EXPECT_TRUE(parse(edited([](Json& j) {
+                      j["materials"]["lamp"]["emittance"] = 0;
+                      j["curves"][1]["emittance"] = 0.5;
+                    })).ok());
+}
+
+TEST(SceneIoErrors, ValidationErrorsPointAtTheValue) {
+  const std::string text =
+      "{\n"
+      "  \"flatland\": 1,\n"
+      "  \"materials\": {\"lamp\": {\"emittance\": 1}},\n"
+      "  \"curves\": [\n"
+      "    {\"id\": \"a\", \"material\": \"lamp\", \"line\": [[0, 0], [1, 0]]},\n"
+      "    {\"id\": \"b\", \"material\": \"lamp\",\n"
+      "     \"bezier\": [[0, 0], [1, 0], [2, 0], [3, 0], [4, 0]]},\n"
+      "    {\"id\": \"c\", \"matrial\": \"lamp\", \"line\": [[0, 0], [1, 0]]}\n"
+      "  ]\n"
+      "}\n";
+  EXPECT_CONTAINS(error_of(text), "test.json:7:16: curves[1].bezier: expected 3k+1 points, got 5");
+  std::string typo = text;
+  typo.replace(typo.find("[[0, 0], [1, 0], [2, 0], [3, 0], [4, 0]]"), 40, "[[0, 0], [1, 0], [2, 0], [3, 0]]");
+  // Unknown keys point at the key itself.
+  EXPECT_CONTAINS(error_of(typo), "test.json:8:17: curves[2]: unknown key \"matrial\"");
+  // A missing field points at the object that lacks it.
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"][1].erase("id"); })), "test.json:1:");
+}
+
+TEST(SceneIoErrors, KeysThatNeedQuotingInPaths) {
+  const std::string text = R"({"flatland": 1, "materials": {"my lamp": {"emittance": -1}}, "curves": []})";
+  EXPECT_CONTAINS(error_of(text), "test.json:1:56: materials[\"my lamp\"].emittance: must be >= 0");
+  // Escapes in keys are decoded by the position scanner the same way as by the parser.
+  const std::string escaped = R"({"flatland": 1, "materials": {"l\u00e4mp\n": {"emittance": -1}}, "curves": []})";
+  EXPECT_CONTAINS(error_of(escaped), "test.json:1:60: materials[\"l\xC3\xA4mp\\n\"].emittance: must be >= 0");
+}
+
+TEST(SceneIoErrors, DeepNestingIsRejectedWithoutCrashing) {
+  const std::string deep = "{\"flatland\": 1, \"x\": " + std::string(100000, '[') +
+                           std::string(100000, ']') + "}";
+  EXPECT_CONTAINS(error_of(deep), "nested more than 64 deep");
+}
+
+// ------------------------------------------------------------------------------------------------
+// Files
+
+TEST(SceneIoFiles, MissingFileAndDirectory) {
+  const Result<Scene> missing = load_scene("/nonexistent/dir/scene.json");
+  ASSERT_FALSE(missing.ok());
+  EXPECT_EQ(missing.error().message,
+            "/nonexistent/dir/scene.json: cannot read scene file: No such file or directory");
+  const Result<Scene> directory = load_scene(kSourceDir + "/scenes2d");
+  ASSERT_FALSE(directory.ok());
+  EXPECT_CONTAINS(directory.error().message, "scenes2d: is a directory, not a scene file");
+}
+
+TEST(SceneIoFiles, ErrorsFromAFileNameThePath) {
+  const std::string path = kSourceDir + "/scenes2d/tests/typo_key.json";
+  const Result<Scene> r = load_scene(path);
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.error().message, path + ":6:41: curves[1]: unknown key \"emitance\"; did you mean \"emittance\"?");
+}
+
+TEST(SceneIoFiles, EveryExampleSceneLoads) {
+  int count = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(kSourceDir + "/scenes2d")) {
+    if (entry.path().extension() != ".json") continue;
+    const Result<Scene> r = load_scene(entry.path().string());
+    EXPECT_TRUE(r.ok()) << r.error().message;
+    ++count;
+  }
+  EXPECT_GE(count, 5);
+  // The five examples of docs/scene-format.md explain themselves and keep to the documented size.
+  for (const char* name : {"default", "room_reflector", "penumbra", "enclosure", "mixed"}) {
+    const Result<Scene> r = load_scene(kSourceDir + "/scenes2d/" + name + ".json");
+    ASSERT_TRUE(r.ok()) << r.error().message;
+    EXPECT_FALSE(r->description.empty()) << name;
+    EXPECT_GT(r->emitted_power(), 0.0) << name;
+    EXPECT_GT(r->scale, 1.0) << name;
+    EXPECT_LT(r->scale, 20.0) << name;
+  }
+}
+
+TEST(SceneIoFiles, TheDocumentedExampleParses) {
+  // The first ```json block of docs/scene-format.md.
+  std::string doc;
+  {
+    std::FILE* f = std::fopen((kSourceDir + "/docs/scene-format.md").c_str(), "rb");
+    ASSERT_NE(f, nullptr);
+    char buffer[4096];
+    std::size_t got = 0;
+    while ((got = std::fread(buffer, 1, sizeof buffer, f)) > 0) doc.append(buffer, got);
+    std::fclose(f);
+  }
+  const std::size_t start = doc.find("```json\n");
+  ASSERT_NE(start, std::string::npos);
+  const std::size_t end = doc.find("```", start + 8);
+  ASSERT_NE(end, std::string::npos);
+  const Result<Scene> r = parse_scene(doc.substr(start + 8, end - start - 8), "docs/scene-format.md");
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  EXPECT_EQ(r->curves.size(), 3u);
+}
+
+TEST(SceneIoFiles, ExampleScenesHaveTheirDocumentedProperties) {
+  const Result<Scene> room = load_scene(kSourceDir + "/scenes2d/default.json");
+  ASSERT_TRUE(room.ok()) << room.error().message;
+  EXPECT_EQ(room->channels, 3);
+  EXPECT_TRUE(room->has_cubics());
+
+  // Enclosure: one closed counter-clockwise curve of four tangent-continuous cubics, uniform
+  // E = 1 and rho = 0.5; its length is within 0.1% of the ellipse's (a = 2, b = 1) perimeter.
+  const Result<Scene> enclosure = load_scene(kSourceDir + "/scenes2d/enclosure.json");
+  ASSERT_TRUE(enclosure.ok()) << enclosure.error().message;
+  ASSERT_EQ(enclosure->curves.size(), 1u);
+  const Curve& ellipse = enclosure->curves[0];
+  EXPECT_EQ(ellipse.segment_count, 4u);
+  EXPECT_EQ(ellipse.points.front(), ellipse.points.back());
+  EXPECT_EQ(ellipse.joints, std::vector<Continuity>(3, Continuity::C1));
+  EXPECT_NEAR(ellipse.length, 9.688448220547675, 0.01);
+  EXPECT_EQ(enclosure->material_of(ellipse).reflectivity[0], 0.5);
+  EXPECT_EQ(ellipse.emittance[0], 1.0);
+  // Counter-clockwise: the signed area (shoelace over a fine polygon) is positive, so the front
+  // (left of travel) faces inward.
+  double area = 0.0;
+  for (std::uint32_t k = 0; k < ellipse.segment_count; ++k) {
+    const Cubic& c = enclosure->segments[ellipse.first_segment + k].geometry.shape;
+    for (int i = 0; i < 100; ++i) area += 0.5 * cross(evaluate(c, i / 100.0), evaluate(c, (i + 1) / 100.0));
+  }
+  EXPECT_NEAR(area, 2.0 * std::numbers::pi, 0.01);
+
+  // Penumbra: three straight lines, a black emitter of length 1 facing down onto the receiver.
+  const Result<Scene> penumbra = load_scene(kSourceDir + "/scenes2d/penumbra.json");
+  ASSERT_TRUE(penumbra.ok()) << penumbra.error().message;
+  EXPECT_FALSE(penumbra->has_cubics());
+  EXPECT_DOUBLE_EQ(penumbra->emitted_power(), 1.0);
+  const SceneSegment& emitter = penumbra->segments[penumbra->curves[0].first_segment];
+  EXPECT_EQ(unit_normal(emitter.geometry.shape, 0.5, penumbra->scale), (Vec2{0, -1}));
+  const SceneSegment& receiver = penumbra->segments[penumbra->curves[2].first_segment];
+  EXPECT_EQ(unit_normal(receiver.geometry.shape, 0.5, penumbra->scale), (Vec2{0, 1}));
+
+  // Mixed: lines and cubics, a two-sided curve, explicit and default joints, an override.
+  const Result<Scene> mixed = load_scene(kSourceDir + "/scenes2d/mixed.json");
+  ASSERT_TRUE(mixed.ok()) << mixed.error().message;
+  bool two_sided = false;
+  bool line = false;
+  bool cubic = false;
+  for (const Curve& c : mixed->curves) {
+    two_sided = two_sided || c.sides == Sides::Both;
+    line = line || c.kind == SegmentKind::Line;
+    cubic = cubic || c.kind == SegmentKind::Cubic;
+  }
+  EXPECT_TRUE(two_sided && line && cubic);
+}
+
+// ------------------------------------------------------------------------------------------------
+// Fuzzing: mutated text and mutated values never crash, never throw, and fail with one-line
+// messages that name the source.
+
+void expect_well_formed(const std::string& text) {
+  Result<Scene> r = parse_scene(text, "fuzz.json");
+  if (!r.ok()) {
+    const std::string& m = r.error().message;
+    ASSERT_EQ(m.rfind("fuzz.json", 0), 0u) << m;
+    ASSERT_EQ(m.find('\n'), std::string::npos) << m;
+  } else {
+    ASSERT_FALSE(r->segments.empty());
+    ASSERT_GT(r->emitted_power(), 0.0);
+  }
+}
+
+TEST(SceneIoFuzz, MutatedTextNeverCrashes) {
+  std::string base;
+  {
+    std::FILE* f = std::fopen((kSourceDir + "/scenes2d/mixed.json").c_str(), "rb");
+    ASSERT_NE(f, nullptr);
+    char buffer[4096];
+    std::size_t got = 0;
+    while ((got = std::fread(buffer, 1, sizeof buffer, f)) > 0) base.append(buffer, got);
+    std::fclose(f);
+  }
+  std::mt19937_64 rng(20240611);
+  const std::string alphabet = "{}[],:\"0123456789.eE-+ \n\\uabcfnrt\x01\xff\xc3";
+  auto pick = [&](std::size_t n) { return std::uniform_int_distribution<std::size_t>(0, n - 1)(rng); };
+  for (int trial = 0; trial < 3000; ++trial) {
+    std::string text = base;
+    const std::size_t edits = 1 + pick(4);
+    for (std::size_t e = 0; e < edits && !text.empty(); ++e) {
+      const std::size_t at = pick(text.size());
+      switch (pick(5)) {
+        case 0: text[at] = alphabet[pick(alphabet.size())]; break;
+        case 1: text.erase(at, 1 + pick(8)); break;
+        case 2: text.insert(at, 1, alphabet[pick(alphabet.size())]); break;
+        case 3: text.resize(at); break;
+        default: {  // duplicate a slice elsewhere
+          const std::size_t from = pick(text.size());
+          const std::string slice = text.substr(from, 1 + pick(40));
+          text.insert(at, slice);
+        }
+      }
+    }
+    expect_well_formed(text);
+    if (HasFatalFailure()) return;
+  }
+}
+
+TEST(SceneIoFuzz, MutatedValuesNeverCrash) {
+  const Json base = Json::parse(R"({"flatland": 1, "materials": {"lamp": {"emittance": 1},
+    "wall": {"reflectivity": [0.5, 0.2, 0.1]}},
+    "curves": [{"id": "a", "material": "lamp", "line": [[0, 1], [1, 1], [1, 2]]},
+               {"id": "b", "material": "wall", "bezier": [[0, 0], [1, 0], [2, 1], [3, 1], [4, 1], [5, 0], [6, 0]],
+                "joints": ["C0"], "sides": "both"}]})");
+  // Every value and every container reachable in the base, by JSON pointer.
+  std::vector<Json::json_pointer> pointers;
+  std::vector<std::pair<Json::json_pointer, const Json*>> todo{{Json::json_pointer(), &base}};
+  while (!todo.empty()) {
+    auto [pointer, value] = todo.back();
+    todo.pop_back();
+    pointers.push_back(pointer);
+    if (value->is_object()) {
+      for (const auto& item : value->items()) todo.push_back({pointer / item.key(), &item.value()});
+    } else if (value->is_array()) {
+      for (std::size_t k = 0; k < value->size(); ++k) todo.push_back({pointer / k, &(*value)[k]});
+    }
+  }
+  const std::vector<Json> replacements = {
+      nullptr, true, 0, -1, 1, 0.5, 1e308, -1e308, 1e-320, "", "C1", "both", "lamp", "x",
+      Json::array(), Json::object(), Json::parse("[0, 0]"), Json::parse("[[0, 0], [0, 0]]"),
+      Json::parse("[1, 2, 3]"), Json::parse("[[0,0],[1,1],[0,1],[1,0]]"), Json::parse("{\"a\": 1}")};
+  std::mt19937_64 rng(7);
+  auto pick = [&](std::size_t n) { return std::uniform_int_distribution<std::size_t>(0, n - 1)(rng); };
+  for (int trial = 0; trial < 3000; ++trial) {
+    Json j = base;
+    for (std::size_t e = 0, edits = 1 + pick(3); e < edits; ++e) {
+      const auto& pointer = pointers[pick(pointers.size())];
+      if (!j.contains(pointer)) continue;
+      if (pick(4) == 0 && !pointer.empty()) {
+        Json& parent = j[pointer.parent_pointer()];
+        if (parent.is_object()) parent.erase(pointer.back());
+        else if (parent.is_array() && !parent.empty()) parent.erase(parent.size() - 1);
+      } else {
+        j[pointer] = replacements[pick(replacements.size())];
+      }
+    }
+    expect_well_formed(j.dump());
+    if (HasFatalFailure()) return;
+  }
+}
+
+}  // namespace
+}  // namespace flatland

@@ -1,1 +1,214 @@
-// (being written)
+// Derived scene data: the flat segment list shared by the ray caster and the solver, per-segment arc
+// length tables, per-curve cumulative lengths, bounds and the scene scale. Also the geometric
+// validation (zero-length segments, interior cusps) that needs the scene's size for its tolerances.
+#include "flatland/scene.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <string>
+
+namespace flatland {
+namespace {
+
+// A segment shorter than kZeroLength * scale counts as a point (scale: the bounding-box diagonal).
+// unit_tangent and find_cusp apply the same relative threshold to |C'(t)| given the scale.
+constexpr double kZeroLength = 1e-12;
+// Coordinates and the scene's extent are kept far from double's limits, so derivatives (3 (P1 -
+// P0)), squared lengths and the quadratures of arc length stay finite and normal.
+constexpr double kMaxCoordinate = 1e100;
+constexpr double kMinExtent = 1e-100;
+// Two unit tangents within this angle (radians) make a tangent-continuous joint.
+constexpr double kTangentAngle = 1e-9;
+
+std::string format_number(double value) {
+  char buffer[32];
+  std::snprintf(buffer, sizeof buffer, "%.6g", value);
+  return buffer;
+}
+
+std::string point_text(Vec2 p) {
+  // Appended piece by piece: GCC 12 warns falsely (-Wrestrict) about "(" + std::string.
+  std::string text = "(";
+  text += format_number(p.x);
+  text += ", ";
+  text += format_number(p.y);
+  text += ")";
+  return text;
+}
+
+const char* geometry_key(const Curve& c) { return c.kind == SegmentKind::Line ? "line" : "bezier"; }
+
+std::string curve_path(std::size_t index) { return "curves[" + std::to_string(index) + "]"; }
+
+std::string point_path(const Curve& c, std::size_t curve_index, std::size_t point_index) {
+  return curve_path(curve_index) + "." + geometry_key(c) + "[" + std::to_string(point_index) + "]";
+}
+
+Error fail(const std::string& field, const std::string& what) { return Error{field + ": " + what}; }
+
+std::size_t expected_segment_count(const Curve& c) {
+  if (c.kind == SegmentKind::Line) return c.points.size() >= 2 ? c.points.size() - 1 : 0;
+  if (c.points.size() < 4 || (c.points.size() - 1) % 3 != 0) return 0;
+  return (c.points.size() - 1) / 3;
+}
+
+Cubic segment_shape(const Curve& c, std::size_t j) {
+  if (c.kind == SegmentKind::Line) return line_as_cubic(c.points[j], c.points[j + 1]);
+  return Cubic{{c.points[3 * j], c.points[3 * j + 1], c.points[3 * j + 2], c.points[3 * j + 3]}};
+}
+
+// The default continuity at the joint between segments a (its end) and b (its start): C1 where the
+// unit tangents agree to kTangentAngle, a jump (C-1) at a corner. The angle between unit vectors u, v
+// is atan2(|u x v|, u . v); for a small angle |u x v| is the angle itself.
+Continuity default_joint(const Cubic& a, const Cubic& b, double scale) {
+  const Vec2 u = unit_tangent(a, 1.0, scale);
+  const Vec2 v = unit_tangent(b, 0.0, scale);
+  const double angle = std::atan2(std::fabs(cross(u, v)), dot(u, v));
+  return angle <= kTangentAngle ? Continuity::C1 : Continuity::Jump;
+}
+
+}  // namespace
+
+Status finalize_scene(Scene& scene) {
+  scene.segments.clear();
+  scene.bounds = Box{};
+  if (scene.channels != 1 && scene.channels != 3) {
+    return Error{"channels: expected 1 (grey) or 3 (colour), got " + std::to_string(scene.channels)};
+  }
+  if (scene.curves.empty()) return Error{"curves: the scene has no curves; add at least one"};
+
+  // Pass 1: structure and the size of the scene, which sets every tolerance below.
+  Box point_bounds;
+  for (std::size_t i = 0; i < scene.curves.size(); ++i) {
+    const Curve& c = scene.curves[i];
+    if (c.material >= scene.materials.size()) {
+      return fail(curve_path(i) + ".material", "material index " + std::to_string(c.material) +
+                                                   " is out of range (the scene has " +
+                                                   std::to_string(scene.materials.size()) + ")");
+    }
+    if (expected_segment_count(c) == 0) {
+      return fail(curve_path(i) + "." + geometry_key(c),
+                  c.kind == SegmentKind::Line
+                      ? "a line needs at least 2 points, got " + std::to_string(c.points.size())
+                      : "expected 3k+1 points (k >= 1), got " + std::to_string(c.points.size()));
+    }
+    for (std::size_t k = 0; k < c.points.size(); ++k) {
+      const Vec2 p = c.points[k];
+      if (!is_finite(p)) return fail(point_path(c, i, k), "coordinates must be finite");
+      if (std::fmax(std::fabs(p.x), std::fabs(p.y)) > kMaxCoordinate) {
+        return fail(point_path(c, i, k), "coordinate too large: " + point_text(p) +
+                                             "; coordinates must lie within +-1e100");
+      }
+      point_bounds.extend(p);
+    }
+  }
+  const double size = point_bounds.diagonal();
+  if (size == 0.0) {
+    return fail(curve_path(0), "all points of the scene coincide, so every curve has zero length; "
+                               "give the curves distinct points");
+  }
+  if (size < kMinExtent) {
+    return fail("curves", "the scene is only " + format_number(size) +
+                              " across; scale it up to at least 1e-100 (the unit is the metre)");
+  }
+  const double zero_length = kZeroLength * size;
+
+  // Pass 2: segments, lengths, joints.
+  for (std::size_t i = 0; i < scene.curves.size(); ++i) {
+    Curve& c = scene.curves[i];
+    const std::size_t count = expected_segment_count(c);
+    c.first_segment = static_cast<std::uint32_t>(scene.segments.size());
+    c.segment_count = static_cast<std::uint32_t>(count);
+    c.segment_start.assign(1, 0.0);
+    c.length = 0.0;
+
+    std::vector<Cubic> shapes;
+    shapes.reserve(count);
+    for (std::size_t j = 0; j < count; ++j) {
+      const Cubic shape = segment_shape(c, j);
+      const std::size_t first_point = c.kind == SegmentKind::Line ? j : 3 * j;
+      // Zero length: every control point within zero_length of the first (the hull is a point).
+      double spread = 0.0;
+      for (const Vec2& p : shape.p) spread = std::fmax(spread, length(p - shape.p[0]));
+      if (spread <= zero_length) {
+        if (c.kind == SegmentKind::Line) {
+          return fail(point_path(c, i, first_point + 1),
+                      "coincides with the previous point, so segment " + std::to_string(j) +
+                          " has zero length; remove one of the two points");
+        }
+        return fail(point_path(c, i, first_point),
+                    "segment " + std::to_string(j) + " (control points " +
+                        std::to_string(first_point) + " to " + std::to_string(first_point + 3) +
+                        ") has zero length: its control points coincide; remove the segment");
+      }
+      if (c.kind == SegmentKind::Cubic) {
+        if (const auto cusp = find_cusp(shape, size)) {
+          return fail(point_path(c, i, first_point),
+                      "segment " + std::to_string(j) + " has a cusp at t = " +
+                          format_number(*cusp) + ", point " + point_text(evaluate(shape, *cusp)) +
+                          ", where the normal flips; split the curve at t = " +
+                          format_number(*cusp) + " into two curves or two segments");
+        }
+      }
+      SceneSegment segment;
+      segment.geometry.kind = c.kind;
+      segment.geometry.shape = shape;
+      segment.curve = static_cast<std::uint32_t>(i);
+      segment.index_in_curve = static_cast<std::uint32_t>(j);
+      segment.arc_length = ArcLengthTable(shape);
+      segment.length = c.kind == SegmentKind::Line ? length(shape.p[3] - shape.p[0])
+                                                   : segment.arc_length.total();
+      // A line traced by line_as_cubic has constant speed |C'| = its length.
+      segment.speed_bound = c.kind == SegmentKind::Line ? segment.length : speed_bound(shape);
+      if (!(segment.length > zero_length) || !std::isfinite(segment.length)) {
+        return fail(point_path(c, i, first_point),
+                    "segment " + std::to_string(j) + " has zero or non-finite length; "
+                    "remove it or give it distinct points");
+      }
+      scene.bounds.extend(hull_bounds(shape));
+      c.length += segment.length;
+      c.segment_start.push_back(c.length);
+      shapes.push_back(shape);
+      scene.segments.push_back(segment);
+    }
+
+    if (c.joints.empty()) {
+      for (std::size_t j = 0; j + 1 < count; ++j) {
+        c.joints.push_back(default_joint(shapes[j], shapes[j + 1], size));
+      }
+    } else if (c.joints.size() != count - 1) {
+      return fail(curve_path(i) + ".joints",
+                  "expected " + std::to_string(count - 1) + " entries (one per joint between the " +
+                      std::to_string(count) + " segments), got " + std::to_string(c.joints.size()));
+    }
+  }
+  scene.scale = scene.bounds.diagonal();
+  return ok_status();
+}
+
+bool Scene::has_cubics() const {
+  for (const SceneSegment& s : segments) {
+    if (s.geometry.kind == SegmentKind::Cubic) return true;
+  }
+  return false;
+}
+
+bool Scene::is_emitter(const Curve& c) const {
+  for (int channel = 0; channel < channels; ++channel) {
+    if (c.emittance[static_cast<std::size_t>(channel)] > 0.0) return true;
+  }
+  return false;
+}
+
+double Scene::emitted_power() const {
+  double total = 0.0;
+  for (const Curve& c : curves) {
+    const double emitting_sides = c.sides == Sides::Both ? 2.0 : 1.0;
+    for (int channel = 0; channel < channels; ++channel) {
+      total += emitting_sides * c.length * c.emittance[static_cast<std::size_t>(channel)];
+    }
+  }
+  return total;
+}
+
+}  // namespace flatland

@@ -64,6 +64,7 @@ struct SceneSegment {
 
 struct Scene {
   std::string name;
+  std::string description;  // free text from the file ("description"), for people; may be empty
   std::string source;  // file the scene came from, for messages
   int channels = 1;    // 1 (grey) or 3 (colour)
   std::vector<Material> materials;
@@ -80,14 +81,18 @@ struct Scene {
 };
 
 // Parse and validate a scene (format version 1, docs/scene-format.md). `source` names the text in
-// error messages (usually the file path). Errors look like
-//   "scenes2d/room.json: curves[2].bezier: expected 3k+1 points, got 5"
+// error messages (usually the file path). Errors are one line, located at the offending value:
+//   "scenes2d/room.json:14:9: curves[2].bezier: expected 3k+1 points, got 5; ..."
 //   "scenes2d/room.json:14:9: parse error: ..."
+// (just "SOURCE: FIELD: ..." when a problem has no single place in the text). Never throws.
 Result<Scene> parse_scene(std::string_view text, std::string_view source);
 Result<Scene> load_scene(const std::string& path);
 
 // Build the derived data (segments, lengths, bounds, scale) from curves and materials that are
 // already filled in and valid; used by the parser and by code that edits a scene (the viewer).
+// Empty Curve::joints are filled with the default (C1 where the chain is tangent-continuous, a jump
+// at corners). Fails on zero-length segments and interior cusps; its messages start with the field
+// path as in a scene file ("curves[1].bezier[3]: segment 1 has a cusp at t = 0.5, ...").
 Status finalize_scene(Scene& scene);
 
 }  // namespace flatland
