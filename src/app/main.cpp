@@ -1,11 +1,14 @@
 // flatland: diffuse light transport in 2D after "Cubic Monte Carlo Radiosity".
 #include <csignal>
 #include <cstdio>
+#include <algorithm>
 #include <string>
+#include <vector>
 
 #include <CLI/CLI.hpp>
 
 #include "app/commands.hpp"
+#include "flatland/text.hpp"
 
 namespace flatland::app {
 
@@ -18,12 +21,46 @@ namespace {
 
 extern "C" void handle_interrupt(int) { interrupt_flag().store(true); }
 
-// CLI11's messages end without a hint; add which help to read.
-int report_parse_error(const CLI::App& app, const CLI::ParseError& error) {
+// The long option names a command accepts, for did-you-mean hints.
+std::vector<std::string> option_names(const CLI::App& command) {
+  std::vector<std::string> names;
+  for (const CLI::Option* option : command.get_options())
+    for (const std::string& name : option->get_lnames()) names.push_back("--" + name);
+  return names;
+}
+
+// CLI11's messages name the problem; add a likely intended word and which help to read.
+int report_parse_error(const CLI::App& app, const CLI::ParseError& error, int argc, char** argv) {
+  const CLI::App* command = &app;
   std::string where = "flatland";
-  for (const CLI::App* sub : app.get_subcommands()) where += " " + sub->get_name();
+  for (const CLI::App* sub : app.get_subcommands()) {
+    command = sub;
+    where += " " + sub->get_name();
+  }
   std::string message = error.what();
   while (!message.empty() && (message.back() == '\n' || message.back() == ' ')) message.pop_back();
+  std::vector<std::string> commands;
+  for (const CLI::App* sub : app.get_subcommands({})) commands.push_back(sub->get_name());
+  if (command == &app && argc > 1 && argv[1][0] != '-') {
+    // An unknown word where a command belongs: CLI11 only says that a command is required.
+    message = "unknown command '" + std::string(argv[1]) + "'";
+    if (const auto hint = closest_match(argv[1], commands)) message += "; did you mean '" + *hint + "'?";
+    else {
+      message += "; commands:";
+      for (const std::string& name : commands) message += " " + name;
+    }
+  } else {
+    const std::vector<std::string> known = option_names(*command);
+    for (int i = 1; i < argc; ++i) {
+      const std::string word = std::string(argv[i]).substr(0, std::string(argv[i]).find('='));
+      if (word.rfind("--", 0) != 0 || std::find(known.begin(), known.end(), word) != known.end())
+        continue;
+      if (const auto hint = closest_match(word, known)) {
+        message += "; did you mean '" + *hint + "'?";
+        break;
+      }
+    }
+  }
   std::fprintf(stderr, "flatland: error: %s (see '%s --help')\n", message.c_str(), where.c_str());
   return kExitUsage;
 }
@@ -55,7 +92,7 @@ int main(int argc, char** argv) {
   } catch (const CLI::CallForVersion& e) {
     return app.exit(e);
   } catch (const CLI::ParseError& e) {
-    return report_parse_error(app, e);
+    return report_parse_error(app, e, argc, argv);
   }
 
   std::signal(SIGINT, handle_interrupt);

@@ -280,8 +280,9 @@ void Solver::shoot_batch(std::uint64_t batch, std::uint64_t count, Accumulator& 
     for (std::size_t ch = 0; ch < channels; ++ch) {
       std::int64_t left = units[ch];
       for (int j = 0; j < degree; ++j) {
-        const std::int64_t share =
-            std::llround(phi[static_cast<std::size_t>(j)] * static_cast<double>(units[ch]));
+        // Round half up by truncation (the product is >= 0); std::llround is a library call.
+        const auto share = static_cast<std::int64_t>(
+            phi[static_cast<std::size_t>(j)] * static_cast<double>(units[ch]) + 0.5);
         target[static_cast<std::size_t>(j) * channels + ch] += share;
         left -= share;
       }
