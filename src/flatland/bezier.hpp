@@ -6,6 +6,7 @@
 #pragma once
 
 #include <array>
+#include <cstdint>
 #include <optional>
 #include <utility>
 
@@ -29,7 +30,7 @@ Vec2 second_derivative(const Cubic& c, double t);
 
 // Unit tangent at t. Where C'(t) vanishes (coincident end control points) it takes the direction
 // of the first non-vanishing derivative, which is the limit of C'(t)/|C'(t)| from inside (0,1).
-// `scale` is the size below which a vector counts as zero (relative to the scene's size).
+// `scale` is the scene's size (Scene::scale); a derivative of norm <= 1e-12 scale counts as zero.
 Vec2 unit_tangent(const Cubic& c, double t, double scale);
 // The front normal: the tangent rotated +90 degrees (left of the direction of travel).
 Vec2 unit_normal(const Cubic& c, double t, double scale);
@@ -53,7 +54,7 @@ double speed_bound(const Cubic& c);
 double arc_length(const Cubic& c, double t0 = 0.0, double t1 = 1.0);
 
 // An interior parameter t in (0,1) where C'(t) = 0 (a cusp, where the normal flips), if any.
-// `scale` is the size below which |C'| counts as zero.
+// `scale` is the scene's size; |C'| <= 1e-12 scale counts as zero (the threshold of unit_tangent).
 std::optional<double> find_cusp(const Cubic& c, double scale);
 
 // Arc length as a function of t and its inverse, for one segment. A table of cumulative lengths
@@ -71,7 +72,13 @@ class ArcLengthTable {
 
  private:
   static constexpr int kIntervals = 16;
+  // Arc length from the knot k/16 to t (t in that interval).
+  double length_from_knot(const Cubic& c, int k, double t) const;
+
   std::array<double, kIntervals + 1> lengths_{};
+  // Bit k set: |C'| is smooth enough on interval k that one 8-point Gauss-Legendre rule gives the
+  // length of any part of it to full accuracy (checked when the table is built).
+  std::uint32_t smooth_ = 0;
 };
 
 }  // namespace flatland

@@ -39,7 +39,9 @@ class SegmentAccelerator {
   SegmentAccelerator() = default;
   explicit SegmentAccelerator(std::vector<SegmentGeometry> segments);
 
-  // Nearest hit with distance in (0, infinity), or segment == kNoSegment for a miss.
+  // Nearest hit with distance in (0, infinity), or segment == kNoSegment for a miss. Of hits at
+  // the same distance (a ray through a joint) the smaller segment index wins, so the answer does
+  // not depend on the order of the search and equals closest_hit_brute_force bit for bit.
   SceneHit closest_hit(const Ray& ray, const RayOrigin& from) const;
   // The same answer by testing every segment; for tests and tiny scenes.
   SceneHit closest_hit_brute_force(const Ray& ray, const RayOrigin& from) const;
@@ -61,8 +63,9 @@ class SegmentAccelerator {
   std::uint32_t build_node(std::uint32_t first, std::uint32_t count,
                            std::vector<Box>& boxes, std::vector<Vec2>& centers);
 
-  std::vector<SegmentGeometry> segments_;
-  std::vector<std::uint32_t> order_;
+  std::vector<SegmentGeometry> segments_;  // in the caller's order (indices of SceneHit)
+  std::vector<std::uint32_t> order_;       // leaf order -> index into segments_
+  std::vector<SegmentGeometry> ordered_;   // segments_[order_[i]], so leaves read memory linearly
   std::vector<Node> nodes_;
   bool has_cubics_ = false;
 };

@@ -27,7 +27,8 @@ struct SegmentHit {
 // A ray through an end point hits (t is 0 or 1), so rays through joints are never lost.
 bool intersect_line(Vec2 a, Vec2 b, const Ray& ray, double max_distance, SegmentHit* hit);
 
-// Nearest crossing of the cubic with distance in (0, max_distance).
+// Nearest crossing of the cubic with distance in (0, max_distance). As for lines, an end point on
+// the ray's line is a hit, judged by the same arithmetic as in the neighbouring segment.
 bool intersect_cubic(const Cubic& c, const Ray& ray, double max_distance, SegmentHit* hit);
 
 // As intersect_cubic, for a ray that leaves the cubic itself at parameter t_origin (the ray's

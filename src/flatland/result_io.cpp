@@ -103,9 +103,14 @@ Status write_file_atomically(const std::string& path, const std::string& content
 
   // A unique temporary name in the same directory, so the rename is atomic.
   std::random_device device;
-  const fs::path temporary =
-      directory / ("." + target.filename().string() + ".tmp" + std::to_string(::getpid()) + "-" +
-                   std::to_string(device()));
+  // (Appended piece by piece: GCC 12 warns falsely about `"." + std::string` under -O3.)
+  std::string name = ".";
+  name += target.filename().string();
+  name += ".tmp";
+  name += std::to_string(::getpid());
+  name += '-';
+  name += std::to_string(device());
+  const fs::path temporary = directory / name;
   {
     std::ofstream out(temporary, std::ios::binary | std::ios::trunc);
     if (!out) return Error{path + ": cannot write: " + std::strerror(errno)};
