@@ -12,7 +12,8 @@ namespace {
 constexpr double kInfinity = std::numeric_limits<double>::infinity();
 constexpr std::uint32_t kLeafSize = 4;
 constexpr std::size_t kLinearScanLimit = 8;  // up to this many segments a scan beats the tree
-constexpr int kStackSize = 64;               // median splits: depth <= log2(n) + 1 <= 33
+constexpr int kMaxSahDepth = 32;  // below it median splits: depth <= 32 + log2(n) + 1
+constexpr int kStackSize = 72;
 
 // One segment against the ray. The origin segment is special: a straight line cannot see itself,
 // and a cubic deflates the root at the origin's parameter (a concave cubic lights itself).
@@ -123,7 +124,7 @@ SegmentAccelerator::SegmentAccelerator(std::vector<SegmentGeometry> segments)
   order_.resize(n);
   for (std::uint32_t i = 0; i < n; ++i) order_[i] = i;
   nodes_.reserve(2 * (n / kLeafSize + 1));
-  build_node(0, n, boxes, centers);
+  build_node(0, n, 0, boxes, centers);
   for (Node& node : nodes_) {
     node.bounds.lower = node.bounds.lower - Vec2{margin, margin};
     node.bounds.upper = node.bounds.upper + Vec2{margin, margin};
@@ -132,33 +133,60 @@ SegmentAccelerator::SegmentAccelerator(std::vector<SegmentGeometry> segments)
   for (std::uint32_t i = 0; i < n; ++i) ordered_.push_back(segments_[order_[i]]);
 }
 
-// Median split on the longer axis of the centres' box; leaves of at most kLeafSize segments. The
-// first child is stored right after its parent, the second's index is kept in the parent.
-std::uint32_t SegmentAccelerator::build_node(std::uint32_t first, std::uint32_t count,
+// Surface area heuristic, in 2D: a random line meets a convex region with probability
+// proportional to its perimeter, so a split into L and R costs perimeter(L) |L| + perimeter(R) |R|.
+// Both axes are tried with the segments sorted by their box centres, and the cheapest cut is
+// taken; leaves hold at most kLeafSize segments. The first child is stored right after its
+// parent, the second's index is kept in the parent.
+std::uint32_t SegmentAccelerator::build_node(std::uint32_t first, std::uint32_t count, int depth,
                                              std::vector<Box>& boxes, std::vector<Vec2>& centers) {
   const auto index = static_cast<std::uint32_t>(nodes_.size());
   nodes_.push_back({});
   Box bounds;
-  Box center_bounds;
-  for (std::uint32_t i = first; i < first + count; ++i) {
-    bounds.extend(boxes[order_[i]]);
-    center_bounds.extend(centers[order_[i]]);
-  }
+  for (std::uint32_t i = first; i < first + count; ++i) bounds.extend(boxes[order_[i]]);
   if (count <= kLeafSize) {
     nodes_[index] = Node{bounds, first, count};
     return index;
   }
-  const Vec2 extent = center_bounds.extent();
-  const bool along_x = extent.x >= extent.y;
-  const std::uint32_t half = count / 2;
+  auto perimeter = [](const Box& box) { return 2.0 * (box.extent().x + box.extent().y); };
   auto begin = order_.begin() + first;
-  std::nth_element(begin, begin + half, begin + count, [&](std::uint32_t a, std::uint32_t b) {
-    const double ca = along_x ? centers[a].x : centers[a].y;
-    const double cb = along_x ? centers[b].x : centers[b].y;
-    return ca < cb || (ca == cb && a < b);
-  });
-  build_node(first, half, boxes, centers);
-  const std::uint32_t second = build_node(first + half, count - half, boxes, centers);
+  auto end = begin + count;
+  std::vector<double> right_cost(count);
+  double best_cost = std::numeric_limits<double>::infinity();
+  int best_axis = 0;
+  std::uint32_t best_split = count / 2;
+  for (int axis = 0; axis < 2; ++axis) {
+    std::sort(begin, end, [&](std::uint32_t a, std::uint32_t b) {
+      const double ca = axis == 0 ? centers[a].x : centers[a].y;
+      const double cb = axis == 0 ? centers[b].x : centers[b].y;
+      return ca < cb || (ca == cb && a < b);
+    });
+    Box right;
+    for (std::uint32_t i = count; i-- > 1;) {
+      right.extend(boxes[order_[first + i]]);
+      right_cost[i] = perimeter(right) * (count - i);
+    }
+    Box left;
+    for (std::uint32_t i = 1; i < count; ++i) {
+      left.extend(boxes[order_[first + i - 1]]);
+      const double cost = perimeter(left) * i + right_cost[i];
+      if (cost < best_cost) {
+        best_cost = cost;
+        best_axis = axis;
+        best_split = i;
+      }
+    }
+  }
+  if (best_axis == 0) {
+    std::sort(begin, end, [&](std::uint32_t a, std::uint32_t b) {
+      return centers[a].x < centers[b].x || (centers[a].x == centers[b].x && a < b);
+    });
+  }
+  // Deep in the tree, halve instead, so the depth (and the traversal stack) stays bounded.
+  if (depth >= kMaxSahDepth) best_split = count / 2;
+  build_node(first, best_split, depth + 1, boxes, centers);
+  const std::uint32_t second =
+      build_node(first + best_split, count - best_split, depth + 1, boxes, centers);
   nodes_[index] = Node{bounds, second, 0};
   return index;
 }

@@ -60,7 +60,7 @@ class SegmentAccelerator {
 
   bool test_segment(std::uint32_t index, const Ray& ray, const RayOrigin& from, double max_distance,
                     SegmentHit* hit) const;
-  std::uint32_t build_node(std::uint32_t first, std::uint32_t count,
+  std::uint32_t build_node(std::uint32_t first, std::uint32_t count, int depth,
                            std::vector<Box>& boxes, std::vector<Vec2>& centers);
 
   std::vector<SegmentGeometry> segments_;  // in the caller's order (indices of SceneHit)

@@ -256,9 +256,14 @@ void Solver::shoot_batch(std::uint64_t batch, std::uint64_t count, Accumulator& 
     // i.e. when cross(C'(t), d) < 0.
     const SegmentInfo& info = segment_info_[hit.segment];
     const SceneSegment& receiver = scene_->segments[hit.segment];
-    const Vec2 hit_tangent = info.kind == SegmentKind::Line
-                                 ? info.line_tangent
-                                 : unit_tangent(receiver.geometry.shape, hit.t, scale);
+    // Only the sign matters, so C'(t) need not be normalised; where it vanishes (an end point
+    // with coincident control points) the tangent comes from the first non-vanishing derivative.
+    Vec2 hit_tangent = info.line_tangent;
+    if (info.kind == SegmentKind::Cubic) {
+      hit_tangent = derivative(receiver.geometry.shape, hit.t);
+      if (length_squared(hit_tangent) <= 1e-24 * scale * scale)
+        hit_tangent = unit_tangent(receiver.geometry.shape, hit.t, scale);
+    }
     const Side side = cross(hit_tangent, ray.direction) < 0.0 ? Side::Front : Side::Back;
     if (path != nullptr) {
       path->end = ray.origin + hit.distance * ray.direction;
