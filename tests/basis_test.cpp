@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 
+#include "flatland/sampling.hpp"
 #include "test_support.hpp"
 
 namespace flatland {
@@ -158,6 +159,75 @@ TEST(Basis, StorageIntegralsSumToCurveLength) {
   const CurveStorage constant = build_curve_storage(scene, scene.curves[0], BasisKind::Constant, 7);
   ASSERT_EQ(constant.basis.size(), 7u);
   for (double v : constant.basis_length) EXPECT_NEAR(v, 1.0, 1e-13);
+}
+
+TEST(Basis, SamplerMassIsTheClosedFormIntegral) {
+  // integral(phi_k du) = (knot[k + p + 1] - knot[k]) / (p + 1) for a normalised B-spline.
+  const std::vector<MeshNode> nodes = {
+      {0.7, Continuity::C1}, {1.0, Continuity::Jump}, {1.9, Continuity::C0}, {2.2, Continuity::C1}};
+  for (int degree : {0, 1, 3}) {
+    const SplineBasis basis(degree, 0.0, 3.0, nodes);
+    const BasisSampler sampler(basis);
+    for (std::size_t k = 0; k < basis.size(); ++k) {
+      const double exact = (basis.knots()[k + degree + 1] - basis.knots()[k]) / (degree + 1);
+      EXPECT_NEAR(sampler.mass(k), exact, 1e-13) << "degree " << degree << " k " << k;
+    }
+  }
+}
+
+TEST(Basis, SamplerFollowsTheBasisFunction) {
+  // Chi-square of samples of every basis function against the integral of phi_k over each bin,
+  // computed by the midpoint rule from SplineBasis::evaluate (not from the sampler).
+  const std::vector<MeshNode> nodes = {
+      {0.5, Continuity::C1}, {1.0, Continuity::Jump}, {1.6, Continuity::C0}, {2.5, Continuity::C1}};
+  const SplineBasis basis(3, 0.0, 3.0, nodes);
+  const BasisSampler sampler(basis);
+  flatland::Rng rng(21, 0, 0);
+  const int n = 100'000;
+  const int bins = 24;
+  for (std::size_t k = 0; k < basis.size(); ++k) {
+    const double a = basis.knots()[k];
+    const double b = basis.knots()[k + 4];
+    std::vector<double> observed(bins, 0.0);
+    for (int i = 0; i < n; ++i) {
+      const double u = sampler.sample(k, rng.uniform(), rng.uniform());
+      ASSERT_GE(u, a);
+      ASSERT_LE(u, b);
+      observed[std::min(bins - 1, static_cast<int>((u - a) / (b - a) * bins))] += 1;
+    }
+    std::vector<double> expected(bins, 0.0);
+    const int steps = 2000;
+    double total = 0.0;
+    for (int bin = 0; bin < bins; ++bin) {
+      for (int j = 0; j < steps; ++j) {
+        const double u = a + (b - a) * (bin + (j + 0.5) / steps) / bins;
+        Values phi{};
+        const std::size_t first = basis.evaluate(u, phi.data());
+        if (k >= first && k <= first + 3) expected[bin] += phi[k - first];
+      }
+      total += expected[bin];
+    }
+    // Merge bins with small expectations (support ends of a cubic B-spline) into neighbours.
+    std::vector<double> o;
+    std::vector<double> e;
+    double pending_o = 0.0;
+    double pending_e = 0.0;
+    for (int bin = 0; bin < bins; ++bin) {
+      pending_o += observed[bin];
+      pending_e += expected[bin] / total * n;
+      if (pending_e >= 20.0) {
+        o.push_back(pending_o);
+        e.push_back(pending_e);
+        pending_o = pending_e = 0.0;
+      }
+    }
+    if (pending_e > 0.0 && !e.empty()) {
+      o.back() += pending_o;
+      e.back() += pending_e;
+    }
+    EXPECT_LT(testing::chi_square(o, e), testing::chi_square_critical(static_cast<int>(o.size()) - 1))
+        << "basis function " << k;
+  }
 }
 
 }  // namespace

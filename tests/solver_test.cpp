@@ -272,6 +272,68 @@ TEST(Solver, SourcesAndPositionsFollowPowerAndArcLength) {
   EXPECT_LT(testing::chi_square(positions, uniform), testing::chi_square_critical(bins - 1));
 }
 
+// Reconstruction-driven sampling: photon origins on a reflector whose unshot radiosity varies
+// along it, on a cubic of strongly varying speed, must follow the reconstructed unshot radiosity
+// per unit arc length. The expected bin counts integrate the reconstruction (the unshot
+// coefficients times the basis functions) along arc length by the midpoint rule.
+void check_reconstructed_origins(BasisKind basis) {
+  const Scene scene = testing::scene_from_text(R"({
+    "flatland": 1,
+    "materials": {"lamp": {"emittance": 1}, "mirror": {"reflectivity": 0.8}},
+    "curves": [
+      {"id": "lamp", "material": "lamp", "line": [[-1.2,0.9],[-2.4,0.9]]},
+      {"id": "reflector", "material": "mirror",
+       "bezier": [[-2,0],[-1.97,0.01],[0.5,-1.2],[2,0.6]]}]})");
+  SolverSettings settings;
+  settings.photons = 4'000'000;
+  settings.basis = basis;
+  settings.elements = 8;
+  settings.sampling = PositionSampling::Reconstructed;
+  Solver solver = make_solver(scene, settings);
+  ASSERT_TRUE(solver.step_round());
+  const std::vector<double> unshot = solver.unshot_coefficients(1, Side::Front);
+  const int n = 200'000;
+  solver.record_paths(n);
+  ASSERT_TRUE(solver.step_round());
+  const Curve& reflector = scene.curves[1];
+  const SceneSegment& segment = scene.segments[reflector.first_segment];
+  const int bins = 30;
+  std::vector<double> observed(bins, 0.0);
+  int count = 0;
+  for (const PhotonPath& path : solver.paths()) {
+    ASSERT_EQ(path.source_curve, 1u);  // the black lamp has nothing to shoot in round 2
+    const double s = arc_length(segment.geometry.shape, 0.0, path.source_t);
+    observed[std::min(bins - 1, static_cast<int>(s / reflector.length * bins))] += 1;
+    ++count;
+  }
+  ASSERT_GT(count, 50'000);
+  const CurveStorage& storage = solver.storage(1);
+  std::vector<double> expected(bins, 0.0);
+  double total = 0.0;
+  const int steps = 400;
+  std::array<double, SplineBasis::kMaxDegree + 1> phi{};
+  for (int bin = 0; bin < bins; ++bin) {
+    for (int j = 0; j < steps; ++j) {
+      const double s = reflector.length * (bin + (j + 0.5) / steps) / bins;
+      const CurvePoint point = point_at_arc_length(scene, reflector, s);
+      const std::size_t first = storage.basis.evaluate(point.u, phi.data());
+      for (int i = 0; i <= storage.basis.degree(); ++i) expected[bin] += unshot[first + i] * phi[i];
+    }
+    total += expected[bin];
+  }
+  for (double& e : expected) e *= count / total;
+  // The density really is non-uniform: the busiest bin expects over twice the quietest.
+  EXPECT_GT(*std::max_element(expected.begin(), expected.end()),
+            2.0 * *std::min_element(expected.begin(), expected.end()));
+  EXPECT_LT(testing::chi_square(observed, expected), testing::chi_square_critical(bins - 1));
+}
+
+TEST(Solver, ReconstructedOriginsFollowTheUnshotRadiosity) {
+  check_reconstructed_origins(BasisKind::Constant);
+  check_reconstructed_origins(BasisKind::Linear);
+  check_reconstructed_origins(BasisKind::Cubic);
+}
+
 TEST(Solver, BudgetIsRespectedAndUnshotReported) {
   const Scene scene = testing::scene_from_text(circle_enclosure(0.99, 1.0));
   SolverSettings settings;

@@ -42,6 +42,12 @@ CLI::App* add_solve_command(CLI::App& parent, SolveOptions& o) {
                   "Illumination along each curve: constant, linear or cubic (B-splines)")
       ->capture_default_str()
       ->check(CLI::IsMember({"constant", "linear", "cubic"}));
+  cmd->add_option("--sampling", o.sampling,
+                  "Where photons leave a source: uniform in arc length (constant radiosity "
+                  "assumption) or reconstructed (density proportional to the reconstructed unshot "
+                  "radiosity, the paper's method)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"uniform", "reconstructed"}));
   cmd->add_option("--elements", o.settings.elements,
                   "Storage elements per curve (shared among its segments by arc length, at least "
                   "one each)")
@@ -75,8 +81,9 @@ void print_summary(const Solver& solver, const SolveOptions& o) {
   std::printf("scene     %s (%s): %zu curves, %zu segments (%zu cubic), %s\n", scene.name.c_str(),
               scene.source.c_str(), scene.curves.size(), scene.segments.size(), cubic_segments,
               scene.channels == 1 ? "grey" : "colour");
-  std::printf("method    %s basis, %d elements per curve, uniform positions, point rays\n",
-              to_string(solver.settings().basis), solver.settings().elements);
+  std::printf("method    %s basis, %d elements per curve, %s positions, point rays\n",
+              to_string(solver.settings().basis), solver.settings().elements,
+              to_string(solver.settings().sampling));
   std::printf("solved    %s photons in %u rounds, %.3f s, %s photons/s on %u threads\n",
               human_count(static_cast<double>(solver.photons_shot())).c_str(), solver.rounds(),
               solver.seconds(), human_count(rate).c_str(), solver.thread_count());
@@ -100,6 +107,8 @@ int run_solve(SolveOptions& o) {
   o.settings.basis = o.basis == "constant" ? BasisKind::Constant
                      : o.basis == "linear" ? BasisKind::Linear
                                            : BasisKind::Cubic;
+  o.settings.sampling =
+      o.sampling == "uniform" ? PositionSampling::Uniform : PositionSampling::Reconstructed;
   if (Status status = validate(o.settings); !status) {
     std::fprintf(stderr, "flatland: error: %s\n", status.error().message.c_str());
     return kExitUsage;

@@ -24,6 +24,7 @@ struct SolveOptions {
   std::string photons = "1e6";  // parsed by parse_count, so "1e6" and "250000" both work
   SolverSettings settings;
   std::string basis = "cubic";
+  std::string sampling = "reconstructed";
   int samples = 100;
   std::string out;
   std::string picture;

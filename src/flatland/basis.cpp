@@ -83,6 +83,105 @@ constexpr std::array<double, 8> kGaussWeights = {
 
 }  // namespace
 
+BasisSampler::BasisSampler(const SplineBasis& basis) {
+  // phi_k on each span is a polynomial of degree <= 3 in x = (u - u0) / width; interpolating it at
+  // four interior points recovers it exactly (up to rounding), also at spans that end in a jump.
+  constexpr std::array<double, 4> kNodes = {0.125, 0.375, 0.625, 0.875};
+  const std::vector<double>& knots = basis.knots();
+  const int p = basis.degree();
+  std::array<double, SplineBasis::kMaxDegree + 1> values{};
+  first_piece_.assign(basis.size() + 1, 0);
+  for (std::size_t k = 0; k < basis.size(); ++k) {
+    first_piece_[k] = static_cast<std::uint32_t>(pieces_.size());
+    double cumulative = 0.0;
+    for (std::size_t span = k; span <= k + static_cast<std::size_t>(p); ++span) {
+      const double u0 = knots[span];
+      const double width = knots[span + 1] - u0;
+      if (!(width > 0.0)) continue;
+      // Values at the nodes, then the power form by solving the 4x4 Vandermonde system.
+      std::array<std::array<double, 5>, 4> system{};
+      for (std::size_t row = 0; row < 4; ++row) {
+        const double x = kNodes[row];
+        const std::size_t first = basis.evaluate(u0 + x * width, values.data());
+        const double phi = (k >= first && k <= first + static_cast<std::size_t>(p)) ? values[k - first] : 0.0;
+        double power = 1.0;
+        for (std::size_t col = 0; col < 4; ++col, power *= x) system[row][col] = power;
+        system[row][4] = phi;
+      }
+      for (std::size_t col = 0; col < 4; ++col) {  // Gaussian elimination with partial pivoting
+        std::size_t pivot = col;
+        for (std::size_t row = col + 1; row < 4; ++row)
+          if (std::fabs(system[row][col]) > std::fabs(system[pivot][col])) pivot = row;
+        std::swap(system[col], system[pivot]);
+        for (std::size_t row = col + 1; row < 4; ++row) {
+          const double factor = system[row][col] / system[col][col];
+          for (std::size_t c = col; c < 5; ++c) system[row][c] -= factor * system[col][c];
+        }
+      }
+      Piece piece;
+      piece.u0 = u0;
+      piece.width = width;
+      for (std::size_t row = 4; row-- > 0;) {
+        double sum = system[row][4];
+        for (std::size_t c = row + 1; c < 4; ++c) sum -= system[row][c] * piece.power[c];
+        piece.power[row] = sum / system[row][row];
+      }
+      const auto& a = piece.power;
+      cumulative += width * (a[0] + a[1] / 2 + a[2] / 3 + a[3] / 4);
+      piece.cumulative = cumulative;
+      pieces_.push_back(piece);
+    }
+  }
+  first_piece_[basis.size()] = static_cast<std::uint32_t>(pieces_.size());
+}
+
+double BasisSampler::mass(std::size_t k) const { return pieces_[first_piece_[k + 1] - 1].cumulative; }
+
+double BasisSampler::sample(std::size_t k, double u1, double u2) const {
+  const std::uint32_t begin = first_piece_[k];
+  const std::uint32_t end = first_piece_[k + 1];
+  const double total = pieces_[end - 1].cumulative;
+  const double target = u1 * total;
+  std::uint32_t i = begin;
+  while (i + 1 < end && pieces_[i].cumulative <= target) ++i;
+  const Piece& piece = pieces_[i];
+  const auto& a = piece.power;
+  // Solve G(x) = u2 G(1) on [0,1] with G(x) = a0 x + a1 x^2/2 + a2 x^3/3 + a3 x^4/4, increasing
+  // since G' = phi_k >= 0. Newton from the linear guess; a step leaving the bracket bisects.
+  auto cdf = [&a](double x) { return x * (a[0] + x * (a[1] / 2 + x * (a[2] / 3 + x * (a[3] / 4)))); };
+  auto density = [&a](double x) { return a[0] + x * (a[1] + x * (a[2] + x * a[3])); };
+  const double goal = u2 * cdf(1.0);
+  double lo = 0.0;
+  double hi = 1.0;
+  double x = u2;
+  for (int iteration = 0; iteration < 60; ++iteration) {
+    const double g = cdf(x) - goal;
+    if (g == 0.0) break;
+    if (g < 0.0) lo = x; else hi = x;
+    const double d = density(x);
+    double next = d > 0.0 ? x - g / d : 0.5 * (lo + hi);
+    if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);
+    if (std::fabs(next - x) <= 1e-15 || hi - lo <= 1e-15) {
+      x = next;
+      break;
+    }
+    x = next;
+  }
+  return piece.u0 + std::clamp(x, 0.0, 1.0) * piece.width;
+}
+
+double BasisSampler::pdf(std::size_t k, double u) const {
+  for (std::uint32_t i = first_piece_[k]; i < first_piece_[k + 1]; ++i) {
+    const Piece& piece = pieces_[i];
+    if (u >= piece.u0 && u < piece.u0 + piece.width) {
+      const double x = (u - piece.u0) / piece.width;
+      const auto& a = piece.power;
+      return std::max(0.0, a[0] + x * (a[1] + x * (a[2] + x * a[3]))) / mass(k);
+    }
+  }
+  return 0.0;
+}
+
 CurveStorage build_curve_storage(const Scene& scene, const Curve& curve, BasisKind kind,
                                  int elements) {
   CurveStorage storage;
@@ -132,6 +231,17 @@ CurveStorage build_curve_storage(const Scene& scene, const Curve& curve, BasisKi
         }
       }
     }
+  }
+  storage.sampler = BasisSampler(storage.basis);
+  // Speed bound over each basis function's support: the largest bound of the segments it touches.
+  storage.speed_bound.assign(storage.basis.size(), 0.0);
+  for (std::size_t k = 0; k < storage.basis.size(); ++k) {
+    const double begin = knots[k];
+    const double end = knots[k + static_cast<std::size_t>(storage.basis.degree()) + 1];
+    for (std::uint32_t i = 0; i < segment_count; ++i)
+      if (i + 1.0 > begin && i < end)
+        storage.speed_bound[k] = std::max(storage.speed_bound[k],
+                                          scene.segments[curve.first_segment + i].speed_bound);
   }
   return storage;
 }

@@ -8,7 +8,9 @@
 // nonnegative coefficients give a nonnegative function.
 #pragma once
 
+#include <array>
 #include <cstddef>
+#include <cstdint>
 #include <span>
 #include <vector>
 
@@ -56,12 +58,40 @@ class SplineBasis {
   std::vector<double> knots_;
 };
 
+// Samples u with density phi_k(u) / integral(phi_k du) for any basis function k: a piece (a
+// non-empty knot span of the support) by its mass, then the inverse of the piece's CDF, a
+// polynomial one degree higher than phi_k, by Newton's method safeguarded by bisection.
+class BasisSampler {
+ public:
+  BasisSampler() = default;
+  explicit BasisSampler(const SplineBasis& basis);
+
+  // u1 chooses the piece, u2 the place inside it (both uniform in [0,1)).
+  double sample(std::size_t k, double u1, double u2) const;
+  // The density phi_k(u) / integral(phi_k du).
+  double pdf(std::size_t k, double u) const;
+  // integral(phi_k du) over the support.
+  double mass(std::size_t k) const;
+
+ private:
+  struct Piece {
+    double u0 = 0.0;
+    double width = 0.0;
+    double cumulative = 0.0;  // mass of this basis function's pieces up to and including this one
+    std::array<double, 4> power{};  // phi_k(u0 + x width) = sum_i power[i] x^i, x in [0,1]
+  };
+  std::vector<std::uint32_t> first_piece_;  // pieces of k: [first_piece_[k], first_piece_[k+1])
+  std::vector<Piece> pieces_;
+};
+
 // The storage mesh of one curve: its basis and the integrals of each basis function over arc
 // length (the lumped "areas" that turn deposited power into power per unit length).
 struct CurveStorage {
   SplineBasis basis;
   std::vector<double> basis_length;  // integral of phi_k ds over the curve
   std::vector<MeshNode> nodes;       // interior nodes (joints and element boundaries)
+  BasisSampler sampler;              // u with density phi_k(u) in the curve parameter
+  std::vector<double> speed_bound;   // >= |C'(u)| over the support of phi_k
 };
 
 // About `elements` elements per curve, shared among its segments in proportion to their arc

@@ -48,7 +48,7 @@ nlohmann::json result_to_json(const Solver& solver, int samples_per_curve) {
       {"basis", to_string(settings.basis)},
       {"elements", settings.elements},
       {"tolerance", settings.tolerance},
-      {"sampling", "uniform"},
+      {"sampling", to_string(settings.sampling)},
       {"estimator", "lumped"},
       {"samples", samples_per_curve},
   };

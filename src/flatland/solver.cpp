@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <numeric>
 #include <thread>
 
 namespace flatland {
@@ -30,6 +31,10 @@ const char* to_string(StopReason reason) {
     case StopReason::BooksUnbalanced: return "energy books unbalanced";
   }
   return "?";
+}
+
+const char* to_string(PositionSampling sampling) {
+  return sampling == PositionSampling::Uniform ? "uniform" : "reconstructed";
 }
 
 Status validate(const SolverSettings& settings) {
@@ -98,6 +103,7 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
       solver.block_offset_[block] = static_cast<std::uint32_t>(solver.coefficient_count_);
       solver.block_reflectivity_[block] = material.reflectivity;
       solver.coefficient_count_ += solver.storage_[c].basis.size();
+      solver.coefficient_block_.resize(solver.coefficient_count_, block);
       double mean = 0.0;
       for (std::size_t ch = 0; ch < channels; ++ch) mean += material.reflectivity[ch];
       weighted_reflectivity += curve.length * mean / static_cast<double>(channels);
@@ -149,7 +155,6 @@ std::uint64_t Solver::photons_for_round(double unshot) const {
 bool Solver::begin_round() {
   const auto channels = static_cast<std::size_t>(channels_);
   std::vector<double> weights(block_offset_.size(), 0.0);
-  round_.photon_units.assign(block_offset_.size(), {});
   std::vector<Spectrum> block_unshot(block_offset_.size(), Spectrum{});
   for (std::uint32_t c = 0; c < scene_->curves.size(); ++c) {
     for (Side side : {Side::Front, Side::Back}) {
@@ -163,8 +168,7 @@ bool Solver::begin_round() {
       for (std::size_t ch = 0; ch < channels; ++ch) weights[block] += block_unshot[block][ch];
     }
   }
-  round_.sources.assign(weights);
-  const double unshot = round_.sources.total();
+  const double unshot = std::accumulate(weights.begin(), weights.end(), 0.0);
   current_unshot_fraction_ = unshot / emitted_total_;
   if (!(unshot > settings_.tolerance * emitted_total_)) {
     stop_reason_ = StopReason::Converged;
@@ -178,14 +182,23 @@ bool Solver::begin_round() {
 
   // Fixed point: unshot * scale < 2^61, and scale a power of two so units convert exactly.
   round_.scale = std::ldexp(1.0, 60 - std::ilogb(unshot));
-  // A photon from block j carries U_j / (n p_j) with p_j = w_j / U: its channels sum to U / n.
-  for (std::size_t block = 0; block < weights.size(); ++block) {
-    if (!(weights[block] > 0.0)) continue;
-    const double factor = unshot / (static_cast<double>(round_.photons) * weights[block]);
+  // A photon from source j carries U_j / (n p_j) with p_j = w_j / U: its channels sum to U / n.
+  // Sources are the sides of curves (uniform sampling) or single coefficients (reconstructed
+  // sampling, so a photon also takes the colour of the unshot light where it starts).
+  const bool by_coefficient = settings_.sampling == PositionSampling::Reconstructed;
+  const std::size_t sources = by_coefficient ? coefficient_count_ : block_offset_.size();
+  std::vector<double> source_weights(sources, 0.0);
+  round_.photon_units.assign(sources, {});
+  const double per_photon = unshot / static_cast<double>(round_.photons);
+  for (std::size_t j = 0; j < sources; ++j) {
+    const double* power = by_coefficient ? &unshot_[j * channels] : block_unshot[j].data();
+    for (std::size_t ch = 0; ch < channels; ++ch) source_weights[j] += power[ch];
+    if (!(source_weights[j] > 0.0)) continue;
     for (std::size_t ch = 0; ch < channels; ++ch)
-      round_.photon_units[block][ch] =
-          std::llround(block_unshot[block][ch] * factor * round_.scale);
+      round_.photon_units[j][ch] =
+          std::llround(power[ch] / source_weights[j] * per_photon * round_.scale);
   }
+  round_.sources.assign(source_weights);
   return true;
 }
 
@@ -195,39 +208,66 @@ void Solver::shoot_batch(std::uint64_t batch, std::uint64_t count, Accumulator& 
   const auto channels = static_cast<std::size_t>(channels_);
   const double scale = scene_->scale;
   for (std::uint64_t i = 0; i < count; ++i) {
-    // Source side of a curve, by unshot power.
-    const auto block = static_cast<std::uint32_t>(round_.sources.sample(rng.uniform()));
+    // The source, by unshot power: a side of a curve, or one of its coefficients.
+    const std::size_t source = round_.sources.sample(rng.uniform());
+    const bool by_coefficient = settings_.sampling == PositionSampling::Reconstructed;
+    const std::uint32_t block =
+        by_coefficient ? coefficient_block_[source] : static_cast<std::uint32_t>(source);
     const std::uint32_t curve_index = block / 2;
     const bool back = (block & 1u) != 0;
     const Curve& curve = scene_->curves[curve_index];
-    const std::array<std::int64_t, 3>& units = round_.photon_units[block];
+    const std::array<std::int64_t, 3>& units = round_.photon_units[source];
     for (std::size_t ch = 0; ch < channels; ++ch) acc.shot[ch] += units[ch];
 
-    // Position uniform in arc length: a segment by length, then t with density |C'(t)| / L by
-    // rejection against the speed bound (exact; a line's speed is constant).
-    const std::uint32_t segment_index =
-        curve.first_segment +
-        static_cast<std::uint32_t>(segment_choice_[curve_index].sample(rng.uniform()));
-    const SceneSegment& segment = scene_->segments[segment_index];
-    const Cubic& shape = segment.geometry.shape;
+    std::uint32_t segment_index = 0;
     double t = 0.0;
     Vec2 origin;
     Vec2 tangent;
-    if (segment.geometry.kind == SegmentKind::Line) {
-      t = rng.uniform_open();
-      origin = lerp(shape.p[0], shape.p[3], t);
-      tangent = segment_info_[segment_index].line_tangent;
-    } else {
+    if (by_coefficient) {
+      // Density proportional to the unshot radiosity per unit arc length: coefficient k was
+      // chosen by its power U_k = b_k integral(phi_k ds), so the position must follow
+      // phi_k(u) |C'(u)|: u from phi_k in the curve parameter, accepted with |C'(u)| / max|C'|.
+      const std::size_t k = source - block_offset_[block];
+      const CurveStorage& storage = storage_[curve_index];
       for (;;) {
-        t = rng.uniform_open();
-        const Vec2 velocity = derivative(shape, t);
+        const double u = storage.sampler.sample(k, rng.uniform(), rng.uniform());
+        const auto local = static_cast<std::uint32_t>(
+            std::min<double>(std::floor(u), curve.segment_count - 1.0));
+        segment_index = curve.first_segment + local;
+        t = u - local;
+        const Vec2 velocity = derivative(scene_->segments[segment_index].geometry.shape, t);
         const double speed = length(velocity);
-        if (rng.uniform() * segment.speed_bound < speed) {
+        if (rng.uniform() * storage.speed_bound[k] < speed) {
           tangent = (1.0 / speed) * velocity;
           break;
         }
       }
-      origin = evaluate(shape, t);
+      origin = evaluate(scene_->segments[segment_index].geometry.shape, t);
+      if (segment_info_[segment_index].kind == SegmentKind::Line)
+        tangent = segment_info_[segment_index].line_tangent;
+    } else {
+      // Uniform in arc length: a segment by length, then t with density |C'(t)| / L by
+      // rejection against the speed bound (exact; a line's speed is constant).
+      segment_index = curve.first_segment +
+                      static_cast<std::uint32_t>(segment_choice_[curve_index].sample(rng.uniform()));
+      const SceneSegment& segment = scene_->segments[segment_index];
+      const Cubic& shape = segment.geometry.shape;
+      if (segment.geometry.kind == SegmentKind::Line) {
+        t = rng.uniform_open();
+        origin = lerp(shape.p[0], shape.p[3], t);
+        tangent = segment_info_[segment_index].line_tangent;
+      } else {
+        for (;;) {
+          t = rng.uniform_open();
+          const Vec2 velocity = derivative(shape, t);
+          const double speed = length(velocity);
+          if (rng.uniform() * segment.speed_bound < speed) {
+            tangent = (1.0 / speed) * velocity;
+            break;
+          }
+        }
+        origin = evaluate(shape, t);
+      }
     }
     const Vec2 normal = back ? -perp(tangent) : perp(tangent);
     const Ray ray{origin, square_to_diffuse(rng.uniform(), normal)};
@@ -453,6 +493,19 @@ std::vector<double> Solver::radiosity_coefficients(std::uint32_t curve, Side sid
     for (std::size_t ch = 0; ch < channels; ++ch)
       coefficients[k * channels + ch] =
           rho[ch] * received_[(offset + k) * channels + ch] / storage.basis_length[k];
+  return coefficients;
+}
+
+std::vector<double> Solver::unshot_coefficients(std::uint32_t curve, Side side) const {
+  const std::uint32_t offset = block_offset(curve, side);
+  if (offset == kNoBlock) return {};
+  const auto channels = static_cast<std::size_t>(channels_);
+  const CurveStorage& storage = storage_[curve];
+  std::vector<double> coefficients(storage.basis.size() * channels);
+  for (std::size_t k = 0; k < storage.basis.size(); ++k)
+    for (std::size_t ch = 0; ch < channels; ++ch)
+      coefficients[k * channels + ch] =
+          unshot_[(offset + k) * channels + ch] / storage.basis_length[k];
   return coefficients;
 }
 

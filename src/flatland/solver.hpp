@@ -29,6 +29,11 @@
 
 namespace flatland {
 
+// Where on a source photons start: uniformly in arc length (the constant radiosity assumption),
+// or with density proportional to the reconstructed unshot radiosity (the paper's section 3.4).
+enum class PositionSampling { Uniform, Reconstructed };
+const char* to_string(PositionSampling sampling);
+
 struct SolverSettings {
   std::uint64_t photons = 1'000'000;  // total budget over all rounds
   std::uint64_t seed = 1;
@@ -36,6 +41,7 @@ struct SolverSettings {
   BasisKind basis = BasisKind::Cubic;
   int elements = 16;        // storage elements per curve (about; at least one per segment)
   double tolerance = 1e-3;  // stop when unshot power < tolerance x emitted power
+  PositionSampling sampling = PositionSampling::Reconstructed;
 };
 
 // Checks ranges; the message names the setting and the accepted range.
@@ -114,6 +120,10 @@ class Solver {
   // Radiosity coefficients of a curve side (lumped estimate): coefficient k, channel c at
   // [k * channels + c]; B(u) = E + sum_k b_k phi_k(u). Empty for a side that does not reflect.
   std::vector<double> radiosity_coefficients(std::uint32_t curve, Side side) const;
+  // Unshot radiosity coefficients of a curve side (the power waiting to be shot in the next round,
+  // per unit length, in the lumped estimate), laid out as radiosity_coefficients. The
+  // reconstructed sampler draws photon origins with density proportional to this function.
+  std::vector<double> unshot_coefficients(std::uint32_t curve, Side side) const;
   // Radiosity (emitted + reflected power per unit length) leaving a side at curve parameter u.
   Spectrum radiosity(std::uint32_t curve, Side side, double u) const;
 
@@ -137,8 +147,9 @@ class Solver {
   struct Round {
     std::uint64_t photons = 0;
     double scale = 0.0;  // fixed-point units per unit of power
-    DiscreteDistribution sources;  // over blocks (curve * 2 + side)
-    std::vector<std::array<std::int64_t, 3>> photon_units;  // per block
+    // Over blocks (curve * 2 + side) for uniform sampling, over coefficients for reconstructed.
+    DiscreteDistribution sources;
+    std::vector<std::array<std::int64_t, 3>> photon_units;  // per source
   };
 
   static constexpr std::uint32_t kNoBlock = 0xffffffffu;
@@ -161,6 +172,7 @@ class Solver {
   std::vector<CurveStorage> storage_;
   std::vector<std::uint32_t> block_offset_;  // first coefficient of each (curve, side), or kNoBlock
   std::vector<Spectrum> block_reflectivity_;
+  std::vector<std::uint32_t> coefficient_block_;  // block of each coefficient
   std::size_t coefficient_count_ = 0;
 
   std::vector<double> received_;  // all rounds, [coefficient * channels + channel]
