@@ -48,6 +48,12 @@ CLI::App* add_solve_command(CLI::App& parent, SolveOptions& o) {
                   "radiosity, the paper's method)")
       ->capture_default_str()
       ->check(CLI::IsMember({"uniform", "reconstructed"}));
+  cmd->add_option("--discontinuities", o.discontinuities,
+                  "Nodes where illumination may jump or kink: none (smooth everywhere), scene (the "
+                  "scene's joints: C-1 at corners by default) or auto (scene joints plus C0 nodes "
+                  "at visibility events: penumbra boundaries)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"none", "scene", "auto"}));
   cmd->add_option("--elements", o.settings.elements,
                   "Storage elements per curve (shared among its segments by arc length, at least "
                   "one each)")
@@ -81,9 +87,19 @@ void print_summary(const Solver& solver, const SolveOptions& o) {
   std::printf("scene     %s (%s): %zu curves, %zu segments (%zu cubic), %s\n", scene.name.c_str(),
               scene.source.c_str(), scene.curves.size(), scene.segments.size(), cubic_segments,
               scene.channels == 1 ? "grey" : "colour");
-  std::printf("method    %s basis, %d elements per curve, %s positions, point rays\n",
+  std::printf("method    %s basis, %d elements per curve, %s positions, discontinuities %s, "
+              "point rays\n",
               to_string(solver.settings().basis), solver.settings().elements,
-              to_string(solver.settings().sampling));
+              to_string(solver.settings().sampling), to_string(solver.settings().discontinuities));
+  // What the scene made the solver use (and so what it left out).
+  std::printf("features  %s (%d channel%s), %s, %zu discontinuity nodes (%zu from visibility "
+              "events), %zu storage coefficients\n",
+              scene.channels == 1 ? "grey" : "colour", scene.channels, scene.channels == 1 ? "" : "s",
+              cubic_segments == 0 ? "lines only (no cubic solver)"
+              : cubic_segments == scene.segments.size() ? "cubics only"
+                                                        : "lines and cubics",
+              solver.discontinuity_nodes(), solver.visibility_event_nodes(),
+              solver.coefficient_count());
   std::printf("solved    %s photons in %u rounds, %.3f s, %s photons/s on %u threads\n",
               human_count(static_cast<double>(solver.photons_shot())).c_str(), solver.rounds(),
               solver.seconds(), human_count(rate).c_str(), solver.thread_count());
@@ -107,6 +123,9 @@ int run_solve(SolveOptions& o) {
   o.settings.basis = o.basis == "constant" ? BasisKind::Constant
                      : o.basis == "linear" ? BasisKind::Linear
                                            : BasisKind::Cubic;
+  o.settings.discontinuities = o.discontinuities == "none"    ? DiscontinuityMode::None
+                               : o.discontinuities == "scene" ? DiscontinuityMode::Scene
+                                                              : DiscontinuityMode::Auto;
   o.settings.sampling =
       o.sampling == "uniform" ? PositionSampling::Uniform : PositionSampling::Reconstructed;
   if (Status status = validate(o.settings); !status) {

@@ -25,6 +25,7 @@ struct SolveOptions {
   SolverSettings settings;
   std::string basis = "cubic";
   std::string sampling = "reconstructed";
+  std::string discontinuities = "auto";
   int samples = 100;
   std::string out;
   std::string picture;

@@ -183,14 +183,16 @@ double BasisSampler::pdf(std::size_t k, double u) const {
 }
 
 CurveStorage build_curve_storage(const Scene& scene, const Curve& curve, BasisKind kind,
-                                 int elements) {
+                                 int elements, bool smooth_joints, std::span<const MeshNode> extra) {
   CurveStorage storage;
   const std::uint32_t segment_count = curve.segment_count;
   const int wanted = std::max(elements, 1);
 
   for (std::uint32_t i = 0; i < segment_count; ++i) {
     const SceneSegment& segment = scene.segments[curve.first_segment + i];
-    if (i > 0) storage.nodes.push_back({static_cast<double>(i), curve.joints[i - 1]});
+    if (i > 0)
+      storage.nodes.push_back(
+          {static_cast<double>(i), smooth_joints ? Continuity::C1 : curve.joints[i - 1]});
     const double share = wanted * segment.length / curve.length;
     const int pieces = std::max(1, static_cast<int>(std::lround(share)));
     for (int j = 1; j < pieces; ++j) {
@@ -198,6 +200,19 @@ CurveStorage build_curve_storage(const Scene& scene, const Curve& curve, BasisKi
       const double t = segment.arc_length.parameter_at(segment.geometry.shape, s);
       storage.nodes.push_back({i + t, Continuity::C1});
     }
+  }
+  for (const MeshNode& node : extra) {
+    if (!(node.u > 0.0 && node.u < segment_count)) continue;
+    const auto at = std::lower_bound(
+        storage.nodes.begin(), storage.nodes.end(), node.u,
+        [](const MeshNode& a, double u) { return a.u < u; });
+    auto merge = [&](std::vector<MeshNode>::iterator existing) {
+      if (existing == storage.nodes.end() || std::fabs(existing->u - node.u) > 1e-9) return false;
+      existing->continuity = std::min(existing->continuity, node.continuity);
+      return true;
+    };
+    if (merge(at) || (at != storage.nodes.begin() && merge(at - 1))) continue;
+    storage.nodes.insert(at, node);
   }
   storage.basis = SplineBasis(degree_of(kind), 0.0, static_cast<double>(segment_count),
                               storage.nodes);

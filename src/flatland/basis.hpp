@@ -96,9 +96,13 @@ struct CurveStorage {
 
 // About `elements` elements per curve, shared among its segments in proportion to their arc
 // length (at least one each) and of equal arc length within a segment. Joints take the curve's
-// joint continuity; element boundaries inside a segment are C1 (the most a piecewise cubic with
-// selected discontinuities offers).
+// joint continuity (or `smooth_joints`: all C1, the no-discontinuity baseline); element
+// boundaries inside a segment are C1 (the most a piecewise cubic with selected discontinuities
+// offers). `extra` nodes (increasing u, inside the curve) are added with their own continuity; one
+// that falls on an existing node within 1e-9 of the curve parameter lowers that node's continuity
+// instead.
 CurveStorage build_curve_storage(const Scene& scene, const Curve& curve, BasisKind kind,
-                                 int elements);
+                                 int elements, bool smooth_joints = false,
+                                 std::span<const MeshNode> extra = {});
 
 }  // namespace flatland

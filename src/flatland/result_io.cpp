@@ -49,6 +49,7 @@ nlohmann::json result_to_json(const Solver& solver, int samples_per_curve) {
       {"elements", settings.elements},
       {"tolerance", settings.tolerance},
       {"sampling", to_string(settings.sampling)},
+      {"discontinuities", to_string(settings.discontinuities)},
       {"estimator", "lumped"},
       {"samples", samples_per_curve},
   };
@@ -84,8 +85,29 @@ nlohmann::json result_to_json(const Solver& solver, int samples_per_curve) {
     const char* sides = curve.sides == Sides::Both ? "both"
                         : curve.sides == Sides::Back ? "back"
                                                      : "front";
-    curves.push_back({{"id", curve.id}, {"length", curve.length}, {"sides", sides},
-                      {"samples", std::move(samples)}});
+    // The stored spline, so a result can be re-plotted exactly: B(u) = E + sum_k b_k phi_k(u)
+    // with phi_k the B-splines of `degree` on `knots`, u = segment index + t.
+    const CurveStorage& storage = solver.storage(c);
+    nlohmann::json nodes = nlohmann::json::array();
+    for (const MeshNode& node : storage.nodes) {
+      const char* flag = node.continuity == Continuity::C1   ? "C1"
+                         : node.continuity == Continuity::C0 ? "C0"
+                                                             : "C-1";
+      nodes.push_back({{"u", node.u}, {"continuity", flag}});
+    }
+    nlohmann::json entry = {{"id", curve.id},
+                            {"length", curve.length},
+                            {"sides", sides},
+                            {"segments", curve.segment_count},
+                            {"emittance", spectrum_to_json(curve.emittance, scene.channels)},
+                            {"degree", storage.basis.degree()},
+                            {"knots", storage.basis.knots()},
+                            {"continuity", std::move(nodes)}};
+    const std::vector<double> main = solver.radiosity_coefficients(c, main_side);
+    if (!main.empty()) entry["coefficients"] = main;
+    if (two_sided) entry["coefficients_back"] = solver.radiosity_coefficients(c, Side::Back);
+    entry["samples"] = std::move(samples);
+    curves.push_back(std::move(entry));
   }
   result["curves"] = std::move(curves);
   return result;

@@ -69,6 +69,12 @@ Continuity default_joint(const Cubic& a, const Cubic& b, double scale) {
 
 }  // namespace
 
+bool is_tangent_continuous(const Scene& scene, const Curve& curve, std::uint32_t joint) {
+  const Cubic& a = scene.segments[curve.first_segment + joint].geometry.shape;
+  const Cubic& b = scene.segments[curve.first_segment + joint + 1].geometry.shape;
+  return default_joint(a, b, scene.scale) == Continuity::C1;
+}
+
 Status finalize_scene(Scene& scene) {
   scene.segments.clear();
   scene.bounds = Box{};

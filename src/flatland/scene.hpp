@@ -80,6 +80,10 @@ struct Scene {
   double emitted_power() const;
 };
 
+// Whether the chain is tangent-continuous at joint j (between segments j and j+1 of the curve):
+// the unit tangents agree to 1e-9 radians. Corners are where it is not.
+bool is_tangent_continuous(const Scene& scene, const Curve& curve, std::uint32_t joint);
+
 // Parse and validate a scene (format version 1, docs/scene-format.md). `source` names the text in
 // error messages (usually the file path). Errors are one line, located at the offending value:
 //   "scenes2d/room.json:14:9: curves[2].bezier: expected 3k+1 points, got 5; ..."

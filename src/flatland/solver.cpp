@@ -82,6 +82,13 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
     solver.segment_info_.push_back(info);
   }
   solver.accelerator_ = SegmentAccelerator(std::move(geometry));
+  std::vector<std::vector<MeshNode>> events(scene.curves.size());
+  if (settings.discontinuities == DiscontinuityMode::Auto) {
+    for (const DiscontinuityNode& node : find_visibility_events(scene, solver.accelerator_)) {
+      events[node.curve].push_back({node.u, node.continuity});
+      ++solver.visibility_events_;
+    }
+  }
 
   const auto channels = static_cast<std::size_t>(solver.channels_);
   double reflecting_length = 0.0;
@@ -94,8 +101,9 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
     for (std::uint32_t i = 0; i < curve.segment_count; ++i)
       lengths.push_back(scene.segments[curve.first_segment + i].length);
     solver.segment_choice_.emplace_back(lengths);
-    solver.storage_.push_back(
-        build_curve_storage(scene, curve, settings.basis, settings.elements));
+    solver.storage_.push_back(build_curve_storage(
+        scene, curve, settings.basis, settings.elements,
+        settings.discontinuities == DiscontinuityMode::None, events[c]));
     const Material& material = scene.material_of(curve);
     for (Side side : {Side::Front, Side::Back}) {
       if (!curve.has_side(side)) continue;
@@ -136,6 +144,13 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
 
 bool Solver::has_side(std::uint32_t curve, Side side) const {
   return block_offset(curve, side) != kNoBlock;
+}
+
+std::size_t Solver::discontinuity_nodes() const {
+  std::size_t count = 0;
+  for (const CurveStorage& storage : storage_)
+    for (const MeshNode& node : storage.nodes) count += node.continuity != Continuity::C1;
+  return count;
 }
 
 std::uint64_t Solver::photons_for_round(double unshot) const {

@@ -23,6 +23,7 @@
 
 #include "flatland/basis.hpp"
 #include "flatland/bvh.hpp"
+#include "flatland/discontinuity.hpp"
 #include "flatland/result.hpp"
 #include "flatland/sampling.hpp"
 #include "flatland/scene.hpp"
@@ -42,6 +43,7 @@ struct SolverSettings {
   int elements = 16;        // storage elements per curve (about; at least one per segment)
   double tolerance = 1e-3;  // stop when unshot power < tolerance x emitted power
   PositionSampling sampling = PositionSampling::Reconstructed;
+  DiscontinuityMode discontinuities = DiscontinuityMode::Auto;
 };
 
 // Checks ranges; the message names the setting and the accepted range.
@@ -117,6 +119,11 @@ class Solver {
   // Storage of each curve (basis, integrals of the basis functions over arc length).
   const CurveStorage& storage(std::uint32_t curve) const { return storage_[curve]; }
   bool has_side(std::uint32_t curve, Side side) const;
+  // Nodes of the storage meshes below C1 (value or slope jumps), and how many of them came from
+  // visibility events (discontinuity meshing).
+  std::size_t discontinuity_nodes() const;
+  std::size_t visibility_event_nodes() const { return visibility_events_; }
+  std::size_t coefficient_count() const { return coefficient_count_; }
   // Radiosity coefficients of a curve side (lumped estimate): coefficient k, channel c at
   // [k * channels + c]; B(u) = E + sum_k b_k phi_k(u). Empty for a side that does not reflect.
   std::vector<double> radiosity_coefficients(std::uint32_t curve, Side side) const;
@@ -174,6 +181,7 @@ class Solver {
   std::vector<Spectrum> block_reflectivity_;
   std::vector<std::uint32_t> coefficient_block_;  // block of each coefficient
   std::size_t coefficient_count_ = 0;
+  std::size_t visibility_events_ = 0;
 
   std::vector<double> received_;  // all rounds, [coefficient * channels + channel]
   std::vector<double> unshot_;    // current pool, same layout
