@@ -241,6 +241,11 @@ TEST(Solver, EnergyBooksBalanceOnEveryExampleScene) {
       SolverSettings settings;
       settings.photons = 200'000;
       settings.basis = basis;
+      // The cubic runs use the other estimator and sampling, so every combination is balanced.
+      if (basis == BasisKind::Cubic) {
+        settings.estimator = Estimator::Galerkin;
+        settings.sampling = PositionSampling::Uniform;
+      }
       Solver solver = make_solver(scene, settings);
       solver.run();
       EXPECT_TRUE(solver.stop_reason() == StopReason::Converged ||

@@ -54,6 +54,11 @@ CLI::App* add_solve_command(CLI::App& parent, SolveOptions& o) {
                   "at visibility events: penumbra boundaries)")
       ->capture_default_str()
       ->check(CLI::IsMember({"none", "scene", "auto"}));
+  cmd->add_option("--estimator", o.estimator,
+                  "Coefficients from deposits: lumped (power over the basis function's length; "
+                  "positive, smooths by O(h^2)) or galerkin (L2 projection, clamped nonnegative)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"lumped", "galerkin"}));
   cmd->add_option("--elements", o.settings.elements,
                   "Storage elements per curve (shared among its segments by arc length, at least "
                   "one each)")
@@ -87,9 +92,10 @@ void print_summary(const Solver& solver, const SolveOptions& o) {
   std::printf("scene     %s (%s): %zu curves, %zu segments (%zu cubic), %s\n", scene.name.c_str(),
               scene.source.c_str(), scene.curves.size(), scene.segments.size(), cubic_segments,
               scene.channels == 1 ? "grey" : "colour");
-  std::printf("method    %s basis, %d elements per curve, %s positions, discontinuities %s, "
+  std::printf("method    %s basis (%s), %d elements per curve, %s positions, discontinuities %s, "
               "point rays\n",
-              to_string(solver.settings().basis), solver.settings().elements,
+              to_string(solver.settings().basis), to_string(solver.settings().estimator),
+              solver.settings().elements,
               to_string(solver.settings().sampling), to_string(solver.settings().discontinuities));
   // What the scene made the solver use (and so what it left out).
   std::printf("features  %s (%d channel%s), %s, %zu discontinuity nodes (%zu from visibility "
@@ -126,6 +132,7 @@ int run_solve(SolveOptions& o) {
   o.settings.discontinuities = o.discontinuities == "none"    ? DiscontinuityMode::None
                                : o.discontinuities == "scene" ? DiscontinuityMode::Scene
                                                               : DiscontinuityMode::Auto;
+  o.settings.estimator = o.estimator == "galerkin" ? Estimator::Galerkin : Estimator::Lumped;
   o.settings.sampling =
       o.sampling == "uniform" ? PositionSampling::Uniform : PositionSampling::Reconstructed;
   if (Status status = validate(o.settings); !status) {

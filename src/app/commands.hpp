@@ -26,6 +26,7 @@ struct SolveOptions {
   std::string basis = "cubic";
   std::string sampling = "reconstructed";
   std::string discontinuities = "auto";
+  std::string estimator = "lumped";
   int samples = 100;
   std::string out;
   std::string picture;

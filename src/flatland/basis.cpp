@@ -248,6 +248,50 @@ CurveStorage build_curve_storage(const Scene& scene, const Curve& curve, BasisKi
     }
   }
   storage.sampler = BasisSampler(storage.basis);
+
+  // The banded mass matrix by the same quadrature, then its Cholesky factor in place. Row k keeps
+  // columns k - p .. k (B-splines more than p apart have disjoint supports).
+  const int p = storage.basis.degree();
+  const std::size_t width = static_cast<std::size_t>(p) + 1;
+  const std::size_t n = storage.basis.size();
+  std::vector<double>& band = storage.mass_cholesky;
+  band.assign(n * width, 0.0);
+  auto entry = [&](std::size_t row, std::size_t col) -> double& {  // col <= row, row - col <= p
+    return band[row * width + (col + static_cast<std::size_t>(p) - row)];
+  };
+  for (std::size_t k = 0; k + 1 < knots.size(); ++k) {
+    const double a = knots[k];
+    const double b = knots[k + 1];
+    if (!(b > a)) continue;
+    const auto segment_index = static_cast<std::uint32_t>(
+        std::min<double>(std::floor(0.5 * (a + b)), segment_count - 1));
+    const SceneSegment& segment = scene.segments[curve.first_segment + segment_index];
+    for (int panel = 0; panel < kPanels; ++panel) {
+      const double pa = a + (b - a) * panel / kPanels;
+      const double pb = a + (b - a) * (panel + 1) / kPanels;
+      const double half = 0.5 * (pb - pa);
+      for (std::size_t g = 0; g < kGaussNodes.size(); ++g) {
+        const double u = 0.5 * (pa + pb) + half * kGaussNodes[g];
+        const double weight =
+            kGaussWeights[g] * half * length(derivative(segment.geometry.shape, u - segment_index));
+        const std::size_t first = storage.basis.evaluate(u, values.data());
+        for (int i = 0; i <= p; ++i)
+          for (int j = 0; j <= i; ++j)
+            entry(first + static_cast<std::size_t>(i), first + static_cast<std::size_t>(j)) +=
+                weight * values[static_cast<std::size_t>(i)] * values[static_cast<std::size_t>(j)];
+      }
+    }
+  }
+  // Banded Cholesky: L_kk = sqrt(M_kk - sum L_kj^2), L_ik = (M_ik - sum L_ij L_kj) / L_kk.
+  for (std::size_t row = 0; row < n; ++row) {
+    const std::size_t start = row >= static_cast<std::size_t>(p) ? row - static_cast<std::size_t>(p) : 0;
+    for (std::size_t col = start; col <= row; ++col) {
+      double sum = entry(row, col);
+      const std::size_t inner = std::max(start, col >= static_cast<std::size_t>(p) ? col - static_cast<std::size_t>(p) : 0);
+      for (std::size_t j = inner; j < col; ++j) sum -= entry(row, j) * entry(col, j);
+      entry(row, col) = col == row ? std::sqrt(std::max(sum, 0.0)) : sum / entry(col, col);
+    }
+  }
   // Speed bound over each basis function's support: the largest bound of the segments it touches.
   storage.speed_bound.assign(storage.basis.size(), 0.0);
   for (std::size_t k = 0; k < storage.basis.size(); ++k) {
@@ -259,6 +303,38 @@ CurveStorage build_curve_storage(const Scene& scene, const Curve& curve, BasisKi
                                           scene.segments[curve.first_segment + i].speed_bound);
   }
   return storage;
+}
+
+void galerkin_estimate(const CurveStorage& storage, const double* deposits, double* coefficients,
+                       std::size_t stride) {
+  const std::size_t n = storage.basis.size();
+  const auto p = static_cast<std::size_t>(storage.basis.degree());
+  const std::size_t width = p + 1;
+  auto factor = [&](std::size_t row, std::size_t col) {
+    return storage.mass_cholesky[row * width + (col + p - row)];
+  };
+  // Forward substitution L y = d, then back substitution L^T b = y.
+  std::vector<double> x(n);
+  for (std::size_t row = 0; row < n; ++row) {
+    double sum = deposits[row * stride];
+    for (std::size_t col = row >= p ? row - p : 0; col < row; ++col) sum -= factor(row, col) * x[col];
+    x[row] = sum / factor(row, row);
+  }
+  for (std::size_t row = n; row-- > 0;) {
+    double sum = x[row];
+    for (std::size_t k = row + 1; k < n && k <= row + p; ++k) sum -= factor(k, row) * x[k];
+    x[row] = sum / factor(row, row);
+  }
+  // Clamp and renormalise so the power in the function equals the power deposited.
+  double deposited = 0.0;
+  double kept = 0.0;
+  for (std::size_t k = 0; k < n; ++k) {
+    deposited += deposits[k * stride];
+    x[k] = std::max(x[k], 0.0);
+    kept += x[k] * storage.basis_length[k];
+  }
+  const double rescale = kept > 0.0 ? deposited / kept : 0.0;
+  for (std::size_t k = 0; k < n; ++k) coefficients[k * stride] = x[k] * rescale;
 }
 
 }  // namespace flatland

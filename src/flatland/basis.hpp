@@ -92,7 +92,18 @@ struct CurveStorage {
   std::vector<MeshNode> nodes;       // interior nodes (joints and element boundaries)
   BasisSampler sampler;              // u with density phi_k(u) in the curve parameter
   std::vector<double> speed_bound;   // >= |C'(u)| over the support of phi_k
+  // Cholesky factor of the mass matrix M_kl = integral(phi_k phi_l ds), banded with half-width
+  // `degree`: row k holds L_(k, k-degree) .. L_(k, k) in band[k * (degree + 1) ...].
+  std::vector<double> mass_cholesky;
 };
+
+// The Galerkin (L2) estimate from deposited powers p_k: the spline whose moments against every
+// phi_k equal the deposits, M b = p. Exact for functions in the space and conservative, but it can
+// go negative near sharp features: negative coefficients are clamped to zero and the rest scaled so
+// that sum_k b_k integral(phi_k ds) still equals sum_k p_k. `stride` is the distance between
+// consecutive coefficients of one channel (the channel count of an interleaved layout).
+void galerkin_estimate(const CurveStorage& storage, const double* deposits, double* coefficients,
+                       std::size_t stride);
 
 // About `elements` elements per curve, shared among its segments in proportion to their arc
 // length (at least one each) and of equal arc length within a segment. Joints take the curve's

@@ -50,7 +50,7 @@ nlohmann::json result_to_json(const Solver& solver, int samples_per_curve) {
       {"tolerance", settings.tolerance},
       {"sampling", to_string(settings.sampling)},
       {"discontinuities", to_string(settings.discontinuities)},
-      {"estimator", "lumped"},
+      {"estimator", to_string(settings.estimator)},
       {"samples", samples_per_curve},
   };
   result["stats"] = {

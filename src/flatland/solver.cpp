@@ -33,6 +33,10 @@ const char* to_string(StopReason reason) {
   return "?";
 }
 
+const char* to_string(Estimator estimator) {
+  return estimator == Estimator::Lumped ? "lumped" : "galerkin";
+}
+
 const char* to_string(PositionSampling sampling) {
   return sampling == PositionSampling::Uniform ? "uniform" : "reconstructed";
 }
@@ -123,6 +127,7 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
   // The first round shoots the emitted power: on each emitting side E times the basis integrals.
   solver.received_.assign(solver.coefficient_count_ * channels, 0.0);
   solver.unshot_.assign(solver.coefficient_count_ * channels, 0.0);
+  solver.reflected_.assign(solver.coefficient_count_ * channels, 0.0);
   for (std::uint32_t c = 0; c < scene.curves.size(); ++c) {
     const Curve& curve = scene.curves[c];
     const CurveStorage& storage = solver.storage_[c];
@@ -144,6 +149,27 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
 
 bool Solver::has_side(std::uint32_t curve, Side side) const {
   return block_offset(curve, side) != kNoBlock;
+}
+
+void Solver::estimate(const std::vector<double>& power, std::vector<double>& coefficients) const {
+  const auto channels = static_cast<std::size_t>(channels_);
+  coefficients.assign(power.size(), 0.0);
+  for (std::uint32_t c = 0; c < scene_->curves.size(); ++c) {
+    const CurveStorage& storage = storage_[c];
+    for (Side side : {Side::Front, Side::Back}) {
+      const std::uint32_t offset = block_offset(c, side);
+      if (offset == kNoBlock) continue;
+      for (std::size_t ch = 0; ch < channels; ++ch) {
+        const std::size_t first = offset * channels + ch;
+        if (settings_.estimator == Estimator::Galerkin) {
+          galerkin_estimate(storage, &power[first], &coefficients[first], channels);
+        } else {
+          for (std::size_t k = 0; k < storage.basis.size(); ++k)
+            coefficients[first + k * channels] = power[first + k * channels] / storage.basis_length[k];
+        }
+      }
+    }
+  }
 }
 
 std::size_t Solver::discontinuity_nodes() const {
@@ -205,8 +231,23 @@ bool Solver::begin_round() {
   std::vector<double> source_weights(sources, 0.0);
   round_.photon_units.assign(sources, {});
   const double per_photon = unshot / static_cast<double>(round_.photons);
+  // With the Galerkin estimator the reconstructed unshot density is M^-1 U rather than U / L;
+  // coefficient k then carries the power g_k integral(phi_k ds) (the same total per curve).
+  std::vector<double> density_power;
+  if (by_coefficient && settings_.estimator == Estimator::Galerkin) {
+    estimate(unshot_, density_power);
+    for (std::uint32_t c = 0; c < scene_->curves.size(); ++c)
+      for (Side side : {Side::Front, Side::Back}) {
+        const std::uint32_t offset = block_offset(c, side);
+        if (offset == kNoBlock) continue;
+        for (std::size_t k = 0; k < storage_[c].basis.size(); ++k)
+          for (std::size_t ch = 0; ch < channels; ++ch)
+            density_power[(offset + k) * channels + ch] *= storage_[c].basis_length[k];
+      }
+  }
+  const std::vector<double>& coefficient_power = density_power.empty() ? unshot_ : density_power;
   for (std::size_t j = 0; j < sources; ++j) {
-    const double* power = by_coefficient ? &unshot_[j * channels] : block_unshot[j].data();
+    const double* power = by_coefficient ? &coefficient_power[j * channels] : block_unshot[j].data();
     for (std::size_t ch = 0; ch < channels; ++ch) source_weights[j] += power[ch];
     if (!(source_weights[j] > 0.0)) continue;
     for (std::size_t ch = 0; ch < channels; ++ch)
@@ -387,6 +428,16 @@ void Solver::end_round(std::span<const Accumulator> accumulators) {
     escaped_[ch] += static_cast<double>(escaped[ch]) * inverse_scale;
     absorbed_[ch] += static_cast<double>(black[ch]) * inverse_scale;
   }
+  // Reflected radiosity coefficients, kept current for readers between rounds.
+  estimate(received_, reflected_);
+  for (std::uint32_t c = 0; c < scene_->curves.size(); ++c)
+    for (Side side : {Side::Front, Side::Back}) {
+      const std::uint32_t offset = block_offset(c, side);
+      if (offset == kNoBlock) continue;
+      const Spectrum& rho = block_reflectivity_[c * 2 + static_cast<std::uint32_t>(side)];
+      for (std::size_t k = 0; k < storage_[c].basis.size(); ++k)
+        for (std::size_t ch = 0; ch < channels; ++ch) reflected_[(offset + k) * channels + ch] *= rho[ch];
+    }
   photons_shot_ += round_.photons;
   previous_unshot_ = previous_pool;
   ++rounds_;
@@ -500,28 +551,18 @@ std::vector<double> Solver::radiosity_coefficients(std::uint32_t curve, Side sid
   const std::uint32_t offset = block_offset(curve, side);
   if (offset == kNoBlock) return {};
   const auto channels = static_cast<std::size_t>(channels_);
-  const CurveStorage& storage = storage_[curve];
-  const Spectrum& rho = block_reflectivity_[curve * 2 + static_cast<std::uint32_t>(side)];
-  std::vector<double> coefficients(storage.basis.size() * channels);
-  // Lumped estimate: reflected power per unit length b_k = rho p_k / integral(phi_k ds).
-  for (std::size_t k = 0; k < storage.basis.size(); ++k)
-    for (std::size_t ch = 0; ch < channels; ++ch)
-      coefficients[k * channels + ch] =
-          rho[ch] * received_[(offset + k) * channels + ch] / storage.basis_length[k];
-  return coefficients;
+  const auto begin = reflected_.begin() + static_cast<std::ptrdiff_t>(offset * channels);
+  return {begin, begin + static_cast<std::ptrdiff_t>(storage_[curve].basis.size() * channels)};
 }
 
 std::vector<double> Solver::unshot_coefficients(std::uint32_t curve, Side side) const {
   const std::uint32_t offset = block_offset(curve, side);
   if (offset == kNoBlock) return {};
   const auto channels = static_cast<std::size_t>(channels_);
-  const CurveStorage& storage = storage_[curve];
-  std::vector<double> coefficients(storage.basis.size() * channels);
-  for (std::size_t k = 0; k < storage.basis.size(); ++k)
-    for (std::size_t ch = 0; ch < channels; ++ch)
-      coefficients[k * channels + ch] =
-          unshot_[(offset + k) * channels + ch] / storage.basis_length[k];
-  return coefficients;
+  std::vector<double> all;
+  estimate(unshot_, all);
+  const auto begin = all.begin() + static_cast<std::ptrdiff_t>(offset * channels);
+  return {begin, begin + static_cast<std::ptrdiff_t>(storage_[curve].basis.size() * channels)};
 }
 
 Spectrum Solver::radiosity(std::uint32_t curve, Side side, double u) const {
@@ -530,17 +571,14 @@ Spectrum Solver::radiosity(std::uint32_t curve, Side side, double u) const {
   if (offset == kNoBlock) return result;
   const auto channels = static_cast<std::size_t>(channels_);
   const CurveStorage& storage = storage_[curve];
-  const Spectrum& rho = block_reflectivity_[curve * 2 + static_cast<std::uint32_t>(side)];
   std::array<double, SplineBasis::kMaxDegree + 1> phi{};
   const std::size_t first = storage.basis.evaluate(u, phi.data());
   for (std::size_t ch = 0; ch < channels; ++ch) {
     double reflected = 0.0;
-    for (int j = 0; j <= storage.basis.degree(); ++j) {
-      const std::size_t k = first + static_cast<std::size_t>(j);
-      reflected += phi[static_cast<std::size_t>(j)] * received_[(offset + k) * channels + ch] /
-                   storage.basis_length[k];
-    }
-    result[ch] = scene_->curves[curve].emittance[ch] + rho[ch] * reflected;
+    for (int j = 0; j <= storage.basis.degree(); ++j)
+      reflected += phi[static_cast<std::size_t>(j)] *
+                   reflected_[(offset + first + static_cast<std::size_t>(j)) * channels + ch];
+    result[ch] = scene_->curves[curve].emittance[ch] + reflected;
   }
   return result;
 }

@@ -35,6 +35,11 @@ namespace flatland {
 enum class PositionSampling { Uniform, Reconstructed };
 const char* to_string(PositionSampling sampling);
 
+// How coefficients are estimated from deposits: lumped (b_k = p_k / integral(phi_k ds): positive,
+// smooths by O(h^2)) or Galerkin (the L2 projection M b = p, clamped to be nonnegative).
+enum class Estimator { Lumped, Galerkin };
+const char* to_string(Estimator estimator);
+
 struct SolverSettings {
   std::uint64_t photons = 1'000'000;  // total budget over all rounds
   std::uint64_t seed = 1;
@@ -44,6 +49,7 @@ struct SolverSettings {
   double tolerance = 1e-3;  // stop when unshot power < tolerance x emitted power
   PositionSampling sampling = PositionSampling::Reconstructed;
   DiscontinuityMode discontinuities = DiscontinuityMode::Auto;
+  Estimator estimator = Estimator::Lumped;
 };
 
 // Checks ranges; the message names the setting and the accepted range.
@@ -168,6 +174,8 @@ class Solver {
                    std::vector<PhotonPath>* paths, std::size_t path_limit) const;
   void end_round(std::span<const Accumulator> accumulators);
   std::uint64_t photons_for_round(double unshot) const;
+  // Per-unit-length coefficients of `power` (same layout) by the chosen estimator.
+  void estimate(const std::vector<double>& power, std::vector<double>& coefficients) const;
 
   const Scene* scene_ = nullptr;
   SolverSettings settings_;
@@ -185,6 +193,7 @@ class Solver {
 
   std::vector<double> received_;  // all rounds, [coefficient * channels + channel]
   std::vector<double> unshot_;    // current pool, same layout
+  std::vector<double> reflected_;  // reflected radiosity coefficients b_k (estimator applied)
   Spectrum emitted_{};
   Spectrum absorbed_{};
   Spectrum escaped_{};

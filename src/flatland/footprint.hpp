@@ -1,0 +1,86 @@
+// Extended rays (DESIGN.md section 7): the energy profile across a ray of width W, its samplers and
+// quadrature (for the band of sub-rays), and the footprint deposit of a single centre ray.
+//
+// A profile is a density k(x) on x in [-1, 1] (x = offset / (W/2)) integrating to exactly 1:
+//   box           1/2
+//   tent          1 - |x|
+//   epanechnikov  3/4 (1 - x^2)
+//   cosine        pi/4 cos(pi x / 2)
+//   gauss         exp(-x^2 / (2 sigma^2)) / Z with sigma = 1/3, truncated at |x| <= 1 (3 sigma)
+//                 and renormalised: Z = sigma sqrt(2 pi) erf(3 / sqrt 2), so 0.27 % of the
+//                 untruncated mass is cut off and the density jumps to 0.0133 at the ends.
+//
+// Footprint mode traces the centre ray only. At a hit with incidence cosine |cos theta_in| the
+// beam covers arc length s_hit +- a on the receiver, a = W / (2 |cos theta_in|), with density
+// k((s - s_hit) / a) / a; the photon's power goes to the storage coefficients with the weights
+// w_k = integral of that spread times phi_k(u(s)) ds, normalised to sum to 1.
+#pragma once
+
+#include <cstddef>
+#include <string_view>
+#include <vector>
+
+#include "flatland/basis.hpp"
+#include "flatland/result.hpp"
+#include "flatland/scene.hpp"
+
+namespace flatland {
+
+enum class RayProfile { Box, Tent, Epanechnikov, Cosine, Gauss };
+
+// "box", "tent", "epanechnikov", "cosine", "gauss".
+const char* to_string(RayProfile profile);
+// The inverse of to_string; an unknown name gives an error that lists the accepted names (and a
+// "did you mean" hint for a likely typo).
+Result<RayProfile> parse_ray_profile(std::string_view name);
+
+// Sample / Pdf / Invert set of a profile. The density is 0 outside [-1, 1]; the CDF is a closed
+// form (erf for the Gaussian), 0 below -1 and 1 above 1.
+double profile_density(RayProfile profile, double x);
+double profile_cdf(RayProfile profile, double x);
+// Inverse CDF for u in [0, 1] (clamped): closed forms for box, tent, Epanechnikov (trigonometric
+// root of the cubic) and cosine; Newton's method safeguarded by bisection for the Gaussian.
+double profile_sample(RayProfile profile, double u);
+
+// The band of K sub-rays: offsets in [-1, 1] (increasing, symmetric about 0) and weights summing
+// to 1. The profile's mass is cut into K strata of equal mass 1/K (boundaries profile_sample(i/K))
+// and each sub-ray sits at its stratum's centroid with weight 1/K. Equal weights keep every
+// sub-ray at the same power (the premise of the equal-power photons) and give the smallest
+// possible error, one stratum's mass, for the step functions the band actually integrates
+// (partial occlusion, a beam split between curves). Centroids make each stratum's first moment
+// exact, so linear functions are integrated exactly and the second moment falls short by the
+// mean within-stratum variance, O(1/K^2) (always from below). `count` >= 1.
+void profile_quadrature(RayProfile profile, int count, std::vector<double>& offsets,
+                        std::vector<double>& weights);
+
+// Below this incidence cosine (87.1 degrees from the normal) the footprint stops growing: the
+// half-length a = W / (2 |cos theta_in|) is capped at W / (2 kGrazingCosine) = 10 W. At grazing
+// incidence the centre ray's footprint is a poor model anyway (the beam's edges hit elsewhere on a
+// curved or finite receiver), and the cap bounds the number of knot spans one deposit visits.
+inline constexpr double kGrazingCosine = 0.05;
+// a = W / (2 max(|cos theta_in|, kGrazingCosine)); a NaN cosine counts as grazing.
+double footprint_half_length(double width, double cos_incidence);
+
+struct FootprintWeight {
+  std::size_t coefficient = 0;  // index into the curve's basis
+  double weight = 0.0;
+};
+
+// Appends to `out` the weights of the spread of half-length `half_length` (arc length) centred at
+// curve parameter u_hit (segment index + t) on `curve`, deposited on `basis` (the curve's storage
+// basis in u). The appended weights are > 0, sum to 1 (to the last bit or two: the rounding
+// residual goes to the largest weight) and name each coefficient once, in increasing order.
+//
+// The spread continues into a neighbouring segment only across a tangent-continuous joint (unit
+// tangents within 1e-9 radians, from the geometry, whatever continuity the storage mesh chose);
+// at a corner or at the curve's ends it is cut off and the rest renormalised on the hit side. A
+// hit exactly on a joint belongs to the segment that starts there. half_length = +infinity
+// spreads uniformly over the tangent-continuous run; half_length <= 0 or NaN, or a footprint too
+// small to resolve in u, deposits at the point (weights phi_k(u_hit)), the limit a -> 0.
+//
+// Allocation-free apart from growing `out` (the caller clears and reuses it).
+void footprint_weights(const Scene& scene, const Curve& curve, const SplineBasis& basis,
+                       double u_hit, double half_length, RayProfile profile,
+                       std::vector<FootprintWeight>& out);
+
+}  // namespace flatland

@@ -1,0 +1,455 @@
+#include "flatland/footprint.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <numbers>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "flatland/result_io.hpp"
+#include "flatland/sampling.hpp"
+#include "test_support.hpp"
+
+namespace flatland {
+namespace {
+
+constexpr std::array<RayProfile, 5> kProfiles = {RayProfile::Box, RayProfile::Tent,
+                                                 RayProfile::Epanechnikov, RayProfile::Cosine,
+                                                 RayProfile::Gauss};
+
+// Second moments integral x^2 k(x) dx in closed form, independent of the code under test:
+// box 1/3, tent 2 (1/3 - 1/4) = 1/6, Epanechnikov 3/4 (2/3 - 2/5) = 1/5, cosine 1 - 8/pi^2,
+// truncated Gaussian sigma^2 (1 - 2 c phi(c) / (2 Phi(c) - 1)) with c = 3.
+double second_moment(RayProfile profile) {
+  switch (profile) {
+    case RayProfile::Box: return 1.0 / 3.0;
+    case RayProfile::Tent: return 1.0 / 6.0;
+    case RayProfile::Epanechnikov: return 0.2;
+    case RayProfile::Cosine: return 1.0 - 8.0 / (std::numbers::pi * std::numbers::pi);
+    case RayProfile::Gauss: {
+      const double phi3 = std::exp(-4.5) / std::sqrt(2.0 * std::numbers::pi);
+      return (1.0 - 6.0 * phi3 / std::erf(3.0 / std::numbers::sqrt2)) / 9.0;
+    }
+  }
+  return 0.0;
+}
+
+const char* kScene = R"({
+  "flatland": 1,
+  "materials": {"wall": {"reflectivity": 0.5, "emittance": 1}},
+  "curves": [
+    {"id": "line", "material": "wall", "line": [[0,0],[10,0]]},
+    {"id": "collinear", "material": "wall", "line": [[0,2],[4,2],[10,2]]},
+    {"id": "corner", "material": "wall", "line": [[0,4],[4,4],[4,10]]},
+    {"id": "arch", "material": "wall", "bezier": [[0,1],[0,3],[4,3],[4,1],[4,0],[6,0],[6,2]]},
+    {"id": "kink", "material": "wall", "bezier": [[0,-3],[1,-2],[2,-2],[3,-3],[4,-2],[5,-2],[6,-3]]}
+  ]})";
+
+enum CurveIndex { kLine = 0, kCollinear = 1, kCorner = 2, kArch = 3, kKink = 4 };
+
+const Scene& scene() {
+  static const Scene s = testing::scene_from_text(kScene);
+  return s;
+}
+
+// Arc length from the curve's start at curve parameter u (the table's own length_at).
+double arc_length_at(const Curve& curve, double u) {
+  const auto j = std::min(static_cast<std::uint32_t>(u), curve.segment_count - 1);
+  const SceneSegment& segment = scene().segments[curve.first_segment + j];
+  return curve.segment_start[j] + segment.arc_length.length_at(segment.geometry.shape, u - j);
+}
+
+// The weights as a dense vector over the basis, after checking the contract: coefficients in
+// range and increasing, weights > 0, sum 1 to 1e-14.
+std::vector<double> checked_dense(const std::vector<FootprintWeight>& weights, std::size_t size) {
+  std::vector<double> dense(size, 0.0);
+  double sum = 0.0;
+  for (std::size_t i = 0; i < weights.size(); ++i) {
+    EXPECT_LT(weights[i].coefficient, size);
+    if (i > 0) EXPECT_GT(weights[i].coefficient, weights[i - 1].coefficient);
+    EXPECT_GT(weights[i].weight, 0.0);
+    sum += weights[i].weight;
+    if (weights[i].coefficient < size) dense[weights[i].coefficient] = weights[i].weight;
+  }
+  EXPECT_NEAR(sum, 1.0, 1e-14);
+  return dense;
+}
+
+std::vector<double> footprint_dense(const Curve& curve, const SplineBasis& basis, double u_hit,
+                                    double a, RayProfile profile) {
+  std::vector<FootprintWeight> out;
+  footprint_weights(scene(), curve, basis, u_hit, a, profile, out);
+  return checked_dense(out, basis.size());
+}
+
+// Brute force: w_k = integral over [s_lo, s_hi] of k((s - s_hit)/a) phi_k(u(s)) ds, normalised,
+// by the midpoint rule in arc length with u(s) from point_at_arc_length. The interval is cut at
+// the arc lengths of the knots and at s_hit, so every cell sees a smooth integrand (error O(h^2)).
+std::vector<double> brute_force(const Curve& curve, const SplineBasis& basis, double s_lo,
+                                double s_hi, double s_hit, double a, RayProfile profile) {
+  std::vector<double> cuts = {s_lo, s_hi};
+  if (s_hit > s_lo && s_hit < s_hi) cuts.push_back(s_hit);
+  for (double knot : basis.knots()) {
+    const double s = arc_length_at(curve, knot);
+    if (s > s_lo && s < s_hi) cuts.push_back(s);
+  }
+  std::sort(cuts.begin(), cuts.end());
+  std::vector<double> dense(basis.size(), 0.0);
+  std::array<double, SplineBasis::kMaxDegree + 1> phi{};
+  const int cells = 2000;
+  for (std::size_t c = 0; c + 1 < cuts.size(); ++c) {
+    const double h = (cuts[c + 1] - cuts[c]) / cells;
+    for (int i = 0; i < cells; ++i) {
+      const double s = cuts[c] + (i + 0.5) * h;
+      const double density = profile_density(profile, (s - s_hit) / a);
+      const std::size_t first = basis.evaluate(point_at_arc_length(scene(), curve, s).u, phi.data());
+      for (int r = 0; r <= basis.degree(); ++r) dense[first + r] += h * density * phi[r];
+    }
+  }
+  double total = 0.0;
+  for (double w : dense) total += w;
+  for (double& w : dense) w /= total;
+  return dense;
+}
+
+void expect_close(const std::vector<double>& got, const std::vector<double>& want, double tolerance,
+                  const std::string& what) {
+  ASSERT_EQ(got.size(), want.size());
+  for (std::size_t k = 0; k < got.size(); ++k)
+    EXPECT_NEAR(got[k], want[k], tolerance) << what << " coefficient " << k;
+}
+
+TEST(Footprint, ProfileNamesRoundTrip) {
+  for (RayProfile profile : kProfiles) {
+    const Result<RayProfile> parsed = parse_ray_profile(to_string(profile));
+    ASSERT_TRUE(parsed.ok());
+    EXPECT_EQ(*parsed, profile);
+  }
+  EXPECT_STREQ(to_string(RayProfile::Epanechnikov), "epanechnikov");
+  const Result<RayProfile> typo = parse_ray_profile("tnet");
+  ASSERT_FALSE(typo.ok());
+  EXPECT_NE(typo.error().message.find("did you mean 'tent'?"), std::string::npos)
+      << typo.error().message;
+  EXPECT_NE(typo.error().message.find("box, tent, epanechnikov, cosine, gauss"), std::string::npos);
+}
+
+TEST(Footprint, ProfilesIntegrateToOneWithTheirMomentsAndCdf) {
+  // Midpoint rule with 10^6 cells on [-1, 1]: the tent's kink at 0 is a cell boundary, so the
+  // error is O(h^2) ~ 1e-12 for every profile.
+  const int cells = 1'000'000;
+  const double h = 2.0 / cells;
+  for (RayProfile profile : kProfiles) {
+    double mass = 0.0;
+    double first = 0.0;
+    double second = 0.0;
+    for (int i = 0; i < cells; ++i) {
+      const double x = -1.0 + (i + 0.5) * h;
+      const double k = profile_density(profile, x);
+      ASSERT_GE(k, 0.0);
+      mass += h * k;
+      first += h * x * k;
+      second += h * x * x * k;
+      if ((i + 1) % 50'000 == 0) {  // the CDF at the cell's right edge
+        const double edge = -1.0 + (i + 1) * h;
+        EXPECT_NEAR(profile_cdf(profile, edge), mass, 1e-11) << to_string(profile) << " x " << edge;
+      }
+    }
+    EXPECT_NEAR(mass, 1.0, 1e-11) << to_string(profile);
+    EXPECT_NEAR(first, 0.0, 1e-12) << to_string(profile);
+    EXPECT_NEAR(second, second_moment(profile), 1e-11) << to_string(profile);
+    EXPECT_EQ(profile_density(profile, 1.0 + 1e-12), 0.0);
+    EXPECT_EQ(profile_density(profile, -1.5), 0.0);
+    EXPECT_EQ(profile_cdf(profile, -1.0), 0.0);
+    EXPECT_EQ(profile_cdf(profile, -2.0), 0.0);
+    EXPECT_EQ(profile_cdf(profile, 1.0), 1.0);
+    EXPECT_EQ(profile_cdf(profile, 3.0), 1.0);
+    EXPECT_NEAR(profile_cdf(profile, 0.0), 0.5, 1e-15);
+  }
+  // The Gaussian's normaliser against std::erf: k(0) = 1 / (sigma sqrt(2 pi) erf(3 / sqrt 2)).
+  EXPECT_NEAR(profile_density(RayProfile::Gauss, 0.0),
+              3.0 / (std::sqrt(2.0 * std::numbers::pi) * std::erf(3.0 / std::numbers::sqrt2)),
+              1e-15);
+  // Its lower tail keeps relative accuracy: F(-1 + d) ~ k(-1) d for small d.
+  const double d = 1e-9;
+  EXPECT_NEAR(profile_cdf(RayProfile::Gauss, -1.0 + d) / (profile_density(RayProfile::Gauss, -1.0) * d),
+              1.0, 1e-6);
+}
+
+TEST(Footprint, SampleInvertsTheCdf) {
+  for (RayProfile profile : kProfiles) {
+    for (int i = 0; i <= 1000; ++i) {
+      const double u = i / 1000.0;
+      const double x = profile_sample(profile, u);
+      ASSERT_GE(x, -1.0);
+      ASSERT_LE(x, 1.0);
+      EXPECT_NEAR(profile_cdf(profile, x), u, 2e-15) << to_string(profile) << " u " << u;
+    }
+    EXPECT_EQ(profile_sample(profile, 0.0), -1.0) << to_string(profile);
+    EXPECT_EQ(profile_sample(profile, 1.0), 1.0) << to_string(profile);
+    EXPECT_NEAR(profile_sample(profile, 0.5), 0.0, 1e-15) << to_string(profile);
+    for (double x : {-0.99, -0.6, -0.1, 0.3, 0.97})
+      EXPECT_NEAR(profile_sample(profile, profile_cdf(profile, x)), x, 1e-12) << to_string(profile);
+  }
+}
+
+TEST(Footprint, SampleFollowsTheDensityByChiSquare) {
+  const int n = 200'000;
+  const int bins = 40;
+  for (RayProfile profile : kProfiles) {
+    Rng rng(17, static_cast<std::uint64_t>(profile), 0);
+    std::vector<double> observed(bins, 0.0);
+    for (int i = 0; i < n; ++i) {
+      const double x = profile_sample(profile, rng.uniform());
+      observed[std::min(bins - 1, static_cast<int>((x + 1.0) * 0.5 * bins))] += 1.0;
+    }
+    std::vector<double> expected(bins);
+    for (int b = 0; b < bins; ++b) {
+      const double lo = -1.0 + 2.0 * b / bins;
+      const double hi = -1.0 + 2.0 * (b + 1) / bins;
+      expected[b] = n * (profile_cdf(profile, hi) - profile_cdf(profile, lo));
+      ASSERT_GT(expected[b], 50.0);  // no bin needs merging
+    }
+    EXPECT_LT(testing::chi_square(observed, expected), testing::chi_square_critical(bins - 1))
+        << to_string(profile);
+  }
+}
+
+TEST(Footprint, QuadratureIsEqualWeightCentroidsOfEqualMassStrata) {
+  std::vector<double> offsets;
+  std::vector<double> weights;
+  for (RayProfile profile : kProfiles) {
+    const double m2 = second_moment(profile);
+    double previous_error = 0.0;
+    for (int count : {1, 2, 3, 4, 8, 16, 32, 64}) {
+      profile_quadrature(profile, count, offsets, weights);
+      ASSERT_EQ(offsets.size(), static_cast<std::size_t>(count));
+      ASSERT_EQ(weights.size(), static_cast<std::size_t>(count));
+      double sum = 0.0;
+      double first = 0.0;
+      double second = 0.0;
+      for (int i = 0; i < count; ++i) {
+        EXPECT_NEAR(weights[i], 1.0 / count, 1e-16);
+        EXPECT_GE(offsets[i], -1.0);
+        EXPECT_LE(offsets[i], 1.0);
+        if (i > 0) EXPECT_GT(offsets[i], offsets[i - 1]);
+        EXPECT_EQ(offsets[i], -offsets[count - 1 - i]);  // symmetric
+        // Node i lies in its stratum [F^-1(i/K), F^-1((i+1)/K)] (stratum boundaries by cdf).
+        EXPECT_GE(profile_cdf(profile, offsets[i]), static_cast<double>(i) / count - 1e-15);
+        EXPECT_LE(profile_cdf(profile, offsets[i]), static_cast<double>(i + 1) / count + 1e-15);
+        sum += weights[i];
+        first += weights[i] * offsets[i];
+        second += weights[i] * offsets[i] * offsets[i];
+      }
+      EXPECT_EQ(sum, 1.0);
+      EXPECT_NEAR(first, 0.0, 1e-15);
+      // The rule misses the mean within-stratum variance: 0 <= m2 - Q[x^2] <= 0.4 / K^2 (the
+      // box's is exactly 1/(3 K^2); the tails of the others make theirs a little larger).
+      const double error = m2 - second;
+      EXPECT_GE(error, -1e-15) << to_string(profile) << " K " << count;
+      EXPECT_LE(error, 0.4 / (count * count)) << to_string(profile) << " K " << count;
+      if (count == 64) {  // second order: doubling K from 32 quarters the error (within 10 %)
+        EXPECT_NEAR(previous_error / error, 4.0, 0.4) << to_string(profile);
+      }
+      previous_error = error;
+    }
+    // K = 1: the centre ray alone.
+    profile_quadrature(profile, 1, offsets, weights);
+    EXPECT_EQ(offsets[0], 0.0);
+    EXPECT_EQ(weights[0], 1.0);
+  }
+  // Box: midpoints of K equal strata, -1 + (2i + 1)/K.
+  profile_quadrature(RayProfile::Box, 5, offsets, weights);
+  for (int i = 0; i < 5; ++i) EXPECT_NEAR(offsets[i], -1.0 + (2.0 * i + 1.0) / 5.0, 1e-15);
+}
+
+TEST(Footprint, HalfLengthIsCappedAtGrazingIncidence) {
+  EXPECT_DOUBLE_EQ(footprint_half_length(0.1, 1.0), 0.05);
+  EXPECT_DOUBLE_EQ(footprint_half_length(0.1, -0.5), 0.1);
+  EXPECT_DOUBLE_EQ(footprint_half_length(0.1, 0.05), 1.0);
+  EXPECT_DOUBLE_EQ(footprint_half_length(0.1, 1e-9), 1.0);  // 10 W at most
+  EXPECT_DOUBLE_EQ(footprint_half_length(0.1, 0.0), 1.0);
+  EXPECT_DOUBLE_EQ(footprint_half_length(0.1, std::nan("")), 1.0);
+}
+
+TEST(Footprint, BoxOnALineGivesTheOverlapOfConstantElements) {
+  // Ten constant elements of length 1 on a line of length 10: with the box profile w_k is the
+  // overlap of element k with the footprint's allowed part, divided by that part's length.
+  const Curve& line = scene().curves[kLine];
+  const CurveStorage storage = build_curve_storage(scene(), line, BasisKind::Constant, 10);
+  ASSERT_EQ(storage.basis.size(), 10u);
+  auto overlap_weights = [](double lo, double hi) {
+    std::vector<double> w(10, 0.0);
+    for (int k = 0; k < 10; ++k) w[k] = std::max(0.0, std::min(hi, k + 1.0) - std::max(lo, 1.0 * k));
+    for (double& v : w) v /= hi - lo;
+    return w;
+  };
+  struct Case {
+    double s_hit, a;
+  };
+  for (const Case& c : {Case{3.3, 0.45}, Case{5.5, 2.2}, Case{0.3, 0.8}, Case{9.9, 0.6},
+                        Case{6.0, 0.25}, Case{4.7, 1.0}}) {
+    const std::vector<double> got =
+        footprint_dense(line, storage.basis, c.s_hit / 10.0, c.a, RayProfile::Box);
+    expect_close(got, overlap_weights(std::max(0.0, c.s_hit - c.a), std::min(10.0, c.s_hit + c.a)),
+                 1e-14, "s_hit " + std::to_string(c.s_hit));
+  }
+  // Grazing incidence: W = 0.3 at cos = 1e-6 is capped at a = 10 W = 3.
+  const double a = footprint_half_length(0.3, 1e-6);
+  EXPECT_DOUBLE_EQ(a, 3.0);
+  expect_close(footprint_dense(line, storage.basis, 0.45, a, RayProfile::Box),
+               overlap_weights(1.5, 7.5), 1e-14, "grazing");
+  // A footprint longer than the curve, or infinite, spreads uniformly over it.
+  for (double huge : {1e6, 1e300, INFINITY}) {
+    for (RayProfile profile : kProfiles) {
+      expect_close(footprint_dense(line, storage.basis, 0.37, huge, profile),
+                   std::vector<double>(10, 0.1), huge > 1e100 ? 1e-14 : 1e-6, to_string(profile));
+    }
+  }
+}
+
+TEST(Footprint, SpillsAcrossATangentContinuousJointOnly) {
+  // Polylines of segments 4 and 6 long with ten constant elements of length 1. Straight on: the
+  // box over [3.1, 4.3] puts 0.9/1.2 on element 3 and 0.3/1.2 on element 4, across the joint.
+  const Curve& collinear = scene().curves[kCollinear];
+  const CurveStorage straight = build_curve_storage(scene(), collinear, BasisKind::Constant, 10);
+  ASSERT_EQ(straight.basis.size(), 10u);
+  std::vector<double> want(10, 0.0);
+  want[3] = 0.75;
+  want[4] = 0.25;
+  expect_close(footprint_dense(collinear, straight.basis, 3.7 / 4.0, 0.6, RayProfile::Box), want,
+               1e-14, "collinear");
+  // From the other side (u = 1 + 0.3/6, s = 4.3) over [3.7, 4.9]: 0.3/1.2 and 0.9/1.2.
+  want[3] = 0.25;
+  want[4] = 0.75;
+  expect_close(footprint_dense(collinear, straight.basis, 1.0 + 0.3 / 6.0, 0.6, RayProfile::Box),
+               want, 1e-14, "collinear, from the right");
+  // Around a corner: [2.8, 4.4] is cut at 4, leaving 0.2/1.2 and 1.0/1.2 on the hit side.
+  const Curve& corner = scene().curves[kCorner];
+  const CurveStorage bent = build_curve_storage(scene(), corner, BasisKind::Constant, 10);
+  ASSERT_EQ(bent.basis.size(), 10u);
+  want.assign(10, 0.0);
+  want[2] = 0.2 / 1.2;
+  want[3] = 1.0 / 1.2;
+  expect_close(footprint_dense(corner, bent.basis, 3.4 / 4.0, 0.6, RayProfile::Box), want, 1e-14,
+               "corner");
+  // A hit exactly on the corner belongs to the segment that starts there: [4, 4.5] only.
+  want.assign(10, 0.0);
+  want[4] = 1.0;
+  expect_close(footprint_dense(corner, bent.basis, 1.0, 0.5, RayProfile::Box), want, 1e-14,
+               "on the corner");
+  // Infinite footprint: uniform over the run, the whole collinear curve or the corner's first leg.
+  expect_close(footprint_dense(collinear, straight.basis, 0.5, INFINITY, RayProfile::Tent),
+               std::vector<double>(10, 0.1), 1e-14, "collinear, infinite");
+  want.assign(10, 0.0);
+  for (int k = 0; k < 4; ++k) want[k] = 0.25;
+  expect_close(footprint_dense(corner, bent.basis, 0.5, INFINITY, RayProfile::Tent), want, 1e-14,
+               "corner, infinite");
+}
+
+TEST(Footprint, CubicsMatchABruteForceIntegralAcrossJointsAndEnds) {
+  // The arch's joint at u = 1 is tangent-continuous (tangents (0,-2) and (0,-1)): the spread
+  // continues into the second segment. The kink's joint at u = 1 is a corner ((1,-1) against
+  // (1,1)): the spread stops there. Both curves end at u = 0 and u = 2.
+  const Curve& arch = scene().curves[kArch];
+  const Curve& kink = scene().curves[kKink];
+  for (BasisKind kind : {BasisKind::Constant, BasisKind::Linear, BasisKind::Cubic}) {
+    for (RayProfile profile : kProfiles) {
+      const std::string what = std::string(to_string(kind)) + " " + to_string(profile);
+      // Arch, straddling the joint from either side, and at both ends.
+      const CurveStorage storage = build_curve_storage(scene(), arch, kind, 8);
+      for (double u_hit : {0.93, 1.04, 0.02, 1.97, 0.5}) {
+        const double s_hit = arc_length_at(arch, u_hit);
+        const double a = 0.9;
+        const std::vector<double> got = footprint_dense(arch, storage.basis, u_hit, a, profile);
+        const std::vector<double> want =
+            brute_force(arch, storage.basis, std::max(0.0, s_hit - a),
+                        std::min(arch.length, s_hit + a), s_hit, a, profile);
+        expect_close(got, want, 2e-7, what + " arch u " + std::to_string(u_hit));
+        if (u_hit == 0.93) {  // the spill is real: weight on functions living past the joint
+          double past = 0.0;
+          for (std::size_t k = 0; k < storage.basis.size(); ++k)
+            if (storage.basis.knots()[k] >= 1.0) past += got[k];
+          EXPECT_GT(past, 0.01) << what;
+        }
+      }
+      // Kink, near the corner from either side: all weight on the hit side.
+      const CurveStorage bent = build_curve_storage(scene(), kink, kind, 8);
+      const double joint = kink.segment_start[1];
+      for (double u_hit : {0.93, 1.06}) {
+        const double s_hit = arc_length_at(kink, u_hit);
+        const double a = 0.7;
+        const std::vector<double> got = footprint_dense(kink, bent.basis, u_hit, a, profile);
+        const double lo = u_hit < 1.0 ? std::max(0.0, s_hit - a) : joint;
+        const double hi = u_hit < 1.0 ? joint : std::min(kink.length, s_hit + a);
+        expect_close(got, brute_force(kink, bent.basis, lo, hi, s_hit, a, profile), 2e-7,
+                     what + " kink u " + std::to_string(u_hit));
+        for (std::size_t k = 0; k < bent.basis.size(); ++k) {
+          const std::vector<double>& knots = bent.basis.knots();
+          const bool only_right = knots[k] >= 1.0;
+          const bool only_left = knots[k + static_cast<std::size_t>(bent.basis.degree()) + 1] <= 1.0;
+          if (u_hit < 1.0 && only_right) EXPECT_EQ(got[k], 0.0) << what << " k " << k;
+          if (u_hit > 1.0 && only_left) EXPECT_EQ(got[k], 0.0) << what << " k " << k;
+        }
+      }
+    }
+  }
+}
+
+TEST(Footprint, TinyFootprintApproachesThePointDeposit) {
+  // As a -> 0 the weights tend to phi_k(u_hit), with an error of order a |phi_k'| / speed.
+  std::array<double, SplineBasis::kMaxDegree + 1> phi{};
+  for (int index : {kLine, kCollinear, kArch, kKink}) {
+    const Curve& curve = scene().curves[index];
+    for (BasisKind kind : {BasisKind::Constant, BasisKind::Linear, BasisKind::Cubic}) {
+      const CurveStorage storage = build_curve_storage(scene(), curve, kind, 7);
+      for (double u_hit : {0.013, 0.4321, 1.2468, 1.999}) {
+        std::vector<double> point(storage.basis.size(), 0.0);
+        const std::size_t first = storage.basis.evaluate(u_hit, phi.data());
+        for (int r = 0; r <= storage.basis.degree(); ++r) point[first + r] = phi[r];
+        for (RayProfile profile : kProfiles) {
+          const std::string what = curve.id + " " + to_string(kind) + " " + to_string(profile);
+          for (double a : {1e-7, 1e-10}) {
+            expect_close(footprint_dense(curve, storage.basis, u_hit, a * curve.length, profile),
+                         point, 1e4 * a, what + " a " + std::to_string(a));
+          }
+        }
+        // No footprint at all (or a NaN one): exactly the point deposit.
+        for (double a : {0.0, -1.0, std::nan("")}) {
+          expect_close(footprint_dense(curve, storage.basis, u_hit, a, RayProfile::Tent), point,
+                       1e-15, curve.id + " degenerate");
+        }
+      }
+    }
+  }
+}
+
+TEST(Footprint, AppendsToTheCallersVectorAndStaysValidEverywhere) {
+  // Random hits, sizes and profiles on every curve and basis: the appended block always obeys the
+  // contract, and what was in the vector before is left alone.
+  Rng rng(5, 1, 2);
+  std::vector<FootprintWeight> out;
+  for (std::size_t index = 0; index < scene().curves.size(); ++index) {
+    const Curve& curve = scene().curves[index];
+    for (BasisKind kind : {BasisKind::Constant, BasisKind::Linear, BasisKind::Cubic}) {
+      const CurveStorage storage = build_curve_storage(scene(), curve, kind, 9);
+      for (int trial = 0; trial < 300; ++trial) {
+        const double u_hit = curve.segment_count * rng.uniform();
+        const double a = curve.length * std::pow(10.0, -6.0 + 6.5 * rng.uniform());
+        const RayProfile profile = kProfiles[static_cast<std::size_t>(trial) % kProfiles.size()];
+        out.assign(1, FootprintWeight{12345, -7.0});
+        footprint_weights(scene(), curve, storage.basis, u_hit, a, profile, out);
+        ASSERT_GE(out.size(), 2u);
+        EXPECT_EQ(out[0].coefficient, 12345u);
+        EXPECT_EQ(out[0].weight, -7.0);
+        const std::vector<FootprintWeight> block(out.begin() + 1, out.end());
+        checked_dense(block, storage.basis.size());
+      }
+    }
+  }
+}
+
+}  // namespace
+}  // namespace flatland
