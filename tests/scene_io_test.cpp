@@ -828,3 +828,41 @@ TEST(SceneIoFuzz, MutatedValuesNeverCrash) {
 
 }  // namespace
 }  // namespace flatland
+
+namespace flatland {
+namespace {
+
+TEST(SceneIo, EmissionForms) {
+  const Result<Scene> plain = parse(kMinimal);
+  ASSERT_TRUE(plain.ok());
+  EXPECT_EQ(plain->materials[0].emission.kind, Emission::Kind::Diffuse);
+  const Result<Scene> lobe = parse(edited([](Json& j) { j["materials"]["lamp"]["emission"] = {{"lobe", 8}}; }));
+  ASSERT_TRUE(lobe.ok()) << lobe.error().message;
+  EXPECT_EQ(lobe->materials[0].emission.kind, Emission::Kind::Lobe);
+  EXPECT_EQ(lobe->materials[0].emission.exponent, 8.0);
+  const Result<Scene> beam = parse(edited([](Json& j) { j["materials"]["lamp"]["emission"] = {{"beam", 45}}; }));
+  ASSERT_TRUE(beam.ok()) << beam.error().message;
+  EXPECT_EQ(beam->materials[0].emission.kind, Emission::Kind::Beam);
+  EXPECT_NEAR(beam->materials[0].emission.half_angle, 0.7853981633974483, 1e-15);
+  const Result<Scene> diffuse = parse(edited([](Json& j) { j["materials"]["lamp"]["emission"] = "diffuse"; }));
+  ASSERT_TRUE(diffuse.ok());
+  EXPECT_EQ(diffuse->materials[0].emission.kind, Emission::Kind::Diffuse);
+}
+
+TEST(SceneIoErrors, EmissionForms) {
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["materials"]["lamp"]["emission"] = "laser"; })),
+                  "materials.lamp.emission: unknown emission");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["materials"]["lamp"]["emission"] = {{"beam", 0}}; })),
+                  "materials.lamp.emission.beam: the half-angle must be in (0, 90] degrees");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["materials"]["lamp"]["emission"] = {{"beam", 120}}; })),
+                  "materials.lamp.emission.beam");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["materials"]["lamp"]["emission"] = {{"lobe", -1}}; })),
+                  "materials.lamp.emission.lobe: the exponent must be in [0, 1000]");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["materials"]["lamp"]["emission"] = {{"lobe", 2}, {"beam", 3}}; })),
+                  "materials.lamp.emission: expected one emission form");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["materials"]["lamp"]["emission"] = {{"lobes", 2}}; })),
+                  "did you mean \"lobe\"?");
+}
+
+}  // namespace
+}  // namespace flatland

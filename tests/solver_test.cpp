@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <numbers>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -395,6 +396,41 @@ TEST(Solver, ReconstructedOriginsFollowTheUnshotRadiosity) {
   check_reconstructed_origins(BasisKind::Constant);
   check_reconstructed_origins(BasisKind::Linear);
   check_reconstructed_origins(BasisKind::Cubic);
+}
+
+TEST(Solver, DirectionalEmissionAppliesToEmittedLightOnly) {
+  // A 10-degree beam straight down from a lamp onto a wide floor: every emitted photon stays in
+  // the cone and lands on the floor (so the floor's power is the lamp's, exactly up to round-off),
+  // while the floor's reflected light in the next round is diffuse and leaves the cone.
+  const Scene scene = testing::scene_from_text(R"({
+    "flatland": 1,
+    "materials": {"spot": {"emittance": 2, "emission": {"beam": 10}}, "floor": {"reflectivity": 0.5}},
+    "curves": [
+      {"id": "lamp", "material": "spot", "line": [[0.5,1],[-0.5,1]]},
+      {"id": "floor", "material": "floor", "line": [[-10,0],[10,0]]}]})");
+  SolverSettings settings;
+  settings.photons = 200'000;
+  Solver solver = make_solver(scene, settings);
+  solver.record_paths(50'000);
+  ASSERT_TRUE(solver.step_round());
+  const double cone = std::cos(10.0 * std::numbers::pi / 180.0);
+  for (const PhotonPath& path : solver.paths()) {
+    ASSERT_FALSE(path.escaped);
+    const Vec2 d = normalized(path.end - path.origin);
+    ASSERT_GE(-d.y, cone - 1e-12);
+  }
+  EXPECT_EQ(solver.books().escaped, 0.0);
+  EXPECT_NEAR(solver.books().unshot, 0.5 * solver.books().emitted, 1e-12 * solver.books().emitted);
+  ASSERT_TRUE(solver.step_round());
+  int outside = 0;
+  for (const PhotonPath& path : solver.paths()) {
+    const Vec2 d = path.escaped ? path.end - path.origin : normalized(path.end - path.origin);
+    outside += d.y < cone;
+  }
+  // Diffuse reflection leaves the 10-degree cone with probability 1 - sin(10 deg) = 0.83.
+  const double n = static_cast<double>(solver.paths().size());
+  const double p = 1.0 - std::sin(10.0 * std::numbers::pi / 180.0);
+  EXPECT_NEAR(outside / n, p, 5 * std::sqrt(p * (1 - p) / n));
 }
 
 TEST(Solver, BudgetIsRespectedAndUnshotReported) {

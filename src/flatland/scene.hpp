@@ -27,10 +27,24 @@ enum class Continuity : std::int8_t { Jump = -1, C0 = 0, C1 = 1 };
 enum class Sides : std::uint8_t { Front, Back, Both };
 enum class Side : std::uint8_t { Front = 0, Back = 1 };
 
+// How an emitter's own light leaves it (reflected light is always diffuse). Angles theta are
+// measured from the emitting side's normal.
+//  - Diffuse: pdf cos(theta) / 2 on [-90, 90] degrees.
+//  - Lobe: pdf proportional to cos(theta)^exponent (exponent 1 is diffuse; larger is narrower).
+//  - Beam: the diffuse distribution restricted to |theta| <= half_angle (sin theta uniform in
+//    [-sin a, sin a]): constant radiance inside the cone, none outside.
+struct Emission {
+  enum class Kind : std::uint8_t { Diffuse, Lobe, Beam };
+  Kind kind = Kind::Diffuse;
+  double exponent = 1.0;      // Lobe
+  double half_angle = 1.5707963267948966;  // Beam, radians, in (0, pi/2]
+};
+
 struct Material {
   std::string name;
   Spectrum reflectivity{0.0, 0.0, 0.0};  // each channel in [0,1)
   Spectrum emittance{0.0, 0.0, 0.0};     // power per unit length leaving each emitting side
+  Emission emission;                     // directions of the emitted light
 };
 
 struct Curve {

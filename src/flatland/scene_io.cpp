@@ -488,6 +488,34 @@ class SceneReader {
     return x;
   }
 
+  // "diffuse", {"lobe": n} or {"beam": half-angle in degrees}.
+  Emission emission(const Json& v, const std::string& path) const {
+    constexpr const char* kForms =
+        "use \"diffuse\", {\"lobe\": n} (cos^n, n >= 0) or {\"beam\": half-angle in degrees}";
+    Emission result;
+    if (v.is_string()) {
+      if (v.get<std::string>() != "diffuse") fail(path, std::string("unknown emission; ") + kForms);
+      return result;
+    }
+    if (!v.is_object() || v.size() != 1) fail(path, std::string("expected one emission form; ") + kForms);
+    check_keys(v, path, {"lobe", "beam"});
+    if (const auto it = v.find("lobe"); it != v.end()) {
+      const double n = number(*it, append_key(path, "lobe"));
+      if (n < 0.0 || n > 1000.0)
+        fail(append_key(path, "lobe"), "the exponent must be in [0, 1000], got " + format_number(n));
+      result.kind = Emission::Kind::Lobe;
+      result.exponent = n;
+    } else {
+      const double degrees = number(v.at("beam"), append_key(path, "beam"));
+      if (!(degrees > 0.0 && degrees <= 90.0))
+        fail(append_key(path, "beam"),
+             "the half-angle must be in (0, 90] degrees, got " + format_number(degrees));
+      result.kind = Emission::Kind::Beam;
+      result.half_angle = degrees * 3.14159265358979323846 / 180.0;
+    }
+    return result;
+  }
+
   std::string text_value(const Json& v, const std::string& path, const char* what) const {
     if (!v.is_string()) fail(path, std::string("expected ") + what + " (a string), got " + type_name(v));
     return v.get<std::string>();
@@ -613,7 +641,7 @@ class SceneReader {
         fail(path, "expected a material object {\"reflectivity\": ..., \"emittance\": ...}, got " +
                        type_name(m));
       }
-      check_keys(m, path, {"reflectivity", "emittance"});
+      check_keys(m, path, {"reflectivity", "emittance", "emission"});
       Material material;
       material.name = item.key();
       if (const auto it = m.find("reflectivity"); it != m.end()) {
@@ -623,6 +651,8 @@ class SceneReader {
       if (const auto it = m.find("emittance"); it != m.end()) {
         material.emittance = spectrum(*it, append_key(path, "emittance"), Quantity::Emittance, colour);
       }
+      if (const auto it = m.find("emission"); it != m.end())
+        material.emission = emission(*it, append_key(path, "emission"));
       material_index_.emplace(material.name, static_cast<std::uint32_t>(scene.materials.size()));
       material_names_.push_back(material.name);
       scene.materials.push_back(std::move(material));

@@ -325,8 +325,18 @@ void Solver::shoot_batch(std::uint64_t batch, std::uint64_t count, Accumulator& 
         origin = evaluate(shape, t);
       }
     }
+    // Directions: diffuse, except an emitter's own light in the first round (every later round
+    // shoots reflected light only) when its material says otherwise.
     const Vec2 normal = back ? -perp(tangent) : perp(tangent);
-    const Ray ray{origin, square_to_diffuse(rng.uniform(), normal)};
+    Vec2 direction;
+    const Emission& emission = scene_->material_of(curve).emission;
+    if (rounds_ != 0 || emission.kind == Emission::Kind::Diffuse)
+      direction = square_to_diffuse(rng.uniform(), normal);
+    else if (emission.kind == Emission::Kind::Lobe)
+      direction = sample_lobe(rng, emission.exponent, normal);
+    else
+      direction = square_to_beam(rng.uniform(), emission.half_angle, normal);
+    const Ray ray{origin, direction};
 
     const SceneHit hit = accelerator_.closest_hit(ray, RayOrigin{segment_index, t});
     PhotonPath* path = nullptr;
