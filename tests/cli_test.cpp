@@ -70,7 +70,8 @@ TEST_F(Cli, HelpListsCommandsAndOptions) {
   const CommandRun solve = run("solve --help");
   EXPECT_EQ(solve.exit_code, 0);
   for (const char* option : {"--photons", "--seed", "--threads", "--basis", "--elements",
-                             "--tolerance", "--samples", "--out", "--picture"})
+                             "--tolerance", "--samples", "--out", "--picture", "--sampling",
+                             "--discontinuities", "--estimator"})
     EXPECT_NE(solve.out.find(option), std::string::npos) << option;
 }
 
@@ -88,6 +89,8 @@ TEST_F(Cli, BadInputGetsOneLineAndExitCodeTwo) {
       {"solve " + good + " --tolerance 2", "--tolerance"},
       {"solve " + good + " --elements 0", "--elements"},
       {"solve " + good + " --basis quintic", "--basis"},
+      {"solve " + good + " --sampling sideways", "--sampling"},
+      {"solve " + good + " --estimator magic", "--estimator"},
       {"solve " + good + " --samples -3", "--samples"},
       {"solve " + (directory_ / "missing.json").string(), "missing.json"},
       {"solve " + directory_.string(), directory_.filename().string()},
@@ -145,6 +148,13 @@ TEST_F(Cli, SolveWritesResultAndPicture) {
     const auto& first = curve["samples"][0];
     EXPECT_NEAR(first["s"].get<double>(), 0.5 * length / 7, 1e-12 * length);
     EXPECT_TRUE(first.contains("B"));
+    // The stored spline: degree + 1 + coefficients = knots (a clamped B-spline basis).
+    ASSERT_TRUE(curve.contains("knots"));
+    if (curve.contains("coefficients")) {
+      const std::size_t channels = result["scene"]["channels"].get<std::size_t>();
+      EXPECT_EQ(curve["knots"].size(),
+                curve["coefficients"].size() / channels + curve["degree"].get<std::size_t>() + 1);
+    }
     if (curve["sides"] == "both") {
       saw_two_sided = true;
       EXPECT_TRUE(first.contains("B_back"));
