@@ -39,9 +39,10 @@ CLI::App* add_solve_command(CLI::App& parent, SolveOptions& o) {
       ->capture_default_str()
       ->check(CLI::Range(0u, 1024u));
   cmd->add_option("--basis", o.basis,
-                  "Illumination along each curve: constant, linear or cubic (B-splines)")
+                  "Illumination along each curve: constant, linear or cubic B-splines, or hermite "
+                  "(cubic Hermite interpolation of nodal values)")
       ->capture_default_str()
-      ->check(CLI::IsMember({"constant", "linear", "cubic"}));
+      ->check(CLI::IsMember({"constant", "linear", "cubic", "hermite"}));
   cmd->add_option("--sampling", o.sampling,
                   "Where photons leave a source: uniform in arc length (constant radiosity "
                   "assumption) or reconstructed (density proportional to the reconstructed unshot "
@@ -128,7 +129,8 @@ int run_solve(SolveOptions& o) {
   o.settings.photons = *photons;
   o.settings.basis = o.basis == "constant" ? BasisKind::Constant
                      : o.basis == "linear" ? BasisKind::Linear
-                                           : BasisKind::Cubic;
+                     : o.basis == "hermite" ? BasisKind::Hermite
+                                            : BasisKind::Cubic;
   o.settings.discontinuities = o.discontinuities == "none"    ? DiscontinuityMode::None
                                : o.discontinuities == "scene" ? DiscontinuityMode::Scene
                                                               : DiscontinuityMode::Auto;

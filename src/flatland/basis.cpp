@@ -12,6 +12,7 @@ const char* to_string(BasisKind kind) {
     case BasisKind::Constant: return "constant";
     case BasisKind::Linear: return "linear";
     case BasisKind::Cubic: return "cubic";
+    case BasisKind::Hermite: return "hermite";
   }
   return "?";
 }

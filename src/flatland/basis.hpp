@@ -18,10 +18,15 @@
 
 namespace flatland {
 
-enum class BasisKind { Constant = 0, Linear = 1, Cubic = 3 };
+// Hermite stores nodal values in a linear B-spline basis (hats; a double knot at a C-1 node keeps
+// separate values on each side) and reconstructs a piecewise cubic Hermite interpolant from them
+// (src/flatland/hermite.hpp): the paper's "cubic through the control points" read literally.
+enum class BasisKind { Constant, Linear, Cubic, Hermite };
 
 const char* to_string(BasisKind kind);
-inline int degree_of(BasisKind kind) { return static_cast<int>(kind); }
+inline int degree_of(BasisKind kind) {
+  return kind == BasisKind::Constant ? 0 : kind == BasisKind::Cubic ? 3 : 1;
+}
 
 // A node of the storage mesh: an interior breakpoint in u and the continuity wanted there.
 struct MeshNode {

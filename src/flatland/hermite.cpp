@@ -35,6 +35,24 @@ double slope_at_end(double a, double b, double p, double q) {
   return ((a + 2.0 * b) * q - b * p) / (a + b);
 }
 
+// Linear interpolation written so that it returns a exactly when a == b (constant data stay
+// exactly constant) and never leaves [min(a,b), max(a,b)] under rounding: for b < a,
+// fl(b - a) >= -a and x fl(b - a) >= fl(b - a) for x in [0,1], so the sum is >= fl(a - a) = 0 when
+// a, b >= 0 (rounding is monotone).
+double lerp(double a, double b, double x) { return a + x * (b - a); }
+
+// de Casteljau's algorithm on Bernstein coefficients b_0..b_(N-1) at x in [0,1]: repeated lerps,
+// so nonnegative coefficients give a nonnegative value, exactly, and equal ones give that value.
+// With N = 4 it also returns the derivative d/dx = 3 (q1 - q0) from the last two points.
+template <std::size_t N>
+double de_casteljau(std::array<double, N> b, double x, double* derivative = nullptr) {
+  for (std::size_t level = N - 1; level > 0; --level) {
+    if (level == 1 && derivative) *derivative = static_cast<double>(N - 1) * (b[1] - b[0]);
+    for (std::size_t k = 0; k < level; ++k) b[k] = lerp(b[k], b[k + 1], x);
+  }
+  return b[0];
+}
+
 }  // namespace
 
 Status check_hermite_input(const HermiteInput& input) {
@@ -117,8 +135,9 @@ HermiteReconstruction::HermiteReconstruction(const HermiteInput& input) {
   //   d0 >= -3 f0 / h  at a piece's start,   d1 <= 3 f1 / h  at its end.
   // At a C1 node with value f between pieces of widths h_(i-1) and h_i the shared slope must meet
   // both: -3 f / h_i <= d <= 3 f / h_(i-1), an interval containing 0, so clamping keeps C1 and only
-  // ever moves a slope towards zero. Where no bound is active the slopes are untouched, so the
-  // filter costs no accuracy for data bounded away from zero.
+  // ever moves a slope towards zero. For smooth data bounded away from zero the bounds (~1/h) stop
+  // binding as h shrinks and the O(h^3) accuracy is kept; where the data touch zero the clamped
+  // slopes cost accuracy (1 + sin u converges at about second order instead of third).
   for (std::size_t i = 0; i < n; ++i) {
     const double lower = -3.0 * f0[i] / h[i];
     const double upper = 3.0 * f1[i] / h[i];
@@ -161,20 +180,19 @@ HermiteReconstruction::HermiteReconstruction(const HermiteInput& input) {
     }
   }
 
-  // Power form in x = (u - u0) / h of the Hermite cubic with p(0) = f0, p(1) = f1, p'(0) = h d0,
-  // p'(1) = h d1:  p(x) = f0 + h d0 x + (3 (f1 - f0) - 2 h d0 - h d1) x^2 + (2 (f0 - f1) + h d0
-  // + h d1) x^3. Constant data give zero slopes and so exactly the constant. Its integral over the
-  // piece is h (f0 + f1) / 2 + h^2 (d0 - d1) / 12 (= h/4 times the sum of Bernstein coefficients).
+  // Bernstein form in x = (u - u0) / h of the Hermite cubic with p(0) = f0, p(1) = f1,
+  // p'(0) = h d0, p'(1) = h d1: coefficients f0, f0 + h d0 / 3, f1 - h d1 / 3, f1. The filter made
+  // the inner two >= 0 up to one rounding of h d / 3, which is clamped. The piece's integral is
+  // h / 4 times their sum, which is h (f0 + f1) / 2 + h^2 (d0 - d1) / 12.
   pieces_.resize(n);
-  power_.resize(n);
+  bernstein_.resize(n);
   piece_integral_.resize(n);
   for (std::size_t i = 0; i < n; ++i) {
     pieces_[i] = {input.u[i], h[i], f0[i], f1[i], d0[i], d1[i]};
-    const double s0 = h[i] * d0[i];
-    const double s1 = h[i] * d1[i];
-    power_[i] = {f0[i], s0, 3.0 * (f1[i] - f0[i]) - 2.0 * s0 - s1, 2.0 * (f0[i] - f1[i]) + s0 + s1};
-    const double mass = h[i] * (f0[i] + f1[i]) / 2.0 + h[i] * (s0 - s1) / 12.0;
-    piece_integral_[i] = std::max(mass, 0.0);
+    const double b1 = std::max(f0[i] + h[i] * d0[i] / 3.0, 0.0);
+    const double b2 = std::max(f1[i] - h[i] * d1[i] / 3.0, 0.0);
+    bernstein_[i] = {f0[i], b1, b2, f1[i]};
+    piece_integral_[i] = h[i] * (((f0[i] + b1) + (b2 + f1[i])) / 4.0);
   }
   distribution_.assign(piece_integral_);
 }
@@ -189,38 +207,38 @@ std::size_t HermiteReconstruction::find_piece(double u) const {
 double HermiteReconstruction::evaluate(double u) const {
   const std::size_t i = find_piece(u);
   const double x = std::clamp((u - pieces_[i].u0) / pieces_[i].width, 0.0, 1.0);
-  const auto& a = power_[i];
-  return a[0] + x * (a[1] + x * (a[2] + x * a[3]));
+  return de_casteljau(bernstein_[i], x);
 }
 
 double HermiteReconstruction::derivative(double u) const {
   const std::size_t i = find_piece(u);
   const double x = std::clamp((u - pieces_[i].u0) / pieces_[i].width, 0.0, 1.0);
-  const auto& a = power_[i];
-  return (a[1] + x * (2.0 * a[2] + x * (3.0 * a[3]))) / pieces_[i].width;
+  double slope = 0.0;
+  de_casteljau(bernstein_[i], x, &slope);
+  return slope / pieces_[i].width;
 }
 
 double HermiteReconstruction::sample(double u1, double u2) const {
   if (distribution_.empty()) return u_begin() + u1 * (u_end() - u_begin());
   const std::size_t i = distribution_.sample(u1);
-  const auto& a = power_[i];
-  // Solve G(x) = u2 G(1) on [0,1] with G(x) = a0 x + a1 x^2/2 + a2 x^3/3 + a3 x^4/4, the piece's
-  // CDF up to a factor; it is nondecreasing since G' = p >= 0 (the positivity filter). Newton from
-  // the linear guess; a step leaving the bracket [lo, hi], or a vanishing density, bisects.
-  auto cdf = [&a](double x) {
-    return x * (a[0] + x * (a[1] / 2.0 + x * (a[2] / 3.0 + x * (a[3] / 4.0))));
-  };
-  auto density = [&a](double x) { return a[0] + x * (a[1] + x * (a[2] + x * a[3])); };
-  const double goal = u2 * cdf(1.0);
+  const auto& b = bernstein_[i];
+  // Solve G(x) = u2 G(1) on [0,1] for the piece's CDF up to a factor, G(x) = integral of p from 0
+  // to x: in the quartic Bernstein basis its coefficients are the running sums
+  // (0, b0, b0 + b1, b0 + b1 + b2, b0 + b1 + b2 + b3) / 4 (integrating Bernstein polynomials),
+  // nondecreasing, so G is nondecreasing and G(1) is the last. Newton from the linear guess; a
+  // step leaving the bracket [lo, hi], or a vanishing density, bisects.
+  const std::array<double, 5> cdf{0.0, b[0] / 4.0, (b[0] + b[1]) / 4.0, (b[0] + b[1] + b[2]) / 4.0,
+                                   ((b[0] + b[1]) + (b[2] + b[3])) / 4.0};
+  const double goal = u2 * cdf[4];
   double lo = 0.0;
   double hi = 1.0;
   double x = u2;
   for (int iteration = 0; iteration < 100; ++iteration) {
-    const double g = cdf(x) - goal;
+    const double g = de_casteljau(cdf, x) - goal;
     if (g == 0.0) break;
     if (g < 0.0) lo = x; else hi = x;
-    const double d = density(x);
-    double next = d > 0.0 ? x - g / d : 0.5 * (lo + hi);
+    const double density = de_casteljau(b, x);
+    double next = density > 0.0 ? x - g / density : 0.5 * (lo + hi);
     if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);
     if (std::fabs(next - x) <= 1e-15 || hi - lo <= 1e-15) {
       x = next;
@@ -235,7 +253,7 @@ double HermiteReconstruction::sample(double u1, double u2) const {
 double HermiteReconstruction::pdf(double u) const {
   if (!(u >= u_begin() && u <= u_end())) return 0.0;
   if (distribution_.empty()) return 1.0 / (u_end() - u_begin());
-  return std::max(evaluate(u), 0.0) / integral();
+  return evaluate(u) / integral();
 }
 
 }  // namespace flatland

@@ -7,6 +7,9 @@
 //   Jump  (C-1) a value and a one-sided slope on each side: the two pieces are independent.
 // The slopes are then filtered so that every piece stays nonnegative (Dougherty, Edelman and Hyman
 // 1989), and on request also monotone on monotone data (Fritsch and Carlson 1980).
+// Accuracy: slopes from three nodes are exact for quadratics, so the error is O(h^3) for smooth
+// data wherever a C0 or jump node has at least two pieces on each side. A piece between two
+// non-C1 nodes has only its own two values: both slopes are its secant and it is the chord (O(h^2)).
 #pragma once
 
 #include <array>
@@ -40,7 +43,8 @@ Status check_hermite_input(const HermiteInput& input);
 // One cubic piece on [u0, u0 + width], for output and plotting: its end values and end slopes
 // (in u). Its Bernstein coefficients in x = (u - u0) / width are
 //   start_value, start_value + width start_slope / 3, end_value - width end_slope / 3, end_value,
-// all nonnegative by construction (the positivity filter).
+// nonnegative by construction (the positivity filter; up to one rounding of width slope / 3,
+// which the evaluation clamps).
 struct HermitePiece {
   double u0 = 0.0;
   double width = 0.0;
@@ -62,8 +66,8 @@ class HermiteReconstruction {
   double u_end() const { return pieces_.back().u0 + pieces_.back().width; }
 
   // The reconstruction at u, clamped into [u_begin, u_end]. At an interior node the right piece's
-  // value, at the last node the last piece's. Where a piece touches zero, rounding can leave a
-  // value of order -1e-16 times the data's scale; take max(0, .) if a strict bound matters.
+  // value, at the last node the last piece's. Never negative, also under rounding (evaluated from
+  // nonnegative Bernstein coefficients), and exactly constant on constant data.
   double evaluate(double u) const;
   // d/du of the reconstruction, with the same choice of piece as evaluate.
   double derivative(double u) const;
@@ -77,15 +81,15 @@ class HermiteReconstruction {
   // inside it by inverting the piece's CDF (both uniform in [0,1)). With no mass at all (every
   // value zero) u is uniform on [u_begin, u_end], so a caller never sees NaN.
   double sample(double u1, double u2) const;
-  // The density of sample: max(0, evaluate(u)) / integral() inside [u_begin, u_end], else 0.
+  // The density of sample: evaluate(u) / integral() inside [u_begin, u_end], else 0.
   double pdf(double u) const;
 
  private:
   std::size_t find_piece(double u) const;
 
   std::vector<HermitePiece> pieces_;
-  std::vector<std::array<double, 4>> power_;  // piece i at x in [0,1]: sum_k power_[i][k] x^k
-  std::vector<double> piece_integral_;        // clamped >= 0 against rounding
+  std::vector<std::array<double, 4>> bernstein_;  // piece i in x = (u - u0) / width in [0,1]
+  std::vector<double> piece_integral_;
   DiscreteDistribution distribution_;         // over piece_integral_
 };
 

@@ -1,5 +1,7 @@
 #include "flatland/solver.hpp"
 
+#include "flatland/result_io.hpp"
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -128,6 +130,13 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
   solver.received_.assign(solver.coefficient_count_ * channels, 0.0);
   solver.unshot_.assign(solver.coefficient_count_ * channels, 0.0);
   solver.reflected_.assign(solver.coefficient_count_ * channels, 0.0);
+  const bool reconstructed = settings.sampling == PositionSampling::Reconstructed;
+  solver.sample_hermite_ = reconstructed && settings.basis == BasisKind::Hermite;
+  solver.sample_by_coefficient_ = reconstructed && !solver.sample_hermite_;
+  if (settings.basis == BasisKind::Hermite) {
+    solver.hermite_reflected_.resize(solver.block_offset_.size());
+    solver.hermite_unshot_.resize(solver.block_offset_.size());
+  }
   for (std::uint32_t c = 0; c < scene.curves.size(); ++c) {
     const Curve& curve = scene.curves[c];
     const CurveStorage& storage = solver.storage_[c];
@@ -170,6 +179,39 @@ void Solver::estimate(const std::vector<double>& power, std::vector<double>& coe
       }
     }
   }
+}
+
+double Solver::arc_length_at(std::uint32_t curve, double u) const {
+  const Curve& c = scene_->curves[curve];
+  const auto local =
+      static_cast<std::uint32_t>(std::clamp(std::floor(u), 0.0, c.segment_count - 1.0));
+  const SceneSegment& segment = scene_->segments[c.first_segment + local];
+  return c.segment_start[local] + segment.arc_length.length_at(segment.geometry.shape, u - local);
+}
+
+HermiteReconstruction Solver::hermite_of(std::uint32_t curve, const double* values,
+                                         std::size_t stride) const {
+  // Hat k of a linear B-spline peaks at knots[k + 1] (its Greville point); two hats peaking at the
+  // same place are the two sides of a C-1 node.
+  const CurveStorage& storage = storage_[curve];
+  const std::vector<double>& knots = storage.basis.knots();
+  HermiteInput input;
+  for (std::size_t k = 0; k < storage.basis.size(); ++k) {
+    const double u = knots[k + 1];
+    const double value = values[k * stride];
+    if (k > 0 && u == knots[k]) {  // the right side of a jump
+      input.right.back() = value;
+      continue;
+    }
+    Continuity continuity = Continuity::C1;
+    for (const MeshNode& node : storage.nodes)
+      if (node.u == u) continuity = node.continuity;
+    input.u.push_back(arc_length_at(curve, u));
+    input.left.push_back(value);
+    input.right.push_back(value);
+    input.continuity.push_back(continuity);
+  }
+  return HermiteReconstruction(input);
 }
 
 std::size_t Solver::discontinuity_nodes() const {
@@ -226,7 +268,22 @@ bool Solver::begin_round() {
   // A photon from source j carries U_j / (n p_j) with p_j = w_j / U: its channels sum to U / n.
   // Sources are the sides of curves (uniform sampling) or single coefficients (reconstructed
   // sampling, so a photon also takes the colour of the unshot light where it starts).
-  const bool by_coefficient = settings_.sampling == PositionSampling::Reconstructed;
+  const bool by_coefficient = sample_by_coefficient_;
+  if (sample_hermite_) {
+    // The unshot density of every block, channels summed, for the positions; each photon carries
+    // its block's colour (its power comes from the deposits, so the books stay exact).
+    std::vector<double> density;
+    estimate(unshot_, density);
+    std::vector<double> summed(coefficient_count_, 0.0);
+    for (std::size_t k = 0; k < coefficient_count_; ++k)
+      for (std::size_t ch = 0; ch < channels; ++ch) summed[k] += density[k * channels + ch];
+    for (std::uint32_t c = 0; c < scene_->curves.size(); ++c)
+      for (Side side : {Side::Front, Side::Back}) {
+        const std::uint32_t offset = block_offset(c, side);
+        if (offset != kNoBlock)
+          hermite_unshot_[c * 2 + static_cast<std::uint32_t>(side)] = hermite_of(c, &summed[offset], 1);
+      }
+  }
   const std::size_t sources = by_coefficient ? coefficient_count_ : block_offset_.size();
   std::vector<double> source_weights(sources, 0.0);
   round_.photon_units.assign(sources, {});
@@ -266,7 +323,7 @@ void Solver::shoot_batch(std::uint64_t batch, std::uint64_t count, Accumulator& 
   for (std::uint64_t i = 0; i < count; ++i) {
     // The source, by unshot power: a side of a curve, or one of its coefficients.
     const std::size_t source = round_.sources.sample(rng.uniform());
-    const bool by_coefficient = settings_.sampling == PositionSampling::Reconstructed;
+    const bool by_coefficient = sample_by_coefficient_;
     const std::uint32_t block =
         by_coefficient ? coefficient_block_[source] : static_cast<std::uint32_t>(source);
     const std::uint32_t curve_index = block / 2;
@@ -301,6 +358,15 @@ void Solver::shoot_batch(std::uint64_t batch, std::uint64_t count, Accumulator& 
       origin = evaluate(scene_->segments[segment_index].geometry.shape, t);
       if (segment_info_[segment_index].kind == SegmentKind::Line)
         tangent = segment_info_[segment_index].line_tangent;
+    } else if (sample_hermite_) {
+      // Density proportional to the Hermite reconstruction of the unshot radiosity, which lives
+      // in arc length already: no Jacobian, the inverse of s(t) places the point.
+      const double s = hermite_unshot_[block].sample(rng.uniform(), rng.uniform());
+      const CurvePoint point = point_at_arc_length(*scene_, curve, s);
+      segment_index = curve.first_segment + point.segment_in_curve;
+      t = point.t;
+      origin = point.position;
+      tangent = unit_tangent(scene_->segments[segment_index].geometry.shape, t, scale);
     } else {
       // Uniform in arc length: a segment by length, then t with density |C'(t)| / L by
       // rejection against the speed bound (exact; a line's speed is constant).
@@ -448,6 +514,17 @@ void Solver::end_round(std::span<const Accumulator> accumulators) {
       for (std::size_t k = 0; k < storage_[c].basis.size(); ++k)
         for (std::size_t ch = 0; ch < channels; ++ch) reflected_[(offset + k) * channels + ch] *= rho[ch];
     }
+  if (settings_.basis == BasisKind::Hermite) {
+    for (std::uint32_t c = 0; c < scene_->curves.size(); ++c)
+      for (Side side : {Side::Front, Side::Back}) {
+        const std::uint32_t offset = block_offset(c, side);
+        if (offset == kNoBlock) continue;
+        auto& per_channel = hermite_reflected_[c * 2 + static_cast<std::uint32_t>(side)];
+        per_channel.clear();
+        for (std::size_t ch = 0; ch < channels; ++ch)
+          per_channel.push_back(hermite_of(c, &reflected_[offset * channels + ch], channels));
+      }
+  }
   photons_shot_ += round_.photons;
   previous_unshot_ = previous_pool;
   ++rounds_;
@@ -583,6 +660,14 @@ Spectrum Solver::radiosity(std::uint32_t curve, Side side, double u) const {
   const CurveStorage& storage = storage_[curve];
   std::array<double, SplineBasis::kMaxDegree + 1> phi{};
   const std::size_t first = storage.basis.evaluate(u, phi.data());
+  if (settings_.basis == BasisKind::Hermite) {
+    const auto& per_channel = hermite_reflected_[curve * 2 + static_cast<std::uint32_t>(side)];
+    const double s = arc_length_at(curve, u);
+    for (std::size_t ch = 0; ch < channels; ++ch)
+      result[ch] = scene_->curves[curve].emittance[ch] +
+                   (per_channel.empty() ? 0.0 : per_channel[ch].evaluate(s));
+    return result;
+  }
   for (std::size_t ch = 0; ch < channels; ++ch) {
     double reflected = 0.0;
     for (int j = 0; j <= storage.basis.degree(); ++j)

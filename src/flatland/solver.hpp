@@ -24,6 +24,7 @@
 #include "flatland/basis.hpp"
 #include "flatland/bvh.hpp"
 #include "flatland/discontinuity.hpp"
+#include "flatland/hermite.hpp"
 #include "flatland/result.hpp"
 #include "flatland/sampling.hpp"
 #include "flatland/scene.hpp"
@@ -174,6 +175,11 @@ class Solver {
                    std::vector<PhotonPath>* paths, std::size_t path_limit) const;
   void end_round(std::span<const Accumulator> accumulators);
   std::uint64_t photons_for_round(double unshot) const;
+  // The Hermite interpolant, in arc length, of the nodal values of a curve's hat basis
+  // (`values[k * stride]`); C-1 nodes (double knots) keep their two values.
+  HermiteReconstruction hermite_of(std::uint32_t curve, const double* values, std::size_t stride) const;
+  // Arc length from the start of the curve to curve parameter u.
+  double arc_length_at(std::uint32_t curve, double u) const;
   // Per-unit-length coefficients of `power` (same layout) by the chosen estimator.
   void estimate(const std::vector<double>& power, std::vector<double>& coefficients) const;
 
@@ -194,6 +200,12 @@ class Solver {
   std::vector<double> received_;  // all rounds, [coefficient * channels + channel]
   std::vector<double> unshot_;    // current pool, same layout
   std::vector<double> reflected_;  // reflected radiosity coefficients b_k (estimator applied)
+  // Hermite basis only: reflected radiosity per block and channel, and the unshot density per
+  // block (channels summed) that reconstructed sampling draws from; both in arc length.
+  std::vector<std::vector<HermiteReconstruction>> hermite_reflected_;
+  std::vector<HermiteReconstruction> hermite_unshot_;
+  bool sample_by_coefficient_ = false;  // reconstructed sampling on a B-spline basis
+  bool sample_hermite_ = false;         // reconstructed sampling on the Hermite reconstruction
   Spectrum emitted_{};
   Spectrum absorbed_{};
   Spectrum escaped_{};
