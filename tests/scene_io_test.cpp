@@ -298,7 +298,7 @@ TEST(Scene, EmittedPowerCountsLengthSidesAndChannels) {
 
 TEST(Scene, FinalizeAHandBuiltScene) {
   Scene s;
-  s.materials.push_back(Material{"m", {0.5, 0.5, 0.5}, {1, 1, 1}});
+  s.materials.push_back(Material{"m", {0.5, 0.5, 0.5}, {1, 1, 1}, {}});
   Curve c;
   c.id = "c";
   c.kind = SegmentKind::Cubic;
@@ -862,6 +862,33 @@ TEST(SceneIoErrors, EmissionForms) {
                   "materials.lamp.emission: expected one emission form");
   EXPECT_CONTAINS(error_of(edited([](Json& j) { j["materials"]["lamp"]["emission"] = {{"lobes", 2}}; })),
                   "did you mean \"lobe\"?");
+}
+
+}  // namespace
+}  // namespace flatland
+
+namespace flatland {
+namespace {
+
+TEST(SceneIo, EmittanceProfile) {
+  const Result<Scene> scene = parse(edited([](Json& j) { j["curves"][0]["emittance_profile"] = {1, 3}; }));
+  ASSERT_TRUE(scene.ok()) << scene.error().message;
+  // A line from (1,1) to (0,1) with factors 1 and 3: mean 2, maximum 3.
+  EXPECT_NEAR(scene->curves[0].profile_mean, 2.0, 1e-14);
+  EXPECT_EQ(scene->curves[0].profile_max, 3.0);
+  EXPECT_NEAR(emittance_factor(scene->curves[0], 0.25), 1.5, 1e-15);
+  EXPECT_NEAR(scene->emitted_power(), 2.0, 1e-14);  // emittance 1 x length 1 x mean 2
+}
+
+TEST(SceneIoErrors, EmittanceProfile) {
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"][0]["emittance_profile"] = {1, 2, 3}; })),
+                  "curves[0].emittance_profile: expected 2 factors (one per point), got 3");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"][0]["emittance_profile"] = {1, -2}; })),
+                  "curves[0].emittance_profile[1]: must be >= 0");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"][0]["emittance_profile"] = {0, 0}; })),
+                  "every factor is zero");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"][0]["emittance_profile"] = 2; })),
+                  "expected an array of factors");
 }
 
 }  // namespace

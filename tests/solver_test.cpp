@@ -404,6 +404,52 @@ TEST(Solver, ReconstructedOriginsFollowTheUnshotRadiosity) {
   check_reconstructed_origins(BasisKind::Cubic);
 }
 
+TEST(Solver, EmittanceProfileShapesWherePhotonsStart) {
+  // A curved emitter whose emittance rises from 0.2 to 3 along its control points, on a cubic of
+  // strongly varying speed: origins per arc-length bin against the integral of E(s) over the bin,
+  // with E from the Bernstein polynomial of the factors (written out here, not the library's).
+  const Scene scene = testing::scene_from_text(R"({
+    "flatland": 1,
+    "materials": {"lamp": {"emittance": 2}},
+    "curves": [{"id": "lamp", "material": "lamp", "bezier": [[0,0],[0.05,0.02],[3,0.4],[3,3]],
+                "emittance_profile": [0.2, 0.5, 3, 1]}]})");
+  const int n = 200'000;
+  SolverSettings settings;
+  settings.photons = n;
+  Solver solver = make_solver(scene, settings);
+  solver.record_paths(n);
+  ASSERT_TRUE(solver.step_round());
+  const Curve& lamp = scene.curves[0];
+  const SceneSegment& segment = scene.segments[0];
+  auto profile = [](double t) {
+    const double s = 1 - t;
+    return 0.2 * s * s * s + 0.5 * 3 * s * s * t + 3 * 3 * s * t * t + 1 * t * t * t;
+  };
+  const int bins = 30;
+  std::vector<double> observed(bins, 0.0);
+  for (const PhotonPath& path : solver.paths()) {
+    const double s = arc_length(segment.geometry.shape, 0.0, path.source_t);
+    observed[std::min(bins - 1, static_cast<int>(s / lamp.length * bins))] += 1;
+  }
+  std::vector<double> expected(bins, 0.0);
+  double total = 0.0;
+  for (int bin = 0; bin < bins; ++bin) {
+    for (int j = 0; j < 400; ++j) {
+      const CurvePoint point = point_at_arc_length(scene, lamp, lamp.length * (bin + (j + 0.5) / 400) / bins);
+      expected[bin] += profile(point.t);
+    }
+    total += expected[bin];
+  }
+  for (double& e : expected) e *= static_cast<double>(solver.paths().size()) / total;
+  EXPECT_LT(testing::chi_square(observed, expected), testing::chi_square_critical(bins - 1));
+  // Emitted power: 2 * integral of the profile over arc length (midpoint rule above).
+  EXPECT_NEAR(solver.books().emitted, 2.0 * total / (bins * 400) * lamp.length,
+              1e-5 * solver.books().emitted);
+  // The radiosity a black emitter reports is its emittance there.
+  const CurvePoint middle = point_at_arc_length(scene, lamp, 0.5 * lamp.length);
+  EXPECT_NEAR(solver.radiosity(0, Side::Front, middle.u)[0], 2.0 * profile(middle.t), 1e-12);
+}
+
 TEST(Solver, DirectionalEmissionAppliesToEmittedLightOnly) {
   // A 10-degree beam straight down from a lamp onto a wide floor: every emitted photon stays in
   // the cone and lands on the floor (so the floor's power is the lamp's, exactly up to round-off),

@@ -306,6 +306,39 @@ CurveStorage build_curve_storage(const Scene& scene, const Curve& curve, BasisKi
   return storage;
 }
 
+std::vector<double> project_emittance_profile(const Scene& scene, const Curve& curve,
+                                              const CurveStorage& storage) {
+  if (curve.emittance_profile.empty()) return storage.basis_length;
+  // The same quadrature as basis_length, with the profile (a cubic in t) in the integrand.
+  std::vector<double> result(storage.basis.size(), 0.0);
+  const std::vector<double>& knots = storage.basis.knots();
+  std::array<double, SplineBasis::kMaxDegree + 1> values{};
+  constexpr int kPanels = 4;
+  for (std::size_t k = 0; k + 1 < knots.size(); ++k) {
+    const double a = knots[k];
+    const double b = knots[k + 1];
+    if (!(b > a)) continue;
+    const auto segment_index = static_cast<std::uint32_t>(
+        std::min<double>(std::floor(0.5 * (a + b)), curve.segment_count - 1));
+    const SceneSegment& segment = scene.segments[curve.first_segment + segment_index];
+    for (int panel = 0; panel < kPanels; ++panel) {
+      const double pa = a + (b - a) * panel / kPanels;
+      const double pb = a + (b - a) * (panel + 1) / kPanels;
+      const double half = 0.5 * (pb - pa);
+      for (std::size_t g = 0; g < kGaussNodes.size(); ++g) {
+        const double u = 0.5 * (pa + pb) + half * kGaussNodes[g];
+        const double weight = kGaussWeights[g] * half *
+                              length(derivative(segment.geometry.shape, u - segment_index)) *
+                              emittance_factor(curve, u);
+        const std::size_t first = storage.basis.evaluate(u, values.data());
+        for (int j = 0; j <= storage.basis.degree(); ++j)
+          result[first + static_cast<std::size_t>(j)] += weight * values[static_cast<std::size_t>(j)];
+      }
+    }
+  }
+  return result;
+}
+
 void galerkin_estimate(const CurveStorage& storage, const double* deposits, double* coefficients,
                        std::size_t stride) {
   const std::size_t n = storage.basis.size();

@@ -102,6 +102,11 @@ struct CurveStorage {
   std::vector<double> mass_cholesky;
 };
 
+// integral(phi_k(u) E(u) ds) for every k, with E the curve's emittance profile factor (one
+// without a profile, which gives basis_length): the emitted power each basis function starts with.
+std::vector<double> project_emittance_profile(const Scene& scene, const Curve& curve,
+                                              const CurveStorage& storage);
+
 // The Galerkin (L2) estimate from deposited powers p_k: the spline whose moments against every
 // phi_k equal the deposits, M b = p. Exact for functions in the space and conservative, but it can
 // go negative near sharp features: negative coefficients are clamped to zero and the rest scaled so

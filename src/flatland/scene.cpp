@@ -3,6 +3,8 @@
 // validation (zero-length segments, interior cusps) that needs the scene's size for its tolerances.
 #include "flatland/scene.hpp"
 
+#include <algorithm>
+
 #include <cmath>
 #include <cstdio>
 #include <string>
@@ -68,6 +70,17 @@ Continuity default_joint(const Cubic& a, const Cubic& b, double scale) {
 }
 
 }  // namespace
+
+double emittance_factor(const Curve& curve, double u) {
+  if (curve.emittance_profile.empty()) return 1.0;
+  const auto local = static_cast<std::size_t>(std::clamp(std::floor(u), 0.0, curve.segment_count - 1.0));
+  const double t = u - static_cast<double>(local);
+  const std::vector<double>& v = curve.emittance_profile;
+  if (curve.kind == SegmentKind::Line) return (1.0 - t) * v[local] + t * v[local + 1];
+  const double s = 1.0 - t;
+  const std::size_t i = 3 * local;
+  return s * s * s * v[i] + 3.0 * s * s * t * v[i + 1] + 3.0 * s * t * t * v[i + 2] + t * t * t * v[i + 3];
+}
 
 bool is_tangent_continuous(const Scene& scene, const Curve& curve, std::uint32_t joint) {
   const Cubic& a = scene.segments[curve.first_segment + joint].geometry.shape;
@@ -178,6 +191,37 @@ Status finalize_scene(Scene& scene) {
       scene.segments.push_back(segment);
     }
 
+    // The emittance profile: its size, and its mean over arc length by Gauss-Legendre on each
+    // segment (8 panels of 4 points: the cubic profile times the smooth speed).
+    c.profile_mean = 1.0;
+    c.profile_max = 1.0;
+    if (!c.emittance_profile.empty()) {
+      if (c.emittance_profile.size() != c.points.size())
+        return fail(curve_path(i) + ".emittance_profile",
+                    "expected one factor per point (" + std::to_string(c.points.size()) + "), got " +
+                        std::to_string(c.emittance_profile.size()));
+      c.profile_max = *std::max_element(c.emittance_profile.begin(), c.emittance_profile.end());
+      if (!(c.profile_max > 0.0))
+        return fail(curve_path(i) + ".emittance_profile",
+                    "every factor is zero; remove the emittance instead");
+      constexpr double kNodes[4] = {-0.8611363115940526, -0.3399810435848563, 0.3399810435848563,
+                                    0.8611363115940526};
+      constexpr double kWeights[4] = {0.3478548451374538, 0.6521451548625461, 0.6521451548625461,
+                                      0.3478548451374538};
+      double integral = 0.0;
+      for (std::size_t j = 0; j < count; ++j) {
+        const Cubic& shape = shapes[j];
+        for (int panel = 0; panel < 8; ++panel) {
+          for (int g = 0; g < 4; ++g) {
+            const double t = (panel + 0.5 + 0.5 * kNodes[g]) / 8.0;
+            integral += kWeights[g] * 0.5 / 8.0 * length(derivative(shape, t)) *
+                        emittance_factor(c, static_cast<double>(j) + t);
+          }
+        }
+      }
+      c.profile_mean = integral / c.length;
+    }
+
     if (c.joints.empty()) {
       for (std::size_t j = 0; j + 1 < count; ++j) {
         c.joints.push_back(default_joint(shapes[j], shapes[j + 1], size));
@@ -211,7 +255,7 @@ double Scene::emitted_power() const {
   for (const Curve& c : curves) {
     const double emitting_sides = c.sides == Sides::Both ? 2.0 : 1.0;
     for (int channel = 0; channel < channels; ++channel) {
-      total += emitting_sides * c.length * c.emittance[static_cast<std::size_t>(channel)];
+      total += emitting_sides * c.length * c.profile_mean * c.emittance[static_cast<std::size_t>(channel)];
     }
   }
   return total;

@@ -57,6 +57,12 @@ struct Curve {
   std::vector<Continuity> joints;
   Sides sides = Sides::Front;
   Spectrum emittance{0.0, 0.0, 0.0};  // the material's, or the curve's own override
+  // Optional grey factors of the emittance at the points (one per point): along a Bezier segment
+  // the Bernstein polynomial of its four control points' factors, along a straight segment the
+  // linear interpolation of its ends'. Empty: uniform emittance.
+  std::vector<double> emittance_profile;
+  double profile_mean = 1.0;  // the profile's mean over arc length (1 without a profile)
+  double profile_max = 1.0;   // an upper bound of the profile (its largest factor)
   std::uint32_t first_segment = 0;    // index into Scene::segments
   std::uint32_t segment_count = 0;
   double length = 0.0;
@@ -93,6 +99,9 @@ struct Scene {
   // Total emitted power summed over channels and emitting sides.
   double emitted_power() const;
 };
+
+// The emittance profile's factor at curve parameter u (1 without a profile).
+double emittance_factor(const Curve& curve, double u);
 
 // Whether the chain is tangent-continuous at joint j (between segments j and j+1 of the curve):
 // the unit tangents agree to 1e-9 radians. Corners are where it is not.

@@ -683,7 +683,8 @@ class SceneReader {
       fail(path, "expected a curve object {\"id\": ..., \"material\": ..., \"line\" or \"bezier\": "
                  "...}, got " + type_name(v));
     }
-    check_keys(v, path, {"id", "material", "line", "bezier", "joints", "sides", "emittance"});
+    check_keys(v, path, {"id", "material", "line", "bezier", "joints", "sides", "emittance",
+                         "emittance_profile"});
     Curve curve;
     curve.id = text_value(require(v, path, "id", "give the curve a unique \"id\""), path + ".id", "an id");
     if (curve.id.empty()) fail(path + ".id", "the id must not be empty; give the curve a name");
@@ -754,6 +755,20 @@ class SceneReader {
     }
     if (const auto it = v.find("emittance"); it != v.end()) {
       curve.emittance = spectrum(*it, path + ".emittance", Quantity::Emittance, colour);
+    }
+    if (const auto it = v.find("emittance_profile"); it != v.end()) {
+      const std::string profile_path = path + ".emittance_profile";
+      if (!it->is_array())
+        fail(profile_path, "expected an array of factors, one per point, got " + type_name(*it));
+      if (it->size() != curve.points.size())
+        fail(profile_path, "expected " + std::to_string(curve.points.size()) +
+                               " factors (one per point), got " + std::to_string(it->size()));
+      for (std::size_t k = 0; k < it->size(); ++k) {
+        const double factor = number((*it)[k], append_index(profile_path, k));
+        if (factor < 0.0)
+          fail(append_index(profile_path, k), "must be >= 0, got " + format_number(factor));
+        curve.emittance_profile.push_back(factor);
+      }
     }
     return curve;
   }

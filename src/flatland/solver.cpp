@@ -140,14 +140,16 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
   for (std::uint32_t c = 0; c < scene.curves.size(); ++c) {
     const Curve& curve = scene.curves[c];
     const CurveStorage& storage = solver.storage_[c];
+    if (!scene.is_emitter(curve)) continue;
+    const std::vector<double> emitted = project_emittance_profile(scene, curve, storage);
     for (Side side : {Side::Front, Side::Back}) {
       const std::uint32_t offset = solver.block_offset(c, side);
       if (offset == kNoBlock) continue;
       for (std::size_t k = 0; k < storage.basis.size(); ++k)
         for (std::size_t ch = 0; ch < channels; ++ch)
-          solver.unshot_[(offset + k) * channels + ch] = curve.emittance[ch] * storage.basis_length[k];
+          solver.unshot_[(offset + k) * channels + ch] = curve.emittance[ch] * emitted[k];
       for (std::size_t ch = 0; ch < channels; ++ch)
-        solver.emitted_[ch] += curve.emittance[ch] * curve.length;
+        solver.emitted_[ch] += curve.emittance[ch] * curve.length * curve.profile_mean;
     }
   }
   for (std::size_t ch = 0; ch < channels; ++ch) solver.emitted_total_ += solver.emitted_[ch];
@@ -336,7 +338,25 @@ void Solver::shoot_batch(std::uint64_t batch, std::uint64_t count, Accumulator& 
     double t = 0.0;
     Vec2 origin;
     Vec2 tangent;
-    if (by_coefficient) {
+    // Emitted light of a curve with an emittance profile (first round only) starts exactly where
+    // the profile says: uniform in arc length, accepted with probability E(u) / max E.
+    const bool profiled = rounds_ == 0 && !curve.emittance_profile.empty();
+    if (profiled) {
+      for (;;) {
+        segment_index = curve.first_segment + static_cast<std::uint32_t>(
+                                                  segment_choice_[curve_index].sample(rng.uniform()));
+        const Cubic& shape = scene_->segments[segment_index].geometry.shape;
+        t = rng.uniform_open();
+        const Vec2 velocity = derivative(shape, t);
+        const double speed = length(velocity);
+        if (!(rng.uniform() * scene_->segments[segment_index].speed_bound < speed)) continue;
+        const double u = (segment_index - curve.first_segment) + t;
+        if (!(rng.uniform() * curve.profile_max < emittance_factor(curve, u))) continue;
+        tangent = (1.0 / speed) * velocity;
+        origin = evaluate(shape, t);
+        break;
+      }
+    } else if (by_coefficient) {
       // Density proportional to the unshot radiosity per unit arc length: coefficient k was
       // chosen by its power U_k = b_k integral(phi_k ds), so the position must follow
       // phi_k(u) |C'(u)|: u from phi_k in the curve parameter, accepted with |C'(u)| / max|C'|.
@@ -664,7 +684,7 @@ Spectrum Solver::radiosity(std::uint32_t curve, Side side, double u) const {
     const auto& per_channel = hermite_reflected_[curve * 2 + static_cast<std::uint32_t>(side)];
     const double s = arc_length_at(curve, u);
     for (std::size_t ch = 0; ch < channels; ++ch)
-      result[ch] = scene_->curves[curve].emittance[ch] +
+      result[ch] = scene_->curves[curve].emittance[ch] * emittance_factor(scene_->curves[curve], u) +
                    (per_channel.empty() ? 0.0 : per_channel[ch].evaluate(s));
     return result;
   }
@@ -673,7 +693,8 @@ Spectrum Solver::radiosity(std::uint32_t curve, Side side, double u) const {
     for (int j = 0; j <= storage.basis.degree(); ++j)
       reflected += phi[static_cast<std::size_t>(j)] *
                    reflected_[(offset + first + static_cast<std::size_t>(j)) * channels + ch];
-    result[ch] = scene_->curves[curve].emittance[ch] + reflected;
+    result[ch] =
+        scene_->curves[curve].emittance[ch] * emittance_factor(scene_->curves[curve], u) + reflected;
   }
   return result;
 }
