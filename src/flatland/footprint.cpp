@@ -17,7 +17,7 @@ namespace {
 constexpr double kPi = std::numbers::pi;
 
 // The truncated Gaussian: sigma = 1/3, so |x| <= 1 is |z| <= 3. kGaussTail = erfc(3/sqrt 2) is the
-// untruncated mass beyond 3 sigma on both sides (checked against std::erfc by the tests); the
+// untruncated mass beyond 3 sigma on both sides (the tests check 1/Z against std::erf); the
 // normaliser is Z = integral over [-1,1] of exp(-x^2/(2 sigma^2)) = sigma sqrt(2 pi) (1 - tail).
 constexpr double kGaussTail = 0.0026997960632601913;
 constexpr double kGaussKept = 1.0 - kGaussTail;
@@ -45,7 +45,8 @@ inline double density_inside(RayProfile profile, double x) {
 
 // An antiderivative of x k(x) on [-1, 1], for the centroids of the quadrature's strata:
 //   box x^2/4; tent x^2/2 - |x|^3/3; Epanechnikov 3/4 (x^2/2 - x^4/4);
-//   cosine (pi/4) (x sin(cx)/c + cos(cx)/c^2) with c = pi/2; Gauss -sigma^2 exp(-x^2/(2 sigma^2)) / Z.
+//   cosine (pi/4) (x sin(cx)/c + cos(cx)/c^2) with c = pi/2;
+//   Gauss -sigma^2 exp(-x^2/(2 sigma^2)) / Z.
 double first_moment_antiderivative(RayProfile profile, double x) {
   const double x2 = x * x;
   switch (profile) {
@@ -149,33 +150,67 @@ void deposit_point(const SplineBasis& basis, double u, std::vector<FootprintWeig
 }
 
 // Accumulates weight * phi_k(u) into the contiguous run of coefficients appended after `begin`,
-// which starts at coefficient `base` (set by the first call). Calls come in increasing u, so the
-// first nonzero function never decreases and the run only grows at its end.
+// which starts at the first function of the first span visited. Spans come in increasing order,
+// so the run only grows at its end.
+//
+// The functions are evaluated by the Cox-de Boor recursion of SplineBasis::evaluate (Piegl and
+// Tiller, A2.2) without its search for the span, which the caller knows. The recursion's
+// denominators right[r+1] + left[j-r] = knots[span+r+1] - knots[span+1-j+r] do not depend on u, so
+// their reciprocals are taken once per span: the nodes of a span then cost no division.
 class Accumulator {
  public:
   Accumulator(const SplineBasis& basis, std::vector<FootprintWeight>& out)
-      : basis_(basis), out_(out), begin_(out.size()) {}
+      : knots_(basis.knots().data()),
+        degree_(static_cast<std::size_t>(basis.degree())),
+        out_(out),
+        begin_(out.size()) {}
 
+  // Enter the knot span [knots[span], knots[span+1]] (non-empty, not before the previous one).
+  void enter_span(std::size_t span) {
+    const std::size_t first = span - degree_;
+    if (out_.size() == begin_) base_ = first;
+    assert(first >= base_);
+    span_ = span;
+    const std::size_t needed = begin_ + (first - base_) + degree_ + 1;
+    while (out_.size() < needed) out_.push_back({base_ + (out_.size() - begin_), 0.0});
+    offset_ = begin_ + (first - base_);
+    for (std::size_t j = 1; j <= degree_; ++j)
+      for (std::size_t r = 0; r < j; ++r)
+        inverse_[j][r] = 1.0 / (knots_[span + r + 1] - knots_[span + 1 - j + r]);
+  }
+
+  // u inside the current span.
   void add(double u, double weight) {
     std::array<double, SplineBasis::kMaxDegree + 1> phi{};
-    const std::size_t first = basis_.evaluate(u, phi.data());
-    if (base_ == kUnset) base_ = first;
-    assert(first >= base_);
-    const std::size_t degree = static_cast<std::size_t>(basis_.degree());
-    const std::size_t needed = begin_ + (first - base_) + degree + 1;
-    while (out_.size() < needed) out_.push_back({base_ + (out_.size() - begin_), 0.0});
-    FootprintWeight* run = out_.data() + begin_ + (first - base_);
-    for (std::size_t r = 0; r <= degree; ++r) run[r].weight += weight * phi[r];
+    std::array<double, SplineBasis::kMaxDegree + 1> left{};
+    std::array<double, SplineBasis::kMaxDegree + 1> right{};
+    phi[0] = 1.0;
+    for (std::size_t j = 1; j <= degree_; ++j) {
+      left[j] = u - knots_[span_ + 1 - j];
+      right[j] = knots_[span_ + j] - u;
+      double saved = 0.0;
+      for (std::size_t r = 0; r < j; ++r) {
+        const double temp = phi[r] * inverse_[j][r];
+        phi[r] = saved + right[r + 1] * temp;
+        saved = left[j - r] * temp;
+      }
+      phi[j] = saved;
+    }
+    FootprintWeight* run = out_.data() + offset_;
+    for (std::size_t r = 0; r <= degree_; ++r) run[r].weight += weight * phi[r];
   }
 
   std::size_t begin() const { return begin_; }
 
  private:
-  static constexpr std::size_t kUnset = std::numeric_limits<std::size_t>::max();
-  const SplineBasis& basis_;
+  const double* knots_;
+  std::size_t degree_;
   std::vector<FootprintWeight>& out_;
   std::size_t begin_;
-  std::size_t base_ = kUnset;
+  std::size_t base_ = 0;
+  std::size_t span_ = 0;
+  std::size_t offset_ = 0;
+  std::array<std::array<double, SplineBasis::kMaxDegree>, SplineBasis::kMaxDegree + 1> inverse_{};
 };
 
 }  // namespace
@@ -226,7 +261,9 @@ double profile_cdf(RayProfile profile, double x) {
 }
 
 double profile_sample(RayProfile profile, double u) {
-  u = std::clamp(u, 0.0, 1.0);
+  // The ends exactly (the closed forms below round them to within an ulp).
+  if (!(u > 0.0)) return -1.0;
+  if (u >= 1.0) return 1.0;
   switch (profile) {
     case RayProfile::Box: return 2.0 * u - 1.0;
     case RayProfile::Tent:
@@ -275,8 +312,8 @@ void profile_quadrature(RayProfile profile, int count, std::vector<double>& offs
   double lower = -1.0;
   double lower_moment = first_moment_antiderivative(profile, lower);
   for (std::size_t i = 0; i < n; ++i) {
-    const double upper =
-        i + 1 == n ? 1.0 : profile_sample(profile, static_cast<double>(i + 1) / static_cast<double>(n));
+    const double mass = static_cast<double>(i + 1) / static_cast<double>(n);
+    const double upper = i + 1 == n ? 1.0 : profile_sample(profile, mass);
     const double upper_moment = first_moment_antiderivative(profile, upper);
     const double centroid = static_cast<double>(n) * (upper_moment - lower_moment);
     offsets[i] = std::clamp(centroid, lower, upper);
@@ -383,29 +420,37 @@ void footprint_weights(const Scene& scene, const Curve& curve, const SplineBasis
   const double inverse_a = 1.0 / a;  // 0 for an infinite footprint: a flat spread
   const bool polynomial_profile = profile == RayProfile::Box || profile == RayProfile::Tent ||
                                   profile == RayProfile::Epanechnikov;
-  // The Gaussian changes fastest; two panels per piece keep each within half a footprint, where
-  // eight points reach about 1e-14 (one panel over a whole half would give about 1e-9).
-  const int profile_panels = profile == RayProfile::Gauss ? 2 : 1;
+  // The Gaussian changes fastest: its panels span at most half the footprint (x-width 1/2), where
+  // eight points reach about 1e-14 (a whole half, x-width 1, would give about 1e-9).
+  auto profile_panels = [&](double x_width) {
+    return profile == RayProfile::Gauss ? std::max(1, static_cast<int>(std::ceil(2.0 * x_width)))
+                                        : 1;
+  };
   Accumulator accumulate(basis, out);
   const std::vector<double>& knots = basis.knots();
   auto next_knot = std::upper_bound(knots.begin(), knots.end(), u0);
+  const auto first_span = static_cast<std::size_t>(basis.degree());
 
   double ua = u0;
   double delta_a = delta0;
   while (ua < u1) {
     // The piece [ua, ub]: up to the next knot, joint, u_hit or u1, whichever comes first.
     double ub = u1;
-    if (next_knot != knots.end()) ub = std::fmin(ub, *next_knot);
-    ub = std::fmin(ub, std::floor(ua) + 1.0);
-    if (ua < u_hit) ub = std::fmin(ub, u_hit);
+    if (next_knot != knots.end()) ub = std::min(ub, *next_knot);
+    ub = std::min(ub, std::floor(ua) + 1.0);
+    if (ua < u_hit) ub = std::min(ub, u_hit);
     const std::uint32_t j = std::min(static_cast<std::uint32_t>(ua), count - 1);
     const SceneSegment& segment = segments[j];
     const double jd = j;
+    // The knot span holding the piece: knots[span] <= ua < ub <= knots[span + 1] = *next_knot
+    // (clamped to the basis' spans, which cover [0, segment_count] in a curve's storage).
+    accumulate.enter_span(std::clamp(static_cast<std::size_t>(next_knot - knots.begin()),
+                                     first_span + 1, basis.size()) - 1);
 
     if (segment.geometry.kind == SegmentKind::Line) {
       // Constant speed L: delta(u) = delta_a + (u - ua) L exactly.
       const double speed = segment.length;
-      const int panels = polynomial_profile ? 1 : profile_panels;
+      const int panels = polynomial_profile ? 1 : profile_panels((ub - ua) * speed * inverse_a);
       const double width = (ub - ua) / panels;
       const double half = 0.5 * width;
       for (int panel = 0; panel < panels; ++panel) {
@@ -426,8 +471,10 @@ void footprint_weights(const Scene& scene, const Curve& curve, const SplineBasis
       delta_a += (ub - ua) * speed;
     } else {
       const Cubic& shape = segment.geometry.shape;
-      const int panels = std::max(profile_panels,
-                                  static_cast<int>(std::ceil((ub - ua) / kMaxCubicPanel)));
+      // speed_bound >= |C'|, so the Gaussian's panels are at most half a footprint wide.
+      const int panels =
+          std::max(profile_panels((ub - ua) * segment.speed_bound * inverse_a),
+                   static_cast<int>(std::ceil((ub - ua) / kMaxCubicPanel)));
       const double width = (ub - ua) / panels;
       const double half = 0.5 * width;
       for (int panel = 0; panel < panels; ++panel) {
