@@ -76,6 +76,40 @@ TEST(Solver, ClosedEnclosureMatchesClosedFormCubic) { check_enclosure(0.5, 1e-4,
 TEST(Solver, ClosedEnclosureMatchesClosedFormHermite) { check_enclosure(0.5, 1e-4, BasisKind::Hermite); }
 TEST(Solver, StiffEnclosureMatchesClosedForm) { check_enclosure(0.9, 1e-4, BasisKind::Linear); }
 
+// Extended rays keep the enclosure's closed form away from the curve's two ends (where a footprint
+// is truncated and renormalised, which concentrates it), lose no photon, and balance the books.
+TEST(Solver, ExtendedRaysKeepTheEnclosureClosedForm) {
+  const Scene scene = testing::scene_from_text(circle_enclosure(0.5, 1.0));
+  for (RayMode mode : {RayMode::Footprint, RayMode::Band}) {
+    for (RayProfile profile : {RayProfile::Box, RayProfile::Gauss}) {
+      SolverSettings settings;
+      settings.photons = 1'000'000;
+      settings.tolerance = 1e-4;
+      settings.basis = BasisKind::Constant;
+      settings.elements = 16;
+      settings.ray_width = 0.05;
+      settings.ray_mode = mode;
+      settings.ray_profile = profile;
+      settings.band_rays = 5;
+      Solver solver = make_solver(scene, settings);
+      solver.run();
+      const EnergyBooks books = solver.books();
+      EXPECT_EQ(books.escaped, 0.0) << to_string(mode);
+      EXPECT_NEAR(books.imbalance(), 0.0, 1e-9 * books.emitted);
+      // As in check_enclosure: binomial deposits, relative sigma sqrt((1 - p) / (n p)).
+      const double p = 1.0 / 16;
+      const double sigma = 1.0 * std::sqrt((1 - p) / (static_cast<double>(solver.photons_shot()) * p));
+      const double length = scene.curves[0].length;
+      // The first and last element hold the truncated footprints; test the 14 between.
+      for (int element = 1; element < 15; ++element) {
+        const CurvePoint point = point_at_arc_length(scene, scene.curves[0], (element + 0.5) * length / 16);
+        EXPECT_NEAR(solver.radiosity(0, Side::Front, point.u)[0], 2.0, 5 * sigma + 1e-4 * 2.0)
+            << to_string(mode) << " " << to_string(profile) << " element " << element;
+      }
+    }
+  }
+}
+
 // One bounce from a black line emitter onto a flat receiver, optionally with a black occluder.
 // Irradiance at (x, 0) (normal +y): H(x) = E (1/2) * measure, in sin(theta), of the visible part of
 // the emitter, theta measured from the normal; the occluder sits between them, so the visible part

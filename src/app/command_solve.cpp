@@ -60,6 +60,22 @@ CLI::App* add_solve_command(CLI::App& parent, SolveOptions& o) {
                   "positive, smooths by O(h^2)) or galerkin (L2 projection, clamped nonnegative)")
       ->capture_default_str()
       ->check(CLI::IsMember({"lumped", "galerkin"}));
+  cmd->add_option("--ray-width", o.settings.ray_width,
+                  "Width of extended rays in scene units (0: point rays, no extended-ray code runs)")
+      ->capture_default_str();
+  cmd->add_option("--ray-profile", o.ray_profile,
+                  "Energy profile across an extended ray: box, tent, epanechnikov, cosine or gauss "
+                  "(truncated at 3 sigma)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"box", "tent", "epanechnikov", "cosine", "gauss"}));
+  cmd->add_option("--ray-mode", o.ray_mode,
+                  "footprint: spread the centre ray's power along the receiver over the projected "
+                  "width; band: trace --band-rays parallel sub-rays across the width")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"footprint", "band"}));
+  cmd->add_option("--band-rays", o.settings.band_rays, "Sub-rays per photon in band mode")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 256));
   cmd->add_option("--elements", o.settings.elements,
                   "Storage elements per curve (shared among its segments by arc length, at least "
                   "one each)")
@@ -93,11 +109,20 @@ void print_summary(const Solver& solver, const SolveOptions& o) {
   std::printf("scene     %s (%s): %zu curves, %zu segments (%zu cubic), %s\n", scene.name.c_str(),
               scene.source.c_str(), scene.curves.size(), scene.segments.size(), cubic_segments,
               scene.channels == 1 ? "grey" : "colour");
+  const SolverSettings& settings = solver.settings();
+  char rays[160] = "point rays";
+  if (settings.ray_width > 0.0) {
+    if (settings.ray_mode == RayMode::Band)
+      std::snprintf(rays, sizeof rays, "band of %d rays %g wide (%s)", settings.band_rays,
+                    settings.ray_width, to_string(settings.ray_profile));
+    else
+      std::snprintf(rays, sizeof rays, "footprint rays %g wide (%s)", settings.ray_width,
+                    to_string(settings.ray_profile));
+  }
   std::printf("method    %s basis (%s), %d elements per curve, %s positions, discontinuities %s, "
-              "point rays\n",
-              to_string(solver.settings().basis), to_string(solver.settings().estimator),
-              solver.settings().elements,
-              to_string(solver.settings().sampling), to_string(solver.settings().discontinuities));
+              "%s\n",
+              to_string(settings.basis), to_string(settings.estimator), settings.elements,
+              to_string(settings.sampling), to_string(settings.discontinuities), rays);
   // What the scene made the solver use (and so what it left out).
   std::printf("features  %s (%d channel%s), %s, %zu discontinuity nodes (%zu from visibility "
               "events), %zu storage coefficients\n",
@@ -134,6 +159,8 @@ int run_solve(SolveOptions& o) {
   o.settings.discontinuities = o.discontinuities == "none"    ? DiscontinuityMode::None
                                : o.discontinuities == "scene" ? DiscontinuityMode::Scene
                                                               : DiscontinuityMode::Auto;
+  o.settings.ray_profile = *parse_ray_profile(o.ray_profile);
+  o.settings.ray_mode = o.ray_mode == "band" ? RayMode::Band : RayMode::Footprint;
   o.settings.estimator = o.estimator == "galerkin" ? Estimator::Galerkin : Estimator::Lumped;
   o.settings.sampling =
       o.sampling == "uniform" ? PositionSampling::Uniform : PositionSampling::Reconstructed;

@@ -27,6 +27,8 @@ struct SolveOptions {
   std::string sampling = "reconstructed";
   std::string discontinuities = "auto";
   std::string estimator = "lumped";
+  std::string ray_profile = "box";
+  std::string ray_mode = "footprint";
   int samples = 100;
   std::string out;
   std::string picture;

@@ -51,6 +51,10 @@ nlohmann::json result_to_json(const Solver& solver, int samples_per_curve) {
       {"sampling", to_string(settings.sampling)},
       {"discontinuities", to_string(settings.discontinuities)},
       {"estimator", to_string(settings.estimator)},
+      {"ray_width", settings.ray_width},
+      {"ray_profile", to_string(settings.ray_profile)},
+      {"ray_mode", to_string(settings.ray_mode)},
+      {"band_rays", settings.band_rays},
       {"samples", samples_per_curve},
   };
   result["stats"] = {

@@ -35,6 +35,8 @@ const char* to_string(StopReason reason) {
   return "?";
 }
 
+const char* to_string(RayMode mode) { return mode == RayMode::Footprint ? "footprint" : "band"; }
+
 const char* to_string(Estimator estimator) {
   return estimator == Estimator::Lumped ? "lumped" : "galerkin";
 }
@@ -53,6 +55,10 @@ Status validate(const SolverSettings& settings) {
   if (!std::isfinite(settings.tolerance) || settings.tolerance <= 0.0 || settings.tolerance >= 1.0)
     return Error{"--tolerance: must be a number in (0, 1), e.g. 1e-3"};
   if (settings.threads > 1024) return Error{"--threads: at most 1024 (0 uses every core)"};
+  if (!std::isfinite(settings.ray_width) || settings.ray_width < 0.0)
+    return Error{"--ray-width: must be a finite width >= 0 in scene units (0: point rays)"};
+  if (settings.band_rays < 1 || settings.band_rays > 256)
+    return Error{"--band-rays: must be between 1 and 256"};
   return ok_status();
 }
 
@@ -130,6 +136,13 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
   solver.received_.assign(solver.coefficient_count_ * channels, 0.0);
   solver.unshot_.assign(solver.coefficient_count_ * channels, 0.0);
   solver.reflected_.assign(solver.coefficient_count_ * channels, 0.0);
+  if (settings.ray_width > 0.0) {
+    solver.ray_kind_ = settings.ray_mode == RayMode::Band ? RayKind::Band : RayKind::Footprint;
+    if (solver.ray_kind_ == RayKind::Band) {
+      profile_quadrature(settings.ray_profile, settings.band_rays, solver.band_offsets_,
+                         solver.band_weights_);
+    }
+  }
   const bool reconstructed = settings.sampling == PositionSampling::Reconstructed;
   solver.sample_hermite_ = reconstructed && settings.basis == BasisKind::Hermite;
   solver.sample_by_coefficient_ = reconstructed && !solver.sample_hermite_;
@@ -319,6 +332,20 @@ bool Solver::begin_round() {
 
 void Solver::shoot_batch(std::uint64_t batch, std::uint64_t count, Accumulator& acc,
                          std::vector<PhotonPath>* paths, std::size_t path_limit) const {
+  // The ray kind is fixed per solve: each kind gets its own compiled loop, so point rays carry no
+  // footprint or band code at all.
+  switch (ray_kind_) {
+    case RayKind::Point: return shoot<RayKind::Point>(batch, count, acc, paths, path_limit);
+    case RayKind::Footprint: return shoot<RayKind::Footprint>(batch, count, acc, paths, path_limit);
+    case RayKind::Band: return shoot<RayKind::Band>(batch, count, acc, paths, path_limit);
+  }
+}
+
+template <Solver::RayKind kRays>
+void Solver::shoot(std::uint64_t batch, std::uint64_t count, Accumulator& acc,
+                   std::vector<PhotonPath>* paths, std::size_t path_limit) const {
+  std::vector<FootprintWeight> footprint;
+  if constexpr (kRays == RayKind::Footprint) footprint.reserve(64);
   Rng rng(settings_.seed, rounds_, batch);
   const auto channels = static_cast<std::size_t>(channels_);
   const double scale = scene_->scale;
@@ -424,7 +451,6 @@ void Solver::shoot_batch(std::uint64_t batch, std::uint64_t count, Accumulator& 
       direction = square_to_beam(rng.uniform(), emission.half_angle, normal);
     const Ray ray{origin, direction};
 
-    const SceneHit hit = accelerator_.closest_hit(ray, RayOrigin{segment_index, t});
     PhotonPath* path = nullptr;
     if (paths != nullptr && paths->size() < path_limit) {
       path = &paths->emplace_back();
@@ -436,42 +462,120 @@ void Solver::shoot_batch(std::uint64_t batch, std::uint64_t count, Accumulator& 
       for (std::size_t ch = 0; ch < channels; ++ch)
         path->power[ch] = static_cast<double>(units[ch]) / round_.scale;
     }
-    if (hit.segment == kNoSegment) {
-      for (std::size_t ch = 0; ch < channels; ++ch) acc.escaped[ch] += units[ch];
-      if (path != nullptr) {
-        path->escaped = true;
-        path->end = origin + ray.direction;
+    if constexpr (kRays == RayKind::Band) {
+      // K parallel sub-rays across the width W. Each starts on the source segment itself, moved
+      // along it by offset * W / (2 cos(theta_out)) so the sub-rays' perpendicular spacing is the
+      // profile's offsets times W/2 (clamped at the segment's ends, so no sub-ray starts outside
+      // the scene). A sub-ray whose start does not face its direction (the source bends away)
+      // leaves from the centre instead. Each carries its share of the units, the last one the
+      // remainder, and deposits where it lands.
+      const SceneSegment& emitter = scene_->segments[segment_index];
+      const Cubic& shape = emitter.geometry.shape;
+      const bool line_source = emitter.geometry.kind == SegmentKind::Line;
+      const double along = 0.5 * settings_.ray_width /
+                           std::max(dot(direction, normal), kGrazingCosine);
+      const double s0 = line_source ? t * emitter.length : emitter.arc_length.length_at(shape, t);
+      std::array<std::int64_t, 3> left = units;
+      for (std::size_t ray_index = 0; ray_index < band_offsets_.size(); ++ray_index) {
+        const bool last = ray_index + 1 == band_offsets_.size();
+        std::array<std::int64_t, 3> share{};
+        for (std::size_t ch = 0; ch < channels; ++ch) {
+          share[ch] = last ? left[ch]
+                           : static_cast<std::int64_t>(band_weights_[ray_index] *
+                                                           static_cast<double>(units[ch]) + 0.5);
+          left[ch] -= share[ch];
+        }
+        // Strictly inside the segment: from the very end point (a corner of a room) a sub-ray
+        // could leave between the two walls.
+        const double s_i = std::clamp(s0 + band_offsets_[ray_index] * along, 0x1.0p-40 * emitter.length,
+                                      (1.0 - 0x1.0p-40) * emitter.length);
+        double t_i = line_source ? s_i / emitter.length : emitter.arc_length.parameter_at(shape, s_i);
+        Vec2 start = line_source ? lerp(shape.p[0], shape.p[3], t_i) : evaluate(shape, t_i);
+        if (!line_source) {
+          const Vec2 n_i = perp(unit_tangent(shape, t_i, scale));
+          if (!((back ? -dot(n_i, direction) : dot(n_i, direction)) > 0.0)) {
+            t_i = t;
+            start = origin;
+          }
+        }
+        const Ray sub{start, direction};
+        const SceneHit hit = accelerator_.closest_hit(sub, RayOrigin{segment_index, t_i});
+        receive<RayKind::Point>(hit, sub, share, acc,
+                                ray_index == band_offsets_.size() / 2 ? path : nullptr, footprint);
       }
-      continue;
+    } else {
+      const SceneHit hit = accelerator_.closest_hit(ray, RayOrigin{segment_index, t});
+      receive<kRays>(hit, ray, units, acc, path, footprint);
     }
-    // Which side was hit: the ray arrives on the front when it travels against the front normal,
-    // i.e. when cross(C'(t), d) < 0.
-    const SegmentInfo& info = segment_info_[hit.segment];
-    const SceneSegment& receiver = scene_->segments[hit.segment];
-    // Only the sign matters, so C'(t) need not be normalised; where it vanishes (an end point
-    // with coincident control points) the tangent comes from the first non-vanishing derivative.
-    Vec2 hit_tangent = info.line_tangent;
-    if (info.kind == SegmentKind::Cubic) {
-      hit_tangent = derivative(receiver.geometry.shape, hit.t);
-      if (length_squared(hit_tangent) <= 1e-24 * scale * scale)
-        hit_tangent = unit_tangent(receiver.geometry.shape, hit.t, scale);
-    }
-    const Side side = cross(hit_tangent, ray.direction) < 0.0 ? Side::Front : Side::Back;
+  }
+}
+
+template <Solver::RayKind kRays>
+void Solver::receive(const SceneHit& hit, const Ray& ray, const std::array<std::int64_t, 3>& units,
+                     Accumulator& acc, PhotonPath* path,
+                     std::vector<FootprintWeight>& footprint) const {
+  const auto channels = static_cast<std::size_t>(channels_);
+  const double scale = scene_->scale;
+  if (hit.segment == kNoSegment) {
+    for (std::size_t ch = 0; ch < channels; ++ch) acc.escaped[ch] += units[ch];
     if (path != nullptr) {
-      path->end = ray.origin + hit.distance * ray.direction;
-      path->hit_curve = info.curve;
-      path->hit_side = side;
+      path->escaped = true;
+      path->end = ray.origin + ray.direction;
     }
-    const std::uint32_t offset = block_offset(info.curve, side);
-    if (offset == kNoBlock) {
-      for (std::size_t ch = 0; ch < channels; ++ch) acc.black[ch] += units[ch];
-      continue;
+    return;
+  }
+  // Which side was hit: the ray arrives on the front when it travels against the front normal,
+  // i.e. when cross(C'(t), d) < 0.
+  const SegmentInfo& info = segment_info_[hit.segment];
+  const SceneSegment& receiver = scene_->segments[hit.segment];
+  // Only the sign matters, so C'(t) need not be normalised; where it vanishes (an end point
+  // with coincident control points) the tangent comes from the first non-vanishing derivative.
+  Vec2 hit_tangent = info.line_tangent;
+  if (info.kind == SegmentKind::Cubic) {
+    hit_tangent = derivative(receiver.geometry.shape, hit.t);
+    if (length_squared(hit_tangent) <= 1e-24 * scale * scale)
+      hit_tangent = unit_tangent(receiver.geometry.shape, hit.t, scale);
+  }
+  const double crossing = cross(hit_tangent, ray.direction);
+  const Side side = crossing < 0.0 ? Side::Front : Side::Back;
+  if (path != nullptr) {
+    path->end = ray.origin + hit.distance * ray.direction;
+    path->hit_curve = info.curve;
+    path->hit_side = side;
+  }
+  const std::uint32_t offset = block_offset(info.curve, side);
+  if (offset == kNoBlock) {
+    for (std::size_t ch = 0; ch < channels; ++ch) acc.black[ch] += units[ch];
+    return;
+  }
+  const double u = info.index_in_curve + hit.t;
+  if constexpr (kRays == RayKind::Footprint) {
+    // Spread along the receiver over the projected width with the profile; the weights sum to
+    // one and the largest share takes the rounding remainder.
+    const double cos_incidence = std::fabs(crossing) / length(hit_tangent);
+    footprint.clear();
+    footprint_weights(*scene_, scene_->curves[info.curve], storage_[info.curve].basis, u,
+                      footprint_half_length(settings_.ray_width, cos_incidence),
+                      settings_.ray_profile, footprint);
+    std::size_t largest = 0;
+    for (std::size_t i = 1; i < footprint.size(); ++i)
+      if (footprint[i].weight > footprint[largest].weight) largest = i;
+    for (std::size_t ch = 0; ch < channels; ++ch) {
+      std::int64_t left = units[ch];
+      for (std::size_t i = 0; i < footprint.size(); ++i) {
+        if (i == largest) continue;
+        const auto share = static_cast<std::int64_t>(footprint[i].weight * static_cast<double>(units[ch]) + 0.5);
+        acc.received[(offset + footprint[i].coefficient) * channels + ch] += share;
+        left -= share;
+      }
+      acc.received[(offset + footprint[largest].coefficient) * channels + ch] += left;
     }
+  } else {
     // Deposit on the basis functions alive at u; the last share takes the remainder so every
     // photon's units land exactly.
     const SplineBasis& basis = storage_[info.curve].basis;
     std::array<double, SplineBasis::kMaxDegree + 1> phi{};
-    const std::size_t first = basis.evaluate(info.index_in_curve + hit.t, phi.data());
+    const std::size_t first = basis.evaluate(u, phi.data());
     const int degree = basis.degree();
     std::int64_t* target = acc.received.data() + (offset + first) * channels;
     for (std::size_t ch = 0; ch < channels; ++ch) {

@@ -24,6 +24,7 @@
 #include "flatland/basis.hpp"
 #include "flatland/bvh.hpp"
 #include "flatland/discontinuity.hpp"
+#include "flatland/footprint.hpp"
 #include "flatland/hermite.hpp"
 #include "flatland/result.hpp"
 #include "flatland/sampling.hpp"
@@ -41,6 +42,9 @@ const char* to_string(PositionSampling sampling);
 enum class Estimator { Lumped, Galerkin };
 const char* to_string(Estimator estimator);
 
+enum class RayMode { Footprint, Band };
+const char* to_string(RayMode mode);
+
 struct SolverSettings {
   std::uint64_t photons = 1'000'000;  // total budget over all rounds
   std::uint64_t seed = 1;
@@ -51,6 +55,13 @@ struct SolverSettings {
   PositionSampling sampling = PositionSampling::Reconstructed;
   DiscontinuityMode discontinuities = DiscontinuityMode::Auto;
   Estimator estimator = Estimator::Lumped;
+  // Extended rays: width in scene units (0: point rays), energy profile across the width, and
+  // how the width is realised: a footprint spread along the receiver around the centre ray's
+  // hit, or a band of `band_rays` parallel sub-rays each traced on its own.
+  double ray_width = 0.0;
+  RayProfile ray_profile = RayProfile::Box;
+  RayMode ray_mode = RayMode::Footprint;
+  int band_rays = 8;
 };
 
 // Checks ranges; the message names the setting and the accepted range.
@@ -171,8 +182,17 @@ class Solver {
     return block_offset_[curve * 2 + static_cast<std::uint32_t>(side)];
   }
   bool begin_round();
+  enum class RayKind { Point, Footprint, Band };
   void shoot_batch(std::uint64_t batch, std::uint64_t count, Accumulator& accumulator,
                    std::vector<PhotonPath>* paths, std::size_t path_limit) const;
+  template <RayKind kRays>
+  void shoot(std::uint64_t batch, std::uint64_t count, Accumulator& accumulator,
+             std::vector<PhotonPath>* paths, std::size_t path_limit) const;
+  // What a photon (or a band's sub-ray) carrying `units` does where it lands.
+  template <RayKind kRays>
+  void receive(const SceneHit& hit, const Ray& ray, const std::array<std::int64_t, 3>& units,
+               Accumulator& accumulator, PhotonPath* path,
+               std::vector<FootprintWeight>& footprint) const;
   void end_round(std::span<const Accumulator> accumulators);
   std::uint64_t photons_for_round(double unshot) const;
   // The Hermite interpolant, in arc length, of the nodal values of a curve's hat basis
@@ -204,6 +224,9 @@ class Solver {
   // block (channels summed) that reconstructed sampling draws from; both in arc length.
   std::vector<std::vector<HermiteReconstruction>> hermite_reflected_;
   std::vector<HermiteReconstruction> hermite_unshot_;
+  RayKind ray_kind_ = RayKind::Point;
+  std::vector<double> band_offsets_;  // sub-ray offsets in [-1, 1] across the width (band mode)
+  std::vector<double> band_weights_;
   bool sample_by_coefficient_ = false;  // reconstructed sampling on a B-spline basis
   bool sample_hermite_ = false;         // reconstructed sampling on the Hermite reconstruction
   Spectrum emitted_{};
