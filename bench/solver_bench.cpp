@@ -86,6 +86,7 @@ void solve(benchmark::State& state, Layout layout) {
   settings.threads = static_cast<unsigned>(state.range(0));
   settings.tolerance = 1e-9;  // spend the whole budget
   settings.basis = BasisKind::Cubic;
+  settings.sampling = state.range(1) == 0 ? PositionSampling::Uniform : PositionSampling::Reconstructed;
   std::uint64_t photons = 0;
   for (auto _ : state) {
     Result<Solver> solver = Solver::create(*scene, settings);
@@ -102,9 +103,10 @@ void Cubics(benchmark::State& state) { solve(state, Layout::Cubics); }
 void Lines(benchmark::State& state) { solve(state, Layout::Lines); }
 void LinesAsCubics(benchmark::State& state) { solve(state, Layout::LinesAsCubics); }
 
-BENCHMARK(Cubics)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
-BENCHMARK(Lines)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
-BENCHMARK(LinesAsCubics)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
+// Arguments: threads, then positions (0 uniform in arc length, 1 reconstructed).
+BENCHMARK(Cubics)->ArgsProduct({{1, 2}, {0, 1}})->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(Lines)->ArgsProduct({{1, 2}, {0, 1}})->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(LinesAsCubics)->ArgsProduct({{1, 2}, {0, 1}})->Unit(benchmark::kMillisecond)->UseRealTime();
 
 }  // namespace
 

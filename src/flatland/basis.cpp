@@ -128,6 +128,10 @@ BasisSampler::BasisSampler(const SplineBasis& basis) {
         piece.power[row] = sum / system[row][row];
       }
       const auto& a = piece.power;
+      for (int j = 0; j <= kTable; ++j) {
+        const double x = static_cast<double>(j) / kTable;
+        piece.table[static_cast<std::size_t>(j)] = x * (a[0] + x * (a[1] / 2 + x * (a[2] / 3 + x * (a[3] / 4))));
+      }
       cumulative += width * (a[0] + a[1] / 2 + a[2] / 3 + a[3] / 4);
       piece.cumulative = cumulative;
       pieces_.push_back(piece);
@@ -148,24 +152,29 @@ double BasisSampler::sample(std::size_t k, double u1, double u2) const {
   const Piece& piece = pieces_[i];
   const auto& a = piece.power;
   // Solve G(x) = u2 G(1) on [0,1] with G(x) = a0 x + a1 x^2/2 + a2 x^3/3 + a3 x^4/4, increasing
-  // since G' = phi_k >= 0. Newton from the linear guess; a step leaving the bracket bisects.
+  // since G' = phi_k >= 0. The table brackets the root in an interval of width 1/8 and a linear
+  // interpolation starts Newton there; a step leaving the bracket bisects instead. It stops when G
+  // is within rounding of the goal or the bracket is down to a few ulps.
   auto cdf = [&a](double x) { return x * (a[0] + x * (a[1] / 2 + x * (a[2] / 3 + x * (a[3] / 4)))); };
   auto density = [&a](double x) { return a[0] + x * (a[1] + x * (a[2] + x * a[3])); };
-  const double goal = u2 * cdf(1.0);
-  double lo = 0.0;
-  double hi = 1.0;
-  double x = u2;
+  const auto& table = piece.table;
+  const double goal = u2 * table[kTable];
+  int j = 0;
+  while (j + 1 < kTable && table[static_cast<std::size_t>(j + 1)] <= goal) ++j;
+  double lo = static_cast<double>(j) / kTable;
+  double hi = static_cast<double>(j + 1) / kTable;
+  const double g_lo = table[static_cast<std::size_t>(j)];
+  const double g_hi = table[static_cast<std::size_t>(j + 1)];
+  double x = g_hi > g_lo ? lo + (hi - lo) * (goal - g_lo) / (g_hi - g_lo) : 0.5 * (lo + hi);
+  const double resolution = 4e-16 * table[kTable];
   for (int iteration = 0; iteration < 60; ++iteration) {
     const double g = cdf(x) - goal;
-    if (g == 0.0) break;
+    if (std::fabs(g) <= resolution) break;
     if (g < 0.0) lo = x; else hi = x;
+    if (hi - lo <= 4e-16) break;
     const double d = density(x);
     double next = d > 0.0 ? x - g / d : 0.5 * (lo + hi);
     if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);
-    if (std::fabs(next - x) <= 1e-15 || hi - lo <= 1e-15) {
-      x = next;
-      break;
-    }
     x = next;
   }
   return piece.u0 + std::clamp(x, 0.0, 1.0) * piece.width;

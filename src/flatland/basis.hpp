@@ -84,7 +84,11 @@ class BasisSampler {
     double width = 0.0;
     double cumulative = 0.0;  // mass of this basis function's pieces up to and including this one
     std::array<double, 4> power{};  // phi_k(u0 + x width) = sum_i power[i] x^i, x in [0,1]
+    // The piece's CDF in x (unnormalised) at x = j / kTable: brackets the inversion so that one
+    // or two Newton steps from a linear interpolation finish it.
+    std::array<double, 9> table{};
   };
+  static constexpr int kTable = 8;
   std::vector<std::uint32_t> first_piece_;  // pieces of k: [first_piece_[k], first_piece_[k+1])
   std::vector<Piece> pieces_;
 };
