@@ -155,9 +155,17 @@ double BasisSampler::sample(std::size_t k, double u1, double u2) const {
   // since G' = phi_k >= 0. The table brackets the root in an interval of width 1/8 and a linear
   // interpolation starts Newton there; a step leaving the bracket bisects instead. It stops when G
   // is within rounding of the goal or the bracket is down to a few ulps.
+  const auto& table = piece.table;
+  if (a[2] == 0.0 && a[3] == 0.0) {
+    // Constant or linear phi: a0 x + a1 x^2 / 2 = goal in closed form, written without
+    // cancellation as x = 2 goal / (a0 + sqrt(a0^2 + 2 a1 goal)).
+    const double goal = u2 * table[kTable];
+    const double root = std::sqrt(std::max(0.0, a[0] * a[0] + 2.0 * a[1] * goal));
+    const double x = a[0] + root > 0.0 ? 2.0 * goal / (a[0] + root) : u2;
+    return piece.u0 + std::clamp(x, 0.0, 1.0) * piece.width;
+  }
   auto cdf = [&a](double x) { return x * (a[0] + x * (a[1] / 2 + x * (a[2] / 3 + x * (a[3] / 4)))); };
   auto density = [&a](double x) { return a[0] + x * (a[1] + x * (a[2] + x * a[3])); };
-  const auto& table = piece.table;
   const double goal = u2 * table[kTable];
   int j = 0;
   while (j + 1 < kTable && table[static_cast<std::size_t>(j + 1)] <= goal) ++j;

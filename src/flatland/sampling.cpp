@@ -1,36 +1,51 @@
 #include "flatland/sampling.hpp"
 
 #include <algorithm>
+#include <cstdint>
 
 namespace flatland {
 
 void DiscreteDistribution::assign(std::span<const double> weights) {
-  cumulative_.resize(weights.size());
-  double sum = 0.0;
-  for (std::size_t i = 0; i < weights.size(); ++i) {
-    sum += weights[i];
-    cumulative_[i] = sum;
+  const std::size_t n = weights.size();
+  weights_.assign(weights.begin(), weights.end());
+  total_ = 0.0;
+  for (double w : weights) total_ += w;
+  probability_.assign(n, 0.0);
+  alias_.assign(n, 0);
+  if (n == 0 || !(total_ > 0.0)) return;
+  // Scaled weights w_i n / total average 1. Columns below 1 ("small") are topped up from one above
+  // ("large"), which becomes their alias and loses what it gave.
+  std::vector<double> scaled(n);
+  std::vector<std::uint32_t> small;
+  std::vector<std::uint32_t> large;
+  std::uint32_t any_positive = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    scaled[i] = weights[i] * static_cast<double>(n) / total_;
+    if (weights[i] > 0.0) any_positive = static_cast<std::uint32_t>(i);
+    (scaled[i] < 1.0 ? small : large).push_back(static_cast<std::uint32_t>(i));
   }
-  total_ = sum;
-}
-
-std::size_t DiscreteDistribution::sample(double u) const {
-  // First index whose inclusive prefix sum exceeds u * total: entries of zero weight repeat the
-  // previous prefix sum and are never chosen.
-  const double target = u * total_;
-  const auto it = std::upper_bound(cumulative_.begin(), cumulative_.end(), target);
-  if (it == cumulative_.end()) {
-    // u * total rounded up to total: take the last index of nonzero weight.
-    std::size_t i = cumulative_.size() - 1;
-    while (i > 0 && cumulative_[i] == cumulative_[i - 1]) --i;
-    return i;
+  while (!small.empty() && !large.empty()) {
+    const std::uint32_t s = small.back();
+    small.pop_back();
+    const std::uint32_t l = large.back();
+    probability_[s] = scaled[s];
+    alias_[s] = l;
+    scaled[l] = (scaled[l] + scaled[s]) - 1.0;
+    if (scaled[l] < 1.0) {
+      large.pop_back();
+      small.push_back(l);
+    }
   }
-  return static_cast<std::size_t>(it - cumulative_.begin());
-}
-
-double DiscreteDistribution::pmf(std::size_t i) const {
-  const double previous = i == 0 ? 0.0 : cumulative_[i - 1];
-  return (cumulative_[i] - previous) / total_;
+  // What is left is 1 up to rounding: keep the column itself, unless its weight is zero.
+  for (std::vector<std::uint32_t>* rest : {&small, &large}) {
+    for (std::uint32_t i : *rest) {
+      probability_[i] = weights[i] > 0.0 ? 1.0 : 0.0;
+      alias_[i] = weights[i] > 0.0 ? i : any_positive;
+    }
+  }
+  // A column of zero weight must never keep itself.
+  for (std::size_t i = 0; i < n; ++i)
+    if (!(weights[i] > 0.0)) probability_[i] = 0.0;
 }
 
 }  // namespace flatland

@@ -106,7 +106,9 @@ inline double square_to_beam_pdf(double half_angle, Vec2 normal, Vec2 direction)
   return c / (2.0 * std::sin(half_angle));
 }
 
-// A discrete distribution by prefix sums and binary search; weights must be finite and >= 0.
+// A discrete distribution with O(1) sampling by Walker's alias method (Vose's construction):
+// u picks a column i = floor(u n) and its fractional part chooses between i and its alias.
+// Weights must be finite and >= 0; an index of zero weight is never returned.
 class DiscreteDistribution {
  public:
   DiscreteDistribution() = default;
@@ -115,13 +117,20 @@ class DiscreteDistribution {
 
   double total() const { return total_; }
   bool empty() const { return !(total_ > 0.0); }
-  std::size_t size() const { return cumulative_.size(); }
-  // Index i with probability weights[i] / total (u in [0,1)); never an index of zero weight.
-  std::size_t sample(double u) const;
-  double pmf(std::size_t i) const;
+  std::size_t size() const { return probability_.size(); }
+  // Index i with probability weights[i] / total (u in [0,1)).
+  std::size_t sample(double u) const {
+    const double scaled = u * static_cast<double>(probability_.size());
+    auto column = static_cast<std::size_t>(scaled);
+    if (column >= probability_.size()) column = probability_.size() - 1;
+    return scaled - static_cast<double>(column) < probability_[column] ? column : alias_[column];
+  }
+  double pmf(std::size_t i) const { return weights_[i] / total_; }
 
  private:
-  std::vector<double> cumulative_;  // inclusive prefix sums
+  std::vector<double> probability_;  // chance of keeping the column's own index
+  std::vector<std::uint32_t> alias_;
+  std::vector<double> weights_;
   double total_ = 0.0;
 };
 
