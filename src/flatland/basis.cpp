@@ -1,5 +1,7 @@
 #include "flatland/basis.hpp"
 
+#include "flatland/quadrature.hpp"
+
 #include <algorithm>
 #include <array>
 #include <cassert>
@@ -74,13 +76,38 @@ std::size_t SplineBasis::evaluate(double u, double* values) const {
 
 namespace {
 
-// 8-point Gauss-Legendre nodes and weights on [-1, 1].
-constexpr std::array<double, 8> kGaussNodes = {
-    -0.9602898564975362317, -0.7966664774136267396, -0.5255324099163289858, -0.1834346424956498049,
-    0.1834346424956498049,  0.5255324099163289858,  0.7966664774136267396,  0.9602898564975362317};
-constexpr std::array<double, 8> kGaussWeights = {
-    0.1012285362903762591, 0.2223810344533744706, 0.3137066458778872873, 0.3626837833783619830,
-    0.3626837833783619830, 0.3137066458778872873, 0.2223810344533744706, 0.1012285362903762591};
+// Visits every quadrature point of the curve's storage mesh: four 8-point Gauss-Legendre panels
+// per non-empty knot span (each span lies in one segment), with the arc-length weight
+// w = GL weight x |C'(u)| du and the basis functions alive there (values[0..degree] for
+// phi_first..phi_(first+degree)). Integrals of phi_k times smooth functions along arc length are
+// sums over these points.
+template <typename Visit>
+void for_each_quadrature_point(const Scene& scene, const Curve& curve, const SplineBasis& basis,
+                               Visit visit) {
+  constexpr int kPanels = 4;
+  const std::vector<double>& knots = basis.knots();
+  std::array<double, SplineBasis::kMaxDegree + 1> values{};
+  for (std::size_t k = 0; k + 1 < knots.size(); ++k) {
+    const double a = knots[k];
+    const double b = knots[k + 1];
+    if (!(b > a)) continue;
+    const auto segment_index = static_cast<std::uint32_t>(
+        std::min<double>(std::floor(0.5 * (a + b)), curve.segment_count - 1));
+    const SceneSegment& segment = scene.segments[curve.first_segment + segment_index];
+    for (int panel = 0; panel < kPanels; ++panel) {
+      const double pa = a + (b - a) * panel / kPanels;
+      const double pb = a + (b - a) * (panel + 1) / kPanels;
+      const double half = 0.5 * (pb - pa);
+      for (std::size_t g = 0; g < gauss::kNodes8.size(); ++g) {
+        const double u = 0.5 * (pa + pb) + half * gauss::kNodes8[g];
+        const double weight =
+            gauss::kWeights8[g] * half * length(derivative(segment.geometry.shape, u - segment_index));
+        const std::size_t first = basis.evaluate(u, values.data());
+        visit(u, weight, first, values);
+      }
+    }
+  }
+}
 
 }  // namespace
 
@@ -235,41 +262,20 @@ CurveStorage build_curve_storage(const Scene& scene, const Curve& curve, BasisKi
   storage.basis = SplineBasis(degree_of(kind), 0.0, static_cast<double>(segment_count),
                               storage.nodes);
 
-  // Integrals of phi_k |C'(u)| du, span by span. Each non-empty span lies in one segment; four
-  // 8-point Gauss-Legendre panels per span integrate the cubic-times-speed product to far below
-  // Monte Carlo noise.
+  // Integrals of phi_k |C'(u)| du: four 8-point Gauss-Legendre panels per span integrate the
+  // polynomial-times-speed product to far below Monte Carlo noise.
+  const int p = storage.basis.degree();
   storage.basis_length.assign(storage.basis.size(), 0.0);
-  const std::vector<double>& knots = storage.basis.knots();
-  std::array<double, SplineBasis::kMaxDegree + 1> values{};
-  constexpr int kPanels = 4;
-  for (std::size_t k = 0; k + 1 < knots.size(); ++k) {
-    const double a = knots[k];
-    const double b = knots[k + 1];
-    if (!(b > a)) continue;
-    const auto segment_index = static_cast<std::uint32_t>(
-        std::min<double>(std::floor(0.5 * (a + b)), segment_count - 1));
-    const SceneSegment& segment = scene.segments[curve.first_segment + segment_index];
-    for (int panel = 0; panel < kPanels; ++panel) {
-      const double pa = a + (b - a) * panel / kPanels;
-      const double pb = a + (b - a) * (panel + 1) / kPanels;
-      const double half = 0.5 * (pb - pa);
-      for (std::size_t g = 0; g < kGaussNodes.size(); ++g) {
-        const double u = 0.5 * (pa + pb) + half * kGaussNodes[g];
-        const double t = u - segment_index;
-        const double speed = length(derivative(segment.geometry.shape, t));
-        const std::size_t first = storage.basis.evaluate(u, values.data());
-        for (int j = 0; j <= storage.basis.degree(); ++j) {
-          storage.basis_length[first + static_cast<std::size_t>(j)] +=
-              kGaussWeights[g] * half * speed * values[static_cast<std::size_t>(j)];
-        }
-      }
-    }
-  }
+  for_each_quadrature_point(scene, curve, storage.basis,
+                            [&](double, double weight, std::size_t first, const auto& values) {
+                              for (int j = 0; j <= p; ++j)
+                                storage.basis_length[first + static_cast<std::size_t>(j)] +=
+                                    weight * values[static_cast<std::size_t>(j)];
+                            });
   storage.sampler = BasisSampler(storage.basis);
 
   // The banded mass matrix by the same quadrature, then its Cholesky factor in place. Row k keeps
   // columns k - p .. k (B-splines more than p apart have disjoint supports).
-  const int p = storage.basis.degree();
   const std::size_t width = static_cast<std::size_t>(p) + 1;
   const std::size_t n = storage.basis.size();
   std::vector<double>& band = storage.mass_cholesky;
@@ -277,29 +283,15 @@ CurveStorage build_curve_storage(const Scene& scene, const Curve& curve, BasisKi
   auto entry = [&](std::size_t row, std::size_t col) -> double& {  // col <= row, row - col <= p
     return band[row * width + (col + static_cast<std::size_t>(p) - row)];
   };
-  for (std::size_t k = 0; k + 1 < knots.size(); ++k) {
-    const double a = knots[k];
-    const double b = knots[k + 1];
-    if (!(b > a)) continue;
-    const auto segment_index = static_cast<std::uint32_t>(
-        std::min<double>(std::floor(0.5 * (a + b)), segment_count - 1));
-    const SceneSegment& segment = scene.segments[curve.first_segment + segment_index];
-    for (int panel = 0; panel < kPanels; ++panel) {
-      const double pa = a + (b - a) * panel / kPanels;
-      const double pb = a + (b - a) * (panel + 1) / kPanels;
-      const double half = 0.5 * (pb - pa);
-      for (std::size_t g = 0; g < kGaussNodes.size(); ++g) {
-        const double u = 0.5 * (pa + pb) + half * kGaussNodes[g];
-        const double weight =
-            kGaussWeights[g] * half * length(derivative(segment.geometry.shape, u - segment_index));
-        const std::size_t first = storage.basis.evaluate(u, values.data());
-        for (int i = 0; i <= p; ++i)
-          for (int j = 0; j <= i; ++j)
-            entry(first + static_cast<std::size_t>(i), first + static_cast<std::size_t>(j)) +=
-                weight * values[static_cast<std::size_t>(i)] * values[static_cast<std::size_t>(j)];
-      }
-    }
-  }
+  for_each_quadrature_point(scene, curve, storage.basis,
+                            [&](double, double weight, std::size_t first, const auto& values) {
+                              for (int i = 0; i <= p; ++i)
+                                for (int j = 0; j <= i; ++j)
+                                  entry(first + static_cast<std::size_t>(i),
+                                        first + static_cast<std::size_t>(j)) +=
+                                      weight * values[static_cast<std::size_t>(i)] *
+                                      values[static_cast<std::size_t>(j)];
+                            });
   // Banded Cholesky: L_kk = sqrt(M_kk - sum L_kj^2), L_ik = (M_ik - sum L_ij L_kj) / L_kk.
   for (std::size_t row = 0; row < n; ++row) {
     const std::size_t start = row >= static_cast<std::size_t>(p) ? row - static_cast<std::size_t>(p) : 0;
@@ -312,6 +304,7 @@ CurveStorage build_curve_storage(const Scene& scene, const Curve& curve, BasisKi
   }
   // Speed bound over each basis function's support: the largest bound of the segments it touches.
   storage.speed_bound.assign(storage.basis.size(), 0.0);
+  const std::vector<double>& knots = storage.basis.knots();
   for (std::size_t k = 0; k < storage.basis.size(); ++k) {
     const double begin = knots[k];
     const double end = knots[k + static_cast<std::size_t>(storage.basis.degree()) + 1];
@@ -328,31 +321,13 @@ std::vector<double> project_emittance_profile(const Scene& scene, const Curve& c
   if (curve.emittance_profile.empty()) return storage.basis_length;
   // The same quadrature as basis_length, with the profile (a cubic in t) in the integrand.
   std::vector<double> result(storage.basis.size(), 0.0);
-  const std::vector<double>& knots = storage.basis.knots();
-  std::array<double, SplineBasis::kMaxDegree + 1> values{};
-  constexpr int kPanels = 4;
-  for (std::size_t k = 0; k + 1 < knots.size(); ++k) {
-    const double a = knots[k];
-    const double b = knots[k + 1];
-    if (!(b > a)) continue;
-    const auto segment_index = static_cast<std::uint32_t>(
-        std::min<double>(std::floor(0.5 * (a + b)), curve.segment_count - 1));
-    const SceneSegment& segment = scene.segments[curve.first_segment + segment_index];
-    for (int panel = 0; panel < kPanels; ++panel) {
-      const double pa = a + (b - a) * panel / kPanels;
-      const double pb = a + (b - a) * (panel + 1) / kPanels;
-      const double half = 0.5 * (pb - pa);
-      for (std::size_t g = 0; g < kGaussNodes.size(); ++g) {
-        const double u = 0.5 * (pa + pb) + half * kGaussNodes[g];
-        const double weight = kGaussWeights[g] * half *
-                              length(derivative(segment.geometry.shape, u - segment_index)) *
-                              emittance_factor(curve, u);
-        const std::size_t first = storage.basis.evaluate(u, values.data());
-        for (int j = 0; j <= storage.basis.degree(); ++j)
-          result[first + static_cast<std::size_t>(j)] += weight * values[static_cast<std::size_t>(j)];
-      }
-    }
-  }
+  for_each_quadrature_point(scene, curve, storage.basis,
+                            [&](double u, double weight, std::size_t first, const auto& values) {
+                              const double emitted = weight * emittance_factor(curve, u);
+                              for (int j = 0; j <= storage.basis.degree(); ++j)
+                                result[first + static_cast<std::size_t>(j)] +=
+                                    emitted * values[static_cast<std::size_t>(j)];
+                            });
   return result;
 }
 

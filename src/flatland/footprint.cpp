@@ -1,5 +1,7 @@
 #include "flatland/footprint.hpp"
 
+#include "flatland/quadrature.hpp"
+
 #include <algorithm>
 #include <array>
 #include <cassert>
@@ -63,14 +65,10 @@ double first_moment_antiderivative(RayProfile profile, double x) {
 // Gauss-Legendre rules on [-1, 1]. Three points integrate polynomials of degree 5 exactly, which
 // covers a line's integrand for the polynomial profiles (profile piece of degree <= 2 times a
 // basis function of degree <= 3); eight points (degree 15) serve everything else.
-constexpr std::array<double, 3> kNodes3 = {-0.7745966692414833770, 0.0, 0.7745966692414833770};
-constexpr std::array<double, 3> kWeights3 = {5.0 / 9.0, 8.0 / 9.0, 5.0 / 9.0};
-constexpr std::array<double, 8> kNodes8 = {
-    -0.9602898564975362317, -0.7966664774136267396, -0.5255324099163289858, -0.1834346424956498049,
-    0.1834346424956498049,  0.5255324099163289858,  0.7966664774136267396,  0.9602898564975362317};
-constexpr std::array<double, 8> kWeights8 = {
-    0.1012285362903762591, 0.2223810344533744706, 0.3137066458778872873, 0.3626837833783619830,
-    0.3626837833783619830, 0.3137066458778872873, 0.2223810344533744706, 0.1012285362903762591};
+using gauss::kNodes3;
+using gauss::kNodes8;
+using gauss::kWeights3;
+using gauss::kWeights8;
 
 using Matrix8 = std::array<std::array<double, 8>, 8>;
 

@@ -3,8 +3,9 @@
 // validation (zero-length segments, interior cusps) that needs the scene's size for its tolerances.
 #include "flatland/scene.hpp"
 
-#include <algorithm>
+#include "flatland/quadrature.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <string>
@@ -204,10 +205,8 @@ Status finalize_scene(Scene& scene) {
       if (!(c.profile_max > 0.0))
         return fail(curve_path(i) + ".emittance_profile",
                     "every factor is zero; remove the emittance instead");
-      constexpr double kNodes[4] = {-0.8611363115940526, -0.3399810435848563, 0.3399810435848563,
-                                    0.8611363115940526};
-      constexpr double kWeights[4] = {0.3478548451374538, 0.6521451548625461, 0.6521451548625461,
-                                      0.3478548451374538};
+      const auto& kNodes = gauss::kNodes4;
+      const auto& kWeights = gauss::kWeights4;
       double integral = 0.0;
       for (std::size_t j = 0; j < count; ++j) {
         const Cubic& shape = shapes[j];
