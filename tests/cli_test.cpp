@@ -112,6 +112,35 @@ TEST_F(Cli, MalformedSceneNamesFileAndLine) {
   EXPECT_NE(r.err.find("broken.json:3"), std::string::npos) << r.err;
 }
 
+TEST_F(Cli, CompareAgainstAReference) {
+  const fs::path a = directory_ / "a.json";
+  const fs::path b = directory_ / "b.json";
+  const std::string scene_path = scene("penumbra.json");
+  ASSERT_EQ(run("solve " + scene_path + " --photons 50000 --seed 1 --samples 40 --quiet --out " + a.string()).exit_code, 0);
+  ASSERT_EQ(run("solve " + scene_path + " --photons 50000 --seed 2 --samples 40 --quiet --out " + b.string()).exit_code, 0);
+  const CommandRun same = run("compare " + a.string() + " " + a.string());
+  EXPECT_EQ(same.exit_code, 0) << same.err;
+  EXPECT_NE(same.out.find("(scene)"), std::string::npos);
+  EXPECT_NE(same.out.find("0.0000e+00"), std::string::npos);
+  const CommandRun differ = run("compare " + a.string() + " " + b.string());
+  EXPECT_EQ(differ.exit_code, 0);
+  EXPECT_NE(differ.out.find("receiver"), std::string::npos);
+  // solve --reference prints the same table.
+  const CommandRun with_reference = run("solve " + scene_path + " --photons 50000 --samples 40 --reference " + b.string());
+  EXPECT_EQ(with_reference.exit_code, 0) << with_reference.err;
+  EXPECT_NE(with_reference.out.find("rel. L2"), std::string::npos);
+  // Different sampling: a clear error, exit 2.
+  const fs::path c = directory_ / "c.json";
+  ASSERT_EQ(run("solve " + scene_path + " --photons 50000 --samples 41 --quiet --out " + c.string()).exit_code, 0);
+  const CommandRun mismatch = run("compare " + a.string() + " " + c.string());
+  EXPECT_EQ(mismatch.exit_code, 2);
+  EXPECT_EQ(lines(mismatch.err), 1) << mismatch.err;
+  EXPECT_NE(mismatch.err.find("--samples"), std::string::npos) << mismatch.err;
+  const CommandRun missing = run("compare " + a.string() + " " + (directory_ / "none.json").string());
+  EXPECT_EQ(missing.exit_code, 2);
+  EXPECT_NE(missing.err.find("none.json"), std::string::npos);
+}
+
 TEST_F(Cli, FailedWriteLeavesNoFile) {
   const fs::path out = directory_ / "no-such-dir" / "result.json";
   const CommandRun r = run("solve " + scene("penumbra.json") + " --photons 20000 --out " + out.string());

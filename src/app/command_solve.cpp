@@ -2,6 +2,7 @@
 #include <cmath>
 #include <cstdio>
 #include <map>
+#include <optional>
 #include <thread>
 
 #include "app/commands.hpp"
@@ -91,6 +92,8 @@ CLI::App* add_solve_command(CLI::App& parent, SolveOptions& o) {
   cmd->add_option("--out", o.out, "Write the result as JSON to this file (docs/result-format.md)");
   cmd->add_option("--picture", o.picture,
                   "Write a PNG picture of the curves coloured by their radiosity");
+  cmd->add_option("--reference", o.reference,
+                  "A reference result (same scene, same --samples): print the errors against it");
   cmd->add_flag("--quiet", o.quiet, "No progress line and no summary (errors only)");
   return cmd;
 }
@@ -196,8 +199,28 @@ int run_solve(SolveOptions& o) {
   }
   if (!o.quiet) print_summary(solver, o);
 
+  // Read the reference before the result is written, so a bad reference writes nothing.
+  std::optional<nlohmann::json> reference;
+  if (!o.reference.empty()) {
+    Result<nlohmann::json> read = read_result_file(o.reference);
+    if (!read) {
+      std::fprintf(stderr, "flatland: error: %s\n", read.error().message.c_str());
+      return kExitUsage;
+    }
+    reference = std::move(*read);
+  }
+  const nlohmann::json document = result_to_json(solver, o.samples);
+  if (reference) {
+    Result<Comparison> comparison = compare_results(document, *reference);
+    if (!comparison) {
+      std::fprintf(stderr, "flatland: error: --reference %s: %s\n", o.reference.c_str(),
+                   comparison.error().message.c_str());
+      return kExitUsage;
+    }
+    if (!o.quiet) print_comparison(*comparison);
+  }
   if (!o.out.empty()) {
-    const std::string text = result_to_json(solver, o.samples).dump(1) + "\n";
+    const std::string text = document.dump(1) + "\n";
     if (Status status = write_file_atomically(o.out, text); !status) {
       std::fprintf(stderr, "flatland: error: %s\n", status.error().message.c_str());
       return kExitUsage;

@@ -7,6 +7,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "flatland/metrics.hpp"
 #include "flatland/solver.hpp"
 
 namespace flatland::app {
@@ -32,8 +33,21 @@ struct SolveOptions {
   int samples = 100;
   std::string out;
   std::string picture;
+  std::string reference;
   bool quiet = false;
 };
+
+struct CompareOptions {
+  std::string result;
+  std::string reference;
+};
+CLI::App* add_compare_command(CLI::App& parent, CompareOptions& options);
+int run_compare(const CompareOptions& options);
+
+// Reads a result file (flatland_result JSON); errors name the file and what is wrong.
+Result<nlohmann::json> read_result_file(const std::string& path);
+// Prints the per-curve and scene errors of `comparison` as a table.
+void print_comparison(const Comparison& comparison);
 
 CLI::App* add_solve_command(CLI::App& parent, SolveOptions& options);
 int run_solve(SolveOptions& options);

@@ -82,6 +82,8 @@ int main(int argc, char** argv) {
 
   SolveOptions solve;
   CLI::App* solve_command = add_solve_command(app, solve);
+  CompareOptions compare;
+  CLI::App* compare_command = add_compare_command(app, compare);
 
   try {
     app.parse(argc, argv);
@@ -98,5 +100,6 @@ int main(int argc, char** argv) {
   std::signal(SIGINT, handle_interrupt);
   std::signal(SIGTERM, handle_interrupt);
   if (solve_command->parsed()) return run_solve(solve);
+  if (compare_command->parsed()) return run_compare(compare);
   return kExitUsage;
 }
