@@ -33,13 +33,54 @@ nlohmann::json spectrum_to_json(const Spectrum& value, int channels) {
   return nlohmann::json::array({value[0], value[1], value[2]});
 }
 
+namespace {
+
+const char* sides_name(Sides sides) {
+  return sides == Sides::Both ? "both" : sides == Sides::Back ? "back" : "front";
+}
+
+}  // namespace
+
+nlohmann::json scene_to_json(const Scene& scene) {
+  return {{"name", scene.name}, {"file", scene.source}, {"channels", scene.channels}};
+}
+
+nlohmann::json sampled_curves_to_json(const Scene& scene, int samples_per_curve,
+                                      const RadiosityFunction& radiosity) {
+  nlohmann::json curves = nlohmann::json::array();
+  for (std::uint32_t c = 0; c < scene.curves.size(); ++c) {
+    const Curve& curve = scene.curves[c];
+    const bool two_sided = curve.sides == Sides::Both;
+    const Side main_side = curve.sides == Sides::Back ? Side::Back : Side::Front;
+    nlohmann::json samples = nlohmann::json::array();
+    for (int j = 0; j < samples_per_curve; ++j) {
+      const double s = (j + 0.5) * curve.length / samples_per_curve;
+      const CurvePoint point = point_at_arc_length(scene, curve, s);
+      nlohmann::json sample = {{"s", s},
+                               {"x", point.position.x},
+                               {"y", point.position.y},
+                               {"B", spectrum_to_json(radiosity(c, main_side, point.u), scene.channels)}};
+      if (two_sided)
+        sample["B_back"] = spectrum_to_json(radiosity(c, Side::Back, point.u), scene.channels);
+      samples.push_back(std::move(sample));
+    }
+    curves.push_back({{"id", curve.id},
+                      {"length", curve.length},
+                      {"sides", sides_name(curve.sides)},
+                      {"segments", curve.segment_count},
+                      {"emittance", spectrum_to_json(curve.emittance, scene.channels)},
+                      {"samples", std::move(samples)}});
+  }
+  return curves;
+}
+
 nlohmann::json result_to_json(const Solver& solver, int samples_per_curve) {
   const Scene& scene = solver.scene();
   const SolverSettings& settings = solver.settings();
   const EnergyBooks books = solver.books();
   nlohmann::json result;
   result["flatland_result"] = 1;
-  result["scene"] = {{"name", scene.name}, {"file", scene.source}, {"channels", scene.channels}};
+  result["scene"] = scene_to_json(scene);
   result["settings"] = {
       {"method", "shooting"},
       {"photons", settings.photons},
@@ -67,30 +108,14 @@ nlohmann::json result_to_json(const Solver& solver, int samples_per_curve) {
       {"escaped_power", books.escaped},
       {"unshot_power", books.unshot},
   };
-  nlohmann::json curves = nlohmann::json::array();
+  nlohmann::json curves = sampled_curves_to_json(
+      scene, samples_per_curve,
+      [&solver](std::uint32_t c, Side side, double u) { return solver.radiosity(c, side, u); });
+  // The stored spline, so a result can be re-plotted exactly: B(u) = E + sum_k b_k phi_k(u)
+  // with phi_k the B-splines of `degree` on `knots`, u = segment index + t.
   for (std::uint32_t c = 0; c < scene.curves.size(); ++c) {
     const Curve& curve = scene.curves[c];
-    const bool two_sided = curve.sides == Sides::Both;
     const Side main_side = curve.sides == Sides::Back ? Side::Back : Side::Front;
-    nlohmann::json samples = nlohmann::json::array();
-    for (int j = 0; j < samples_per_curve; ++j) {
-      const double s = (j + 0.5) * curve.length / samples_per_curve;
-      const CurvePoint point = point_at_arc_length(scene, curve, s);
-      nlohmann::json sample = {{"s", s},
-                               {"x", point.position.x},
-                               {"y", point.position.y},
-                               {"B", spectrum_to_json(solver.radiosity(c, main_side, point.u),
-                                                      scene.channels)}};
-      if (two_sided)
-        sample["B_back"] =
-            spectrum_to_json(solver.radiosity(c, Side::Back, point.u), scene.channels);
-      samples.push_back(std::move(sample));
-    }
-    const char* sides = curve.sides == Sides::Both ? "both"
-                        : curve.sides == Sides::Back ? "back"
-                                                     : "front";
-    // The stored spline, so a result can be re-plotted exactly: B(u) = E + sum_k b_k phi_k(u)
-    // with phi_k the B-splines of `degree` on `knots`, u = segment index + t.
     const CurveStorage& storage = solver.storage(c);
     nlohmann::json nodes = nlohmann::json::array();
     for (const MeshNode& node : storage.nodes) {
@@ -99,19 +124,14 @@ nlohmann::json result_to_json(const Solver& solver, int samples_per_curve) {
                                                              : "C-1";
       nodes.push_back({{"u", node.u}, {"continuity", flag}});
     }
-    nlohmann::json entry = {{"id", curve.id},
-                            {"length", curve.length},
-                            {"sides", sides},
-                            {"segments", curve.segment_count},
-                            {"emittance", spectrum_to_json(curve.emittance, scene.channels)},
-                            {"degree", storage.basis.degree()},
-                            {"knots", storage.basis.knots()},
-                            {"continuity", std::move(nodes)}};
+    nlohmann::json& entry = curves[c];
+    entry["degree"] = storage.basis.degree();
+    entry["knots"] = storage.basis.knots();
+    entry["continuity"] = std::move(nodes);
     const std::vector<double> main = solver.radiosity_coefficients(c, main_side);
     if (!main.empty()) entry["coefficients"] = main;
-    if (two_sided) entry["coefficients_back"] = solver.radiosity_coefficients(c, Side::Back);
-    entry["samples"] = std::move(samples);
-    curves.push_back(std::move(entry));
+    if (curve.sides == Sides::Both)
+      entry["coefficients_back"] = solver.radiosity_coefficients(c, Side::Back);
   }
   result["curves"] = std::move(curves);
   return result;

@@ -2,6 +2,7 @@
 // atomic file writing every output goes through.
 #pragma once
 
+#include <functional>
 #include <string>
 
 #include <nlohmann/json.hpp>
@@ -27,6 +28,15 @@ nlohmann::json spectrum_to_json(const Spectrum& value, int channels);
 
 // The whole result document: scene, settings, stats and K samples per curve at s_j = (j+0.5) L/K.
 nlohmann::json result_to_json(const Solver& solver, int samples_per_curve);
+
+// The "curves" array of a result for any method: per curve id, length, sides and K samples of
+// the radiosity given by `radiosity(curve, side, u)` (B of the main side, B_back on two-sided
+// curves).
+using RadiosityFunction = std::function<Spectrum(std::uint32_t curve, Side side, double u)>;
+nlohmann::json sampled_curves_to_json(const Scene& scene, int samples_per_curve,
+                                      const RadiosityFunction& radiosity);
+// The "scene" entry of a result.
+nlohmann::json scene_to_json(const Scene& scene);
 
 // Writes `contents` to a temporary file beside `path`, then renames it over `path`: a failed or
 // interrupted write never leaves a partial file. The error names the path and the reason.
