@@ -211,6 +211,7 @@ HermiteReconstruction Solver::hermite_of(std::uint32_t curve, const double* valu
   const CurveStorage& storage = storage_[curve];
   const std::vector<double>& knots = storage.basis.knots();
   HermiteInput input;
+  std::size_t next_node = 0;  // storage.nodes is sorted by u, as the Greville points are
   for (std::size_t k = 0; k < storage.basis.size(); ++k) {
     const double u = knots[k + 1];
     const double value = values[k * stride];
@@ -218,9 +219,11 @@ HermiteReconstruction Solver::hermite_of(std::uint32_t curve, const double* valu
       input.right.back() = value;
       continue;
     }
-    Continuity continuity = Continuity::C1;
-    for (const MeshNode& node : storage.nodes)
-      if (node.u == u) continuity = node.continuity;
+    while (next_node < storage.nodes.size() && storage.nodes[next_node].u < u) ++next_node;
+    const Continuity continuity =
+        next_node < storage.nodes.size() && storage.nodes[next_node].u == u
+            ? storage.nodes[next_node].continuity
+            : Continuity::C1;
     input.u.push_back(arc_length_at(curve, u));
     input.left.push_back(value);
     input.right.push_back(value);
