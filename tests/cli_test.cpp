@@ -66,7 +66,8 @@ int lines(const std::string& text) {
 TEST_F(Cli, HelpListsCommandsAndOptions) {
   const CommandRun top = run("--help");
   EXPECT_EQ(top.exit_code, 0);
-  EXPECT_NE(top.out.find("solve"), std::string::npos);
+  for (const char* command : {"solve", "reference", "compare"})
+    EXPECT_NE(top.out.find(command), std::string::npos) << command;
   const CommandRun solve = run("solve --help");
   EXPECT_EQ(solve.exit_code, 0);
   for (const char* option : {"--photons", "--seed", "--threads", "--basis", "--elements",
@@ -139,6 +140,22 @@ TEST_F(Cli, CompareAgainstAReference) {
   const CommandRun missing = run("compare " + a.string() + " " + (directory_ / "none.json").string());
   EXPECT_EQ(missing.exit_code, 2);
   EXPECT_NE(missing.err.find("none.json"), std::string::npos);
+}
+
+TEST_F(Cli, ReferenceWritesTheResultFormat) {
+  const fs::path ref = directory_ / "ref.json";
+  const CommandRun r = run("reference " + scene("penumbra.json") + " --elements 200 --samples 30 --out " + ref.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const nlohmann::json result = nlohmann::json::parse(read_file(ref));
+  EXPECT_EQ(result["settings"]["method"], "reference");
+  EXPECT_GT(result["stats"]["elements"].get<int>(), 0);
+  // A solve with the same samples compares against it.
+  const CommandRun solve = run("solve " + scene("penumbra.json") + " --photons 20000 --samples 30 --reference " + ref.string());
+  EXPECT_EQ(solve.exit_code, 0) << solve.err;
+  EXPECT_NE(solve.out.find("receiver"), std::string::npos);
+  const CommandRun bad = run("reference " + scene("penumbra.json") + " --elements 10 --max-element-length 0.1");
+  EXPECT_EQ(bad.exit_code, 2);
+  EXPECT_EQ(lines(bad.err), 1) << bad.err;
 }
 
 TEST_F(Cli, FailedWriteLeavesNoFile) {

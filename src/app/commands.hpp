@@ -8,6 +8,7 @@
 #include <CLI/CLI.hpp>
 
 #include "flatland/metrics.hpp"
+#include "flatland/reference.hpp"
 #include "flatland/solver.hpp"
 
 namespace flatland::app {
@@ -36,6 +37,18 @@ struct SolveOptions {
   std::string reference;
   bool quiet = false;
 };
+
+struct ReferenceOptions {
+  std::string scene;
+  double max_element_length = 0.0;
+  int elements = 0;
+  ReferenceSettings settings;
+  int samples = 100;
+  std::string out;
+  bool quiet = false;
+};
+CLI::App* add_reference_command(CLI::App& parent, ReferenceOptions& options);
+int run_reference(ReferenceOptions& options);
 
 struct CompareOptions {
   std::string result;

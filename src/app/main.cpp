@@ -82,6 +82,8 @@ int main(int argc, char** argv) {
 
   SolveOptions solve;
   CLI::App* solve_command = add_solve_command(app, solve);
+  ReferenceOptions reference;
+  CLI::App* reference_command = add_reference_command(app, reference);
   CompareOptions compare;
   CLI::App* compare_command = add_compare_command(app, compare);
 
@@ -100,6 +102,7 @@ int main(int argc, char** argv) {
   std::signal(SIGINT, handle_interrupt);
   std::signal(SIGTERM, handle_interrupt);
   if (solve_command->parsed()) return run_solve(solve);
+  if (reference_command->parsed()) return run_reference(reference);
   if (compare_command->parsed()) return run_compare(compare);
   return kExitUsage;
 }

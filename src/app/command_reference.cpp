@@ -1,0 +1,109 @@
+// flatland reference: the deterministic reference solution of a scene (constant elements on
+// chords, exact visibility, a linear solve and a final gather at the output samples).
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+
+#include "app/commands.hpp"
+#include "flatland/reference.hpp"
+#include "flatland/result_io.hpp"
+
+namespace flatland::app {
+
+CLI::App* add_reference_command(CLI::App& parent, ReferenceOptions& o) {
+  CLI::App* cmd = parent.add_subcommand(
+      "reference",
+      "Solve a scene deterministically (constant elements on fine chords, form factors with exact "
+      "visibility, Gauss-Seidel, final gather at the samples) and write the same result format as "
+      "solve, with \"method\": \"reference\"");
+  cmd->add_option("scene", o.scene, "Scene file (JSON, docs/scene-format.md)")->required();
+  auto* length = cmd->add_option("--max-element-length", o.max_element_length,
+                                 "Longest element in scene units (default: scene size / 400)");
+  auto* elements = cmd->add_option("--elements", o.elements,
+                                   "Elements across the scene: the longest element is the scene's "
+                                   "size (bounding-box diagonal) / N")
+                       ->check(CLI::Range(1, 1 << 20));
+  length->excludes(elements);
+  cmd->add_option("--quadrature", o.settings.quadrature,
+                  "Gauss-Legendre points per element for the form factors")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 64));
+  cmd->add_option("--tolerance", o.settings.tolerance, "Relative residual of the linear solve")
+      ->capture_default_str();
+  cmd->add_option("--threads", o.settings.threads, "Worker threads (0: every core)")
+      ->capture_default_str()
+      ->check(CLI::Range(0u, 1024u));
+  cmd->add_option("--samples", o.samples,
+                  "Radiosity samples per curve in the result, at arc length (j + 0.5) L / K")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 1000000));
+  cmd->add_option("--out", o.out, "Write the result as JSON to this file (docs/result-format.md)");
+  cmd->add_flag("--quiet", o.quiet, "No summary (errors only)");
+  return cmd;
+}
+
+int run_reference(ReferenceOptions& o) {
+  Result<Scene> scene = load_scene(o.scene);
+  if (!scene) {
+    std::fprintf(stderr, "flatland: error: %s\n", scene.error().message.c_str());
+    return kExitUsage;
+  }
+  if (o.max_element_length != 0.0) {
+    if (!(o.max_element_length > 0.0) || !std::isfinite(o.max_element_length)) {
+      std::fprintf(stderr, "flatland: error: --max-element-length: must be a positive length\n");
+      return kExitUsage;
+    }
+    o.settings.max_element_length = o.max_element_length;
+  } else if (o.elements > 0) {
+    o.settings.max_element_length = scene->scale / o.elements;
+  }
+  if (Status status = validate(o.settings); !status) {
+    std::fprintf(stderr, "flatland: error: %s\n", status.error().message.c_str());
+    return kExitUsage;
+  }
+  const auto start = std::chrono::steady_clock::now();
+  Result<ReferenceSolution> solution = solve_reference(*scene, o.settings);
+  if (!solution) {
+    std::fprintf(stderr, "flatland: error: %s\n", solution.error().message.c_str());
+    return kExitUsage;
+  }
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  if (!o.quiet) {
+    std::printf("scene     %s (%s): %zu curves\n", scene->name.c_str(), scene->source.c_str(),
+                scene->curves.size());
+    std::printf("reference %zu elements, %d Gauss-Seidel sweeps, residual %.2g\n",
+                solution->elements(), solution->iterations(), solution->residual());
+    std::printf("time      %.3f s (form factors %.3f s, solve %.3f s)\n", seconds,
+                solution->form_factor_seconds(), solution->solve_seconds());
+  }
+  if (!o.out.empty()) {
+    nlohmann::json result;
+    result["flatland_result"] = 1;
+    result["scene"] = scene_to_json(*scene);
+    result["settings"] = {{"method", "reference"},
+                          {"max_element_length", o.settings.max_element_length > 0.0
+                                                     ? o.settings.max_element_length
+                                                     : scene->scale / 400.0},
+                          {"quadrature", o.settings.quadrature},
+                          {"tolerance", o.settings.tolerance},
+                          {"samples", o.samples}};
+    result["stats"] = {{"elements", solution->elements()},
+                       {"iterations", solution->iterations()},
+                       {"residual", solution->residual()},
+                       {"seconds", seconds},
+                       {"form_factor_seconds", solution->form_factor_seconds()},
+                       {"solve_seconds", solution->solve_seconds()}};
+    const ReferenceSolution& reference = *solution;
+    result["curves"] = sampled_curves_to_json(
+        *scene, o.samples,
+        [&reference](std::uint32_t c, Side side, double u) { return reference.radiosity(c, side, u); });
+    if (Status status = write_file_atomically(o.out, result.dump(1) + "\n"); !status) {
+      std::fprintf(stderr, "flatland: error: %s\n", status.error().message.c_str());
+      return kExitUsage;
+    }
+    if (!o.quiet) std::printf("wrote     %s\n", o.out.c_str());
+  }
+  return kExitOk;
+}
+
+}  // namespace flatland::app

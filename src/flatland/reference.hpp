@@ -1,0 +1,138 @@
+// A deterministic reference solution of the flatland radiosity equation (DESIGN.md sections 1, 8):
+//
+//   B(x) = E(x) + rho(x) * integral G(x,y) B(y) ds_y,   G = cos(theta_x) cos(theta_y) / (2 r) V(x,y)
+//
+// 1. Every segment is flattened into chords of equal arc length (at most max_element_length; the
+//    chord ends lie on the curve). Each chord is a constant element with two sides; the front
+//    normal is perp(chord direction). A side the scene names reflects (rho = the material's
+//    reflectivity) and emits (the curve's emittance times the profile factor at the element's
+//    arc-length midpoint); the other side absorbs and emits nothing.
+// 2. Exact point-to-elements visibility by an angular sweep around the point (all elements are
+//    occluders): F(x -> j) = (1/2) sum over the visible angular intervals of j of (sin b - sin a),
+//    angles from the point's normal.
+// 3. Element form factors F_ij = (1/L_i) integral over element i of F(x -> j) ds by Gauss-Legendre;
+//    pairs that every quadrature point sees whole, and that lie wholly in front of each other, take
+//    Hottel's crossed strings instead (exact, and it removes the log singularity of neighbours).
+// 4. (I - diag(rho) F) b = e per channel by Gauss-Seidel to a relative residual `tolerance`.
+// 5. radiosity(curve, side, u) is a final gather at the true curve point with its true normal:
+//    E(x) + rho(x) sum_j b_j F(x -> j), with the exact visibility of step 2. The point lies on
+//    the curve, off its element's chord: where the curve is concave the directions between its
+//    tangent and the chord ends see the arc itself, and are given to that element (so a uniform
+//    enclosure gathers exactly E / (1 - rho), and the pointwise error stays O(h^2)).
+//
+// Emitters must be diffuse (Emission::Kind::Diffuse); other kinds are rejected with an error.
+// Rows are computed independently (one thread per row at a time), so the result does not depend
+// on the number of threads.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include "flatland/result.hpp"
+#include "flatland/scene.hpp"
+#include "flatland/vec2.hpp"
+
+namespace flatland {
+
+struct ReferenceSettings {
+  double max_element_length = 0.0;  // 0: scene.scale / 400
+  int quadrature = 8;               // Gauss-Legendre points per element for form factors, 1..64
+  double tolerance = 1e-12;         // relative residual of the element solve
+  int max_iterations = 1'000'000;   // Gauss-Seidel sweeps
+  unsigned threads = 0;             // 0: all hardware threads
+};
+
+// Checks ranges; the message names the setting and the accepted range.
+Status validate(const ReferenceSettings& settings);
+
+// A constant element: a chord of a segment.
+struct ReferenceElement {
+  Vec2 a;  // start (on the curve)
+  Vec2 b;  // end (on the curve)
+  Vec2 normal;  // front normal: perp(b - a) / |b - a|
+  double length = 0.0;
+  std::uint32_t curve = 0;
+  std::uint32_t segment = 0;  // index into Scene::segments
+  double u_mid = 0.0;         // curve parameter at the element's arc-length midpoint
+  // Per side (Side::Front = 0, Side::Back = 1): reflectivity and emittance (zero on inactive sides).
+  std::array<Spectrum, 2> reflectivity{};
+  std::array<Spectrum, 2> emittance{};
+};
+
+// One visible piece of the scene seen from a point: element, the side of it that faces the point,
+// and the point-to-element form factor (1/2) sum (sin b - sin a) over its visible intervals.
+struct VisibleElement {
+  std::uint32_t element = 0;
+  Side side = Side::Front;
+  double form_factor = 0.0;
+  // The whole element lies in front of the point and no part of it is hidden.
+  bool whole = false;
+};
+
+// F(x -> j) for every element j visible from x in the half-plane in front of `normal` (unit),
+// with every element as an occluder. `self` (an element index, or kNoElement) is the element x
+// lies on: it is not an occluder, but where x lies on the curve off the chord, at a concave place,
+// the arc between x and the chord's ends is seen (directions between the tangent and the chord's
+// ends); those directions go to `self`, and likewise for elements with an end point at x.
+// Elements seen edge-on (x on their line) are skipped. Results are in increasing element order,
+// one entry per (element, side).
+inline constexpr std::uint32_t kNoElement = 0xffffffffu;
+std::vector<VisibleElement> visible_elements(const std::vector<ReferenceElement>& elements, Vec2 x,
+                                             Vec2 normal, std::uint32_t self);
+
+// Hottel's crossed strings for two straight segments that see each other whole:
+// F_12 = (crossed - uncrossed) / (2 L_1), crossed = |a1 b2| + |b1 a2|, uncrossed = |a1 a2| + |b1 b2|
+// (a's and b's chosen so that a1-a2 and b1-b2 do not cross). Returns F from segment 1 to 2.
+double crossed_strings(Vec2 a1, Vec2 b1, Vec2 a2, Vec2 b2);
+
+class ReferenceSolution {
+ public:
+  // Radiosity leaving `side` of curve `curve` at curve parameter u (u = segment index + t): the
+  // final gather E(x) + rho sum_j b_j F(x -> j) at the true curve point and normal. Zero on a
+  // side that the scene does not name.
+  Spectrum radiosity(std::uint32_t curve, Side side, double u) const;
+
+  std::size_t elements() const { return elements_.size(); }
+  const std::vector<ReferenceElement>& element_list() const { return elements_; }
+  // Element radiosity b of element j's side (zero on inactive sides).
+  Spectrum element_radiosity(std::uint32_t element, Side side) const;
+  // Form factor F from (element i, side si) to (element j, side sj): computed for reflecting
+  // patches (rho > 0 in some channel) towards patches that reflect or emit; 0 otherwise.
+  double form_factor(std::uint32_t i, Side si, std::uint32_t j, Side sj) const;
+  // The sum over all receivers of F from (element i, side si), including absorbing ones (1 in a
+  // closed enclosure); -1 if the row was not computed (a non-reflecting patch).
+  double row_sum(std::uint32_t i, Side si) const;
+
+  int iterations() const { return iterations_; }   // Gauss-Seidel sweeps (largest over channels)
+  double residual() const { return residual_; }    // relative residual reached
+  double form_factor_seconds() const { return form_factor_seconds_; }
+  double solve_seconds() const { return solve_seconds_; }
+  const Scene& scene() const { return scene_; }
+
+ private:
+  friend Result<ReferenceSolution> solve_reference(const Scene& scene,
+                                                   const ReferenceSettings& settings);
+  Scene scene_;
+  ReferenceSettings settings_;
+  std::vector<ReferenceElement> elements_;
+  // Per segment: first element and count (elements of a segment are consecutive).
+  std::vector<std::uint32_t> segment_first_;
+  std::vector<std::uint32_t> segment_count_;
+  // Rows of F for reflecting patches (sparse: receiving patch, value); patch = 2 element + side.
+  std::vector<std::uint32_t> row_patch_;             // patch of each row
+  std::vector<std::uint32_t> patch_row_;             // row of each patch, or kNoElement
+  std::vector<std::size_t> row_begin_;               // CSR offsets (rows + 1)
+  std::vector<std::uint32_t> column_;                // receiving patch
+  std::vector<double> value_;                        // F
+  std::vector<double> row_sums_;                     // including absorbing receivers
+  std::array<std::vector<double>, 3> radiosity_;     // per channel, per patch
+  int iterations_ = 0;
+  double residual_ = 0.0;
+  double form_factor_seconds_ = 0.0;
+  double solve_seconds_ = 0.0;
+};
+
+Result<ReferenceSolution> solve_reference(const Scene& scene, const ReferenceSettings& settings);
+
+}  // namespace flatland

@@ -1,0 +1,245 @@
+#include "flatland/reference.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "flatland/result_io.hpp"
+#include "test_support.hpp"
+
+namespace flatland {
+namespace {
+
+// The circle of radius 1 as four counter-clockwise cubic arcs (front inside), k = 4/3 (sqrt2 - 1).
+std::string circle_enclosure(double reflectivity, double emittance) {
+  const double k = 0.5522847498307936;
+  char text[1024];
+  std::snprintf(text, sizeof text, R"({
+    "flatland": 1,
+    "materials": {"glow": {"reflectivity": %.17g, "emittance": %.17g}},
+    "curves": [{"id": "circle", "material": "glow", "bezier": [
+      [1,0],[1,%.17g],[%.17g,1],[0,1],[%.17g,1],[-1,%.17g],[-1,0],
+      [-1,%.17g],[%.17g,-1],[0,-1],[%.17g,-1],[1,%.17g],[1,0]]}]})",
+                reflectivity, emittance, k, k, -k, k, -k, -k, k, -k);
+  return text;
+}
+
+ReferenceSolution solve(const Scene& scene, const ReferenceSettings& settings) {
+  Result<ReferenceSolution> solution = solve_reference(scene, settings);
+  EXPECT_TRUE(solution.ok()) << (solution.ok() ? "" : solution.error().message);
+  return std::move(solution).value();
+}
+
+// Radiosity at K points s_j = (j + 0.5) L / K along a curve, plus the curve's ends and middle.
+std::vector<double> samples(const ReferenceSolution& solution, std::uint32_t curve, Side side,
+                            int count) {
+  const Scene& scene = solution.scene();
+  const Curve& c = scene.curves[curve];
+  std::vector<double> values;
+  for (int j = 0; j < count; ++j) {
+    const CurvePoint point = point_at_arc_length(scene, c, (j + 0.5) * c.length / count);
+    values.push_back(solution.radiosity(curve, side, point.u)[0]);
+  }
+  return values;
+}
+
+// Closed enclosure with uniform E and rho: B = E / (1 - rho) everywhere, at element midpoints,
+// element boundaries, segment joints and anywhere between; rows of F sum to 1.
+TEST(Reference, UniformEnclosure) {
+  const Scene scene = testing::scene_from_text(circle_enclosure(0.5, 1.0));
+  ReferenceSettings settings;
+  settings.max_element_length = 0.05;
+  const ReferenceSolution solution = solve(scene, settings);
+  EXPECT_GE(solution.elements(), 4u * 32u);
+  for (const double b : samples(solution, 0, Side::Front, 37)) EXPECT_NEAR(b, 2.0, 1e-9);
+  for (const double u : {0.0, 0.5, 1.0, 1.25, 2.0, 3.999, 4.0})
+    EXPECT_NEAR(solution.radiosity(0, Side::Front, u)[0], 2.0, 1e-9) << "u = " << u;
+  // The back side is not named: it neither emits nor reflects.
+  EXPECT_EQ(solution.radiosity(0, Side::Back, 0.5)[0], 0.0);
+  for (std::uint32_t i = 0; i < solution.elements(); ++i) {
+    EXPECT_NEAR(solution.row_sum(i, Side::Front), 1.0, 1e-12);
+    EXPECT_NEAR(solution.element_radiosity(i, Side::Front)[0], 2.0, 1e-10);
+  }
+  EXPECT_LE(solution.residual(), 1e-12);
+}
+
+TEST(Reference, HighReflectivityEnclosure) {
+  const Scene scene = testing::scene_from_text(circle_enclosure(0.99, 1.0));
+  ReferenceSettings settings;
+  settings.max_element_length = 0.1;
+  const ReferenceSolution solution = solve(scene, settings);
+  for (const double b : samples(solution, 0, Side::Front, 23)) EXPECT_NEAR(b, 100.0, 1e-6);
+}
+
+// A room with an obstacle: every direction hits something, so rows sum to 1 (up to the
+// quadrature of partly hidden pairs), and L_i F_ij = L_j F_ji.
+TEST(Reference, ReciprocityAndRowSums) {
+  const Scene scene = testing::scene_from_text(R"({"flatland": 1,
+    "materials": {"wall": {"reflectivity": 0.5, "emittance": 1}, "box": {"reflectivity": 0.3}},
+    "curves": [
+      {"id": "room", "material": "wall", "line": [[-2,-1],[2,-1],[2,1.5],[-2,1.5],[-2,-1]]},
+      {"id": "post", "material": "box", "sides": "both", "line": [[-0.3,-0.2],[0.4,0.5]]},
+      {"id": "arc", "material": "box", "bezier": [[0.5,-0.6],[1.2,-0.9],[1.5,0.2],[1.0,0.6]]}]})");
+  ReferenceSettings settings;
+  settings.max_element_length = 0.25;
+  const ReferenceSolution solution = solve(scene, settings);
+  const auto& elements = solution.element_list();
+  double worst_sum = 0.0;
+  double worst_reciprocity = 0.0;
+  for (std::uint32_t i = 0; i < elements.size(); ++i) {
+    for (const Side si : {Side::Front, Side::Back}) {
+      if (solution.row_sum(i, si) < 0.0) continue;
+      worst_sum = std::max(worst_sum, std::fabs(solution.row_sum(i, si) - 1.0));
+      for (std::uint32_t j = 0; j < elements.size(); ++j) {
+        for (const Side sj : {Side::Front, Side::Back}) {
+          if (solution.row_sum(j, sj) < 0.0) continue;
+          const double forward = elements[i].length * solution.form_factor(i, si, j, sj);
+          const double backward = elements[j].length * solution.form_factor(j, sj, i, si);
+          worst_reciprocity = std::max(worst_reciprocity, std::fabs(forward - backward) /
+                                                              std::min(elements[i].length, elements[j].length));
+        }
+      }
+    }
+  }
+  std::printf("row sums within %.3g of 1, reciprocity within %.3g\n", worst_sum, worst_reciprocity);
+  EXPECT_LT(worst_sum, 1e-3);
+  EXPECT_LT(worst_reciprocity, 1e-3);
+}
+
+// Hottel's crossed strings against the point-to-segment factor integrated by brute force.
+TEST(Reference, CrossedStrings) {
+  const Vec2 a1{0, 0}, b1{1, 0}, a2{1.5, 2}, b2{-0.5, 1};
+  const int n = 200000;
+  double sum = 0.0;
+  for (int k = 0; k < n; ++k) {
+    const Vec2 x{(k + 0.5) / n, 0.0};
+    auto sine = [&](Vec2 p) { return (p.x - x.x) / length(p - x); };
+    sum += 0.5 * std::fabs(sine(a2) - sine(b2));
+  }
+  EXPECT_NEAR(crossed_strings(a1, b1, a2, b2), sum / n, 1e-9);
+  // Two sides of a unit square corner: F = (1 + 1 - sqrt2) / 2.
+  EXPECT_NEAR(crossed_strings({1, 0}, {0, 0}, {0, 0}, {0, 1}), 1.0 - 0.5 * std::sqrt(2.0), 1e-15);
+}
+
+// One bounce from a black emitter past a black occluder onto a flat receiver:
+// B(x) = rho (1/2) (visible measure of the emitter in sin theta), exact penumbrae.
+TEST(Reference, Penumbra) {
+  const Scene scene = testing::scene_from_text(R"({"flatland": 1,
+    "materials": {"lamp": {"emittance": 1}, "black": {}, "floor": {"reflectivity": 0.5}},
+    "curves": [
+      {"id": "lamp", "material": "lamp", "line": [[0.5,2],[-0.5,2]]},
+      {"id": "floor", "material": "floor", "line": [[-3,0],[3,0]]},
+      {"id": "occluder", "material": "black", "sides": "both", "line": [[-0.2,1],[0.6,1]]}]})");
+  ReferenceSettings settings;
+  settings.max_element_length = 0.1;
+  const ReferenceSolution solution = solve(scene, settings);
+  auto expected = [](double x) {
+    auto sine = [x](double px, double py) { return (px - x) / std::hypot(px - x, py); };
+    const double a = sine(-0.5, 2), b = sine(0.5, 2);
+    const double c = std::max(a, sine(-0.2, 1)), d = std::min(b, sine(0.6, 1));
+    return 0.5 * 0.5 * ((b - a) - std::max(0.0, d - c));
+  };
+  for (int k = 0; k <= 120; ++k) {
+    const double x = -3.0 + 6.0 * k / 120.0;
+    const double b = solution.radiosity(1, Side::Front, (x + 3.0) / 6.0)[0];
+    EXPECT_NEAR(b, expected(x), 1e-4 * expected(x) + 1e-14) << "x = " << x;
+  }
+  // The occluder and the lamp's back absorb.
+  EXPECT_EQ(solution.radiosity(2, Side::Front, 0.5)[0], 0.0);
+  EXPECT_EQ(solution.radiosity(0, Side::Front, 0.5)[0], 1.0);
+  EXPECT_EQ(solution.radiosity(0, Side::Back, 0.5)[0], 0.0);
+}
+
+// A half-circle reflector lit by a line lamp: the error at fixed points falls as h^2.
+TEST(Reference, SecondOrderConvergence) {
+  const double k = 0.5522847498307936;
+  char text[1024];
+  std::snprintf(text, sizeof text, R"({"flatland": 1,
+    "materials": {"lamp": {"emittance": 1}, "mirror": {"reflectivity": 0.7}},
+    "curves": [
+      {"id": "lamp", "material": "lamp", "line": [[0.3,0.5],[-0.3,0.5]]},
+      {"id": "bowl", "material": "mirror", "bezier":
+        [[-1,0],[-1,%.17g],[%.17g,-1],[0,-1],[%.17g,-1],[1,%.17g],[1,0]]}]})",
+                -k, -k, k, -k);
+  const Scene scene = testing::scene_from_text(text);
+  const int points = 41;
+  auto run = [&](double h) {
+    ReferenceSettings settings;
+    settings.max_element_length = h;
+    return samples(solve(scene, settings), 1, Side::Front, points);
+  };
+  const std::vector<double> finest = run(0.2 / 32);
+  std::vector<double> errors;
+  for (const double h : {0.2, 0.1, 0.05, 0.025}) {
+    const std::vector<double> values = run(h);
+    double error = 0.0;
+    for (int j = 0; j < points; ++j) error = std::max(error, std::fabs(values[j] - finest[j]));
+    errors.push_back(error);
+  }
+  for (std::size_t i = 0; i + 1 < errors.size(); ++i) {
+    const double order = std::log2(errors[i] / errors[i + 1]);
+    std::printf("h = %.4g: max error %.3e, observed order %.2f\n", 0.2 / std::pow(2.0, i), errors[i], order);
+    EXPECT_GT(order, 1.5);
+  }
+}
+
+// Colour channels solve independently; thread count does not change a bit.
+TEST(Reference, ChannelsAndThreads) {
+  const Scene scene = testing::scene_from_text(R"({"flatland": 1,
+    "materials": {"lamp": {"emittance": [1, 2, 0.5]}, "wall": {"reflectivity": [0.2, 0.5, 0.8]}},
+    "curves": [
+      {"id": "lamp", "material": "lamp", "line": [[0.5,1],[-0.5,1]]},
+      {"id": "cup", "material": "wall", "bezier": [[-1,1],[-1,-0.5],[1,-0.5],[1,1]]}]})");
+  ASSERT_EQ(scene.channels, 3);
+  ReferenceSettings settings;
+  settings.max_element_length = 0.1;
+  settings.threads = 1;
+  const ReferenceSolution one = solve(scene, settings);
+  settings.threads = 3;
+  const ReferenceSolution three = solve(scene, settings);
+  for (const double u : {0.1, 0.37, 0.5, 0.93}) {
+    const Spectrum a = one.radiosity(1, Side::Front, u);
+    const Spectrum b = three.radiosity(1, Side::Front, u);
+    for (std::size_t c = 0; c < 3; ++c) EXPECT_EQ(a[c], b[c]);
+    EXPECT_GT(a[1], 0.0);
+    EXPECT_GT(a[2] / a[0], 0.5 / 1.0);  // more reflective channel, less emitted: still bright
+  }
+}
+
+TEST(Reference, RejectsBadInput) {
+  ReferenceSettings settings;
+  settings.quadrature = 0;
+  EXPECT_FALSE(validate(settings).ok());
+  settings = {};
+  settings.max_element_length = -1.0;
+  EXPECT_FALSE(validate(settings).ok());
+  const Scene scene = testing::scene_from_text(R"({"flatland": 1,
+    "materials": {"lamp": {"emittance": 1, "emission": {"beam": 30}}},
+    "curves": [{"id": "lamp", "material": "lamp", "line": [[0,0],[1,0]]}]})");
+  EXPECT_FALSE(solve_reference(scene, ReferenceSettings{}).ok());
+}
+
+// Elements against seconds on a scene with occlusion (run with --gtest_also_run_disabled_tests).
+TEST(Reference, DISABLED_Timing) {
+  const std::string path = testing::source_path("scenes2d/room_reflector.json");
+  const Scene scene = testing::scene_from_file("scenes2d/room_reflector.json");
+  for (const double divisor : {200.0, 400.0, 800.0}) {
+    ReferenceSettings settings;
+    settings.max_element_length = scene.scale / divisor;
+    const auto start = std::chrono::steady_clock::now();
+    const ReferenceSolution solution = solve(scene, settings);
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    std::printf("%zu elements: %.2f s (form factors %.2f s, solve %.2f s, %d sweeps)\n",
+                solution.elements(), seconds, solution.form_factor_seconds(),
+                solution.solve_seconds(), solution.iterations());
+  }
+}
+
+}  // namespace
+}  // namespace flatland
