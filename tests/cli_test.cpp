@@ -66,7 +66,7 @@ int lines(const std::string& text) {
 TEST_F(Cli, HelpListsCommandsAndOptions) {
   const CommandRun top = run("--help");
   EXPECT_EQ(top.exit_code, 0);
-  for (const char* command : {"solve", "reference", "compare"})
+  for (const char* command : {"solve", "reference", "compare", "converge"})
     EXPECT_NE(top.out.find(command), std::string::npos) << command;
   const CommandRun solve = run("solve --help");
   EXPECT_EQ(solve.exit_code, 0);
@@ -156,6 +156,27 @@ TEST_F(Cli, ReferenceWritesTheResultFormat) {
   const CommandRun bad = run("reference " + scene("penumbra.json") + " --elements 10 --max-element-length 0.1");
   EXPECT_EQ(bad.exit_code, 2);
   EXPECT_EQ(lines(bad.err), 1) << bad.err;
+}
+
+TEST_F(Cli, ConvergeWritesTableAndPlots) {
+  const fs::path out = directory_ / "convergence";
+  const CommandRun r = run("converge " + scene("penumbra.json") +
+                           " --methods constant,cubic+sampling=uniform --budgets 2000,8000 --seeds 2 --samples 20 --out " +
+                           out.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const std::string csv = read_file(out / "convergence.csv");
+  EXPECT_EQ(csv.substr(0, csv.find('\n')),
+            "method,basis,sampling,discontinuities,estimator,elements,ray_width,ray_mode,ray_profile,"
+            "seed,photons,seconds,rel_l1,rel_l2,rel_linf");
+  EXPECT_EQ(lines(csv), 1 + 2 * 2 * 2);  // header + methods x budgets x seeds
+  EXPECT_NE(csv.find("\"cubic+sampling=uniform\",cubic,uniform"), std::string::npos);
+  const std::string png = read_file(out / "convergence.png");
+  ASSERT_GT(png.size(), 8u);
+  EXPECT_EQ(png.substr(1, 3), "PNG");
+  EXPECT_NE(read_file(out / "convergence.svg").find("<svg"), std::string::npos);
+  const CommandRun bad = run("converge " + scene("penumbra.json") + " --methods cubic+basis=quintic --out " + out.string());
+  EXPECT_EQ(bad.exit_code, 2);
+  EXPECT_NE(bad.err.find("--methods"), std::string::npos) << bad.err;
 }
 
 TEST_F(Cli, FailedWriteLeavesNoFile) {

@@ -50,6 +50,20 @@ struct ReferenceOptions {
 CLI::App* add_reference_command(CLI::App& parent, ReferenceOptions& options);
 int run_reference(ReferenceOptions& options);
 
+struct ConvergeOptions {
+  std::string scene;
+  std::string reference;
+  std::string methods = "constant,linear,cubic";
+  std::string budgets = "1e4,1e5,1e6";
+  std::string times;
+  int seeds = 3;
+  int samples = 100;
+  unsigned threads = 0;
+  std::string out;
+};
+CLI::App* add_converge_command(CLI::App& parent, ConvergeOptions& options);
+int run_converge(ConvergeOptions& options);
+
 struct CompareOptions {
   std::string result;
   std::string reference;

@@ -84,6 +84,8 @@ int main(int argc, char** argv) {
   CLI::App* solve_command = add_solve_command(app, solve);
   ReferenceOptions reference;
   CLI::App* reference_command = add_reference_command(app, reference);
+  ConvergeOptions converge;
+  CLI::App* converge_command = add_converge_command(app, converge);
   CompareOptions compare;
   CLI::App* compare_command = add_compare_command(app, compare);
 
@@ -104,5 +106,6 @@ int main(int argc, char** argv) {
   if (solve_command->parsed()) return run_solve(solve);
   if (reference_command->parsed()) return run_reference(reference);
   if (compare_command->parsed()) return run_compare(compare);
+  if (converge_command->parsed()) return run_converge(converge);
   return kExitUsage;
 }

@@ -1,0 +1,345 @@
+// flatland converge: error against run time for several methods, photon budgets and seeds, as a
+// CSV table and a log-log plot drawn by gnuplot.
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <map>
+#include <sstream>
+
+#include "app/commands.hpp"
+#include "app/progress.hpp"
+#include "flatland/result_io.hpp"
+
+namespace flatland::app {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+struct Method {
+  std::string name;  // as written on the command line
+  SolverSettings settings;
+};
+
+// "cubic" or "basis=cubic+sampling=uniform+ray-width=0.05+ray-mode=band+...".
+Result<Method> parse_method(const std::string& text) {
+  Method method{text, SolverSettings{}};
+  std::stringstream parts(text);
+  std::string part;
+  while (std::getline(parts, part, '+')) {
+    const auto equals = part.find('=');
+    const std::string key = equals == std::string::npos ? "basis" : part.substr(0, equals);
+    const std::string value = equals == std::string::npos ? part : part.substr(equals + 1);
+    SolverSettings& s = method.settings;
+    const std::string where = "--methods: '" + text + "': ";
+    if (key == "basis") {
+      if (value == "constant") s.basis = BasisKind::Constant;
+      else if (value == "linear") s.basis = BasisKind::Linear;
+      else if (value == "cubic") s.basis = BasisKind::Cubic;
+      else if (value == "hermite") s.basis = BasisKind::Hermite;
+      else return Error{where + "basis must be constant, linear, cubic or hermite"};
+    } else if (key == "sampling") {
+      if (value != "uniform" && value != "reconstructed")
+        return Error{where + "sampling must be uniform or reconstructed"};
+      s.sampling = value == "uniform" ? PositionSampling::Uniform : PositionSampling::Reconstructed;
+    } else if (key == "discontinuities") {
+      if (value != "none" && value != "scene" && value != "auto")
+        return Error{where + "discontinuities must be none, scene or auto"};
+      s.discontinuities = value == "none" ? DiscontinuityMode::None
+                          : value == "scene" ? DiscontinuityMode::Scene
+                                             : DiscontinuityMode::Auto;
+    } else if (key == "estimator") {
+      if (value != "lumped" && value != "galerkin")
+        return Error{where + "estimator must be lumped or galerkin"};
+      s.estimator = value == "galerkin" ? Estimator::Galerkin : Estimator::Lumped;
+    } else if (key == "elements") {
+      s.elements = std::atoi(value.c_str());
+    } else if (key == "ray-width") {
+      char* end = nullptr;
+      s.ray_width = std::strtod(value.c_str(), &end);
+      if (end == value.c_str() || *end != '\0') return Error{where + "ray-width must be a number"};
+    } else if (key == "ray-mode") {
+      if (value != "footprint" && value != "band") return Error{where + "ray-mode must be footprint or band"};
+      s.ray_mode = value == "band" ? RayMode::Band : RayMode::Footprint;
+    } else if (key == "ray-profile") {
+      Result<RayProfile> profile = parse_ray_profile(value);
+      if (!profile) return Error{where + profile.error().message};
+      s.ray_profile = *profile;
+    } else {
+      return Error{where + "unknown key '" + key +
+                   "'; keys: basis, sampling, discontinuities, estimator, elements, ray-width, "
+                   "ray-mode, ray-profile"};
+    }
+  }
+  if (Status status = validate(method.settings); !status) return Error{"--methods: '" + text + "': " + status.error().message};
+  return method;
+}
+
+std::vector<std::string> split(const std::string& text) {
+  std::vector<std::string> out;
+  std::stringstream parts(text);
+  std::string part;
+  while (std::getline(parts, part, ',')) if (!part.empty()) out.push_back(part);
+  return out;
+}
+
+double median(std::vector<double> values) {
+  std::sort(values.begin(), values.end());
+  const std::size_t n = values.size();
+  return n % 2 == 1 ? values[n / 2] : 0.5 * (values[n / 2 - 1] + values[n / 2]);
+}
+
+// Runs gnuplot on a script; false if it cannot be run or fails.
+bool run_gnuplot(const fs::path& script) {
+  const std::string command = "gnuplot '" + script.string() + "' 2>&1";
+  FILE* pipe = ::popen(command.c_str(), "r");
+  if (pipe == nullptr) return false;
+  char line[512];
+  std::string output;
+  while (std::fgets(line, sizeof line, pipe) != nullptr) output += line;
+  const int status = ::pclose(pipe);
+  if (!output.empty()) std::fprintf(stderr, "%s", output.c_str());
+  return WIFEXITED(status) && WEXITSTATUS(status) == 0;
+}
+
+}  // namespace
+
+CLI::App* add_converge_command(CLI::App& parent, ConvergeOptions& o) {
+  CLI::App* cmd = parent.add_subcommand(
+      "converge",
+      "Error against run time: solve SCENE with every method over a range of photon budgets (or "
+      "time budgets) and seeds; write DIR/convergence.csv and a log-log plot (PNG and SVG, by "
+      "gnuplot) of the median error against the median time, with the spread over seeds, a guide "
+      "slope of -1/2 and the reference's own error floor");
+  cmd->add_option("scene", o.scene, "Scene file (JSON)")->required();
+  cmd->add_option("--reference", o.reference,
+                  "Reference result (flatland reference --out); computed when not given");
+  cmd->add_option("--methods", o.methods,
+                  "Comma-separated methods: a basis name, or key=value pairs joined by '+' "
+                  "(basis, sampling, discontinuities, estimator, elements, ray-width, ray-mode, "
+                  "ray-profile), e.g. constant,cubic,cubic+sampling=uniform")
+      ->capture_default_str();
+  auto* budgets = cmd->add_option("--budgets", o.budgets, "Comma-separated photon budgets")
+                      ->capture_default_str();
+  auto* times = cmd->add_option("--times", o.times,
+                                "Comma-separated wall-time budgets in seconds (photons set from "
+                                "each method's measured rate)");
+  budgets->excludes(times);
+  cmd->add_option("--seeds", o.seeds, "Seeds per method and budget")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 1000));
+  cmd->add_option("--samples", o.samples, "Samples per curve (the reference is solved with these)")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 1000000));
+  cmd->add_option("--threads", o.threads, "Worker threads per solve (0: every core)")
+      ->capture_default_str();
+  cmd->add_option("--out", o.out, "Output directory (created if missing)")->required();
+  return cmd;
+}
+
+int run_converge(ConvergeOptions& o) {
+  auto fail = [](const std::string& message) {
+    std::fprintf(stderr, "flatland: error: %s\n", message.c_str());
+    return kExitUsage;
+  };
+  std::vector<Method> methods;
+  for (const std::string& text : split(o.methods)) {
+    Result<Method> method = parse_method(text);
+    if (!method) return fail(method.error().message);
+    method->settings.threads = o.threads;
+    methods.push_back(std::move(*method));
+  }
+  if (methods.empty()) return fail("--methods: give at least one method");
+  std::vector<double> budgets;
+  const bool by_time = !o.times.empty();
+  for (const std::string& text : split(by_time ? o.times : o.budgets)) {
+    char* end = nullptr;
+    const double value = std::strtod(text.c_str(), &end);
+    if (end == text.c_str() || *end != '\0' || !(value > 0.0) || !std::isfinite(value))
+      return fail(std::string(by_time ? "--times" : "--budgets") + ": '" + text + "' is not a positive number");
+    budgets.push_back(value);
+  }
+  if (budgets.empty()) return fail("--budgets: give at least one budget");
+
+  Result<Scene> scene = load_scene(o.scene);
+  if (!scene) return fail(scene.error().message);
+  std::error_code ec;
+  fs::create_directories(o.out, ec);
+  if (ec || !fs::is_directory(o.out)) return fail(o.out + ": cannot create the output directory");
+
+  // The reference, and an estimate of its own error: the same solve with elements twice as long
+  // differs from it by about 3 times its error (second order), so floor = difference / 3.
+  nlohmann::json reference;
+  double floor = -1.0;
+  if (!o.reference.empty()) {
+    Result<nlohmann::json> read = read_result_file(o.reference);
+    if (!read) return fail(read.error().message);
+    reference = std::move(*read);
+  } else {
+    std::fprintf(stderr, "converge: computing the reference of %s\n", o.scene.c_str());
+    ReferenceSettings settings;
+    settings.threads = o.threads;
+    Result<ReferenceSolution> fine = solve_reference(*scene, settings);
+    if (!fine) return fail(fine.error().message);
+    const ReferenceSolution& solution = *fine;
+    reference = {{"flatland_result", 1},
+                 {"curves", sampled_curves_to_json(*scene, o.samples,
+                                                   [&solution](std::uint32_t c, Side side, double u) {
+                                                     return solution.radiosity(c, side, u);
+                                                   })}};
+    settings.max_element_length = 2.0 * scene->scale / 400.0;
+    Result<ReferenceSolution> coarse = solve_reference(*scene, settings);
+    if (coarse) {
+      const ReferenceSolution& rough = *coarse;
+      const nlohmann::json coarse_result = {
+          {"flatland_result", 1},
+          {"curves", sampled_curves_to_json(*scene, o.samples, [&rough](std::uint32_t c, Side side, double u) {
+             return rough.radiosity(c, side, u);
+           })}};
+      Result<Comparison> difference = compare_results(coarse_result, reference);
+      if (difference) floor = difference->scene.l2 / 3.0;
+    }
+  }
+
+  // Every run: one CSV row.
+  struct Row {
+    std::size_t method;
+    std::size_t budget;
+    std::uint64_t seed;
+    std::uint64_t photons;
+    double seconds;
+    ErrorNorms error;
+  };
+  std::vector<Row> rows;
+  const std::size_t total = methods.size() * budgets.size() * static_cast<std::size_t>(o.seeds);
+  const bool tty = ::isatty(STDERR_FILENO) == 1;
+  for (std::size_t m = 0; m < methods.size(); ++m) {
+    double rate = 0.0;  // photons per second, measured for time budgets
+    if (by_time) {
+      SolverSettings probe = methods[m].settings;
+      probe.photons = 100'000;
+      Result<Solver> solver = Solver::create(*scene, probe);
+      if (!solver) return fail(solver.error().message);
+      solver->run(&interrupt_flag());
+      rate = static_cast<double>(solver->photons_shot()) / std::max(solver->seconds(), 1e-6);
+    }
+    for (std::size_t b = 0; b < budgets.size(); ++b) {
+      for (int seed = 1; seed <= o.seeds; ++seed) {
+        SolverSettings settings = methods[m].settings;
+        settings.photons = static_cast<std::uint64_t>(std::max(1.0, by_time ? budgets[b] * rate : budgets[b]));
+        settings.seed = static_cast<std::uint64_t>(seed);
+        Result<Solver> solver = Solver::create(*scene, settings);
+        if (!solver) return fail(solver.error().message);
+        solver->run(&interrupt_flag());
+        if (solver->stop_reason() == StopReason::Cancelled) {
+          std::fprintf(stderr, "flatland: interrupted; nothing written\n");
+          return kExitInterrupted;
+        }
+        Result<Comparison> comparison = compare_results(result_to_json(*solver, o.samples), reference);
+        if (!comparison) return fail("--reference: " + comparison.error().message);
+        rows.push_back({m, b, settings.seed, solver->photons_shot(), solver->seconds(), comparison->scene});
+        if (tty)
+          std::fprintf(stderr, "\r\033[K  converge: %zu / %zu runs (%s, %s photons, seed %d)", rows.size(),
+                       total, methods[m].name.c_str(),
+                       human_count(static_cast<double>(settings.photons)).c_str(), seed);
+      }
+    }
+  }
+  if (tty) std::fprintf(stderr, "\r\033[K");
+
+  // The CSV, written atomically.
+  std::string csv =
+      "method,basis,sampling,discontinuities,estimator,elements,ray_width,ray_mode,ray_profile,"
+      "seed,photons,seconds,rel_l1,rel_l2,rel_linf\n";
+  for (const Row& row : rows) {
+    const SolverSettings& s = methods[row.method].settings;
+    char line[512];
+    std::snprintf(line, sizeof line, "\"%s\",%s,%s,%s,%s,%d,%.17g,%s,%s,%llu,%llu,%.9g,%.9g,%.9g,%.9g\n",
+                  methods[row.method].name.c_str(), to_string(s.basis), to_string(s.sampling),
+                  to_string(s.discontinuities), to_string(s.estimator), s.elements, s.ray_width,
+                  to_string(s.ray_mode), to_string(s.ray_profile),
+                  static_cast<unsigned long long>(row.seed), static_cast<unsigned long long>(row.photons),
+                  row.seconds, row.error.l1, row.error.l2, row.error.linf);
+    csv += line;
+  }
+  const fs::path directory(o.out);
+  if (Status status = write_file_atomically((directory / "convergence.csv").string(), csv); !status)
+    return fail(status.error().message);
+
+  // Medians per method and budget, for the plot: seconds, L2 error and its spread over seeds.
+  std::string data;
+  for (std::size_t m = 0; m < methods.size(); ++m) {
+    for (std::size_t b = 0; b < budgets.size(); ++b) {
+      std::vector<double> seconds;
+      std::vector<double> errors;
+      for (const Row& row : rows)
+        if (row.method == m && row.budget == b) {
+          seconds.push_back(std::max(row.seconds, 1e-6));
+          errors.push_back(row.error.l2);
+        }
+      char line[256];
+      std::snprintf(line, sizeof line, "%.9g %.9g %.9g %.9g\n", median(seconds), median(errors),
+                    *std::min_element(errors.begin(), errors.end()),
+                    *std::max_element(errors.begin(), errors.end()));
+      data += line;
+    }
+    data += "\n\n";  // a gnuplot data block per method
+  }
+  if (Status status = write_file_atomically((directory / "convergence.dat").string(), data); !status)
+    return fail(status.error().message);
+
+  // The plot: gnuplot writes to temporary names, renamed when it succeeded.
+  const Row& anchor = rows.front();
+  std::string script = "set logscale xy\nset xlabel 'solve time (s)'\nset ylabel 'relative L2 error of B'\n"
+                       "set key outside right\nset grid\n"
+                       "set title '" + scene->name + ": median over " + std::to_string(o.seeds) +
+                       " seeds, bars from min to max'\n";
+  std::string plot = "plot ";
+  for (std::size_t m = 0; m < methods.size(); ++m) {
+    plot += "'" + (directory / "convergence.dat").string() + "' index " + std::to_string(m) +
+            " using 1:2:3:4 with yerrorlines lw 2 title '" + methods[m].name + "', ";
+  }
+  char guide[256];
+  std::snprintf(guide, sizeof guide, "%.9g * (x / %.9g)**(-0.5) with lines dt 2 lc rgb 'gray40' title 'slope -1/2'",
+                anchor.error.l2, std::max(anchor.seconds, 1e-6));
+  plot += guide;
+  double smallest_error = INFINITY;
+  for (const Row& row : rows) smallest_error = std::min(smallest_error, row.error.l2);
+  // A floor far below every error would only stretch the axis: say it in the title instead.
+  if (floor > 0.0 && floor < 0.01 * smallest_error) {
+    char line[160];
+    std::snprintf(line, sizeof line, "set label 1 'reference error (estimate) %.2g: below the plot' at graph 0.02, graph 0.04\n", floor);
+    script += line;
+  } else if (floor > 0.0) {
+    char line[160];
+    std::snprintf(line, sizeof line, ", %.9g with lines dt 3 lc rgb 'black' title 'reference error (estimate)'", floor);
+    plot += line;
+  }
+  plot += "\n";
+  const fs::path png_temporary = directory / ".convergence.png.tmp";
+  const fs::path svg_temporary = directory / ".convergence.svg.tmp";
+  script += "set terminal pngcairo size 1000,640\nset output '" + png_temporary.string() + "'\n" + plot;
+  script += "set terminal svg size 1000,640\nset output '" + svg_temporary.string() + "'\n" + plot;
+  const fs::path script_path = directory / "convergence.gp";
+  if (Status status = write_file_atomically(script_path.string(), script); !status)
+    return fail(status.error().message);
+  if (!run_gnuplot(script_path)) {
+    fs::remove(png_temporary, ec);
+    fs::remove(svg_temporary, ec);
+    std::fprintf(stderr, "flatland: error: gnuplot failed or is missing (apt-get install gnuplot-nox); "
+                         "%s/convergence.csv is written, the plot is not\n", o.out.c_str());
+    return kExitFailure;
+  }
+  fs::rename(png_temporary, directory / "convergence.png", ec);
+  fs::rename(svg_temporary, directory / "convergence.svg", ec);
+  std::printf("wrote     %s/convergence.csv, convergence.png, convergence.svg (%zu runs)\n",
+              o.out.c_str(), rows.size());
+  if (floor > 0.0) std::printf("reference error (estimated) %.3g relative L2\n", floor);
+  return kExitOk;
+}
+
+}  // namespace flatland::app
