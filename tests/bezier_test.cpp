@@ -7,24 +7,14 @@
 
 #include <gtest/gtest.h>
 
+#include "test_support.hpp"
+
 namespace flatland {
 namespace {
 
 // Independent references: the explicit Bernstein polynomial in long double.
-struct LongVec {
-  long double x, y;
-};
-
-LongVec bernstein_point(const Cubic& c, long double t) {
-  const long double s = 1.0L - t;
-  const long double w[4] = {s * s * s, 3.0L * s * s * t, 3.0L * s * t * t, t * t * t};
-  LongVec r{0.0L, 0.0L};
-  for (int i = 0; i < 4; ++i) {
-    r.x += w[i] * c.p[i].x;
-    r.y += w[i] * c.p[i].y;
-  }
-  return r;
-}
+using testing::bernstein_point;
+using testing::LongVec;
 
 long double distance(LongVec a, LongVec b) { return std::hypot(a.x - b.x, a.y - b.y); }
 long double distance(LongVec a, Vec2 b) { return std::hypot(a.x - b.x, a.y - b.y); }

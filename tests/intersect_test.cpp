@@ -9,6 +9,8 @@
 
 #include <gtest/gtest.h>
 
+#include "test_support.hpp"
+
 #include "flatland/bezier.hpp"
 
 namespace flatland {
@@ -20,20 +22,8 @@ Cubic bezier(Vec2 p0, Vec2 p1, Vec2 p2, Vec2 p3) { return Cubic{{p0, p1, p2, p3}
 
 // ---- Independent reference: the curve as a dense polyline, in long double ----------------------
 
-struct LongVec {
-  long double x, y;
-};
-
-LongVec bernstein_point(const Cubic& c, long double t) {
-  const long double s = 1.0L - t;
-  const long double w[4] = {s * s * s, 3.0L * s * s * t, 3.0L * s * t * t, t * t * t};
-  LongVec r{0.0L, 0.0L};
-  for (int i = 0; i < 4; ++i) {
-    r.x += w[i] * c.p[i].x;
-    r.y += w[i] * c.p[i].y;
-  }
-  return r;
-}
+using testing::bernstein_point;
+using testing::LongVec;
 
 // A crossing the polyline proves: the curve's values at t_i and t_(i+1) lie strictly on opposite
 // sides of the ray's line, so by continuity the curve crosses it in between, at a distance along

@@ -15,20 +15,6 @@
 namespace flatland {
 namespace {
 
-// The circle of radius 1 as four counter-clockwise cubic arcs (front inside), k = 4/3 (sqrt2 - 1).
-std::string circle_enclosure(double reflectivity, double emittance) {
-  const double k = 0.5522847498307936;
-  char text[1024];
-  std::snprintf(text, sizeof text, R"({
-    "flatland": 1,
-    "materials": {"glow": {"reflectivity": %.17g, "emittance": %.17g}},
-    "curves": [{"id": "circle", "material": "glow", "bezier": [
-      [1,0],[1,%.17g],[%.17g,1],[0,1],[%.17g,1],[-1,%.17g],[-1,0],
-      [-1,%.17g],[%.17g,-1],[0,-1],[%.17g,-1],[1,%.17g],[1,0]]}]})",
-                reflectivity, emittance, k, k, -k, k, -k, -k, k, -k);
-  return text;
-}
-
 ReferenceSolution solve(const Scene& scene, const ReferenceSettings& settings) {
   Result<ReferenceSolution> solution = solve_reference(scene, settings);
   EXPECT_TRUE(solution.ok()) << (solution.ok() ? "" : solution.error().message);
@@ -51,7 +37,7 @@ std::vector<double> samples(const ReferenceSolution& solution, std::uint32_t cur
 // Closed enclosure with uniform E and rho: B = E / (1 - rho) everywhere, at element midpoints,
 // element boundaries, segment joints and anywhere between; rows of F sum to 1.
 TEST(Reference, UniformEnclosure) {
-  const Scene scene = testing::scene_from_text(circle_enclosure(0.5, 1.0));
+  const Scene scene = testing::scene_from_text(testing::circle_enclosure(0.5, 1.0));
   ReferenceSettings settings;
   settings.max_element_length = 0.05;
   const ReferenceSolution solution = solve(scene, settings);
@@ -69,7 +55,7 @@ TEST(Reference, UniformEnclosure) {
 }
 
 TEST(Reference, HighReflectivityEnclosure) {
-  const Scene scene = testing::scene_from_text(circle_enclosure(0.99, 1.0));
+  const Scene scene = testing::scene_from_text(testing::circle_enclosure(0.99, 1.0));
   ReferenceSettings settings;
   settings.max_element_length = 0.1;
   const ReferenceSolution solution = solve(scene, settings);

@@ -14,20 +14,6 @@
 namespace flatland {
 namespace {
 
-// A unit circle of four cubic arcs, counter-clockwise so its front faces inward.
-std::string circle_enclosure(double reflectivity, double emittance) {
-  const double k = 0.5522847498307936;
-  char text[1024];
-  std::snprintf(text, sizeof text, R"({
-    "flatland": 1,
-    "materials": {"glow": {"reflectivity": %.17g, "emittance": %.17g}},
-    "curves": [{"id": "circle", "material": "glow", "bezier": [
-      [1,0],[1,%.17g],[%.17g,1],[0,1],[%.17g,1],[-1,%.17g],[-1,0],
-      [-1,%.17g],[%.17g,-1],[0,-1],[%.17g,-1],[1,%.17g],[1,0]]}]})",
-                reflectivity, emittance, k, k, -k, k, -k, -k, k, -k);
-  return text;
-}
-
 Solver make_solver(const Scene& scene, const SolverSettings& settings) {
   Result<Solver> solver = Solver::create(scene, settings);
   EXPECT_TRUE(solver.ok()) << (solver.ok() ? "" : solver.error().message);
@@ -39,7 +25,7 @@ Solver make_solver(const Scene& scene, const SolverSettings& settings) {
 // is about sqrt((1 - p_k) / (n p_k)) with p_k its share of the curve; stopping at tolerance t
 // leaves a further relative bias of at most t.
 void check_enclosure(double rho, double tolerance, BasisKind basis) {
-  const Scene scene = testing::scene_from_text(circle_enclosure(rho, 1.0));
+  const Scene scene = testing::scene_from_text(testing::circle_enclosure(rho, 1.0));
   SolverSettings settings;
   settings.photons = 2'000'000;
   settings.tolerance = tolerance;
@@ -79,7 +65,7 @@ TEST(Solver, StiffEnclosureMatchesClosedForm) { check_enclosure(0.9, 1e-4, Basis
 // Extended rays keep the enclosure's closed form away from the curve's two ends (where a footprint
 // is truncated and renormalised, which concentrates it), lose no photon, and balance the books.
 TEST(Solver, ExtendedRaysKeepTheEnclosureClosedForm) {
-  const Scene scene = testing::scene_from_text(circle_enclosure(0.5, 1.0));
+  const Scene scene = testing::scene_from_text(testing::circle_enclosure(0.5, 1.0));
   for (RayMode mode : {RayMode::Footprint, RayMode::Band}) {
     for (RayProfile profile : {RayProfile::Box, RayProfile::Gauss}) {
       SolverSettings settings;
@@ -520,7 +506,7 @@ TEST(Solver, DirectionalEmissionAppliesToEmittedLightOnly) {
 }
 
 TEST(Solver, BudgetIsRespectedAndUnshotReported) {
-  const Scene scene = testing::scene_from_text(circle_enclosure(0.99, 1.0));
+  const Scene scene = testing::scene_from_text(testing::circle_enclosure(0.99, 1.0));
   SolverSettings settings;
   settings.photons = 50'000;
   settings.tolerance = 1e-6;
@@ -534,7 +520,7 @@ TEST(Solver, BudgetIsRespectedAndUnshotReported) {
 }
 
 TEST(Solver, CancelStopsBeforeTheRoundEnds) {
-  const Scene scene = testing::scene_from_text(circle_enclosure(0.5, 1.0));
+  const Scene scene = testing::scene_from_text(testing::circle_enclosure(0.5, 1.0));
   SolverSettings settings;
   settings.photons = 10'000'000;
   Solver solver = make_solver(scene, settings);

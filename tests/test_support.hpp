@@ -2,11 +2,13 @@
 #pragma once
 
 #include <cmath>
+#include <cstdio>
 #include <span>
 #include <string>
 
 #include <gtest/gtest.h>
 
+#include "flatland/bezier.hpp"
 #include "flatland/scene.hpp"
 
 namespace flatland::testing {
@@ -31,6 +33,36 @@ inline Scene scene_from_file(const std::string& relative) {
     return Scene{};
   }
   return std::move(scene).value();
+}
+
+// A unit circle of four cubic arcs (k = 4/3 (sqrt 2 - 1)), counter-clockwise so its front faces
+// inward, with one uniform material: the closed form is B = E / (1 - rho) everywhere.
+inline std::string circle_enclosure(double reflectivity, double emittance) {
+  const double k = 0.5522847498307936;
+  char text[1024];
+  std::snprintf(text, sizeof text, R"({
+    "flatland": 1,
+    "materials": {"glow": {"reflectivity": %.17g, "emittance": %.17g}},
+    "curves": [{"id": "circle", "material": "glow", "bezier": [
+      [1,0],[1,%.17g],[%.17g,1],[0,1],[%.17g,1],[-1,%.17g],[-1,0],
+      [-1,%.17g],[%.17g,-1],[0,-1],[%.17g,-1],[1,%.17g],[1,0]]}]})",
+                reflectivity, emittance, k, k, -k, k, -k, -k, k, -k);
+  return text;
+}
+
+// Independent evaluation of a cubic: the explicit Bernstein polynomial in long double.
+struct LongVec {
+  long double x, y;
+};
+inline LongVec bernstein_point(const Cubic& c, long double t) {
+  const long double s = 1.0L - t;
+  const long double w[4] = {s * s * s, 3.0L * s * s * t, 3.0L * s * t * t, t * t * t};
+  LongVec r{0.0L, 0.0L};
+  for (int i = 0; i < 4; ++i) {
+    r.x += w[i] * c.p[i].x;
+    r.y += w[i] * c.p[i].y;
+  }
+  return r;
 }
 
 // Upper quantile of the chi-square distribution with k degrees of freedom at significance alpha
