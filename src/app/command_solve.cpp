@@ -100,7 +100,7 @@ CLI::App* add_solve_command(CLI::App& parent, SolveOptions& o) {
 
 namespace {
 
-void print_summary(const Solver& solver, const SolveOptions& o) {
+void print_summary(const Solver& solver) {
   const Scene& scene = solver.scene();
   std::size_t cubic_segments = 0;
   for (const SceneSegment& segment : scene.segments)
@@ -143,7 +143,6 @@ void print_summary(const Solver& solver, const SolveOptions& o) {
               100.0 * solver.settings().tolerance);
   std::printf("energy    emitted %.6g = absorbed %.6g + escaped %.6g + unshot %.6g (imbalance %.2g)\n",
               books.emitted, books.absorbed, books.escaped, books.unshot, books.imbalance());
-  (void)o;
 }
 
 }  // namespace
@@ -197,7 +196,7 @@ int run_solve(SolveOptions& o) {
     std::fprintf(stderr, "flatland: internal error: %s\n", solver.books_error().c_str());
     return kExitFailure;
   }
-  if (!o.quiet) print_summary(solver, o);
+  if (!o.quiet) print_summary(solver);
 
   // Read the reference before the result is written, so a bad reference writes nothing.
   std::optional<nlohmann::json> reference;

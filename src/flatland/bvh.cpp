@@ -191,11 +191,6 @@ std::uint32_t SegmentAccelerator::build_node(std::uint32_t first, std::uint32_t 
   return index;
 }
 
-bool SegmentAccelerator::test_segment(std::uint32_t index, const Ray& ray, const RayOrigin& from,
-                                      double max_distance, SegmentHit* hit) const {
-  return test_geometry(segments_[index], index == from.segment, from.t, ray, max_distance, hit);
-}
-
 SceneHit SegmentAccelerator::closest_hit_brute_force(const Ray& ray, const RayOrigin& from) const {
   Nearest nearest;
   nearest.hit.distance = kInfinity;

@@ -58,8 +58,6 @@ class SegmentAccelerator {
     std::uint32_t count = 0;  // 0 for interior nodes
   };
 
-  bool test_segment(std::uint32_t index, const Ray& ray, const RayOrigin& from, double max_distance,
-                    SegmentHit* hit) const;
   std::uint32_t build_node(std::uint32_t first, std::uint32_t count, int depth,
                            std::vector<Box>& boxes, std::vector<Vec2>& centers);
 

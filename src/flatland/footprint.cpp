@@ -27,8 +27,6 @@ constexpr double kSqrt2Pi = std::numbers::sqrt2 / std::numbers::inv_sqrtpi;
 constexpr double kGaussNorm = 1.0 / ((1.0 / 3.0) * kSqrt2Pi * kGaussKept);  // 1/Z
 constexpr double kGaussScale = 3.0 / std::numbers::sqrt2;  // x / (sigma sqrt 2)
 
-// Unit tangents of a chain within this angle count as continuous (the scene's own criterion).
-constexpr double kTangentAngle = 1e-9;
 
 constexpr std::array<const char*, 5> kProfileNames = {"box", "tent", "epanechnikov", "cosine",
                                                       "gauss"};
@@ -102,13 +100,6 @@ constexpr Matrix8 kIntegrate8 = make_integration_matrix();
 // four panels per segment at most, so the speed |C'| is resolved whatever the footprint's size.
 constexpr double kMaxCubicPanel = 0.25;
 
-bool tangent_continuous(const Scene& scene, const Curve& curve, std::uint32_t joint) {
-  const Cubic& a = scene.segments[curve.first_segment + joint].geometry.shape;
-  const Cubic& b = scene.segments[curve.first_segment + joint + 1].geometry.shape;
-  const Vec2 u = unit_tangent(a, 1.0, scene.scale);
-  const Vec2 v = unit_tangent(b, 0.0, scene.scale);
-  return std::atan2(std::fabs(cross(u, v)), dot(u, v)) <= kTangentAngle;
-}
 
 // Divides the weights appended after `begin` by their sum, drops zeros, and hands the rounding
 // residual 1 - sum to the largest weight, so the sum is 1 to the last bit or two. False when
@@ -380,10 +371,10 @@ void footprint_weights(const Scene& scene, const Curve& curve, const SplineBasis
 
   // The run: step over joints while the footprint reaches past them and they are smooth.
   std::uint32_t first = hit;
-  while (first > 0 && start[first] > s_hit - a && tangent_continuous(scene, curve, first - 1))
+  while (first > 0 && start[first] > s_hit - a && is_tangent_continuous(scene, curve, first - 1))
     --first;
   std::uint32_t last = hit;
-  while (last + 1 < count && start[last + 1] < s_hit + a && tangent_continuous(scene, curve, last))
+  while (last + 1 < count && start[last + 1] < s_hit + a && is_tangent_continuous(scene, curve, last))
     ++last;
 
   // The interval's ends in u, and delta at the lower end. Within the hit segment of a line the

@@ -12,22 +12,6 @@
 
 namespace flatland {
 
-CurvePoint point_at_arc_length(const Scene& scene, const Curve& curve, double s) {
-  // The last segment whose start is <= s; clamp s into the curve.
-  s = std::clamp(s, 0.0, curve.length);
-  const auto begin = curve.segment_start.begin();
-  const auto end = begin + curve.segment_count;
-  auto it = std::upper_bound(begin, end, s);
-  const auto index = static_cast<std::uint32_t>(std::max<std::ptrdiff_t>(0, (it - begin) - 1));
-  const SceneSegment& segment = scene.segments[curve.first_segment + index];
-  CurvePoint point;
-  point.segment_in_curve = index;
-  point.t = segment.arc_length.parameter_at(segment.geometry.shape, s - curve.segment_start[index]);
-  point.u = index + point.t;
-  point.position = evaluate(segment.geometry.shape, point.t);
-  return point;
-}
-
 nlohmann::json spectrum_to_json(const Spectrum& value, int channels) {
   if (channels == 1) return value[0];
   return nlohmann::json::array({value[0], value[1], value[2]});

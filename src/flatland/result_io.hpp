@@ -13,16 +13,6 @@
 
 namespace flatland {
 
-// A point of a curve found by arc length: the segment, its parameter, the curve parameter
-// u = segment index + t, and the position.
-struct CurvePoint {
-  std::uint32_t segment_in_curve = 0;
-  double t = 0.0;
-  double u = 0.0;
-  Vec2 position;
-};
-CurvePoint point_at_arc_length(const Scene& scene, const Curve& curve, double s);
-
 // Radiosity as JSON: a number for grey scenes, [r,g,b] for colour ones.
 nlohmann::json spectrum_to_json(const Spectrum& value, int channels);
 

@@ -83,6 +83,22 @@ double emittance_factor(const Curve& curve, double u) {
   return s * s * s * v[i] + 3.0 * s * s * t * v[i + 1] + 3.0 * s * t * t * v[i + 2] + t * t * t * v[i + 3];
 }
 
+CurvePoint point_at_arc_length(const Scene& scene, const Curve& curve, double s) {
+  // The last segment whose start is <= s; clamp s into the curve.
+  s = std::clamp(s, 0.0, curve.length);
+  const auto begin = curve.segment_start.begin();
+  const auto end = begin + curve.segment_count;
+  auto it = std::upper_bound(begin, end, s);
+  const auto index = static_cast<std::uint32_t>(std::max<std::ptrdiff_t>(0, (it - begin) - 1));
+  const SceneSegment& segment = scene.segments[curve.first_segment + index];
+  CurvePoint point;
+  point.segment_in_curve = index;
+  point.t = segment.arc_length.parameter_at(segment.geometry.shape, s - curve.segment_start[index]);
+  point.u = index + point.t;
+  point.position = evaluate(segment.geometry.shape, point.t);
+  return point;
+}
+
 bool is_tangent_continuous(const Scene& scene, const Curve& curve, std::uint32_t joint) {
   const Cubic& a = scene.segments[curve.first_segment + joint].geometry.shape;
   const Cubic& b = scene.segments[curve.first_segment + joint + 1].geometry.shape;

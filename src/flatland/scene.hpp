@@ -103,6 +103,16 @@ struct Scene {
 // The emittance profile's factor at curve parameter u (1 without a profile).
 double emittance_factor(const Curve& curve, double u);
 
+// A point of a curve found by arc length: the segment, its parameter, the curve parameter
+// u = segment index + t, and the position.
+struct CurvePoint {
+  std::uint32_t segment_in_curve = 0;
+  double t = 0.0;
+  double u = 0.0;
+  Vec2 position;
+};
+CurvePoint point_at_arc_length(const Scene& scene, const Curve& curve, double s);
+
 // Whether the chain is tangent-continuous at joint j (between segments j and j+1 of the curve):
 // the unit tangents agree to 1e-9 radians. Corners are where it is not.
 bool is_tangent_continuous(const Scene& scene, const Curve& curve, std::uint32_t joint);

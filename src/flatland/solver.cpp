@@ -1,7 +1,5 @@
 #include "flatland/solver.hpp"
 
-#include "flatland/result_io.hpp"
-
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -270,7 +268,6 @@ bool Solver::begin_round() {
     }
   }
   const double unshot = std::accumulate(weights.begin(), weights.end(), 0.0);
-  current_unshot_fraction_ = unshot / emitted_total_;
   if (!(unshot > settings_.tolerance * emitted_total_)) {
     stop_reason_ = StopReason::Converged;
     return false;

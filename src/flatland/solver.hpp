@@ -242,7 +242,6 @@ class Solver {
   std::uint64_t photons_shot_ = 0;
   std::uint32_t rounds_ = 0;
   double seconds_ = 0.0;
-  double current_unshot_fraction_ = 1.0;
   StopReason stop_reason_ = StopReason::Running;
   std::string books_error_;
 };
