@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <numeric>
 #include <thread>
 
@@ -330,23 +331,22 @@ bool Solver::begin_round() {
   return true;
 }
 
-void Solver::shoot_batch(std::uint64_t batch, std::uint64_t count, Accumulator& acc,
+void Solver::shoot_batch(Rng& rng, std::uint64_t count, Accumulator& acc,
                          std::vector<PhotonPath>* paths, std::size_t path_limit) const {
   // The ray kind is fixed per solve: each kind gets its own compiled loop, so point rays carry no
   // footprint or band code at all.
   switch (ray_kind_) {
-    case RayKind::Point: return shoot<RayKind::Point>(batch, count, acc, paths, path_limit);
-    case RayKind::Footprint: return shoot<RayKind::Footprint>(batch, count, acc, paths, path_limit);
-    case RayKind::Band: return shoot<RayKind::Band>(batch, count, acc, paths, path_limit);
+    case RayKind::Point: return shoot<RayKind::Point>(rng, count, acc, paths, path_limit);
+    case RayKind::Footprint: return shoot<RayKind::Footprint>(rng, count, acc, paths, path_limit);
+    case RayKind::Band: return shoot<RayKind::Band>(rng, count, acc, paths, path_limit);
   }
 }
 
 template <Solver::RayKind kRays>
-void Solver::shoot(std::uint64_t batch, std::uint64_t count, Accumulator& acc,
+void Solver::shoot(Rng& rng, std::uint64_t count, Accumulator& acc,
                    std::vector<PhotonPath>* paths, std::size_t path_limit) const {
   std::vector<FootprintWeight> footprint;
   if constexpr (kRays == RayKind::Footprint) footprint.reserve(64);
-  Rng rng(settings_.seed, rounds_, batch);
   const auto channels = static_cast<std::size_t>(channels_);
   const double scale = scene_->scale;
   for (std::uint64_t i = 0; i < count; ++i) {
@@ -628,28 +628,7 @@ void Solver::end_round(std::span<const Accumulator> accumulators) {
     escaped_[ch] += static_cast<double>(escaped[ch]) * inverse_scale;
     absorbed_[ch] += static_cast<double>(black[ch]) * inverse_scale;
   }
-  // Reflected radiosity coefficients, kept current for readers between rounds.
-  estimate(received_, reflected_);
-  for (std::uint32_t c = 0; c < scene_->curves.size(); ++c)
-    for (Side side : {Side::Front, Side::Back}) {
-      const std::uint32_t offset = block_offset(c, side);
-      if (offset == kNoBlock) continue;
-      const Spectrum& rho = block_reflectivity_[c * 2 + static_cast<std::uint32_t>(side)];
-      for (std::size_t k = 0; k < storage_[c].basis.size(); ++k)
-        for (std::size_t ch = 0; ch < channels; ++ch) reflected_[(offset + k) * channels + ch] *= rho[ch];
-    }
-  if (settings_.basis == BasisKind::Hermite) {
-    for (std::uint32_t c = 0; c < scene_->curves.size(); ++c)
-      for (Side side : {Side::Front, Side::Back}) {
-        const std::uint32_t offset = block_offset(c, side);
-        if (offset == kNoBlock) continue;
-        auto& per_channel = hermite_reflected_[c * 2 + static_cast<std::uint32_t>(side)];
-        per_channel.clear();
-        for (std::size_t ch = 0; ch < channels; ++ch)
-          per_channel.push_back(hermite_of(c, &reflected_[offset * channels + ch], channels));
-      }
-  }
-  photons_shot_ += round_.photons;
+  update_reflected(received_);
   previous_unshot_ = previous_pool;
   ++rounds_;
 
@@ -669,64 +648,156 @@ void Solver::end_round(std::span<const Accumulator> accumulators) {
   }
 }
 
+void Solver::update_reflected(const std::vector<double>& received) {
+  const auto channels = static_cast<std::size_t>(channels_);
+  // Reflected radiosity coefficients, kept current for readers between rounds.
+  estimate(received, reflected_);
+  for (std::uint32_t c = 0; c < scene_->curves.size(); ++c)
+    for (Side side : {Side::Front, Side::Back}) {
+      const std::uint32_t offset = block_offset(c, side);
+      if (offset == kNoBlock) continue;
+      const Spectrum& rho = block_reflectivity_[c * 2 + static_cast<std::uint32_t>(side)];
+      for (std::size_t k = 0; k < storage_[c].basis.size(); ++k)
+        for (std::size_t ch = 0; ch < channels; ++ch) reflected_[(offset + k) * channels + ch] *= rho[ch];
+    }
+  if (settings_.basis == BasisKind::Hermite) {
+    for (std::uint32_t c = 0; c < scene_->curves.size(); ++c)
+      for (Side side : {Side::Front, Side::Back}) {
+        const std::uint32_t offset = block_offset(c, side);
+        if (offset == kNoBlock) continue;
+        auto& per_channel = hermite_reflected_[c * 2 + static_cast<std::uint32_t>(side)];
+        per_channel.clear();
+        for (std::size_t ch = 0; ch < channels; ++ch)
+          per_channel.push_back(hermite_of(c, &reflected_[offset * channels + ch], channels));
+      }
+  }
+}
+
+std::uint64_t Solver::step_photons(std::uint64_t max_photons, const std::atomic<bool>* cancel,
+                                   std::vector<PhotonPath>* paths, std::size_t path_limit,
+                                   const ProgressCallback& progress, double progress_interval) {
+  if (stopped() || max_photons == 0) return 0;
+  if (!round_open_) {
+    if (!begin_round()) return 0;
+    round_open_ = true;
+    round_done_ = 0;
+    round_deposits_.resize(threads_);
+    for (Accumulator& acc : round_deposits_)
+      acc.reset(coefficient_count_ * static_cast<std::size_t>(channels_));
+  }
+  const Clock::time_point start = Clock::now();
+  const std::uint64_t first = round_done_;
+  const std::uint64_t last = first + std::min(max_photons, round_.photons - first);
+  const std::uint64_t photons_before = photons_shot_;
+  auto room = [&]() -> std::size_t {
+    return paths != nullptr && paths->size() < path_limit ? path_limit - paths->size() : 0;
+  };
+  auto shoot_here = [&](Rng& rng, std::uint64_t count) {
+    shoot_batch(rng, count, round_deposits_[0], room() > 0 ? paths : nullptr, path_limit);
+  };
+  std::uint64_t position = first;
+  // The rest of a batch that an earlier step began, with the stream it left off.
+  if (position % kBatchSize != 0) {
+    const std::uint64_t end = std::min(last, (position / kBatchSize + 1) * kBatchSize);
+    shoot_here(*partial_batch_rng_, end - position);
+    position = end;
+  }
+  // Whole batches (the round's last, short one included), shared among the threads.
+  const std::uint64_t whole_end = last == round_.photons ? last : last / kBatchSize * kBatchSize;
+  if (whole_end > position) {
+    const std::uint64_t batch_begin = position / kBatchSize;
+    const std::uint64_t batches = (whole_end - position + kBatchSize - 1) / kBatchSize;
+    const unsigned workers = static_cast<unsigned>(std::min<std::uint64_t>(threads_, batches));
+    const std::size_t path_room = room();
+    const std::uint64_t path_batches =
+        std::min<std::uint64_t>(batches, (path_room + kBatchSize - 1) / kBatchSize);
+    std::vector<std::vector<PhotonPath>> batch_paths(path_batches);
+    std::atomic<std::uint64_t> next_batch{0};
+    std::atomic<std::uint64_t> photons_done{0};
+    std::atomic<bool> aborted{false};
+    auto work = [&](Accumulator& acc, bool reports) {
+      Clock::time_point last_report = Clock::now();
+      for (;;) {
+        if (cancel != nullptr && cancel->load(std::memory_order_relaxed)) {
+          aborted.store(true);
+          return;
+        }
+        const std::uint64_t i = next_batch.fetch_add(1);
+        if (i >= batches) return;
+        const std::uint64_t batch = batch_begin + i;
+        const std::uint64_t count = std::min(kBatchSize, round_.photons - batch * kBatchSize);
+        std::vector<PhotonPath>* recorded = nullptr;
+        std::size_t limit = 0;
+        if (i < path_batches) {
+          recorded = &batch_paths[i];
+          limit = static_cast<std::size_t>(std::min<std::uint64_t>(count, path_room - i * kBatchSize));
+          recorded->reserve(limit);
+        }
+        Rng rng(settings_.seed, rounds_, batch);
+        shoot_batch(rng, count, acc, recorded, limit);
+        photons_done.fetch_add(count, std::memory_order_relaxed);
+        if (reports && progress && seconds_since(last_report) >= progress_interval) {
+          last_report = Clock::now();
+          SolverProgress p = this->progress();
+          p.photons = photons_before + (position - first) + photons_done.load(std::memory_order_relaxed);
+          p.seconds += seconds_since(start);
+          progress(p);
+        }
+      }
+    };
+    {
+      std::vector<std::jthread> pool;
+      for (unsigned w = 1; w < workers; ++w) pool.emplace_back(work, std::ref(round_deposits_[w]), false);
+      work(round_deposits_[0], true);
+    }
+    if (aborted.load()) {
+      seconds_ += seconds_since(start);
+      stop_reason_ = StopReason::Cancelled;
+      round_open_ = false;
+      return 0;
+    }
+    if (paths != nullptr)
+      for (std::vector<PhotonPath>& batch : batch_paths) paths->insert(paths->end(), batch.begin(), batch.end());
+    position = whole_end;
+  }
+  // A batch begun here and finished by a later step keeps its stream.
+  if (position < last) {
+    partial_batch_rng_.emplace(settings_.seed, rounds_, position / kBatchSize);
+    shoot_here(*partial_batch_rng_, last - position);
+    position = last;
+  }
+  round_done_ = last;
+  photons_shot_ += last - first;
+  seconds_ += seconds_since(start);
+  if (round_done_ == round_.photons) {
+    round_open_ = false;
+    partial_batch_rng_.reset();
+    end_round(round_deposits_);
+  }
+  return last - first;
+}
+
+void Solver::include_open_round() {
+  if (!round_open_) return;
+  const double inverse_scale = 1.0 / round_.scale;
+  std::vector<double> received = received_;
+  for (std::size_t index = 0; index < received.size(); ++index) {
+    std::int64_t units = 0;
+    for (const Accumulator& acc : round_deposits_) units += acc.received[index];
+    received[index] += static_cast<double>(units) * inverse_scale;
+  }
+  update_reflected(received);
+}
+
 bool Solver::step_round(const std::atomic<bool>* cancel, const ProgressCallback& progress,
                         double progress_interval) {
-  if (stopped() || !begin_round()) return false;
-  const Clock::time_point start = Clock::now();
-  const std::uint64_t batches = (round_.photons + kBatchSize - 1) / kBatchSize;
-  const unsigned workers =
-      static_cast<unsigned>(std::min<std::uint64_t>(threads_, batches));
-  std::vector<Accumulator> accumulators(workers);
-  for (Accumulator& acc : accumulators) acc.reset(coefficient_count_ * static_cast<std::size_t>(channels_));
-
-  std::atomic<std::uint64_t> next_batch{0};
-  std::atomic<std::uint64_t> photons_done{0};
-  std::atomic<bool> aborted{false};
-  // Paths are recorded per batch (the first batches of the round) and joined in batch order.
-  const std::uint64_t path_batches = std::min<std::uint64_t>(batches, (path_limit_ + kBatchSize - 1) / kBatchSize);
-  std::vector<std::vector<PhotonPath>> batch_paths(path_batches);
-  auto work = [&](Accumulator& acc, bool reports) {
-    Clock::time_point last_report = Clock::now();
-    for (;;) {
-      if (cancel != nullptr && cancel->load(std::memory_order_relaxed)) {
-        aborted.store(true);
-        return;
-      }
-      const std::uint64_t batch = next_batch.fetch_add(1);
-      if (batch >= batches) return;
-      const std::uint64_t first = batch * kBatchSize;
-      const std::uint64_t count = std::min(kBatchSize, round_.photons - first);
-      std::vector<PhotonPath>* paths = nullptr;
-      std::size_t limit = 0;
-      if (batch < path_batches) {
-        paths = &batch_paths[batch];
-        limit = static_cast<std::size_t>(std::min<std::uint64_t>(count, path_limit_ - first));
-        paths->reserve(limit);
-      }
-      shoot_batch(batch, count, acc, paths, limit);
-      photons_done.fetch_add(count, std::memory_order_relaxed);
-      if (reports && progress && seconds_since(last_report) >= progress_interval) {
-        last_report = Clock::now();
-        SolverProgress p = this->progress();
-        p.photons += photons_done.load(std::memory_order_relaxed);
-        p.seconds += seconds_since(start);
-        progress(p);
-      }
-    }
-  };
-  {
-    std::vector<std::jthread> pool;
-    for (unsigned w = 1; w < workers; ++w) pool.emplace_back(work, std::ref(accumulators[w]), false);
-    work(accumulators[0], true);
-  }
-  seconds_ += seconds_since(start);
-  if (aborted.load()) {
-    stop_reason_ = StopReason::Cancelled;
-    return false;
-  }
-  end_round(accumulators);
-  paths_.clear();
-  for (std::vector<PhotonPath>& batch : batch_paths) paths_.insert(paths_.end(), batch.begin(), batch.end());
+  if (stopped()) return false;
+  const bool fresh = !round_open_;
+  std::vector<PhotonPath> paths;
+  const std::uint64_t shot = step_photons(std::numeric_limits<std::uint64_t>::max(), cancel, &paths,
+                                          fresh ? path_limit_ : 0, progress, progress_interval);
+  if (shot == 0) return false;
+  if (fresh) paths_ = std::move(paths);
   if (progress) progress(this->progress());
   return true;
 }

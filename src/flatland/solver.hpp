@@ -17,6 +17,7 @@
 #include <atomic>
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -112,6 +113,24 @@ class Solver {
   // `progress` is called from the calling thread about every `progress_interval` seconds.
   bool step_round(const std::atomic<bool>* cancel = nullptr, const ProgressCallback& progress = {},
                   double progress_interval = 0.25);
+  // Shoot up to `max_photons` photons of the current round: the next round is opened first when
+  // none is open, and closed (its deposits reflected into the pool) when its last photon is shot.
+  // Returns the number shot, 0 once the solve has stopped. Any sequence of steps gives results
+  // bit-identical to whole rounds (a batch left half done keeps its random stream for the next
+  // step). Paths of the photons shot are appended to `paths` while it holds fewer than
+  // `path_limit`. Cancelling stops the solve (StopReason::Cancelled).
+  std::uint64_t step_photons(std::uint64_t max_photons, const std::atomic<bool>* cancel = nullptr,
+                             std::vector<PhotonPath>* paths = nullptr, std::size_t path_limit = 0,
+                             const ProgressCallback& progress = {}, double progress_interval = 0.25);
+  // Whether a round has been opened by step_photons and not yet finished, its photon count and
+  // how many of them have been shot.
+  bool round_open() const { return round_open_; }
+  std::uint64_t round_photons() const { return round_open_ ? round_.photons : 0; }
+  std::uint64_t round_photons_done() const { return round_open_ ? round_done_ : 0; }
+  // While a round is open, radiosity() describes the completed rounds. This adds the open round's
+  // deposits so far (as received, not extrapolated), so a viewer sees light arrive photon by
+  // photon; closing the round replaces it with the round's exact estimate.
+  void include_open_round();
   // Rounds until converged, budget spent or cancelled.
   void run(const std::atomic<bool>* cancel = nullptr, const ProgressCallback& progress = {},
            double progress_interval = 0.25);
@@ -183,10 +202,10 @@ class Solver {
   }
   bool begin_round();
   enum class RayKind { Point, Footprint, Band };
-  void shoot_batch(std::uint64_t batch, std::uint64_t count, Accumulator& accumulator,
+  void shoot_batch(Rng& rng, std::uint64_t count, Accumulator& accumulator,
                    std::vector<PhotonPath>* paths, std::size_t path_limit) const;
   template <RayKind kRays>
-  void shoot(std::uint64_t batch, std::uint64_t count, Accumulator& accumulator,
+  void shoot(Rng& rng, std::uint64_t count, Accumulator& accumulator,
              std::vector<PhotonPath>* paths, std::size_t path_limit) const;
   // What a photon (or a band's sub-ray) carrying `units` does where it lands.
   template <RayKind kRays>
@@ -194,6 +213,8 @@ class Solver {
                Accumulator& accumulator, PhotonPath* path,
                std::vector<FootprintWeight>& footprint) const;
   void end_round(std::span<const Accumulator> accumulators);
+  // reflected_ (and the Hermite reconstructions) from the power received in all rounds.
+  void update_reflected(const std::vector<double>& received);
   std::uint64_t photons_for_round(double unshot) const;
   // The Hermite interpolant, in arc length, of the nodal values of a curve's hat basis
   // (`values[k * stride]`); C-1 nodes (double knots) keep their two values.
@@ -236,6 +257,10 @@ class Solver {
   double initial_ratio_ = 0.5;
   double previous_unshot_ = 0.0;
   Round round_;
+  bool round_open_ = false;
+  std::uint64_t round_done_ = 0;            // photons of the open round shot so far
+  std::vector<Accumulator> round_deposits_;  // per worker thread, for the open round
+  std::optional<Rng> partial_batch_rng_;     // stream of a batch left half done by a step
   std::size_t path_limit_ = 0;
   std::vector<PhotonPath> paths_;
 
