@@ -25,11 +25,7 @@ Result<std::uint64_t> parse_count(const std::string& text, const std::string& op
   return static_cast<std::uint64_t>(value);
 }
 
-CLI::App* add_solve_command(CLI::App& parent, SolveOptions& o) {
-  CLI::App* cmd = parent.add_subcommand(
-      "solve",
-      "Solve a scene by progressive Monte Carlo shooting and report the radiosity along every curve.");
-  cmd->add_option("scene", o.scene, "Scene file (JSON, docs/scene-format.md)")->required();
+void add_solver_options(CLI::App* cmd, SolveOptions& o) {
   cmd->add_option("--photons", o.photons,
                   "Total photon budget over all rounds, e.g. 250000 or 1e6")
       ->capture_default_str();
@@ -85,6 +81,14 @@ CLI::App* add_solve_command(CLI::App& parent, SolveOptions& o) {
   cmd->add_option("--tolerance", o.settings.tolerance,
                   "Stop when the unshot power falls below this fraction of the emitted power")
       ->capture_default_str();
+}
+
+CLI::App* add_solve_command(CLI::App& parent, SolveOptions& o) {
+  CLI::App* cmd = parent.add_subcommand(
+      "solve",
+      "Solve a scene by progressive Monte Carlo shooting and report the radiosity along every curve.");
+  cmd->add_option("scene", o.scene, "Scene file (JSON, docs/scene-format.md)")->required();
+  add_solver_options(cmd, o);
   cmd->add_option("--samples", o.samples,
                   "Radiosity samples per curve in the result, at arc length (j + 0.5) L / K")
       ->capture_default_str()
@@ -147,12 +151,9 @@ void print_summary(const Solver& solver) {
 
 }  // namespace
 
-int run_solve(SolveOptions& o) {
+Status finish_solver_settings(SolveOptions& o) {
   Result<std::uint64_t> photons = parse_count(o.photons, "--photons");
-  if (!photons) {
-    std::fprintf(stderr, "flatland: error: %s\n", photons.error().message.c_str());
-    return kExitUsage;
-  }
+  if (!photons) return photons.error();
   o.settings.photons = *photons;
   o.settings.basis = o.basis == "constant" ? BasisKind::Constant
                      : o.basis == "linear" ? BasisKind::Linear
@@ -166,7 +167,11 @@ int run_solve(SolveOptions& o) {
   o.settings.estimator = o.estimator == "galerkin" ? Estimator::Galerkin : Estimator::Lumped;
   o.settings.sampling =
       o.sampling == "uniform" ? PositionSampling::Uniform : PositionSampling::Reconstructed;
-  if (Status status = validate(o.settings); !status) {
+  return validate(o.settings);
+}
+
+int run_solve(SolveOptions& o) {
+  if (Status status = finish_solver_settings(o); !status) {
     std::fprintf(stderr, "flatland: error: %s\n", status.error().message.c_str());
     return kExitUsage;
   }

@@ -77,7 +77,46 @@ Result<nlohmann::json> read_result_file(const std::string& path);
 void print_comparison(const Comparison& comparison);
 
 CLI::App* add_solve_command(CLI::App& parent, SolveOptions& options);
+// The solver's options (--photons, --seed, --threads, --basis, ...), shared by solve, view, render.
+void add_solver_options(CLI::App* command, SolveOptions& options);
+// Turns the parsed text options into options.settings and validates them.
+Status finish_solver_settings(SolveOptions& options);
 int run_solve(SolveOptions& options);
+
+struct ViewCommandOptions {
+  SolveOptions solve;  // scene and solver options
+  std::string reference;
+  int width = 1280;
+  int height = 800;
+  int frames = 0;
+  std::string step = "live";
+  bool paused = false;
+  std::string screenshot;
+  std::string screenshot_ui;
+  std::string shaders;
+  int keep_paths = 20000;
+  bool control_points = false;
+  bool no_ui = false;
+  bool no_vsync = false;
+  bool report = false;
+};
+CLI::App* add_view_command(CLI::App& parent, ViewCommandOptions& options);
+int run_view(ViewCommandOptions& options);
+
+struct RenderOptions {
+  SolveOptions solve;  // scene and solver options
+  std::string out;
+  std::string result;
+  int width = 1280;
+  int height = 800;
+  int paths = 20000;
+  float exposure = 1.0f;
+  bool graph = true;
+  bool band = true;
+  std::string shaders;
+};
+CLI::App* add_render_command(CLI::App& parent, RenderOptions& options);
+int run_render(RenderOptions& options);
 
 // "1e6", "250000", "2.5e5" -> 250000; anything not a whole number in [1, 2^53] is an error
 // naming the option.

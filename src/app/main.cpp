@@ -88,6 +88,12 @@ int main(int argc, char** argv) {
   CLI::App* converge_command = add_converge_command(app, converge);
   CompareOptions compare;
   CLI::App* compare_command = add_compare_command(app, compare);
+#ifdef FLATLAND_HAVE_VIEWER
+  ViewCommandOptions view;
+  CLI::App* view_command = add_view_command(app, view);
+  RenderOptions render;
+  CLI::App* render_command = add_render_command(app, render);
+#endif
 
   try {
     app.parse(argc, argv);
@@ -107,5 +113,9 @@ int main(int argc, char** argv) {
   if (reference_command->parsed()) return run_reference(reference);
   if (compare_command->parsed()) return run_compare(compare);
   if (converge_command->parsed()) return run_converge(converge);
+#ifdef FLATLAND_HAVE_VIEWER
+  if (view_command->parsed()) return run_view(view);
+  if (render_command->parsed()) return run_render(render);
+#endif
   return kExitUsage;
 }

@@ -4,8 +4,7 @@
 #include <cmath>
 #include <vector>
 
-#include <png.h>
-
+#include "app/png_io.hpp"
 #include "flatland/result_io.hpp"
 
 namespace flatland::app {
@@ -51,42 +50,15 @@ double to_display(double linear) {
   return mapped <= 0.0031308 ? 12.92 * mapped : 1.055 * std::pow(mapped, 1.0 / 2.4) - 0.055;
 }
 
-void write_png_bytes(png_structp png, png_bytep data, png_size_t size) {
-  auto* out = static_cast<std::string*>(png_get_io_ptr(png));
-  out->append(reinterpret_cast<const char*>(data), size);
-}
-void flush_png(png_structp) {}
-
-// libpng reports errors by longjmp, so this function holds no C++ objects of its own: the rows
-// and the output string are owned by the caller.
-bool encode_rows(const png_byte* rows, int width, int height, std::string* out) {
-  png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, nullptr, nullptr, nullptr);
-  if (png == nullptr) return false;
-  png_infop info = png_create_info_struct(png);
-  if (info == nullptr || setjmp(png_jmpbuf(png))) {
-    png_destroy_write_struct(&png, &info);
-    return false;
-  }
-  png_set_write_fn(png, out, write_png_bytes, flush_png);
-  png_set_IHDR(png, info, static_cast<png_uint_32>(width), static_cast<png_uint_32>(height), 8,
-               PNG_COLOR_TYPE_RGB, PNG_INTERLACE_NONE, PNG_COMPRESSION_TYPE_DEFAULT,
-               PNG_FILTER_TYPE_DEFAULT);
-  png_write_info(png, info);
-  for (int y = 0; y < height; ++y)
-    png_write_row(png, rows + static_cast<std::size_t>(y) * static_cast<std::size_t>(width) * 3);
-  png_write_end(png, nullptr);
-  png_destroy_write_struct(&png, &info);
-  return true;
-}
-
-Result<std::string> encode_png(const Image& image) {
-  std::vector<png_byte> rows(image.rgb.size());
-  for (std::size_t i = 0; i < rows.size(); ++i)
-    rows[i] = static_cast<png_byte>(std::lround(std::clamp(image.rgb[i], 0.0f, 1.0f) * 255.0f));
-  std::string bytes;
-  if (!encode_rows(rows.data(), image.width, image.height, &bytes))
-    return Error{"libpng failed while encoding the picture"};
-  return bytes;
+PngImage to_png(const Image& image) {
+  PngImage png;
+  png.width = image.width;
+  png.height = image.height;
+  png.channels = 3;
+  png.pixels.resize(image.rgb.size());
+  for (std::size_t i = 0; i < png.pixels.size(); ++i)
+    png.pixels[i] = static_cast<std::uint8_t>(std::lround(std::clamp(image.rgb[i], 0.0f, 1.0f) * 255.0f));
+  return png;
 }
 
 }  // namespace
@@ -172,9 +144,7 @@ Status write_picture(const Solver& solver, const std::string& path, int width, i
     }
   }
 
-  Result<std::string> bytes = encode_png(image);
-  if (!bytes) return Error{path + ": " + bytes.error().message};
-  return write_file_atomically(path, *bytes);
+  return write_png(path, to_png(image));
 }
 
 }  // namespace flatland::app

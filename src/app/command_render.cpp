@@ -1,0 +1,143 @@
+// flatland render: solve, then draw the viewer's picture offscreen (EGL, no display needed) with
+// the viewer's own shaders.
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+#include "app/commands.hpp"
+#include "app/png_io.hpp"
+#include "app/progress.hpp"
+#include "flatland/result_io.hpp"
+#include "viewer/offscreen.hpp"
+#include "viewer/renderer.hpp"
+#include "viewer/session.hpp"
+
+namespace flatland::app {
+
+CLI::App* add_render_command(CLI::App& parent, RenderOptions& o) {
+  CLI::App* cmd = parent.add_subcommand(
+      "render",
+      "Solve a scene and render the viewer's picture (photon paths, B along every curve) to a PNG "
+      "file offscreen: no display needed.");
+  cmd->add_option("scene", o.solve.scene, "Scene file (JSON, docs/scene-format.md)")->required();
+  add_solver_options(cmd, o.solve);
+  cmd->add_option("--out", o.out, "The picture (PNG)")->required();
+  cmd->add_option("--result", o.result, "Also write the result as JSON (as solve --out)");
+  cmd->add_option("--width", o.width, "Picture width in pixels")->capture_default_str()->check(CLI::Range(16, 16384));
+  cmd->add_option("--height", o.height, "Picture height in pixels")->capture_default_str()->check(CLI::Range(16, 16384));
+  cmd->add_option("--paths", o.paths,
+                  "Photon paths drawn, spread over the rounds in proportion to their photons (0: none)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 10000000));
+  cmd->add_option("--exposure", o.exposure, "Exposure of the photon paths")
+      ->capture_default_str()
+      ->check(CLI::Range(1e-3, 1e3));
+  cmd->add_flag("--graph,!--no-graph", o.graph, "Draw B(s) as a graph along each curve's normal");
+  cmd->add_flag("--band,!--no-band", o.band, "Draw the colour band of B along each curve");
+  cmd->add_option("--shaders", o.shaders,
+                  "Load the GLSL shaders from this directory instead of the built-in copies of shaders/");
+  cmd->add_flag("--quiet", o.solve.quiet, "No progress line and no summary (errors only)");
+  return cmd;
+}
+
+int run_render(RenderOptions& o) {
+  if (Status status = finish_solver_settings(o.solve); !status) {
+    std::fprintf(stderr, "flatland: error: %s\n", status.error().message.c_str());
+    return kExitUsage;
+  }
+  Result<Scene> loaded = load_scene(o.solve.scene);
+  if (!loaded) {
+    std::fprintf(stderr, "flatland: error: %s\n", loaded.error().message.c_str());
+    return kExitUsage;
+  }
+  auto scene = std::make_shared<const Scene>(std::move(*loaded));
+  // GL before the solve: a machine that cannot render says so at once.
+  Result<std::unique_ptr<viewer::OffscreenContext>> context = viewer::OffscreenContext::create(o.width, o.height);
+  if (!context) {
+    std::fprintf(stderr, "flatland: error: %s\n", context.error().message.c_str());
+    return kExitUsage;
+  }
+  Result<std::unique_ptr<viewer::Renderer>> renderer = viewer::Renderer::create(o.shaders);
+  if (!renderer) {
+    std::fprintf(stderr, "flatland: error: %s\n", renderer.error().message.c_str());
+    return kExitUsage;
+  }
+  Result<Solver> created = Solver::create(*scene, o.solve.settings);
+  if (!created) {
+    std::fprintf(stderr, "flatland: error: %s\n", created.error().message.c_str());
+    return kExitUsage;
+  }
+  Solver& solver = *created;
+
+  // Paths from every round, in proportion to its photons.
+  std::vector<PhotonPath> paths;
+  std::vector<std::uint32_t> rounds;
+  {
+    ProgressLine line(!o.solve.quiet);
+    const auto report = [&](const SolverProgress& p) { line.update(p); };
+    while (!solver.stopped()) {
+      const std::uint32_t round = solver.rounds();
+      const std::size_t before = paths.size();
+      if (solver.step_photons(1, &interrupt_flag(), &paths, before + (o.paths > 0 ? 1 : 0)) == 0) break;
+      const double share = static_cast<double>(solver.round_photons()) / static_cast<double>(o.solve.settings.photons);
+      const auto wanted = static_cast<std::size_t>(std::ceil(o.paths * share));
+      if (solver.round_open())
+        solver.step_photons(solver.round_photons() - solver.round_photons_done(), &interrupt_flag(), &paths,
+                            before + wanted, report);
+      rounds.resize(paths.size(), round);
+    }
+  }
+  if (solver.stop_reason() == StopReason::Cancelled) {
+    std::fprintf(stderr, "flatland: interrupted after %llu photons; nothing written\n",
+                 static_cast<unsigned long long>(solver.photons_shot()));
+    return kExitInterrupted;
+  }
+  if (solver.stop_reason() == StopReason::BooksUnbalanced) {
+    std::fprintf(stderr, "flatland: internal error: %s\n", solver.books_error().c_str());
+    return kExitFailure;
+  }
+
+  viewer::Snapshot snapshot;
+  snapshot.scene = scene;
+  auto traces = std::make_shared<const std::vector<viewer::CurveTrace>>(viewer::trace_curves(*scene));
+  snapshot.traces = traces;
+  viewer::describe_solver(solver, *traces, snapshot);
+  const double reach = 2.0 * scene->scale;
+  for (std::size_t i = 0; i < paths.size(); ++i) {
+    const PhotonPath& path = paths[i];
+    viewer::PathRecord record{i, path.origin, path.end, path.power, rounds[i], path.escaped};
+    if (path.escaped) record.to = path.origin + (path.end - path.origin) * reach;
+    snapshot.paths.push_back(record);
+  }
+  viewer::DrawOptions draw;
+  draw.graph = o.graph;
+  draw.band = o.band;
+  draw.fade = 0.0f;  // no ages in a finished solve
+  const viewer::ViewTransform view = viewer::fit_view(scene->bounds, o.width, o.height);
+  viewer::PathLayer layer;
+  const viewer::PathDraw path_draw = layer.update(snapshot, draw, view, snapshot.paths.size(), snapshot.paths.size());
+  (*renderer)->draw(viewer::build_overlay(snapshot, draw), path_draw, view, o.exposure);
+  PngImage image{o.width, o.height, 4, viewer::Renderer::read_pixels(o.width, o.height)};
+  for (std::size_t i = 3; i < image.pixels.size(); i += 4) image.pixels[i] = 255;
+
+  if (!o.result.empty()) {
+    const nlohmann::json document = result_to_json(solver, o.solve.samples);
+    if (Status status = write_file_atomically(o.result, document.dump(1) + "\n"); !status) {
+      std::fprintf(stderr, "flatland: error: %s\n", status.error().message.c_str());
+      return kExitUsage;
+    }
+    if (!o.solve.quiet) std::printf("wrote     %s\n", o.result.c_str());
+  }
+  if (Status status = write_png(o.out, image); !status) {
+    std::fprintf(stderr, "flatland: error: %s\n", status.error().message.c_str());
+    return kExitUsage;
+  }
+  if (!o.solve.quiet) {
+    std::printf("solved    %llu photons in %u rounds, %.3f s\n",
+                static_cast<unsigned long long>(solver.photons_shot()), solver.rounds(), solver.seconds());
+    std::printf("wrote     %s (%dx%d, %zu paths)\n", o.out.c_str(), o.width, o.height, paths.size());
+  }
+  return kExitOk;
+}
+
+}  // namespace flatland::app

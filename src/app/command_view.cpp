@@ -1,0 +1,90 @@
+// flatland view: the interactive viewer (src/viewer), and its headless mode for tests and figures.
+#include <cstdio>
+
+#include "app/commands.hpp"
+#include "viewer/viewer_app.hpp"
+
+namespace flatland::app {
+
+CLI::App* add_view_command(CLI::App& parent, ViewCommandOptions& o) {
+  CLI::App* cmd = parent.add_subcommand(
+      "view",
+      "Open the interactive viewer: photon paths and the reconstructed illumination drawn live as the "
+      "solve runs (docs/viewer.md; press F1 in the window for the keyboard shortcuts).");
+  cmd->add_option("scene", o.solve.scene, "Scene file (JSON); the default scene when omitted");
+  add_solver_options(cmd, o.solve);
+  cmd->add_option("--reference", o.reference,
+                  "A reference result of the same scene (flatland reference --out): show the error "
+                  "so far and the reference's B(s)");
+  cmd->add_option("--width", o.width, "Window width in pixels")->capture_default_str()->check(CLI::Range(64, 16384));
+  cmd->add_option("--height", o.height, "Window height in pixels")->capture_default_str()->check(CLI::Range(64, 16384));
+  cmd->add_option("--frames", o.frames,
+                  "Draw this many frames, then write the screenshots and exit (0: until the window is "
+                  "closed)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 100000000));
+  cmd->add_option("--step", o.step,
+                  "What each frame does: live (the solve runs freely), or photons=N, batches=N, "
+                  "rounds=N (shot before the frame is drawn, so a headless run is deterministic)")
+      ->capture_default_str();
+  cmd->add_flag("--paused", o.paused, "Start paused (Space runs)");
+  cmd->add_option("--screenshot", o.screenshot,
+                  "After the last frame, write the scene view (no panels) to this PNG file");
+  cmd->add_option("--screenshot-ui", o.screenshot_ui,
+                  "After the last frame, write the whole window, panels included, to this PNG file");
+  cmd->add_option("--keep-paths", o.keep_paths, "Photon paths kept on screen")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 10000000));
+  cmd->add_flag("--control-points", o.control_points, "Show control points (drag them to edit the scene)");
+  cmd->add_flag("--no-ui", o.no_ui, "Hide the panels");
+  cmd->add_flag("--no-vsync", o.no_vsync, "Do not wait for the display's refresh (to measure frame rates)");
+  cmd->add_flag("--report", o.report, "At the end, print the frame rate and the photon rate");
+  cmd->add_option("--shaders", o.shaders,
+                  "Load the GLSL shaders from this directory instead of the built-in copies of shaders/");
+  return cmd;
+}
+
+int run_view(ViewCommandOptions& o) {
+  // The budget of an interactive solve defaults higher than solve's: it runs until paused.
+  if (Status status = finish_solver_settings(o.solve); !status) {
+    std::fprintf(stderr, "flatland: error: %s\n", status.error().message.c_str());
+    return kExitUsage;
+  }
+  if (Result<viewer::FrameStep> step = viewer::parse_frame_step(o.step); !step) {
+    std::fprintf(stderr, "flatland: error: %s\n", step.error().message.c_str());
+    return kExitUsage;
+  }
+  if ((!o.screenshot.empty() || !o.screenshot_ui.empty()) && o.frames == 0) {
+    std::fprintf(stderr, "flatland: error: --screenshot needs --frames N (the frame after which to take it)\n");
+    return kExitUsage;
+  }
+  viewer::ViewOptions options;
+  options.scene = o.solve.scene;
+  options.reference = o.reference;
+  options.settings = o.solve.settings;
+  options.width = o.width;
+  options.height = o.height;
+  options.frames = o.frames;
+  options.step = o.step;
+  options.paused = o.paused;
+  options.screenshot = o.screenshot;
+  options.screenshot_ui = o.screenshot_ui;
+  options.shader_directory = o.shaders;
+  options.keep_paths = static_cast<std::size_t>(o.keep_paths);
+  options.show_control_points = o.control_points;
+  options.show_ui = !o.no_ui;
+  options.vsync = !o.no_vsync;
+  options.report = o.report;
+  Result<std::unique_ptr<viewer::Viewer>> viewer = viewer::Viewer::create(options);
+  if (!viewer) {
+    std::fprintf(stderr, "flatland: error: %s\n", viewer.error().message.c_str());
+    return kExitUsage;
+  }
+  if (Status status = (*viewer)->run(); !status) {
+    std::fprintf(stderr, "flatland: error: %s\n", status.error().message.c_str());
+    return kExitUsage;
+  }
+  return kExitOk;
+}
+
+}  // namespace flatland::app

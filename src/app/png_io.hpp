@@ -1,0 +1,25 @@
+// PNG files through libpng: 8-bit RGB or RGBA rows, top row first. Writing is atomic (a temporary
+// file renamed over the target), so a failure never leaves a partial picture.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "flatland/result.hpp"
+
+namespace flatland::app {
+
+struct PngImage {
+  int width = 0;
+  int height = 0;
+  int channels = 3;  // 3 (RGB) or 4 (RGBA)
+  std::vector<std::uint8_t> pixels;  // width * height * channels bytes, rows top to bottom
+};
+
+Result<std::string> encode_png(const PngImage& image);
+Status write_png(const std::string& path, const PngImage& image);
+// Any PNG, converted to 8-bit RGBA.
+Result<PngImage> read_png(const std::string& path);
+
+}  // namespace flatland::app

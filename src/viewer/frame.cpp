@@ -1,0 +1,398 @@
+#include "viewer/frame.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+
+namespace flatland::viewer {
+
+void ViewTransform::zoom_about(Vec2 pixel, double factor) {
+  const Vec2 anchor = to_scene(pixel);
+  scale *= factor;
+  const Vec2 moved = to_scene(pixel);
+  center = center + (anchor - moved);
+}
+
+ViewTransform fit_view(const Box& bounds, int width, int height, double margin) {
+  ViewTransform view;
+  view.width = std::max(width, 1);
+  view.height = std::max(height, 1);
+  view.center = 0.5 * (bounds.lower + bounds.upper);
+  const double pad = margin * std::min(view.width, view.height);
+  const double w = std::max(bounds.upper.x - bounds.lower.x, 0.0);
+  const double h = std::max(bounds.upper.y - bounds.lower.y, 0.0);
+  const double sx = w > 0.0 ? (view.width - 2.0 * pad) / w : INFINITY;
+  const double sy = h > 0.0 ? (view.height - 2.0 * pad) / h : INFINITY;
+  view.scale = std::min(sx, sy);
+  if (!std::isfinite(view.scale) || view.scale <= 0.0) view.scale = 1.0;
+  return view;
+}
+
+std::vector<CurveTrace> trace_curves(const Scene& scene, int samples_per_segment) {
+  std::vector<CurveTrace> traces(scene.curves.size());
+  const int n = std::max(samples_per_segment, 2);
+  for (std::size_t c = 0; c < scene.curves.size(); ++c) {
+    const Curve& curve = scene.curves[c];
+    CurveTrace& trace = traces[c];
+    for (std::uint32_t k = 0; k < curve.segment_count; ++k) {
+      const SceneSegment& segment = scene.segments[curve.first_segment + k];
+      const double start = curve.segment_start[k];
+      // Straight segments need no more samples for their shape, but B varies along them.
+      for (int j = 0; j < n; ++j) {
+        const double f = static_cast<double>(j) / (n - 1);
+        // Stay a hair inside the segment so its own normal is used at corners.
+        const double s = start + std::clamp(f, 1e-9, 1.0 - 1e-9) * segment.length;
+        const CurvePoint point = point_at_arc_length(scene, curve, s);
+        const Cubic& shape = scene.segments[curve.first_segment + point.segment_in_curve].geometry.shape;
+        trace.points.push_back(point.position);
+        trace.normals.push_back(unit_normal(shape, point.t, scene.scale));
+        trace.u.push_back(point.u);
+        trace.s.push_back(s);
+      }
+    }
+  }
+  return traces;
+}
+
+double luminance(const Spectrum& b, int channels) {
+  if (channels == 1) return b[0];
+  return (b[0] + b[1] + b[2]) / 3.0;
+}
+
+namespace {
+
+double channel_value(const Spectrum& b, int channels, ChannelView channel) {
+  if (channels == 1 || channel == ChannelView::All) return luminance(b, channels);
+  return b[static_cast<std::size_t>(channel) - 1];
+}
+
+}  // namespace
+
+double radiosity_range(const Snapshot& snapshot, ChannelView channel) {
+  // Reflected light is what the solve finds; emitters are usually far brighter and would darken
+  // everything else, so they count only when nothing else is lit.
+  std::vector<double> values;
+  std::vector<double> emitters;
+  if (!snapshot.scene) return 1.0;
+  const Scene& scene = *snapshot.scene;
+  const int channels = scene.channels;
+  for (std::size_t c = 0; c < snapshot.radiosity.size(); ++c) {
+    std::vector<double>& into = c < scene.curves.size() && scene.is_emitter(scene.curves[c]) ? emitters : values;
+    for (const auto& samples : snapshot.radiosity[c])
+      for (const Spectrum& b : samples) {
+        if (channels == 3 && channel == ChannelView::All)
+          into.push_back(std::max({b[0], b[1], b[2]}));
+        else
+          into.push_back(channel_value(b, channels, channel));
+      }
+  }
+  if (values.empty() || *std::max_element(values.begin(), values.end()) <= 0.0) values.swap(emitters);
+  if (values.empty()) return 1.0;
+  const std::size_t k = static_cast<std::size_t>(0.99 * static_cast<double>(values.size() - 1));
+  std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(k), values.end());
+  const double range = values[k];
+  return range > 1e-300 ? range : 1.0;
+}
+
+std::array<float, 3> colour_map(double t) {
+  // Piecewise-linear through a few stops of a dark-to-bright sequential map (after "inferno").
+  static constexpr std::array<std::array<float, 3>, 6> stops{{{0.0f, 0.0f, 0.02f},
+                                                               {0.17f, 0.04f, 0.38f},
+                                                               {0.47f, 0.11f, 0.43f},
+                                                               {0.78f, 0.25f, 0.27f},
+                                                               {0.97f, 0.56f, 0.04f},
+                                                               {0.99f, 1.0f, 0.64f}}};
+  t = std::clamp(std::isfinite(t) ? t : 0.0, 0.0, 1.0) * (stops.size() - 1);
+  const std::size_t i = std::min(static_cast<std::size_t>(t), stops.size() - 2);
+  const auto f = static_cast<float>(t - static_cast<double>(i));
+  std::array<float, 3> c{};
+  for (std::size_t k = 0; k < 3; ++k) c[k] = stops[i][k] + f * (stops[i + 1][k] - stops[i][k]);
+  return c;
+}
+
+std::array<float, 3> radiosity_colour(const Spectrum& b, double range, int channels, ChannelView channel) {
+  if (channels == 1 || channel != ChannelView::All) return colour_map(channel_value(b, channels, channel) / range);
+  // The light's own colour: tone map each channel (1 - exp(-2x) reaches 0.86 at the range),
+  // then encode for the display.
+  std::array<float, 3> c{};
+  for (std::size_t k = 0; k < 3; ++k) {
+    const double x = std::max(b[k], 0.0) / range;
+    c[k] = static_cast<float>(std::pow(1.0 - std::exp(-2.0 * x), 1.0 / 2.2));
+  }
+  return c;
+}
+
+namespace {
+
+struct OverlayBuilder {
+  std::vector<LineVertex>& out;
+
+  void vertex(Vec2 p, Vec2 offset, const std::array<float, 4>& colour) {
+    out.push_back({static_cast<float>(p.x), static_cast<float>(p.y), static_cast<float>(offset.x),
+                   static_cast<float>(offset.y), colour[0], colour[1], colour[2], colour[3]});
+  }
+  // A quad between two scene points with per-end offsets (pixels) of its two long edges.
+  void quad(Vec2 a, Vec2 b, Vec2 a_lo, Vec2 a_hi, Vec2 b_lo, Vec2 b_hi, const std::array<float, 4>& ca,
+            const std::array<float, 4>& cb) {
+    vertex(a, a_lo, ca);
+    vertex(b, b_lo, cb);
+    vertex(b, b_hi, cb);
+    vertex(a, a_lo, ca);
+    vertex(b, b_hi, cb);
+    vertex(a, a_hi, ca);
+  }
+  // A stroke of `width` pixels along a polyline of scene points with pixel offsets.
+  void stroke(const std::vector<Vec2>& points, const std::vector<Vec2>& offsets, float width,
+              const std::array<float, 4>& colour) {
+    for (std::size_t i = 0; i + 1 < points.size(); ++i) {
+      // Direction of the piece in the scene (the offsets' frame has y up too); the offsets'
+      // own slope is ignored, so a steep graph draws a little thinner.
+      const Vec2 d = points[i + 1] - points[i];
+      const double len = length(d);
+      const Vec2 across = len > 0.0 ? Vec2{-d.y / len, d.x / len} : Vec2{0.0, 1.0};
+      const Vec2 h = across * (0.5 * width);
+      quad(points[i], points[i + 1], offsets[i] - h, offsets[i] + h, offsets[i + 1] - h,
+           offsets[i + 1] + h, colour, colour);
+    }
+  }
+  void square(Vec2 p, float half, const std::array<float, 4>& colour) {
+    quad(p, p, {-half, -half}, {-half, half}, {half, -half}, {half, half}, colour, colour);
+  }
+  void diamond(Vec2 p, float half, const std::array<float, 4>& colour) {
+    quad(p, p, {-half, 0.0}, {0.0, half}, {0.0, -half}, {half, 0.0}, colour, colour);
+  }
+};
+
+std::array<float, 4> rgba(const std::array<float, 3>& c, float a) { return {c[0], c[1], c[2], a}; }
+
+}  // namespace
+
+std::vector<LineVertex> build_overlay(const Snapshot& snapshot, const DrawOptions& options) {
+  std::vector<LineVertex> vertices;
+  if (!snapshot.scene || !snapshot.traces) return vertices;
+  const Scene& scene = *snapshot.scene;
+  const auto& traces = *snapshot.traces;
+  OverlayBuilder out{vertices};
+  const double range = radiosity_range(snapshot, options.channel) / std::max(options.band_exposure, 1e-6f);
+  const int channels = scene.channels;
+
+  for (std::size_t c = 0; c < traces.size(); ++c) {
+    const CurveTrace& trace = traces[c];
+    const std::size_t n = trace.points.size();
+    if (n < 2) continue;
+    const bool selected = static_cast<int>(c) == options.selected_curve;
+    for (int side = 0; side < 2; ++side) {
+      const double sign = side == 0 ? 1.0 : -1.0;
+      const std::vector<Spectrum>* samples =
+          c < snapshot.radiosity.size() ? &snapshot.radiosity[c][static_cast<std::size_t>(side)] : nullptr;
+      if (samples == nullptr || samples->size() != n) continue;
+      // The band: from 2 to 9 pixels off the curve on this side, coloured by B.
+      if (options.band) {
+        for (std::size_t i = 0; i + 1 < n; ++i) {
+          const Vec2 na = trace.normals[i] * sign;
+          const Vec2 nb = trace.normals[i + 1] * sign;
+          const auto ca = rgba(radiosity_colour((*samples)[i], range, channels, options.channel), 1.0f);
+          const auto cb = rgba(radiosity_colour((*samples)[i + 1], range, channels, options.channel), 1.0f);
+          out.quad(trace.points[i], trace.points[i + 1], na * 2.0, na * 9.0, nb * 2.0, nb * 9.0, ca, cb);
+        }
+      }
+      // The graph: B(s) as a line offset along the normal by graph_height * B / range.
+      if (options.graph) {
+        std::vector<Vec2> offsets(n);
+        for (std::size_t i = 0; i < n; ++i) {
+          double value = 0.0;
+          const Spectrum& b = (*samples)[i];
+          value = channels == 1 || options.channel == ChannelView::All
+                      ? luminance(b, channels)
+                      : b[static_cast<std::size_t>(options.channel) - 1];
+          const double height = 10.0 + options.graph_height * std::clamp(value / range, 0.0, 1.5);
+          offsets[i] = trace.normals[i] * (sign * height);
+        }
+        const std::array<float, 4> colour = selected ? std::array<float, 4>{1.0f, 0.85f, 0.3f, 1.0f}
+                                                     : std::array<float, 4>{0.55f, 0.85f, 1.0f, 0.85f};
+        out.stroke(trace.points, offsets, selected ? 2.0f : 1.5f, colour);
+      }
+    }
+    if (options.curves) {
+      std::vector<Vec2> zero(n, Vec2{0.0, 0.0});
+      const std::array<float, 4> colour = selected ? std::array<float, 4>{1.0f, 0.85f, 0.3f, 1.0f}
+                                                   : std::array<float, 4>{0.85f, 0.85f, 0.85f, 1.0f};
+      out.stroke(trace.points, zero, selected ? 3.0f : 2.0f, colour);
+    }
+    if (c < snapshot.nodes.size()) {
+      for (const NodeMark& node : snapshot.nodes[c]) {
+        const bool discontinuity = node.continuity != Continuity::C1;
+        if (discontinuity && options.discontinuities) {
+          const std::array<float, 4> colour = node.continuity == Continuity::Jump
+                                                  ? std::array<float, 4>{1.0f, 0.3f, 0.3f, 1.0f}
+                                                  : std::array<float, 4>{0.3f, 1.0f, 0.4f, 1.0f};
+          out.diamond(node.position, 5.0f, colour);
+        } else if (options.storage_nodes) {
+          out.square(node.position, 2.0f, {0.6f, 0.6f, 1.0f, 1.0f});
+        }
+      }
+    }
+  }
+  if (options.control_points) {
+    const std::vector<ControlPointRef> points = control_point_list(scene);
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      const bool hovered = static_cast<int>(i) == options.hovered_control_point;
+      out.square(points[i].position, hovered ? 6.0f : 4.0f, {0.1f, 0.1f, 0.1f, 1.0f});
+      out.square(points[i].position, hovered ? 4.5f : 3.0f,
+                 hovered ? std::array<float, 4>{1.0f, 0.9f, 0.2f, 1.0f}
+                         : std::array<float, 4>{1.0f, 1.0f, 1.0f, 1.0f});
+    }
+  }
+  return vertices;
+}
+
+namespace {
+
+constexpr std::array<std::array<float, 3>, 6> kRoundPalette{{{1.0f, 0.75f, 0.3f},
+                                                           {0.35f, 0.7f, 1.0f},
+                                                           {0.5f, 1.0f, 0.45f},
+                                                           {1.0f, 0.4f, 0.7f},
+                                                           {0.7f, 0.5f, 1.0f},
+                                                           {0.3f, 1.0f, 0.9f}}};
+
+bool same_view(const ViewTransform& a, const ViewTransform& b) {
+  return a.center == b.center && a.scale == b.scale && a.width == b.width && a.height == b.height;
+}
+
+}  // namespace
+
+PathInstance PathLayer::instance(const Entry& entry, double factor, int channels,
+                                 const DrawOptions& options) const {
+  const PathRecord& path = entry.path;
+  std::array<float, 3> colour{1.0f, 1.0f, 1.0f};
+  if (options.path_colour == PathColour::Round) {
+    colour = kRoundPalette[path.round % kRoundPalette.size()];
+  } else if (channels == 3) {
+    // The light's colour: channels relative to their mean (the weight carries the power).
+    const double mean = luminance(path.power, 3);
+    if (mean > 0.0)
+      for (std::size_t k = 0; k < 3; ++k) colour[k] = static_cast<float>(path.power[k] / mean);
+  }
+  const auto w = static_cast<float>(entry.weight * factor);
+  return {static_cast<float>(path.from.x), static_cast<float>(path.from.y), static_cast<float>(path.to.x),
+          static_cast<float>(path.to.y), colour[0] * w, colour[1] * w, colour[2] * w, 1.0f, 0.0f};
+}
+
+PathDraw PathLayer::update(const Snapshot& snapshot, const DrawOptions& options, const ViewTransform& view,
+                           std::size_t keep, std::size_t budget) {
+  PathDraw draw;
+  const int channels = snapshot.scene ? snapshot.scene->channels : 1;
+  const float width = static_cast<float>(snapshot.settings.ray_width);
+  draw.lines = !(width * view.scale > 1.5);
+  if (snapshot.generation != generation_) {
+    ring_.clear();
+    generation_ = snapshot.generation;
+    any_ = false;
+    power_unit_ = 0.0;
+    valid_ = false;
+  }
+  if (!options.paths) {
+    valid_ = false;
+    draw.clear = true;
+    drawn_ = 0;
+    return draw;
+  }
+  if (!same_view(view, view_) || options.fade != options_.fade || options.path_colour != options_.path_colour)
+    valid_ = false;
+  view_ = view;
+  options_ = options;
+  keep = std::max<std::size_t>(keep, 1);
+  const double rate = 3.0 * options.fade / static_cast<double>(keep);  // fading per arrival
+  if (!valid_) {
+    draw.clear = true;
+    for (Entry& entry : ring_) entry.drawn = false;
+    valid_ = true;
+  }
+
+  // Arrivals: the snapshot's paths recorded after the last one taken.
+  std::size_t arrived = 0;
+  for (const PathRecord& path : snapshot.paths) {
+    if (any_ && path.serial <= last_serial_) continue;
+    const double power = luminance(path.power, channels);
+    if (power_unit_ == 0.0 && power > 0.0) power_unit_ = power;
+    ring_.push_back({path, arrivals_++, power_unit_ > 0.0 ? power / power_unit_ : 0.0, false});
+    last_serial_ = path.serial;
+    any_ = true;
+    ++arrived;
+  }
+  if (arrived > 0 && rate > 0.0 && !draw.clear) draw.decay = static_cast<float>(std::exp(-rate * static_cast<double>(arrived)));
+  const std::uint64_t now = arrivals_ == 0 ? 0 : arrivals_ - 1;
+  auto factor = [&](const Entry& entry) { return std::exp(-rate * static_cast<double>(now - entry.birth)); };
+  // Departures: beyond the last `keep`, subtracted if they were drawn.
+  while (ring_.size() > keep) {
+    const Entry& old = ring_.front();
+    if (old.drawn && !draw.clear) {
+      PathInstance removal = instance(old, factor(old), channels, options);
+      removal.r = -removal.r;
+      removal.g = -removal.g;
+      removal.b = -removal.b;
+      removal.width = width;
+      draw.instances.push_back(removal);
+    }
+    ring_.pop_front();
+  }
+  // Draw the newest paths not yet in the buffer, up to the budget.
+  std::size_t budget_left = budget;
+  for (auto it = ring_.rbegin(); it != ring_.rend() && budget_left > 0; ++it) {
+    if (it->drawn) continue;
+    PathInstance added = instance(*it, factor(*it), channels, options);
+    added.width = width;
+    draw.instances.push_back(added);
+    it->drawn = true;
+    --budget_left;
+  }
+  // The exposure normalisation: total weight x length (pixels) of what is in the buffer, spread
+  // over the viewport, gives the average light per pixel.
+  double coverage = 0.0;
+  drawn_ = 0;
+  double f = 1.0;
+  const double step = std::exp(-rate);
+  std::uint64_t previous = now;
+  for (auto it = ring_.rbegin(); it != ring_.rend(); ++it) {
+    for (; previous > it->birth; --previous) f *= step;
+    if (!it->drawn) continue;
+    ++drawn_;
+    coverage += it->weight * f * std::max(length(it->path.to - it->path.from) * view.scale, 1.0);
+  }
+  const double area = static_cast<double>(view.width) * view.height;
+  // About a third of a unit of light on the average lit pixel: dense regions still show structure.
+  draw.normalisation = coverage > 0.0 ? static_cast<float>(0.35 * area / coverage) : 1.0f;
+  return draw;
+}
+
+std::vector<ControlPointRef> control_point_list(const Scene& scene) {
+  std::vector<ControlPointRef> points;
+  for (std::uint32_t c = 0; c < scene.curves.size(); ++c)
+    for (std::uint32_t k = 0; k < scene.curves[c].points.size(); ++k)
+      points.push_back({c, k, scene.curves[c].points[k]});
+  return points;
+}
+
+std::optional<std::uint32_t> pick_curve(const std::vector<CurveTrace>& traces, const ViewTransform& view,
+                                        Vec2 pixel, double radius) {
+  std::optional<std::uint32_t> best;
+  double best_distance = radius;
+  for (std::uint32_t c = 0; c < traces.size(); ++c) {
+    const auto& points = traces[c].points;
+    for (std::size_t i = 0; i + 1 < points.size(); ++i) {
+      const Vec2 a = view.to_pixels(points[i]);
+      const Vec2 b = view.to_pixels(points[i + 1]);
+      const Vec2 ab = b - a;
+      const double len2 = dot(ab, ab);
+      const double t = len2 > 0.0 ? std::clamp(dot(pixel - a, ab) / len2, 0.0, 1.0) : 0.0;
+      const double d = length(pixel - (a + ab * t));
+      if (d <= best_distance) {
+        best_distance = d;
+        best = c;
+      }
+    }
+  }
+  return best;
+}
+
+}  // namespace flatland::viewer

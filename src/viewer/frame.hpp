@@ -1,0 +1,202 @@
+// What the viewer draws, computed on the CPU without any GL: the view transform, the curves traced
+// for drawing, the solver snapshot a frame is drawn from, and the vertex data built from it. The
+// renderer only uploads these; tests check them without a display.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <deque>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "flatland/scene.hpp"
+#include "flatland/solver.hpp"
+
+namespace flatland::viewer {
+
+// Scene units to pixels. Pixel coordinates have y down (SDL, ImGui and PNG rows); the scene's y
+// is up. `scale` is pixels per scene unit.
+struct ViewTransform {
+  Vec2 center;
+  double scale = 1.0;
+  int width = 1;
+  int height = 1;
+
+  Vec2 to_pixels(Vec2 p) const {
+    return {0.5 * width + (p.x - center.x) * scale, 0.5 * height - (p.y - center.y) * scale};
+  }
+  Vec2 to_scene(Vec2 pixel) const {
+    return {center.x + (pixel.x - 0.5 * width) / scale, center.y - (pixel.y - 0.5 * height) / scale};
+  }
+  // Zoom by `factor` keeping the scene point under `pixel` in place.
+  void zoom_about(Vec2 pixel, double factor);
+};
+
+// The whole of `bounds` in a width x height viewport, with a margin of `margin` of the smaller
+// side on every edge.
+ViewTransform fit_view(const Box& bounds, int width, int height, double margin = 0.06);
+
+// A curve sampled for drawing: every segment from end to end (corners stay sharp), positions,
+// unit front normals, curve parameter u and arc length s at each sample.
+struct CurveTrace {
+  std::vector<Vec2> points;
+  std::vector<Vec2> normals;
+  std::vector<double> u;
+  std::vector<double> s;
+};
+std::vector<CurveTrace> trace_curves(const Scene& scene, int samples_per_segment = 48);
+
+// A photon path as the viewer keeps it.
+struct PathRecord {
+  std::uint64_t serial = 0;  // order of recording within one solve (Snapshot::generation)
+  Vec2 from;
+  Vec2 to;
+  Spectrum power{};
+  std::uint32_t round = 0;
+  bool escaped = false;
+};
+
+// A storage-mesh node of a curve: where, and the continuity of the illumination there.
+struct NodeMark {
+  Vec2 position;
+  Continuity continuity = Continuity::C1;
+  bool visibility_event = false;  // added by discontinuity meshing (not a scene joint)
+};
+
+// Everything a frame is drawn from, published by the solving thread; immutable once published.
+struct Snapshot {
+  std::uint64_t generation = 0;  // changes whenever the solve restarts (new scene or settings)
+  std::shared_ptr<const Scene> scene;
+  std::shared_ptr<const std::vector<CurveTrace>> traces;
+  SolverSettings settings;
+  std::string error;  // why there is no solve (bad settings, scene error), empty when fine
+  // B at every trace sample, per curve and side (empty for a side that neither emits nor reflects).
+  std::vector<std::array<std::vector<Spectrum>, 2>> radiosity;
+  std::vector<std::vector<NodeMark>> nodes;  // per curve: interior storage nodes
+  std::vector<double> received_share;        // per curve: its share of all power received
+  std::vector<PathRecord> paths;             // oldest first
+  SolverProgress progress;
+  EnergyBooks books;
+  StopReason stop_reason = StopReason::Running;
+  std::uint64_t round_photons = 0;  // photons of the open round, and how many are shot
+  std::uint64_t round_done = 0;
+  double photons_per_second = 0.0;
+  bool running = false;
+  // Against a loaded reference: the error so far (relative L2 of B over the scene), its history
+  // against elapsed solve time, and the reference's B samples per curve (luminance, main side).
+  std::optional<double> reference_error;
+  std::vector<std::array<double, 2>> error_history;  // {seconds, rel_l2}
+  std::vector<std::vector<std::array<double, 2>>> reference_curves;  // per curve {s, B}
+};
+
+// Radiosity of a sample for display: one number (the channels' mean).
+double luminance(const Spectrum& b, int channels);
+
+// A vertex of the overlay (curves, bands, graphs, markers): a scene point, an offset in pixels
+// (y up), and a display-encoded RGBA colour.
+struct LineVertex {
+  float x, y;
+  float offset_x, offset_y;
+  float r, g, b, a;
+};
+// One photon path for the path shader.
+struct PathInstance {
+  float from_x, from_y, to_x, to_y;
+  float r, g, b, a;
+  float width;
+};
+
+enum class PathColour { Power, Round };
+enum class ChannelView { All, Red, Green, Blue };
+
+struct DrawOptions {
+  bool curves = true;
+  bool band = true;           // colour-mapped band of B along each lit side
+  bool graph = true;          // B(s) as a graph offset along the normal
+  bool control_points = false;
+  bool storage_nodes = false;
+  bool discontinuities = true;  // mark nodes below C1
+  bool paths = true;
+  float path_exposure = 1.0f;  // multiplies the automatic path normalisation
+  float band_exposure = 1.0f;  // multiplies the automatic radiosity normalisation
+  float graph_height = 60.0f;  // pixels for the largest B
+  float fade = 1.0f;           // 0: every kept path equally bright; 1: the oldest fade to ~5 %
+  PathColour path_colour = PathColour::Power;
+  ChannelView channel = ChannelView::All;
+  int selected_curve = -1;
+  int hovered_control_point = -1;  // index into control_point_list()
+};
+
+// The largest B to map to full brightness: the 99th percentile of the samples on curves that do not
+// emit (so neither the lights nor one hot spot darken the rest; the emitters' own samples when
+// nothing else is lit yet), at least a tiny positive value.
+double radiosity_range(const Snapshot& snapshot, ChannelView channel);
+
+// Colour of a radiosity value: grey scenes through a perceptual colour map, colour scenes as the
+// light's own colour, tone mapped; `value` is B / radiosity_range.
+std::array<float, 3> radiosity_colour(const Spectrum& b, double range, int channels, ChannelView channel);
+// The colour map for grey values (t in [0, 1]): dark blue through orange to pale yellow.
+std::array<float, 3> colour_map(double t);
+
+// The overlay's triangles for the given snapshot and options; sizes in pixels (independent of
+// zoom, so this is rebuilt only when the snapshot or the options change).
+std::vector<LineVertex> build_overlay(const Snapshot& snapshot, const DrawOptions& options);
+
+// What the path buffer does this frame (see PathLayer).
+struct PathDraw {
+  bool clear = false;    // start from an empty buffer
+  float decay = 1.0f;    // multiply the accumulated light by this first (fading by age)
+  std::vector<PathInstance> instances;  // then add these; a negative colour removes a path
+  bool lines = true;     // point rays: 1-pixel lines; extended rays: quads as wide as the ray
+  float normalisation = 1.0f;  // exposure factor that makes the average lit pixel about 1
+};
+
+// The photon paths on screen, kept in a floating-point buffer that is updated incrementally: a
+// software rasteriser cannot redraw 20,000 long paths every frame, so each frame draws only the
+// paths that arrived (at most `budget`, newest first), fades the buffer by their number, and
+// subtracts the paths that fell out of the last `keep`. A path's weight at age a (in paths) is
+// power x exp(-3 fade a / keep). After a change of view, colouring or fade, the buffer is rebuilt
+// from the kept paths over the next frames, newest first.
+class PathLayer {
+ public:
+  PathDraw update(const Snapshot& snapshot, const DrawOptions& options, const ViewTransform& view,
+                  std::size_t keep, std::size_t budget);
+  void invalidate() { valid_ = false; }
+  std::size_t drawn() const { return drawn_; }  // paths in the buffer now
+
+ private:
+  struct Entry {
+    PathRecord path;
+    std::uint64_t birth = 0;  // arrival number
+    double weight = 0.0;      // power at age 0 (normalised)
+    bool drawn = false;
+  };
+  PathInstance instance(const Entry& entry, double factor, int channels, const DrawOptions& options) const;
+
+  std::deque<Entry> ring_;
+  std::uint64_t generation_ = ~0ull;
+  std::uint64_t last_serial_ = 0;
+  bool any_ = false;
+  std::uint64_t arrivals_ = 0;
+  double power_unit_ = 0.0;  // the first path's power: weights are relative to it
+  bool valid_ = false;
+  ViewTransform view_;
+  DrawOptions options_;
+  std::size_t drawn_ = 0;
+};
+
+// Every control point of the scene, in order (curve by curve), for picking and dragging.
+struct ControlPointRef {
+  std::uint32_t curve = 0;
+  std::uint32_t index = 0;  // into Curve::points
+  Vec2 position;
+};
+std::vector<ControlPointRef> control_point_list(const Scene& scene);
+
+// The curve nearest to `pixel` within `radius` pixels, if any.
+std::optional<std::uint32_t> pick_curve(const std::vector<CurveTrace>& traces, const ViewTransform& view,
+                                        Vec2 pixel, double radius = 6.0);
+
+}  // namespace flatland::viewer

@@ -1,0 +1,255 @@
+#include "viewer/renderer.hpp"
+
+#include <epoxy/gl.h>
+
+#include <cstddef>
+#include <fstream>
+#include <sstream>
+#include <utility>
+
+namespace flatland::viewer {
+
+namespace {
+
+struct EmbeddedShader {
+  const char* name;
+  const char* source;
+};
+constexpr EmbeddedShader kEmbeddedShaders[] = {
+#include "flatland_shaders.inc"
+};
+
+Result<unsigned> compile(GLenum type, const std::string& name, const std::string& directory) {
+  Result<std::string> source = shader_source(name, directory);
+  if (!source) return source.error();
+  const GLuint shader = glCreateShader(type);
+  const char* text = source->c_str();
+  glShaderSource(shader, 1, &text, nullptr);
+  glCompileShader(shader);
+  GLint ok = GL_FALSE;
+  glGetShaderiv(shader, GL_COMPILE_STATUS, &ok);
+  if (ok != GL_TRUE) {
+    GLint length = 0;
+    glGetShaderiv(shader, GL_INFO_LOG_LENGTH, &length);
+    std::string log(static_cast<std::size_t>(std::max(length, 1)), '\0');
+    glGetShaderInfoLog(shader, length, nullptr, log.data());
+    glDeleteShader(shader);
+    while (!log.empty() && (log.back() == '\0' || log.back() == '\n')) log.pop_back();
+    return Error{"shader " + name + " does not compile: " + log};
+  }
+  return shader;
+}
+
+Result<unsigned> link(const std::string& vertex, const std::string& fragment, const std::string& directory) {
+  Result<unsigned> vs = compile(GL_VERTEX_SHADER, vertex, directory);
+  if (!vs) return vs.error();
+  Result<unsigned> fs = compile(GL_FRAGMENT_SHADER, fragment, directory);
+  if (!fs) {
+    glDeleteShader(*vs);
+    return fs.error();
+  }
+  const GLuint program = glCreateProgram();
+  glAttachShader(program, *vs);
+  glAttachShader(program, *fs);
+  glLinkProgram(program);
+  glDeleteShader(*vs);
+  glDeleteShader(*fs);
+  GLint ok = GL_FALSE;
+  glGetProgramiv(program, GL_LINK_STATUS, &ok);
+  if (ok != GL_TRUE) {
+    GLint length = 0;
+    glGetProgramiv(program, GL_INFO_LOG_LENGTH, &length);
+    std::string log(static_cast<std::size_t>(std::max(length, 1)), '\0');
+    glGetProgramInfoLog(program, length, nullptr, log.data());
+    glDeleteProgram(program);
+    while (!log.empty() && (log.back() == '\0' || log.back() == '\n')) log.pop_back();
+    return Error{"shaders " + vertex + " + " + fragment + " do not link: " + log};
+  }
+  return program;
+}
+
+void set_view_uniforms(unsigned program, const ViewTransform& view) {
+  glUniform2f(glGetUniformLocation(program, "u_center"), static_cast<float>(view.center.x),
+              static_cast<float>(view.center.y));
+  glUniform1f(glGetUniformLocation(program, "u_scale"), static_cast<float>(view.scale));
+  glUniform2f(glGetUniformLocation(program, "u_viewport"), static_cast<float>(view.width),
+              static_cast<float>(view.height));
+}
+
+}  // namespace
+
+Result<std::string> shader_source(const std::string& name, const std::string& directory) {
+  if (!directory.empty()) {
+    const std::string path = directory + "/" + name;
+    std::ifstream file(path, std::ios::binary);
+    if (!file) return Error{path + ": cannot read the shader; check the shader directory"};
+    std::ostringstream text;
+    text << file.rdbuf();
+    return text.str();
+  }
+  for (const EmbeddedShader& shader : kEmbeddedShaders)
+    if (name == shader.name) return std::string(shader.source);
+  return Error{"shader " + name + " is not built into this executable"};
+}
+
+Result<std::unique_ptr<Renderer>> Renderer::create(const std::string& shader_directory) {
+  std::unique_ptr<Renderer> renderer(new Renderer());
+  Result<unsigned> lines = link("lines.vert", "lines.frag", shader_directory);
+  if (!lines) return lines.error();
+  renderer->lines_program_ = *lines;
+  Result<unsigned> paths = link("paths.vert", "paths.frag", shader_directory);
+  if (!paths) return paths.error();
+  renderer->paths_program_ = *paths;
+  Result<unsigned> tonemap = link("tonemap.vert", "tonemap.frag", shader_directory);
+  if (!tonemap) return tonemap.error();
+  renderer->tonemap_program_ = *tonemap;
+  Result<unsigned> decay = link("tonemap.vert", "decay.frag", shader_directory);
+  if (!decay) return decay.error();
+  renderer->decay_program_ = *decay;
+
+  glGenVertexArrays(1, &renderer->lines_vao_);
+  glGenBuffers(1, &renderer->lines_vbo_);
+  glBindVertexArray(renderer->lines_vao_);
+  glBindBuffer(GL_ARRAY_BUFFER, renderer->lines_vbo_);
+  const auto stride = static_cast<GLsizei>(sizeof(LineVertex));
+  glEnableVertexAttribArray(0);
+  glVertexAttribPointer(0, 2, GL_FLOAT, GL_FALSE, stride, reinterpret_cast<void*>(offsetof(LineVertex, x)));
+  glEnableVertexAttribArray(1);
+  glVertexAttribPointer(1, 2, GL_FLOAT, GL_FALSE, stride, reinterpret_cast<void*>(offsetof(LineVertex, offset_x)));
+  glEnableVertexAttribArray(2);
+  glVertexAttribPointer(2, 4, GL_FLOAT, GL_FALSE, stride, reinterpret_cast<void*>(offsetof(LineVertex, r)));
+
+  glGenVertexArrays(1, &renderer->paths_vao_);
+  glGenBuffers(1, &renderer->paths_vbo_);
+  glBindVertexArray(renderer->paths_vao_);
+  glBindBuffer(GL_ARRAY_BUFFER, renderer->paths_vbo_);
+  const auto path_stride = static_cast<GLsizei>(sizeof(PathInstance));
+  glEnableVertexAttribArray(0);
+  glVertexAttribPointer(0, 4, GL_FLOAT, GL_FALSE, path_stride, reinterpret_cast<void*>(offsetof(PathInstance, from_x)));
+  glVertexAttribDivisor(0, 1);
+  glEnableVertexAttribArray(1);
+  glVertexAttribPointer(1, 4, GL_FLOAT, GL_FALSE, path_stride, reinterpret_cast<void*>(offsetof(PathInstance, r)));
+  glVertexAttribDivisor(1, 1);
+  glEnableVertexAttribArray(2);
+  glVertexAttribPointer(2, 1, GL_FLOAT, GL_FALSE, path_stride, reinterpret_cast<void*>(offsetof(PathInstance, width)));
+  glVertexAttribDivisor(2, 1);
+
+  glGenVertexArrays(1, &renderer->empty_vao_);
+  glBindVertexArray(0);
+  return renderer;
+}
+
+Renderer::~Renderer() {
+  glDeleteProgram(lines_program_);
+  glDeleteProgram(paths_program_);
+  glDeleteProgram(tonemap_program_);
+  glDeleteProgram(decay_program_);
+  glDeleteVertexArrays(1, &lines_vao_);
+  glDeleteVertexArrays(1, &paths_vao_);
+  glDeleteVertexArrays(1, &empty_vao_);
+  glDeleteBuffers(1, &lines_vbo_);
+  glDeleteBuffers(1, &paths_vbo_);
+  if (hdr_framebuffer_ != 0) glDeleteFramebuffers(1, &hdr_framebuffer_);
+  if (hdr_texture_ != 0) glDeleteTextures(1, &hdr_texture_);
+}
+
+void Renderer::ensure_hdr_target(int width, int height) {
+  if (hdr_framebuffer_ != 0 && width == hdr_width_ && height == hdr_height_) return;
+  if (hdr_framebuffer_ == 0) {
+    glGenFramebuffers(1, &hdr_framebuffer_);
+    glGenTextures(1, &hdr_texture_);
+  }
+  glBindTexture(GL_TEXTURE_2D, hdr_texture_);
+  glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA32F, width, height, 0, GL_RGBA, GL_FLOAT, nullptr);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+  glBindFramebuffer(GL_FRAMEBUFFER, hdr_framebuffer_);
+  glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, hdr_texture_, 0);
+  glClearColor(0.0f, 0.0f, 0.0f, 0.0f);
+  glClear(GL_COLOR_BUFFER_BIT);
+  hdr_width_ = width;
+  hdr_height_ = height;
+}
+
+void Renderer::draw(const std::vector<LineVertex>& overlay, const PathDraw& paths, const ViewTransform& view,
+                    float path_exposure) {
+  GLint target = 0;
+  glGetIntegerv(GL_DRAW_FRAMEBUFFER_BINDING, &target);
+  glDisable(GL_DEPTH_TEST);
+  glDisable(GL_CULL_FACE);
+  glDisable(GL_SCISSOR_TEST);
+
+  // The path buffer (32-bit float: sums of many faint paths, and subtraction, stay exact enough).
+  ensure_hdr_target(view.width, view.height);
+  glBindFramebuffer(GL_FRAMEBUFFER, hdr_framebuffer_);
+  glViewport(0, 0, view.width, view.height);
+  if (paths.clear) {
+    glClearColor(0.0f, 0.0f, 0.0f, 0.0f);
+    glClear(GL_COLOR_BUFFER_BIT);
+  }
+  glEnable(GL_BLEND);
+  if (paths.decay != 1.0f) {
+    glBlendFunc(GL_ZERO, GL_CONSTANT_COLOR);
+    glBlendColor(paths.decay, paths.decay, paths.decay, paths.decay);
+    glUseProgram(decay_program_);
+    glBindVertexArray(empty_vao_);
+    glDrawArrays(GL_TRIANGLES, 0, 3);
+  }
+  if (!paths.instances.empty()) {
+    glBlendFunc(GL_ONE, GL_ONE);
+    glUseProgram(paths_program_);
+    set_view_uniforms(paths_program_, view);
+    glUniform1i(glGetUniformLocation(paths_program_, "u_lines"), paths.lines ? 1 : 0);
+    glBindVertexArray(paths_vao_);
+    glBindBuffer(GL_ARRAY_BUFFER, paths_vbo_);
+    glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(paths.instances.size() * sizeof(PathInstance)),
+                 paths.instances.data(), GL_STREAM_DRAW);
+    const auto count = static_cast<GLsizei>(paths.instances.size());
+    if (paths.lines)
+      glDrawArraysInstanced(GL_LINES, 0, 2, count);
+    else
+      glDrawArraysInstanced(GL_TRIANGLE_STRIP, 0, 4, count);
+  }
+
+  glBindFramebuffer(GL_FRAMEBUFFER, static_cast<GLuint>(target));
+  glViewport(0, 0, view.width, view.height);
+  glClearColor(kBackground[0], kBackground[1], kBackground[2], 1.0f);
+  glClear(GL_COLOR_BUFFER_BIT);
+  glBlendFuncSeparate(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA, GL_ONE, GL_ONE_MINUS_SRC_ALPHA);
+  glUseProgram(tonemap_program_);
+  glActiveTexture(GL_TEXTURE0);
+  glBindTexture(GL_TEXTURE_2D, hdr_texture_);
+  glUniform1i(glGetUniformLocation(tonemap_program_, "u_hdr"), 0);
+  glUniform1f(glGetUniformLocation(tonemap_program_, "u_exposure"), path_exposure * paths.normalisation);
+  glBindVertexArray(empty_vao_);
+  glDrawArrays(GL_TRIANGLES, 0, 3);
+  if (!overlay.empty()) {
+    glUseProgram(lines_program_);
+    set_view_uniforms(lines_program_, view);
+    glBindVertexArray(lines_vao_);
+    glBindBuffer(GL_ARRAY_BUFFER, lines_vbo_);
+    glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(overlay.size() * sizeof(LineVertex)),
+                 overlay.data(), GL_STREAM_DRAW);
+    glDrawArrays(GL_TRIANGLES, 0, static_cast<GLsizei>(overlay.size()));
+  }
+  glBindVertexArray(0);
+  glUseProgram(0);
+  glDisable(GL_BLEND);
+}
+
+std::vector<std::uint8_t> Renderer::read_pixels(int width, int height) {
+  std::vector<std::uint8_t> pixels(static_cast<std::size_t>(width) * static_cast<std::size_t>(height) * 4);
+  glPixelStorei(GL_PACK_ALIGNMENT, 1);
+  glReadPixels(0, 0, width, height, GL_RGBA, GL_UNSIGNED_BYTE, pixels.data());
+  // GL rows run bottom to top.
+  const std::size_t row = static_cast<std::size_t>(width) * 4;
+  for (int y = 0; y < height / 2; ++y)
+    std::swap_ranges(pixels.begin() + static_cast<std::ptrdiff_t>(y * row),
+                     pixels.begin() + static_cast<std::ptrdiff_t>((y + 1) * row),
+                     pixels.begin() + static_cast<std::ptrdiff_t>((height - 1 - y) * row));
+  return pixels;
+}
+
+}  // namespace flatland::viewer

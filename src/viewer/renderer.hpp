@@ -1,0 +1,60 @@
+// The viewer's OpenGL 3.3 core renderer, shared by the window (`flatland view`) and the offscreen
+// picture (`flatland render`): photon paths accumulated additively into a floating-point buffer and
+// tone mapped, then the overlay (curves, radiosity bands and graphs, markers) on top. It draws into
+// whatever framebuffer is bound; the caller owns the GL context, which must be current.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "flatland/result.hpp"
+#include "viewer/frame.hpp"
+
+namespace flatland::viewer {
+
+// The GLSL source of a shader by file name ("paths.vert"): from `directory` when it is not empty
+// (for shader development: edit shaders/ and rerun without rebuilding), else the copy built into
+// the executable from shaders/.
+Result<std::string> shader_source(const std::string& name, const std::string& directory);
+
+class Renderer {
+ public:
+  // Compiles and links every program. A compile or link error returns the shader's name and the
+  // GL info log. `shader_directory` as for shader_source.
+  static Result<std::unique_ptr<Renderer>> create(const std::string& shader_directory = "");
+  ~Renderer();
+  Renderer(const Renderer&) = delete;
+  Renderer& operator=(const Renderer&) = delete;
+
+  // Updates the path buffer as `paths` says, then draws the tone-mapped paths and the overlay into
+  // the bound framebuffer, whose size is the view's.
+  void draw(const std::vector<LineVertex>& overlay, const PathDraw& paths, const ViewTransform& view,
+            float path_exposure);
+
+  // The bound framebuffer's pixels, RGBA8, rows from top to bottom.
+  static std::vector<std::uint8_t> read_pixels(int width, int height);
+
+  static constexpr float kBackground[3] = {0.07f, 0.075f, 0.09f};
+
+ private:
+  Renderer() = default;
+  void ensure_hdr_target(int width, int height);
+
+  unsigned lines_program_ = 0;
+  unsigned paths_program_ = 0;
+  unsigned tonemap_program_ = 0;
+  unsigned decay_program_ = 0;
+  unsigned lines_vao_ = 0;
+  unsigned lines_vbo_ = 0;
+  unsigned paths_vao_ = 0;
+  unsigned paths_vbo_ = 0;
+  unsigned empty_vao_ = 0;
+  unsigned hdr_framebuffer_ = 0;
+  unsigned hdr_texture_ = 0;
+  int hdr_width_ = 0;
+  int hdr_height_ = 0;
+};
+
+}  // namespace flatland::viewer

@@ -1,0 +1,326 @@
+#include "viewer/session.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+
+#include "flatland/metrics.hpp"
+#include "flatland/result_io.hpp"
+
+namespace flatland::viewer {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+// The reference's B along each curve (its main side, channels averaged), for the side panel.
+std::vector<std::vector<std::array<double, 2>>> reference_curves(const nlohmann::json& reference) {
+  std::vector<std::vector<std::array<double, 2>>> curves;
+  const auto found = reference.find("curves");
+  if (found == reference.end() || !found->is_array()) return curves;
+  for (const nlohmann::json& curve : *found) {
+    std::vector<std::array<double, 2>>& out = curves.emplace_back();
+    const auto samples = curve.find("samples");
+    if (samples == curve.end() || !samples->is_array()) continue;
+    for (const nlohmann::json& sample : *samples) {
+      const auto s = sample.find("s");
+      const auto b = sample.find("B");
+      if (s == sample.end() || b == sample.end() || !s->is_number()) continue;
+      double value = 0.0;
+      if (b->is_number()) {
+        value = b->get<double>();
+      } else if (b->is_array() && !b->empty()) {
+        for (const nlohmann::json& channel : *b) value += channel.is_number() ? channel.get<double>() : 0.0;
+        value /= static_cast<double>(b->size());
+      }
+      out.push_back({s->get<double>(), value});
+    }
+  }
+  return curves;
+}
+
+int reference_samples(const nlohmann::json& reference) {
+  const auto curves = reference.find("curves");
+  if (curves == reference.end() || !curves->is_array() || curves->empty()) return 0;
+  const auto samples = (*curves)[0].find("samples");
+  return samples != (*curves)[0].end() && samples->is_array() ? static_cast<int>(samples->size()) : 0;
+}
+
+}  // namespace
+
+void describe_solver(const Solver& solver, const std::vector<CurveTrace>& traces, Snapshot& snapshot) {
+  const Scene& scene = solver.scene();
+  snapshot.settings = solver.settings();
+  snapshot.progress = solver.progress();
+  snapshot.books = solver.books();
+  snapshot.stop_reason = solver.stop_reason();
+  snapshot.round_photons = solver.round_photons();
+  snapshot.round_done = solver.round_photons_done();
+  snapshot.photons_per_second =
+      solver.seconds() > 0.0 ? static_cast<double>(solver.photons_shot()) / solver.seconds() : 0.0;
+  snapshot.radiosity.resize(scene.curves.size());
+  snapshot.nodes.resize(scene.curves.size());
+  snapshot.received_share.assign(scene.curves.size(), 0.0);
+  double total_reflected = 0.0;
+  for (std::uint32_t c = 0; c < scene.curves.size(); ++c) {
+    const CurveTrace& trace = traces[c];
+    for (Side side : {Side::Front, Side::Back}) {
+      if (!solver.has_side(c, side)) continue;
+      auto& samples = snapshot.radiosity[c][static_cast<std::size_t>(side)];
+      samples.reserve(trace.u.size());
+      for (double u : trace.u) samples.push_back(solver.radiosity(c, side, u));
+      const std::vector<double> b = solver.radiosity_coefficients(c, side);
+      const CurveStorage& storage = solver.storage(c);
+      const auto channels = static_cast<std::size_t>(scene.channels);
+      for (std::size_t k = 0; k < b.size(); ++k)
+        snapshot.received_share[c] += b[k] * storage.basis_length[k / channels];
+    }
+    total_reflected += snapshot.received_share[c];
+    const Curve& curve = scene.curves[c];
+    for (const MeshNode& node : solver.storage(c).nodes) {
+      const auto segment = static_cast<std::uint32_t>(
+          std::clamp(std::floor(node.u), 0.0, static_cast<double>(curve.segment_count - 1)));
+      const double t = node.u - segment;
+      const bool joint = t == 0.0 || t == 1.0;
+      snapshot.nodes[c].push_back({evaluate(scene.segments[curve.first_segment + segment].geometry.shape, t),
+                                    node.continuity, !joint && node.continuity == Continuity::C0});
+    }
+  }
+  if (total_reflected > 0.0)
+    for (double& share : snapshot.received_share) share /= total_reflected;
+}
+
+Session::Session() {
+  snapshot_ = std::make_shared<const Snapshot>();
+  thread_ = std::thread([this] { worker(); });
+}
+
+Session::~Session() {
+  {
+    std::lock_guard lock(mutex_);
+    quit_ = true;
+  }
+  cancel_.store(true);
+  wake_.notify_all();
+  thread_.join();
+}
+
+void Session::restart(std::shared_ptr<const Scene> scene, const SolverSettings& settings) {
+  {
+    std::lock_guard lock(mutex_);
+    restart_pending_ = true;
+    pending_scene_ = std::move(scene);
+    pending_settings_ = settings;
+    steps_.clear();
+  }
+  cancel_.store(true);  // a long step of the old solve ends early; that solver is discarded
+  wake_.notify_all();
+}
+
+void Session::set_running(bool running) {
+  {
+    std::lock_guard lock(mutex_);
+    running_ = running;
+  }
+  wake_.notify_all();
+}
+
+bool Session::running() const {
+  std::lock_guard lock(mutex_);
+  return running_;
+}
+
+void Session::step(StepKind kind, std::uint64_t count) {
+  {
+    std::lock_guard lock(mutex_);
+    running_ = false;
+    if (kind == StepKind::Photon)
+      steps_.emplace_back(kind, count);
+    else
+      for (std::uint64_t i = 0; i < count; ++i) steps_.emplace_back(kind, 1);
+  }
+  wake_.notify_all();
+}
+
+void Session::set_path_limit(std::size_t count) {
+  std::lock_guard lock(mutex_);
+  path_limit_ = count;
+}
+
+void Session::set_reference(std::shared_ptr<const nlohmann::json> reference) {
+  {
+    std::lock_guard lock(mutex_);
+    reference_ = std::move(reference);
+    refresh_pending_ = true;  // republish with the new reference's numbers
+  }
+  wake_.notify_all();
+}
+
+std::shared_ptr<const Snapshot> Session::snapshot() const {
+  std::lock_guard lock(mutex_);
+  return snapshot_;
+}
+
+void Session::wait_idle() {
+  std::unique_lock lock(mutex_);
+  idle_.wait(lock, [&] {
+    return !busy_ && !restart_pending_ && !refresh_pending_ && steps_.empty() && !(running_ && can_run_);
+  });
+}
+
+Result<nlohmann::json> Session::result_json(int samples_per_curve) {
+  std::lock_guard lock(solver_mutex_);
+  if (!solver_) return Error{error_.empty() ? "nothing solved yet" : error_};
+  return result_to_json(*solver_, samples_per_curve);
+}
+
+void Session::publish(const Solver* solver, const std::vector<PathRecord>& new_paths, bool force_error) {
+  auto snapshot = std::make_shared<Snapshot>();
+  std::shared_ptr<const nlohmann::json> reference;
+  std::size_t limit = 0;
+  {
+    std::lock_guard lock(mutex_);
+    reference = reference_;
+    limit = path_limit_;
+    snapshot->running = running_;
+  }
+  for (const PathRecord& path : new_paths) paths_.push_back(path);
+  while (paths_.size() > limit) paths_.pop_front();
+
+  snapshot->generation = generation_;
+  snapshot->scene = scene_;
+  snapshot->traces = traces_;
+  snapshot->error = error_;
+  snapshot->paths.assign(paths_.begin(), paths_.end());
+  if (solver != nullptr && scene_) {
+    describe_solver(*solver, *traces_, *snapshot);
+    if (reference) {
+      // The error against the reference, at most about twice a second while running.
+      const double now = solver->seconds();
+      if (force_error || last_error_time_ < 0.0 || now - last_error_time_ >= 0.5 || solver->stopped()) {
+        last_error_time_ = now;
+        const int samples = reference_samples(*reference);
+        if (samples > 0) {
+          Result<Comparison> comparison = compare_results(result_to_json(*solver, samples), *reference);
+          if (comparison) {
+            reference_error_ = comparison->scene.l2;
+            if (error_history_.empty() || error_history_.back()[0] != now)
+              error_history_.push_back({now, comparison->scene.l2});
+          } else {
+            reference_error_.reset();
+            snapshot->error = "reference: " + comparison.error().message;
+          }
+        }
+      }
+      snapshot->reference_error = reference_error_;
+      snapshot->error_history = error_history_;
+      snapshot->reference_curves = reference_curves(*reference);
+    }
+  }
+  std::lock_guard lock(mutex_);
+  snapshot_ = std::move(snapshot);
+}
+
+void Session::worker() {
+  for (;;) {
+    std::unique_lock lock(mutex_);
+    busy_ = false;
+    idle_.notify_all();
+    wake_.wait(lock, [&] {
+      return quit_ || restart_pending_ || refresh_pending_ || !steps_.empty() || (running_ && can_run_);
+    });
+    if (quit_) return;
+    busy_ = true;
+    if (restart_pending_) {
+      restart_pending_ = false;
+      std::shared_ptr<const Scene> scene = std::move(pending_scene_);
+      const SolverSettings settings = pending_settings_;
+      cancel_.store(false);
+      lock.unlock();
+      std::lock_guard solver_lock(solver_mutex_);
+      solver_.reset();
+      paths_.clear();
+      next_serial_ = 0;
+      error_history_.clear();
+      reference_error_.reset();
+      last_error_time_ = -1.0;
+      chunk_ = 4096;
+      ++generation_;
+      if (scene_ != scene) {
+        scene_ = scene;
+        traces_ = scene_ ? std::make_shared<const std::vector<CurveTrace>>(trace_curves(*scene_)) : nullptr;
+      }
+      error_.clear();
+      if (scene_) {
+        Result<Solver> created = Solver::create(*scene_, settings);
+        if (created) solver_.emplace(std::move(*created));
+        else error_ = created.error().message;
+      }
+      publish(solver_ ? &*solver_ : nullptr, {}, true);
+      std::lock_guard relock(mutex_);
+      can_run_ = solver_ && !solver_->stopped();
+      continue;
+    }
+    if (refresh_pending_ && steps_.empty() && !(running_ && can_run_)) {
+      refresh_pending_ = false;
+      lock.unlock();
+      std::lock_guard solver_lock(solver_mutex_);
+      publish(solver_ ? &*solver_ : nullptr, {}, true);
+      continue;
+    }
+    refresh_pending_ = false;
+    std::uint64_t count = 0;
+    bool stepping = false;
+    if (!steps_.empty()) {
+      const auto [kind, photons] = steps_.front();
+      steps_.pop_front();
+      stepping = true;
+      if (!can_run_) continue;
+      const std::uint64_t done = solver_->round_photons_done();
+      switch (kind) {
+        case StepKind::Photon: count = photons; break;
+        case StepKind::Batch: count = Solver::kBatchSize - done % Solver::kBatchSize; break;
+        case StepKind::Round:
+          count = solver_->round_open() ? solver_->round_photons() - done
+                                        : std::numeric_limits<std::uint64_t>::max();
+          break;
+      }
+    } else {
+      count = chunk_;
+    }
+    const std::size_t limit = path_limit_;
+    lock.unlock();
+
+    std::lock_guard solver_lock(solver_mutex_);
+    if (!solver_) continue;
+    Solver& solver = *solver_;
+    std::vector<PhotonPath> shot_paths;
+    const std::uint32_t round = solver.rounds();
+    const Clock::time_point start = Clock::now();
+    // Paths of the step's first photons: a frame draws at most a few thousand new paths anyway.
+    const std::size_t recorded = std::min<std::size_t>(limit, kPathsPerStep);
+    const std::uint64_t shot =
+        solver.step_photons(count, &cancel_, recorded > 0 ? &shot_paths : nullptr, recorded);
+    const double seconds = std::chrono::duration<double>(Clock::now() - start).count();
+    if (!stepping && shot > 0) {
+      // About 25 ms a step: long enough to amortise the thread start-up of a step, short enough
+      // for live paths and a prompt pause.
+      const double rate = static_cast<double>(shot) / std::max(seconds, 1e-6);
+      chunk_ = static_cast<std::uint64_t>(std::clamp(rate * 0.025, 256.0, 4.0 * 1048576.0));
+    }
+    solver.include_open_round();
+    std::vector<PathRecord> records;
+    records.reserve(shot_paths.size());
+    const double reach = 2.0 * scene_->scale;
+    for (const PhotonPath& path : shot_paths) {
+      PathRecord record{next_serial_++, path.origin, path.end, path.power, round, path.escaped};
+      if (path.escaped) record.to = path.origin + (path.end - path.origin) * reach;
+      records.push_back(record);
+    }
+    publish(&solver, records, stepping);
+    std::lock_guard relock(mutex_);
+    can_run_ = !solver.stopped();
+  }
+}
+
+}  // namespace flatland::viewer

@@ -1,0 +1,101 @@
+// The viewer's solve: a Solver driven on a worker thread, so the window stays responsive, and
+// published as immutable snapshots that the drawing thread picks up each frame. No GL, no SDL:
+// the tests drive it directly. All physics is the core's Solver; this only steps it and copies out
+// what is drawn.
+#pragma once
+
+#include <atomic>
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <thread>
+
+#include <nlohmann/json.hpp>
+
+#include "flatland/scene.hpp"
+#include "flatland/solver.hpp"
+#include "viewer/frame.hpp"
+
+namespace flatland::viewer {
+
+enum class StepKind {
+  Photon,  // one photon
+  Batch,   // to the end of the current batch of Solver::kBatchSize photons
+  Round,   // to the end of the current round (or a whole round when none is open)
+};
+
+// Fills the solver's state into a snapshot: settings, progress, books, B at every trace sample,
+// storage nodes and each curve's share of the reflected power.
+void describe_solver(const Solver& solver, const std::vector<CurveTrace>& traces, Snapshot& snapshot);
+
+class Session {
+ public:
+  Session();
+  ~Session();
+  Session(const Session&) = delete;
+  Session& operator=(const Session&) = delete;
+
+  // Start over on this scene with these settings: the running solve is cancelled, paths cleared.
+  // Invalid settings or a scene the solver rejects leave a snapshot whose `error` says why.
+  void restart(std::shared_ptr<const Scene> scene, const SolverSettings& settings);
+  // Run freely (in steps of about 25 ms) until the solve stops, or pause.
+  void set_running(bool running);
+  bool running() const;
+  // Pause, then shoot `count` photons, batches or rounds (queued behind earlier steps).
+  void step(StepKind kind, std::uint64_t count = 1);
+  // How many recent paths the snapshots keep (0 records none: the fastest shooting).
+  void set_path_limit(std::size_t count);
+  // A reference result (flatland reference --out, or solve --out) of the same scene: snapshots then
+  // carry the error so far and its history. nullptr removes it.
+  void set_reference(std::shared_ptr<const nlohmann::json> reference);
+
+  // The latest published snapshot (never null after construction).
+  std::shared_ptr<const Snapshot> snapshot() const;
+  // Blocks until every queued command is done and the worker is paused or stopped.
+  void wait_idle();
+  // The current result in the format of `flatland solve --out` (docs/result-format.md).
+  Result<nlohmann::json> result_json(int samples_per_curve);
+
+ private:
+  void worker();
+  void publish(const Solver* solver, const std::vector<PathRecord>& new_paths, bool force_error);
+
+  mutable std::mutex mutex_;
+  std::condition_variable wake_;
+  std::condition_variable idle_;
+  // Commands, under mutex_.
+  bool quit_ = false;
+  bool restart_pending_ = false;
+  std::shared_ptr<const Scene> pending_scene_;
+  SolverSettings pending_settings_;
+  std::deque<std::pair<StepKind, std::uint64_t>> steps_;  // photon steps carry their count
+  bool running_ = false;
+  bool busy_ = false;  // the worker is executing a command
+  bool refresh_pending_ = false;  // publish again (the reference changed)
+  bool can_run_ = false;          // a solver exists and has not stopped
+  std::size_t path_limit_ = 20'000;
+  std::shared_ptr<const nlohmann::json> reference_;
+  std::shared_ptr<const Snapshot> snapshot_;
+
+  // The worker's own state; solver_mutex_ guards the solver for result_json.
+  std::mutex solver_mutex_;
+  std::shared_ptr<const Scene> scene_;
+  std::shared_ptr<const std::vector<CurveTrace>> traces_;
+  std::optional<Solver> solver_;
+  std::string error_;
+  std::uint64_t generation_ = 0;
+  std::deque<PathRecord> paths_;
+  std::uint64_t next_serial_ = 0;
+  static constexpr std::size_t kPathsPerStep = 4096;
+  std::vector<std::array<double, 2>> error_history_;
+  std::optional<double> reference_error_;
+  double last_error_time_ = -1.0;
+  std::uint64_t chunk_ = 4096;  // photons per step while running, adapted to about 25 ms
+  std::atomic<bool> cancel_{false};
+  std::thread thread_;
+};
+
+}  // namespace flatland::viewer

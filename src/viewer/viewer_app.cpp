@@ -1,0 +1,898 @@
+#include "viewer/viewer_app.hpp"
+
+#include <SDL.h>
+#include <epoxy/gl.h>
+#include <imgui.h>
+#include <imgui_impl_opengl3.h>
+#include <imgui_impl_sdl.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+
+#include "app/png_io.hpp"
+#include "flatland/result_io.hpp"
+#include "viewer/renderer.hpp"
+
+namespace flatland::viewer {
+
+using app::PngImage;
+using app::write_png;
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double now_seconds() {
+  static const Clock::time_point start = Clock::now();
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+std::int64_t file_time(const std::string& path) {
+  std::error_code error;
+  const auto time = std::filesystem::last_write_time(path, error);
+  if (error) return 0;
+  return static_cast<std::int64_t>(time.time_since_epoch().count());
+}
+
+Result<std::uint64_t> parse_whole(const std::string& text, const std::string& what) {
+  char* end = nullptr;
+  const double value = std::strtod(text.c_str(), &end);
+  if (text.empty() || end == nullptr || *end != '\0' || !(value >= 1.0) || value > 9007199254740992.0 ||
+      value != std::floor(value))
+    return Error{what + ": expected a whole number >= 1 (e.g. 100000 or 1e6), got '" + text + "'"};
+  return static_cast<std::uint64_t>(value);
+}
+
+const char* const kBasisNames[] = {"constant", "linear", "cubic", "hermite"};
+const BasisKind kBases[] = {BasisKind::Constant, BasisKind::Linear, BasisKind::Cubic, BasisKind::Hermite};
+const char* const kSamplingNames[] = {"uniform", "reconstructed"};
+const char* const kDiscontinuityNames[] = {"none", "scene", "auto"};
+const char* const kEstimatorNames[] = {"lumped", "galerkin"};
+const char* const kProfileNames[] = {"box", "tent", "epanechnikov", "cosine", "gauss"};
+const char* const kModeNames[] = {"footprint", "band"};
+
+template <typename T, std::size_t N>
+int index_of(const T (&values)[N], T value) {
+  for (std::size_t i = 0; i < N; ++i)
+    if (values[i] == value) return static_cast<int>(i);
+  return 0;
+}
+
+const char* continuity_name(Continuity c) {
+  return c == Continuity::Jump ? "C-1" : c == Continuity::C0 ? "C0" : "C1";
+}
+
+const char* const kHelp[][2] = {
+    {"Space", "run / pause"},
+    {".", "step one photon"},
+    {"B", "step one batch (4096 photons)"},
+    {"R", "step one round"},
+    {"Backspace", "reset (restart the solve)"},
+    {"F", "fit the scene to the window"},
+    {"C", "show control points (drag them to edit)"},
+    {"N", "show storage nodes"},
+    {"G", "graph of B along the normals"},
+    {"K", "colour band of B"},
+    {"P", "photon paths"},
+    {"+ / -", "path exposure"},
+    {"Ctrl+S", "save a screenshot (PNG, the scene view)"},
+    {"Ctrl+E", "save the result (JSON, as solve --out)"},
+    {"F5", "reload the scene file"},
+    {"F1 / H", "this help"},
+    {"Esc", "quit"},
+    {"Mouse", "wheel: zoom; right or middle drag, or left drag on empty space: pan; click a "
+              "curve: inspect it"},
+};
+
+}  // namespace
+
+struct Viewer::Impl {
+  SDL_Window* window = nullptr;
+  SDL_GLContext context = nullptr;
+  bool imgui = false;
+  std::unique_ptr<Renderer> renderer;
+  GLuint screenshot_framebuffer = 0;
+  GLuint screenshot_colour = 0;
+
+  ~Impl() {
+    renderer.reset();
+    if (screenshot_framebuffer != 0) glDeleteFramebuffers(1, &screenshot_framebuffer);
+    if (screenshot_colour != 0) glDeleteRenderbuffers(1, &screenshot_colour);
+    if (imgui) {
+      ImGui_ImplOpenGL3_Shutdown();
+      ImGui_ImplSDL2_Shutdown();
+      ImGui::DestroyContext();
+    }
+    if (context != nullptr) SDL_GL_DeleteContext(context);
+    if (window != nullptr) SDL_DestroyWindow(window);
+    SDL_Quit();
+  }
+};
+
+Result<FrameStep> parse_frame_step(const std::string& text) {
+  FrameStep step;
+  if (text == "live") return step;
+  const std::size_t equals = text.find('=');
+  const std::string kind = text.substr(0, equals);
+  if (equals == std::string::npos ||
+      (kind != "photons" && kind != "batches" && kind != "rounds"))
+    return Error{"--step: expected live, photons=N, batches=N or rounds=N, got '" + text + "'"};
+  Result<std::uint64_t> count = parse_whole(text.substr(equals + 1), "--step " + kind);
+  if (!count) return count.error();
+  step.mode = kind == "photons" ? FrameStep::Mode::Photons
+              : kind == "batches" ? FrameStep::Mode::Batches
+                                  : FrameStep::Mode::Rounds;
+  step.count = *count;
+  return step;
+}
+
+std::string default_scene_path() {
+#ifdef FLATLAND_SOURCE_SCENES
+  const std::string installed = FLATLAND_SOURCE_SCENES "/default.json";
+#else
+  const std::string installed;
+#endif
+  for (const std::string& candidate : {std::string("scenes2d/default.json"), installed})
+    if (!candidate.empty() && std::filesystem::exists(candidate)) return candidate;
+  return "scenes2d/default.json";
+}
+
+Result<std::unique_ptr<Viewer>> Viewer::create(const ViewOptions& options) {
+  std::unique_ptr<Viewer> viewer(new Viewer());
+  viewer->options_ = options;
+  viewer->settings_ = options.settings;
+  viewer->draw_.control_points = options.show_control_points;
+  viewer->keep_slider_ = static_cast<double>(options.keep_paths);
+  Result<FrameStep> step = parse_frame_step(options.step);
+  if (!step) return step.error();
+  viewer->frame_step_ = *step;
+  if (Status valid = validate(options.settings); !valid) return valid.error();
+
+  // The scene and the reference first: a bad file is reported before any window opens.
+  viewer->scene_path_ = options.scene.empty() ? default_scene_path() : options.scene;
+  Result<Scene> scene = load_scene(viewer->scene_path_);
+  if (!scene) return scene.error();
+  viewer->scene_ = std::make_shared<const Scene>(std::move(*scene));
+  viewer->file_time_ = file_time(viewer->scene_path_);
+  std::shared_ptr<const nlohmann::json> reference;
+  if (!options.reference.empty()) {
+    std::ifstream file(options.reference);
+    if (!file) return Error{options.reference + ": cannot read the reference result"};
+    nlohmann::json document = nlohmann::json::parse(file, nullptr, false);
+    if (document.is_discarded() || !document.contains("curves"))
+      return Error{options.reference + ": not a flatland result (write one with 'flatland reference SCENE --out FILE')"};
+    reference = std::make_shared<const nlohmann::json>(std::move(document));
+    viewer->reference_path_ = options.reference;
+  }
+
+  // The window. SDL falls back to an offscreen video driver when there is no display; the viewer
+  // needs a real one unless that driver was asked for explicitly.
+  auto impl = std::make_unique<Impl>();
+  SDL_SetHint(SDL_HINT_VIDEO_HIGHDPI_DISABLED, "0");
+  if (SDL_Init(SDL_INIT_VIDEO) != 0)
+    return Error{std::string("cannot open a display (") + SDL_GetError() +
+                 "); use 'flatland render SCENE --out FILE.png' for a picture without one"};
+  const char* driver = SDL_GetCurrentVideoDriver();
+  const char* requested = std::getenv("SDL_VIDEODRIVER");
+  if (driver != nullptr && (std::string(driver) == "offscreen" || std::string(driver) == "dummy") &&
+      (requested == nullptr || std::string(requested) != driver)) {
+    SDL_Quit();
+    return Error{"cannot open a display (DISPLAY and WAYLAND_DISPLAY are not set); use 'flatland "
+                 "render SCENE --out FILE.png' for a picture without one, or run under xvfb-run"};
+  }
+  SDL_GL_SetAttribute(SDL_GL_CONTEXT_MAJOR_VERSION, 3);
+  SDL_GL_SetAttribute(SDL_GL_CONTEXT_MINOR_VERSION, 3);
+  SDL_GL_SetAttribute(SDL_GL_CONTEXT_PROFILE_MASK, SDL_GL_CONTEXT_PROFILE_CORE);
+  SDL_GL_SetAttribute(SDL_GL_DOUBLEBUFFER, 1);
+  const std::string title = "flatland - " + viewer->scene_->name;
+  impl->window = SDL_CreateWindow(title.c_str(), SDL_WINDOWPOS_CENTERED, SDL_WINDOWPOS_CENTERED,
+                                  options.width, options.height,
+                                  SDL_WINDOW_OPENGL | SDL_WINDOW_RESIZABLE | SDL_WINDOW_ALLOW_HIGHDPI);
+  if (impl->window == nullptr)
+    return Error{std::string("cannot open a window: ") + SDL_GetError()};
+  impl->context = SDL_GL_CreateContext(impl->window);
+  if (impl->context == nullptr)
+    return Error{std::string("cannot create an OpenGL 3.3 core context: ") + SDL_GetError()};
+  SDL_GL_MakeCurrent(impl->window, impl->context);
+  SDL_GL_SetSwapInterval(options.vsync ? 1 : 0);
+
+  Result<std::unique_ptr<Renderer>> renderer = Renderer::create(options.shader_directory);
+  if (!renderer) return renderer.error();
+  impl->renderer = std::move(*renderer);
+
+  IMGUI_CHECKVERSION();
+  ImGui::CreateContext();
+  ImGuiIO& io = ImGui::GetIO();
+  io.IniFilename = nullptr;  // no imgui.ini left in the working directory
+  ImGui::StyleColorsDark();
+  ImGui_ImplSDL2_InitForOpenGL(impl->window, impl->context);
+  ImGui_ImplOpenGL3_Init("#version 330 core");
+  impl->imgui = true;
+  viewer->impl_ = std::move(impl);
+
+  viewer->session_ = std::make_unique<Session>();
+  viewer->session_->set_path_limit(options.keep_paths);
+  viewer->session_->set_reference(reference);
+  char budget[32];
+  std::snprintf(budget, sizeof budget, "%g", static_cast<double>(viewer->settings_.photons));
+  viewer->budget_text_ = budget;
+  viewer->restart();
+  if (viewer->frame_step_.mode == FrameStep::Mode::Live && !options.paused) viewer->session_->set_running(true);
+  return viewer;
+}
+
+Viewer::~Viewer() {
+  session_.reset();  // stop the worker before the GL context goes
+}
+
+void Viewer::restart() {
+  session_->restart(scene_, settings_);
+}
+
+void Viewer::set_message(std::string text) {
+  message_ = std::move(text);
+  message_time_ = now_seconds();
+}
+
+void Viewer::load_scene_file(const std::string& path) {
+  Result<Scene> scene = load_scene(path);
+  if (!scene) {
+    set_message(scene.error().message);
+    return;
+  }
+  const bool same_file = path == scene_path_;
+  scene_ = std::make_shared<const Scene>(std::move(*scene));
+  scene_path_ = path;
+  file_time_ = file_time(path);
+  if (!same_file) {
+    view_fitted_ = false;
+    draw_.selected_curve = -1;
+    session_->set_reference(nullptr);  // a reference belongs to one scene
+    reference_path_.clear();
+  }
+  SDL_SetWindowTitle(impl_->window, ("flatland - " + scene_->name).c_str());
+  set_message("loaded " + path);
+  restart();
+}
+
+void Viewer::check_file_changed() {
+  const double now = now_seconds();
+  if (now - last_file_check_ < 0.5) return;
+  last_file_check_ = now;
+  const std::int64_t time = file_time(scene_path_);
+  if (time != 0 && time != file_time_) {
+    file_time_ = time;
+    load_scene_file(scene_path_);
+  }
+}
+
+std::optional<std::array<float, 4>> Viewer::widget_rect(const std::string& label) const {
+  const auto found = widget_rects_.find(label);
+  if (found == widget_rects_.end()) return std::nullopt;
+  return found->second;
+}
+
+void Viewer::queue_click(float x, float y) {
+  queued_.push_back({x, y, false, 0});  // move there
+  queued_.push_back({x, y, true, 0});   // press
+  queued_.push_back({x, y, false, 0});  // release
+}
+
+void Viewer::queue_key(int sdl_keycode) { queued_.push_back({0.0f, 0.0f, false, sdl_keycode}); }
+
+void Viewer::track(const char* label) {
+  const ImVec2 lo = ImGui::GetItemRectMin();
+  const ImVec2 hi = ImGui::GetItemRectMax();
+  widget_rects_[label] = {lo.x, lo.y, hi.x, hi.y};
+}
+
+void Viewer::handle_key(int key, bool ctrl) {
+  switch (key) {
+    case SDLK_SPACE: session_->set_running(!session_->running()); break;
+    case SDLK_PERIOD: session_->step(StepKind::Photon); break;
+    case SDLK_b: session_->step(StepKind::Batch); break;
+    case SDLK_r: session_->step(StepKind::Round); break;
+    case SDLK_BACKSPACE: restart(); break;
+    case SDLK_f: view_fitted_ = false; break;
+    case SDLK_c: draw_.control_points = !draw_.control_points; break;
+    case SDLK_n: draw_.storage_nodes = !draw_.storage_nodes; break;
+    case SDLK_g: draw_.graph = !draw_.graph; break;
+    case SDLK_k: draw_.band = !draw_.band; break;
+    case SDLK_p: draw_.paths = !draw_.paths; break;
+    case SDLK_PLUS:
+    case SDLK_EQUALS:
+    case SDLK_KP_PLUS: draw_.path_exposure *= 1.5f; break;
+    case SDLK_MINUS:
+    case SDLK_KP_MINUS: draw_.path_exposure /= 1.5f; break;
+    case SDLK_F1:
+    case SDLK_h: show_help_ = !show_help_; break;
+    case SDLK_F5: load_scene_file(scene_path_); break;
+    case SDLK_ESCAPE: quit_ = true; break;
+    case SDLK_s:
+      if (ctrl) {
+        char name[128];
+        std::snprintf(name, sizeof name, "flatland-%s-%d.png", scene_->name.c_str(), frames_done_);
+        Status saved = save_screenshot(name, false);
+        set_message(saved ? std::string("saved ") + name : saved.error().message);
+      }
+      break;
+    case SDLK_e:
+      if (ctrl) {
+        const std::string name = "flatland-" + scene_->name + "-result.json";
+        Result<nlohmann::json> result = session_->result_json(100);
+        Status saved = result ? write_file_atomically(name, result->dump(1) + "\n") : Status(result.error());
+        set_message(saved ? "saved " + name : saved.error().message);
+      }
+      break;
+    default: break;
+  }
+}
+
+void Viewer::handle_event(const void* raw) {
+  const SDL_Event& event = *static_cast<const SDL_Event*>(raw);
+  ImGui_ImplSDL2_ProcessEvent(&event);
+  const ImGuiIO& io = ImGui::GetIO();
+  switch (event.type) {
+    case SDL_QUIT: quit_ = true; break;
+    case SDL_WINDOWEVENT:
+      if (event.window.event == SDL_WINDOWEVENT_CLOSE) quit_ = true;
+      break;
+    case SDL_KEYDOWN:
+      if (!io.WantCaptureKeyboard || event.key.keysym.sym == SDLK_ESCAPE)
+        handle_key(event.key.keysym.sym, (event.key.keysym.mod & KMOD_CTRL) != 0);
+      break;
+    case SDL_MOUSEWHEEL:
+      if (!io.WantCaptureMouse && event.wheel.y != 0) {
+        int x = 0;
+        int y = 0;
+        SDL_GetMouseState(&x, &y);
+        view_.zoom_about({static_cast<double>(x), static_cast<double>(y)}, std::pow(1.15, event.wheel.y));
+      }
+      break;
+    default: break;
+  }
+}
+
+void Viewer::apply_edit() {
+  if (!edit_pending_) return;
+  edit_pending_ = false;
+  last_edit_time_ = now_seconds();
+  Scene edited = edited_;
+  if (Status status = finalize_scene(edited); !status) {
+    set_message("edit rejected: " + status.error().message);
+    return;
+  }
+  scene_ = std::make_shared<const Scene>(std::move(edited));
+  restart();
+}
+
+void Viewer::render_scene(const Snapshot& snapshot, int width, int height) {
+  if (snapshot.generation != overlay_generation_ || overlay_snapshot_.get() != &snapshot) {
+    overlay_ = build_overlay(snapshot, draw_);
+    overlay_generation_ = snapshot.generation;
+  }
+  ViewTransform view = view_;
+  view.width = width;
+  view.height = height;
+  const PathDraw paths = path_layer_.update(snapshot, draw_, view, static_cast<std::size_t>(keep_slider_),
+                                            options_.path_budget);
+  impl_->renderer->draw(overlay_, paths, view, draw_.path_exposure);
+}
+
+bool Viewer::frame() {
+  const double frame_start = now_seconds();
+  // Deterministic stepping: this frame's steps are finished before it is drawn.
+  if (frame_step_.mode != FrameStep::Mode::Live) {
+    switch (frame_step_.mode) {
+      case FrameStep::Mode::Photons: session_->step(StepKind::Photon, frame_step_.count); break;
+      case FrameStep::Mode::Batches: session_->step(StepKind::Batch, frame_step_.count); break;
+      case FrameStep::Mode::Rounds: session_->step(StepKind::Round, frame_step_.count); break;
+      case FrameStep::Mode::Live: break;
+    }
+    session_->wait_idle();
+  }
+
+  SDL_Event event;
+  while (SDL_PollEvent(&event)) handle_event(&event);
+  int width = 0;
+  int height = 0;
+  SDL_GL_GetDrawableSize(impl_->window, &width, &height);
+  if (!view_fitted_ || view_.width != width || view_.height != height) {
+    if (!view_fitted_) {
+      view_ = fit_view(scene_->bounds, width, height);
+      view_fitted_ = true;
+    } else {
+      view_.width = width;
+      view_.height = height;
+    }
+  }
+
+  ImGui_ImplOpenGL3_NewFrame();
+  ImGui_ImplSDL2_NewFrame();
+  ImGuiIO& io = ImGui::GetIO();
+  // Queued input (tests) replaces the device's for this frame.
+  if (!queued_.empty()) {
+    const QueuedInput input = queued_.front();
+    queued_.erase(queued_.begin());
+    if (input.key != 0) {
+      handle_key(input.key, false);
+    } else {
+      io.MousePos = ImVec2(input.x, input.y);
+      io.MouseDown[0] = input.down;
+    }
+  }
+  ImGui::NewFrame();
+
+  const std::shared_ptr<const Snapshot> snapshot = session_->snapshot();
+  // Mouse on the scene (not on a panel): hover and drag control points, pick curves, pan.
+  if (!io.WantCaptureMouse) {
+    const Vec2 mouse{io.MousePos.x, io.MousePos.y};
+    const std::vector<ControlPointRef> points = control_point_list(*scene_);
+    hovered_point_ = -1;
+    if (draw_.control_points && dragging_point_ < 0) {
+      double best = 8.0;
+      for (std::size_t i = 0; i < points.size(); ++i) {
+        const double d = length(view_.to_pixels(points[i].position) - mouse);
+        if (d <= best) {
+          best = d;
+          hovered_point_ = static_cast<int>(i);
+        }
+      }
+    }
+    if (ImGui::IsMouseClicked(ImGuiMouseButton_Left)) {
+      if (hovered_point_ >= 0) {
+        dragging_point_ = hovered_point_;
+        edited_ = *scene_;
+      } else if (snapshot->traces) {
+        const auto picked = pick_curve(*snapshot->traces, view_, mouse);
+        draw_.selected_curve = picked ? static_cast<int>(*picked) : -1;
+        overlay_generation_ = ~0ull;
+        panning_ = !picked;
+      }
+    }
+    if (ImGui::IsMouseClicked(ImGuiMouseButton_Right) || ImGui::IsMouseClicked(ImGuiMouseButton_Middle))
+      panning_ = true;
+  }
+  if (dragging_point_ >= 0) {
+    if (ImGui::IsMouseDown(ImGuiMouseButton_Left)) {
+      const std::vector<ControlPointRef> points = control_point_list(edited_);
+      if (static_cast<std::size_t>(dragging_point_) < points.size()) {
+        const ControlPointRef& ref = points[static_cast<std::size_t>(dragging_point_)];
+        const Vec2 moved = view_.to_scene({io.MousePos.x, io.MousePos.y});
+        if (!(edited_.curves[ref.curve].points[ref.index] == moved)) {
+          edited_.curves[ref.curve].points[ref.index] = moved;
+          edit_pending_ = true;
+        }
+      }
+      // The solve restarts as the point moves, about ten times a second.
+      if (now_seconds() - last_edit_time_ > 0.1) apply_edit();
+    } else {
+      apply_edit();
+      dragging_point_ = -1;
+    }
+  }
+  if (panning_) {
+    if (ImGui::IsAnyMouseDown()) {
+      const ImVec2 delta = io.MouseDelta;
+      view_.center = view_.center - Vec2{delta.x / view_.scale, -delta.y / view_.scale};
+    } else {
+      panning_ = false;
+    }
+  }
+  if (draw_.hovered_control_point != (dragging_point_ >= 0 ? dragging_point_ : hovered_point_)) {
+    draw_.hovered_control_point = dragging_point_ >= 0 ? dragging_point_ : hovered_point_;
+    overlay_generation_ = ~0ull;
+  }
+
+  if (options_.show_ui) draw_ui(*snapshot);
+  ImGui::Render();
+
+  if (snapshot.get() != overlay_snapshot_.get()) overlay_generation_ = ~0ull;
+  overlay_snapshot_ = snapshot;
+  glBindFramebuffer(GL_FRAMEBUFFER, 0);
+  render_scene(*snapshot, width, height);
+  ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
+
+  ++frames_done_;
+  const bool last = options_.frames > 0 && frames_done_ >= options_.frames;
+  if (last && !options_.screenshot_ui.empty()) {
+    // The back buffer, panels included, before it is shown.
+    PngImage image{width, height, 4, Renderer::read_pixels(width, height)};
+    for (std::size_t i = 3; i < image.pixels.size(); i += 4) image.pixels[i] = 255;
+    if (Status saved = write_png(options_.screenshot_ui, image); !saved) set_message(saved.error().message);
+  }
+  SDL_GL_SwapWindow(impl_->window);
+  check_file_changed();
+  frame_seconds_.push_back(now_seconds() - frame_start);
+  return !quit_;
+}
+
+Status Viewer::save_screenshot(const std::string& path, bool with_ui) {
+  (void)with_ui;
+  int width = 0;
+  int height = 0;
+  SDL_GL_GetDrawableSize(impl_->window, &width, &height);
+  if (impl_->screenshot_framebuffer == 0) {
+    glGenFramebuffers(1, &impl_->screenshot_framebuffer);
+    glGenRenderbuffers(1, &impl_->screenshot_colour);
+  }
+  glBindRenderbuffer(GL_RENDERBUFFER, impl_->screenshot_colour);
+  glRenderbufferStorage(GL_RENDERBUFFER, GL_RGBA8, width, height);
+  glBindFramebuffer(GL_FRAMEBUFFER, impl_->screenshot_framebuffer);
+  glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, impl_->screenshot_colour);
+  const std::shared_ptr<const Snapshot> snapshot = session_->snapshot();
+  overlay_generation_ = ~0ull;
+  render_scene(*snapshot, width, height);
+  PngImage image{width, height, 4, Renderer::read_pixels(width, height)};
+  glBindFramebuffer(GL_FRAMEBUFFER, 0);
+  for (std::size_t i = 3; i < image.pixels.size(); i += 4) image.pixels[i] = 255;
+  return write_png(path, image);
+}
+
+Status Viewer::run() {
+  const double start = now_seconds();
+  while (frame()) {
+    if (options_.frames > 0 && frames_done_ >= options_.frames) break;
+  }
+  const double elapsed = now_seconds() - start;
+  const std::shared_ptr<const Snapshot> snapshot = session_->snapshot();
+  if (!options_.screenshot.empty())
+    if (Status saved = save_screenshot(options_.screenshot, false); !saved) return saved;
+  if (options_.report && !frame_seconds_.empty()) {
+    std::vector<double> sorted = frame_seconds_;
+    std::sort(sorted.begin(), sorted.end());
+    const double median = sorted[sorted.size() / 2];
+    std::printf("frames    %d in %.2f s: %.1f frames/s (median frame %.1f ms, slowest %.1f ms)\n",
+                frames_done_, elapsed, frames_done_ / elapsed, 1e3 * median, 1e3 * sorted.back());
+    std::printf("solve     %llu photons, %u rounds, %.3g photons/s while shooting, %zu paths drawn\n",
+                static_cast<unsigned long long>(snapshot->progress.photons), snapshot->progress.rounds,
+                snapshot->photons_per_second, snapshot->paths.size());
+  }
+  if (!message_.empty() && options_.frames > 0 && message_.rfind("loaded", 0) != 0)
+    std::fprintf(stderr, "flatland view: %s\n", message_.c_str());
+  return ok_status();
+}
+
+// ---- panels -------------------------------------------------------------------------------------
+
+void Viewer::draw_ui(const Snapshot& snapshot) {
+  draw_menu(snapshot);
+  draw_solve_panel(snapshot);
+  draw_display_panel(snapshot);
+  draw_status_panel(snapshot);
+  if (draw_.selected_curve >= 0 && static_cast<std::size_t>(draw_.selected_curve) < scene_->curves.size())
+    draw_curve_panel(snapshot);
+  if (show_help_) draw_help_panel();
+  if (!message_.empty() && now_seconds() - message_time_ < 8.0) {
+    const ImGuiViewport* viewport = ImGui::GetMainViewport();
+    ImGui::SetNextWindowPos(ImVec2(viewport->WorkPos.x + viewport->WorkSize.x * 0.5f,
+                                   viewport->WorkPos.y + viewport->WorkSize.y - 10.0f),
+                            ImGuiCond_Always, ImVec2(0.5f, 1.0f));
+    ImGui::SetNextWindowBgAlpha(0.8f);
+    ImGui::Begin("##message", nullptr,
+                 ImGuiWindowFlags_NoDecoration | ImGuiWindowFlags_AlwaysAutoResize | ImGuiWindowFlags_NoInputs);
+    ImGui::TextUnformatted(message_.c_str());
+    ImGui::End();
+  }
+}
+
+void Viewer::draw_menu(const Snapshot& snapshot) {
+  (void)snapshot;
+  if (!ImGui::BeginMainMenuBar()) return;
+  if (ImGui::BeginMenu("File")) {
+    track("File");
+    if (ImGui::BeginMenu("Open scene")) {
+      std::vector<std::string> files;
+      const std::filesystem::path directory = std::filesystem::path(default_scene_path()).parent_path();
+      std::error_code error;
+      for (const auto& entry : std::filesystem::directory_iterator(directory, error))
+        if (entry.path().extension() == ".json") files.push_back(entry.path().string());
+      std::sort(files.begin(), files.end());
+      for (const std::string& file : files)
+        if (ImGui::MenuItem(std::filesystem::path(file).filename().string().c_str(), nullptr, file == scene_path_))
+          load_scene_file(file);
+      ImGui::EndMenu();
+    }
+    if (ImGui::MenuItem("Reload scene", "F5")) load_scene_file(scene_path_);
+    if (ImGui::MenuItem("Save screenshot", "Ctrl+S")) handle_key(SDLK_s, true);
+    if (ImGui::MenuItem("Save result", "Ctrl+E")) handle_key(SDLK_e, true);
+    if (ImGui::MenuItem("Quit", "Esc")) quit_ = true;
+    ImGui::EndMenu();
+  }
+  if (ImGui::BeginMenu("View")) {
+    if (ImGui::MenuItem("Fit scene", "F")) view_fitted_ = false;
+    ImGui::EndMenu();
+  }
+  if (ImGui::MenuItem("Help")) show_help_ = !show_help_;
+  ImGui::EndMainMenuBar();
+}
+
+void Viewer::draw_solve_panel(const Snapshot& snapshot) {
+  ImGui::SetNextWindowPos(ImVec2(8, 28), ImGuiCond_FirstUseEver);
+  ImGui::SetNextWindowSize(ImVec2(300, 0), ImGuiCond_FirstUseEver);
+  ImGui::Begin("Solve");
+  const bool running = session_->running();
+  if (ImGui::Button(running ? "Pause" : "Run", ImVec2(60, 0))) session_->set_running(!running);
+  track("Run");
+  ImGui::SameLine();
+  if (ImGui::Button("Reset")) restart();
+  track("Reset");
+  if (ImGui::Button("Photon")) session_->step(StepKind::Photon);
+  track("Photon");
+  ImGui::SameLine();
+  if (ImGui::Button("Batch")) session_->step(StepKind::Batch);
+  track("Batch");
+  ImGui::SameLine();
+  if (ImGui::Button("Round")) session_->step(StepKind::Round);
+  track("Round");
+  ImGui::Separator();
+
+  bool changed = false;
+  char budget[32];
+  std::snprintf(budget, sizeof budget, "%s", budget_text_.c_str());
+  if (ImGui::InputText("photons", budget, sizeof budget, ImGuiInputTextFlags_EnterReturnsTrue)) {
+    budget_text_ = budget;
+    Result<std::uint64_t> photons = parse_whole(budget_text_, "photons");
+    if (photons) {
+      settings_.photons = *photons;
+      changed = true;
+    } else {
+      set_message(photons.error().message);
+    }
+  }
+  int seed = static_cast<int>(settings_.seed);
+  if (ImGui::InputInt("seed", &seed) && seed >= 0) {
+    settings_.seed = static_cast<std::uint64_t>(seed);
+    changed = true;
+  }
+  int threads = static_cast<int>(settings_.threads);
+  if (ImGui::SliderInt("threads", &threads, 0, 16, threads == 0 ? "all" : "%d")) {
+    settings_.threads = static_cast<unsigned>(threads);
+    changed = true;
+  }
+  int basis = index_of(kBases, settings_.basis);
+  if (ImGui::Combo("basis", &basis, kBasisNames, 4)) {
+    settings_.basis = kBases[basis];
+    changed = true;
+  }
+  track("basis");
+  int elements = settings_.elements;
+  if (ImGui::SliderInt("elements", &elements, 1, 256, "%d", ImGuiSliderFlags_Logarithmic)) {
+    settings_.elements = elements;
+    changed = true;
+  }
+  int sampling = settings_.sampling == PositionSampling::Uniform ? 0 : 1;
+  if (ImGui::Combo("sampling", &sampling, kSamplingNames, 2)) {
+    settings_.sampling = sampling == 0 ? PositionSampling::Uniform : PositionSampling::Reconstructed;
+    changed = true;
+  }
+  int discontinuities = static_cast<int>(settings_.discontinuities);
+  if (ImGui::Combo("discontinuities", &discontinuities, kDiscontinuityNames, 3)) {
+    settings_.discontinuities = static_cast<DiscontinuityMode>(discontinuities);
+    changed = true;
+  }
+  int estimator = settings_.estimator == Estimator::Lumped ? 0 : 1;
+  if (ImGui::Combo("estimator", &estimator, kEstimatorNames, 2)) {
+    settings_.estimator = estimator == 0 ? Estimator::Lumped : Estimator::Galerkin;
+    changed = true;
+  }
+  // Ray width as a fraction of the scene's size; profile and mode only matter for wide rays.
+  float width = static_cast<float>(settings_.ray_width / scene_->scale);
+  if (ImGui::SliderFloat("ray width", &width, 0.0f, 0.2f, width == 0.0f ? "point rays" : "%.4f x scale",
+                         ImGuiSliderFlags_Logarithmic)) {
+    settings_.ray_width = static_cast<double>(width) * scene_->scale;
+    changed = true;
+  }
+  if (settings_.ray_width > 0.0) {
+    int profile = static_cast<int>(settings_.ray_profile);
+    if (ImGui::Combo("ray profile", &profile, kProfileNames, 5)) {
+      settings_.ray_profile = static_cast<RayProfile>(profile);
+      changed = true;
+    }
+    int mode = settings_.ray_mode == RayMode::Footprint ? 0 : 1;
+    if (ImGui::Combo("ray mode", &mode, kModeNames, 2)) {
+      settings_.ray_mode = mode == 0 ? RayMode::Footprint : RayMode::Band;
+      changed = true;
+    }
+    if (settings_.ray_mode == RayMode::Band && ImGui::SliderInt("band rays", &settings_.band_rays, 1, 64))
+      changed = true;
+  }
+  float tolerance = static_cast<float>(settings_.tolerance);
+  if (ImGui::SliderFloat("tolerance", &tolerance, 1e-6f, 0.1f, "%.0e", ImGuiSliderFlags_Logarithmic)) {
+    settings_.tolerance = static_cast<double>(tolerance);
+    changed = true;
+  }
+  if (changed) {
+    if (Status valid = validate(settings_); valid) restart();
+    else set_message(valid.error().message);
+  }
+  if (!snapshot.error.empty()) ImGui::TextColored(ImVec4(1, 0.4f, 0.4f, 1), "%s", snapshot.error.c_str());
+  ImGui::End();
+}
+
+void Viewer::draw_display_panel(const Snapshot& snapshot) {
+  (void)snapshot;
+  ImGui::SetNextWindowPos(ImVec2(8, 430), ImGuiCond_FirstUseEver);
+  ImGui::SetNextWindowSize(ImVec2(300, 0), ImGuiCond_FirstUseEver);
+  ImGui::Begin("Display");
+  bool changed = false;
+  changed |= ImGui::Checkbox("band", &draw_.band);
+  ImGui::SameLine();
+  changed |= ImGui::Checkbox("graph", &draw_.graph);
+  ImGui::SameLine();
+  changed |= ImGui::Checkbox("paths", &draw_.paths);
+  changed |= ImGui::Checkbox("control points", &draw_.control_points);
+  ImGui::SameLine();
+  changed |= ImGui::Checkbox("nodes", &draw_.storage_nodes);
+  changed |= ImGui::Checkbox("discontinuities", &draw_.discontinuities);
+  changed |= ImGui::SliderFloat("B exposure", &draw_.band_exposure, 0.1f, 10.0f, "%.2f", ImGuiSliderFlags_Logarithmic);
+  changed |= ImGui::SliderFloat("graph height", &draw_.graph_height, 10.0f, 200.0f, "%.0f px");
+  if (scene_->channels == 3) {
+    int channel = static_cast<int>(draw_.channel);
+    const char* const names[] = {"all (colour)", "red", "green", "blue"};
+    changed |= ImGui::Combo("channel", &channel, names, 4);
+    draw_.channel = static_cast<ChannelView>(channel);
+  }
+  if (draw_.paths) {
+    ImGui::SliderFloat("path exposure", &draw_.path_exposure, 0.05f, 50.0f, "%.2f", ImGuiSliderFlags_Logarithmic);
+    float keep = static_cast<float>(keep_slider_);
+    if (ImGui::SliderFloat("paths kept", &keep, 0.0f, 200000.0f, "%.0f", ImGuiSliderFlags_Logarithmic)) {
+      keep_slider_ = std::round(keep);
+      session_->set_path_limit(static_cast<std::size_t>(keep_slider_));
+    }
+    ImGui::SliderFloat("fade by age", &draw_.fade, 0.0f, 3.0f, "%.2f");
+    int colour = static_cast<int>(draw_.path_colour);
+    const char* const names[] = {"power", "round"};
+    ImGui::Combo("colour by", &colour, names, 2);
+    draw_.path_colour = static_cast<PathColour>(colour);
+  }
+  if (changed) overlay_generation_ = ~0ull;
+  ImGui::End();
+}
+
+void Viewer::draw_status_panel(const Snapshot& snapshot) {
+  const ImGuiViewport* viewport = ImGui::GetMainViewport();
+  ImGui::SetNextWindowPos(ImVec2(viewport->WorkPos.x + viewport->WorkSize.x - 8.0f, viewport->WorkPos.y + 8.0f),
+                          ImGuiCond_FirstUseEver, ImVec2(1.0f, 0.0f));
+  ImGui::SetNextWindowSize(ImVec2(330, 0), ImGuiCond_FirstUseEver);
+  ImGui::Begin("Status");
+  ImGui::Text("scene    %s (%s)", scene_->name.c_str(), scene_->channels == 1 ? "grey" : "colour");
+  ImGui::Text("photons  %llu of %llu", static_cast<unsigned long long>(snapshot.progress.photons),
+              static_cast<unsigned long long>(settings_.photons));
+  ImGui::Text("rounds   %u%s", snapshot.progress.rounds,
+              snapshot.round_photons > 0 ? " (+ one open)" : "");
+  if (snapshot.round_photons > 0)
+    ImGui::ProgressBar(static_cast<float>(snapshot.round_done) / static_cast<float>(snapshot.round_photons),
+                       ImVec2(-1, 0), "open round");
+  ImGui::Text("rate     %.3g photons/s", snapshot.photons_per_second);
+  ImGui::Text("state    %s", snapshot.stop_reason != StopReason::Running ? to_string(snapshot.stop_reason)
+                               : session_->running()                       ? "running"
+                                                                           : "paused");
+  const EnergyBooks& books = snapshot.books;
+  if (books.emitted > 0.0) {
+    ImGui::Text("emitted  %.6g", books.emitted);
+    ImGui::Text("absorbed %.6g  escaped %.6g", books.absorbed, books.escaped);
+    ImGui::Text("unshot   %.6g (%.3g%%)", books.unshot, 100.0 * books.unshot / books.emitted);
+    ImGui::Text("balance  %.2g", books.imbalance());
+  }
+  if (snapshot.reference_error) {
+    ImGui::Separator();
+    ImGui::Text("error    %.4f (relative L2 of B vs reference)", *snapshot.reference_error);
+    if (snapshot.error_history.size() >= 2) {
+      // log10 error against elapsed time, drawn with ImGui's own primitives.
+      ImDrawList* draw = ImGui::GetWindowDrawList();
+      const ImVec2 origin = ImGui::GetCursorScreenPos();
+      const ImVec2 size(ImGui::GetContentRegionAvail().x, 90.0f);
+      ImGui::InvisibleButton("##errorplot", size);
+      draw->AddRectFilled(origin, ImVec2(origin.x + size.x, origin.y + size.y), IM_COL32(30, 30, 40, 255));
+      double lo = INFINITY;
+      double hi = -INFINITY;
+      for (const auto& point : snapshot.error_history) {
+        const double e = std::log10(std::max(point[1], 1e-12));
+        lo = std::min(lo, e);
+        hi = std::max(hi, e);
+      }
+      if (hi - lo < 0.5) {
+        lo -= 0.25;
+        hi += 0.25;
+      }
+      const double t_end = std::max(snapshot.error_history.back()[0], 1e-9);
+      ImVec2 previous{};
+      for (std::size_t i = 0; i < snapshot.error_history.size(); ++i) {
+        const auto& point = snapshot.error_history[i];
+        const double e = std::log10(std::max(point[1], 1e-12));
+        const ImVec2 p(origin.x + static_cast<float>(point[0] / t_end) * size.x,
+                       origin.y + static_cast<float>((hi - e) / (hi - lo)) * size.y);
+        if (i > 0) draw->AddLine(previous, p, IM_COL32(255, 200, 80, 255), 1.5f);
+        previous = p;
+      }
+      ImGui::Text("log10 error %.2f .. %.2f over %.2f s of solving", lo, hi, t_end);
+    }
+  }
+  ImGui::End();
+}
+
+void Viewer::draw_curve_panel(const Snapshot& snapshot) {
+  const auto c = static_cast<std::size_t>(draw_.selected_curve);
+  const Curve& curve = scene_->curves[c];
+  const Material& material = scene_->material_of(curve);
+  const ImGuiViewport* viewport = ImGui::GetMainViewport();
+  ImGui::SetNextWindowPos(ImVec2(viewport->WorkPos.x + viewport->WorkSize.x - 8.0f,
+                                 viewport->WorkPos.y + viewport->WorkSize.y - 8.0f),
+                          ImGuiCond_FirstUseEver, ImVec2(1.0f, 1.0f));
+  ImGui::SetNextWindowSize(ImVec2(380, 330), ImGuiCond_FirstUseEver);
+  ImGui::Begin("Curve");
+  ImGui::Text("curve    %zu '%s'", c, curve.id.c_str());
+  ImGui::Text("material %s: rho %.3g %.3g %.3g", material.name.c_str(), material.reflectivity[0],
+              material.reflectivity[1], material.reflectivity[2]);
+  if (scene_->is_emitter(curve))
+    ImGui::Text("emits    %.3g %.3g %.3g per unit length", curve.emittance[0], curve.emittance[1], curve.emittance[2]);
+  ImGui::Text("length   %.6g, %u %s segment%s, sides %s", curve.length, curve.segment_count,
+              curve.kind == SegmentKind::Line ? "straight" : "cubic", curve.segment_count == 1 ? "" : "s",
+              curve.sides == Sides::Both ? "both" : curve.sides == Sides::Front ? "front" : "back");
+  if (c < snapshot.received_share.size())
+    ImGui::Text("share    %.2f%% of all reflected power", 100.0 * snapshot.received_share[c]);
+  if (c < snapshot.nodes.size() && !snapshot.nodes[c].empty()) {
+    std::string text;
+    int shown = 0;
+    for (const NodeMark& node : snapshot.nodes[c]) {
+      if (node.continuity == Continuity::C1) continue;
+      if (shown++ < 12) text += std::string(continuity_name(node.continuity)) + (node.visibility_event ? "* " : " ");
+    }
+    ImGui::Text("nodes    %zu storage nodes; below C1: %s%s", snapshot.nodes[c].size(),
+                shown == 0 ? "none" : text.c_str(), shown > 12 ? "..." : "");
+    ImGui::TextDisabled("         (* a visibility event)");
+  }
+  // B(s) along the curve (main side), with the reference when loaded.
+  const CurveTrace* trace = snapshot.traces && c < snapshot.traces->size() ? &(*snapshot.traces)[c] : nullptr;
+  const int side = curve.sides == Sides::Back ? 1 : 0;
+  const std::vector<Spectrum>* samples =
+      c < snapshot.radiosity.size() ? &snapshot.radiosity[c][static_cast<std::size_t>(side)] : nullptr;
+  if (trace != nullptr && samples != nullptr && samples->size() == trace->s.size() && !samples->empty()) {
+    const std::vector<std::array<double, 2>>* reference =
+        c < snapshot.reference_curves.size() ? &snapshot.reference_curves[c] : nullptr;
+    double hi = 0.0;
+    for (const Spectrum& b : *samples) hi = std::max(hi, luminance(b, scene_->channels));
+    if (reference != nullptr)
+      for (const auto& point : *reference) hi = std::max(hi, point[1]);
+    hi = hi > 0.0 ? 1.1 * hi : 1.0;
+    ImDrawList* draw = ImGui::GetWindowDrawList();
+    const ImVec2 origin = ImGui::GetCursorScreenPos();
+    const ImVec2 size(ImGui::GetContentRegionAvail().x, std::max(ImGui::GetContentRegionAvail().y - 24.0f, 60.0f));
+    ImGui::InvisibleButton("##bplot", size);
+    draw->AddRectFilled(origin, ImVec2(origin.x + size.x, origin.y + size.y), IM_COL32(30, 30, 40, 255));
+    auto point = [&](double s, double b) {
+      return ImVec2(origin.x + static_cast<float>(s / curve.length) * size.x,
+                    origin.y + static_cast<float>(1.0 - b / hi) * size.y);
+    };
+    if (reference != nullptr)
+      for (std::size_t i = 1; i < reference->size(); ++i)
+        draw->AddLine(point((*reference)[i - 1][0], (*reference)[i - 1][1]), point((*reference)[i][0], (*reference)[i][1]),
+                      IM_COL32(120, 220, 120, 255), 1.5f);
+    for (std::size_t i = 1; i < samples->size(); ++i)
+      draw->AddLine(point(trace->s[i - 1], luminance((*samples)[i - 1], scene_->channels)),
+                    point(trace->s[i], luminance((*samples)[i], scene_->channels)), IM_COL32(255, 200, 80, 255), 1.5f);
+    ImGui::Text("B(s), 0 .. %.3g%s", hi, reference != nullptr && !reference->empty() ? "  (green: reference)" : "");
+  }
+  ImGui::End();
+}
+
+void Viewer::draw_help_panel() {
+  ImGui::SetNextWindowPos(ImVec2(330, 60), ImGuiCond_FirstUseEver);
+  ImGui::Begin("Help", &show_help_, ImGuiWindowFlags_AlwaysAutoResize);
+  ImGui::TextUnformatted("Keyboard shortcuts (when no panel has the keyboard)");
+  ImGui::Separator();
+  for (const auto& entry : kHelp) {
+    ImGui::Text("%-10s", entry[0]);
+    ImGui::SameLine();
+    ImGui::TextUnformatted(entry[1]);
+  }
+  ImGui::End();
+}
+
+}  // namespace flatland::viewer

@@ -1,0 +1,144 @@
+// `flatland view`: the interactive viewer (SDL2 window, OpenGL 3.3 core, Dear ImGui panels). It
+// drives a Session (the core's Solver on a worker thread) and draws each frame from the latest
+// snapshot with the Renderer. Headless runs (--frames N --screenshot FILE) and the UI tests use
+// the same object.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "flatland/result.hpp"
+#include "flatland/solver.hpp"
+#include "viewer/session.hpp"
+
+namespace flatland::viewer {
+
+struct ViewOptions {
+  std::string scene;      // scene file; empty: the default scene
+  std::string reference;  // a reference result to measure the error against (optional)
+  SolverSettings settings;
+  int width = 1280;
+  int height = 800;
+  int frames = 0;  // 0: until the window is closed
+  // What each frame does: "live" (the solve runs on its own, as fast as it can), "photons=N",
+  // "batches=N" or "rounds=N" (that many, finished before the frame is drawn: deterministic).
+  std::string step = "live";
+  bool paused = false;           // start paused (interactive)
+  std::string screenshot;        // after the last frame: the scene view, without panels (PNG)
+  std::string screenshot_ui;     // after the last frame: the whole window, panels included (PNG)
+  std::string shader_directory;  // load shaders from here instead of the built-in copies
+  std::size_t keep_paths = 20'000;
+  std::size_t path_budget = 1500;  // new paths drawn per frame at most (newest first)
+  bool show_control_points = false;
+  bool show_ui = true;
+  bool vsync = true;
+  bool report = false;  // print frame and photon rates at the end
+};
+
+// How each frame steps the solve (parsed from ViewOptions::step).
+struct FrameStep {
+  enum class Mode { Live, Photons, Batches, Rounds } mode = Mode::Live;
+  std::uint64_t count = 0;
+};
+Result<FrameStep> parse_frame_step(const std::string& text);
+
+// The default scene: scenes2d/default.json beside the source tree or the working directory.
+std::string default_scene_path();
+
+class Viewer {
+ public:
+  // Opens the window and the GL context. Errors: no display (one line: what to do instead),
+  // shader compile or link errors (with the GL log), a bad scene or reference file.
+  static Result<std::unique_ptr<Viewer>> create(const ViewOptions& options);
+  ~Viewer();
+  Viewer(const Viewer&) = delete;
+  Viewer& operator=(const Viewer&) = delete;
+
+  // Handles input, steps the solve as the options say, draws and shows one frame. False once the
+  // user has closed the window.
+  bool frame();
+  // Runs frames until closed or until options.frames are done; writes the screenshots asked for.
+  Status run();
+
+  Session& session() { return *session_; }
+  const SolverSettings& settings() const { return settings_; }
+  const Scene& scene() const { return *scene_; }
+  int selected_curve() const { return draw_.selected_curve; }
+
+  // UI automation for tests: the rectangle (x0, y0, x1, y1, pixels) of the widget drawn last
+  // frame with this label, and a queued left click at a pixel (applied over the next frames).
+  std::optional<std::array<float, 4>> widget_rect(const std::string& label) const;
+  void queue_click(float x, float y);
+  void queue_key(int sdl_keycode);
+
+  // The scene view without panels, or the whole window, as a PNG.
+  Status save_screenshot(const std::string& path, bool with_ui);
+
+ private:
+  Viewer() = default;
+  void restart();
+  void load_scene_file(const std::string& path);
+  void handle_event(const void* sdl_event);
+  void handle_key(int key, bool ctrl);
+  void draw_ui(const Snapshot& snapshot);
+  void draw_menu(const Snapshot& snapshot);
+  void draw_solve_panel(const Snapshot& snapshot);
+  void draw_display_panel(const Snapshot& snapshot);
+  void draw_status_panel(const Snapshot& snapshot);
+  void draw_curve_panel(const Snapshot& snapshot);
+  void draw_help_panel();
+  void track(const char* label);
+  void render_scene(const Snapshot& snapshot, int width, int height);
+  void apply_edit();
+  void check_file_changed();
+  void set_message(std::string text);
+
+  struct Impl;
+  std::unique_ptr<Impl> impl_;  // SDL window, GL context, ImGui state, renderer
+  ViewOptions options_;
+  FrameStep frame_step_;
+  std::unique_ptr<Session> session_;
+  std::shared_ptr<const Scene> scene_;
+  std::string scene_path_;
+  std::string reference_path_;
+  SolverSettings settings_;
+  std::string budget_text_;
+  DrawOptions draw_;
+  ViewTransform view_;
+  bool view_fitted_ = false;
+  std::uint64_t overlay_generation_ = ~0ull;
+  std::shared_ptr<const Snapshot> overlay_snapshot_;
+  std::vector<LineVertex> overlay_;
+  PathLayer path_layer_;
+  std::map<std::string, std::array<float, 4>> widget_rects_;
+  struct QueuedInput {
+    float x = 0.0f;
+    float y = 0.0f;
+    bool down = false;
+    int key = 0;  // a key press instead of mouse input
+  };
+  std::vector<QueuedInput> queued_;
+  // Mouse interaction with the scene.
+  bool panning_ = false;
+  int dragging_point_ = -1;
+  double last_edit_time_ = 0.0;
+  bool edit_pending_ = false;
+  Scene edited_;
+  int hovered_point_ = -1;
+  std::int64_t file_time_ = 0;
+  double last_file_check_ = 0.0;
+  std::string message_;
+  double message_time_ = 0.0;
+  bool show_help_ = false;
+  bool quit_ = false;
+  int frames_done_ = 0;
+  std::vector<double> frame_seconds_;
+  double keep_slider_ = 20'000;
+};
+
+}  // namespace flatland::viewer
