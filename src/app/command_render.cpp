@@ -102,13 +102,8 @@ int run_render(RenderOptions& o) {
   auto traces = std::make_shared<const std::vector<viewer::CurveTrace>>(viewer::trace_curves(*scene));
   snapshot.traces = traces;
   viewer::describe_solver(solver, *traces, snapshot);
-  const double reach = 2.0 * scene->scale;
-  for (std::size_t i = 0; i < paths.size(); ++i) {
-    const PhotonPath& path = paths[i];
-    viewer::PathRecord record{i, path.origin, path.end, path.power, rounds[i], path.escaped};
-    if (path.escaped) record.to = path.origin + (path.end - path.origin) * reach;
-    snapshot.paths.push_back(record);
-  }
+  for (std::size_t i = 0; i < paths.size(); ++i)
+    snapshot.paths.push_back(viewer::path_record(paths[i], *scene, i, rounds[i]));
   viewer::DrawOptions draw;
   draw.graph = o.graph;
   draw.band = o.band;

@@ -54,6 +54,21 @@ std::vector<CurveTrace> trace_curves(const Scene& scene, int samples_per_segment
   return traces;
 }
 
+PathRecord path_record(const PhotonPath& path, const Scene& scene, std::uint64_t serial, std::uint32_t round) {
+  PathRecord record{serial, path.origin, path.end, path.power, round, path.escaped};
+  if (path.escaped) {
+    // Exit from the box: the smallest positive slab distance along the direction.
+    const Vec2 d = path.end - path.origin;
+    double t = INFINITY;
+    if (d.x > 0.0) t = std::min(t, (scene.bounds.upper.x - path.origin.x) / d.x);
+    if (d.x < 0.0) t = std::min(t, (scene.bounds.lower.x - path.origin.x) / d.x);
+    if (d.y > 0.0) t = std::min(t, (scene.bounds.upper.y - path.origin.y) / d.y);
+    if (d.y < 0.0) t = std::min(t, (scene.bounds.lower.y - path.origin.y) / d.y);
+    record.to = path.origin + d * (std::isfinite(t) ? std::max(t, 0.0) : 0.0);
+  }
+  return record;
+}
+
 double luminance(const Spectrum& b, int channels) {
   if (channels == 1) return b[0];
   return (b[0] + b[1] + b[2]) / 3.0;

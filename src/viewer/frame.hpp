@@ -58,6 +58,10 @@ struct PathRecord {
   bool escaped = false;
 };
 
+// A photon path for drawing: from its origin to its hit, or, for a photon that escaped (`end` is
+// then origin + direction), to where it leaves the scene's box.
+PathRecord path_record(const PhotonPath& path, const Scene& scene, std::uint64_t serial, std::uint32_t round);
+
 // A storage-mesh node of a curve: where, and the continuity of the illumination there.
 struct NodeMark {
   Vec2 position;

@@ -311,12 +311,7 @@ void Session::worker() {
     solver.include_open_round();
     std::vector<PathRecord> records;
     records.reserve(shot_paths.size());
-    const double reach = 2.0 * scene_->scale;
-    for (const PhotonPath& path : shot_paths) {
-      PathRecord record{next_serial_++, path.origin, path.end, path.power, round, path.escaped};
-      if (path.escaped) record.to = path.origin + (path.end - path.origin) * reach;
-      records.push_back(record);
-    }
+    for (const PhotonPath& path : shot_paths) records.push_back(path_record(path, *scene_, next_serial_++, round));
     publish(&solver, records, stepping);
     std::lock_guard relock(mutex_);
     can_run_ = !solver.stopped();

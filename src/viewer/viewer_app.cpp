@@ -172,13 +172,16 @@ Result<std::unique_ptr<Viewer>> Viewer::create(const ViewOptions& options) {
 
   // The window. SDL falls back to an offscreen video driver when there is no display; the viewer
   // needs a real one unless that driver was asked for explicitly.
+  const char* requested = std::getenv("SDL_VIDEODRIVER");
+  const auto set = [](const char* name) { return std::getenv(name) != nullptr && *std::getenv(name) != '\0'; };
+  if (!set("DISPLAY") && !set("WAYLAND_DISPLAY") && requested == nullptr)
+    return Error{"cannot open a display (DISPLAY and WAYLAND_DISPLAY are not set); use 'flatland "
+                 "render SCENE --out FILE.png' for a picture without one, or run under xvfb-run"};
   auto impl = std::make_unique<Impl>();
-  SDL_SetHint(SDL_HINT_VIDEO_HIGHDPI_DISABLED, "0");
   if (SDL_Init(SDL_INIT_VIDEO) != 0)
     return Error{std::string("cannot open a display (") + SDL_GetError() +
                  "); use 'flatland render SCENE --out FILE.png' for a picture without one"};
   const char* driver = SDL_GetCurrentVideoDriver();
-  const char* requested = std::getenv("SDL_VIDEODRIVER");
   if (driver != nullptr && (std::string(driver) == "offscreen" || std::string(driver) == "dummy") &&
       (requested == nullptr || std::string(requested) != driver)) {
     SDL_Quit();
@@ -283,7 +286,34 @@ void Viewer::queue_click(float x, float y) {
   queued_.push_back({x, y, false, 0});  // release
 }
 
+void Viewer::queue_drag(float from_x, float from_y, float to_x, float to_y) {
+  queued_.push_back({from_x, from_y, false, 0});
+  queued_.push_back({from_x, from_y, true, 0});
+  for (int i = 1; i <= 4; ++i) {
+    const float f = static_cast<float>(i) / 4.0f;
+    queued_.push_back({from_x + f * (to_x - from_x), from_y + f * (to_y - from_y), true, 0});
+  }
+  queued_.push_back({to_x, to_y, false, 0});
+}
+
 void Viewer::queue_key(int sdl_keycode) { queued_.push_back({0.0f, 0.0f, false, sdl_keycode}); }
+
+bool Viewer::combo(const char* label, int* index, const char* const* names, int count) {
+  bool changed = false;
+  const bool open = ImGui::BeginCombo(label, names[std::clamp(*index, 0, count - 1)]);
+  track(label);
+  if (open) {
+    for (int i = 0; i < count; ++i) {
+      if (ImGui::Selectable(names[i], i == *index) && i != *index) {
+        *index = i;
+        changed = true;
+      }
+      track((std::string(label) + ":" + names[i]).c_str());
+    }
+    ImGui::EndCombo();
+  }
+  return changed;
+}
 
 void Viewer::track(const char* label) {
   const ImVec2 lo = ImGui::GetItemRectMin();
@@ -656,28 +686,27 @@ void Viewer::draw_solve_panel(const Snapshot& snapshot) {
     changed = true;
   }
   int basis = index_of(kBases, settings_.basis);
-  if (ImGui::Combo("basis", &basis, kBasisNames, 4)) {
+  if (combo("basis", &basis, kBasisNames, 4)) {
     settings_.basis = kBases[basis];
     changed = true;
   }
-  track("basis");
   int elements = settings_.elements;
   if (ImGui::SliderInt("elements", &elements, 1, 256, "%d", ImGuiSliderFlags_Logarithmic)) {
     settings_.elements = elements;
     changed = true;
   }
   int sampling = settings_.sampling == PositionSampling::Uniform ? 0 : 1;
-  if (ImGui::Combo("sampling", &sampling, kSamplingNames, 2)) {
+  if (combo("sampling", &sampling, kSamplingNames, 2)) {
     settings_.sampling = sampling == 0 ? PositionSampling::Uniform : PositionSampling::Reconstructed;
     changed = true;
   }
   int discontinuities = static_cast<int>(settings_.discontinuities);
-  if (ImGui::Combo("discontinuities", &discontinuities, kDiscontinuityNames, 3)) {
+  if (combo("discontinuities", &discontinuities, kDiscontinuityNames, 3)) {
     settings_.discontinuities = static_cast<DiscontinuityMode>(discontinuities);
     changed = true;
   }
   int estimator = settings_.estimator == Estimator::Lumped ? 0 : 1;
-  if (ImGui::Combo("estimator", &estimator, kEstimatorNames, 2)) {
+  if (combo("estimator", &estimator, kEstimatorNames, 2)) {
     settings_.estimator = estimator == 0 ? Estimator::Lumped : Estimator::Galerkin;
     changed = true;
   }
@@ -690,12 +719,12 @@ void Viewer::draw_solve_panel(const Snapshot& snapshot) {
   }
   if (settings_.ray_width > 0.0) {
     int profile = static_cast<int>(settings_.ray_profile);
-    if (ImGui::Combo("ray profile", &profile, kProfileNames, 5)) {
+    if (combo("ray profile", &profile, kProfileNames, 5)) {
       settings_.ray_profile = static_cast<RayProfile>(profile);
       changed = true;
     }
     int mode = settings_.ray_mode == RayMode::Footprint ? 0 : 1;
-    if (ImGui::Combo("ray mode", &mode, kModeNames, 2)) {
+    if (combo("ray mode", &mode, kModeNames, 2)) {
       settings_.ray_mode = mode == 0 ? RayMode::Footprint : RayMode::Band;
       changed = true;
     }
@@ -735,7 +764,7 @@ void Viewer::draw_display_panel(const Snapshot& snapshot) {
   if (scene_->channels == 3) {
     int channel = static_cast<int>(draw_.channel);
     const char* const names[] = {"all (colour)", "red", "green", "blue"};
-    changed |= ImGui::Combo("channel", &channel, names, 4);
+    changed |= combo("channel", &channel, names, 4);
     draw_.channel = static_cast<ChannelView>(channel);
   }
   if (draw_.paths) {
@@ -748,7 +777,7 @@ void Viewer::draw_display_panel(const Snapshot& snapshot) {
     ImGui::SliderFloat("fade by age", &draw_.fade, 0.0f, 3.0f, "%.2f");
     int colour = static_cast<int>(draw_.path_colour);
     const char* const names[] = {"power", "round"};
-    ImGui::Combo("colour by", &colour, names, 2);
+    combo("colour by", &colour, names, 2);
     draw_.path_colour = static_cast<PathColour>(colour);
   }
   if (changed) overlay_generation_ = ~0ull;

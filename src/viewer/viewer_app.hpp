@@ -74,6 +74,7 @@ class Viewer {
   // frame with this label, and a queued left click at a pixel (applied over the next frames).
   std::optional<std::array<float, 4>> widget_rect(const std::string& label) const;
   void queue_click(float x, float y);
+  void queue_drag(float from_x, float from_y, float to_x, float to_y);
   void queue_key(int sdl_keycode);
 
   // The scene view without panels, or the whole window, as a PNG.
@@ -93,6 +94,8 @@ class Viewer {
   void draw_curve_panel(const Snapshot& snapshot);
   void draw_help_panel();
   void track(const char* label);
+  // ImGui::Combo with every item tracked as "label:item" for the UI tests.
+  bool combo(const char* label, int* index, const char* const* names, int count);
   void render_scene(const Snapshot& snapshot, int width, int height);
   void apply_edit();
   void check_file_changed();

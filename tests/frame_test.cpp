@@ -1,0 +1,222 @@
+// The viewer's CPU side (src/viewer/frame): view transform, curve traces, the path layer's
+// incremental bookkeeping, the overlay and picking. No GL, no display.
+#include "viewer/frame.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "test_support.hpp"
+
+namespace flatland::viewer {
+namespace {
+
+TEST(Frame, FitViewShowsTheWholeSceneWithItsMargin) {
+  Box bounds;
+  bounds.extend(Vec2{-3.0, -1.0});
+  bounds.extend(Vec2{5.0, 2.0});
+  const ViewTransform view = fit_view(bounds, 800, 600, 0.05);
+  const double margin = 0.05 * 600;
+  for (Vec2 corner : {bounds.lower, bounds.upper, Vec2{bounds.lower.x, bounds.upper.y}}) {
+    const Vec2 p = view.to_pixels(corner);
+    EXPECT_GE(p.x, margin - 1e-9);
+    EXPECT_LE(p.x, 800 - margin + 1e-9);
+    EXPECT_GE(p.y, margin - 1e-9);
+    EXPECT_LE(p.y, 600 - margin + 1e-9);
+    const Vec2 back = view.to_scene(p);
+    EXPECT_NEAR(back.x, corner.x, 1e-12);
+    EXPECT_NEAR(back.y, corner.y, 1e-12);
+  }
+  // The wide scene fills the width exactly; y is up in the scene and down in pixels.
+  EXPECT_NEAR(view.to_pixels(bounds.upper).x - view.to_pixels(bounds.lower).x, 800 - 2 * margin, 1e-9);
+  EXPECT_LT(view.to_pixels(bounds.upper).y, view.to_pixels(bounds.lower).y);
+}
+
+TEST(Frame, ZoomKeepsThePointUnderTheCursor) {
+  Box bounds;
+  bounds.extend(Vec2{0.0, 0.0});
+  bounds.extend(Vec2{1.0, 1.0});
+  ViewTransform view = fit_view(bounds, 640, 480);
+  const Vec2 cursor{100.0, 50.0};
+  const Vec2 before = view.to_scene(cursor);
+  view.zoom_about(cursor, 3.0);
+  const Vec2 after = view.to_scene(cursor);
+  EXPECT_NEAR(before.x, after.x, 1e-12);
+  EXPECT_NEAR(before.y, after.y, 1e-12);
+}
+
+TEST(Frame, TracesFollowEveryCurveFromEndToEnd) {
+  const Scene scene = testing::scene_from_file("scenes2d/mixed.json");
+  const std::vector<CurveTrace> traces = trace_curves(scene, 16);
+  ASSERT_EQ(traces.size(), scene.curves.size());
+  for (std::size_t c = 0; c < scene.curves.size(); ++c) {
+    const Curve& curve = scene.curves[c];
+    const CurveTrace& trace = traces[c];
+    ASSERT_EQ(trace.points.size(), 16u * curve.segment_count);
+    EXPECT_NEAR(trace.s.front(), 0.0, 1e-6 * curve.length);
+    EXPECT_NEAR(trace.s.back(), curve.length, 1e-6 * curve.length);
+    const Vec2 first = curve.points.front();
+    const Vec2 last = curve.points.back();
+    EXPECT_LT(length(trace.points.front() - first), 1e-6 * scene.scale);
+    EXPECT_LT(length(trace.points.back() - last), 1e-6 * scene.scale);
+    for (std::size_t i = 0; i < trace.points.size(); ++i) {
+      EXPECT_NEAR(length(trace.normals[i]), 1.0, 1e-9);
+      if (i > 0) {
+        EXPECT_GE(trace.s[i], trace.s[i - 1]);
+        // Each sample is where its arc length says (chord <= arc).
+        EXPECT_LE(length(trace.points[i] - trace.points[i - 1]), trace.s[i] - trace.s[i - 1] + 1e-9 * scene.scale);
+      }
+    }
+  }
+}
+
+// A snapshot with `count` paths of unit power along the x axis, serials from `first`.
+Snapshot path_snapshot(std::shared_ptr<const Scene> scene, std::uint64_t first, std::uint64_t count) {
+  Snapshot snapshot;
+  snapshot.scene = std::move(scene);
+  for (std::uint64_t i = 0; i < count; ++i) {
+    PathRecord path;
+    path.serial = first + i;
+    path.from = {0.0, 0.0};
+    path.to = {1.0, 0.0};
+    path.power = {1.0, 1.0, 1.0};
+    snapshot.paths.push_back(path);
+  }
+  return snapshot;
+}
+
+double light_sum(const PathDraw& draw) {
+  double sum = 0.0;
+  for (const PathInstance& instance : draw.instances) sum += instance.r;
+  return sum;
+}
+
+TEST(Frame, PathLayerAddsArrivalsAndSubtractsDeparturesExactly) {
+  // Without fading, the buffer must hold exactly the last `keep` paths: the light added minus the
+  // light removed, summed over frames, equals keep unit paths.
+  auto scene = std::make_shared<const Scene>(testing::scene_from_file("scenes2d/penumbra.json"));
+  DrawOptions options;
+  options.fade = 0.0f;
+  const ViewTransform view = fit_view(scene->bounds, 400, 300);
+  PathLayer layer;
+  double buffer = 0.0;
+  std::uint64_t serial = 0;
+  for (std::uint64_t arrivals : {7u, 3u, 12u, 1u, 9u}) {
+    Snapshot snapshot = path_snapshot(scene, serial, arrivals);
+    serial += arrivals;
+    const PathDraw draw = layer.update(snapshot, options, view, 10, 1000);
+    if (draw.clear) buffer = 0.0;
+    EXPECT_EQ(draw.decay, 1.0f);
+    buffer += light_sum(draw);
+    EXPECT_NEAR(buffer, std::min<double>(static_cast<double>(serial), 10.0), 1e-6);
+    EXPECT_EQ(layer.drawn(), std::min<std::size_t>(serial, 10));
+  }
+  // The same snapshot again brings nothing new.
+  const PathDraw again = layer.update(path_snapshot(scene, serial - 9, 9), options, view, 10, 1000);
+  EXPECT_TRUE(again.instances.empty());
+}
+
+TEST(Frame, PathLayerFadesByAgeAndRemovesWhatRemains) {
+  auto scene = std::make_shared<const Scene>(testing::scene_from_file("scenes2d/penumbra.json"));
+  DrawOptions options;
+  options.fade = 1.0f;
+  const ViewTransform view = fit_view(scene->bounds, 400, 300);
+  PathLayer layer;
+  const std::size_t keep = 20;
+  const double r = std::exp(-3.0 / keep);  // fading per arrival
+  double buffer = 0.0;
+  std::uint64_t serial = 0;
+  for (std::uint64_t arrivals : {5u, 5u, 5u, 5u, 5u, 5u, 5u}) {
+    const PathDraw draw = layer.update(path_snapshot(scene, serial, arrivals), options, view, keep, 1000);
+    serial += arrivals;
+    if (draw.clear) buffer = 0.0;
+    buffer = buffer * draw.decay + light_sum(draw);
+    // Independent sum: the kept paths at ages 0 .. n-1 weigh r^age.
+    const std::size_t n = std::min<std::size_t>(serial, keep);
+    double expected = 0.0;
+    for (std::size_t age = 0; age < n; ++age) expected += std::pow(r, static_cast<double>(age));
+    EXPECT_NEAR(buffer, expected, 1e-5) << serial;
+  }
+}
+
+TEST(Frame, PathLayerDrawsTheNewestFirstWithinItsBudget) {
+  auto scene = std::make_shared<const Scene>(testing::scene_from_file("scenes2d/penumbra.json"));
+  DrawOptions options;
+  const ViewTransform view = fit_view(scene->bounds, 400, 300);
+  PathLayer layer;
+  Snapshot snapshot = path_snapshot(scene, 0, 100);
+  for (std::size_t i = 0; i < 100; ++i) snapshot.paths[i].from.y = static_cast<double>(i);  // tag
+  const PathDraw first = layer.update(snapshot, options, view, 1000, 30);
+  ASSERT_EQ(first.instances.size(), 30u);
+  EXPECT_EQ(first.instances.front().from_y, 99.0f);
+  EXPECT_EQ(first.instances.back().from_y, 70.0f);
+  // The rest follow in later frames, still newest first; a view change starts over.
+  const PathDraw second = layer.update(snapshot, options, view, 1000, 30);
+  EXPECT_FALSE(second.clear);
+  EXPECT_EQ(second.instances.front().from_y, 69.0f);
+  ViewTransform moved = view;
+  moved.center.x += 1.0;
+  const PathDraw third = layer.update(snapshot, options, moved, 1000, 30);
+  EXPECT_TRUE(third.clear);
+  EXPECT_EQ(third.instances.front().from_y, 99.0f);
+  // Another solve (generation) forgets the old paths.
+  Snapshot next = path_snapshot(scene, 0, 3);
+  next.generation = snapshot.generation + 1;
+  const PathDraw fourth = layer.update(next, options, moved, 1000, 30);
+  EXPECT_TRUE(fourth.clear);
+  EXPECT_EQ(fourth.instances.size(), 3u);
+}
+
+TEST(Frame, OverlayStaysOnTheCurvesWithinItsPixelOffsets) {
+  auto scene = std::make_shared<const Scene>(testing::scene_from_file("scenes2d/default.json"));
+  Snapshot snapshot;
+  snapshot.scene = scene;
+  auto traces = std::make_shared<const std::vector<CurveTrace>>(trace_curves(*scene));
+  snapshot.traces = traces;
+  snapshot.radiosity.resize(scene->curves.size());
+  for (std::size_t c = 0; c < scene->curves.size(); ++c)
+    snapshot.radiosity[c][0].assign((*traces)[c].points.size(), Spectrum{1.0, 2.0, 3.0});
+  DrawOptions options;
+  options.control_points = true;
+  options.graph_height = 60.0f;
+  const std::vector<LineVertex> vertices = build_overlay(snapshot, options);
+  ASSERT_FALSE(vertices.empty());
+  EXPECT_EQ(vertices.size() % 3, 0u);  // triangles
+  const double slack = 1e-6 * scene->scale;
+  for (const LineVertex& v : vertices) {
+    EXPECT_GE(v.x, scene->bounds.lower.x - slack);
+    EXPECT_LE(v.x, scene->bounds.upper.x + slack);
+    EXPECT_GE(v.y, scene->bounds.lower.y - slack);
+    EXPECT_LE(v.y, scene->bounds.upper.y + slack);
+    EXPECT_LE(std::hypot(v.offset_x, v.offset_y), 10.0 + 1.5 * 60.0 + 2.0);
+    for (float channel : {v.r, v.g, v.b, v.a}) {
+      EXPECT_GE(channel, 0.0f);
+      EXPECT_LE(channel, 1.0f);
+    }
+  }
+}
+
+TEST(Frame, ColourMapBrightensWithRadiosity) {
+  double previous = -1.0;
+  for (int i = 0; i <= 20; ++i) {
+    const auto c = colour_map(i / 20.0);
+    const double brightness = 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2];
+    EXPECT_GT(brightness, previous);
+    previous = brightness;
+  }
+  EXPECT_EQ(colour_map(-1.0), colour_map(0.0));
+  EXPECT_EQ(colour_map(std::nan("")), colour_map(0.0));
+}
+
+TEST(Frame, PickingFindsTheNearestCurveWithinTheRadius) {
+  const Scene scene = testing::scene_from_file("scenes2d/penumbra.json");
+  const std::vector<CurveTrace> traces = trace_curves(scene);
+  const ViewTransform view = fit_view(scene.bounds, 600, 400);
+  // Curves: 0 emitter (y = 2), 1 occluder (y = 1), 2 receiver (y = 0).
+  EXPECT_EQ(pick_curve(traces, view, view.to_pixels({0.2, 1.0}) + Vec2{0.0, 3.0}), 1u);
+  EXPECT_EQ(pick_curve(traces, view, view.to_pixels({-2.0, 0.0})), 2u);
+  EXPECT_FALSE(pick_curve(traces, view, view.to_pixels({-2.0, 1.5})).has_value());
+}
+
+}  // namespace
+}  // namespace flatland::viewer

@@ -1,0 +1,144 @@
+// The viewer's solve session (src/viewer/session): the core Solver stepped on a worker thread.
+// What the viewer shows must be what `flatland solve` computes.
+#include "viewer/session.hpp"
+
+#include <gtest/gtest.h>
+
+#include "flatland/result_io.hpp"
+#include "test_support.hpp"
+
+namespace flatland::viewer {
+namespace {
+
+std::string without_timing(nlohmann::json result) {
+  result["stats"].erase("seconds");
+  return result.dump();
+}
+
+TEST(Session, SteppedRoundsGiveTheSolversResult) {
+  auto scene = std::make_shared<const Scene>(testing::scene_from_file("scenes2d/mixed.json"));
+  SolverSettings settings;
+  settings.photons = 200'000;
+  settings.seed = 5;
+  settings.threads = 2;
+  Session session;
+  session.restart(scene, settings);
+  session.step(StepKind::Photon);        // one photon
+  session.step(StepKind::Photon, 999);   // a partial batch
+  session.step(StepKind::Batch);         // to the batch's end
+  session.step(StepKind::Round, 3);      // the rest of round 0, then rounds 1 and 2
+  session.wait_idle();
+  const std::shared_ptr<const Snapshot> snapshot = session.snapshot();
+  EXPECT_EQ(snapshot->progress.rounds, 3u);
+  EXPECT_EQ(snapshot->round_photons, 0u);  // no round left open
+  Result<nlohmann::json> stepped = session.result_json(40);
+  ASSERT_TRUE(stepped);
+
+  Solver solver = *Solver::create(*scene, settings);
+  for (int round = 0; round < 3; ++round) ASSERT_TRUE(solver.step_round());
+  EXPECT_EQ(snapshot->progress.photons, solver.photons_shot());
+  EXPECT_EQ(without_timing(*stepped), without_timing(result_to_json(solver, 40)));
+}
+
+TEST(Session, OnePhotonStepShowsOnePathAndItsDeposit) {
+  auto scene = std::make_shared<const Scene>(testing::scene_from_file("scenes2d/penumbra.json"));
+  SolverSettings settings;
+  settings.photons = 10'000;
+  Session session;
+  session.restart(scene, settings);
+  session.wait_idle();
+  EXPECT_EQ(session.snapshot()->paths.size(), 0u);
+  session.step(StepKind::Photon);
+  session.wait_idle();
+  const std::shared_ptr<const Snapshot> snapshot = session.snapshot();
+  EXPECT_EQ(snapshot->progress.photons, 1u);
+  EXPECT_EQ(snapshot->round_done, 1u);
+  ASSERT_EQ(snapshot->paths.size(), 1u);
+  const PathRecord& path = snapshot->paths[0];
+  EXPECT_NEAR(path.from.y, 2.0, 1e-12);  // it leaves the emitter
+  // The open round's deposit is visible: B is nonzero somewhere on the receiver iff the photon
+  // landed on it (the only reflector).
+  double receiver = 0.0;
+  for (const Spectrum& b : snapshot->radiosity[2][0]) receiver += b[0];
+  EXPECT_EQ(receiver > 0.0, !path.escaped && std::fabs(path.to.y) < 1e-9);
+}
+
+TEST(Session, RunningSpendsTheBudgetAndKeepsTheNewestPaths) {
+  auto scene = std::make_shared<const Scene>(testing::scene_from_file("scenes2d/room_reflector.json"));
+  SolverSettings settings;
+  settings.photons = 300'000;
+  settings.tolerance = 1e-9;
+  Session session;
+  session.set_path_limit(500);
+  session.restart(scene, settings);
+  session.set_running(true);
+  session.wait_idle();
+  const std::shared_ptr<const Snapshot> snapshot = session.snapshot();
+  // Where and when a free-running solve stops does not depend on how it was stepped.
+  Solver solver = *Solver::create(*scene, settings);
+  solver.run();
+  EXPECT_EQ(snapshot->stop_reason, solver.stop_reason());
+  EXPECT_EQ(snapshot->progress.photons, solver.photons_shot());
+  EXPECT_EQ(without_timing(*session.result_json(30)), without_timing(result_to_json(solver, 30)));
+  ASSERT_EQ(snapshot->paths.size(), 500u);
+  for (std::size_t i = 1; i < snapshot->paths.size(); ++i)
+    EXPECT_LT(snapshot->paths[i - 1].serial, snapshot->paths[i].serial);
+  EXPECT_NEAR(snapshot->books.imbalance(), 0.0, 1e-9 * snapshot->books.emitted);
+  // Shares of the reflected power sum to one.
+  double shares = 0.0;
+  for (double share : snapshot->received_share) shares += share;
+  EXPECT_NEAR(shares, 1.0, 1e-12);
+}
+
+TEST(Session, RestartTakesNewSettingsAndReportsRejectedOnes) {
+  auto scene = std::make_shared<const Scene>(testing::scene_from_file("scenes2d/penumbra.json"));
+  SolverSettings settings;
+  settings.photons = 50'000;
+  Session session;
+  session.restart(scene, settings);
+  session.step(StepKind::Round);
+  session.wait_idle();
+  const std::uint64_t generation = session.snapshot()->generation;
+  settings.basis = BasisKind::Linear;
+  session.restart(scene, settings);
+  session.wait_idle();
+  std::shared_ptr<const Snapshot> snapshot = session.snapshot();
+  EXPECT_NE(snapshot->generation, generation);
+  EXPECT_EQ(snapshot->settings.basis, BasisKind::Linear);
+  EXPECT_EQ(snapshot->progress.photons, 0u);
+  EXPECT_TRUE(snapshot->paths.empty());
+  settings.ray_width = -1.0;
+  session.restart(scene, settings);
+  session.wait_idle();
+  snapshot = session.snapshot();
+  EXPECT_FALSE(snapshot->error.empty());
+  EXPECT_FALSE(session.result_json(10));
+}
+
+TEST(Session, ReportsTheErrorAgainstAReference) {
+  // The penumbra's one-bounce reference; a second, independent solve of the same scene.
+  auto scene = std::make_shared<const Scene>(testing::scene_from_file("scenes2d/penumbra.json"));
+  SolverSettings settings;
+  settings.photons = 100'000;
+  settings.seed = 11;
+  Solver reference_solver = *Solver::create(*scene, settings);
+  reference_solver.run();
+  auto reference = std::make_shared<const nlohmann::json>(result_to_json(reference_solver, 50));
+  settings.seed = 12;
+  Session session;
+  session.set_reference(reference);
+  session.restart(scene, settings);
+  session.set_running(true);
+  session.wait_idle();
+  const std::shared_ptr<const Snapshot> snapshot = session.snapshot();
+  ASSERT_TRUE(snapshot->reference_error.has_value());
+  // Two noisy estimates at 1e5 photons differ by a few per cent, not by their size.
+  EXPECT_GT(*snapshot->reference_error, 0.0);
+  EXPECT_LT(*snapshot->reference_error, 0.2);
+  EXPECT_FALSE(snapshot->error_history.empty());
+  ASSERT_EQ(snapshot->reference_curves.size(), scene->curves.size());
+  EXPECT_EQ(snapshot->reference_curves[2].size(), 50u);
+}
+
+}  // namespace
+}  // namespace flatland::viewer

@@ -1,0 +1,315 @@
+// The viewer with a real GL context: `flatland view` headless under Xvfb (Mesa's software GL),
+// `flatland render` offscreen, their error paths, and a UI smoke test that clicks the ImGui controls
+// and checks that the solve follows. This executable re-runs itself under xvfb-run when no display
+// is set.
+#include "viewer/viewer_app.hpp"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include <SDL.h>
+
+#include "app/png_io.hpp"
+#include "test_support.hpp"
+
+namespace fs = std::filesystem;
+
+namespace flatland::viewer {
+namespace {
+
+struct CommandRun {
+  int exit_code = -1;
+  std::string out;
+  std::string err;
+};
+
+std::string read_file(const fs::path& path) {
+  std::ifstream file(path);
+  std::stringstream buffer;
+  buffer << file.rdbuf();
+  return buffer.str();
+}
+
+class Viewer : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    directory_ = fs::temp_directory_path() /
+                 ("flatland-viewer-" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
+    fs::remove_all(directory_);
+    fs::create_directories(directory_);
+  }
+  void TearDown() override { fs::remove_all(directory_); }
+
+  CommandRun run(const std::string& arguments, const std::string& environment = "") {
+    const fs::path out = directory_ / "stdout.txt";
+    const fs::path err = directory_ / "stderr.txt";
+    const std::string command = environment + " " + std::string(FLATLAND_BINARY) + " " + arguments + " >" +
+                                out.string() + " 2>" + err.string() + " </dev/null";
+    const int status = std::system(command.c_str());
+    CommandRun result;
+    result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    result.out = read_file(out);
+    result.err = read_file(err);
+    return result;
+  }
+  std::string scene(const std::string& name) { return testing::source_path("scenes2d/" + name); }
+  fs::path directory_;
+};
+
+struct Rgb {
+  int r = 0, g = 0, b = 0;
+};
+Rgb pixel(const app::PngImage& image, int x, int y) {
+  const std::size_t i = (static_cast<std::size_t>(y) * static_cast<std::size_t>(image.width) + static_cast<std::size_t>(x)) * 4;
+  return {image.pixels[i], image.pixels[i + 1], image.pixels[i + 2]};
+}
+// The background colour the renderer clears to, as 8-bit values.
+bool is_background(Rgb c) {
+  return std::abs(c.r - 18) <= 3 && std::abs(c.g - 19) <= 3 && std::abs(c.b - 23) <= 3;
+}
+// Whether any pixel within `radius` of (x, y) satisfies `test`.
+template <typename Test>
+bool near(const app::PngImage& image, Vec2 p, int radius, Test test) {
+  for (int dy = -radius; dy <= radius; ++dy)
+    for (int dx = -radius; dx <= radius; ++dx) {
+      const int x = static_cast<int>(std::lround(p.x)) + dx;
+      const int y = static_cast<int>(std::lround(p.y)) + dy;
+      if (x >= 0 && y >= 0 && x < image.width && y < image.height && test(pixel(image, x, y))) return true;
+    }
+  return false;
+}
+
+// Checks a picture of the penumbra scene: curve pixels along every curve, a lit band on the lit
+// part of the receiver and a dark one in the umbra, paths only inside the scene.
+void check_penumbra_picture(const app::PngImage& image) {
+  const Scene scene = testing::scene_from_file("scenes2d/penumbra.json");
+  const ViewTransform view = fit_view(scene.bounds, image.width, image.height);
+  const std::vector<CurveTrace> traces = trace_curves(scene, 8);
+  for (std::size_t c = 0; c < traces.size(); ++c)
+    for (const Vec2 p : traces[c].points)
+      EXPECT_TRUE(near(image, view.to_pixels(p), 2, [](Rgb q) { return q.r > 150 && q.g > 150 && q.b > 150; }))
+          << "no curve pixel at curve " << c << " (" << p.x << ", " << p.y << ")";
+  // The receiver's band (2..9 pixels above it): bright where it sees the whole emitter (x = -1.5),
+  // dark in the umbra (x = 0.3, straight under the occluder and the emitter's middle).
+  auto band = [&](double x) {
+    const Vec2 p = view.to_pixels({x, 0.0}) - Vec2{0.0, 5.0};
+    return pixel(image, static_cast<int>(p.x), static_cast<int>(p.y));
+  };
+  const Rgb lit = band(-1.2);
+  const Rgb umbra = band(0.3);
+  EXPECT_GT(lit.r + lit.g + lit.b, 3 * 120) << "lit band " << lit.r << " " << lit.g << " " << lit.b;
+  EXPECT_LT(umbra.r + umbra.g + umbra.b, lit.r + lit.g + lit.b - 150);
+  // Photon paths: lit pixels between the emitter and the receiver; nothing outside the scene's
+  // box (escaping paths are drawn to its edge) beyond the reach of the graphs (100 pixels).
+  EXPECT_TRUE(near(image, view.to_pixels({-1.0, 0.6}), 6, [](Rgb c) { return !is_background(c); }));
+  const Vec2 top_left = view.to_pixels({scene.bounds.lower.x, scene.bounds.upper.y}) - Vec2{100.0, 100.0};
+  const Vec2 bottom_right = view.to_pixels({scene.bounds.upper.x, scene.bounds.lower.y}) + Vec2{100.0, 100.0};
+  int outside = 0;
+  for (int x = 0; x < image.width; x += 3)
+    for (int y = 0; y < image.height; y += 3)
+      if (x < top_left.x || y < top_left.y || x > bottom_right.x || y > bottom_right.y) {
+        ++outside;
+        ASSERT_TRUE(is_background(pixel(image, x, y))) << "light outside the scene at " << x << ", " << y;
+      }
+  EXPECT_GT(outside, 1000);  // the picture has room around the scene to check
+}
+
+TEST_F(Viewer, HeadlessViewWritesTheSceneWithCurvesLightAndPaths) {
+  const fs::path shot = directory_ / "view.png";
+  const fs::path whole = directory_ / "window.png";
+  const CommandRun result = run("view " + scene("penumbra.json") +
+                                " --frames 4 --step rounds=1 --width 640 --height 640 --photons 2e5 "
+                                "--screenshot " + shot.string() + " --screenshot-ui " + whole.string());
+  ASSERT_EQ(result.exit_code, 0) << result.err;
+  Result<app::PngImage> image = app::read_png(shot.string());
+  ASSERT_TRUE(image) << image.error().message;
+  EXPECT_EQ(image->width, 640);
+  EXPECT_EQ(image->height, 640);
+  check_penumbra_picture(*image);
+  // The window's own picture has the panels over the scene: ImGui's window title bars.
+  Result<app::PngImage> window = app::read_png(whole.string());
+  ASSERT_TRUE(window) << window.error().message;
+  EXPECT_NE(image->pixels, window->pixels);
+}
+
+TEST_F(Viewer, RenderNeedsNoDisplayAndDrawsTheSamePicture) {
+  const fs::path out = directory_ / "render.png";
+  const fs::path json = directory_ / "render.json";
+  const CommandRun result = run("render " + scene("penumbra.json") + " --photons 2e5 --width 640 --height 640 --out " +
+                                    out.string() + " --result " + json.string(),
+                                "env -u DISPLAY -u WAYLAND_DISPLAY");
+  ASSERT_EQ(result.exit_code, 0) << result.err;
+  Result<app::PngImage> image = app::read_png(out.string());
+  ASSERT_TRUE(image) << image.error().message;
+  check_penumbra_picture(*image);
+  EXPECT_NE(read_file(json).find("\"flatland_result\""), std::string::npos);
+}
+
+TEST_F(Viewer, NoDisplayIsOneLineAndExitTwo) {
+  const CommandRun result = run("view " + scene("penumbra.json") + " --frames 1", "env -u DISPLAY -u WAYLAND_DISPLAY");
+  EXPECT_EQ(result.exit_code, 2);
+  EXPECT_EQ(std::count(result.err.begin(), result.err.end(), '\n'), 1) << result.err;
+  EXPECT_NE(result.err.find("display"), std::string::npos) << result.err;
+  EXPECT_NE(result.err.find("flatland render"), std::string::npos) << result.err;
+}
+
+TEST_F(Viewer, ShaderErrorsPrintTheGlLogAndExitTwo) {
+  const fs::path shaders = directory_ / "shaders";
+  fs::copy(testing::source_path("shaders"), shaders);
+  {
+    std::ofstream broken(shaders / "paths.frag");
+    broken << "#version 330 core\nout vec4 o_colour;\nvoid main() { o_colour = undefined_thing; }\n";
+  }
+  const fs::path out = directory_ / "never.png";
+  CommandRun result = run("render " + scene("penumbra.json") + " --photons 1e4 --out " + out.string() +
+                          " --shaders " + shaders.string());
+  EXPECT_EQ(result.exit_code, 2);
+  EXPECT_NE(result.err.find("paths.frag"), std::string::npos) << result.err;
+  EXPECT_NE(result.err.find("undefined_thing"), std::string::npos) << result.err;  // the GL log
+  EXPECT_FALSE(fs::exists(out));
+  // The viewer reports the same way.
+  result = run("view " + scene("penumbra.json") + " --frames 1 --shaders " + shaders.string());
+  EXPECT_EQ(result.exit_code, 2);
+  EXPECT_NE(result.err.find("paths.frag"), std::string::npos) << result.err;
+}
+
+TEST_F(Viewer, BadOptionsAreOneLineErrors) {
+  for (const char* arguments : {"view --step sometimes --frames 1", "view --frames 2 --photons -5",
+                                "view no-such-scene.json --frames 1", "render --out x.png"}) {
+    const CommandRun result = run(arguments);
+    EXPECT_EQ(result.exit_code, 2) << arguments;
+    EXPECT_EQ(std::count(result.err.begin(), result.err.end(), '\n'), 1) << arguments << ": " << result.err;
+  }
+}
+
+// Runs frames until `done` or a frame limit.
+template <typename Done>
+void frames_until(viewer::Viewer& viewer, Done done, int limit = 200) {
+  for (int i = 0; i < limit && !done(); ++i) viewer.frame();
+}
+
+void click(viewer::Viewer& viewer, const std::string& label) {
+  const auto rect = viewer.widget_rect(label);
+  ASSERT_TRUE(rect.has_value()) << "no widget '" << label << "'";
+  viewer.queue_click(0.5f * ((*rect)[0] + (*rect)[2]), 0.5f * ((*rect)[1] + (*rect)[3]));
+  for (int i = 0; i < 4; ++i) viewer.frame();  // move, press, release, and one to react
+}
+
+TEST_F(Viewer, UiControlsDriveTheSolve) {
+  ViewOptions options;
+  options.scene = scene("penumbra.json");
+  options.width = 1100;
+  options.height = 760;
+  options.paused = true;
+  options.vsync = false;
+  options.settings.photons = 100'000;
+  Result<std::unique_ptr<viewer::Viewer>> created = viewer::Viewer::create(options);
+  ASSERT_TRUE(created) << created.error().message;
+  viewer::Viewer& viewer = **created;
+  frames_until(viewer, [] { return false; }, 3);
+  EXPECT_EQ(viewer.settings().basis, BasisKind::Cubic);
+
+  // Change the basis through its combo box: the solve restarts with it.
+  click(viewer, "basis");
+  click(viewer, "basis:linear");
+  EXPECT_EQ(viewer.settings().basis, BasisKind::Linear);
+  viewer.session().wait_idle();
+  frames_until(viewer, [&] { return viewer.session().snapshot()->settings.basis == BasisKind::Linear; });
+  EXPECT_EQ(viewer.session().snapshot()->settings.basis, BasisKind::Linear);
+
+  // Step one photon, then one round.
+  click(viewer, "Photon");
+  viewer.session().wait_idle();
+  EXPECT_EQ(viewer.session().snapshot()->progress.photons, 1u);
+  click(viewer, "Round");
+  viewer.session().wait_idle();
+  EXPECT_EQ(viewer.session().snapshot()->progress.rounds, 1u);
+  EXPECT_EQ(viewer.session().snapshot()->round_photons, 0u);
+
+  // Run to the end of the budget.
+  click(viewer, "Run");
+  viewer.session().wait_idle();
+  EXPECT_NE(viewer.session().snapshot()->stop_reason, StopReason::Running);
+
+  // Click the receiver (curve 2): the curve panel opens on it.
+  const Scene& scene = viewer.scene();
+  const ViewTransform view = fit_view(scene.bounds, options.width, options.height);
+  const Vec2 at = view.to_pixels({2.5, 0.0});  // right: the display panel covers the lower left
+  viewer.queue_click(static_cast<float>(at.x), static_cast<float>(at.y));
+  frames_until(viewer, [&] { return viewer.selected_curve() == 2; }, 6);
+  EXPECT_EQ(viewer.selected_curve(), 2);
+  EXPECT_TRUE(viewer.widget_rect("Run").has_value());
+
+  // Keyboard: Space pauses, Backspace restarts the solve.
+  const std::uint64_t generation = viewer.session().snapshot()->generation;
+  viewer.queue_key(SDLK_SPACE);
+  viewer.queue_key(SDLK_BACKSPACE);
+  frames_until(viewer, [] { return false; }, 3);
+  viewer.session().wait_idle();
+  EXPECT_FALSE(viewer.session().running());
+  EXPECT_NE(viewer.session().snapshot()->generation, generation);
+  EXPECT_EQ(viewer.session().snapshot()->progress.photons, 0u);
+}
+
+TEST_F(Viewer, DraggingAControlPointEditsTheSceneAndRestarts) {
+  ViewOptions options;
+  options.scene = scene("penumbra.json");
+  options.width = 900;
+  options.height = 600;
+  options.paused = true;
+  options.vsync = false;
+  options.show_control_points = true;
+  options.show_ui = false;
+  Result<std::unique_ptr<viewer::Viewer>> created = viewer::Viewer::create(options);
+  ASSERT_TRUE(created) << created.error().message;
+  viewer::Viewer& viewer = **created;
+  viewer.frame();
+  const ViewTransform view = fit_view(viewer.scene().bounds, options.width, options.height);
+  // The occluder's right end (0.7, 1) dragged to (1.2, 1.1).
+  const std::uint64_t generation = viewer.session().snapshot()->generation;
+  const Vec2 from = view.to_pixels({0.7, 1.0});
+  const Vec2 to = view.to_pixels({1.2, 1.1});
+  viewer.queue_drag(static_cast<float>(from.x), static_cast<float>(from.y), static_cast<float>(to.x),
+                    static_cast<float>(to.y));
+  frames_until(viewer, [] { return false; }, 10);
+  const Vec2 moved = viewer.scene().curves[1].points[1];
+  EXPECT_NEAR(moved.x, 1.2, 2.0 / view.scale);  // to within a pixel or two
+  EXPECT_NEAR(moved.y, 1.1, 2.0 / view.scale);
+  EXPECT_NEAR(viewer.scene().curves[1].points[0].x, -0.1, 1e-12);  // the other end stays
+  viewer.session().wait_idle();
+  EXPECT_NE(viewer.session().snapshot()->generation, generation);
+  EXPECT_EQ(viewer.session().snapshot()->scene->curves[1].points[1].x, moved.x);
+}
+
+}  // namespace
+}  // namespace flatland::viewer
+
+int main(int argc, char** argv) {
+  // The GL tests need a display: without one, run again under a virtual X server.
+  bool listing = false;
+  for (int i = 1; i < argc; ++i) listing |= std::string(argv[i]).rfind("--gtest_list_tests", 0) == 0;
+  if (!listing && std::getenv("DISPLAY") == nullptr && std::getenv("FLATLAND_NO_XVFB") == nullptr) {
+    std::vector<char*> args;
+    std::string xvfb = "xvfb-run";
+    std::string auto_number = "-a";
+    std::string server = "-s";
+    std::string screen = "-screen 0 1600x1000x24";
+    args.push_back(xvfb.data());
+    args.push_back(auto_number.data());
+    args.push_back(server.data());
+    args.push_back(screen.data());
+    for (int i = 0; i < argc; ++i) args.push_back(argv[i]);
+    args.push_back(nullptr);
+    ::setenv("FLATLAND_NO_XVFB", "1", 1);
+    execvp("xvfb-run", args.data());
+    std::fprintf(stderr, "viewer_test: no DISPLAY and xvfb-run is missing (apt-get install xvfb xauth)\n");
+    return 1;
+  }
+  ::testing::InitGoogleTest(&argc, argv);
+  return RUN_ALL_TESTS();
+}
