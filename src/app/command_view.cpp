@@ -36,6 +36,13 @@ CLI::App* add_view_command(CLI::App& parent, ViewCommandOptions& o) {
       ->capture_default_str()
       ->check(CLI::Range(0, 10000000));
   cmd->add_flag("--control-points", o.control_points, "Show control points (drag them to edit the scene)");
+  cmd->add_option("--select", o.select, "Inspect this curve from the start (its id or index)");
+  cmd->add_option("--colour-by", o.colour_by, "Colour photon paths by their power (and light colour) or by round")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"power", "round"}));
+  cmd->add_option("--exposure", o.exposure, "Exposure of the photon paths")
+      ->capture_default_str()
+      ->check(CLI::Range(1e-3, 1e3));
   cmd->add_flag("--no-ui", o.no_ui, "Hide the panels");
   cmd->add_flag("--no-vsync", o.no_vsync, "Do not wait for the display's refresh (to measure frame rates)");
   cmd->add_flag("--report", o.report, "At the end, print the frame rate and the photon rate");
@@ -72,6 +79,9 @@ int run_view(ViewCommandOptions& o) {
   options.shader_directory = o.shaders;
   options.keep_paths = static_cast<std::size_t>(o.keep_paths);
   options.show_control_points = o.control_points;
+  options.select = o.select;
+  options.colour_by = o.colour_by;
+  options.path_exposure = o.exposure;
   options.show_ui = !o.no_ui;
   options.vsync = !o.no_vsync;
   options.report = o.report;

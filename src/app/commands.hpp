@@ -96,6 +96,9 @@ struct ViewCommandOptions {
   std::string shaders;
   int keep_paths = 20000;
   bool control_points = false;
+  std::string select;
+  std::string colour_by = "power";
+  float exposure = 1.0f;
   bool no_ui = false;
   bool no_vsync = false;
   bool report = false;

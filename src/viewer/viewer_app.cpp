@@ -159,6 +159,19 @@ Result<std::unique_ptr<Viewer>> Viewer::create(const ViewOptions& options) {
   if (!scene) return scene.error();
   viewer->scene_ = std::make_shared<const Scene>(std::move(*scene));
   viewer->file_time_ = file_time(viewer->scene_path_);
+  if (!options.select.empty()) {
+    const Scene& loaded = *viewer->scene_;
+    for (std::size_t c = 0; c < loaded.curves.size(); ++c)
+      if (loaded.curves[c].id == options.select || std::to_string(c) == options.select)
+        viewer->draw_.selected_curve = static_cast<int>(c);
+    if (viewer->draw_.selected_curve < 0)
+      return Error{"--select: the scene has no curve '" + options.select + "' (give an id or an index below " +
+                   std::to_string(loaded.curves.size()) + ")"};
+  }
+  if (options.colour_by != "power" && options.colour_by != "round")
+    return Error{"--colour-by: expected power or round, got '" + options.colour_by + "'"};
+  viewer->draw_.path_colour = options.colour_by == "round" ? PathColour::Round : PathColour::Power;
+  viewer->draw_.path_exposure = options.path_exposure;
   std::shared_ptr<const nlohmann::json> reference;
   if (!options.reference.empty()) {
     std::ifstream file(options.reference);

@@ -35,6 +35,9 @@ struct ViewOptions {
   std::size_t keep_paths = 20'000;
   std::size_t path_budget = 1500;  // new paths drawn per frame at most (newest first)
   bool show_control_points = false;
+  std::string select;              // a curve to inspect at start: its id or index
+  std::string colour_by = "power";  // photon paths coloured by "power" or "round"
+  float path_exposure = 1.0f;
   bool show_ui = true;
   bool vsync = true;
   bool report = false;  // print frame and photon rates at the end
