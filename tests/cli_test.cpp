@@ -68,6 +68,14 @@ TEST_F(Cli, HelpListsCommandsAndOptions) {
   EXPECT_EQ(top.exit_code, 0);
   for (const char* command : {"solve", "reference", "compare", "converge"})
     EXPECT_NE(top.out.find(command), std::string::npos) << command;
+#ifdef FLATLAND_HAVE_VIEWER
+  for (const char* command : {"view", "render"}) EXPECT_NE(top.out.find(command), std::string::npos) << command;
+  const CommandRun view = run("view --help");
+  EXPECT_EQ(view.exit_code, 0);
+  for (const char* option : {"--frames", "--screenshot", "--step", "--reference", "--photons", "--basis",
+                             "--ray-width", "--keep-paths", "--shaders"})
+    EXPECT_NE(view.out.find(option), std::string::npos) << option;
+#endif
   const CommandRun solve = run("solve --help");
   EXPECT_EQ(solve.exit_code, 0);
   for (const char* option : {"--photons", "--seed", "--threads", "--basis", "--elements",

@@ -592,9 +592,9 @@ Status Viewer::run() {
     const double median = sorted[sorted.size() / 2];
     std::printf("frames    %d in %.2f s: %.1f frames/s (median frame %.1f ms, slowest %.1f ms)\n",
                 frames_done_, elapsed, frames_done_ / elapsed, 1e3 * median, 1e3 * sorted.back());
-    std::printf("solve     %llu photons, %u rounds, %.3g photons/s while shooting, %zu paths drawn\n",
+    std::printf("solve     %llu photons, %u rounds, %.3g photons/s while shooting; %zu paths on screen\n",
                 static_cast<unsigned long long>(snapshot->progress.photons), snapshot->progress.rounds,
-                snapshot->photons_per_second, snapshot->paths.size());
+                snapshot->photons_per_second, path_layer_.drawn());
   }
   if (!message_.empty() && options_.frames > 0 && message_.rfind("loaded", 0) != 0)
     std::fprintf(stderr, "flatland view: %s\n", message_.c_str());
