@@ -35,6 +35,10 @@ CLI::App* add_view_command(CLI::App& parent, ViewCommandOptions& o) {
   cmd->add_option("--keep-paths", o.keep_paths, "Photon paths kept on screen")
       ->capture_default_str()
       ->check(CLI::Range(0, 10000000));
+  cmd->add_option("--paths-per-frame", o.paths_per_frame,
+                  "New photon paths drawn per frame at most, newest first (lower it if frames are slow)")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 10000000));
   cmd->add_flag("--control-points", o.control_points, "Show control points (drag them to edit the scene)");
   cmd->add_option("--select", o.select, "Inspect this curve from the start (its id or index)");
   cmd->add_option("--colour-by", o.colour_by, "Colour photon paths by their power (and light colour) or by round")
@@ -78,6 +82,7 @@ int run_view(ViewCommandOptions& o) {
   options.screenshot_ui = o.screenshot_ui;
   options.shader_directory = o.shaders;
   options.keep_paths = static_cast<std::size_t>(o.keep_paths);
+  options.path_budget = static_cast<std::size_t>(o.paths_per_frame);
   options.show_control_points = o.control_points;
   options.select = o.select;
   options.colour_by = o.colour_by;

@@ -95,6 +95,7 @@ struct ViewCommandOptions {
   std::string screenshot_ui;
   std::string shaders;
   int keep_paths = 20000;
+  int paths_per_frame = 600;
   bool control_points = false;
   std::string select;
   std::string colour_by = "power";

@@ -2,6 +2,8 @@
 
 #include <epoxy/gl.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstddef>
 #include <fstream>
 #include <sstream>
@@ -92,8 +94,9 @@ Result<std::string> shader_source(const std::string& name, const std::string& di
   return Error{"shader " + name + " is not built into this executable"};
 }
 
-Result<std::unique_ptr<Renderer>> Renderer::create(const std::string& shader_directory) {
+Result<std::unique_ptr<Renderer>> Renderer::create(const std::string& shader_directory, float path_resolution) {
   std::unique_ptr<Renderer> renderer(new Renderer());
+  renderer->path_resolution_ = std::clamp(path_resolution, 0.125f, 1.0f);
   Result<unsigned> lines = link("lines.vert", "lines.frag", shader_directory);
   if (!lines) return lines.error();
   renderer->lines_program_ = *lines;
@@ -161,8 +164,8 @@ void Renderer::ensure_hdr_target(int width, int height) {
   }
   glBindTexture(GL_TEXTURE_2D, hdr_texture_);
   glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA32F, width, height, 0, GL_RGBA, GL_FLOAT, nullptr);
-  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
-  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
   glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
   glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
   glBindFramebuffer(GL_FRAMEBUFFER, hdr_framebuffer_);
@@ -181,10 +184,15 @@ void Renderer::draw(const std::vector<LineVertex>& overlay, const PathDraw& path
   glDisable(GL_CULL_FACE);
   glDisable(GL_SCISSOR_TEST);
 
-  // The path buffer (32-bit float: sums of many faint paths, and subtraction, stay exact enough).
-  ensure_hdr_target(view.width, view.height);
+  // The path buffer (32-bit float: sums of many faint paths, and subtraction, stay exact enough),
+  // at path_resolution_ of the framebuffer.
+  ViewTransform path_view = view;
+  path_view.width = std::max(1, static_cast<int>(std::lround(view.width * path_resolution_)));
+  path_view.height = std::max(1, static_cast<int>(std::lround(view.height * path_resolution_)));
+  path_view.scale = view.scale * path_view.width / view.width;
+  ensure_hdr_target(path_view.width, path_view.height);
   glBindFramebuffer(GL_FRAMEBUFFER, hdr_framebuffer_);
-  glViewport(0, 0, view.width, view.height);
+  glViewport(0, 0, path_view.width, path_view.height);
   if (paths.clear) {
     glClearColor(0.0f, 0.0f, 0.0f, 0.0f);
     glClear(GL_COLOR_BUFFER_BIT);
@@ -200,7 +208,7 @@ void Renderer::draw(const std::vector<LineVertex>& overlay, const PathDraw& path
   if (!paths.instances.empty()) {
     glBlendFunc(GL_ONE, GL_ONE);
     glUseProgram(paths_program_);
-    set_view_uniforms(paths_program_, view);
+    set_view_uniforms(paths_program_, path_view);
     glUniform1i(glGetUniformLocation(paths_program_, "u_lines"), paths.lines ? 1 : 0);
     glBindVertexArray(paths_vao_);
     glBindBuffer(GL_ARRAY_BUFFER, paths_vbo_);
@@ -222,7 +230,10 @@ void Renderer::draw(const std::vector<LineVertex>& overlay, const PathDraw& path
   glActiveTexture(GL_TEXTURE0);
   glBindTexture(GL_TEXTURE_2D, hdr_texture_);
   glUniform1i(glGetUniformLocation(tonemap_program_, "u_hdr"), 0);
-  glUniform1f(glGetUniformLocation(tonemap_program_, "u_exposure"), path_exposure * paths.normalisation);
+  // The normalisation is for full-resolution pixels; a coarser buffer holds lines that are as many
+  // times shorter in its pixels, over an area smaller by the square.
+  const float resolution = static_cast<float>(path_view.width) / static_cast<float>(view.width);
+  glUniform1f(glGetUniformLocation(tonemap_program_, "u_exposure"), path_exposure * paths.normalisation * resolution);
   glBindVertexArray(empty_vao_);
   glDrawArrays(GL_TRIANGLES, 0, 3);
   if (!overlay.empty()) {

@@ -23,7 +23,11 @@ class Renderer {
  public:
   // Compiles and links every program. A compile or link error returns the shader's name and the
   // GL info log. `shader_directory` as for shader_source.
-  static Result<std::unique_ptr<Renderer>> create(const std::string& shader_directory = "");
+  // `path_resolution` is the path buffer's size relative to the framebuffer: 1 for pictures, 0.5 in
+  // the viewer, where a software rasteriser's fill rate limits how many paths a frame can draw (half
+  // the resolution halves the pixels of every 1-pixel line; the buffer is smoothly upsampled).
+  static Result<std::unique_ptr<Renderer>> create(const std::string& shader_directory = "",
+                                                  float path_resolution = 1.0f);
   ~Renderer();
   Renderer(const Renderer&) = delete;
   Renderer& operator=(const Renderer&) = delete;
@@ -55,6 +59,7 @@ class Renderer {
   unsigned hdr_texture_ = 0;
   int hdr_width_ = 0;
   int hdr_height_ = 0;
+  float path_resolution_ = 1.0f;
 };
 
 }  // namespace flatland::viewer

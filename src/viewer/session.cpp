@@ -297,8 +297,9 @@ void Session::worker() {
     std::vector<PhotonPath> shot_paths;
     const std::uint32_t round = solver.rounds();
     const Clock::time_point start = Clock::now();
-    // Paths of the step's first photons: a frame draws at most a few thousand new paths anyway.
-    const std::size_t recorded = std::min<std::size_t>(limit, kPathsPerStep);
+    // Paths: all of a manual step (up to the kept number), or the first photons of a running step,
+    // about as many as a frame can draw (a subset of the photons is what the eye can follow anyway).
+    const std::size_t recorded = stepping ? limit : std::min<std::size_t>(limit, kPathsPerStep);
     const std::uint64_t shot =
         solver.step_photons(count, &cancel_, recorded > 0 ? &shot_paths : nullptr, recorded);
     const double seconds = std::chrono::duration<double>(Clock::now() - start).count();

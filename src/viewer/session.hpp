@@ -89,7 +89,8 @@ class Session {
   std::uint64_t generation_ = 0;
   std::deque<PathRecord> paths_;
   std::uint64_t next_serial_ = 0;
-  static constexpr std::size_t kPathsPerStep = 4096;
+  // Paths recorded per step while running (steps last about 25 ms): about what a frame draws.
+  static constexpr std::size_t kPathsPerStep = 384;
   std::vector<std::array<double, 2>> error_history_;
   std::optional<double> reference_error_;
   double last_error_time_ = -1.0;

@@ -217,7 +217,7 @@ Result<std::unique_ptr<Viewer>> Viewer::create(const ViewOptions& options) {
   SDL_GL_MakeCurrent(impl->window, impl->context);
   SDL_GL_SetSwapInterval(options.vsync ? 1 : 0);
 
-  Result<std::unique_ptr<Renderer>> renderer = Renderer::create(options.shader_directory);
+  Result<std::unique_ptr<Renderer>> renderer = Renderer::create(options.shader_directory, 0.5f);
   if (!renderer) return renderer.error();
   impl->renderer = std::move(*renderer);
 

@@ -33,7 +33,7 @@ struct ViewOptions {
   std::string screenshot_ui;     // after the last frame: the whole window, panels included (PNG)
   std::string shader_directory;  // load shaders from here instead of the built-in copies
   std::size_t keep_paths = 20'000;
-  std::size_t path_budget = 1500;  // new paths drawn per frame at most (newest first)
+  std::size_t path_budget = 600;  // new paths drawn per frame at most (newest first)
   bool show_control_points = false;
   std::string select;              // a curve to inspect at start: its id or index
   std::string colour_by = "power";  // photon paths coloured by "power" or "round"
