@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <chrono>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -284,6 +285,74 @@ TEST_F(Viewer, DraggingAControlPointEditsTheSceneAndRestarts) {
   viewer.session().wait_idle();
   EXPECT_NE(viewer.session().snapshot()->generation, generation);
   EXPECT_EQ(viewer.session().snapshot()->scene->curves[1].points[1].x, moved.x);
+}
+
+TEST_F(Viewer, ReloadsTheSceneWhenItsFileChangesAndSavesResults) {
+  const fs::path file = directory_ / "scene.json";
+  fs::copy_file(scene("penumbra.json"), file);
+  ViewOptions options;
+  options.scene = file.string();
+  options.width = 640;
+  options.height = 480;
+  options.paused = true;
+  options.vsync = false;
+  options.show_ui = false;
+  options.settings.photons = 20'000;
+  Result<std::unique_ptr<viewer::Viewer>> created = viewer::Viewer::create(options);
+  ASSERT_TRUE(created) << created.error().message;
+  viewer::Viewer& viewer = **created;
+  viewer.frame();
+  EXPECT_NEAR(viewer.scene().curves[1].points[1].x, 0.7, 1e-12);
+  // Move the occluder's end in the file: the viewer picks the change up (it looks twice a second).
+  std::string text = read_file(file);
+  const std::string from = "[0.7, 1.0]";
+  ASSERT_NE(text.find(from), std::string::npos);
+  text.replace(text.find(from), from.size(), "[0.9, 1.0]");
+  {
+    std::ofstream out(file);
+    out << text;
+  }
+  fs::last_write_time(file, fs::last_write_time(file) + std::chrono::seconds(2));
+  const auto start = std::chrono::steady_clock::now();
+  while (viewer.scene().curves[1].points[1].x != 0.9 &&
+         std::chrono::steady_clock::now() - start < std::chrono::seconds(5))
+    viewer.frame();
+  EXPECT_EQ(viewer.scene().curves[1].points[1].x, 0.9);
+
+  // Ctrl+E saves the result, Ctrl+S a screenshot, in the working directory.
+  const fs::path previous = fs::current_path();
+  fs::current_path(directory_);
+  viewer.queue_key(SDLK_r);
+  viewer.frame();
+  viewer.session().wait_idle();
+  viewer.queue_key(SDLK_e, true);
+  viewer.queue_key(SDLK_s, true);
+  for (int i = 0; i < 3; ++i) viewer.frame();
+  fs::current_path(previous);
+  const std::string result = read_file(directory_ / "flatland-penumbra-result.json");
+  EXPECT_NE(result.find("\"flatland_result\""), std::string::npos);
+  int pictures = 0;
+  for (const auto& entry : fs::directory_iterator(directory_))
+    pictures += entry.path().extension() == ".png" && app::read_png(entry.path().string()).ok();
+  EXPECT_EQ(pictures, 1);
+}
+
+TEST_F(Viewer, HeadlessViewShowsTheErrorAgainstAReference) {
+  const fs::path reference = directory_ / "reference.json";
+  ASSERT_EQ(run("reference " + scene("penumbra.json") + " --elements 100 --samples 50 --quiet --out " +
+                reference.string()).exit_code, 0);
+  const fs::path whole = directory_ / "window.png";
+  const CommandRun result = run("view " + scene("penumbra.json") + " --reference " + reference.string() +
+                                " --frames 3 --step rounds=1 --select receiver --report --screenshot-ui " +
+                                whole.string());
+  ASSERT_EQ(result.exit_code, 0) << result.err;
+  EXPECT_TRUE(app::read_png(whole.string()).ok());
+  // A reference of another scene is refused before any window opens.
+  const CommandRun wrong = run("view " + scene("enclosure.json") + " --reference " + reference.string() +
+                               " --frames 2 --step rounds=1");
+  EXPECT_EQ(wrong.exit_code, 2);
+  EXPECT_EQ(std::count(wrong.err.begin(), wrong.err.end(), '\n'), 1) << wrong.err;
+  EXPECT_NE(wrong.err.find("another scene"), std::string::npos) << wrong.err;
 }
 
 }  // namespace

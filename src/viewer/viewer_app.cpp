@@ -177,8 +177,17 @@ Result<std::unique_ptr<Viewer>> Viewer::create(const ViewOptions& options) {
     std::ifstream file(options.reference);
     if (!file) return Error{options.reference + ": cannot read the reference result"};
     nlohmann::json document = nlohmann::json::parse(file, nullptr, false);
-    if (document.is_discarded() || !document.contains("curves"))
+    if (document.is_discarded() || !document.contains("curves") || !document["curves"].is_array())
       return Error{options.reference + ": not a flatland result (write one with 'flatland reference SCENE --out FILE')"};
+    // The same scene: its curves, by id, in order (compare checks the rest as the solve goes).
+    const nlohmann::json& curves = document["curves"];
+    const Scene& loaded = *viewer->scene_;
+    bool same = curves.size() == loaded.curves.size();
+    for (std::size_t c = 0; same && c < loaded.curves.size(); ++c)
+      same = curves[c].value("id", std::string()) == loaded.curves[c].id;
+    if (!same)
+      return Error{options.reference + ": the reference describes another scene than " + viewer->scene_path_ +
+                   " (its curves differ); solve the reference from the same scene file"};
     reference = std::make_shared<const nlohmann::json>(std::move(document));
     viewer->reference_path_ = options.reference;
   }
@@ -309,7 +318,7 @@ void Viewer::queue_drag(float from_x, float from_y, float to_x, float to_y) {
   queued_.push_back({to_x, to_y, false, 0});
 }
 
-void Viewer::queue_key(int sdl_keycode) { queued_.push_back({0.0f, 0.0f, false, sdl_keycode}); }
+void Viewer::queue_key(int sdl_keycode, bool ctrl) { queued_.push_back({0.0f, 0.0f, false, sdl_keycode, ctrl}); }
 
 bool Viewer::combo(const char* label, int* index, const char* const* names, int count) {
   bool changed = false;
@@ -463,7 +472,7 @@ bool Viewer::frame() {
     const QueuedInput input = queued_.front();
     queued_.erase(queued_.begin());
     if (input.key != 0) {
-      handle_key(input.key, false);
+      handle_key(input.key, input.ctrl);
     } else {
       io.MousePos = ImVec2(input.x, input.y);
       io.MouseDown[0] = input.down;

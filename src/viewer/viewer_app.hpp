@@ -78,7 +78,7 @@ class Viewer {
   std::optional<std::array<float, 4>> widget_rect(const std::string& label) const;
   void queue_click(float x, float y);
   void queue_drag(float from_x, float from_y, float to_x, float to_y);
-  void queue_key(int sdl_keycode);
+  void queue_key(int sdl_keycode, bool ctrl = false);
 
   // The scene view without panels, or the whole window, as a PNG.
   Status save_screenshot(const std::string& path, bool with_ui);
@@ -127,6 +127,7 @@ class Viewer {
     float y = 0.0f;
     bool down = false;
     int key = 0;  // a key press instead of mouse input
+    bool ctrl = false;
   };
   std::vector<QueuedInput> queued_;
   // Mouse interaction with the scene.
