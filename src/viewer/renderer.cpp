@@ -187,8 +187,8 @@ void Renderer::draw(const std::vector<LineVertex>& overlay, const PathDraw& path
   // The path buffer (32-bit float: sums of many faint paths, and subtraction, stay exact enough),
   // at path_resolution_ of the framebuffer.
   ViewTransform path_view = view;
-  path_view.width = std::max(1, static_cast<int>(std::lround(view.width * path_resolution_)));
-  path_view.height = std::max(1, static_cast<int>(std::lround(view.height * path_resolution_)));
+  path_view.width = std::max(1, static_cast<int>(std::lround(static_cast<float>(view.width) * path_resolution_)));
+  path_view.height = std::max(1, static_cast<int>(std::lround(static_cast<float>(view.height) * path_resolution_)));
   path_view.scale = view.scale * path_view.width / view.width;
   ensure_hdr_target(path_view.width, path_view.height);
   glBindFramebuffer(GL_FRAMEBUFFER, hdr_framebuffer_);
