@@ -139,6 +139,33 @@ TEST(Frame, PathLayerFadesByAgeAndRemovesWhatRemains) {
   }
 }
 
+TEST(Frame, PathLayerStartsOverWhenTheKeptNumberChanges) {
+  // The fading per arrival depends on how many paths are kept; after a change the buffer must hold
+  // the new set with the new weights, never ghosts of the old ones.
+  auto scene = std::make_shared<const Scene>(testing::scene_from_file("scenes2d/penumbra.json"));
+  DrawOptions options;
+  options.fade = 1.0f;
+  const ViewTransform view = fit_view(scene->bounds, 400, 300);
+  PathLayer layer;
+  double buffer = 0.0;
+  std::uint64_t serial = 0;
+  const std::pair<std::uint64_t, std::size_t> frames[] = {{30, 40}, {10, 40}, {5, 8}, {5, 8}, {20, 60}, {7, 60}};
+  for (const auto& [arrivals, keep] : frames) {
+    const PathDraw draw = layer.update(path_snapshot(scene, serial, arrivals), options, view, keep, 1000);
+    serial += arrivals;
+    if (draw.clear) buffer = 0.0;
+    buffer = buffer * draw.decay + light_sum(draw);
+    // The buffer holds the last min(serial, keep) paths weighted r^age with r for this keep, except
+    // after growing `keep`: paths dropped earlier do not come back.
+    const double r = std::exp(-3.0 / static_cast<double>(keep));
+    double expected = 0.0;
+    for (std::size_t age = 0; age < std::min<std::size_t>(layer.drawn(), keep); ++age)
+      expected += std::pow(r, static_cast<double>(age));
+    EXPECT_NEAR(buffer, expected, 1e-5) << "after " << serial << " paths, keep " << keep;
+    EXPECT_GE(buffer, 0.0);
+  }
+}
+
 TEST(Frame, PathLayerDrawsTheNewestFirstWithinItsBudget) {
   auto scene = std::make_shared<const Scene>(testing::scene_from_file("scenes2d/penumbra.json"));
   DrawOptions options;

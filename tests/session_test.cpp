@@ -40,6 +40,65 @@ TEST(Session, SteppedRoundsGiveTheSolversResult) {
   EXPECT_EQ(without_timing(*stepped), without_timing(result_to_json(solver, 40)));
 }
 
+TEST(Session, StepsAcrossBatchesRoundsAndThreadCountsMatchTheSolver) {
+  // A one-thread session stepped in odd pieces (inside a batch, then partial, whole and partial
+  // batches in one piece, then across a round's end) against a three-thread solver.
+  auto scene = std::make_shared<const Scene>(testing::scene_from_file("scenes2d/default.json"));
+  SolverSettings settings;
+  settings.photons = 150'000;
+  settings.seed = 21;
+  settings.threads = 1;
+  Session session;
+  session.restart(scene, settings);
+  session.step(StepKind::Photon, 1000);
+  session.step(StepKind::Photon, 10'000);
+  session.wait_idle();
+  EXPECT_EQ(session.snapshot()->progress.photons, 11'000u);
+  // More photons than the first round has: the step goes on into the next rounds.
+  const std::uint64_t first_round = session.snapshot()->round_photons;
+  ASSERT_GT(first_round, 11'000u);
+  session.step(StepKind::Photon, first_round + 5'000);
+  session.wait_idle();
+  EXPECT_EQ(session.snapshot()->progress.photons, first_round + 16'000);
+  EXPECT_GE(session.snapshot()->progress.rounds, 1u);
+  session.step(StepKind::Round, 2);
+  session.wait_idle();
+  const std::uint32_t rounds = session.snapshot()->progress.rounds;
+
+  settings.threads = 3;
+  Solver solver = *Solver::create(*scene, settings);
+  for (std::uint32_t r = 0; r < rounds; ++r) ASSERT_TRUE(solver.step_round());
+  EXPECT_EQ(session.snapshot()->progress.photons, solver.photons_shot());
+  nlohmann::json a = *session.result_json(30);
+  nlohmann::json b = result_to_json(solver, 30);
+  a["settings"].erase("threads");
+  b["settings"].erase("threads");
+  EXPECT_EQ(without_timing(a), without_timing(b));
+}
+
+TEST(Session, RestartWhileRunningStartsAFreshSolve) {
+  // The restart's cancellation must stop the old solve only, never the new one.
+  auto scene = std::make_shared<const Scene>(testing::scene_from_file("scenes2d/mixed.json"));
+  SolverSettings settings;
+  settings.photons = 400'000;
+  settings.tolerance = 1e-9;
+  Session session;
+  session.restart(scene, settings);
+  session.set_running(true);
+  for (int i = 0; i < 20; ++i) {
+    settings.seed = static_cast<std::uint64_t>(100 + i);
+    session.restart(scene, settings);
+  }
+  session.wait_idle();
+  const std::shared_ptr<const Snapshot> snapshot = session.snapshot();
+  EXPECT_EQ(snapshot->settings.seed, 119u);
+  EXPECT_NE(snapshot->stop_reason, StopReason::Cancelled);
+  Solver solver = *Solver::create(*scene, settings);
+  solver.run();
+  EXPECT_EQ(snapshot->stop_reason, solver.stop_reason());
+  EXPECT_EQ(without_timing(*session.result_json(20)), without_timing(result_to_json(solver, 20)));
+}
+
 TEST(Session, OnePhotonStepShowsOnePathAndItsDeposit) {
   auto scene = std::make_shared<const Scene>(testing::scene_from_file("scenes2d/penumbra.json"));
   SolverSettings settings;

@@ -23,6 +23,9 @@ CLI::App* add_render_command(CLI::App& parent, RenderOptions& o) {
   add_solver_options(cmd, o.solve);
   cmd->add_option("--out", o.out, "The picture (PNG)")->required();
   cmd->add_option("--result", o.result, "Also write the result as JSON (as solve --out)");
+  cmd->add_option("--samples", o.solve.samples, "Radiosity samples per curve in the --result file")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 1000000));
   cmd->add_option("--width", o.width, "Picture width in pixels")->capture_default_str()->check(CLI::Range(16, 16384));
   cmd->add_option("--height", o.height, "Picture height in pixels")->capture_default_str()->check(CLI::Range(16, 16384));
   cmd->add_option("--paths", o.paths,
@@ -111,7 +114,10 @@ int run_render(RenderOptions& o) {
   const viewer::ViewTransform view = viewer::fit_view(scene->bounds, o.width, o.height);
   viewer::PathLayer layer;
   const viewer::PathDraw path_draw = layer.update(snapshot, draw, view, snapshot.paths.size(), snapshot.paths.size());
-  (*renderer)->draw(viewer::build_overlay(snapshot, draw), path_draw, view, o.exposure);
+  if (Status drawn = (*renderer)->draw(viewer::build_overlay(snapshot, draw), path_draw, view, o.exposure); !drawn) {
+    std::fprintf(stderr, "flatland: error: %s\n", drawn.error().message.c_str());
+    return kExitUsage;
+  }
   PngImage image{o.width, o.height, 4, viewer::Renderer::read_pixels(o.width, o.height)};
   for (std::size_t i = 3; i < image.pixels.size(); i += 4) image.pixels[i] = 255;
 

@@ -792,12 +792,11 @@ void Solver::include_open_round() {
 bool Solver::step_round(const std::atomic<bool>* cancel, const ProgressCallback& progress,
                         double progress_interval) {
   if (stopped()) return false;
-  const bool fresh = !round_open_;
   std::vector<PhotonPath> paths;
   const std::uint64_t shot = step_photons(std::numeric_limits<std::uint64_t>::max(), cancel, &paths,
-                                          fresh ? path_limit_ : 0, progress, progress_interval);
+                                          path_limit_, progress, progress_interval);
   if (shot == 0) return false;
-  if (fresh) paths_ = std::move(paths);
+  paths_ = std::move(paths);
   if (progress) progress(this->progress());
   return true;
 }

@@ -150,7 +150,8 @@ class Solver {
 
   // Keep the paths of the first `count` photons of every round (0, the default, keeps none).
   void record_paths(std::size_t count) { path_limit_ = count; }
-  // Paths of the last completed round, in photon order.
+  // Paths of the last round finished by step_round, in photon order: its first photons, or, when
+  // step_photons began that round, the first of those step_round shot.
   const std::vector<PhotonPath>& paths() const { return paths_; }
 
   // Storage of each curve (basis, integrals of the basis functions over arc length).

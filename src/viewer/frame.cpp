@@ -59,11 +59,14 @@ PathRecord path_record(const PhotonPath& path, const Scene& scene, std::uint64_t
   if (path.escaped) {
     // Exit from the box: the smallest positive slab distance along the direction.
     const Vec2 d = path.end - path.origin;
+    const Vec2 pad{0.05 * scene.scale, 0.05 * scene.scale};
+    const Vec2 lower = scene.bounds.lower - pad;
+    const Vec2 upper = scene.bounds.upper + pad;
     double t = INFINITY;
-    if (d.x > 0.0) t = std::min(t, (scene.bounds.upper.x - path.origin.x) / d.x);
-    if (d.x < 0.0) t = std::min(t, (scene.bounds.lower.x - path.origin.x) / d.x);
-    if (d.y > 0.0) t = std::min(t, (scene.bounds.upper.y - path.origin.y) / d.y);
-    if (d.y < 0.0) t = std::min(t, (scene.bounds.lower.y - path.origin.y) / d.y);
+    if (d.x > 0.0) t = std::min(t, (upper.x - path.origin.x) / d.x);
+    if (d.x < 0.0) t = std::min(t, (lower.x - path.origin.x) / d.x);
+    if (d.y > 0.0) t = std::min(t, (upper.y - path.origin.y) / d.y);
+    if (d.y < 0.0) t = std::min(t, (lower.y - path.origin.y) / d.y);
     record.to = path.origin + d * (std::isfinite(t) ? std::max(t, 0.0) : 0.0);
   }
   return record;
@@ -312,11 +315,14 @@ PathDraw PathLayer::update(const Snapshot& snapshot, const DrawOptions& options,
     drawn_ = 0;
     return draw;
   }
-  if (!same_view(view, view_) || options.fade != options_.fade || options.path_colour != options_.path_colour)
+  keep = std::max<std::size_t>(keep, 1);
+  // The fading per arrival depends on `keep`: the buffer's weights are only known for the old one.
+  if (!same_view(view, view_) || options.fade != options_.fade || options.path_colour != options_.path_colour ||
+      keep != keep_)
     valid_ = false;
   view_ = view;
   options_ = options;
-  keep = std::max<std::size_t>(keep, 1);
+  keep_ = keep;
   const double rate = 3.0 * options.fade / static_cast<double>(keep);  // fading per arrival
   if (!valid_) {
     draw.clear = true;

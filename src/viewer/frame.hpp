@@ -60,6 +60,7 @@ struct PathRecord {
 
 // A photon path for drawing: from its origin to its hit, or, for a photon that escaped (`end` is
 // then origin + direction), to where it leaves the scene's box.
+// (The box is padded by 5 % of the scene's size, so light escaping a flat scene still shows.)
 PathRecord path_record(const PhotonPath& path, const Scene& scene, std::uint64_t serial, std::uint32_t round);
 
 // A storage-mesh node of a curve: where, and the continuity of the illumination there.
@@ -79,7 +80,7 @@ struct Snapshot {
   // B at every trace sample, per curve and side (empty for a side that neither emits nor reflects).
   std::vector<std::array<std::vector<Spectrum>, 2>> radiosity;
   std::vector<std::vector<NodeMark>> nodes;  // per curve: interior storage nodes
-  std::vector<double> received_share;        // per curve: its share of all power received
+  std::vector<double> received_share;        // per curve: its share of all reflected power
   std::vector<PathRecord> paths;             // oldest first
   SolverProgress progress;
   EnergyBooks books;
@@ -188,6 +189,7 @@ class PathLayer {
   bool valid_ = false;
   ViewTransform view_;
   DrawOptions options_;
+  std::size_t keep_ = 0;
   std::size_t drawn_ = 0;
 };
 

@@ -3,6 +3,7 @@
 #include <epoxy/egl.h>
 #include <epoxy/gl.h>
 
+#include <cstdio>
 #include <string>
 
 namespace flatland::viewer {

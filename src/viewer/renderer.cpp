@@ -156,8 +156,8 @@ Renderer::~Renderer() {
   if (hdr_texture_ != 0) glDeleteTextures(1, &hdr_texture_);
 }
 
-void Renderer::ensure_hdr_target(int width, int height) {
-  if (hdr_framebuffer_ != 0 && width == hdr_width_ && height == hdr_height_) return;
+Status Renderer::ensure_hdr_target(int width, int height) {
+  if (hdr_framebuffer_ != 0 && width == hdr_width_ && height == hdr_height_) return ok_status();
   if (hdr_framebuffer_ == 0) {
     glGenFramebuffers(1, &hdr_framebuffer_);
     glGenTextures(1, &hdr_texture_);
@@ -170,14 +170,22 @@ void Renderer::ensure_hdr_target(int width, int height) {
   glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
   glBindFramebuffer(GL_FRAMEBUFFER, hdr_framebuffer_);
   glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, hdr_texture_, 0);
+  if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) {
+    hdr_width_ = 0;
+    hdr_height_ = 0;
+    return Error{"cannot make a " + std::to_string(width) + "x" + std::to_string(height) +
+                 " floating-point path buffer (out of graphics memory?); use a smaller picture"};
+  }
   glClearColor(0.0f, 0.0f, 0.0f, 0.0f);
   glClear(GL_COLOR_BUFFER_BIT);
   hdr_width_ = width;
   hdr_height_ = height;
+  return ok_status();
 }
 
-void Renderer::draw(const std::vector<LineVertex>& overlay, const PathDraw& paths, const ViewTransform& view,
-                    float path_exposure) {
+Status Renderer::draw(const std::vector<LineVertex>& overlay, const PathDraw& paths, const ViewTransform& view,
+                      float path_exposure) {
+  if (view.width <= 0 || view.height <= 0) return ok_status();  // a minimised window
   GLint target = 0;
   glGetIntegerv(GL_DRAW_FRAMEBUFFER_BINDING, &target);
   glDisable(GL_DEPTH_TEST);
@@ -190,7 +198,10 @@ void Renderer::draw(const std::vector<LineVertex>& overlay, const PathDraw& path
   path_view.width = std::max(1, static_cast<int>(std::lround(static_cast<float>(view.width) * path_resolution_)));
   path_view.height = std::max(1, static_cast<int>(std::lround(static_cast<float>(view.height) * path_resolution_)));
   path_view.scale = view.scale * path_view.width / view.width;
-  ensure_hdr_target(path_view.width, path_view.height);
+  if (Status made = ensure_hdr_target(path_view.width, path_view.height); !made) {
+    glBindFramebuffer(GL_FRAMEBUFFER, static_cast<GLuint>(target));
+    return made;
+  }
   glBindFramebuffer(GL_FRAMEBUFFER, hdr_framebuffer_);
   glViewport(0, 0, path_view.width, path_view.height);
   if (paths.clear) {
@@ -248,6 +259,7 @@ void Renderer::draw(const std::vector<LineVertex>& overlay, const PathDraw& path
   glBindVertexArray(0);
   glUseProgram(0);
   glDisable(GL_BLEND);
+  return ok_status();
 }
 
 std::vector<std::uint8_t> Renderer::read_pixels(int width, int height) {

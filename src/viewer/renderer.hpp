@@ -34,8 +34,9 @@ class Renderer {
 
   // Updates the path buffer as `paths` says, then draws the tone-mapped paths and the overlay into
   // the bound framebuffer, whose size is the view's.
-  void draw(const std::vector<LineVertex>& overlay, const PathDraw& paths, const ViewTransform& view,
-            float path_exposure);
+  // Fails only when the path buffer cannot be made (too large a picture); nothing is drawn then.
+  Status draw(const std::vector<LineVertex>& overlay, const PathDraw& paths, const ViewTransform& view,
+              float path_exposure);
 
   // The bound framebuffer's pixels, RGBA8, rows from top to bottom.
   static std::vector<std::uint8_t> read_pixels(int width, int height);
@@ -44,7 +45,7 @@ class Renderer {
 
  private:
   Renderer() = default;
-  void ensure_hdr_target(int width, int height);
+  Status ensure_hdr_target(int width, int height);
 
   unsigned lines_program_ = 0;
   unsigned paths_program_ = 0;

@@ -99,8 +99,8 @@ Session::~Session() {
   {
     std::lock_guard lock(mutex_);
     quit_ = true;
+    cancel_.store(true);
   }
-  cancel_.store(true);
   wake_.notify_all();
   thread_.join();
 }
@@ -112,8 +112,10 @@ void Session::restart(std::shared_ptr<const Scene> scene, const SolverSettings& 
     pending_scene_ = std::move(scene);
     pending_settings_ = settings;
     steps_.clear();
+    // Under the lock, so the worker cannot have reset it for the new solve already: a long step
+    // of the old solve ends early; that solver is discarded.
+    cancel_.store(true);
   }
-  cancel_.store(true);  // a long step of the old solve ends early; that solver is discarded
   wake_.notify_all();
 }
 
@@ -134,10 +136,7 @@ void Session::step(StepKind kind, std::uint64_t count) {
   {
     std::lock_guard lock(mutex_);
     running_ = false;
-    if (kind == StepKind::Photon)
-      steps_.emplace_back(kind, count);
-    else
-      for (std::uint64_t i = 0; i < count; ++i) steps_.emplace_back(kind, 1);
+    if (count > 0) steps_.push_back({kind, count, next_step_id_++});
   }
   wake_.notify_all();
 }
@@ -152,6 +151,7 @@ void Session::set_reference(std::shared_ptr<const nlohmann::json> reference) {
     std::lock_guard lock(mutex_);
     reference_ = std::move(reference);
     refresh_pending_ = true;  // republish with the new reference's numbers
+    reference_changed_ = true;
   }
   wake_.notify_all();
 }
@@ -244,7 +244,7 @@ void Session::worker() {
       error_history_.clear();
       reference_error_.reset();
       last_error_time_ = -1.0;
-      chunk_ = 4096;
+      chunk_ = Solver::kBatchSize;
       ++generation_;
       if (scene_ != scene) {
         scene_ = scene;
@@ -261,6 +261,16 @@ void Session::worker() {
       can_run_ = solver_ && !solver_->stopped();
       continue;
     }
+    if (reference_changed_) {
+      // Only the worker touches the history; it starts over with the new reference.
+      reference_changed_ = false;
+      lock.unlock();
+      std::lock_guard solver_lock(solver_mutex_);
+      error_history_.clear();
+      reference_error_.reset();
+      last_error_time_ = -1.0;
+      continue;
+    }
     if (refresh_pending_ && steps_.empty() && !(running_ && can_run_)) {
       refresh_pending_ = false;
       lock.unlock();
@@ -268,26 +278,33 @@ void Session::worker() {
       publish(solver_ ? &*solver_ : nullptr, {}, true);
       continue;
     }
-    refresh_pending_ = false;
+    // This piece: a part of the first queued step (manual steps are shot in pieces of about 25 ms,
+    // so they publish as they go and a restart or Ctrl+E never waits long), or a running piece.
     std::uint64_t count = 0;
     bool stepping = false;
+    std::uint64_t step_id = 0;
+    StepKind kind = StepKind::Photon;
     if (!steps_.empty()) {
-      const auto [kind, photons] = steps_.front();
-      steps_.pop_front();
       stepping = true;
-      if (!can_run_) continue;
+      step_id = steps_.front().id;
+      kind = steps_.front().kind;
+      if (!can_run_) {
+        steps_.pop_front();
+        continue;
+      }
       const std::uint64_t done = solver_->round_photons_done();
       switch (kind) {
-        case StepKind::Photon: count = photons; break;
+        case StepKind::Photon: count = std::min(steps_.front().count, chunk_); break;
         case StepKind::Batch: count = Solver::kBatchSize - done % Solver::kBatchSize; break;
         case StepKind::Round:
-          count = solver_->round_open() ? solver_->round_photons() - done
-                                        : std::numeric_limits<std::uint64_t>::max();
+          count = std::min(chunk_, solver_->round_open() ? solver_->round_photons() - done : chunk_);
           break;
       }
     } else {
-      count = chunk_;
+      // End on a batch boundary, so every batch of a running piece is shared among the threads.
+      count = chunk_ - solver_->round_photons_done() % Solver::kBatchSize;
     }
+    refresh_pending_ = false;  // the piece publishes
     const std::size_t limit = path_limit_;
     lock.unlock();
 
@@ -303,11 +320,12 @@ void Session::worker() {
     const std::uint64_t shot =
         solver.step_photons(count, &cancel_, recorded > 0 ? &shot_paths : nullptr, recorded);
     const double seconds = std::chrono::duration<double>(Clock::now() - start).count();
-    if (!stepping && shot > 0) {
-      // About 25 ms a step: long enough to amortise the thread start-up of a step, short enough
-      // for live paths and a prompt pause.
+    if (shot >= Solver::kBatchSize) {
+      // About 25 ms a piece: long enough to amortise the threads' start, short enough for live
+      // paths and a prompt pause; whole batches, at least one per thread.
       const double rate = static_cast<double>(shot) / std::max(seconds, 1e-6);
-      chunk_ = static_cast<std::uint64_t>(std::clamp(rate * 0.025, 256.0, 4.0 * 1048576.0));
+      const auto batches = static_cast<std::uint64_t>(std::clamp(rate * 0.025 / Solver::kBatchSize, 1.0, 1024.0));
+      chunk_ = std::max<std::uint64_t>(batches, solver.thread_count()) * Solver::kBatchSize;
     }
     solver.include_open_round();
     std::vector<PathRecord> records;
@@ -316,6 +334,16 @@ void Session::worker() {
     publish(&solver, records, stepping);
     std::lock_guard relock(mutex_);
     can_run_ = !solver.stopped();
+    // What is left of the step (unless a restart dropped it meanwhile).
+    if (stepping && !steps_.empty() && steps_.front().id == step_id) {
+      Step& step = steps_.front();
+      const bool boundary = kind == StepKind::Photon  ? true
+                            : kind == StepKind::Batch ? solver.round_photons_done() % Solver::kBatchSize == 0
+                                                      : !solver.round_open();
+      if (kind == StepKind::Photon) step.count -= std::min(step.count, shot);
+      else if (boundary) --step.count;
+      if (shot == 0 || step.count == 0 || !can_run_) steps_.pop_front();
+    }
   }
 }
 

@@ -71,7 +71,14 @@ class Session {
   bool restart_pending_ = false;
   std::shared_ptr<const Scene> pending_scene_;
   SolverSettings pending_settings_;
-  std::deque<std::pair<StepKind, std::uint64_t>> steps_;  // photon steps carry their count
+  struct Step {
+    StepKind kind = StepKind::Photon;
+    std::uint64_t count = 0;  // photons, batches or rounds still to shoot
+    std::uint64_t id = 0;
+  };
+  std::deque<Step> steps_;
+  std::uint64_t next_step_id_ = 0;
+  bool reference_changed_ = false;
   bool running_ = false;
   bool busy_ = false;  // the worker is executing a command
   bool refresh_pending_ = false;  // publish again (the reference changed)
@@ -89,12 +96,13 @@ class Session {
   std::uint64_t generation_ = 0;
   std::deque<PathRecord> paths_;
   std::uint64_t next_serial_ = 0;
-  // Paths recorded per step while running (steps last about 25 ms): about what a frame draws.
+  // Paths recorded per running piece (about 25 ms; frames take 25-30 ms and draw at most about
+  // 600 new paths): the display keeps up with what is recorded.
   static constexpr std::size_t kPathsPerStep = 384;
   std::vector<std::array<double, 2>> error_history_;
   std::optional<double> reference_error_;
   double last_error_time_ = -1.0;
-  std::uint64_t chunk_ = 4096;  // photons per step while running, adapted to about 25 ms
+  std::uint64_t chunk_ = Solver::kBatchSize;  // photons per piece, adapted to about 25 ms
   std::atomic<bool> cancel_{false};
   std::thread thread_;
 };

@@ -184,7 +184,8 @@ Result<std::unique_ptr<Viewer>> Viewer::create(const ViewOptions& options) {
     const Scene& loaded = *viewer->scene_;
     bool same = curves.size() == loaded.curves.size();
     for (std::size_t c = 0; same && c < loaded.curves.size(); ++c)
-      same = curves[c].value("id", std::string()) == loaded.curves[c].id;
+      same = curves[c].is_object() && curves[c].contains("id") && curves[c]["id"].is_string() &&
+             curves[c]["id"].get<std::string>() == loaded.curves[c].id;
     if (!same)
       return Error{options.reference + ": the reference describes another scene than " + viewer->scene_path_ +
                    " (its curves differ); solve the reference from the same scene file"};
@@ -217,7 +218,7 @@ Result<std::unique_ptr<Viewer>> Viewer::create(const ViewOptions& options) {
   const std::string title = "flatland - " + viewer->scene_->name;
   impl->window = SDL_CreateWindow(title.c_str(), SDL_WINDOWPOS_CENTERED, SDL_WINDOWPOS_CENTERED,
                                   options.width, options.height,
-                                  SDL_WINDOW_OPENGL | SDL_WINDOW_RESIZABLE | SDL_WINDOW_ALLOW_HIGHDPI);
+                                  SDL_WINDOW_OPENGL | SDL_WINDOW_RESIZABLE);
   if (impl->window == nullptr)
     return Error{std::string("cannot open a window: ") + SDL_GetError()};
   impl->context = SDL_GL_CreateContext(impl->window);
@@ -277,9 +278,9 @@ void Viewer::load_scene_file(const std::string& path) {
   if (!same_file) {
     view_fitted_ = false;
     draw_.selected_curve = -1;
-    session_->set_reference(nullptr);  // a reference belongs to one scene
-    reference_path_.clear();
   }
+  drop_reference("the scene changed");  // a reference belongs to one scene, as it was
+  if (draw_.selected_curve >= static_cast<int>(scene_->curves.size())) draw_.selected_curve = -1;
   SDL_SetWindowTitle(impl_->window, ("flatland - " + scene_->name).c_str());
   set_message("loaded " + path);
   restart();
@@ -344,6 +345,7 @@ void Viewer::track(const char* label) {
 }
 
 void Viewer::handle_key(int key, bool ctrl) {
+  overlay_generation_ = ~0ull;  // a display toggle shows at once, also while paused
   switch (key) {
     case SDLK_SPACE: session_->set_running(!session_->running()); break;
     case SDLK_PERIOD: session_->step(StepKind::Photon); break;
@@ -369,7 +371,7 @@ void Viewer::handle_key(int key, bool ctrl) {
       if (ctrl) {
         char name[128];
         std::snprintf(name, sizeof name, "flatland-%s-%d.png", scene_->name.c_str(), frames_done_);
-        Status saved = save_screenshot(name, false);
+        Status saved = save_screenshot(name);
         set_message(saved ? std::string("saved ") + name : saved.error().message);
       }
       break;
@@ -420,7 +422,15 @@ void Viewer::apply_edit() {
     return;
   }
   scene_ = std::make_shared<const Scene>(std::move(edited));
+  drop_reference("the scene was edited");
   restart();
+}
+
+void Viewer::drop_reference(const std::string& why) {
+  if (reference_path_.empty()) return;
+  session_->set_reference(nullptr);
+  set_message("reference " + reference_path_ + " dropped: " + why);
+  reference_path_.clear();
 }
 
 void Viewer::render_scene(const Snapshot& snapshot, int width, int height) {
@@ -433,7 +443,8 @@ void Viewer::render_scene(const Snapshot& snapshot, int width, int height) {
   view.height = height;
   const PathDraw paths = path_layer_.update(snapshot, draw_, view, static_cast<std::size_t>(keep_slider_),
                                             options_.path_budget);
-  impl_->renderer->draw(overlay_, paths, view, draw_.path_exposure);
+  if (Status drawn = impl_->renderer->draw(overlay_, paths, view, draw_.path_exposure); !drawn)
+    set_message(drawn.error().message);
 }
 
 bool Viewer::frame() {
@@ -547,7 +558,7 @@ bool Viewer::frame() {
   if (snapshot.get() != overlay_snapshot_.get()) overlay_generation_ = ~0ull;
   overlay_snapshot_ = snapshot;
   glBindFramebuffer(GL_FRAMEBUFFER, 0);
-  render_scene(*snapshot, width, height);
+  if (width > 0 && height > 0) render_scene(*snapshot, width, height);
   ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
 
   ++frames_done_;
@@ -564,11 +575,11 @@ bool Viewer::frame() {
   return !quit_;
 }
 
-Status Viewer::save_screenshot(const std::string& path, bool with_ui) {
-  (void)with_ui;
+Status Viewer::save_screenshot(const std::string& path) {
   int width = 0;
   int height = 0;
   SDL_GL_GetDrawableSize(impl_->window, &width, &height);
+  if (width <= 0 || height <= 0) return Error{path + ": the window has no area to take a picture of"};
   if (impl_->screenshot_framebuffer == 0) {
     glGenFramebuffers(1, &impl_->screenshot_framebuffer);
     glGenRenderbuffers(1, &impl_->screenshot_colour);
@@ -594,7 +605,7 @@ Status Viewer::run() {
   const double elapsed = now_seconds() - start;
   const std::shared_ptr<const Snapshot> snapshot = session_->snapshot();
   if (!options_.screenshot.empty())
-    if (Status saved = save_screenshot(options_.screenshot, false); !saved) return saved;
+    if (Status saved = save_screenshot(options_.screenshot); !saved) return saved;
   if (options_.report && !frame_seconds_.empty()) {
     std::vector<double> sorted = frame_seconds_;
     std::sort(sorted.begin(), sorted.end());
@@ -604,6 +615,8 @@ Status Viewer::run() {
     std::printf("solve     %llu photons, %u rounds, %.3g photons/s while shooting; %zu paths on screen\n",
                 static_cast<unsigned long long>(snapshot->progress.photons), snapshot->progress.rounds,
                 snapshot->photons_per_second, path_layer_.drawn());
+    if (snapshot->reference_error)
+      std::printf("error     %.4g relative L2 of B against the reference\n", *snapshot->reference_error);
   }
   if (!message_.empty() && options_.frames > 0 && message_.rfind("loaded", 0) != 0)
     std::fprintf(stderr, "flatland view: %s\n", message_.c_str());

@@ -80,8 +80,8 @@ class Viewer {
   void queue_drag(float from_x, float from_y, float to_x, float to_y);
   void queue_key(int sdl_keycode, bool ctrl = false);
 
-  // The scene view without panels, or the whole window, as a PNG.
-  Status save_screenshot(const std::string& path, bool with_ui);
+  // The scene view without panels, as a PNG (--screenshot-ui takes the whole window).
+  Status save_screenshot(const std::string& path);
 
  private:
   Viewer() = default;
@@ -101,6 +101,7 @@ class Viewer {
   bool combo(const char* label, int* index, const char* const* names, int count);
   void render_scene(const Snapshot& snapshot, int width, int height);
   void apply_edit();
+  void drop_reference(const std::string& why);
   void check_file_changed();
   void set_message(std::string text);
 
