@@ -50,6 +50,11 @@ struct FrameStep {
 };
 Result<FrameStep> parse_frame_step(const std::string& text);
 
+// Seconds since the first call (a steady clock), for frame timing and messages.
+double seconds_since_start();
+// "100000", "1e6" -> 1000000; anything not a whole number in [1, 2^53] is an error naming `what`.
+Result<std::uint64_t> parse_whole_number(const std::string& text, const std::string& what);
+
 // The default scene: scenes2d/default.json beside the source tree or the working directory.
 std::string default_scene_path();
 
@@ -87,8 +92,15 @@ class Viewer {
   Viewer() = default;
   void restart();
   void load_scene_file(const std::string& path);
+  // The main loop's parts.
+  void handle_events();
+  void step_solve();
+  void handle_scene_mouse(const Snapshot& snapshot);
+  void draw(const std::shared_ptr<const Snapshot>& snapshot);
+  void save_window_picture(const std::string& path);
   void handle_event(const void* sdl_event);
   void handle_key(int key, bool ctrl);
+  // Panels (panels.cpp).
   void draw_ui(const Snapshot& snapshot);
   void draw_menu(const Snapshot& snapshot);
   void draw_solve_panel(const Snapshot& snapshot);

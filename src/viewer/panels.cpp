@@ -1,0 +1,420 @@
+// The viewer's panels (Dear ImGui): menu, solve controls, display options, status, the inspected
+// curve, help. They read the snapshot and change the viewer's settings; the main loop is in
+// viewer_app.cpp.
+#include <SDL.h>
+#include <imgui.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "viewer/viewer_app.hpp"
+
+namespace flatland::viewer {
+
+namespace {
+
+const char* const kBasisNames[] = {"constant", "linear", "cubic", "hermite"};
+const BasisKind kBases[] = {BasisKind::Constant, BasisKind::Linear, BasisKind::Cubic, BasisKind::Hermite};
+const char* const kSamplingNames[] = {"uniform", "reconstructed"};
+const char* const kDiscontinuityNames[] = {"none", "scene", "auto"};
+const char* const kEstimatorNames[] = {"lumped", "galerkin"};
+const char* const kProfileNames[] = {"box", "tent", "epanechnikov", "cosine", "gauss"};
+const char* const kModeNames[] = {"footprint", "band"};
+
+template <typename T, std::size_t N>
+int index_of(const T (&values)[N], T value) {
+  for (std::size_t i = 0; i < N; ++i)
+    if (values[i] == value) return static_cast<int>(i);
+  return 0;
+}
+
+const char* continuity_name(Continuity c) {
+  return c == Continuity::Jump ? "C-1" : c == Continuity::C0 ? "C0" : "C1";
+}
+
+const char* const kHelp[][2] = {
+    {"Space", "run / pause"},
+    {".", "step one photon"},
+    {"B", "step one batch (4096 photons)"},
+    {"R", "step one round"},
+    {"Backspace", "reset (restart the solve)"},
+    {"F", "fit the scene to the window"},
+    {"C", "show control points (drag them to edit)"},
+    {"N", "show storage nodes"},
+    {"G", "graph of B along the normals"},
+    {"K", "colour band of B"},
+    {"P", "photon paths"},
+    {"+ / -", "path exposure"},
+    {"Ctrl+S", "save a screenshot (PNG, the scene view)"},
+    {"Ctrl+E", "save the result (JSON, as solve --out)"},
+    {"F5", "reload the scene file"},
+    {"F1 / H", "this help"},
+    {"Esc", "quit"},
+    {"Mouse", "wheel: zoom; right or middle drag, or left drag on empty space: pan; click a "
+              "curve: inspect it"},
+};
+
+}  // namespace
+
+bool Viewer::combo(const char* label, int* index, const char* const* names, int count) {
+  bool changed = false;
+  const bool open = ImGui::BeginCombo(label, names[std::clamp(*index, 0, count - 1)]);
+  track(label);
+  if (open) {
+    for (int i = 0; i < count; ++i) {
+      if (ImGui::Selectable(names[i], i == *index) && i != *index) {
+        *index = i;
+        changed = true;
+      }
+      track((std::string(label) + ":" + names[i]).c_str());
+    }
+    ImGui::EndCombo();
+  }
+  return changed;
+}
+
+void Viewer::track(const char* label) {
+  const ImVec2 lo = ImGui::GetItemRectMin();
+  const ImVec2 hi = ImGui::GetItemRectMax();
+  widget_rects_[label] = {lo.x, lo.y, hi.x, hi.y};
+}
+
+void Viewer::draw_ui(const Snapshot& snapshot) {
+  draw_menu(snapshot);
+  draw_solve_panel(snapshot);
+  draw_display_panel(snapshot);
+  draw_status_panel(snapshot);
+  if (draw_.selected_curve >= 0 && static_cast<std::size_t>(draw_.selected_curve) < scene_->curves.size())
+    draw_curve_panel(snapshot);
+  if (show_help_) draw_help_panel();
+  if (!message_.empty() && seconds_since_start() - message_time_ < 8.0) {
+    const ImGuiViewport* viewport = ImGui::GetMainViewport();
+    ImGui::SetNextWindowPos(ImVec2(viewport->WorkPos.x + viewport->WorkSize.x * 0.5f,
+                                   viewport->WorkPos.y + viewport->WorkSize.y - 10.0f),
+                            ImGuiCond_Always, ImVec2(0.5f, 1.0f));
+    ImGui::SetNextWindowBgAlpha(0.8f);
+    ImGui::Begin("##message", nullptr,
+                 ImGuiWindowFlags_NoDecoration | ImGuiWindowFlags_AlwaysAutoResize | ImGuiWindowFlags_NoInputs);
+    ImGui::TextUnformatted(message_.c_str());
+    ImGui::End();
+  }
+}
+
+void Viewer::draw_menu(const Snapshot& snapshot) {
+  (void)snapshot;
+  if (!ImGui::BeginMainMenuBar()) return;
+  if (ImGui::BeginMenu("File")) {
+    track("File");
+    if (ImGui::BeginMenu("Open scene")) {
+      std::vector<std::string> files;
+      const std::filesystem::path directory = std::filesystem::path(default_scene_path()).parent_path();
+      std::error_code error;
+      for (const auto& entry : std::filesystem::directory_iterator(directory, error))
+        if (entry.path().extension() == ".json") files.push_back(entry.path().string());
+      std::sort(files.begin(), files.end());
+      for (const std::string& file : files)
+        if (ImGui::MenuItem(std::filesystem::path(file).filename().string().c_str(), nullptr, file == scene_path_))
+          load_scene_file(file);
+      ImGui::EndMenu();
+    }
+    if (ImGui::MenuItem("Reload scene", "F5")) load_scene_file(scene_path_);
+    if (ImGui::MenuItem("Save screenshot", "Ctrl+S")) handle_key(SDLK_s, true);
+    if (ImGui::MenuItem("Save result", "Ctrl+E")) handle_key(SDLK_e, true);
+    if (ImGui::MenuItem("Quit", "Esc")) quit_ = true;
+    ImGui::EndMenu();
+  }
+  if (ImGui::BeginMenu("View")) {
+    if (ImGui::MenuItem("Fit scene", "F")) view_fitted_ = false;
+    ImGui::EndMenu();
+  }
+  if (ImGui::MenuItem("Help")) show_help_ = !show_help_;
+  ImGui::EndMainMenuBar();
+}
+
+void Viewer::draw_solve_panel(const Snapshot& snapshot) {
+  ImGui::SetNextWindowPos(ImVec2(8, 28), ImGuiCond_FirstUseEver);
+  ImGui::SetNextWindowSize(ImVec2(300, 0), ImGuiCond_FirstUseEver);
+  ImGui::Begin("Solve");
+  const bool running = session_->running();
+  if (ImGui::Button(running ? "Pause" : "Run", ImVec2(60, 0))) session_->set_running(!running);
+  track("Run");
+  ImGui::SameLine();
+  if (ImGui::Button("Reset")) restart();
+  track("Reset");
+  if (ImGui::Button("Photon")) session_->step(StepKind::Photon);
+  track("Photon");
+  ImGui::SameLine();
+  if (ImGui::Button("Batch")) session_->step(StepKind::Batch);
+  track("Batch");
+  ImGui::SameLine();
+  if (ImGui::Button("Round")) session_->step(StepKind::Round);
+  track("Round");
+  ImGui::Separator();
+
+  bool changed = false;
+  char budget[32];
+  std::snprintf(budget, sizeof budget, "%s", budget_text_.c_str());
+  if (ImGui::InputText("photons", budget, sizeof budget, ImGuiInputTextFlags_EnterReturnsTrue)) {
+    budget_text_ = budget;
+    Result<std::uint64_t> photons = parse_whole_number(budget_text_, "photons");
+    if (photons) {
+      settings_.photons = *photons;
+      changed = true;
+    } else {
+      set_message(photons.error().message);
+    }
+  }
+  int seed = static_cast<int>(settings_.seed);
+  if (ImGui::InputInt("seed", &seed) && seed >= 0) {
+    settings_.seed = static_cast<std::uint64_t>(seed);
+    changed = true;
+  }
+  int threads = static_cast<int>(settings_.threads);
+  if (ImGui::SliderInt("threads", &threads, 0, 16, threads == 0 ? "all" : "%d")) {
+    settings_.threads = static_cast<unsigned>(threads);
+    changed = true;
+  }
+  int basis = index_of(kBases, settings_.basis);
+  if (combo("basis", &basis, kBasisNames, 4)) {
+    settings_.basis = kBases[basis];
+    changed = true;
+  }
+  int elements = settings_.elements;
+  if (ImGui::SliderInt("elements", &elements, 1, 256, "%d", ImGuiSliderFlags_Logarithmic)) {
+    settings_.elements = elements;
+    changed = true;
+  }
+  int sampling = settings_.sampling == PositionSampling::Uniform ? 0 : 1;
+  if (combo("sampling", &sampling, kSamplingNames, 2)) {
+    settings_.sampling = sampling == 0 ? PositionSampling::Uniform : PositionSampling::Reconstructed;
+    changed = true;
+  }
+  int discontinuities = static_cast<int>(settings_.discontinuities);
+  if (combo("discontinuities", &discontinuities, kDiscontinuityNames, 3)) {
+    settings_.discontinuities = static_cast<DiscontinuityMode>(discontinuities);
+    changed = true;
+  }
+  int estimator = settings_.estimator == Estimator::Lumped ? 0 : 1;
+  if (combo("estimator", &estimator, kEstimatorNames, 2)) {
+    settings_.estimator = estimator == 0 ? Estimator::Lumped : Estimator::Galerkin;
+    changed = true;
+  }
+  // Ray width as a fraction of the scene's size; profile and mode only matter for wide rays.
+  float width = static_cast<float>(settings_.ray_width / scene_->scale);
+  if (ImGui::SliderFloat("ray width", &width, 0.0f, 0.2f, width == 0.0f ? "point rays" : "%.4f x scale",
+                         ImGuiSliderFlags_Logarithmic)) {
+    settings_.ray_width = static_cast<double>(width) * scene_->scale;
+    changed = true;
+  }
+  if (settings_.ray_width > 0.0) {
+    int profile = static_cast<int>(settings_.ray_profile);
+    if (combo("ray profile", &profile, kProfileNames, 5)) {
+      settings_.ray_profile = static_cast<RayProfile>(profile);
+      changed = true;
+    }
+    int mode = settings_.ray_mode == RayMode::Footprint ? 0 : 1;
+    if (combo("ray mode", &mode, kModeNames, 2)) {
+      settings_.ray_mode = mode == 0 ? RayMode::Footprint : RayMode::Band;
+      changed = true;
+    }
+    if (settings_.ray_mode == RayMode::Band && ImGui::SliderInt("band rays", &settings_.band_rays, 1, 64))
+      changed = true;
+  }
+  float tolerance = static_cast<float>(settings_.tolerance);
+  if (ImGui::SliderFloat("tolerance", &tolerance, 1e-6f, 0.1f, "%.0e", ImGuiSliderFlags_Logarithmic)) {
+    settings_.tolerance = static_cast<double>(tolerance);
+    changed = true;
+  }
+  if (changed) {
+    if (Status valid = validate(settings_); valid) restart();
+    else set_message(valid.error().message);
+  }
+  if (!snapshot.error.empty()) ImGui::TextColored(ImVec4(1, 0.4f, 0.4f, 1), "%s", snapshot.error.c_str());
+  ImGui::End();
+}
+
+void Viewer::draw_display_panel(const Snapshot& snapshot) {
+  (void)snapshot;
+  ImGui::SetNextWindowPos(ImVec2(8, 430), ImGuiCond_FirstUseEver);
+  ImGui::SetNextWindowSize(ImVec2(300, 0), ImGuiCond_FirstUseEver);
+  ImGui::Begin("Display");
+  bool changed = false;
+  changed |= ImGui::Checkbox("band", &draw_.band);
+  ImGui::SameLine();
+  changed |= ImGui::Checkbox("graph", &draw_.graph);
+  ImGui::SameLine();
+  changed |= ImGui::Checkbox("paths", &draw_.paths);
+  changed |= ImGui::Checkbox("control points", &draw_.control_points);
+  ImGui::SameLine();
+  changed |= ImGui::Checkbox("nodes", &draw_.storage_nodes);
+  changed |= ImGui::Checkbox("discontinuities", &draw_.discontinuities);
+  changed |= ImGui::SliderFloat("B exposure", &draw_.band_exposure, 0.1f, 10.0f, "%.2f", ImGuiSliderFlags_Logarithmic);
+  changed |= ImGui::SliderFloat("graph height", &draw_.graph_height, 10.0f, 200.0f, "%.0f px");
+  if (scene_->channels == 3) {
+    int channel = static_cast<int>(draw_.channel);
+    const char* const names[] = {"all (colour)", "red", "green", "blue"};
+    changed |= combo("channel", &channel, names, 4);
+    draw_.channel = static_cast<ChannelView>(channel);
+  }
+  if (draw_.paths) {
+    ImGui::SliderFloat("path exposure", &draw_.path_exposure, 0.05f, 50.0f, "%.2f", ImGuiSliderFlags_Logarithmic);
+    float keep = static_cast<float>(keep_slider_);
+    if (ImGui::SliderFloat("paths kept", &keep, 0.0f, 200000.0f, "%.0f", ImGuiSliderFlags_Logarithmic)) {
+      keep_slider_ = std::round(keep);
+      session_->set_path_limit(static_cast<std::size_t>(keep_slider_));
+    }
+    ImGui::SliderFloat("fade by age", &draw_.fade, 0.0f, 3.0f, "%.2f");
+    int colour = static_cast<int>(draw_.path_colour);
+    const char* const names[] = {"power", "round"};
+    combo("colour by", &colour, names, 2);
+    draw_.path_colour = static_cast<PathColour>(colour);
+  }
+  if (changed) overlay_generation_ = ~0ull;
+  ImGui::End();
+}
+
+void Viewer::draw_status_panel(const Snapshot& snapshot) {
+  const ImGuiViewport* viewport = ImGui::GetMainViewport();
+  ImGui::SetNextWindowPos(ImVec2(viewport->WorkPos.x + viewport->WorkSize.x - 8.0f, viewport->WorkPos.y + 8.0f),
+                          ImGuiCond_FirstUseEver, ImVec2(1.0f, 0.0f));
+  ImGui::SetNextWindowSize(ImVec2(330, 0), ImGuiCond_FirstUseEver);
+  ImGui::Begin("Status");
+  ImGui::Text("scene    %s (%s)", scene_->name.c_str(), scene_->channels == 1 ? "grey" : "colour");
+  ImGui::Text("photons  %llu of %llu", static_cast<unsigned long long>(snapshot.progress.photons),
+              static_cast<unsigned long long>(settings_.photons));
+  ImGui::Text("rounds   %u%s", snapshot.progress.rounds,
+              snapshot.round_photons > 0 ? " (+ one open)" : "");
+  if (snapshot.round_photons > 0)
+    ImGui::ProgressBar(static_cast<float>(snapshot.round_done) / static_cast<float>(snapshot.round_photons),
+                       ImVec2(-1, 0), "open round");
+  ImGui::Text("rate     %.3g photons/s", snapshot.photons_per_second);
+  ImGui::Text("state    %s", snapshot.stop_reason != StopReason::Running ? to_string(snapshot.stop_reason)
+                               : session_->running()                       ? "running"
+                                                                           : "paused");
+  const EnergyBooks& books = snapshot.books;
+  if (books.emitted > 0.0) {
+    ImGui::Text("emitted  %.6g", books.emitted);
+    ImGui::Text("absorbed %.6g  escaped %.6g", books.absorbed, books.escaped);
+    ImGui::Text("unshot   %.6g (%.3g%%)", books.unshot, 100.0 * books.unshot / books.emitted);
+    ImGui::Text("balance  %.2g", books.imbalance());
+  }
+  if (snapshot.reference_error) {
+    ImGui::Separator();
+    ImGui::Text("error    %.4f (relative L2 of B vs reference)", *snapshot.reference_error);
+    if (snapshot.error_history.size() >= 2) {
+      // log10 error against elapsed time, drawn with ImGui's own primitives.
+      ImDrawList* draw = ImGui::GetWindowDrawList();
+      const ImVec2 origin = ImGui::GetCursorScreenPos();
+      const ImVec2 size(ImGui::GetContentRegionAvail().x, 90.0f);
+      ImGui::InvisibleButton("##errorplot", size);
+      draw->AddRectFilled(origin, ImVec2(origin.x + size.x, origin.y + size.y), IM_COL32(30, 30, 40, 255));
+      double lo = INFINITY;
+      double hi = -INFINITY;
+      for (const auto& point : snapshot.error_history) {
+        const double e = std::log10(std::max(point[1], 1e-12));
+        lo = std::min(lo, e);
+        hi = std::max(hi, e);
+      }
+      if (hi - lo < 0.5) {
+        lo -= 0.25;
+        hi += 0.25;
+      }
+      const double t_end = std::max(snapshot.error_history.back()[0], 1e-9);
+      ImVec2 previous{};
+      for (std::size_t i = 0; i < snapshot.error_history.size(); ++i) {
+        const auto& point = snapshot.error_history[i];
+        const double e = std::log10(std::max(point[1], 1e-12));
+        const ImVec2 p(origin.x + static_cast<float>(point[0] / t_end) * size.x,
+                       origin.y + static_cast<float>((hi - e) / (hi - lo)) * size.y);
+        if (i > 0) draw->AddLine(previous, p, IM_COL32(255, 200, 80, 255), 1.5f);
+        previous = p;
+      }
+      ImGui::Text("log10 error %.2f .. %.2f over %.2f s of solving", lo, hi, t_end);
+    }
+  }
+  ImGui::End();
+}
+
+void Viewer::draw_curve_panel(const Snapshot& snapshot) {
+  const auto c = static_cast<std::size_t>(draw_.selected_curve);
+  const Curve& curve = scene_->curves[c];
+  const Material& material = scene_->material_of(curve);
+  const ImGuiViewport* viewport = ImGui::GetMainViewport();
+  ImGui::SetNextWindowPos(ImVec2(viewport->WorkPos.x + viewport->WorkSize.x - 8.0f,
+                                 viewport->WorkPos.y + viewport->WorkSize.y - 8.0f),
+                          ImGuiCond_FirstUseEver, ImVec2(1.0f, 1.0f));
+  ImGui::SetNextWindowSize(ImVec2(380, 330), ImGuiCond_FirstUseEver);
+  ImGui::Begin("Curve");
+  ImGui::Text("curve    %zu '%s'", c, curve.id.c_str());
+  ImGui::Text("material %s: rho %.3g %.3g %.3g", material.name.c_str(), material.reflectivity[0],
+              material.reflectivity[1], material.reflectivity[2]);
+  if (scene_->is_emitter(curve))
+    ImGui::Text("emits    %.3g %.3g %.3g per unit length", curve.emittance[0], curve.emittance[1], curve.emittance[2]);
+  ImGui::Text("length   %.6g, %u %s segment%s, sides %s", curve.length, curve.segment_count,
+              curve.kind == SegmentKind::Line ? "straight" : "cubic", curve.segment_count == 1 ? "" : "s",
+              curve.sides == Sides::Both ? "both" : curve.sides == Sides::Front ? "front" : "back");
+  if (c < snapshot.received_share.size())
+    ImGui::Text("share    %.2f%% of all reflected power", 100.0 * snapshot.received_share[c]);
+  if (c < snapshot.nodes.size() && !snapshot.nodes[c].empty()) {
+    std::string text;
+    int shown = 0;
+    for (const NodeMark& node : snapshot.nodes[c]) {
+      if (node.continuity == Continuity::C1) continue;
+      if (shown++ < 12) text += std::string(continuity_name(node.continuity)) + (node.visibility_event ? "* " : " ");
+    }
+    ImGui::Text("nodes    %zu storage nodes; below C1: %s%s", snapshot.nodes[c].size(),
+                shown == 0 ? "none" : text.c_str(), shown > 12 ? "..." : "");
+    ImGui::TextDisabled("         (* a visibility event)");
+  }
+  // B(s) along the curve (main side), with the reference when loaded.
+  const CurveTrace* trace = snapshot.traces && c < snapshot.traces->size() ? &(*snapshot.traces)[c] : nullptr;
+  const int side = curve.sides == Sides::Back ? 1 : 0;
+  const std::vector<Spectrum>* samples =
+      c < snapshot.radiosity.size() ? &snapshot.radiosity[c][static_cast<std::size_t>(side)] : nullptr;
+  if (trace != nullptr && samples != nullptr && samples->size() == trace->s.size() && !samples->empty()) {
+    const std::vector<std::array<double, 2>>* reference =
+        c < snapshot.reference_curves.size() ? &snapshot.reference_curves[c] : nullptr;
+    double hi = 0.0;
+    for (const Spectrum& b : *samples) hi = std::max(hi, luminance(b, scene_->channels));
+    if (reference != nullptr)
+      for (const auto& point : *reference) hi = std::max(hi, point[1]);
+    hi = hi > 0.0 ? 1.1 * hi : 1.0;
+    ImDrawList* draw = ImGui::GetWindowDrawList();
+    const ImVec2 origin = ImGui::GetCursorScreenPos();
+    const ImVec2 size(ImGui::GetContentRegionAvail().x, std::max(ImGui::GetContentRegionAvail().y - 24.0f, 60.0f));
+    ImGui::InvisibleButton("##bplot", size);
+    draw->AddRectFilled(origin, ImVec2(origin.x + size.x, origin.y + size.y), IM_COL32(30, 30, 40, 255));
+    auto point = [&](double s, double b) {
+      return ImVec2(origin.x + static_cast<float>(s / curve.length) * size.x,
+                    origin.y + static_cast<float>(1.0 - b / hi) * size.y);
+    };
+    if (reference != nullptr)
+      for (std::size_t i = 1; i < reference->size(); ++i)
+        draw->AddLine(point((*reference)[i - 1][0], (*reference)[i - 1][1]), point((*reference)[i][0], (*reference)[i][1]),
+                      IM_COL32(120, 220, 120, 255), 1.5f);
+    for (std::size_t i = 1; i < samples->size(); ++i)
+      draw->AddLine(point(trace->s[i - 1], luminance((*samples)[i - 1], scene_->channels)),
+                    point(trace->s[i], luminance((*samples)[i], scene_->channels)), IM_COL32(255, 200, 80, 255), 1.5f);
+    ImGui::Text("B(s), 0 .. %.3g%s", hi, reference != nullptr && !reference->empty() ? "  (green: reference)" : "");
+  }
+  ImGui::End();
+}
+
+void Viewer::draw_help_panel() {
+  ImGui::SetNextWindowPos(ImVec2(330, 60), ImGuiCond_FirstUseEver);
+  ImGui::Begin("Help", &show_help_, ImGuiWindowFlags_AlwaysAutoResize);
+  ImGui::TextUnformatted("Keyboard shortcuts (when no panel has the keyboard)");
+  ImGui::Separator();
+  for (const auto& entry : kHelp) {
+    ImGui::Text("%-10s", entry[0]);
+    ImGui::SameLine();
+    ImGui::TextUnformatted(entry[1]);
+  }
+  ImGui::End();
+}
+
+}  // namespace flatland::viewer
