@@ -17,18 +17,9 @@ namespace {
 
 namespace fs = std::filesystem;
 
-struct CommandRun {
-  int exit_code = -1;
-  std::string out;
-  std::string err;
-};
+using testing::CommandRun;
 
-std::string read_file(const fs::path& path) {
-  std::ifstream in(path);
-  std::stringstream buffer;
-  buffer << in.rdbuf();
-  return buffer.str();
-}
+std::string read_file(const fs::path& path) { return testing::read_text_file(path); }
 
 class Cli : public ::testing::Test {
  protected:
@@ -40,18 +31,7 @@ class Cli : public ::testing::Test {
   }
   void TearDown() override { fs::remove_all(directory_); }
 
-  CommandRun run(const std::string& arguments) {
-    const fs::path out = directory_ / "stdout.txt";
-    const fs::path err = directory_ / "stderr.txt";
-    const std::string command = std::string(FLATLAND_BINARY) + " " + arguments + " >" +
-                                out.string() + " 2>" + err.string() + " </dev/null";
-    const int status = std::system(command.c_str());
-    CommandRun result;
-    result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-    result.out = read_file(out);
-    result.err = read_file(err);
-    return result;
-  }
+  CommandRun run(const std::string& arguments) { return testing::run_flatland(arguments, directory_); }
 
   std::string scene(const std::string& name) { return testing::source_path("scenes2d/" + name); }
   fs::path directory_;

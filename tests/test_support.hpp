@@ -1,9 +1,15 @@
 // Shared helpers of the test suites: scene loading, statistics with derived thresholds.
 #pragma once
 
+#include <sys/wait.h>
+
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
 #include <span>
+#include <sstream>
 #include <string>
 
 #include <gtest/gtest.h>
@@ -15,6 +21,36 @@ namespace flatland::testing {
 
 inline std::string source_path(const std::string& relative) {
   return std::string(FLATLAND_SOURCE_DIR) + "/" + relative;
+}
+
+inline std::string read_text_file(const std::filesystem::path& path) {
+  std::ifstream in(path);
+  std::stringstream buffer;
+  buffer << in.rdbuf();
+  return buffer.str();
+}
+
+// A run of the flatland executable: exit code, standard output and standard error.
+struct CommandRun {
+  int exit_code = -1;
+  std::string out;
+  std::string err;
+};
+
+// Runs `flatland ARGUMENTS` with no input, its output captured in files in `directory`;
+// `environment` prefixes the command (e.g. "env -u DISPLAY").
+inline CommandRun run_flatland(const std::string& arguments, const std::filesystem::path& directory,
+                               const std::string& environment = "") {
+  const std::filesystem::path out = directory / "stdout.txt";
+  const std::filesystem::path err = directory / "stderr.txt";
+  const std::string command = environment + " " + std::string(FLATLAND_BINARY) + " " + arguments + " >" +
+                              out.string() + " 2>" + err.string() + " </dev/null";
+  const int status = std::system(command.c_str());
+  CommandRun result;
+  result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  result.out = read_text_file(out);
+  result.err = read_text_file(err);
+  return result;
 }
 
 inline Scene scene_from_text(const std::string& text) {

@@ -25,18 +25,9 @@ namespace fs = std::filesystem;
 namespace flatland::viewer {
 namespace {
 
-struct CommandRun {
-  int exit_code = -1;
-  std::string out;
-  std::string err;
-};
+using testing::CommandRun;
 
-std::string read_file(const fs::path& path) {
-  std::ifstream file(path);
-  std::stringstream buffer;
-  buffer << file.rdbuf();
-  return buffer.str();
-}
+std::string read_file(const fs::path& path) { return testing::read_text_file(path); }
 
 class Viewer : public ::testing::Test {
  protected:
@@ -49,16 +40,7 @@ class Viewer : public ::testing::Test {
   void TearDown() override { fs::remove_all(directory_); }
 
   CommandRun run(const std::string& arguments, const std::string& environment = "") {
-    const fs::path out = directory_ / "stdout.txt";
-    const fs::path err = directory_ / "stderr.txt";
-    const std::string command = environment + " " + std::string(FLATLAND_BINARY) + " " + arguments + " >" +
-                                out.string() + " 2>" + err.string() + " </dev/null";
-    const int status = std::system(command.c_str());
-    CommandRun result;
-    result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-    result.out = read_file(out);
-    result.err = read_file(err);
-    return result;
+    return testing::run_flatland(arguments, directory_, environment);
   }
   std::string scene(const std::string& name) { return testing::source_path("scenes2d/" + name); }
   fs::path directory_;

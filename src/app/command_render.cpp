@@ -90,15 +90,7 @@ int run_render(RenderOptions& o) {
       rounds.resize(paths.size(), round);
     }
   }
-  if (solver.stop_reason() == StopReason::Cancelled) {
-    std::fprintf(stderr, "flatland: interrupted after %llu photons; nothing written\n",
-                 static_cast<unsigned long long>(solver.photons_shot()));
-    return kExitInterrupted;
-  }
-  if (solver.stop_reason() == StopReason::BooksUnbalanced) {
-    std::fprintf(stderr, "flatland: internal error: %s\n", solver.books_error().c_str());
-    return kExitFailure;
-  }
+  if (const std::optional<int> code = abnormal_stop(solver)) return *code;
 
   viewer::Snapshot snapshot;
   snapshot.scene = scene;

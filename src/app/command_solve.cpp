@@ -151,6 +151,19 @@ void print_summary(const Solver& solver) {
 
 }  // namespace
 
+std::optional<int> abnormal_stop(const Solver& solver) {
+  if (solver.stop_reason() == StopReason::Cancelled) {
+    std::fprintf(stderr, "flatland: interrupted after %llu photons; nothing written\n",
+                 static_cast<unsigned long long>(solver.photons_shot()));
+    return kExitInterrupted;
+  }
+  if (solver.stop_reason() == StopReason::BooksUnbalanced) {
+    std::fprintf(stderr, "flatland: internal error: %s\n", solver.books_error().c_str());
+    return kExitFailure;
+  }
+  return std::nullopt;
+}
+
 Status finish_solver_settings(SolveOptions& o) {
   Result<std::uint64_t> photons = parse_count(o.photons, "--photons");
   if (!photons) return photons.error();
@@ -192,15 +205,7 @@ int run_solve(SolveOptions& o) {
     ProgressLine line(!o.quiet);
     solver.run(&interrupt_flag(), [&](const SolverProgress& p) { line.update(p); });
   }
-  if (solver.stop_reason() == StopReason::Cancelled) {
-    std::fprintf(stderr, "flatland: interrupted after %llu photons; nothing written\n",
-                 static_cast<unsigned long long>(solver.photons_shot()));
-    return kExitInterrupted;
-  }
-  if (solver.stop_reason() == StopReason::BooksUnbalanced) {
-    std::fprintf(stderr, "flatland: internal error: %s\n", solver.books_error().c_str());
-    return kExitFailure;
-  }
+  if (const std::optional<int> code = abnormal_stop(solver)) return *code;
   if (!o.quiet) print_summary(solver);
 
   // Read the reference before the result is written, so a bad reference writes nothing.

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <atomic>
+#include <optional>
 #include <string>
 
 #include <CLI/CLI.hpp>
@@ -79,6 +80,9 @@ void print_comparison(const Comparison& comparison);
 CLI::App* add_solve_command(CLI::App& parent, SolveOptions& options);
 // The solver's options (--photons, --seed, --threads, --basis, ...), shared by solve, view, render.
 void add_solver_options(CLI::App* command, SolveOptions& options);
+// After a solve: when it was interrupted (exit 130, nothing written) or its books failed (exit 1),
+// prints the one-line message and returns the exit code; nothing when the solve ended normally.
+std::optional<int> abnormal_stop(const Solver& solver);
 // Turns the parsed text options into options.settings and validates them.
 Status finish_solver_settings(SolveOptions& options);
 int run_solve(SolveOptions& options);

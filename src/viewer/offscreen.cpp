@@ -1,5 +1,7 @@
 #include "viewer/offscreen.hpp"
 
+#include "viewer/renderer.hpp"
+
 #include <epoxy/egl.h>
 #include <epoxy/gl.h>
 
@@ -48,15 +50,8 @@ Result<std::unique_ptr<OffscreenContext>> OffscreenContext::create(int width, in
   if (eglMakeCurrent(display, EGL_NO_SURFACE, EGL_NO_SURFACE, context) != EGL_TRUE)
     return Error{"no offscreen OpenGL: eglMakeCurrent failed (" + egl_error() + ")"};
 
-  glGenFramebuffers(1, &result->framebuffer_);
-  glGenRenderbuffers(1, &result->colour_);
-  glBindRenderbuffer(GL_RENDERBUFFER, result->colour_);
-  glRenderbufferStorage(GL_RENDERBUFFER, GL_RGBA8, width, height);
-  glBindFramebuffer(GL_FRAMEBUFFER, result->framebuffer_);
-  glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, result->colour_);
-  if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
-    return Error{"no offscreen OpenGL: the " + std::to_string(width) + "x" + std::to_string(height) +
-                 " framebuffer is incomplete (too large?)"};
+  if (Status made = Renderer::make_colour_framebuffer(width, height, result->framebuffer_, result->colour_); !made)
+    return made.error();
   return result;
 }
 

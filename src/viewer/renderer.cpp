@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstddef>
 #include <fstream>
+#include <string>
 #include <sstream>
 #include <utility>
 
@@ -259,6 +260,21 @@ Status Renderer::draw(const std::vector<LineVertex>& overlay, const PathDraw& pa
   glBindVertexArray(0);
   glUseProgram(0);
   glDisable(GL_BLEND);
+  return ok_status();
+}
+
+Status Renderer::make_colour_framebuffer(int width, int height, unsigned& framebuffer, unsigned& colour) {
+  if (framebuffer == 0) {
+    glGenFramebuffers(1, &framebuffer);
+    glGenRenderbuffers(1, &colour);
+  }
+  glBindRenderbuffer(GL_RENDERBUFFER, colour);
+  glRenderbufferStorage(GL_RENDERBUFFER, GL_RGBA8, width, height);
+  glBindFramebuffer(GL_FRAMEBUFFER, framebuffer);
+  glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, colour);
+  if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
+    return Error{"cannot make a " + std::to_string(width) + "x" + std::to_string(height) +
+                 " picture (too large for the OpenGL implementation?)"};
   return ok_status();
 }
 

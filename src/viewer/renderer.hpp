@@ -38,6 +38,10 @@ class Renderer {
   Status draw(const std::vector<LineVertex>& overlay, const PathDraw& paths, const ViewTransform& view,
               float path_exposure);
 
+  // (Re)allocates an RGBA8 colour framebuffer of this size (generating the objects when they are
+  // 0) and leaves it bound; an error when it is incomplete (too large).
+  static Status make_colour_framebuffer(int width, int height, unsigned& framebuffer, unsigned& colour);
+
   // The bound framebuffer's pixels, RGBA8, rows from top to bottom.
   static std::vector<std::uint8_t> read_pixels(int width, int height);
 

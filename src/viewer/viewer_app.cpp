@@ -526,14 +526,12 @@ Status Viewer::save_screenshot(const std::string& path) {
   int height = 0;
   SDL_GL_GetDrawableSize(impl_->window, &width, &height);
   if (width <= 0 || height <= 0) return Error{path + ": the window has no area to take a picture of"};
-  if (impl_->screenshot_framebuffer == 0) {
-    glGenFramebuffers(1, &impl_->screenshot_framebuffer);
-    glGenRenderbuffers(1, &impl_->screenshot_colour);
+  if (Status made = Renderer::make_colour_framebuffer(width, height, impl_->screenshot_framebuffer,
+                                                      impl_->screenshot_colour);
+      !made) {
+    glBindFramebuffer(GL_FRAMEBUFFER, 0);
+    return Error{path + ": " + made.error().message};
   }
-  glBindRenderbuffer(GL_RENDERBUFFER, impl_->screenshot_colour);
-  glRenderbufferStorage(GL_RENDERBUFFER, GL_RGBA8, width, height);
-  glBindFramebuffer(GL_FRAMEBUFFER, impl_->screenshot_framebuffer);
-  glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, impl_->screenshot_colour);
   const std::shared_ptr<const Snapshot> snapshot = session_->snapshot();
   overlay_generation_ = ~0ull;
   render_scene(*snapshot, width, height);
