@@ -137,6 +137,17 @@ TEST_F(Cli, ReferenceWritesTheResultFormat) {
   const nlohmann::json result = nlohmann::json::parse(read_file(ref));
   EXPECT_EQ(result["settings"]["method"], "reference");
   EXPECT_GT(result["stats"]["elements"].get<int>(), 0);
+  // The linear solve's guaranteed error, and the discretisation error estimated from a second
+  // solve: the penumbra's one bounce is reproduced exactly by the final gather, so both are tiny.
+  EXPECT_LE(result["stats"]["error_bound"].get<double>(), 1e-10);
+  EXPECT_LT(result["stats"]["estimated_error"]["l2"].get<double>(), 1e-9);
+  EXPECT_NE(r.out.find("estimated relative error"), std::string::npos) << r.out;
+  // converge takes the reference and marks its error floor (here far below the plot: a label).
+  const fs::path out = directory_ / "converge";
+  const CommandRun converge = run("converge " + scene("penumbra.json") + " --reference " + ref.string() +
+                                  " --methods linear --budgets 3000 --seeds 1 --samples 30 --out " + out.string());
+  ASSERT_EQ(converge.exit_code, 0) << converge.err;
+  EXPECT_NE(read_file(out / "convergence.gp").find("reference error (estimate)"), std::string::npos);
   // A solve with the same samples compares against it.
   const CommandRun solve = run("solve " + scene("penumbra.json") + " --photons 20000 --samples 30 --reference " + ref.string());
   EXPECT_EQ(solve.exit_code, 0) << solve.err;
@@ -155,7 +166,7 @@ TEST_F(Cli, ConvergeWritesTableAndPlots) {
   const std::string csv = read_file(out / "convergence.csv");
   EXPECT_EQ(csv.substr(0, csv.find('\n')),
             "method,basis,sampling,discontinuities,estimator,elements,ray_width,ray_mode,ray_profile,"
-            "seed,photons,seconds,rel_l1,rel_l2,rel_linf");
+            "band_rays,tolerance,seed,photons,rounds,unshot,seconds,rel_l1,rel_l2,rel_linf");
   EXPECT_EQ(lines(csv), 1 + 2 * 2 * 2);  // header + methods x budgets x seeds
   EXPECT_NE(csv.find("\"cubic+sampling=uniform\",cubic,uniform"), std::string::npos);
   const std::string png = read_file(out / "convergence.png");

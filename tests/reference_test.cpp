@@ -51,7 +51,7 @@ TEST(Reference, UniformEnclosure) {
     EXPECT_NEAR(solution.row_sum(i, Side::Front), 1.0, 1e-12);
     EXPECT_NEAR(solution.element_radiosity(i, Side::Front)[0], 2.0, 1e-10);
   }
-  EXPECT_LE(solution.residual(), 1e-12);
+  EXPECT_LE(solution.error_bound(), settings.tolerance);
 }
 
 TEST(Reference, HighReflectivityEnclosure) {
@@ -60,6 +60,81 @@ TEST(Reference, HighReflectivityEnclosure) {
   settings.max_element_length = 0.1;
   const ReferenceSolution solution = solve(scene, settings);
   for (const double b : samples(solution, 0, Side::Front, 23)) EXPECT_NEAR(b, 100.0, 1e-6);
+  const Scene stiffer = testing::scene_from_text(testing::circle_enclosure(0.999, 1.0));
+  const ReferenceSolution stiff = solve(stiffer, settings);
+  for (const double b : samples(stiff, 0, Side::Front, 23)) EXPECT_NEAR(b, 1000.0, 1e-5);
+}
+
+// A stiff closed scene whose answer is not uniform: a circle of rho = 0.999 lit by one quarter
+// of it. Chords of a circle see each other whole, so F is crossed strings (exact rows and
+// reciprocity). The iterative solve must agree with a direct solve (Gaussian elimination with
+// partial pivoting in long double on the dense element system, built from form_factor()) to the
+// error it guarantees, and close the energy books: sum L (1 - rho) b = sum L e.
+TEST(Reference, StiffEnclosureMatchesADirectSolveAndBalancesEnergy) {
+  const double k = 0.5522847498307936;
+  char text[1024];
+  std::snprintf(text, sizeof text, R"({"flatland": 1,
+    "materials": {"lamp": {"reflectivity": 0.999, "emittance": 1}, "wall": {"reflectivity": 0.999}},
+    "curves": [
+      {"id": "lamp", "material": "lamp", "bezier": [[1,0],[1,%.17g],[%.17g,1],[0,1]]},
+      {"id": "wall", "material": "wall", "bezier": [[0,1],[%.17g,1],[-1,%.17g],[-1,0],
+        [-1,%.17g],[%.17g,-1],[0,-1],[%.17g,-1],[1,%.17g],[1,0]]}]})",
+                k, k, -k, k, -k, -k, k, -k);
+  const Scene scene = testing::scene_from_text(text);
+  ReferenceSettings settings;
+  settings.max_element_length = 0.1;
+  const ReferenceSolution solution = solve(scene, settings);
+  const auto& elements = solution.element_list();
+  const std::size_t n = elements.size();
+  ASSERT_GE(n, 60u);
+  EXPECT_LE(solution.error_bound(), 1e-9);
+  EXPECT_LT(solution.iterations(), 200);  // Gauss-Seidel needs about 20,000 sweeps here
+
+  // Dense (I - rho F) b = e on the front sides, in long double, row-major with the right-hand
+  // side as column n.
+  const std::size_t width = n + 1;
+  std::vector<long double> a;
+  a.resize(n * width, 0.0L);
+  auto at = [&a, width](std::size_t row, std::size_t col) -> long double& { return a[row * width + col]; };
+  for (std::size_t i = 0; i < n; ++i) {
+    const auto ii = static_cast<std::uint32_t>(i);
+    at(i, i) = 1.0L;
+    for (std::size_t j = 0; j < n; ++j)
+      at(i, j) -= 0.999L * solution.form_factor(ii, Side::Front, static_cast<std::uint32_t>(j), Side::Front);
+    at(i, n) = elements[i].emittance[0][0];
+  }
+  for (std::size_t col = 0; col < n; ++col) {
+    std::size_t pivot = col;
+    for (std::size_t r = col + 1; r < n; ++r)
+      if (std::fabs(at(r, col)) > std::fabs(at(pivot, col))) pivot = r;
+    for (std::size_t c = 0; c <= n; ++c) std::swap(at(col, c), at(pivot, c));
+    for (std::size_t r = col + 1; r < n; ++r) {
+      const long double factor = at(r, col) / at(col, col);
+      for (std::size_t c = col; c <= n; ++c) at(r, c) -= factor * at(col, c);
+    }
+  }
+  std::vector<long double> direct;
+  direct.resize(n, 0.0L);
+  for (std::size_t i = n; i-- > 0;) {
+    long double sum = at(i, n);
+    for (std::size_t j = i + 1; j < n; ++j) sum -= at(i, j) * direct[j];
+    direct[i] = sum / at(i, i);
+  }
+  long double largest = 0.0L;
+  for (const long double value : direct) largest = std::max(largest, std::fabs(value));
+  double emitted = 0.0;
+  double absorbed = 0.0;
+  double smallest = INFINITY;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double b = solution.element_radiosity(static_cast<std::uint32_t>(i), Side::Front)[0];
+    EXPECT_NEAR(b, static_cast<double>(direct[i]), 1e-9 * static_cast<double>(largest)) << "element " << i;
+    emitted += elements[i].length * elements[i].emittance[0][0];
+    absorbed += elements[i].length * (1.0 - 0.999) * b;
+    smallest = std::min(smallest, b);
+  }
+  EXPECT_NEAR(absorbed, emitted, 1e-9 * emitted);
+  // Not uniform: the lamp's quarter is brighter than the far wall.
+  EXPECT_GT(static_cast<double>(largest) - smallest, 1e-3 * static_cast<double>(largest));
 }
 
 // A room with an obstacle: every direction hits something, so rows sum to 1 (up to the

@@ -26,8 +26,8 @@ struct Method {
 };
 
 // "cubic" or "basis=cubic+sampling=uniform+ray-width=0.05+ray-mode=band+...".
-Result<Method> parse_method(const std::string& text) {
-  Method method{text, SolverSettings{}};
+Result<Method> parse_method(const std::string& text, const SolverSettings& defaults) {
+  Method method{text, defaults};
   std::stringstream parts(text);
   std::string part;
   while (std::getline(parts, part, '+')) {
@@ -65,6 +65,12 @@ Result<Method> parse_method(const std::string& text) {
     } else if (key == "ray-mode") {
       if (value != "footprint" && value != "band") return Error{where + "ray-mode must be footprint or band"};
       s.ray_mode = value == "band" ? RayMode::Band : RayMode::Footprint;
+    } else if (key == "band-rays") {
+      s.band_rays = std::atoi(value.c_str());
+    } else if (key == "tolerance") {
+      char* end = nullptr;
+      s.tolerance = std::strtod(value.c_str(), &end);
+      if (end == value.c_str() || *end != '\0') return Error{where + "tolerance must be a number"};
     } else if (key == "ray-profile") {
       Result<RayProfile> profile = parse_ray_profile(value);
       if (!profile) return Error{where + profile.error().message};
@@ -72,7 +78,7 @@ Result<Method> parse_method(const std::string& text) {
     } else {
       return Error{where + "unknown key '" + key +
                    "'; keys: basis, sampling, discontinuities, estimator, elements, ray-width, "
-                   "ray-mode, ray-profile"};
+                   "ray-mode, ray-profile, band-rays, tolerance"};
     }
   }
   if (Status status = validate(method.settings); !status) return Error{"--methods: '" + text + "': " + status.error().message};
@@ -121,7 +127,7 @@ CLI::App* add_converge_command(CLI::App& parent, ConvergeOptions& o) {
   cmd->add_option("--methods", o.methods,
                   "Comma-separated methods: a basis name, or key=value pairs joined by '+' "
                   "(basis, sampling, discontinuities, estimator, elements, ray-width, ray-mode, "
-                  "ray-profile), e.g. constant,cubic,cubic+sampling=uniform")
+                  "ray-profile, band-rays, tolerance), e.g. constant,cubic,cubic+sampling=uniform")
       ->capture_default_str();
   auto* budgets = cmd->add_option("--budgets", o.budgets, "Comma-separated photon budgets")
                       ->capture_default_str();
@@ -136,7 +142,13 @@ CLI::App* add_converge_command(CLI::App& parent, ConvergeOptions& o) {
       ->capture_default_str()
       ->check(CLI::Range(1, 1000000));
   cmd->add_option("--threads", o.threads, "Worker threads per solve (0: every core)")
-      ->capture_default_str();
+      ->capture_default_str()
+      ->check(CLI::Range(0u, 1024u));
+  cmd->add_option("--tolerance", o.tolerance,
+                  "Unshot-power tolerance of every solve (a method's tolerance=X overrides it); "
+                  "small, so that each solve spends its whole budget")
+      ->capture_default_str()
+      ->check(CLI::Range(1e-15, 0.5));
   cmd->add_option("--out", o.out, "Output directory (created if missing)")->required();
   return cmd;
 }
@@ -147,10 +159,12 @@ int run_converge(ConvergeOptions& o) {
     return kExitUsage;
   };
   std::vector<Method> methods;
+  SolverSettings defaults;
+  defaults.threads = o.threads;
+  defaults.tolerance = o.tolerance;
   for (const std::string& text : split(o.methods)) {
-    Result<Method> method = parse_method(text);
+    Result<Method> method = parse_method(text, defaults);
     if (!method) return fail(method.error().message);
-    method->settings.threads = o.threads;
     methods.push_back(std::move(*method));
   }
   if (methods.empty()) return fail("--methods: give at least one method");
@@ -179,6 +193,11 @@ int run_converge(ConvergeOptions& o) {
     Result<nlohmann::json> read = read_result_file(o.reference);
     if (!read) return fail(read.error().message);
     reference = std::move(*read);
+    // flatland reference writes its own error estimate; other results have none.
+    const nlohmann::json* stats = reference.contains("stats") ? &reference["stats"] : nullptr;
+    if (stats != nullptr && stats->contains("estimated_error") &&
+        (*stats)["estimated_error"].contains("l2") && (*stats)["estimated_error"]["l2"].is_number())
+      floor = (*stats)["estimated_error"]["l2"].get<double>();
   } else {
     std::fprintf(stderr, "converge: computing the reference of %s\n", o.scene.c_str());
     ReferenceSettings settings;
@@ -191,18 +210,8 @@ int run_converge(ConvergeOptions& o) {
                                                    [&solution](std::uint32_t c, Side side, double u) {
                                                      return solution.radiosity(c, side, u);
                                                    })}};
-    settings.max_element_length = 2.0 * scene->scale / 400.0;
-    Result<ReferenceSolution> coarse = solve_reference(*scene, settings);
-    if (coarse) {
-      const ReferenceSolution& rough = *coarse;
-      const nlohmann::json coarse_result = {
-          {"flatland_result", 1},
-          {"curves", sampled_curves_to_json(*scene, o.samples, [&rough](std::uint32_t c, Side side, double u) {
-             return rough.radiosity(c, side, u);
-           })}};
-      Result<Comparison> difference = compare_results(coarse_result, reference);
-      if (difference) floor = difference->scene.l2 / 3.0;
-    }
+    Result<ErrorNorms> estimate = estimate_reference_error(*scene, settings, o.samples, reference["curves"]);
+    if (estimate) floor = estimate->l2;
   }
 
   // Every run: one CSV row.
@@ -211,6 +220,8 @@ int run_converge(ConvergeOptions& o) {
     std::size_t budget;
     std::uint64_t seed;
     std::uint64_t photons;
+    std::uint32_t rounds;
+    double unshot;  // unshot / emitted power when the solve stopped
     double seconds;
     ErrorNorms error;
   };
@@ -241,29 +252,36 @@ int run_converge(ConvergeOptions& o) {
         }
         Result<Comparison> comparison = compare_results(result_to_json(*solver, o.samples), reference);
         if (!comparison) return fail("--reference: " + comparison.error().message);
-        rows.push_back({m, b, settings.seed, solver->photons_shot(), solver->seconds(), comparison->scene});
+        const EnergyBooks books = solver->books();
+        rows.push_back({m, b, settings.seed, solver->photons_shot(), solver->rounds(),
+                        books.emitted > 0.0 ? books.unshot / books.emitted : 0.0, solver->seconds(),
+                        comparison->scene});
         if (tty)
           std::fprintf(stderr, "\r\033[K  converge: %zu / %zu runs (%s, %s photons, seed %d)", rows.size(),
                        total, methods[m].name.c_str(),
                        human_count(static_cast<double>(settings.photons)).c_str(), seed);
       }
     }
+    if (!tty)
+      std::fprintf(stderr, "converge: method %zu / %zu done (%s), %zu / %zu runs\n", m + 1,
+                   methods.size(), methods[m].name.c_str(), rows.size(), total);
   }
   if (tty) std::fprintf(stderr, "\r\033[K");
 
   // The CSV, written atomically.
   std::string csv =
       "method,basis,sampling,discontinuities,estimator,elements,ray_width,ray_mode,ray_profile,"
-      "seed,photons,seconds,rel_l1,rel_l2,rel_linf\n";
+      "band_rays,tolerance,seed,photons,rounds,unshot,seconds,rel_l1,rel_l2,rel_linf\n";
   for (const Row& row : rows) {
     const SolverSettings& s = methods[row.method].settings;
     char line[512];
-    std::snprintf(line, sizeof line, "\"%s\",%s,%s,%s,%s,%d,%.17g,%s,%s,%llu,%llu,%.9g,%.9g,%.9g,%.9g\n",
+    std::snprintf(line, sizeof line,
+                  "\"%s\",%s,%s,%s,%s,%d,%.17g,%s,%s,%d,%.9g,%llu,%llu,%u,%.9g,%.9g,%.9g,%.9g,%.9g\n",
                   methods[row.method].name.c_str(), to_string(s.basis), to_string(s.sampling),
                   to_string(s.discontinuities), to_string(s.estimator), s.elements, s.ray_width,
-                  to_string(s.ray_mode), to_string(s.ray_profile),
+                  to_string(s.ray_mode), to_string(s.ray_profile), s.band_rays, s.tolerance,
                   static_cast<unsigned long long>(row.seed), static_cast<unsigned long long>(row.photons),
-                  row.seconds, row.error.l1, row.error.l2, row.error.linf);
+                  row.rounds, row.unshot, row.seconds, row.error.l1, row.error.l2, row.error.linf);
     csv += line;
   }
   const fs::path directory(o.out);

@@ -3,6 +3,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <optional>
 
 #include "app/commands.hpp"
 #include "flatland/reference.hpp"
@@ -14,7 +15,7 @@ CLI::App* add_reference_command(CLI::App& parent, ReferenceOptions& o) {
   CLI::App* cmd = parent.add_subcommand(
       "reference",
       "Solve a scene deterministically (constant elements on fine chords, form factors with exact "
-      "visibility, Gauss-Seidel, final gather at the samples) and write the same result format as "
+      "visibility, GMRES, final gather at the samples) and write the same result format as "
       "solve, with \"method\": \"reference\"");
   cmd->add_option("scene", o.scene, "Scene file (JSON, docs/scene-format.md)")->required();
   auto* length = cmd->add_option("--max-element-length", o.max_element_length,
@@ -28,8 +29,12 @@ CLI::App* add_reference_command(CLI::App& parent, ReferenceOptions& o) {
                   "Gauss-Legendre points per element for the form factors")
       ->capture_default_str()
       ->check(CLI::Range(1, 64));
-  cmd->add_option("--tolerance", o.settings.tolerance, "Relative residual of the linear solve")
+  cmd->add_option("--tolerance", o.settings.tolerance,
+                  "Relative error of the linear solve (guaranteed by its residual)")
       ->capture_default_str();
+  cmd->add_flag("!--no-error-estimate", o.estimate_error,
+                "Skip the second solve with elements twice as long that estimates the reference's "
+                "own discretisation error (written to stats.estimated_error)");
   cmd->add_option("--threads", o.settings.threads, "Worker threads (0: every core)")
       ->capture_default_str()
       ->check(CLI::Range(0u, 1024u));
@@ -40,6 +45,31 @@ CLI::App* add_reference_command(CLI::App& parent, ReferenceOptions& o) {
   cmd->add_option("--out", o.out, "Write the result as JSON to this file (docs/result-format.md)");
   cmd->add_flag("--quiet", o.quiet, "No summary (errors only)");
   return cmd;
+}
+
+Result<ErrorNorms> estimate_reference_error(const Scene& scene, ReferenceSettings settings,
+                                            int samples, const nlohmann::json& curves) {
+  // The reference converges as h^2 (docs/reference.md): R_2h - R = 4 e - e = 3 e, with e the error
+  // of R at element length h, so e ~ |R_2h - R| / 3.
+  const double length = settings.max_element_length > 0.0 ? settings.max_element_length
+                                                           : scene.scale / 400.0;
+  settings.max_element_length = 2.0 * length;
+  Result<ReferenceSolution> coarse = solve_reference(scene, settings);
+  if (!coarse) return coarse.error();
+  const ReferenceSolution& rough = *coarse;
+  const nlohmann::json coarse_result = {
+      {"flatland_result", 1},
+      {"curves", sampled_curves_to_json(scene, samples, [&rough](std::uint32_t c, Side side, double u) {
+         return rough.radiosity(c, side, u);
+       })}};
+  Result<Comparison> difference =
+      compare_results(coarse_result, nlohmann::json{{"flatland_result", 1}, {"curves", curves}});
+  if (!difference) return difference.error();
+  ErrorNorms norms = difference->scene;
+  norms.l1 /= 3.0;
+  norms.l2 /= 3.0;
+  norms.linf /= 3.0;
+  return norms;
 }
 
 int run_reference(ReferenceOptions& o) {
@@ -68,13 +98,31 @@ int run_reference(ReferenceOptions& o) {
     return kExitUsage;
   }
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const ReferenceSolution& reference = *solution;
+  const nlohmann::json curves = sampled_curves_to_json(
+      *scene, o.samples,
+      [&reference](std::uint32_t c, Side side, double u) { return reference.radiosity(c, side, u); });
+  std::optional<ErrorNorms> estimated;
+  if (o.estimate_error) {
+    Result<ErrorNorms> estimate = estimate_reference_error(*scene, o.settings, o.samples, curves);
+    if (!estimate) {
+      std::fprintf(stderr, "flatland: error: %s\n", estimate.error().message.c_str());
+      return kExitUsage;
+    }
+    estimated = *estimate;
+  }
   if (!o.quiet) {
     std::printf("scene     %s (%s): %zu curves\n", scene->name.c_str(), scene->source.c_str(),
                 scene->curves.size());
-    std::printf("reference %zu elements, %d Gauss-Seidel sweeps, residual %.2g\n",
-                solution->elements(), solution->iterations(), solution->residual());
+    std::printf("reference %zu elements, %d GMRES steps, residual %.2g, linear-solve error below %.2g%s\n",
+                solution->elements(), solution->iterations(), solution->residual(),
+                solution->error_bound(),
+                solution->error_bound() > o.settings.tolerance ? " (tolerance not reached: round-off)" : "");
     std::printf("time      %.3f s (form factors %.3f s, solve %.3f s)\n", seconds,
                 solution->form_factor_seconds(), solution->solve_seconds());
+    if (estimated)
+      std::printf("accuracy  estimated relative error L1 %.2g, L2 %.2g, Linf %.2g (against elements twice as long)\n",
+                  estimated->l1, estimated->l2, estimated->linf);
   }
   if (!o.out.empty()) {
     nlohmann::json result;
@@ -90,13 +138,14 @@ int run_reference(ReferenceOptions& o) {
     result["stats"] = {{"elements", solution->elements()},
                        {"iterations", solution->iterations()},
                        {"residual", solution->residual()},
+                       {"error_bound", solution->error_bound()},
                        {"seconds", seconds},
                        {"form_factor_seconds", solution->form_factor_seconds()},
                        {"solve_seconds", solution->solve_seconds()}};
-    const ReferenceSolution& reference = *solution;
-    result["curves"] = sampled_curves_to_json(
-        *scene, o.samples,
-        [&reference](std::uint32_t c, Side side, double u) { return reference.radiosity(c, side, u); });
+    if (estimated)
+      result["stats"]["estimated_error"] = {
+          {"l1", estimated->l1}, {"l2", estimated->l2}, {"linf", estimated->linf}};
+    result["curves"] = curves;
     if (Status status = write_file_atomically(o.out, result.dump(1) + "\n"); !status) {
       std::fprintf(stderr, "flatland: error: %s\n", status.error().message.c_str());
       return kExitUsage;

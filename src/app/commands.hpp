@@ -47,7 +47,12 @@ struct ReferenceOptions {
   int samples = 100;
   std::string out;
   bool quiet = false;
+  bool estimate_error = true;
 };
+// The reference's own error, estimated from a second solve with elements twice as long (second
+// order: |R_2h - R_h| / 3); `curves` are the samples of R_h (sampled_curves_to_json).
+Result<ErrorNorms> estimate_reference_error(const Scene& scene, ReferenceSettings settings,
+                                            int samples, const nlohmann::json& curves);
 CLI::App* add_reference_command(CLI::App& parent, ReferenceOptions& options);
 int run_reference(ReferenceOptions& options);
 
@@ -60,6 +65,7 @@ struct ConvergeOptions {
   int seeds = 3;
   int samples = 100;
   unsigned threads = 0;
+  double tolerance = 1e-6;
   std::string out;
 };
 CLI::App* add_converge_command(CLI::App& parent, ConvergeOptions& options);

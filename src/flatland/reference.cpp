@@ -242,6 +242,109 @@ double seconds_since(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
+// Restarted GMRES (Saad and Schultz 1986) for A x = rhs, x holding the first guess. Each cycle
+// builds an orthonormal Krylov basis v_0 = r / |r|, v_(j+1) ~ A v_j - sum_i h_ij v_i (modified
+// Gram-Schmidt, done twice: the radiosity matrix is close to the identity, so one pass loses
+// orthogonality once the residual is small), turns the Hessenberg matrix h upper triangular with
+// Givens rotations and minimises |r|_2 over x + span(v). A cycle ends after `kRestart` steps or
+// when the rotated right-hand side says |r|_2 <= threshold; the true residual is then recomputed.
+// Stops when |r|_inf <= threshold * |x|_inf (|r|_inf <= |r|_2), after max_iterations steps, or
+// when a whole cycle fails to halve the true residual (the round-off floor).
+//
+// Why not Gauss-Seidel: its error shrinks by about rho per sweep in a closed scene (10^4 sweeps at
+// rho = 0.999), while the spectrum of F (similar to a symmetric matrix by reciprocity) has few
+// eigenvalues near 1, which Krylov methods remove in a few steps each.
+struct KrylovOutcome {
+  int iterations = 0;
+  double relative_residual = 0.0;  // |r|_inf / |x|_inf at the end
+};
+
+template <class Apply>
+KrylovOutcome gmres(const Apply& apply, const std::vector<double>& rhs, std::vector<double>& x,
+                    double threshold, int max_iterations) {
+  constexpr int kRestart = 60;
+  const std::size_t n = rhs.size();
+  KrylovOutcome outcome;
+  auto dot_product = [n](const std::vector<double>& a, const std::vector<double>& b) {
+    double sum = 0.0;
+    for (std::size_t i = 0; i < n; ++i) sum += a[i] * b[i];
+    return sum;
+  };
+  auto inf_norm = [](const std::vector<double>& a) {
+    double largest = 0.0;
+    for (const double value : a) largest = std::max(largest, std::fabs(value));
+    return largest;
+  };
+  std::vector<double> r(n);
+  std::vector<double> w(n);
+  auto residual = [&]() {
+    apply(x, w);
+    for (std::size_t i = 0; i < n; ++i) r[i] = rhs[i] - w[i];
+  };
+  std::vector<std::vector<double>> basis(kRestart + 1, std::vector<double>(n));
+  std::vector<std::vector<double>> h(kRestart + 1, std::vector<double>(kRestart, 0.0));
+  std::vector<double> cosines(kRestart);
+  std::vector<double> sines(kRestart);
+  std::vector<double> g(kRestart + 1);
+  residual();
+  double previous = INFINITY;
+  for (;;) {
+    const double scale = inf_norm(x);
+    const double r_inf = inf_norm(r);
+    outcome.relative_residual = scale > 0.0 ? r_inf / scale : 0.0;
+    if (r_inf <= threshold * scale || outcome.iterations >= max_iterations ||
+        !(r_inf < 0.5 * previous))
+      break;
+    previous = r_inf;
+    const double target = threshold * scale;
+    const double beta = std::sqrt(dot_product(r, r));
+    for (std::size_t i = 0; i < n; ++i) basis[0][i] = r[i] / beta;
+    std::fill(g.begin(), g.end(), 0.0);
+    g[0] = beta;
+    int steps = 0;
+    for (int j = 0; j < kRestart && outcome.iterations < max_iterations; ++j) {
+      apply(basis[static_cast<std::size_t>(j)], w);
+      ++outcome.iterations;
+      const auto jj = static_cast<std::size_t>(j);
+      for (std::size_t i = 0; i <= jj; ++i) h[i][jj] = 0.0;
+      for (int pass = 0; pass < 2; ++pass)
+        for (std::size_t i = 0; i <= jj; ++i) {
+          const double projection = dot_product(w, basis[i]);
+          h[i][jj] += projection;
+          for (std::size_t k = 0; k < n; ++k) w[k] -= projection * basis[i][k];
+        }
+      const double norm = std::sqrt(dot_product(w, w));
+      // Earlier rotations, then a new one that zeroes h[j+1][j].
+      for (std::size_t i = 0; i < jj; ++i) {
+        const double upper = cosines[i] * h[i][jj] + sines[i] * h[i + 1][jj];
+        h[i + 1][jj] = -sines[i] * h[i][jj] + cosines[i] * h[i + 1][jj];
+        h[i][jj] = upper;
+      }
+      const double radius = std::hypot(h[jj][jj], norm);
+      cosines[jj] = radius > 0.0 ? h[jj][jj] / radius : 1.0;
+      sines[jj] = radius > 0.0 ? norm / radius : 0.0;
+      h[jj][jj] = radius;
+      g[jj + 1] = -sines[jj] * g[jj];
+      g[jj] = cosines[jj] * g[jj];
+      steps = j + 1;
+      if (std::fabs(g[jj + 1]) <= target || !(norm > 0.0)) break;  // converged, or exact
+      for (std::size_t k = 0; k < n; ++k) basis[jj + 1][k] = w[k] / norm;
+    }
+    // x += V y with h y = g (upper triangular, back substitution).
+    std::vector<double> y(static_cast<std::size_t>(steps), 0.0);
+    for (int i = steps - 1; i >= 0; --i) {
+      const auto ii = static_cast<std::size_t>(i);
+      double sum = g[ii];
+      for (std::size_t k = ii + 1; k < static_cast<std::size_t>(steps); ++k) sum -= h[ii][k] * y[k];
+      y[ii] = h[ii][ii] != 0.0 ? sum / h[ii][ii] : 0.0;
+    }
+    for (std::size_t i = 0; i < y.size(); ++i)
+      for (std::size_t k = 0; k < n; ++k) x[k] += y[i] * basis[i][k];
+    residual();
+  }
+  return outcome;
+}
+
 }  // namespace
 
 Status validate(const ReferenceSettings& settings) {
@@ -498,39 +601,42 @@ Result<ReferenceSolution> solve_reference(const Scene& scene, const ReferenceSet
   solution.row_sums_ = std::move(row_sums);
   solution.form_factor_seconds_ = seconds_since(clock_start);
 
-  // 4. Gauss-Seidel per channel: b_p = e_p + rho_p sum_q F_pq b_q over reflecting patches; the
-  // others keep b = e. The residual is the largest update of a sweep (each update is the
-  // equation's residual at that moment) relative to the largest radiosity.
+  // 4. Per channel, (I - diag(rho) F) b = e by restarted GMRES (see gmres above), starting from
+  // b = e. Patches without a row (non-reflecting) are identity rows: they keep b = e.
   const auto solve_start = std::chrono::steady_clock::now();
   solution.iterations_ = 0;
   solution.residual_ = 0.0;
+  solution.error_bound_ = 0.0;
   for (int c = 0; c < scene.channels; ++c) {
     const auto ch = static_cast<std::size_t>(c);
-    std::vector<double>& b = solution.radiosity_[ch];
-    b.assign(patch_count, 0.0);
-    for (std::size_t p = 0; p < patch_count; ++p) b[p] = elements[p / 2].emittance[p % 2][ch];
-    int sweep = 0;
-    double residual = 0.0;
-    while (sweep < settings.max_iterations) {
-      ++sweep;
-      double largest_change = 0.0;
-      double largest = 0.0;
+    std::vector<double> rhs(patch_count, 0.0);
+    std::vector<double> rho(rows, 0.0);
+    // The contraction q = max_p rho_p sum_q F_pq bounds ||diag(rho) F||_inf, so
+    // ||(I - diag(rho) F)^-1||_inf <= 1 / (1 - q).
+    double contraction = 0.0;
+    for (std::size_t p = 0; p < patch_count; ++p) rhs[p] = elements[p / 2].emittance[p % 2][ch];
+    for (std::size_t r = 0; r < rows; ++r) {
+      const std::uint32_t p = solution.row_patch_[r];
+      rho[r] = elements[p / 2].reflectivity[p % 2][ch];
+      contraction = std::max(contraction, rho[r] * solution.row_sums_[r]);
+    }
+    const double amplification = 1.0 / std::max(1.0 - contraction, 1e-9);
+    auto apply = [&](const std::vector<double>& x, std::vector<double>& y) {
+      y = x;
       for (std::size_t r = 0; r < rows; ++r) {
-        const std::uint32_t p = solution.row_patch_[r];
-        const double rho = elements[p / 2].reflectivity[p % 2][ch];
         double gathered = 0.0;
         for (std::size_t k = solution.row_begin_[r]; k < solution.row_begin_[r + 1]; ++k)
-          gathered += solution.value_[k] * b[solution.column_[k]];
-        const double updated = elements[p / 2].emittance[p % 2][ch] + rho * gathered;
-        largest_change = std::max(largest_change, std::fabs(updated - b[p]));
-        b[p] = updated;
+          gathered += solution.value_[k] * x[solution.column_[k]];
+        y[solution.row_patch_[r]] -= rho[r] * gathered;
       }
-      for (const double value : b) largest = std::max(largest, std::fabs(value));
-      residual = largest > 0.0 ? largest_change / largest : 0.0;
-      if (residual <= settings.tolerance) break;
-    }
-    solution.iterations_ = std::max(solution.iterations_, sweep);
-    solution.residual_ = std::max(solution.residual_, residual);
+    };
+    std::vector<double>& b = solution.radiosity_[ch];
+    b = rhs;
+    const KrylovOutcome outcome =
+        gmres(apply, rhs, b, settings.tolerance / amplification, settings.max_iterations);
+    solution.iterations_ = std::max(solution.iterations_, outcome.iterations);
+    solution.residual_ = std::max(solution.residual_, outcome.relative_residual);
+    solution.error_bound_ = std::max(solution.error_bound_, outcome.relative_residual * amplification);
   }
   solution.solve_seconds_ = seconds_since(solve_start);
   return solution;

@@ -13,7 +13,9 @@
 // 3. Element form factors F_ij = (1/L_i) integral over element i of F(x -> j) ds by Gauss-Legendre;
 //    pairs that every quadrature point sees whole, and that lie wholly in front of each other, take
 //    Hottel's crossed strings instead (exact, and it removes the log singularity of neighbours).
-// 4. (I - diag(rho) F) b = e per channel by Gauss-Seidel to a relative residual `tolerance`.
+// 4. (I - diag(rho) F) b = e per channel by restarted GMRES, until the residual r guarantees a
+//    relative error of b below `tolerance`: |b - b*|_inf <= |r|_inf / (1 - q), q = max rho x row
+//    sum of F (< 1 for rho < 1), so it converges, and knows its error, up to rho = 0.999 and beyond.
 // 5. radiosity(curve, side, u) is a final gather at the true curve point with its true normal:
 //    E(x) + rho(x) sum_j b_j F(x -> j), with the exact visibility of step 2. The point lies on
 //    the curve, off its element's chord: where the curve is concave the directions between its
@@ -38,8 +40,8 @@ namespace flatland {
 struct ReferenceSettings {
   double max_element_length = 0.0;  // 0: scene.scale / 400
   int quadrature = 8;               // Gauss-Legendre points per element for form factors, 1..64
-  double tolerance = 1e-12;         // relative residual of the element solve
-  int max_iterations = 1'000'000;   // Gauss-Seidel sweeps
+  double tolerance = 1e-10;         // relative error (inf-norm) of the element solve
+  int max_iterations = 100'000;     // Krylov steps (matrix-vector products) per channel
   unsigned threads = 0;             // 0: all hardware threads
 };
 
@@ -104,8 +106,11 @@ class ReferenceSolution {
   // closed enclosure); -1 if the row was not computed (a non-reflecting patch).
   double row_sum(std::uint32_t i, Side si) const;
 
-  int iterations() const { return iterations_; }   // Gauss-Seidel sweeps (largest over channels)
-  double residual() const { return residual_; }    // relative residual reached
+  int iterations() const { return iterations_; }   // GMRES steps (largest over channels)
+  double residual() const { return residual_; }    // relative residual |r|_inf / |b|_inf reached
+  // The guaranteed relative error of the element solve: residual / (1 - q) (largest over
+  // channels). It is the linear solve's error only, not the discretisation's.
+  double error_bound() const { return error_bound_; }
   double form_factor_seconds() const { return form_factor_seconds_; }
   double solve_seconds() const { return solve_seconds_; }
   const Scene& scene() const { return scene_; }
@@ -129,6 +134,7 @@ class ReferenceSolution {
   std::array<std::vector<double>, 3> radiosity_;     // per channel, per patch
   int iterations_ = 0;
   double residual_ = 0.0;
+  double error_bound_ = 0.0;
   double form_factor_seconds_ = 0.0;
   double solve_seconds_ = 0.0;
 };
