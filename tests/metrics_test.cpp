@@ -37,6 +37,26 @@ TEST(Metrics, NormsMatchHandComputedValues) {
   EXPECT_NEAR(scaled->scene.linf, 0.1, 1e-14);
 }
 
+// Norms are ratios: scaling B and the reference by 1e300 (or 1e-300) changes nothing, although
+// the squares of such values overflow (or underflow) a double.
+TEST(Metrics, ExtremeMagnitudesGiveTheSameNorms) {
+  const Result<Comparison> unit = compare_results(document({1.1, 1.9, 3, 4.2}), document({1, 2, 3, 4}));
+  ASSERT_TRUE(unit.ok());
+  for (const double scale : {1e300, 1e-300, -1e300}) {
+    const Result<Comparison> c = compare_results(document({1.1 * scale, 1.9 * scale, 3 * scale, 4.2 * scale}),
+                                                 document({scale, 2 * scale, 3 * scale, 4 * scale}));
+    ASSERT_TRUE(c.ok()) << c.error().message;
+    EXPECT_NEAR(c->scene.l1, unit->scene.l1, 1e-12) << scale;
+    EXPECT_NEAR(c->scene.l2, unit->scene.l2, 1e-12) << scale;
+    EXPECT_NEAR(c->scene.linf, unit->scene.linf, 1e-12) << scale;
+  }
+  // Opposite extremes: the error is finite (2 max|R| at most).
+  const Result<Comparison> opposite = compare_results(document({-1e308, -1e308}), document({1e308, 1e308}));
+  ASSERT_TRUE(opposite.ok());
+  EXPECT_NEAR(opposite->scene.l2, 2.0, 1e-12);
+  EXPECT_NEAR(opposite->scene.linf, 2.0, 1e-12);
+}
+
 TEST(Metrics, DifferentScenesAreErrors) {
   EXPECT_FALSE(compare_results(document({1, 2}), document({1, 2, 3})).ok());
   EXPECT_FALSE(compare_results(document({1, 2}, "floor"), document({1, 2}, "wall")).ok());

@@ -148,6 +148,13 @@ TEST_F(Viewer, NoDisplayIsOneLineAndExitTwo) {
   EXPECT_EQ(std::count(result.err.begin(), result.err.end(), '\n'), 1) << result.err;
   EXPECT_NE(result.err.find("display"), std::string::npos) << result.err;
   EXPECT_NE(result.err.find("flatland render"), std::string::npos) << result.err;
+  // A display that is named but cannot be reached: the message names it, still one line (no
+  // Wayland library complaining about XDG_RUNTIME_DIR on the side).
+  const CommandRun unreachable = run("view " + scene("penumbra.json") + " --frames 1",
+                                     "env -u WAYLAND_DISPLAY -u XDG_RUNTIME_DIR DISPLAY=:9731");
+  EXPECT_EQ(unreachable.exit_code, 2);
+  EXPECT_EQ(std::count(unreachable.err.begin(), unreachable.err.end(), '\n'), 1) << unreachable.err;
+  EXPECT_NE(unreachable.err.find("':9731'"), std::string::npos) << unreachable.err;
 }
 
 TEST_F(Viewer, ShaderErrorsPrintTheGlLogAndExitTwo) {
@@ -172,7 +179,8 @@ TEST_F(Viewer, ShaderErrorsPrintTheGlLogAndExitTwo) {
 
 TEST_F(Viewer, BadOptionsAreOneLineErrors) {
   for (const char* arguments : {"view --step sometimes --frames 1", "view --frames 2 --photons -5",
-                                "view no-such-scene.json --frames 1", "render --out x.png"}) {
+                                "view no-such-scene.json --frames 1", "render --out x.png",
+                                "view --exposure nan --frames 1", "render --exposure nan --out x.png"}) {
     const CommandRun result = run(arguments);
     EXPECT_EQ(result.exit_code, 2) << arguments;
     EXPECT_EQ(std::count(result.err.begin(), result.err.end(), '\n'), 1) << arguments << ": " << result.err;
@@ -223,10 +231,11 @@ TEST_F(Viewer, UiControlsDriveTheSolve) {
   EXPECT_EQ(viewer.session().snapshot()->progress.rounds, 1u);
   EXPECT_EQ(viewer.session().snapshot()->round_photons, 0u);
 
-  // Run to the end of the budget.
+  // Run to the end of the budget; then the solve is no longer running (the button says Run).
   click(viewer, "Run");
   viewer.session().wait_idle();
   EXPECT_NE(viewer.session().snapshot()->stop_reason, StopReason::Running);
+  EXPECT_FALSE(viewer.session().running());
 
   // Click the receiver (curve 2): the curve panel opens on it.
   const Scene& scene = viewer.scene();
@@ -246,6 +255,28 @@ TEST_F(Viewer, UiControlsDriveTheSolve) {
   EXPECT_FALSE(viewer.session().running());
   EXPECT_NE(viewer.session().snapshot()->generation, generation);
   EXPECT_EQ(viewer.session().snapshot()->progress.photons, 0u);
+}
+
+// A deterministic step (--step rounds=1) draws every path it kept before the frame is shown; live
+// frames draw at most path_budget new ones each.
+TEST_F(Viewer, SteppedFramesDrawEveryKeptPath) {
+  ViewOptions options;
+  options.scene = scene("penumbra.json");
+  options.width = 640;
+  options.height = 480;
+  options.vsync = false;
+  options.show_ui = false;
+  options.step = "rounds=1";
+  options.keep_paths = 12'000;
+  options.path_budget = 600;
+  options.settings.photons = 200'000;
+  Result<std::unique_ptr<viewer::Viewer>> created = viewer::Viewer::create(options);
+  ASSERT_TRUE(created) << created.error().message;
+  viewer::Viewer& viewer = **created;
+  viewer.frame();
+  const std::uint64_t shot = viewer.session().snapshot()->progress.photons;
+  ASSERT_GT(shot, 0u);
+  EXPECT_EQ(viewer.paths_drawn(), std::min<std::uint64_t>(shot, 12'000));
 }
 
 TEST_F(Viewer, DraggingAControlPointEditsTheSceneAndRestarts) {

@@ -99,6 +99,18 @@ double median(std::vector<double> values) {
   return n % 2 == 1 ? values[n / 2] : 0.5 * (values[n / 2 - 1] + values[n / 2]);
 }
 
+// Text for a double-quoted gnuplot string: backslashes and quotes escaped, and gnuplot's
+// enhanced-text markers (^ _ @ & ~ { }) escaped too, so scene names print as they are.
+std::string gnuplot_text(const std::string& text) {
+  std::string out;
+  for (const char c : text) {
+    if (c == '"' || c == '\\') out += '\\';
+    else if (std::string("^_@&~{}").find(c) != std::string::npos) out += "\\\\";
+    out += c;
+  }
+  return out;
+}
+
 // Runs gnuplot on a script; false if it cannot be run or fails.
 bool run_gnuplot(const fs::path& script) {
   const std::string command = "gnuplot '" + script.string() + "' 2>&1";
@@ -144,11 +156,15 @@ CLI::App* add_converge_command(CLI::App& parent, ConvergeOptions& o) {
   cmd->add_option("--threads", o.threads, "Worker threads per solve (0: every core)")
       ->capture_default_str()
       ->check(CLI::Range(0u, 1024u));
+  cmd->add_option("--elements", o.elements,
+                  "Storage elements per curve of every method (a method's elements=N overrides it)")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 1 << 20));
   cmd->add_option("--tolerance", o.tolerance,
                   "Unshot-power tolerance of every solve (a method's tolerance=X overrides it); "
                   "small, so that each solve spends its whole budget")
       ->capture_default_str()
-      ->check(CLI::Range(1e-15, 0.5));
+      ->check(finite_range(1e-15, 0.5));
   cmd->add_option("--out", o.out, "Output directory (created if missing)")->required();
   return cmd;
 }
@@ -162,6 +178,7 @@ int run_converge(ConvergeOptions& o) {
   SolverSettings defaults;
   defaults.threads = o.threads;
   defaults.tolerance = o.tolerance;
+  defaults.elements = o.elements;
   for (const std::string& text : split(o.methods)) {
     Result<Method> method = parse_method(text, defaults);
     if (!method) return fail(method.error().message);
@@ -314,8 +331,9 @@ int run_converge(ConvergeOptions& o) {
   const Row& anchor = rows.front();
   std::string script = "set logscale xy\nset xlabel 'solve time (s)'\nset ylabel 'relative L2 error of B'\n"
                        "set key outside right\nset grid\n"
-                       "set title '" + scene->name + ": median over " + std::to_string(o.seeds) +
-                       " seeds, bars from min to max'\n";
+                       "set title \"" + gnuplot_text(scene->name) + "\\n" + std::to_string(o.elements) +
+                       " elements per curve (unless the method says), median over " +
+                       std::to_string(o.seeds) + " seeds, bars from min to max\"\n";
   std::string plot = "plot ";
   for (std::size_t m = 0; m < methods.size(); ++m) {
     plot += "'" + (directory / "convergence.dat").string() + "' index " + std::to_string(m) +

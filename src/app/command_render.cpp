@@ -34,7 +34,7 @@ CLI::App* add_render_command(CLI::App& parent, RenderOptions& o) {
       ->check(CLI::Range(0, 10000000));
   cmd->add_option("--exposure", o.exposure, "Exposure of the photon paths")
       ->capture_default_str()
-      ->check(CLI::Range(1e-3, 1e3));
+      ->check(finite_range(1e-3, 1e3));
   cmd->add_flag("--graph,!--no-graph", o.graph, "Draw B(s) as a graph along each curve's normal");
   cmd->add_flag("--band,!--no-band", o.band, "Draw the colour band of B along each curve");
   cmd->add_option("--shaders", o.shaders,

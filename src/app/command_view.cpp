@@ -46,7 +46,7 @@ CLI::App* add_view_command(CLI::App& parent, ViewCommandOptions& o) {
       ->check(CLI::IsMember({"power", "round"}));
   cmd->add_option("--exposure", o.exposure, "Exposure of the photon paths")
       ->capture_default_str()
-      ->check(CLI::Range(1e-3, 1e3));
+      ->check(finite_range(1e-3, 1e3));
   cmd->add_flag("--no-ui", o.no_ui, "Hide the panels");
   cmd->add_flag("--no-vsync", o.no_vsync, "Do not wait for the display's refresh (to measure frame rates)");
   cmd->add_flag("--report", o.report, "At the end, print the frame rate and the photon rate");

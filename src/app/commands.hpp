@@ -3,6 +3,8 @@
 #pragma once
 
 #include <atomic>
+#include <cstdio>
+#include <cstdlib>
 #include <optional>
 #include <string>
 
@@ -18,6 +20,25 @@ inline constexpr int kExitOk = 0;
 inline constexpr int kExitFailure = 1;
 inline constexpr int kExitUsage = 2;
 inline constexpr int kExitInterrupted = 130;
+
+// A number in [low, high]. CLI::Range lets NaN through (every comparison with NaN is false);
+// this check does not: the value must compare inside the range.
+inline CLI::Validator finite_range(double low, double high) {
+  char description[96];
+  std::snprintf(description, sizeof description, "FLOAT in [%g - %g]", low, high);
+  return CLI::Validator(
+      [low, high](std::string& text) -> std::string {
+        char* end = nullptr;
+        const double value = std::strtod(text.c_str(), &end);
+        if (end == text.c_str() || *end != '\0' || !(value >= low && value <= high)) {
+          char message[160];
+          std::snprintf(message, sizeof message, "Value %s not in range [%g - %g]", text.c_str(), low, high);
+          return message;
+        }
+        return {};
+      },
+      description);
+}
 
 // Set by SIGINT / SIGTERM; long work checks it between batches.
 std::atomic<bool>& interrupt_flag();
@@ -66,6 +87,7 @@ struct ConvergeOptions {
   int samples = 100;
   unsigned threads = 0;
   double tolerance = 1e-6;
+  int elements = 16;
   std::string out;
 };
 CLI::App* add_converge_command(CLI::App& parent, ConvergeOptions& options);

@@ -2,6 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <string>
+#include <utility>
+#include <vector>
 
 namespace flatland {
 
@@ -30,7 +33,8 @@ struct Sums {
     max_error = std::max(max_error, o.max_error);
     max_reference = std::max(max_reference, o.max_reference);
   }
-  // A reference that is zero everywhere gives absolute errors rather than a division by zero.
+  // A reference that is zero everywhere gives errors relative to the largest |B| of the
+  // comparison (the unit the sums are formed in) rather than a division by zero.
   ErrorNorms norms() const {
     auto ratio = [](double a, double b) { return b > 0.0 ? a / b : a; };
     return {ratio(abs_error, abs_reference), std::sqrt(ratio(square_error, square_reference)),
@@ -65,8 +69,15 @@ Result<Comparison> compare_results(const nlohmann::json& result, const nlohmann:
     return Error{"the results do not describe the same scene: " + std::to_string(mine->size()) +
                  " curves against " + std::to_string(theirs->size())};
 
-  Comparison comparison;
-  Sums scene;
+  // Every (B, reference, cell length) triple, per curve; the sums are formed afterwards on values
+  // divided by the largest |B| and cell lengths divided by the longest cell (the norms are ratios,
+  // so they do not change), which keeps squares of B up to 1e308 finite.
+  struct Term {
+    double b, r, ds;
+  };
+  std::vector<std::pair<std::string, std::vector<Term>>> terms;
+  double value_scale = 0.0;
+  double length_scale = 0.0;
   try {
     for (std::size_t c = 0; c < mine->size(); ++c) {
       const nlohmann::json& a = (*mine)[c];
@@ -85,7 +96,8 @@ Result<Comparison> compare_results(const nlohmann::json& result, const nlohmann:
         return Error{where + ": " + std::to_string(sa.size()) + " samples against " +
                      std::to_string(sb.size()) + " in the reference; solve both with the same --samples"};
       const double ds = length / static_cast<double>(sa.size());
-      Sums curve;
+      length_scale = std::max(length_scale, ds);
+      std::vector<Term>& curve = terms.emplace_back(id, std::vector<Term>{}).second;
       for (std::size_t j = 0; j < sa.size(); ++j) {
         const double s = sa[j].at("s").get<double>();
         if (std::fabs(s - sb[j].at("s").get<double>()) > 1e-9 * length)
@@ -98,14 +110,25 @@ Result<Comparison> compare_results(const nlohmann::json& result, const nlohmann:
           if (!vb) return vb.error();
           if (va->size() != vb->size())
             return Error{"the results do not describe the same scene: grey against colour at " + where};
-          for (std::size_t ch = 0; ch < va->size(); ++ch) curve.add((*va)[ch], (*vb)[ch], ds);
+          for (std::size_t ch = 0; ch < va->size(); ++ch) {
+            curve.push_back({(*va)[ch], (*vb)[ch], ds});
+            value_scale = std::max({value_scale, std::fabs((*va)[ch]), std::fabs((*vb)[ch])});
+          }
         }
       }
-      comparison.curves.push_back({id, curve.norms()});
-      scene.add(curve);
     }
   } catch (const nlohmann::json::exception& e) {
     return Error{std::string("malformed result: ") + e.what()};
+  }
+  Comparison comparison;
+  Sums scene;
+  if (!(value_scale > 0.0)) value_scale = 1.0;
+  if (!(length_scale > 0.0)) length_scale = 1.0;
+  for (const auto& [id, curve_terms] : terms) {
+    Sums curve;
+    for (const Term& t : curve_terms) curve.add(t.b / value_scale, t.r / value_scale, t.ds / length_scale);
+    comparison.curves.push_back({id, curve.norms()});
+    scene.add(curve);
   }
   comparison.scene = scene.norms();
   return comparison;

@@ -140,7 +140,11 @@ void Viewer::draw_solve_panel(const Snapshot& snapshot) {
   ImGui::SetNextWindowSize(ImVec2(300, 0), ImGuiCond_FirstUseEver);
   ImGui::Begin("Solve");
   const bool running = session_->running();
+  // A stopped solve (converged, budget spent) cannot run on: Reset or a new setting starts over.
+  const bool stopped = snapshot.stop_reason != StopReason::Running;
+  ImGui::BeginDisabled(stopped);
   if (ImGui::Button(running ? "Pause" : "Run", ImVec2(60, 0))) session_->set_running(!running);
+  ImGui::EndDisabled();
   track("Run");
   ImGui::SameLine();
   if (ImGui::Button("Reset")) restart();

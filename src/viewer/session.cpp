@@ -129,7 +129,7 @@ void Session::set_running(bool running) {
 
 bool Session::running() const {
   std::lock_guard lock(mutex_);
-  return running_;
+  return running_ && can_run_;
 }
 
 void Session::step(StepKind kind, std::uint64_t count) {
@@ -334,6 +334,7 @@ void Session::worker() {
     publish(&solver, records, stepping);
     std::lock_guard relock(mutex_);
     can_run_ = !solver.stopped();
+    if (!can_run_) running_ = false;  // run until the solve stops, then it is paused
     // What is left of the step (unless a restart dropped it meanwhile).
     if (stepping && !steps_.empty() && steps_.front().id == step_id) {
       Step& step = steps_.front();

@@ -43,6 +43,8 @@ class Session {
   void restart(std::shared_ptr<const Scene> scene, const SolverSettings& settings);
   // Run freely (in steps of about 25 ms) until the solve stops, or pause.
   void set_running(bool running);
+  // Asked to run and not stopped (converged, budget spent, no solver). A run ends when the solve
+  // stops: running() is then false, and a Reset starts the new solve paused.
   bool running() const;
   // Pause, then shoot `count` photons, batches or rounds (queued behind earlier steps).
   void step(StepKind kind, std::uint64_t count = 1);

@@ -13,6 +13,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 
 #include "app/png_io.hpp"
 #include "flatland/result_io.hpp"
@@ -160,16 +161,24 @@ Result<std::unique_ptr<Viewer>> Viewer::create(const ViewOptions& options) {
   if (!set("DISPLAY") && !set("WAYLAND_DISPLAY") && requested == nullptr)
     return Error{"cannot open a display (DISPLAY and WAYLAND_DISPLAY are not set); use 'flatland "
                  "render SCENE --out FILE.png' for a picture without one, or run under xvfb-run"};
+  // With only DISPLAY set, ask for X11 alone: otherwise SDL also tries Wayland, whose library
+  // prints its own complaint about XDG_RUNTIME_DIR, and then falls back to its offscreen driver.
+  const std::string display = set("DISPLAY") ? std::getenv("DISPLAY") : "";
+  if (requested == nullptr && !set("WAYLAND_DISPLAY")) SDL_SetHint(SDL_HINT_VIDEODRIVER, "x11");
+  const std::string cannot_open =
+      display.empty() ? std::string("cannot open the Wayland display")
+                      : "cannot open the display '" + display + "' (DISPLAY)";
   auto impl = std::make_unique<Impl>();
   if (SDL_Init(SDL_INIT_VIDEO) != 0)
-    return Error{std::string("cannot open a display (") + SDL_GetError() +
-                 "); use 'flatland render SCENE --out FILE.png' for a picture without one"};
+    return Error{cannot_open + ": " + SDL_GetError() +
+                 "; use 'flatland render SCENE --out FILE.png' for a picture without one, or run "
+                 "under xvfb-run"};
   const char* driver = SDL_GetCurrentVideoDriver();
   if (driver != nullptr && (std::string(driver) == "offscreen" || std::string(driver) == "dummy") &&
       (requested == nullptr || std::string(requested) != driver)) {
     SDL_Quit();
-    return Error{"cannot open a display (DISPLAY and WAYLAND_DISPLAY are not set); use 'flatland "
-                 "render SCENE --out FILE.png' for a picture without one, or run under xvfb-run"};
+    return Error{cannot_open + "; use 'flatland render SCENE --out FILE.png' for a picture "
+                 "without one, or run under xvfb-run"};
   }
   SDL_GL_SetAttribute(SDL_GL_CONTEXT_MAJOR_VERSION, 3);
   SDL_GL_SetAttribute(SDL_GL_CONTEXT_MINOR_VERSION, 3);
@@ -284,7 +293,12 @@ void Viewer::queue_key(int sdl_keycode, bool ctrl) { queued_.push_back({0.0f, 0.
 void Viewer::handle_key(int key, bool ctrl) {
   overlay_generation_ = ~0ull;  // a display toggle shows at once, also while paused
   switch (key) {
-    case SDLK_SPACE: session_->set_running(!session_->running()); break;
+    case SDLK_SPACE:
+      if (session_->snapshot()->stop_reason != StopReason::Running)
+        set_message("the solve has stopped; Backspace (Reset) starts it again");
+      else
+        session_->set_running(!session_->running());
+      break;
     case SDLK_PERIOD: session_->step(StepKind::Photon); break;
     case SDLK_b: session_->step(StepKind::Batch); break;
     case SDLK_r: session_->step(StepKind::Round); break;
@@ -363,6 +377,8 @@ void Viewer::apply_edit() {
   restart();
 }
 
+std::size_t Viewer::paths_drawn() const { return path_layer_.drawn(); }
+
 void Viewer::drop_reference(const std::string& why) {
   if (reference_path_.empty()) return;
   session_->set_reference(nullptr);
@@ -378,8 +394,13 @@ void Viewer::render_scene(const Snapshot& snapshot, int width, int height) {
   ViewTransform view = view_;
   view.width = width;
   view.height = height;
-  const PathDraw paths = path_layer_.update(snapshot, draw_, view, static_cast<std::size_t>(keep_slider_),
-                                            options_.path_budget);
+  // Live, a frame draws at most path_budget new paths (the rest of the kept set follows over the
+  // next frames); a deterministic step (--step) draws everything it shot before the frame.
+  const std::size_t budget = frame_step_.mode == FrameStep::Mode::Live
+                                 ? options_.path_budget
+                                 : std::numeric_limits<std::size_t>::max();
+  const PathDraw paths =
+      path_layer_.update(snapshot, draw_, view, static_cast<std::size_t>(keep_slider_), budget);
   if (Status drawn = impl_->renderer->draw(overlay_, paths, view, draw_.path_exposure); !drawn)
     set_message(drawn.error().message);
 }
