@@ -49,6 +49,11 @@ CLI::App* add_view_command(CLI::App& parent, ViewCommandOptions& o) {
       ->check(finite_range(1e-3, 1e3));
   cmd->add_flag("--no-ui", o.no_ui, "Hide the panels");
   cmd->add_flag("--no-vsync", o.no_vsync, "Do not wait for the display's refresh (to measure frame rates)");
+  cmd->add_option("--max-fps", o.max_fps,
+                  "Frames per second at most (0: 40 with software OpenGL, which draws on the solver's "
+                  "cores, otherwise no limit; -1: no limit)")
+      ->capture_default_str()
+      ->check(CLI::Range(-1, 1000));
   cmd->add_flag("--report", o.report, "At the end, print the frame rate and the photon rate");
   cmd->add_option("--shaders", o.shaders,
                   "Load the GLSL shaders from this directory instead of the built-in copies of shaders/");
@@ -89,6 +94,7 @@ int run_view(ViewCommandOptions& o) {
   options.path_exposure = o.exposure;
   options.show_ui = !o.no_ui;
   options.vsync = !o.no_vsync;
+  options.max_fps = o.max_fps;
   options.report = o.report;
   Result<std::unique_ptr<viewer::Viewer>> viewer = viewer::Viewer::create(options);
   if (!viewer) {

@@ -134,6 +134,7 @@ struct ViewCommandOptions {
   float exposure = 1.0f;
   bool no_ui = false;
   bool no_vsync = false;
+  int max_fps = 0;
   bool report = false;
 };
 CLI::App* add_view_command(CLI::App& parent, ViewCommandOptions& options);

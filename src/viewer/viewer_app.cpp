@@ -11,9 +11,11 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <thread>
 
 #include "app/png_io.hpp"
 #include "flatland/result_io.hpp"
@@ -196,6 +198,11 @@ Result<std::unique_ptr<Viewer>> Viewer::create(const ViewOptions& options) {
   SDL_GL_MakeCurrent(impl->window, impl->context);
   SDL_GL_SetSwapInterval(options.vsync ? 1 : 0);
 
+  // Mesa's software rasterisers (llvmpipe, softpipe) share the CPU with the solver.
+  const auto* gl_renderer = reinterpret_cast<const char*>(glGetString(GL_RENDERER));
+  viewer->software_renderer_ =
+      gl_renderer != nullptr && (std::strstr(gl_renderer, "llvmpipe") != nullptr ||
+                                 std::strstr(gl_renderer, "softpipe") != nullptr);
   Result<std::unique_ptr<Renderer>> renderer = Renderer::create(options.shader_directory, 0.5f);
   if (!renderer) return renderer.error();
   impl->renderer = std::move(*renderer);
@@ -564,8 +571,19 @@ Status Viewer::save_screenshot(const std::string& path) {
 
 Status Viewer::run() {
   const double start = seconds_since_start();
+  // Frame pacing: Mesa's software rasteriser draws on the same cores as the solver's threads, so
+  // frames beyond what the eye needs are taken from the solve (docs/performance.md: unpaced, 44
+  // frames/s at 0.49 of the headless photon rate; paced at 40, 37 frames/s at 0.55).
+  int max_fps = options_.max_fps;
+  if (max_fps == 0) max_fps = software_renderer_ ? 40 : 0;
+  const double period = max_fps > 0 ? 1.0 / max_fps : 0.0;
+  double next_frame = start;
   while (frame()) {
     if (options_.frames > 0 && frames_done_ >= options_.frames) break;
+    next_frame += period;
+    const double now = seconds_since_start();
+    if (next_frame > now) std::this_thread::sleep_for(std::chrono::duration<double>(next_frame - now));
+    else next_frame = now;
   }
   const double elapsed = seconds_since_start() - start;
   const std::shared_ptr<const Snapshot> snapshot = session_->snapshot();

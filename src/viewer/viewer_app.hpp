@@ -40,6 +40,9 @@ struct ViewOptions {
   float path_exposure = 1.0f;
   bool show_ui = true;
   bool vsync = true;
+  // Frames per second at most: 0 chooses 40 with a software OpenGL renderer (it draws on the
+  // solver's cores) and no limit otherwise (vsync paces the frames); negative is no limit.
+  int max_fps = 0;
   bool report = false;  // print frame and photon rates at the end
 };
 
@@ -78,6 +81,7 @@ class Viewer {
   const Scene& scene() const { return *scene_; }
   int selected_curve() const { return draw_.selected_curve; }
   std::size_t paths_drawn() const;  // photon paths in the path buffer after the last frame
+  bool software_renderer() const { return software_renderer_; }
 
   // UI automation for tests: the rectangle (x0, y0, x1, y1, pixels) of the widget drawn last
   // frame with this label, and a queued left click at a pixel (applied over the next frames).
@@ -157,6 +161,7 @@ class Viewer {
   double message_time_ = 0.0;
   bool show_help_ = false;
   bool quit_ = false;
+  bool software_renderer_ = false;  // GL_RENDERER is llvmpipe or softpipe
   int frames_done_ = 0;
   std::vector<double> frame_seconds_;
   double keep_slider_ = 20'000;
