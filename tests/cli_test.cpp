@@ -173,6 +173,15 @@ TEST_F(Cli, ConvergeWritesTableAndPlots) {
   ASSERT_GT(png.size(), 8u);
   EXPECT_EQ(png.substr(1, 3), "PNG");
   EXPECT_NE(read_file(out / "convergence.svg").find("<svg"), std::string::npos);
+  // --replot draws the plot again from the table alone (no solving); a missing table is an error.
+  fs::remove(out / "convergence.png");
+  const CommandRun replot = run("converge " + scene("penumbra.json") + " --replot --out " + out.string());
+  EXPECT_EQ(replot.exit_code, 0) << replot.err;
+  EXPECT_EQ(read_file(out / "convergence.png").substr(1, 3), "PNG");
+  EXPECT_NE(read_file(out / "convergence.gp").find("2 seeds"), std::string::npos);
+  const CommandRun nothing = run("converge " + scene("penumbra.json") + " --replot --out " + (directory_ / "empty").string());
+  EXPECT_EQ(nothing.exit_code, 2);
+  EXPECT_EQ(lines(nothing.err), 1) << nothing.err;
   const CommandRun bad = run("converge " + scene("penumbra.json") + " --methods cubic+basis=quintic --out " + out.string());
   EXPECT_EQ(bad.exit_code, 2);
   EXPECT_NE(bad.err.find("--methods"), std::string::npos) << bad.err;

@@ -288,6 +288,54 @@ TEST(Solver, EnergyBooksBalanceOnEveryExampleScene) {
   EXPECT_GE(scenes, 5);
 }
 
+// B is power per unit length and form factors do not change when a scene is scaled or moved, so
+// the generated copies of the curved room (docs/figures/experiments/make_scenes.py) must give the
+// curved room's B at the same curve parameters, within the Monte Carlo noise: here 3 times the
+// difference of two independent runs of the original (which is sqrt(2) times one run's noise).
+// With the same seed they trace nearly the same photons (every tolerance is relative to the
+// scene's size); only a photon whose hit rounds to the other side of an edge sends the rest of its
+// batch elsewhere, so the scaled copies must be far closer than independent runs: a tenth of them.
+TEST(Solver, ScaledAndMovedScenesGiveTheSameRadiosity) {
+  auto samples = [](const std::string& file, std::uint64_t seed) {
+    const Scene scene = testing::scene_from_file(file);
+    SolverSettings settings;
+    settings.photons = 200'000;
+    settings.seed = seed;
+    Solver solver = make_solver(scene, settings);
+    solver.run();
+    std::vector<double> values;
+    for (std::uint32_t c = 0; c < scene.curves.size(); ++c)
+      for (Side side : {Side::Front, Side::Back}) {
+        if (!solver.has_side(c, side)) continue;
+        for (int j = 0; j < 64; ++j)
+          values.push_back(solver.radiosity(c, side, (j + 0.5) / 64.0 * scene.curves[c].segment_count)[0]);
+      }
+    return values;
+  };
+  auto relative_l2 = [](const std::vector<double>& a, const std::vector<double>& b) {
+    double difference = 0.0;
+    double norm = 0.0;
+    for (std::size_t i = 0; i < a.size(); ++i) {
+      difference += (a[i] - b[i]) * (a[i] - b[i]);
+      norm += b[i] * b[i];
+    }
+    return std::sqrt(difference / norm);
+  };
+  const std::vector<double> original = samples("scenes2d/curved_room.json", 7);
+  const double noise = relative_l2(samples("scenes2d/curved_room.json", 8), original);
+  EXPECT_GT(noise, 1e-4);  // the two seeds are independent runs
+  for (const char* copy : {"curved_room_scale1e-6", "curved_room_scale1e6"}) {
+    const std::vector<double> b = samples(std::string("scenes2d/experiments/") + copy + ".json", 7);
+    ASSERT_EQ(b.size(), original.size());
+    EXPECT_LT(relative_l2(b, original), 0.1 * noise) << copy;
+  }
+  for (const char* copy : {"curved_room_far1e6", "curved_room_far1e8"}) {
+    const std::vector<double> b = samples(std::string("scenes2d/experiments/") + copy + ".json", 7);
+    ASSERT_EQ(b.size(), original.size());
+    EXPECT_LT(relative_l2(b, original), 3 * noise) << copy;
+  }
+}
+
 TEST(Solver, SameSeedGivesIdenticalResultsOnAnyThreadCount) {
   const Scene scene = testing::scene_from_file("scenes2d/mixed.json");
   std::vector<std::string> dumps;

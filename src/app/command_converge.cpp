@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <map>
 #include <sstream>
 
@@ -124,6 +125,200 @@ bool run_gnuplot(const fs::path& script) {
   return WIFEXITED(status) && WEXITSTATUS(status) == 0;
 }
 
+// One run: a row of convergence.csv.
+struct Row {
+  std::size_t method;  // index into the methods
+  std::size_t budget;  // index into the budgets
+  std::uint64_t seed;
+  std::uint64_t photons;
+  std::uint32_t rounds;
+  double unshot;  // unshot / emitted power when the solve stopped
+  double seconds;
+  ErrorNorms error;
+};
+
+std::vector<std::string> method_names(const std::vector<Method>& methods) {
+  std::vector<std::string> names;
+  for (const Method& method : methods) names.push_back(method.name);
+  return names;
+}
+
+struct PlotInput {
+  fs::path directory;
+  std::string scene_name;
+  int elements;
+  int seeds;
+  std::vector<std::string> methods;
+  const std::vector<Row>& rows;
+  double floor;  // the reference's estimated error, or <= 0 when unknown
+};
+
+// The log-log plot of the median L2 error against the median solve time per method and budget,
+// with bars from the smallest to the largest error over the seeds, a -1/2 guide through the first
+// run and the reference's error floor: convergence.{dat,gp} for gnuplot, which writes the PNG and
+// SVG under temporary names that are renamed once it succeeded.
+Status draw_plot(const PlotInput& in) {
+  const fs::path& directory = in.directory;
+  std::size_t budgets = 0;
+  for (const Row& row : in.rows) budgets = std::max(budgets, row.budget + 1);
+  std::string data;
+  for (std::size_t m = 0; m < in.methods.size(); ++m) {
+    for (std::size_t b = 0; b < budgets; ++b) {
+      std::vector<double> seconds;
+      std::vector<double> errors;
+      for (const Row& row : in.rows)
+        if (row.method == m && row.budget == b) {
+          seconds.push_back(std::max(row.seconds, 1e-6));
+          errors.push_back(row.error.l2);
+        }
+      if (errors.empty()) continue;
+      char line[256];
+      std::snprintf(line, sizeof line, "%.9g %.9g %.9g %.9g\n", median(seconds), median(errors),
+                    *std::min_element(errors.begin(), errors.end()),
+                    *std::max_element(errors.begin(), errors.end()));
+      data += line;
+    }
+    data += "\n\n";  // a gnuplot data block per method
+  }
+  if (Status status = write_file_atomically((directory / "convergence.dat").string(), data); !status)
+    return status;
+
+  const Row& anchor = in.rows.front();
+  std::string script = "set logscale xy\nset xlabel 'solve time (s)'\nset ylabel 'relative L2 error of B'\n"
+                       "set key below\nset grid\n"
+                       "set title \"" + gnuplot_text(in.scene_name) + "\\n" + std::to_string(in.elements) +
+                       " elements per curve, median over " + std::to_string(in.seeds) +
+                       " seeds, bars from min to max\"\n";
+  std::string plot = "plot ";
+  for (std::size_t m = 0; m < in.methods.size(); ++m) {
+    plot += "'" + (directory / "convergence.dat").string() + "' index " + std::to_string(m) +
+            " using 1:2:3:4 with yerrorlines lw 2 title \"" + gnuplot_text(in.methods[m]) + "\", ";
+  }
+  char guide[256];
+  std::snprintf(guide, sizeof guide, "%.9g * (x / %.9g)**(-0.5) with lines dt 2 lc rgb 'gray40' title 'slope -1/2'",
+                anchor.error.l2, std::max(anchor.seconds, 1e-6));
+  plot += guide;
+  double smallest_error = INFINITY;
+  for (const Row& row : in.rows) smallest_error = std::min(smallest_error, row.error.l2);
+  // A floor far below every error would only stretch the axis: say it in a label instead.
+  if (in.floor > 0.0 && in.floor < 0.01 * smallest_error) {
+    char line[160];
+    std::snprintf(line, sizeof line, "set label 1 'reference error (estimate) %.2g: below the plot' at graph 0.02, graph 0.04\n", in.floor);
+    script += line;
+  } else if (in.floor > 0.0) {
+    char line[160];
+    std::snprintf(line, sizeof line, ", %.9g with lines dt 3 lc rgb 'black' title 'reference error (estimate)'", in.floor);
+    plot += line;
+  }
+  plot += "\n";
+  const fs::path png_temporary = directory / ".convergence.png.tmp";
+  const fs::path svg_temporary = directory / ".convergence.svg.tmp";
+  script += "set terminal pngcairo size 900,720\nset output '" + png_temporary.string() + "'\n" + plot;
+  script += "set terminal svg size 900,720\nset output '" + svg_temporary.string() + "'\n" + plot;
+  const fs::path script_path = directory / "convergence.gp";
+  if (Status status = write_file_atomically(script_path.string(), script); !status) return status;
+  std::error_code ec;
+  if (!run_gnuplot(script_path)) {
+    fs::remove(png_temporary, ec);
+    fs::remove(svg_temporary, ec);
+    return Error{"gnuplot failed or is missing (apt-get install gnuplot-nox)"};
+  }
+  fs::rename(png_temporary, directory / "convergence.png", ec);
+  fs::rename(svg_temporary, directory / "convergence.svg", ec);
+  return ok_status();
+}
+
+// flatland reference writes its own error estimate (stats.estimated_error.l2); other results have
+// none: -1.
+double estimated_error_of(const nlohmann::json& result) {
+  if (!result.contains("stats") || !result["stats"].is_object()) return -1.0;
+  const nlohmann::json& stats = result["stats"];
+  if (!stats.contains("estimated_error") || !stats["estimated_error"].is_object()) return -1.0;
+  const nlohmann::json& estimate = stats["estimated_error"];
+  return estimate.contains("l2") && estimate["l2"].is_number() ? estimate["l2"].get<double>() : -1.0;
+}
+
+// Reads DIR/convergence.csv back (as written by converge) for --replot: methods in order of first
+// appearance; within a method, rows come budget by budget with the seeds innermost.
+Result<std::vector<Row>> read_rows(const fs::path& path, std::vector<std::string>& methods, int& seeds,
+                                   int& elements) {
+  std::ifstream in(path);
+  if (!in) return Error{path.string() + ": cannot read it (run converge without --replot first)"};
+  std::string line;
+  std::getline(in, line);
+  std::vector<std::string> header = split(line);
+  auto column = [&header](const std::string& name) -> int {
+    const auto it = std::find(header.begin(), header.end(), name);
+    return it == header.end() ? -1 : static_cast<int>(it - header.begin());
+  };
+  const int c_method = column("method"), c_seed = column("seed"), c_photons = column("photons"),
+            c_seconds = column("seconds"), c_l1 = column("rel_l1"), c_l2 = column("rel_l2"),
+            c_linf = column("rel_linf"), c_elements = column("elements");
+  if (c_method < 0 || c_seed < 0 || c_photons < 0 || c_seconds < 0 || c_l1 < 0 || c_l2 < 0 || c_linf < 0)
+    return Error{path.string() + ":1: not a convergence table (expected the columns method, seed, "
+                 "photons, seconds, rel_l1, rel_l2, rel_linf)"};
+  struct Parsed {
+    std::string method;
+    std::uint64_t seed;
+    std::uint64_t photons;
+    double seconds;
+    ErrorNorms error;
+    int elements;
+  };
+  std::vector<Parsed> parsed;
+  std::vector<std::uint64_t> seed_values;
+  int number = 1;
+  while (std::getline(in, line)) {
+    ++number;
+    if (line.empty()) continue;
+    std::vector<std::string> fields;
+    std::stringstream parts(line);
+    std::string field;
+    while (std::getline(parts, field, ',')) fields.push_back(field);
+    if (fields.size() != header.size())
+      return Error{path.string() + ":" + std::to_string(number) + ": " + std::to_string(fields.size()) +
+                   " fields against " + std::to_string(header.size()) + " in the header"};
+    Parsed p;
+    p.method = fields[static_cast<std::size_t>(c_method)];
+    if (p.method.size() >= 2 && p.method.front() == '"' && p.method.back() == '"')
+      p.method = p.method.substr(1, p.method.size() - 2);
+    char* end = nullptr;
+    auto number_at = [&](int c) {
+      const std::string& text = fields[static_cast<std::size_t>(c)];
+      const double value = std::strtod(text.c_str(), &end);
+      return end == text.c_str() || *end != '\0' ? NAN : value;
+    };
+    const double values[] = {number_at(c_seed), number_at(c_photons), number_at(c_seconds),
+                             number_at(c_l1), number_at(c_l2), number_at(c_linf)};
+    for (const double value : values)
+      if (!std::isfinite(value))
+        return Error{path.string() + ":" + std::to_string(number) + ": a field that should be a number is not"};
+    p.seed = static_cast<std::uint64_t>(values[0]);
+    p.photons = static_cast<std::uint64_t>(values[1]);
+    p.seconds = values[2];
+    p.error = {values[3], values[4], values[5]};
+    p.elements = c_elements >= 0 ? static_cast<int>(number_at(c_elements)) : 0;
+    if (std::find(seed_values.begin(), seed_values.end(), p.seed) == seed_values.end()) seed_values.push_back(p.seed);
+    parsed.push_back(p);
+  }
+  if (parsed.empty()) return Error{path.string() + ": no runs in the table"};
+  seeds = static_cast<int>(seed_values.size());
+  elements = parsed.front().elements;
+  std::vector<Row> rows;
+  std::vector<std::size_t> seen;  // rows so far per method
+  for (const Parsed& p : parsed) {
+    auto it = std::find(methods.begin(), methods.end(), p.method);
+    if (it == methods.end()) {
+      methods.push_back(p.method);
+      seen.push_back(0);
+      it = methods.end() - 1;
+    }
+    const auto m = static_cast<std::size_t>(it - methods.begin());
+    rows.push_back({m, seen[m]++ / static_cast<std::size_t>(seeds), p.seed, p.photons, 0, 0.0, p.seconds, p.error});
+  }
+  return rows;
+}
+
 }  // namespace
 
 CLI::App* add_converge_command(CLI::App& parent, ConvergeOptions& o) {
@@ -166,6 +361,9 @@ CLI::App* add_converge_command(CLI::App& parent, ConvergeOptions& o) {
       ->capture_default_str()
       ->check(finite_range(1e-15, 0.5));
   cmd->add_option("--out", o.out, "Output directory (created if missing)")->required();
+  cmd->add_flag("--replot", o.replot,
+                "Solve nothing: draw the plot again from DIR/convergence.csv (the floor from "
+                "--reference, when given)");
   return cmd;
 }
 
@@ -198,6 +396,26 @@ int run_converge(ConvergeOptions& o) {
 
   Result<Scene> scene = load_scene(o.scene);
   if (!scene) return fail(scene.error().message);
+  const fs::path directory(o.out);
+  if (o.replot) {
+    std::vector<std::string> names;
+    int seeds = 0;
+    int elements = 0;
+    Result<std::vector<Row>> rows = read_rows(directory / "convergence.csv", names, seeds, elements);
+    if (!rows) return fail(rows.error().message);
+    double floor = -1.0;
+    if (!o.reference.empty()) {
+      Result<nlohmann::json> read = read_result_file(o.reference);
+      if (!read) return fail(read.error().message);
+      floor = estimated_error_of(*read);
+    }
+    if (Status status = draw_plot({directory, scene->name, elements, seeds, names, *rows, floor}); !status) {
+      std::fprintf(stderr, "flatland: error: %s\n", status.error().message.c_str());
+      return kExitFailure;
+    }
+    std::printf("wrote     %s/convergence.png, convergence.svg (%zu runs)\n", o.out.c_str(), rows->size());
+    return kExitOk;
+  }
   std::error_code ec;
   fs::create_directories(o.out, ec);
   if (ec || !fs::is_directory(o.out)) return fail(o.out + ": cannot create the output directory");
@@ -210,11 +428,7 @@ int run_converge(ConvergeOptions& o) {
     Result<nlohmann::json> read = read_result_file(o.reference);
     if (!read) return fail(read.error().message);
     reference = std::move(*read);
-    // flatland reference writes its own error estimate; other results have none.
-    const nlohmann::json* stats = reference.contains("stats") ? &reference["stats"] : nullptr;
-    if (stats != nullptr && stats->contains("estimated_error") &&
-        (*stats)["estimated_error"].contains("l2") && (*stats)["estimated_error"]["l2"].is_number())
-      floor = (*stats)["estimated_error"]["l2"].get<double>();
+    floor = estimated_error_of(reference);
   } else {
     std::fprintf(stderr, "converge: computing the reference of %s\n", o.scene.c_str());
     ReferenceSettings settings;
@@ -232,16 +446,6 @@ int run_converge(ConvergeOptions& o) {
   }
 
   // Every run: one CSV row.
-  struct Row {
-    std::size_t method;
-    std::size_t budget;
-    std::uint64_t seed;
-    std::uint64_t photons;
-    std::uint32_t rounds;
-    double unshot;  // unshot / emitted power when the solve stopped
-    double seconds;
-    ErrorNorms error;
-  };
   std::vector<Row> rows;
   const std::size_t total = methods.size() * budgets.size() * static_cast<std::size_t>(o.seeds);
   const bool tty = ::isatty(STDERR_FILENO) == 1;
@@ -301,77 +505,15 @@ int run_converge(ConvergeOptions& o) {
                   row.rounds, row.unshot, row.seconds, row.error.l1, row.error.l2, row.error.linf);
     csv += line;
   }
-  const fs::path directory(o.out);
   if (Status status = write_file_atomically((directory / "convergence.csv").string(), csv); !status)
     return fail(status.error().message);
 
-  // Medians per method and budget, for the plot: seconds, L2 error and its spread over seeds.
-  std::string data;
-  for (std::size_t m = 0; m < methods.size(); ++m) {
-    for (std::size_t b = 0; b < budgets.size(); ++b) {
-      std::vector<double> seconds;
-      std::vector<double> errors;
-      for (const Row& row : rows)
-        if (row.method == m && row.budget == b) {
-          seconds.push_back(std::max(row.seconds, 1e-6));
-          errors.push_back(row.error.l2);
-        }
-      char line[256];
-      std::snprintf(line, sizeof line, "%.9g %.9g %.9g %.9g\n", median(seconds), median(errors),
-                    *std::min_element(errors.begin(), errors.end()),
-                    *std::max_element(errors.begin(), errors.end()));
-      data += line;
-    }
-    data += "\n\n";  // a gnuplot data block per method
-  }
-  if (Status status = write_file_atomically((directory / "convergence.dat").string(), data); !status)
-    return fail(status.error().message);
-
-  // The plot: gnuplot writes to temporary names, renamed when it succeeded.
-  const Row& anchor = rows.front();
-  std::string script = "set logscale xy\nset xlabel 'solve time (s)'\nset ylabel 'relative L2 error of B'\n"
-                       "set key outside right\nset grid\n"
-                       "set title \"" + gnuplot_text(scene->name) + "\\n" + std::to_string(o.elements) +
-                       " elements per curve (unless the method says), median over " +
-                       std::to_string(o.seeds) + " seeds, bars from min to max\"\n";
-  std::string plot = "plot ";
-  for (std::size_t m = 0; m < methods.size(); ++m) {
-    plot += "'" + (directory / "convergence.dat").string() + "' index " + std::to_string(m) +
-            " using 1:2:3:4 with yerrorlines lw 2 title '" + methods[m].name + "', ";
-  }
-  char guide[256];
-  std::snprintf(guide, sizeof guide, "%.9g * (x / %.9g)**(-0.5) with lines dt 2 lc rgb 'gray40' title 'slope -1/2'",
-                anchor.error.l2, std::max(anchor.seconds, 1e-6));
-  plot += guide;
-  double smallest_error = INFINITY;
-  for (const Row& row : rows) smallest_error = std::min(smallest_error, row.error.l2);
-  // A floor far below every error would only stretch the axis: say it in the title instead.
-  if (floor > 0.0 && floor < 0.01 * smallest_error) {
-    char line[160];
-    std::snprintf(line, sizeof line, "set label 1 'reference error (estimate) %.2g: below the plot' at graph 0.02, graph 0.04\n", floor);
-    script += line;
-  } else if (floor > 0.0) {
-    char line[160];
-    std::snprintf(line, sizeof line, ", %.9g with lines dt 3 lc rgb 'black' title 'reference error (estimate)'", floor);
-    plot += line;
-  }
-  plot += "\n";
-  const fs::path png_temporary = directory / ".convergence.png.tmp";
-  const fs::path svg_temporary = directory / ".convergence.svg.tmp";
-  script += "set terminal pngcairo size 1000,640\nset output '" + png_temporary.string() + "'\n" + plot;
-  script += "set terminal svg size 1000,640\nset output '" + svg_temporary.string() + "'\n" + plot;
-  const fs::path script_path = directory / "convergence.gp";
-  if (Status status = write_file_atomically(script_path.string(), script); !status)
-    return fail(status.error().message);
-  if (!run_gnuplot(script_path)) {
-    fs::remove(png_temporary, ec);
-    fs::remove(svg_temporary, ec);
-    std::fprintf(stderr, "flatland: error: gnuplot failed or is missing (apt-get install gnuplot-nox); "
-                         "%s/convergence.csv is written, the plot is not\n", o.out.c_str());
+  if (Status status = draw_plot({directory, scene->name, o.elements, o.seeds, method_names(methods), rows, floor});
+      !status) {
+    std::fprintf(stderr, "flatland: error: %s; %s/convergence.csv is written, the plot is not\n",
+                 status.error().message.c_str(), o.out.c_str());
     return kExitFailure;
   }
-  fs::rename(png_temporary, directory / "convergence.png", ec);
-  fs::rename(svg_temporary, directory / "convergence.svg", ec);
   std::printf("wrote     %s/convergence.csv, convergence.png, convergence.svg (%zu runs)\n",
               o.out.c_str(), rows.size());
   if (floor > 0.0) std::printf("reference error (estimated) %.3g relative L2\n", floor);

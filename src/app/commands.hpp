@@ -89,6 +89,7 @@ struct ConvergeOptions {
   double tolerance = 1e-6;
   int elements = 16;
   std::string out;
+  bool replot = false;
 };
 CLI::App* add_converge_command(CLI::App& parent, ConvergeOptions& options);
 int run_converge(ConvergeOptions& options);

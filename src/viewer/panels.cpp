@@ -285,7 +285,7 @@ void Viewer::draw_status_panel(const Snapshot& snapshot) {
   const ImGuiViewport* viewport = ImGui::GetMainViewport();
   ImGui::SetNextWindowPos(ImVec2(viewport->WorkPos.x + viewport->WorkSize.x - 8.0f, viewport->WorkPos.y + 8.0f),
                           ImGuiCond_FirstUseEver, ImVec2(1.0f, 0.0f));
-  ImGui::SetNextWindowSize(ImVec2(330, 0), ImGuiCond_FirstUseEver);
+  ImGui::SetNextWindowSize(ImVec2(370, 0), ImGuiCond_FirstUseEver);
   ImGui::Begin("Status");
   ImGui::Text("scene    %s (%s)", scene_->name.c_str(), scene_->channels == 1 ? "grey" : "colour");
   ImGui::Text("photons  %llu of %llu", static_cast<unsigned long long>(snapshot.progress.photons),
@@ -351,7 +351,7 @@ void Viewer::draw_curve_panel(const Snapshot& snapshot) {
   ImGui::SetNextWindowPos(ImVec2(viewport->WorkPos.x + viewport->WorkSize.x - 8.0f,
                                  viewport->WorkPos.y + viewport->WorkSize.y - 8.0f),
                           ImGuiCond_FirstUseEver, ImVec2(1.0f, 1.0f));
-  ImGui::SetNextWindowSize(ImVec2(380, 330), ImGuiCond_FirstUseEver);
+  ImGui::SetNextWindowSize(ImVec2(420, 360), ImGuiCond_FirstUseEver);
   ImGui::Begin("Curve");
   ImGui::Text("curve    %zu '%s'", c, curve.id.c_str());
   ImGui::Text("material %s: rho %.3g %.3g %.3g", material.name.c_str(), material.reflectivity[0],
@@ -364,15 +364,20 @@ void Viewer::draw_curve_panel(const Snapshot& snapshot) {
   if (c < snapshot.received_share.size())
     ImGui::Text("share    %.2f%% of all reflected power", 100.0 * snapshot.received_share[c]);
   if (c < snapshot.nodes.size() && !snapshot.nodes[c].empty()) {
-    std::string text;
-    int shown = 0;
-    for (const NodeMark& node : snapshot.nodes[c]) {
-      if (node.continuity == Continuity::C1) continue;
-      if (shown++ < 12) text += std::string(continuity_name(node.continuity)) + (node.visibility_event ? "* " : " ");
+    const std::vector<NodeMark>& nodes = snapshot.nodes[c];
+    std::size_t below_c1 = 0;
+    for (const NodeMark& node : nodes) below_c1 += node.continuity == Continuity::C1 ? 0 : 1;
+    char header[96];
+    std::snprintf(header, sizeof header, "%zu storage nodes, %zu below C1###nodes", nodes.size(), below_c1);
+    if (ImGui::CollapsingHeader(header)) {
+      // Every node with its continuity: C1 (smooth), C0 (a kink may form), C-1 (a jump may form);
+      // * marks the C0 nodes that discontinuity meshing placed at visibility events.
+      ImGui::BeginChild("##node list", ImVec2(0, 96), true);
+      for (std::size_t k = 0; k < nodes.size(); ++k)
+        ImGui::Text("%3zu  (%.4g, %.4g)  %s%s", k, nodes[k].position.x, nodes[k].position.y,
+                    continuity_name(nodes[k].continuity), nodes[k].visibility_event ? "  * visibility event" : "");
+      ImGui::EndChild();
     }
-    ImGui::Text("nodes    %zu storage nodes; below C1: %s%s", snapshot.nodes[c].size(),
-                shown == 0 ? "none" : text.c_str(), shown > 12 ? "..." : "");
-    ImGui::TextDisabled("         (* a visibility event)");
   }
   // B(s) along the curve (main side), with the reference when loaded.
   const CurveTrace* trace = snapshot.traces && c < snapshot.traces->size() ? &(*snapshot.traces)[c] : nullptr;
