@@ -5,14 +5,15 @@ set -euo pipefail
 flatland=${FLATLAND:-build/flatland}
 run() { xvfb-run -a -s "-screen 0 1600x1000x24" "$flatland" "$@"; }
 
-# The window with its panels: the default scene after two rounds, one curve inspected.
+# The window with its panels: the default scene after three rounds, one curve inspected.
 run view scenes2d/default.json --frames 3 --step rounds=1 --width 1280 --height 800 \
   --screenshot-ui docs/figures/viewer.png --select screen
 # The first photons of the first round on the penumbra scene: light from the emitter only.
 run view scenes2d/penumbra.json --frames 2 --step photons=2000 --width 960 --height 540 --keep-paths 4000 \
   --screenshot docs/figures/viewer_first_photons.png
-# A finished solve with extended rays drawn at their width, coloured by round.
-run view scenes2d/room_reflector.json --frames 3 --step rounds=1 --width 960 --height 640 --keep-paths 12000 \
-  --ray-width 0.02 --colour-by round --screenshot docs/figures/viewer_rounds.png
+# Three rounds with extended rays drawn at their width, coloured by round: a small budget, so that
+# every path of the three rounds stays among the kept ones.
+run view scenes2d/room_reflector.json --frames 3 --step rounds=1 --width 960 --height 640 --photons 30000 \
+  --keep-paths 30000 --ray-width 0.02 --colour-by round --screenshot docs/figures/viewer_rounds.png
 # flatland render: the same renderer without a display.
 "$flatland" render scenes2d/mixed.json --photons 1e6 --width 960 --height 640 --out docs/figures/render_mixed.png --quiet
