@@ -181,7 +181,7 @@ TEST_F(Viewer, BadOptionsAreOneLineErrors) {
   for (const char* arguments : {"view --step sometimes --frames 1", "view --frames 2 --photons -5",
                                 "view no-such-scene.json --frames 1", "render --out x.png",
                                 "view --exposure nan --frames 1", "render --exposure nan --out x.png",
-                                "view --max-fps -5 --frames 1"}) {
+                                "view --max-fps -5 --frames 1", "view --fade 2 --frames 1"}) {
     const CommandRun result = run(arguments);
     EXPECT_EQ(result.exit_code, 2) << arguments;
     EXPECT_EQ(std::count(result.err.begin(), result.err.end(), '\n'), 1) << arguments << ": " << result.err;

@@ -13,7 +13,7 @@ run view scenes2d/penumbra.json --frames 2 --step photons=2000 --width 960 --hei
   --screenshot docs/figures/viewer_first_photons.png
 # Three rounds with extended rays drawn at their width, coloured by round: a small budget, so that
 # every path of the three rounds stays among the kept ones.
-run view scenes2d/room_reflector.json --frames 3 --step rounds=1 --width 960 --height 640 --photons 30000 \
-  --keep-paths 30000 --ray-width 0.02 --colour-by round --screenshot docs/figures/viewer_rounds.png
+run view scenes2d/room_reflector.json --frames 3 --step rounds=1 --width 960 --height 640 --photons 6000 \
+  --keep-paths 6000 --fade 0 --ray-width 0.02 --colour-by round --screenshot docs/figures/viewer_rounds.png
 # flatland render: the same renderer without a display.
 "$flatland" render scenes2d/mixed.json --photons 1e6 --width 960 --height 640 --out docs/figures/render_mixed.png --quiet

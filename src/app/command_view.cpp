@@ -44,6 +44,11 @@ CLI::App* add_view_command(CLI::App& parent, ViewCommandOptions& o) {
   cmd->add_option("--colour-by", o.colour_by, "Colour photon paths by their power (and light colour) or by round")
       ->capture_default_str()
       ->check(CLI::IsMember({"power", "round"}));
+  cmd->add_option("--fade", o.fade,
+                  "Fading of the photon paths by age: 0 keeps every kept path equally bright, 1 fades "
+                  "the oldest to about 5 %")
+      ->capture_default_str()
+      ->check(finite_range(0.0, 1.0));
   cmd->add_option("--exposure", o.exposure, "Exposure of the photon paths")
       ->capture_default_str()
       ->check(finite_range(1e-3, 1e3));
@@ -92,6 +97,7 @@ int run_view(ViewCommandOptions& o) {
   options.select = o.select;
   options.colour_by = o.colour_by;
   options.path_exposure = o.exposure;
+  options.path_fade = o.fade;
   options.show_ui = !o.no_ui;
   options.vsync = !o.no_vsync;
   options.max_fps = o.max_fps;

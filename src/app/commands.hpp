@@ -133,6 +133,7 @@ struct ViewCommandOptions {
   std::string select;
   std::string colour_by = "power";
   float exposure = 1.0f;
+  float fade = 1.0f;
   bool no_ui = false;
   bool no_vsync = false;
   int max_fps = 0;

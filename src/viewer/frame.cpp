@@ -266,12 +266,14 @@ std::vector<LineVertex> build_overlay(const Snapshot& snapshot, const DrawOption
 
 namespace {
 
-constexpr std::array<std::array<float, 3>, 6> kRoundPalette{{{1.0f, 0.75f, 0.3f},
-                                                           {0.35f, 0.7f, 1.0f},
-                                                           {0.5f, 1.0f, 0.45f},
-                                                           {1.0f, 0.4f, 0.7f},
-                                                           {0.7f, 0.5f, 1.0f},
-                                                           {0.3f, 1.0f, 0.9f}}};
+// Saturated, so that a colour survives the tone mapping where many paths of one round overlap:
+// orange, blue, green, magenta, violet, cyan.
+constexpr std::array<std::array<float, 3>, 6> kRoundPalette{{{1.0f, 0.45f, 0.05f},
+                                                           {0.1f, 0.45f, 1.0f},
+                                                           {0.15f, 1.0f, 0.2f},
+                                                           {1.0f, 0.15f, 0.6f},
+                                                           {0.55f, 0.25f, 1.0f},
+                                                           {0.05f, 0.95f, 0.9f}}};
 
 bool same_view(const ViewTransform& a, const ViewTransform& b) {
   return a.center == b.center && a.scale == b.scale && a.width == b.width && a.height == b.height;

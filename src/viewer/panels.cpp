@@ -137,7 +137,7 @@ void Viewer::draw_menu(const Snapshot& snapshot) {
 
 void Viewer::draw_solve_panel(const Snapshot& snapshot) {
   ImGui::SetNextWindowPos(ImVec2(8, 28), ImGuiCond_FirstUseEver);
-  ImGui::SetNextWindowSize(ImVec2(300, 0), ImGuiCond_FirstUseEver);
+  ImGui::SetNextWindowSize(ImVec2(350, 0), ImGuiCond_FirstUseEver);
   ImGui::Begin("Solve");
   const bool running = session_->running();
   // A stopped solve (converged, budget spent) cannot run on: Reset or a new setting starts over.
@@ -244,7 +244,7 @@ void Viewer::draw_solve_panel(const Snapshot& snapshot) {
 void Viewer::draw_display_panel(const Snapshot& snapshot) {
   (void)snapshot;
   ImGui::SetNextWindowPos(ImVec2(8, 430), ImGuiCond_FirstUseEver);
-  ImGui::SetNextWindowSize(ImVec2(300, 0), ImGuiCond_FirstUseEver);
+  ImGui::SetNextWindowSize(ImVec2(330, 0), ImGuiCond_FirstUseEver);
   ImGui::Begin("Display");
   bool changed = false;
   changed |= ImGui::Checkbox("band", &draw_.band);

@@ -135,6 +135,7 @@ Result<std::unique_ptr<Viewer>> Viewer::create(const ViewOptions& options) {
     return Error{"--colour-by: expected power or round, got '" + options.colour_by + "'"};
   viewer->draw_.path_colour = options.colour_by == "round" ? PathColour::Round : PathColour::Power;
   viewer->draw_.path_exposure = options.path_exposure;
+  viewer->draw_.fade = options.path_fade;
   std::shared_ptr<const nlohmann::json> reference;
   if (!options.reference.empty()) {
     std::ifstream file(options.reference);

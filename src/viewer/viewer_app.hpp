@@ -38,6 +38,7 @@ struct ViewOptions {
   std::string select;              // a curve to inspect at start: its id or index
   std::string colour_by = "power";  // photon paths coloured by "power" or "round"
   float path_exposure = 1.0f;
+  float path_fade = 1.0f;  // 0: every kept path equally bright; 1: the oldest fade to about 5 %
   bool show_ui = true;
   bool vsync = true;
   // Frames per second at most: 0 chooses 40 with a software OpenGL renderer (it draws on the
