@@ -82,7 +82,6 @@ class Viewer {
   const Scene& scene() const { return *scene_; }
   int selected_curve() const { return draw_.selected_curve; }
   std::size_t paths_drawn() const;  // photon paths in the path buffer after the last frame
-  bool software_renderer() const { return software_renderer_; }
 
   // UI automation for tests: the rectangle (x0, y0, x1, y1, pixels) of the widget drawn last
   // frame with this label, and a queued left click at a pixel (applied over the next frames).
