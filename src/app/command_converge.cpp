@@ -146,7 +146,7 @@ std::vector<std::string> method_names(const std::vector<Method>& methods) {
 struct PlotInput {
   fs::path directory;
   std::string scene_name;
-  int elements;
+  int elements;  // shared by every method, or 0 when they differ
   int seeds;
   std::vector<std::string> methods;
   const std::vector<Row>& rows;
@@ -186,9 +186,9 @@ Status draw_plot(const PlotInput& in) {
   const Row& anchor = in.rows.front();
   std::string script = "set logscale xy\nset xlabel 'solve time (s)'\nset ylabel 'relative L2 error of B'\n"
                        "set key below\nset grid\n"
-                       "set title \"" + gnuplot_text(in.scene_name) + "\\n" + std::to_string(in.elements) +
-                       " elements per curve, median over " + std::to_string(in.seeds) +
-                       " seeds, bars from min to max\"\n";
+                       "set title \"" + gnuplot_text(in.scene_name) + "\\n" +
+                       (in.elements > 0 ? std::to_string(in.elements) + " elements per curve, " : "") +
+                       "median over " + std::to_string(in.seeds) + " seeds, bars from min to max\"\n";
   std::string plot = "plot ";
   for (std::size_t m = 0; m < in.methods.size(); ++m) {
     plot += "'" + (directory / "convergence.dat").string() + "' index " + std::to_string(m) +
@@ -297,13 +297,18 @@ Result<std::vector<Row>> read_rows(const fs::path& path, std::vector<std::string
     p.photons = static_cast<std::uint64_t>(values[1]);
     p.seconds = values[2];
     p.error = {values[3], values[4], values[5]};
-    p.elements = c_elements >= 0 ? static_cast<int>(number_at(c_elements)) : 0;
+    const double element_count = c_elements >= 0 ? number_at(c_elements) : 0.0;
+    p.elements = std::isfinite(element_count) && element_count >= 1.0 && element_count < 1e9
+                     ? static_cast<int>(element_count)
+                     : 0;
     if (std::find(seed_values.begin(), seed_values.end(), p.seed) == seed_values.end()) seed_values.push_back(p.seed);
     parsed.push_back(p);
   }
   if (parsed.empty()) return Error{path.string() + ": no runs in the table"};
   seeds = static_cast<int>(seed_values.size());
   elements = parsed.front().elements;
+  for (const Parsed& p : parsed)
+    if (p.elements != elements) elements = 0;
   std::vector<Row> rows;
   std::vector<std::size_t> seen;  // rows so far per method
   for (const Parsed& p : parsed) {
@@ -508,7 +513,10 @@ int run_converge(ConvergeOptions& o) {
   if (Status status = write_file_atomically((directory / "convergence.csv").string(), csv); !status)
     return fail(status.error().message);
 
-  if (Status status = draw_plot({directory, scene->name, o.elements, o.seeds, method_names(methods), rows, floor});
+  int shared_elements = methods.front().settings.elements;
+  for (const Method& method : methods)
+    if (method.settings.elements != shared_elements) shared_elements = 0;
+  if (Status status = draw_plot({directory, scene->name, shared_elements, o.seeds, method_names(methods), rows, floor});
       !status) {
     std::fprintf(stderr, "flatland: error: %s; %s/convergence.csv is written, the plot is not\n",
                  status.error().message.c_str(), o.out.c_str());
