@@ -886,7 +886,7 @@ TEST(SceneIoErrors, EmittanceProfile) {
   EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"][0]["emittance_profile"] = {1, 2, 3}; })),
                   "curves[0].emittance_profile: expected 2 factors (one per point), got 3");
   EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"][0]["emittance_profile"] = {1, -2}; })),
-                  "curves[0].emittance_profile[1]: must be >= 0");
+                  "curves[0].emittance_profile[1]: must be between 0 and 1e100");
   EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"][0]["emittance_profile"] = {0, 0}; })),
                   "every factor is zero");
   EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"][0]["emittance_profile"] = 2; })),

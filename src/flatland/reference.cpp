@@ -4,8 +4,11 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <string>
 #include <thread>
+
+#include "flatland/resources.hpp"
 
 namespace flatland {
 
@@ -257,11 +260,12 @@ double seconds_since(std::chrono::steady_clock::time_point start) {
 struct KrylovOutcome {
   int iterations = 0;
   double relative_residual = 0.0;  // |r|_inf / |x|_inf at the end
+  bool cancelled = false;
 };
 
 template <class Apply>
 KrylovOutcome gmres(const Apply& apply, const std::vector<double>& rhs, std::vector<double>& x,
-                    double threshold, int max_iterations) {
+                    double threshold, int max_iterations, const std::atomic<bool>* cancel) {
   constexpr int kRestart = 60;
   const std::size_t n = rhs.size();
   KrylovOutcome outcome;
@@ -303,6 +307,10 @@ KrylovOutcome gmres(const Apply& apply, const std::vector<double>& rhs, std::vec
     g[0] = beta;
     int steps = 0;
     for (int j = 0; j < kRestart && outcome.iterations < max_iterations; ++j) {
+      if (cancel != nullptr && cancel->load(std::memory_order_relaxed)) {
+        outcome.cancelled = true;
+        return outcome;
+      }
       apply(basis[static_cast<std::size_t>(j)], w);
       ++outcome.iterations;
       const auto jj = static_cast<std::size_t>(j);
@@ -442,6 +450,15 @@ Spectrum ReferenceSolution::radiosity(std::uint32_t curve_index, Side side, doub
   return result;
 }
 
+double reference_element_count(const Scene& scene, const ReferenceSettings& settings) {
+  const double max_length =
+      settings.max_element_length > 0.0 ? settings.max_element_length : scene.scale / 400.0;
+  double count = 0.0;
+  for (const SceneSegment& segment : scene.segments)
+    count += std::max(1.0, std::ceil(segment.length / max_length));
+  return count;
+}
+
 Result<ReferenceSolution> solve_reference(const Scene& scene, const ReferenceSettings& settings) {
   if (Status status = validate(settings); !status) return status.error();
   for (const Curve& curve : scene.curves) {
@@ -455,6 +472,23 @@ Result<ReferenceSolution> solve_reference(const Scene& scene, const ReferenceSet
   solution.settings_ = settings;
   const double max_length =
       settings.max_element_length > 0.0 ? settings.max_element_length : scene.scale / 400.0;
+  const auto cancelled = [&settings] {
+    return settings.cancel != nullptr && settings.cancel->load(std::memory_order_relaxed);
+  };
+
+  // The element count first, to refuse work that cannot finish before any of it is done.
+  const double element_total = reference_element_count(scene, settings);
+  if (element_total > static_cast<double>(kMaxReferenceElements)) {
+    char message[320];
+    std::snprintf(message, sizeof message,
+                  "%.4g reference elements (elements of length %.3g); at most %zu: form factors "
+                  "take time and memory growing as the square of the count; use fewer elements "
+                  "(--elements or --max-element-length)",
+                  element_total, max_length, kMaxReferenceElements);
+    return Error{message};
+  }
+  const std::size_t memory_limit =
+      settings.memory_limit != 0 ? settings.memory_limit : default_memory_budget();
 
   // 1. Elements: equal arc-length chords of every segment.
   std::vector<ReferenceElement>& elements = solution.elements_;
@@ -466,8 +500,6 @@ Result<ReferenceSolution> solve_reference(const Scene& scene, const ReferenceSet
     const Material& material = scene.material_of(curve);
     const Cubic& shape = segment.geometry.shape;
     const double pieces_real = std::max(1.0, std::ceil(segment.length / max_length));
-    if (static_cast<double>(elements.size()) + pieces_real > 2.0e7)
-      return Error{"--max-element-length: too small for this scene (more than 2e7 elements)"};
     const auto pieces = static_cast<std::uint32_t>(pieces_real);
     solution.segment_first_[si] = static_cast<std::uint32_t>(elements.size());
     solution.segment_count_[si] = pieces;
@@ -533,6 +565,11 @@ Result<ReferenceSolution> solve_reference(const Scene& scene, const ReferenceSet
   std::vector<std::vector<std::pair<std::uint32_t, double>>> row_entries(rows);
   std::vector<double> row_sums(rows, 0.0);
   std::atomic<std::size_t> next_row{0};
+  // Bytes of the rows so far (each entry of a row and of the final CSR copy: a column index and
+  // a value); past the memory limit every worker stops.
+  constexpr double kBytesPerEntry = 2.0 * (sizeof(std::uint32_t) + sizeof(double)) + 4.0;
+  std::atomic<std::size_t> entry_count{0};
+  std::atomic<bool> out_of_memory{false};
   auto worker = [&]() {
     Sweeper sweeper;
     std::vector<VisibleElement> visible;
@@ -540,6 +577,7 @@ Result<ReferenceSolution> solve_reference(const Scene& scene, const ReferenceSet
     std::vector<int> whole_count(patch_count, 0);
     std::vector<std::uint32_t> touched;
     for (;;) {
+      if (cancelled() || out_of_memory.load(std::memory_order_relaxed)) break;
       const std::size_t row = next_row.fetch_add(1);
       if (row >= rows) break;
       const std::uint32_t patch = solution.row_patch_[row];
@@ -576,6 +614,9 @@ Result<ReferenceSolution> solve_reference(const Scene& scene, const ReferenceSet
         if (carries[p] && f > 0.0) entries.emplace_back(p, f);
       }
       row_sums[row] = sum;
+      const std::size_t total = entry_count.fetch_add(entries.size()) + entries.size();
+      if (static_cast<double>(total) * kBytesPerEntry > static_cast<double>(memory_limit))
+        out_of_memory.store(true);
     }
   };
   {
@@ -585,6 +626,16 @@ Result<ReferenceSolution> solve_reference(const Scene& scene, const ReferenceSet
     for (unsigned k = 1; k < threads; ++k) pool.emplace_back(worker);
     worker();
     for (std::thread& thread : pool) thread.join();
+  }
+  if (cancelled()) return Error{kReferenceCancelled};
+  if (out_of_memory.load()) {
+    const std::size_t done = std::min(next_row.load(), rows);
+    const double projected = static_cast<double>(entry_count.load()) * kBytesPerEntry *
+                             static_cast<double>(rows) / static_cast<double>(std::max<std::size_t>(done, 1));
+    return Error{std::to_string(element_count) + " reference elements: the form factors would need about " +
+                 format_bytes(projected) + ", more than the memory limit of " +
+                 format_bytes(static_cast<double>(memory_limit)) +
+                 "; use fewer elements (--elements or --max-element-length)"};
   }
   solution.row_begin_.assign(rows + 1, 0);
   for (std::size_t r = 0; r < rows; ++r)
@@ -633,7 +684,8 @@ Result<ReferenceSolution> solve_reference(const Scene& scene, const ReferenceSet
     std::vector<double>& b = solution.radiosity_[ch];
     b = rhs;
     const KrylovOutcome outcome =
-        gmres(apply, rhs, b, settings.tolerance / amplification, settings.max_iterations);
+        gmres(apply, rhs, b, settings.tolerance / amplification, settings.max_iterations, settings.cancel);
+    if (outcome.cancelled) return Error{kReferenceCancelled};
     solution.iterations_ = std::max(solution.iterations_, outcome.iterations);
     solution.residual_ = std::max(solution.residual_, outcome.relative_residual);
     solution.error_bound_ = std::max(solution.error_bound_, outcome.relative_residual * amplification);

@@ -28,6 +28,8 @@
 #pragma once
 
 #include <array>
+#include <atomic>
+#include <cstddef>
 #include <cstdint>
 #include <vector>
 
@@ -43,7 +45,21 @@ struct ReferenceSettings {
   double tolerance = 1e-10;         // relative error (inf-norm) of the element solve
   int max_iterations = 100'000;     // Krylov steps (matrix-vector products) per channel
   unsigned threads = 0;             // 0: all hardware threads
+  // Memory the form factors may take (0: default_memory_budget(), three quarters of the
+  // machine's); a solve that would need more is refused with an error instead of failing to
+  // allocate.
+  std::size_t memory_limit = 0;
+  // Set (by a signal handler, say) to stop the solve: it returns the error kReferenceCancelled
+  // within a row of form factors or a Krylov step.
+  const std::atomic<bool>* cancel = nullptr;
 };
+
+// At most this many elements: the form factors take time and memory that grow as the square of
+// the element count (about 12 bytes per visible pair; 12,530 elements take 70 s and 1.7 GB on
+// two cores for the default scene), so 40,000 elements would take about an hour and tens of GB.
+inline constexpr std::size_t kMaxReferenceElements = 40'000;
+// The message of the error a cancelled solve returns.
+inline constexpr const char* kReferenceCancelled = "the reference solve was cancelled";
 
 // Checks ranges; the message names the setting and the accepted range.
 Status validate(const ReferenceSettings& settings);
@@ -138,6 +154,10 @@ class ReferenceSolution {
   double form_factor_seconds_ = 0.0;
   double solve_seconds_ = 0.0;
 };
+
+// The number of elements solve_reference makes of the scene with these settings (a double: it
+// may be far beyond any integer type for a tiny element length).
+double reference_element_count(const Scene& scene, const ReferenceSettings& settings);
 
 Result<ReferenceSolution> solve_reference(const Scene& scene, const ReferenceSettings& settings);
 

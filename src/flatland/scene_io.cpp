@@ -92,26 +92,6 @@ std::string append_index(const std::string& path, std::size_t index) {
   return path + "[" + std::to_string(index) + "]";
 }
 
-struct TextPosition {
-  std::size_t line = 1;
-  std::size_t column = 1;  // in characters (UTF-8 code points), from 1
-};
-
-TextPosition position_of(std::string_view text, std::size_t offset) {
-  offset = std::min(offset, text.size());
-  TextPosition p;
-  for (std::size_t i = 0; i < offset; ++i) {
-    const auto byte = static_cast<unsigned char>(text[i]);
-    if (byte == '\n') {
-      ++p.line;
-      p.column = 1;
-    } else if ((byte & 0xC0u) != 0x80u) {  // not a UTF-8 continuation byte
-      ++p.column;
-    }
-  }
-  return p;
-}
-
 std::optional<std::string> closest(std::string_view word, const std::vector<std::string>& candidates) {
   return closest_match(word, candidates);
 }
@@ -379,6 +359,10 @@ struct ParseFailure {
 
 enum class Quantity { Reflectivity, Emittance };
 
+// Emittance values and profile factors (docs/scene-format.md, limits).
+constexpr double kMaxEmittance = 1e100;
+constexpr double kMinEmittance = 1e-100;
+
 class SceneReader {
  public:
   SceneReader(std::string_view text, std::string_view source) : text_(text), source_(source) {}
@@ -556,6 +540,11 @@ class SceneReader {
     } else if (x < 0.0) {
       fail(path, "must be >= 0 (power per unit length), got " + format_number(x) +
                      "; use 0 for a surface that does not emit");
+    } else if (x > kMaxEmittance || (x > 0.0 && x < kMinEmittance)) {
+      // Emitted power E x length must stay far inside a double's range (and its fixed-point
+      // units representable) for every scene size the format allows.
+      fail(path, "must be 0 or between 1e-100 and 1e100 (power per unit length), got " +
+                     format_number(x) + "; choose the unit of power so that it is");
     }
   }
 
@@ -765,8 +754,8 @@ class SceneReader {
                                " factors (one per point), got " + std::to_string(it->size()));
       for (std::size_t k = 0; k < it->size(); ++k) {
         const double factor = number((*it)[k], append_index(profile_path, k));
-        if (factor < 0.0)
-          fail(append_index(profile_path, k), "must be >= 0, got " + format_number(factor));
+        if (factor < 0.0 || factor > kMaxEmittance)
+          fail(append_index(profile_path, k), "must be between 0 and 1e100, got " + format_number(factor));
         curve.emittance_profile.push_back(factor);
       }
     }

@@ -8,6 +8,8 @@
 #include <numeric>
 #include <thread>
 
+#include "flatland/resources.hpp"
+
 namespace flatland {
 
 namespace {
@@ -18,7 +20,6 @@ double seconds_since(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
 }
 
-constexpr std::uint64_t kMinPhotonsPerRound = 1;
 constexpr int kMaxElements = 1 << 16;
 
 }  // namespace
@@ -61,6 +62,35 @@ Status validate(const SolverSettings& settings) {
   return ok_status();
 }
 
+namespace {
+
+// The storage's memory, estimated from above before anything is allocated. Per coefficient and
+// channel: the received, unshot and reflected totals (doubles), one fixed-point deposit per worker
+// thread and the Galerkin scratch; per coefficient, its knots, basis integral, origin sampler and
+// source weight (about 160 bytes). A curve has at most max(elements, segments) elements plus, per
+// segment, a joint of multiplicity up to the degree + 1 and visibility-event nodes.
+Status check_memory(const Scene& scene, const SolverSettings& settings, unsigned threads) {
+  double coefficients = 0.0;
+  for (const Curve& curve : scene.curves) {
+    const double sides = curve.sides == Sides::Both ? 2.0 : 1.0;
+    coefficients += sides * (std::max<double>(settings.elements, curve.segment_count) +
+                             4.0 * curve.segment_count + 4.0);
+  }
+  const double per_coefficient = scene.channels * 8.0 * (4.0 + threads) + 160.0;
+  const double bytes = coefficients * per_coefficient + 2048.0 * static_cast<double>(scene.segments.size());
+  const std::size_t limit = settings.memory_limit != 0 ? settings.memory_limit : default_memory_budget();
+  if (bytes <= static_cast<double>(limit)) return ok_status();
+  char message[320];
+  std::snprintf(message, sizeof message,
+                "--elements %d: %zu curves would need about %.3g storage coefficients and %s of "
+                "memory, more than the limit of %s; use fewer elements per curve",
+                settings.elements, scene.curves.size(), coefficients, format_bytes(bytes).c_str(),
+                format_bytes(static_cast<double>(limit)).c_str());
+  return Error{message};
+}
+
+}  // namespace
+
 void Solver::Accumulator::reset(std::size_t size) {
   received.assign(size, 0);
   escaped = {};
@@ -79,6 +109,7 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
   solver.channels_ = scene.channels;
   solver.threads_ = settings.threads != 0 ? settings.threads
                                           : std::max(1u, std::thread::hardware_concurrency());
+  if (Status status = check_memory(scene, settings, solver.threads_); !status) return status.error();
 
   std::vector<SegmentGeometry> geometry;
   geometry.reserve(scene.segments.size());
@@ -167,6 +198,16 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
   for (std::size_t ch = 0; ch < channels; ++ch) solver.emitted_total_ += solver.emitted_[ch];
   if (!(solver.emitted_total_ > 0.0))
     return Error{scene.source + ": no curve emits light (give a material or curve an emittance > 0)"};
+  // Emittance (<= 1e100 with profile factors <= 1e100) times a length (<= 1e100 x segments) fits
+  // a double, but the books and fixed-point units need headroom: refuse what comes near the edge.
+  if (!(solver.emitted_total_ < 1e290) || !(solver.emitted_total_ > 1e-290)) {
+    char message[256];
+    std::snprintf(message, sizeof message,
+                  "%s: the emitted power is %.3g, outside the supported 1e-290 .. 1e290; scale "
+                  "the emittances (or the coordinates) so that it is",
+                  scene.source.c_str(), solver.emitted_total_);
+    return Error{message};
+  }
   return solver;
 }
 
@@ -243,13 +284,21 @@ std::uint64_t Solver::photons_for_round(double unshot) const {
   // budget that its power is of all the power still to be shot. With the observed decay ratio r
   // of the unshot power, that is about U / (1 - r) (the geometric tail; ignoring where the
   // tolerance cuts it off keeps a reserve, so the budget is never spent one round too early).
+  // Every round shoots at least kMinPhotonsPerRound, so the rounds still needed to reach the
+  // tolerance, K = ln(tolerance E / U) / ln r, each get that much set aside first; when the budget
+  // cannot pay for them all, the solve ends with its budget spent and says how much is unshot.
   const std::uint64_t remaining = settings_.photons - photons_shot_;
   const double ratio =
       std::clamp(rounds_ == 0 ? initial_ratio_ : unshot / previous_unshot_, 0.0, 0.999999);
-  const double share = 1.0 - ratio;
-  auto photons = static_cast<std::uint64_t>(std::llround(static_cast<double>(remaining) * share));
+  const double target = settings_.tolerance * emitted_total_;
+  double later_rounds = 0.0;
+  if (ratio > 0.0 && unshot > target)
+    later_rounds = std::clamp(std::ceil(std::log(target / unshot) / std::log(ratio)) - 1.0, 0.0, 1e15);
+  const double reserve = later_rounds * static_cast<double>(kMinPhotonsPerRound);
+  const double available = std::max(0.0, static_cast<double>(remaining) - reserve);
+  auto photons = static_cast<std::uint64_t>(std::llround(available * (1.0 - ratio)));
   photons = std::max(photons, std::min(remaining, kMinPhotonsPerRound));
-  return std::min(photons, remaining);
+  return std::min({photons, remaining, kMaxPhotonsPerRound});
 }
 
 bool Solver::begin_round() {
@@ -619,14 +668,14 @@ void Solver::end_round(std::span<const Accumulator> accumulators) {
           const double power = static_cast<double>(units) * inverse_scale;
           received_[index] += power;
           unshot_[index] = rho[ch] * power;
-          absorbed_[ch] += power - unshot_[index];
+          absorbed_[ch].add(power - unshot_[index]);
         }
       }
     }
   }
   for (std::size_t ch = 0; ch < channels; ++ch) {
-    escaped_[ch] += static_cast<double>(escaped[ch]) * inverse_scale;
-    absorbed_[ch] += static_cast<double>(black[ch]) * inverse_scale;
+    escaped_[ch].add(static_cast<double>(escaped[ch]) * inverse_scale);
+    absorbed_[ch].add(static_cast<double>(black[ch]) * inverse_scale);
   }
   update_reflected(received_);
   previous_unshot_ = previous_pool;
@@ -751,6 +800,7 @@ std::uint64_t Solver::step_photons(std::uint64_t max_photons, const std::atomic<
       work(round_deposits_[0], true);
     }
     if (aborted.load()) {
+      photons_cancelled_ = (position - first) + photons_done.load();
       seconds_ += seconds_since(start);
       stop_reason_ = StopReason::Cancelled;
       round_open_ = false;
@@ -811,8 +861,8 @@ EnergyBooks Solver::books() const {
   EnergyBooks books;
   for (int ch = 0; ch < channels_; ++ch) {
     books.emitted += emitted_[static_cast<std::size_t>(ch)];
-    books.absorbed += absorbed_[static_cast<std::size_t>(ch)];
-    books.escaped += escaped_[static_cast<std::size_t>(ch)];
+    books.absorbed += absorbed_[static_cast<std::size_t>(ch)].value();
+    books.escaped += escaped_[static_cast<std::size_t>(ch)].value();
   }
   for (double value : unshot_) books.unshot += value;
   return books;

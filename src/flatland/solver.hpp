@@ -30,6 +30,7 @@
 #include "flatland/result.hpp"
 #include "flatland/sampling.hpp"
 #include "flatland/scene.hpp"
+#include "flatland/summation.hpp"
 
 namespace flatland {
 
@@ -63,6 +64,9 @@ struct SolverSettings {
   RayProfile ray_profile = RayProfile::Box;
   RayMode ray_mode = RayMode::Footprint;
   int band_rays = 8;
+  // Memory the solver's storage may take (0: default_memory_budget(), three quarters of the
+  // machine's); settings that would need more are refused by Solver::create before allocating.
+  std::size_t memory_limit = 0;
 };
 
 // Checks ranges; the message names the setting and the accepted range.
@@ -106,6 +110,15 @@ struct PhotonPath {
 class Solver {
  public:
   static constexpr std::uint64_t kBatchSize = 4096;
+  // Every round shoots at least this many photons (or what is left of the budget): a round of a
+  // few photons estimates the pool so coarsely that one photon landing on an absorber could empty
+  // it and stop the solve as "converged" far from the answer (a room of rho = 0.9999999 with a
+  // black lamp did). One batch.
+  static constexpr std::uint64_t kMinPhotonsPerRound = kBatchSize;
+  // And at most this many: the fixed-point deposits quantise each photon's power to 2^-60 of the
+  // round's power (half a unit per deposit), so a round of n photons rounds each photon's power
+  // by at most n 2^-61 of itself; 2^30 photons keep that below 5e-10.
+  static constexpr std::uint64_t kMaxPhotonsPerRound = std::uint64_t{1} << 30;
 
   static Result<Solver> create(const Scene& scene, const SolverSettings& settings);
 
@@ -143,6 +156,9 @@ class Solver {
   const SolverSettings& settings() const { return settings_; }
   unsigned thread_count() const { return threads_; }
   std::uint64_t photons_shot() const { return photons_shot_; }
+  // Photons shot including those of a round that a cancel cut short (their deposits are dropped,
+  // so they are not in photons_shot() or the books): what "interrupted after N photons" says.
+  std::uint64_t photons_traced() const { return photons_shot_ + photons_cancelled_; }
   std::uint32_t rounds() const { return rounds_; }
   double seconds() const { return seconds_; }
   EnergyBooks books() const;
@@ -252,8 +268,8 @@ class Solver {
   bool sample_by_coefficient_ = false;  // reconstructed sampling on a B-spline basis
   bool sample_hermite_ = false;         // reconstructed sampling on the Hermite reconstruction
   Spectrum emitted_{};
-  Spectrum absorbed_{};
-  Spectrum escaped_{};
+  std::array<CompensatedSum, 3> absorbed_{};  // over all rounds
+  std::array<CompensatedSum, 3> escaped_{};
   double emitted_total_ = 0.0;
   double initial_ratio_ = 0.5;
   double previous_unshot_ = 0.0;
@@ -266,6 +282,7 @@ class Solver {
   std::vector<PhotonPath> paths_;
 
   std::uint64_t photons_shot_ = 0;
+  std::uint64_t photons_cancelled_ = 0;
   std::uint32_t rounds_ = 0;
   double seconds_ = 0.0;
   StopReason stop_reason_ = StopReason::Running;

@@ -46,7 +46,8 @@ struct Box {
   bool empty() const { return lower.x > upper.x || lower.y > upper.y; }
   Vec2 center() const { return 0.5 * (lower + upper); }
   Vec2 extent() const { return upper - lower; }
-  double diagonal() const { return empty() ? 0.0 : length(upper - lower); }
+  // hypot, not sqrt(x^2 + y^2): a scene 1e-300 across has a diagonal, not 0.
+  double diagonal() const { return empty() ? 0.0 : std::hypot(upper.x - lower.x, upper.y - lower.y); }
 };
 
 }  // namespace flatland
