@@ -1,6 +1,7 @@
 #include "flatland/reference.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -286,6 +287,35 @@ TEST(Reference, RejectsBadInput) {
 }
 
 // Elements against seconds on a scene with occlusion (run with --gtest_also_run_disabled_tests).
+TEST(Reference, CancelStopsTheSolve) {
+  const Scene scene = testing::scene_from_text(testing::circle_enclosure(0.5, 1.0));
+  ReferenceSettings settings;
+  const std::atomic<bool> cancel{true};
+  settings.cancel = &cancel;
+  Result<ReferenceSolution> solution = solve_reference(scene, settings);
+  ASSERT_FALSE(solution.ok());
+  EXPECT_EQ(solution.error().message, kReferenceCancelled);
+}
+
+// Element counts that cannot finish, or whose form factors cannot fit, are refused with a message
+// that names the fix, instead of running for hours or failing to allocate.
+TEST(Reference, WorkBeyondItsLimitsIsRefused) {
+  const Scene scene = testing::scene_from_text(testing::circle_enclosure(0.5, 1.0));
+  ReferenceSettings settings;
+  settings.max_element_length = scene.scale / 1'048'576;
+  EXPECT_GT(reference_element_count(scene, settings), static_cast<double>(kMaxReferenceElements));
+  Result<ReferenceSolution> huge = solve_reference(scene, settings);
+  ASSERT_FALSE(huge.ok());
+  EXPECT_NE(huge.error().message.find("use fewer elements"), std::string::npos) << huge.error().message;
+  // A closed circle sees all of itself: n elements make about n^2 form factors.
+  settings.max_element_length = scene.scale / 2000;
+  settings.memory_limit = 1 << 20;
+  Result<ReferenceSolution> tight = solve_reference(scene, settings);
+  ASSERT_FALSE(tight.ok());
+  EXPECT_NE(tight.error().message.find("more than the memory limit of 1.05 MB"), std::string::npos)
+      << tight.error().message;
+}
+
 TEST(Reference, DISABLED_Timing) {
   const std::string path = testing::source_path("scenes2d/room_reflector.json");
   const Scene scene = testing::scene_from_file("scenes2d/room_reflector.json");

@@ -893,5 +893,32 @@ TEST(SceneIoErrors, EmittanceProfile) {
                   "expected an array of factors");
 }
 
+// Emitted power E x length must stay inside a double with room for the books: emittance is 0 or
+// within 1e-100 .. 1e100 (both ends accepted), and profile factors at most 1e100.
+TEST(SceneIoErrors, EmittanceOutsideItsRange) {
+  for (const double accepted : {1e-100, 1e100}) {
+    const Result<Scene> scene = parse(edited([&](Json& j) { j["materials"]["lamp"]["emittance"] = accepted; }));
+    EXPECT_TRUE(scene.ok()) << accepted << ": " << scene.error().message;
+  }
+  for (const double refused : {1e308, 1.1e100, 1e-300, 9e-101}) {
+    EXPECT_CONTAINS(error_of(edited([&](Json& j) { j["materials"]["lamp"]["emittance"] = refused; })),
+                    "materials.lamp.emittance: must be 0 or between 1e-100 and 1e100");
+  }
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"][0]["emittance_profile"] = {1, 1e101}; })),
+                  "curves[0].emittance_profile[1]: must be between 0 and 1e100");
+}
+
+// Coordinates of 1e-300 are distinct points: the scene is too small to solve (its squared lengths
+// underflow), which is what the error must say, not "all points coincide".
+TEST(SceneIoErrors, ATinySceneIsNamedAsTooSmall) {
+  const std::string message = error_of(edited([](Json& j) {
+    for (Json& curve : j["curves"])
+      for (Json& point : curve.contains("line") ? curve["line"] : curve["bezier"])
+        for (Json& coordinate : point) coordinate = coordinate.get<double>() * 1e-300;
+  }));
+  EXPECT_CONTAINS(message, "scale it up to at least 1e-100");
+  EXPECT_EQ(message.find("coincide"), std::string::npos) << message;
+}
+
 }  // namespace
 }  // namespace flatland

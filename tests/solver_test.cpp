@@ -637,6 +637,104 @@ TEST(Solver, CancelStopsBeforeTheRoundEnds) {
   EXPECT_EQ(solver.rounds(), 0u);
 }
 
+// A closed room of rho = 0.9999999 lit by a black lamp needs about ln(1/tolerance) / (fraction
+// absorbed per bounce) rounds, more than 1e6 photons pay for at one batch a round. Rounds of a
+// single photon used to let one photon that hit the lamp empty the pool: "converged, unshot 0%"
+// after a few rounds, 75-150% wrong. Every round now shoots at least a batch, so the solve ends
+// with its budget spent and the unshot power reported, never a false "converged".
+TEST(Solver, StiffRoomWithABlackLampIsNeverFalselyConverged) {
+  const Scene scene = testing::scene_from_text(R"({"flatland": 1,
+    "materials": {"wall": {"reflectivity": 0.9999999}, "lamp": {"emittance": 1, "reflectivity": 0}},
+    "curves": [{"id": "walls", "material": "wall", "line": [[-1,-1],[1,-1],[1,1],[-1,1],[-1,-1]]},
+               {"id": "lamp", "material": "lamp", "line": [[-0.05,0.5],[0.05,0.5]], "sides": "both"}]})");
+  for (std::uint64_t seed = 1; seed <= 3; ++seed) {
+    SolverSettings settings;
+    settings.photons = 1'000'000;
+    settings.seed = seed;
+    Solver solver = make_solver(scene, settings);
+    std::uint64_t before = 0;
+    std::uint64_t smallest = settings.photons;
+    while (solver.step_round()) {
+      const std::uint64_t round = solver.photons_shot() - before;
+      before = solver.photons_shot();
+      if (solver.photons_shot() < settings.photons) smallest = std::min(smallest, round);  // the last takes the rest
+    }
+    EXPECT_GE(smallest, Solver::kMinPhotonsPerRound);
+    const EnergyBooks books = solver.books();
+    EXPECT_NEAR(books.imbalance(), 0.0, 1e-9 * books.emitted);
+    if (solver.stop_reason() == StopReason::Converged)
+      EXPECT_LE(books.unshot, settings.tolerance * books.emitted);
+    else
+      EXPECT_EQ(solver.stop_reason(), StopReason::BudgetSpent);
+    EXPECT_EQ(solver.photons_shot(), settings.photons) << "stopped after " << solver.rounds() << " rounds";
+  }
+}
+
+// The round's photon count: the budget's share of the power, at least a batch, at most 2^30
+// (fixed-point quantisation below 5e-10 of a photon's power).
+TEST(Solver, RoundsAreCappedForFixedPointAccuracy) {
+  EXPECT_LE(static_cast<double>(Solver::kMaxPhotonsPerRound) * 0x1.0p-61, 1e-9);
+  const Scene scene = testing::scene_from_text(testing::circle_enclosure(0.5, 1.0));
+  SolverSettings settings;
+  settings.photons = std::uint64_t{1} << 40;
+  Solver solver = make_solver(scene, settings);
+  std::atomic<bool> cancel{false};
+  // The first round is the largest; cancel it at once and read the count it was given.
+  solver.step_photons(1, &cancel);
+  EXPECT_EQ(solver.round_photons(), Solver::kMaxPhotonsPerRound);
+}
+
+// Emittance at both ends of the accepted range (1e-100 .. 1e100 per unit length) solves with
+// finite, balanced books and B scaling with it; the solver refuses emitted power near a double's
+// limits (the scene reader refuses the emittances that would get there).
+TEST(Solver, EmittanceAtBothEndsOfItsRangeBalancesTheBooks) {
+  for (const double emittance : {1e-100, 1.0, 1e100}) {
+    const Scene scene = testing::scene_from_text(testing::circle_enclosure(0.5, emittance));
+    SolverSettings settings;
+    settings.photons = 100'000;
+    Solver solver = make_solver(scene, settings);
+    solver.run();
+    EXPECT_EQ(solver.stop_reason(), StopReason::Converged) << emittance;
+    const EnergyBooks books = solver.books();
+    EXPECT_NEAR(books.emitted, emittance * scene.curves[0].length, 1e-12 * books.emitted);
+    EXPECT_NEAR(books.imbalance(), 0.0, 1e-9 * books.emitted) << emittance;
+    // B = E / (1 - rho) = 2 E, within the binomial noise of check_enclosure (p = 1/16 of the curve
+    // per coefficient) and the tolerance's bias.
+    const double p = 1.0 / 16;
+    const double sigma = std::sqrt((1 - p) / (static_cast<double>(solver.photons_shot()) * p));
+    EXPECT_NEAR(solver.radiosity(0, Side::Front, 0.5)[0] / emittance, 2.0, 5 * sigma + 2.0 * settings.tolerance)
+        << emittance;
+  }
+}
+
+TEST(Solver, StorageBeyondTheMemoryLimitIsRefusedBeforeAllocating) {
+  const Scene scene = testing::scene_from_text(testing::circle_enclosure(0.5, 1.0));
+  SolverSettings settings;
+  settings.elements = 1 << 16;
+  settings.memory_limit = 1 << 20;  // 1 MB
+  Result<Solver> solver = Solver::create(scene, settings);
+  ASSERT_FALSE(solver.ok());
+  EXPECT_NE(solver.error().message.find("--elements 65536"), std::string::npos) << solver.error().message;
+  EXPECT_NE(solver.error().message.find("use fewer elements"), std::string::npos);
+  settings.elements = 16;
+  EXPECT_TRUE(Solver::create(scene, settings).ok());
+}
+
+// A cancel in the middle of a round drops the round's deposits, but says how many photons it
+// traced: "interrupted after 0 photons" after millions were shot was wrong.
+TEST(Solver, CancelledRoundsCountTheirPhotons) {
+  const Scene scene = testing::scene_from_text(testing::circle_enclosure(0.5, 1.0));
+  SolverSettings settings;
+  settings.photons = 100'000'000;
+  settings.threads = 1;
+  Solver solver = make_solver(scene, settings);
+  std::atomic<bool> cancel{false};
+  solver.run(&cancel, [&](const SolverProgress& p) { if (p.photons > 0) cancel.store(true); }, 0.0);
+  EXPECT_EQ(solver.stop_reason(), StopReason::Cancelled);
+  EXPECT_EQ(solver.photons_shot(), 0u);
+  EXPECT_GE(solver.photons_traced(), Solver::kBatchSize);
+}
+
 TEST(Solver, SettingsOutOfRangeAreErrors) {
   SolverSettings settings;
   settings.tolerance = std::nan("");

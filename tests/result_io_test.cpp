@@ -1,0 +1,139 @@
+// Result files: reading them back with errors that name the line, writing every output all or
+// nothing, and the checks made before any work starts.
+#include "flatland/result_io.hpp"
+
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "test_support.hpp"
+
+namespace flatland {
+namespace {
+
+namespace fs = std::filesystem;
+
+class ResultIo : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    directory_ = fs::temp_directory_path() /
+                 ("flatland-result-io-" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
+    fs::remove_all(directory_);
+    fs::create_directories(directory_);
+  }
+  void TearDown() override { fs::remove_all(directory_); }
+  std::vector<std::string> files() const {
+    std::vector<std::string> names;
+    for (const auto& entry : fs::directory_iterator(directory_)) names.push_back(entry.path().filename().string());
+    std::sort(names.begin(), names.end());
+    return names;
+  }
+  fs::path directory_;
+};
+
+TEST(ResultParse, ReadsAResult) {
+  Result<nlohmann::json> doc = parse_result(R"({"flatland_result": 1, "curves": []})", "r.json");
+  ASSERT_TRUE(doc.ok()) << doc.error().message;
+  EXPECT_TRUE((*doc)["curves"].is_array());
+}
+
+// nlohmann::json throws out_of_range for 1e400 with no position; it used to abort compare.
+TEST(ResultParse, NumbersBeyondADoubleAreErrorsWithLineAndColumn) {
+  const std::string text = "{\"flatland_result\": 1,\n \"stats\": {\"emitted_power\": 1e400}}";
+  Result<nlohmann::json> doc = parse_result(text, "big.json");
+  ASSERT_FALSE(doc.ok());
+  EXPECT_EQ(doc.error().message.rfind("big.json:2:29: ", 0), 0u) << doc.error().message;
+  EXPECT_NE(doc.error().message.find("beyond the range of a double"), std::string::npos);
+}
+
+TEST(ResultParse, MalformedDocumentsAreOneLineErrors) {
+  const struct {
+    const char* text;
+    const char* expected;
+  } cases[] = {
+      {"{\"flatland_result\": 1,\n  oops}", "r.json:2:3: not valid JSON"},
+      {"[1, 2]", "r.json: not a flatland result"},
+      {"{\"flatland\": 1}", "r.json: not a flatland result"},
+      {"{\"flatland_result\": 2}", "r.json: unsupported result version 2"},
+      {"", "r.json:1:1: not valid JSON"},
+  };
+  for (const auto& c : cases) {
+    Result<nlohmann::json> doc = parse_result(c.text, "r.json");
+    ASSERT_FALSE(doc.ok()) << c.text;
+    EXPECT_EQ(doc.error().message.rfind(c.expected, 0), 0u) << doc.error().message;
+    EXPECT_EQ(doc.error().message.find('\n'), std::string::npos) << doc.error().message;
+  }
+}
+
+// A scene file's name can be any bytes; the result stores it, and dumping invalid UTF-8 threw
+// (type_error 316) after the whole solve.
+TEST(ResultText, InvalidUtf8IsReplacedNotFatal) {
+  const nlohmann::json document = {{"file", std::string("bad\xff\xfe.json")}};
+  const std::string text = json_text(document);
+  EXPECT_EQ(text.back(), '\n');
+  const nlohmann::json back = nlohmann::json::parse(text);
+  EXPECT_EQ(back["file"].get<std::string>(), "bad\xEF\xBF\xBD\xEF\xBF\xBD.json");  // two U+FFFD
+}
+
+TEST_F(ResultIo, OutputPathsAreCheckedBeforeWork) {
+  EXPECT_TRUE(check_output_file((directory_ / "r.json").string()).ok());
+  const Status missing = check_output_file((directory_ / "no" / "r.json").string());
+  ASSERT_FALSE(missing.ok());
+  EXPECT_NE(missing.error().message.find("does not exist"), std::string::npos) << missing.error().message;
+  const Status directory = check_output_file(directory_.string());
+  ASSERT_FALSE(directory.ok());
+  EXPECT_NE(directory.error().message.find("is a directory"), std::string::npos);
+  EXPECT_FALSE(check_output_file("").ok());
+  EXPECT_TRUE(files().empty());  // checking writes nothing
+}
+
+TEST_F(ResultIo, StagedFilesAppearOnlyOnCommit) {
+  {
+    OutputFiles outputs;
+    ASSERT_TRUE(outputs.stage((directory_ / "a.json").string(), "{}\n").ok());
+    ASSERT_TRUE(outputs.stage((directory_ / "b.png").string(), "png").ok());
+    EXPECT_FALSE(fs::exists(directory_ / "a.json"));
+    EXPECT_EQ(files().size(), 2u);  // two temporaries
+  }
+  // Dropped without a commit (an interrupt, an error): nothing is left, not even temporaries.
+  EXPECT_TRUE(files().empty());
+  OutputFiles outputs;
+  ASSERT_TRUE(outputs.stage((directory_ / "a.json").string(), "{}\n").ok());
+  ASSERT_TRUE(outputs.stage((directory_ / "b.png").string(), "png").ok());
+  ASSERT_TRUE(outputs.commit().ok());
+  EXPECT_EQ(files(), (std::vector<std::string>{"a.json", "b.png"}));
+  EXPECT_EQ(testing::read_text_file(directory_ / "b.png"), "png");
+}
+
+// SIGKILL during a write leaves .NAME.tmpPID-RANDOM behind; the next write of NAME removes those
+// whose process is gone, and leaves a running process's alone.
+TEST_F(ResultIo, StaleTemporariesOfDeadProcessesAreRemoved) {
+  const pid_t child = ::fork();
+  if (child == 0) ::_exit(0);
+  int status = 0;
+  ::waitpid(child, &status, 0);  // `child` now names no process
+  const std::string dead = ".r.json.tmp" + std::to_string(child) + "-12345";
+  const std::string alive = ".r.json.tmp" + std::to_string(::getppid()) + "-777";
+  const std::string other = ".s.json.tmp" + std::to_string(child) + "-1";  // another target's
+  for (const std::string& name : {dead, alive, other}) std::ofstream(directory_ / name) << "partial";
+  ASSERT_TRUE(write_file_atomically((directory_ / "r.json").string(), "{}\n").ok());
+  EXPECT_EQ(files(), (std::vector<std::string>{alive, other, "r.json"}));
+}
+
+TEST(ResultSize, TooManySamplesAreRefusedWithTheLargestThatFits) {
+  const Scene scene = testing::scene_from_text(testing::circle_enclosure(0.5, 1.0));
+  EXPECT_TRUE(check_result_size(scene, 1'000'000).ok());
+  const Status status = check_result_size(scene, 20'000'000);
+  ASSERT_FALSE(status.ok());
+  EXPECT_NE(status.error().message.find("give at most --samples 10000000"), std::string::npos)
+      << status.error().message;
+}
+
+}  // namespace
+}  // namespace flatland
