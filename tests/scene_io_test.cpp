@@ -155,9 +155,10 @@ TEST(SceneIo, Sides) {
 }
 
 TEST(SceneIo, DefaultJointsFollowTangentContinuity) {
-  // A polyline: collinear vertices join with C1, corners and reversals with a jump.
+  // A polyline: collinear vertices join with C1, corners (right and acute) with a jump. (A
+  // reversal would fold the line back over itself, an overlap the reader refuses.)
   const Result<Scene> r = parse(edited([](Json& j) {
-    j["curves"][1]["line"] = Json::parse("[[0,0],[1,0],[2,0],[2,1],[2,0.5]]");
+    j["curves"][1]["line"] = Json::parse("[[0,0],[1,0],[2,0],[2,1],[1.5,0.5]]");
   }));
   ASSERT_TRUE(r.ok()) << r.error().message;
   EXPECT_EQ(r->curves[1].joints,
@@ -188,7 +189,7 @@ TEST(SceneIo, ExplicitJoints) {
   ASSERT_TRUE(all.ok());
   EXPECT_EQ(all->curves[1].joints, (std::vector<Continuity>{Continuity::Jump}));
   const Result<Scene> each = parse(edited([](Json& j) {
-    j["curves"][1]["line"] = Json::parse("[[0,0],[1,0],[1,1],[0,1]]");
+    j["curves"][1]["line"] = Json::parse("[[0,0],[1,0],[1,0.5],[0,0.5]]");
     j["curves"][1]["joints"] = {"C0", "C1"};
   }));
   ASSERT_TRUE(each.ok());
@@ -918,6 +919,48 @@ TEST(SceneIoErrors, ATinySceneIsNamedAsTooSmall) {
   }));
   EXPECT_CONTAINS(message, "scale it up to at least 1e-100");
   EXPECT_EQ(message.find("coincide"), std::string::npos) << message;
+}
+
+// Two stretches of curve on top of each other are refused, naming both curves and where; curves
+// that cross, touch at a point or rest tangentially on each other are not overlaps.
+TEST(SceneIoErrors, OverlappingCurvesAreRefused) {
+  const auto with = [](const char* curve) {
+    return edited([&](Json& j) { j["curves"].push_back(Json::parse(curve)); });
+  };
+  const Scene base = *parse(edited([](Json&) {}));
+  const Curve& first = base.curves[0];
+  const Vec2 a = first.points.front();
+  const Vec2 b = first.points.back();
+  char same[256], reversed[256], part[256];
+  std::snprintf(same, sizeof same, R"({"id": "copy", "material": "%s", "line": [[%.17g, %.17g], [%.17g, %.17g]]})",
+                base.materials[first.material].name.c_str(), a.x, a.y, b.x, b.y);
+  std::snprintf(reversed, sizeof reversed,
+                R"({"id": "copy", "material": "%s", "bezier": [[%.17g, %.17g], [%.17g, %.17g], [%.17g, %.17g], [%.17g, %.17g]]})",
+                base.materials[first.material].name.c_str(), b.x, b.y, (2 * b.x + a.x) / 3, (2 * b.y + a.y) / 3,
+                (b.x + 2 * a.x) / 3, (b.y + 2 * a.y) / 3, a.x, a.y);
+  std::snprintf(part, sizeof part, R"({"id": "copy", "material": "%s", "line": [[%.17g, %.17g], [%.17g, %.17g]]})",
+                base.materials[first.material].name.c_str(), 0.7 * a.x + 0.3 * b.x, 0.7 * a.y + 0.3 * b.y,
+                0.4 * a.x + 0.6 * b.x, 0.4 * a.y + 0.6 * b.y);
+  for (const char* curve : {same, reversed, part}) {
+    const std::string message = error_of(with(curve));
+    EXPECT_CONTAINS(message, "(\"" + first.id + "\") segment 0 and curves[");
+    EXPECT_CONTAINS(message, "(\"copy\") segment 0 lie on top of each other near (");
+  }
+  // A line that folds back over itself.
+  EXPECT_CONTAINS(error_of(with(R"({"id": "fold", "material": "wall", "line": [[5, 5], [6, 5], [5.5, 5]]})")),
+                  "(\"fold\") segment 0 and its own segment 1 lie on top of each other");
+  // Crossing, touching end to end, and a half circle resting tangentially on a line: accepted.
+  for (const char* curve : {R"({"id": "x", "material": "wall", "line": [[4, 4], [6, 6]]})",
+                            R"({"id": "y", "material": "wall", "line": [[4, 6], [6, 4]]})"}) {
+    const Result<Scene> scene = parse(with(curve));
+    EXPECT_TRUE(scene.ok()) << scene.error().message;
+  }
+  const Result<Scene> resting = parse(edited([](Json& j) {
+    j["curves"].push_back(Json::parse(R"({"id": "ground", "material": "wall", "line": [[4, 4], [6, 4]]})"));
+    j["curves"].push_back(Json::parse(R"({"id": "ball", "material": "wall", "bezier":
+        [[5, 4], [5.1656854, 4], [5.3, 4.1343146], [5.3, 4.3], [5.3, 4.4656854], [5.1656854, 4.6], [5, 4.6]]})"));
+  }));
+  EXPECT_TRUE(resting.ok()) << resting.error().message;
 }
 
 }  // namespace

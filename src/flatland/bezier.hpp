@@ -53,6 +53,11 @@ double speed_bound(const Cubic& c);
 // accuracy of about 1e-13.
 double arc_length(const Cubic& c, double t0 = 0.0, double t1 = 1.0);
 
+// The distance from p to the curve c (t in [0,1]): the nearest of 32 uniform samples, refined by
+// Newton on g(t) = C'(t) . (C(t) - p), half the derivative of the squared distance, kept inside
+// the samples' bracket (a few steps reach rounding: g is smooth and the start is close).
+double distance_to_cubic(const Cubic& c, Vec2 p);
+
 // An interior parameter t in (0,1) where C'(t) = 0 (a cusp, where the normal flips), if any.
 // `scale` is the scene's size; |C'| <= 1e-12 scale counts as zero (the threshold of unit_tangent).
 std::optional<double> find_cusp(const Cubic& c, double scale);

@@ -8,7 +8,10 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
+#include <optional>
 #include <string>
+#include <vector>
 
 namespace flatland {
 namespace {
@@ -70,6 +73,77 @@ Continuity default_joint(const Cubic& a, const Cubic& b, double scale) {
   return angle <= kTangentAngle ? Continuity::C1 : Continuity::Jump;
 }
 
+
+// Distance from p to a scene segment: closed form for a line, distance_to_cubic otherwise.
+double distance_to_segment(const SceneSegment& segment, Vec2 p) {
+  const Cubic& c = segment.geometry.shape;
+  if (segment.geometry.kind == SegmentKind::Line) {
+    const Vec2 d = c.p[3] - c.p[0];
+    const double t = std::clamp(dot(p - c.p[0], d) / dot(d, d), 0.0, 1.0);
+    return length(c.p[0] + t * d - p);
+  }
+  return distance_to_cubic(c, p);
+}
+
+// Where segment a runs along segment b: three consecutive of 16 sample points of a (a stretch of
+// at least an eighth of a) within `tolerance` of b. Crossings and tangential contacts touch b at
+// isolated points only, so they never give three in a row.
+std::optional<Vec2> runs_along(const SceneSegment& a, const SceneSegment& b, double tolerance) {
+  constexpr int kSamples = 16;
+  int run = 0;
+  for (int k = 0; k < kSamples; ++k) {
+    const Vec2 p = evaluate(a.geometry.shape, (k + 0.5) / kSamples);
+    run = distance_to_segment(b, p) <= tolerance ? run + 1 : 0;
+    if (run == 3) return evaluate(a.geometry.shape, (k - 0.5) / kSamples);
+  }
+  return std::nullopt;
+}
+
+// Two stretches of curve on top of each other (the same surface twice, or a line folding back
+// over itself) make light between them undefined: the solver and the reference disagree there.
+// Candidate pairs come from a sweep over the segments' boxes in x; the tolerance is relative to
+// the shorter segment, plus the rounding of the coordinates' magnitude.
+Status check_overlaps(const Scene& scene) {
+  const std::vector<SceneSegment>& segments = scene.segments;
+  std::vector<Box> boxes;
+  boxes.reserve(segments.size());
+  double magnitude = 0.0;
+  for (const SceneSegment& segment : segments) {
+    boxes.push_back(hull_bounds(segment.geometry.shape));
+    for (const Vec2& p : segment.geometry.shape.p) magnitude = std::max({magnitude, std::fabs(p.x), std::fabs(p.y)});
+  }
+  const double rounding = 64.0 * std::numeric_limits<double>::epsilon() * magnitude;
+  std::vector<std::uint32_t> order(segments.size());
+  for (std::uint32_t i = 0; i < order.size(); ++i) order[i] = i;
+  std::sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) { return boxes[a].lower.x < boxes[b].lower.x; });
+  std::vector<std::uint32_t> active;
+  for (const std::uint32_t i : order) {
+    const Box& box = boxes[i];
+    std::erase_if(active, [&](std::uint32_t j) { return boxes[j].upper.x + rounding < box.lower.x; });
+    for (const std::uint32_t j : active) {
+      const Box& other = boxes[j];
+      if (other.upper.y + rounding < box.lower.y || box.upper.y + rounding < other.lower.y) continue;
+      const SceneSegment& a = segments[std::min(i, j)];
+      const SceneSegment& b = segments[std::max(i, j)];
+      const double tolerance = 1e-9 * std::min(a.length, b.length) + rounding;
+      std::optional<Vec2> where = runs_along(a, b, tolerance);
+      if (!where) where = runs_along(b, a, tolerance);
+      if (!where) continue;
+      const Curve& ca = scene.curves[a.curve];
+      const Curve& cb = scene.curves[b.curve];
+      const std::string first = curve_path(a.curve) + " (\"" + ca.id + "\") segment " + std::to_string(a.index_in_curve);
+      const std::string second = a.curve == b.curve
+                                     ? "its own segment " + std::to_string(b.index_in_curve)
+                                     : curve_path(b.curve) + " (\"" + cb.id + "\") segment " +
+                                           std::to_string(b.index_in_curve);
+      return fail(curve_path(b.curve),
+                  first + " and " + second + " lie on top of each other near " + point_text(*where) +
+                      ": light between coincident surfaces is undefined; remove one of them or move it apart");
+    }
+    active.push_back(i);
+  }
+  return ok_status();
+}
 }  // namespace
 
 double emittance_factor(const Curve& curve, double u) {
@@ -248,7 +322,7 @@ Status finalize_scene(Scene& scene) {
     }
   }
   scene.scale = scene.bounds.diagonal();
-  return ok_status();
+  return check_overlaps(scene);
 }
 
 bool Scene::has_cubics() const {
