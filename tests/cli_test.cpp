@@ -1,5 +1,10 @@
 // The command-line contract: exit codes, one-line errors naming what is wrong, no partial files.
 #include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <csignal>
+#include <vector>
 
 #include <cstdio>
 #include <filesystem>
@@ -21,20 +26,13 @@ using testing::CommandRun;
 
 std::string read_file(const fs::path& path) { return testing::read_text_file(path); }
 
-class Cli : public ::testing::Test {
+class Cli : public testing::ScratchDirectoryTest {
  protected:
-  void SetUp() override {
-    directory_ = fs::temp_directory_path() /
-                 ("flatland-cli-" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
-    fs::remove_all(directory_);
-    fs::create_directories(directory_);
-  }
-  void TearDown() override { fs::remove_all(directory_); }
+  Cli() : ScratchDirectoryTest("flatland-cli") {}
 
   CommandRun run(const std::string& arguments) { return testing::run_flatland(arguments, directory_); }
 
   std::string scene(const std::string& name) { return testing::source_path("scenes2d/" + name); }
-  fs::path directory_;
 };
 
 int lines(const std::string& text) {
@@ -244,6 +242,172 @@ TEST_F(Cli, SolveWritesResultAndPicture) {
   int files = 0;
   for (const auto& entry : fs::directory_iterator(directory_)) files += entry.is_regular_file();
   EXPECT_EQ(files, 4);  // result.json, result.png, stdout.txt, stderr.txt
+}
+
+// An argument for the shell that run_flatland starts: single-quoted, a quote inside as '\''.
+std::string shell_quoted(const std::string& text) {
+  std::string out = "'";
+  for (const char c : text) out += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return out + "'";
+}
+
+// A scene file's name, a scene file's stem and the --out directory reach gnuplot (titles, file
+// names). Planted commands of every form that used to run (a backquoted command, a newline and
+// then `!cmd` or `system('cmd')`, $(cmd) in the directory, a quote that ended the string) must
+// print as text and never run, in a solving converge and in --replot.
+TEST_F(Cli, ConvergeNeverRunsCommandsFromScenesOrPaths) {
+  const fs::path marker = directory_ / "ran";
+  const std::string touch = "touch " + marker.string();
+  nlohmann::json scene_json = nlohmann::json::parse(read_file(scene("penumbra.json")));
+  scene_json["name"] = "a `" + touch + "` b\n!" + touch + "\nsystem('" + touch + "') @x \" it's ^_{}";
+  const fs::path named = directory_ / "named.json";
+  std::ofstream(named) << scene_json.dump();
+  scene_json.erase("name");  // no name: the file's stem is the title
+  // A file name cannot hold the marker's path: this one touches "ran" in the working directory
+  // (the test's, or the output directory where gnuplot runs).
+  const fs::path stem = directory_ / "`touch ran`.json";
+  std::ofstream(stem) << scene_json.dump();
+  const fs::path out = directory_ / ("x'$(" + touch + ")'y it's");
+  for (const fs::path& scene_file : {named, stem}) {
+    const CommandRun r = run("converge " + shell_quoted(scene_file.string()) +
+                             " --methods constant --budgets 2000 --seeds 1 --samples 10 --out " +
+                             shell_quoted(out.string()));
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_FALSE(fs::exists(marker)) << "a planted command ran: " << scene_file;
+    EXPECT_FALSE(fs::exists(out / "ran") || fs::exists("ran")) << "a planted command ran: " << scene_file;
+    EXPECT_EQ(read_file(out / "convergence.png").substr(1, 3), "PNG") << r.err;
+    const CommandRun replot = run("converge " + shell_quoted(scene_file.string()) + " --replot --out " +
+                                  shell_quoted(out.string()));
+    EXPECT_EQ(replot.exit_code, 0) << replot.err;
+    EXPECT_FALSE(fs::exists(marker)) << "a planted command ran in --replot: " << scene_file;
+  }
+  // A method name read back from the table by --replot goes through the same quoting.
+  std::string csv = read_file(out / "convergence.csv");
+  csv.replace(csv.find("\"constant\""), 10, "\"k`" + touch + "`' system('" + touch + "')\"");
+  std::ofstream(out / "convergence.csv") << csv;
+  const CommandRun replot = run("converge " + shell_quoted(named.string()) + " --replot --out " + shell_quoted(out.string()));
+  EXPECT_EQ(replot.exit_code, 0) << replot.err;
+  EXPECT_FALSE(fs::exists(marker)) << "a planted method name ran";
+}
+
+TEST_F(Cli, NumbersBeyondADoubleInAResultAreOneLineErrors) {
+  const fs::path a = directory_ / "a.json";
+  ASSERT_EQ(run("solve " + scene("penumbra.json") + " --photons 20000 --samples 5 --quiet --out " + a.string()).exit_code, 0);
+  std::string text = read_file(a);
+  const std::size_t at = text.find("\"emitted_power\": ") + 17;
+  text.replace(at, text.find(',', at) - at, "1e400");
+  const fs::path big = directory_ / "big.json";
+  std::ofstream(big) << text;
+  for (const std::string& command :
+       {"compare " + big.string() + " " + a.string(),
+        "solve " + scene("penumbra.json") + " --photons 20000 --samples 5 --quiet --reference " + big.string(),
+        "converge " + scene("penumbra.json") + " --methods constant --budgets 1000 --seeds 1 --samples 5 --reference " +
+            big.string() + " --out " + (directory_ / "c").string()}) {
+    const CommandRun r = run(command);
+    EXPECT_EQ(r.exit_code, 2) << command << "\n" << r.err;
+    EXPECT_EQ(lines(r.err), 1) << r.err;
+    EXPECT_NE(r.err.find("big.json:"), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("beyond the range of a double"), std::string::npos) << r.err;
+  }
+}
+
+// Every output path is checked before the work starts: a budget of 1e15 photons would take
+// months, so these return at once only if nothing is solved.
+TEST_F(Cli, OutputPathsAreCheckedBeforeAnyWork) {
+  const std::string missing = (directory_ / "missing" / "r.json").string();
+  for (const std::string& command :
+       {"solve " + scene("penumbra.json") + " --photons 1e15 --out " + missing,
+        "solve " + scene("penumbra.json") + " --photons 1e15 --picture " + (directory_ / "missing" / "r.png").string(),
+        "solve " + scene("penumbra.json") + " --photons 1e15 --out " + directory_.string(),
+        "reference " + scene("penumbra.json") + " --elements 30000 --out " + missing}) {
+    const CommandRun r = run(command);
+    EXPECT_EQ(r.exit_code, 2) << command;
+    EXPECT_EQ(lines(r.err), 1) << r.err;
+  }
+  std::ofstream(directory_ / "file") << "x";
+  const CommandRun converge = run("converge " + scene("penumbra.json") + " --budgets 1e15 --out " + (directory_ / "file").string());
+  EXPECT_EQ(converge.exit_code, 2) << converge.err;
+}
+
+// A scene path that is not valid UTF-8 ends up in the result's "file": it is written with the
+// invalid bytes replaced (it used to abort after the solve).
+TEST_F(Cli, AScenePathThatIsNotUtf8IsWritten) {
+  const fs::path odd = directory_ / "bad\xff.json";
+  fs::copy_file(scene("penumbra.json"), odd);
+  const fs::path out = directory_ / "r.json";
+  const CommandRun r = run("solve " + shell_quoted(odd.string()) + " --photons 20000 --samples 5 --quiet --out " + out.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const nlohmann::json result = nlohmann::json::parse(read_file(out));
+  EXPECT_NE(result["scene"]["file"].get<std::string>().find("bad\xEF\xBF\xBD.json"), std::string::npos);
+}
+
+TEST_F(Cli, ResultsTooLargeAndStorageBeyondMemoryAreRefusedAtOnce) {
+  // 40 curves x 1e6 samples = 4e7 samples > 1e7: refused before the (1e15-photon) solve.
+  nlohmann::json many = {{"flatland", 1}, {"materials", {{"lamp", {{"emittance", 1}}}}}, {"curves", nlohmann::json::array()}};
+  for (int i = 0; i < 40; ++i)
+    many["curves"].push_back({{"id", "c" + std::to_string(i)}, {"material", "lamp"},
+                              {"line", {{i, 0}, {i, 1}}}});
+  const fs::path file = directory_ / "many.json";
+  std::ofstream(file) << many.dump();
+  const CommandRun samples = run("solve " + file.string() + " --photons 1e15 --samples 1000000 --out " +
+                                 (directory_ / "r.json").string());
+  EXPECT_EQ(samples.exit_code, 2);
+  EXPECT_NE(samples.err.find("give at most --samples 250000"), std::string::npos) << samples.err;
+}
+
+// Starts `flatland ARGUMENTS...` (no shell), sends `signal` after `delay` seconds, and returns the
+// exit code and how long the process took to end after the signal.
+struct Stopped {
+  int exit_code = -1;
+  double seconds_to_stop = 0.0;
+};
+Stopped run_and_signal(const std::vector<std::string>& arguments, int signal, double delay, const fs::path& directory) {
+  std::vector<std::string> words = {FLATLAND_BINARY};
+  words.insert(words.end(), arguments.begin(), arguments.end());
+  std::vector<char*> argv;
+  for (std::string& word : words) argv.push_back(word.data());
+  argv.push_back(nullptr);
+  const std::string log = (directory / "signal.log").string();
+  const pid_t child = ::fork();
+  if (child == 0) {
+    std::FILE* sink = std::freopen(log.c_str(), "w", stderr);
+    (void)sink;
+    ::execv(argv[0], argv.data());
+    ::_exit(127);
+  }
+  ::usleep(static_cast<useconds_t>(delay * 1e6));
+  const auto sent = std::chrono::steady_clock::now();
+  ::kill(child, signal);
+  int status = 0;
+  ::waitpid(child, &status, 0);
+  Stopped stopped;
+  stopped.seconds_to_stop = std::chrono::duration<double>(std::chrono::steady_clock::now() - sent).count();
+  stopped.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return stopped;
+}
+
+// Ctrl-C and SIGTERM stop long work within about a second, with exit code 130 and nothing
+// written: the reference (which used to ignore both and run for hours) and a solve.
+TEST_F(Cli, InterruptsStopLongWorkAndWriteNothing) {
+  const fs::path out = directory_ / "r.json";
+  const struct {
+    std::vector<std::string> arguments;
+    int signal;
+  } runs[] = {
+      {{"reference", scene("default.json"), "--elements", "6000", "--out", out.string()}, SIGINT},
+      {{"reference", scene("default.json"), "--elements", "6000", "--out", out.string()}, SIGTERM},
+      {{"solve", scene("default.json"), "--photons", "1e12", "--out", out.string()}, SIGINT},
+      {{"converge", scene("default.json"), "--budgets", "1e12", "--out", (directory_ / "c").string()}, SIGINT},
+  };
+  for (const auto& r : runs) {
+    const Stopped stopped = run_and_signal(r.arguments, r.signal, 1.0, directory_);
+    EXPECT_EQ(stopped.exit_code, 130) << r.arguments[0] << ": " << read_file(directory_ / "signal.log");
+    EXPECT_LT(stopped.seconds_to_stop, 2.0) << r.arguments[0];
+    EXPECT_FALSE(fs::exists(out)) << r.arguments[0];
+    EXPECT_FALSE(fs::exists(directory_ / "c" / "convergence.csv"));
+    EXPECT_NE(read_file(directory_ / "signal.log").find("nothing written"), std::string::npos)
+        << read_file(directory_ / "signal.log");
+  }
 }
 
 }  // namespace

@@ -19,22 +19,15 @@ namespace {
 
 namespace fs = std::filesystem;
 
-class ResultIo : public ::testing::Test {
+class ResultIo : public testing::ScratchDirectoryTest {
  protected:
-  void SetUp() override {
-    directory_ = fs::temp_directory_path() /
-                 ("flatland-result-io-" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
-    fs::remove_all(directory_);
-    fs::create_directories(directory_);
-  }
-  void TearDown() override { fs::remove_all(directory_); }
+  ResultIo() : ScratchDirectoryTest("flatland-result-io") {}
   std::vector<std::string> files() const {
     std::vector<std::string> names;
     for (const auto& entry : fs::directory_iterator(directory_)) names.push_back(entry.path().filename().string());
     std::sort(names.begin(), names.end());
     return names;
   }
-  fs::path directory_;
 };
 
 TEST(ResultParse, ReadsAResult) {

@@ -23,6 +23,24 @@ inline std::string source_path(const std::string& relative) {
   return std::string(FLATLAND_SOURCE_DIR) + "/" + relative;
 }
 
+// A test fixture with a fresh scratch directory of its own, named after the running test
+// (PREFIX-TESTNAME under the system's temporary directory), removed after the test.
+class ScratchDirectoryTest : public ::testing::Test {
+ protected:
+  explicit ScratchDirectoryTest(std::string prefix) : prefix_(std::move(prefix)) {}
+  void SetUp() override {
+    directory_ = std::filesystem::temp_directory_path() /
+                 (prefix_ + "-" + ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    std::filesystem::remove_all(directory_);
+    std::filesystem::create_directories(directory_);
+  }
+  void TearDown() override { std::filesystem::remove_all(directory_); }
+  std::filesystem::path directory_;
+
+ private:
+  std::string prefix_;
+};
+
 inline std::string read_text_file(const std::filesystem::path& path) {
   std::ifstream in(path);
   std::stringstream buffer;

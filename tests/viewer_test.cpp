@@ -29,21 +29,14 @@ using testing::CommandRun;
 
 std::string read_file(const fs::path& path) { return testing::read_text_file(path); }
 
-class Viewer : public ::testing::Test {
+class Viewer : public testing::ScratchDirectoryTest {
  protected:
-  void SetUp() override {
-    directory_ = fs::temp_directory_path() /
-                 ("flatland-viewer-" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
-    fs::remove_all(directory_);
-    fs::create_directories(directory_);
-  }
-  void TearDown() override { fs::remove_all(directory_); }
+  Viewer() : ScratchDirectoryTest("flatland-viewer") {}
 
   CommandRun run(const std::string& arguments, const std::string& environment = "") {
     return testing::run_flatland(arguments, directory_, environment);
   }
   std::string scene(const std::string& name) { return testing::source_path("scenes2d/" + name); }
-  fs::path directory_;
 };
 
 struct Rgb {

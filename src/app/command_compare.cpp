@@ -1,28 +1,10 @@
 // flatland compare: errors of a result against a reference along arc length.
 #include <cstdio>
-#include <fstream>
-#include <sstream>
 
 #include "app/commands.hpp"
+#include "flatland/result_io.hpp"
 
 namespace flatland::app {
-
-Result<nlohmann::json> read_result_file(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return Error{path + ": cannot read result file"};
-  std::stringstream text;
-  text << in.rdbuf();
-  try {
-    nlohmann::json doc = nlohmann::json::parse(text.str());
-    if (!doc.is_object() || !doc.contains("flatland_result"))
-      return Error{path + ": not a flatland result (no \"flatland_result\" key); write one with 'flatland solve --out'"};
-    if (doc["flatland_result"] != 1)
-      return Error{path + ": unsupported result version; this program reads version 1"};
-    return doc;
-  } catch (const nlohmann::json::parse_error& e) {
-    return Error{path + ": not valid JSON at byte " + std::to_string(e.byte)};
-  }
-}
 
 void print_comparison(const Comparison& comparison) {
   std::printf("%-24s %12s %12s %12s\n", "curve", "rel. L1", "rel. L2", "rel. Linf");

@@ -1,11 +1,14 @@
 // flatland converge: error against run time for several methods, photon budgets and seeds, as a
 // CSV table and a log-log plot drawn by gnuplot.
+#include <spawn.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
+#include <cerrno>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -100,29 +103,58 @@ double median(std::vector<double> values) {
   return n % 2 == 1 ? values[n / 2] : 0.5 * (values[n / 2 - 1] + values[n / 2]);
 }
 
-// Text for a double-quoted gnuplot string: backslashes and quotes escaped, and gnuplot's
-// enhanced-text markers (^ _ @ & ~ { }) escaped too, so scene names print as they are.
-std::string gnuplot_text(const std::string& text) {
-  std::string out;
+// A gnuplot string constant holding `text` exactly as it is, whatever it holds: single-quoted,
+// because gnuplot performs no backquote (command) substitution, macro expansion or backslash
+// processing inside single quotes; a quote inside is doubled, and control characters (a newline
+// would end the command and start another) become spaces. Used with `noenhanced`, so ^ _ @ { }
+// print as they are too.
+std::string gnuplot_string(const std::string& text) {
+  std::string out = "'";
   for (const char c : text) {
-    if (c == '"' || c == '\\') out += '\\';
-    else if (std::string("^_@&~{}").find(c) != std::string::npos) out += "\\\\";
-    out += c;
+    if (c == '\'') out += "''";
+    else if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) out += ' ';
+    else out += c;
   }
-  return out;
+  return out + "'";
 }
 
-// Runs gnuplot on a script; false if it cannot be run or fails.
-bool run_gnuplot(const fs::path& script) {
-  const std::string command = "gnuplot '" + script.string() + "' 2>&1";
-  FILE* pipe = ::popen(command.c_str(), "r");
-  if (pipe == nullptr) return false;
-  char line[512];
+// Runs `gnuplot SCRIPT` in `directory` without a shell (an argument vector, so no path or text is
+// ever interpreted as a command), its output passed on to stderr. An error when gnuplot cannot be
+// started or fails.
+Status run_gnuplot(const fs::path& directory, const std::string& script) {
+  int pipe_ends[2];
+  if (::pipe(pipe_ends) != 0) return Error{std::string("cannot run gnuplot: ") + std::strerror(errno)};
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_addchdir_np(&actions, directory.c_str());
+  posix_spawn_file_actions_adddup2(&actions, pipe_ends[1], STDOUT_FILENO);
+  posix_spawn_file_actions_adddup2(&actions, pipe_ends[1], STDERR_FILENO);
+  posix_spawn_file_actions_addclose(&actions, pipe_ends[0]);
+  std::string program = "gnuplot";
+  std::string argument = script;
+  char* argv[] = {program.data(), argument.data(), nullptr};
+  pid_t child = 0;
+  const int spawned = ::posix_spawnp(&child, "gnuplot", &actions, nullptr, argv, environ);
+  posix_spawn_file_actions_destroy(&actions);
+  ::close(pipe_ends[1]);
+  if (spawned != 0) {
+    ::close(pipe_ends[0]);
+    return Error{std::string("cannot run gnuplot (") + std::strerror(spawned) + "); install it: apt-get install gnuplot-nox"};
+  }
   std::string output;
-  while (std::fgets(line, sizeof line, pipe) != nullptr) output += line;
-  const int status = ::pclose(pipe);
+  char buffer[512];
+  for (;;) {
+    const ssize_t got = ::read(pipe_ends[0], buffer, sizeof buffer);
+    if (got > 0) output.append(buffer, static_cast<std::size_t>(got));
+    else if (got == 0 || errno != EINTR) break;
+  }
+  ::close(pipe_ends[0]);
+  int status = 0;
+  while (::waitpid(child, &status, 0) < 0 && errno == EINTR) {
+  }
   if (!output.empty()) std::fprintf(stderr, "%s", output.c_str());
-  return WIFEXITED(status) && WEXITSTATUS(status) == 0;
+  if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) return Error{"gnuplot failed (its messages are above)"};
+  return ok_status();
 }
 
 // One run: a row of convergence.csv.
@@ -183,16 +215,20 @@ Status draw_plot(const PlotInput& in) {
   if (Status status = write_file_atomically((directory / "convergence.dat").string(), data); !status)
     return status;
 
+  // gnuplot runs in the directory, so the script names its files without the directory's path;
+  // the only text from the user (scene and method names) goes through gnuplot_string.
   const Row& anchor = in.rows.front();
+  const std::string subtitle =
+      (in.elements > 0 ? std::to_string(in.elements) + " elements per curve, " : "") + "median over " +
+      std::to_string(in.seeds) + " seeds, bars from min to max";
   std::string script = "set logscale xy\nset xlabel 'solve time (s)'\nset ylabel 'relative L2 error of B'\n"
                        "set key below\nset grid\n"
-                       "set title \"" + gnuplot_text(in.scene_name) + "\\n" +
-                       (in.elements > 0 ? std::to_string(in.elements) + " elements per curve, " : "") +
-                       "median over " + std::to_string(in.seeds) + " seeds, bars from min to max\"\n";
+                       "set title " + gnuplot_string(in.scene_name) + ".\"\\n\"." + gnuplot_string(subtitle) +
+                       " noenhanced\n";
   std::string plot = "plot ";
   for (std::size_t m = 0; m < in.methods.size(); ++m) {
-    plot += "'" + (directory / "convergence.dat").string() + "' index " + std::to_string(m) +
-            " using 1:2:3:4 with yerrorlines lw 2 title \"" + gnuplot_text(in.methods[m]) + "\", ";
+    plot += "'convergence.dat' index " + std::to_string(m) +
+            " using 1:2:3:4 with yerrorlines lw 2 title " + gnuplot_string(in.methods[m]) + " noenhanced, ";
   }
   char guide[256];
   std::snprintf(guide, sizeof guide, "%.9g * (x / %.9g)**(-0.5) with lines dt 2 lc rgb 'gray40' title 'slope -1/2'",
@@ -213,15 +249,14 @@ Status draw_plot(const PlotInput& in) {
   plot += "\n";
   const fs::path png_temporary = directory / ".convergence.png.tmp";
   const fs::path svg_temporary = directory / ".convergence.svg.tmp";
-  script += "set terminal pngcairo size 900,720\nset output '" + png_temporary.string() + "'\n" + plot;
-  script += "set terminal svg size 900,720\nset output '" + svg_temporary.string() + "'\n" + plot;
-  const fs::path script_path = directory / "convergence.gp";
-  if (Status status = write_file_atomically(script_path.string(), script); !status) return status;
+  script += "set terminal pngcairo size 900,720\nset output '.convergence.png.tmp'\n" + plot;
+  script += "set terminal svg size 900,720\nset output '.convergence.svg.tmp'\n" + plot;
+  if (Status status = write_file_atomically((directory / "convergence.gp").string(), script); !status) return status;
   std::error_code ec;
-  if (!run_gnuplot(script_path)) {
+  if (Status status = run_gnuplot(directory, "convergence.gp"); !status) {
     fs::remove(png_temporary, ec);
     fs::remove(svg_temporary, ec);
-    return Error{"gnuplot failed or is missing (apt-get install gnuplot-nox)"};
+    return status;
   }
   fs::rename(png_temporary, directory / "convergence.png", ec);
   fs::rename(svg_temporary, directory / "convergence.svg", ec);
@@ -324,7 +359,45 @@ Result<std::vector<Row>> read_rows(const fs::path& path, std::vector<std::string
   return rows;
 }
 
+// What to run: the methods of --methods and the budgets of --budgets (photons) or --times
+// (seconds), parsed and checked before any work.
+struct Plan {
+  std::vector<Method> methods;
+  std::vector<double> budgets;
+  bool by_time = false;
+};
+
+Result<Plan> parse_plan(const ConvergeOptions& o) {
+  Plan plan;
+  SolverSettings defaults;
+  defaults.threads = o.threads;
+  defaults.tolerance = o.tolerance;
+  defaults.elements = o.elements;
+  for (const std::string& text : split(o.methods)) {
+    Result<Method> method = parse_method(text, defaults);
+    if (!method) return method.error();
+    plan.methods.push_back(std::move(*method));
+  }
+  if (plan.methods.empty()) return Error{"--methods: give at least one method"};
+  plan.by_time = !o.times.empty();
+  for (const std::string& text : split(plan.by_time ? o.times : o.budgets)) {
+    char* end = nullptr;
+    const double value = std::strtod(text.c_str(), &end);
+    if (end == text.c_str() || *end != '\0' || !(value > 0.0) || !std::isfinite(value))
+      return Error{std::string(plan.by_time ? "--times" : "--budgets") + ": '" + text + "' is not a positive number"};
+    plan.budgets.push_back(value);
+  }
+  if (plan.budgets.empty()) return Error{"--budgets: give at least one budget"};
+  return plan;
+}
+
 }  // namespace
+
+Status check_converge_options(const ConvergeOptions& o) {
+  Result<Plan> plan = parse_plan(o);
+  if (!plan) return plan.error();
+  return ok_status();
+}
 
 CLI::App* add_converge_command(CLI::App& parent, ConvergeOptions& o) {
   CLI::App* cmd = parent.add_subcommand(
@@ -377,27 +450,11 @@ int run_converge(ConvergeOptions& o) {
     std::fprintf(stderr, "flatland: error: %s\n", message.c_str());
     return kExitUsage;
   };
-  std::vector<Method> methods;
-  SolverSettings defaults;
-  defaults.threads = o.threads;
-  defaults.tolerance = o.tolerance;
-  defaults.elements = o.elements;
-  for (const std::string& text : split(o.methods)) {
-    Result<Method> method = parse_method(text, defaults);
-    if (!method) return fail(method.error().message);
-    methods.push_back(std::move(*method));
-  }
-  if (methods.empty()) return fail("--methods: give at least one method");
-  std::vector<double> budgets;
-  const bool by_time = !o.times.empty();
-  for (const std::string& text : split(by_time ? o.times : o.budgets)) {
-    char* end = nullptr;
-    const double value = std::strtod(text.c_str(), &end);
-    if (end == text.c_str() || *end != '\0' || !(value > 0.0) || !std::isfinite(value))
-      return fail(std::string(by_time ? "--times" : "--budgets") + ": '" + text + "' is not a positive number");
-    budgets.push_back(value);
-  }
-  if (budgets.empty()) return fail("--budgets: give at least one budget");
+  Result<Plan> plan = parse_plan(o);
+  if (!plan) return fail(plan.error().message);
+  std::vector<Method>& methods = plan->methods;
+  const std::vector<double>& budgets = plan->budgets;
+  const bool by_time = plan->by_time;
 
   Result<Scene> scene = load_scene(o.scene);
   if (!scene) return fail(scene.error().message);
@@ -424,6 +481,9 @@ int run_converge(ConvergeOptions& o) {
   std::error_code ec;
   fs::create_directories(o.out, ec);
   if (ec || !fs::is_directory(o.out)) return fail(o.out + ": cannot create the output directory");
+  if (Status status = check_output_file((directory / "convergence.csv").string()); !status)
+    return fail(status.error().message);
+  if (Status status = check_result_size(*scene, o.samples); !status) return fail(status.error().message);
 
   // The reference, and an estimate of its own error: the same solve with elements twice as long
   // differs from it by about 3 times its error (second order), so floor = difference / 3.
@@ -438,8 +498,13 @@ int run_converge(ConvergeOptions& o) {
     std::fprintf(stderr, "converge: computing the reference of %s\n", o.scene.c_str());
     ReferenceSettings settings;
     settings.threads = o.threads;
+    settings.cancel = &interrupt_flag();
+    auto interrupted = [] {
+      std::fprintf(stderr, "flatland: interrupted; nothing written\n");
+      return kExitInterrupted;
+    };
     Result<ReferenceSolution> fine = solve_reference(*scene, settings);
-    if (!fine) return fail(fine.error().message);
+    if (!fine) return interrupt_flag().load() ? interrupted() : fail(fine.error().message);
     const ReferenceSolution& solution = *fine;
     reference = {{"flatland_result", 1},
                  {"curves", sampled_curves_to_json(*scene, o.samples,
@@ -447,6 +512,7 @@ int run_converge(ConvergeOptions& o) {
                                                      return solution.radiosity(c, side, u);
                                                    })}};
     Result<ErrorNorms> estimate = estimate_reference_error(*scene, settings, o.samples, reference["curves"]);
+    if (interrupt_flag().load()) return interrupted();
     if (estimate) floor = estimate->l2;
   }
 
@@ -494,6 +560,10 @@ int run_converge(ConvergeOptions& o) {
   }
   if (tty) std::fprintf(stderr, "\r\033[K");
 
+  if (interrupt_flag().load()) {
+    std::fprintf(stderr, "flatland: interrupted; nothing written\n");
+    return kExitInterrupted;
+  }
   // The CSV, written atomically.
   std::string csv =
       "method,basis,sampling,discontinuities,estimator,elements,ray_width,ray_mode,ray_profile,"

@@ -4,8 +4,10 @@
 #include <cmath>
 #include <cstdio>
 #include <optional>
+#include <thread>
 
 #include "app/commands.hpp"
+#include "app/output.hpp"
 #include "flatland/reference.hpp"
 #include "flatland/result_io.hpp"
 
@@ -47,6 +49,31 @@ CLI::App* add_reference_command(CLI::App& parent, ReferenceOptions& o) {
   return cmd;
 }
 
+namespace {
+
+int reference_failure(const Error& error) {
+  if (interrupt_flag().load()) {
+    std::fprintf(stderr, "flatland: interrupted; nothing written\n");
+    return kExitInterrupted;
+  }
+  return usage_error(error.message);
+}
+
+void warn_about_reference_size(const Scene& scene, const ReferenceSettings& settings, bool quiet) {
+  // Form factors cost about 4.5e-7 s x N^2 on two cores (docs/reference.md: 12,530 elements of
+  // the default scene take 70 s), more with many occluders.
+  const double elements = reference_element_count(scene, settings);
+  if (quiet || elements < 10'000 || elements > static_cast<double>(kMaxReferenceElements)) return;
+  const unsigned threads = settings.threads != 0 ? settings.threads : std::max(1u, std::thread::hardware_concurrency());
+  const double minutes = 4.5e-7 * elements * elements * 2.0 / threads / 60.0;
+  std::fprintf(stderr,
+               "reference: %.0f elements: the form factors take time and memory growing as the "
+               "square of the count (roughly %.0f minutes here); Ctrl-C stops it\n",
+               elements, std::max(1.0, minutes));
+}
+
+}  // namespace
+
 Result<ErrorNorms> estimate_reference_error(const Scene& scene, ReferenceSettings settings,
                                             int samples, const nlohmann::json& curves) {
   // The reference converges as h^2 (docs/reference.md): R_2h - R = 4 e - e = 3 e, with e the error
@@ -74,29 +101,23 @@ Result<ErrorNorms> estimate_reference_error(const Scene& scene, ReferenceSetting
 
 int run_reference(ReferenceOptions& o) {
   Result<Scene> scene = load_scene(o.scene);
-  if (!scene) {
-    std::fprintf(stderr, "flatland: error: %s\n", scene.error().message.c_str());
-    return kExitUsage;
-  }
+  if (!scene) return usage_error(scene.error().message);
   if (o.max_element_length != 0.0) {
-    if (!(o.max_element_length > 0.0) || !std::isfinite(o.max_element_length)) {
-      std::fprintf(stderr, "flatland: error: --max-element-length: must be a positive length\n");
-      return kExitUsage;
-    }
+    if (!(o.max_element_length > 0.0) || !std::isfinite(o.max_element_length))
+      return usage_error("--max-element-length: must be a positive length");
     o.settings.max_element_length = o.max_element_length;
   } else if (o.elements > 0) {
     o.settings.max_element_length = scene->scale / o.elements;
   }
-  if (Status status = validate(o.settings); !status) {
-    std::fprintf(stderr, "flatland: error: %s\n", status.error().message.c_str());
-    return kExitUsage;
-  }
+  if (Status status = validate(o.settings); !status) return usage_error(status.error().message);
+  if (const std::optional<int> code = check_outputs({o.out})) return *code;
+  if (!o.out.empty())
+    if (Status status = check_result_size(*scene, o.samples); !status) return usage_error(status.error().message);
+  o.settings.cancel = &interrupt_flag();
+  warn_about_reference_size(*scene, o.settings, o.quiet);
   const auto start = std::chrono::steady_clock::now();
   Result<ReferenceSolution> solution = solve_reference(*scene, o.settings);
-  if (!solution) {
-    std::fprintf(stderr, "flatland: error: %s\n", solution.error().message.c_str());
-    return kExitUsage;
-  }
+  if (!solution) return reference_failure(solution.error());
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   const ReferenceSolution& reference = *solution;
   const nlohmann::json curves = sampled_curves_to_json(
@@ -105,10 +126,7 @@ int run_reference(ReferenceOptions& o) {
   std::optional<ErrorNorms> estimated;
   if (o.estimate_error) {
     Result<ErrorNorms> estimate = estimate_reference_error(*scene, o.settings, o.samples, curves);
-    if (!estimate) {
-      std::fprintf(stderr, "flatland: error: %s\n", estimate.error().message.c_str());
-      return kExitUsage;
-    }
+    if (!estimate) return reference_failure(estimate.error());
     estimated = *estimate;
   }
   if (!o.quiet) {
@@ -146,10 +164,9 @@ int run_reference(ReferenceOptions& o) {
       result["stats"]["estimated_error"] = {
           {"l1", estimated->l1}, {"l2", estimated->l2}, {"linf", estimated->linf}};
     result["curves"] = curves;
-    if (Status status = write_file_atomically(o.out, result.dump(1) + "\n"); !status) {
-      std::fprintf(stderr, "flatland: error: %s\n", status.error().message.c_str());
-      return kExitUsage;
-    }
+    OutputFiles files;
+    if (Status status = files.stage(o.out, json_text(result)); !status) return usage_error(status.error().message);
+    if (const std::optional<int> code = commit_outputs(files)) return *code;
     if (!o.quiet) std::printf("wrote     %s\n", o.out.c_str());
   }
   return kExitOk;

@@ -5,6 +5,7 @@
 #include <cstdio>
 
 #include "app/commands.hpp"
+#include "app/output.hpp"
 #include "app/png_io.hpp"
 #include "app/progress.hpp"
 #include "flatland/result_io.hpp"
@@ -54,6 +55,9 @@ int run_render(RenderOptions& o) {
     return kExitUsage;
   }
   auto scene = std::make_shared<const Scene>(std::move(*loaded));
+  if (const std::optional<int> code = check_outputs({o.out, o.result})) return *code;
+  if (!o.result.empty())
+    if (Status status = check_result_size(*scene, o.solve.samples); !status) return usage_error(status.error().message);
   // GL before the solve: a machine that cannot render says so at once.
   Result<std::unique_ptr<viewer::OffscreenContext>> context = viewer::OffscreenContext::create(o.width, o.height);
   if (!context) {
@@ -113,19 +117,16 @@ int run_render(RenderOptions& o) {
   PngImage image{o.width, o.height, 4, viewer::Renderer::read_pixels(o.width, o.height)};
   for (std::size_t i = 3; i < image.pixels.size(); i += 4) image.pixels[i] = 255;
 
-  if (!o.result.empty()) {
-    const nlohmann::json document = result_to_json(solver, o.solve.samples);
-    if (Status status = write_file_atomically(o.result, document.dump(1) + "\n"); !status) {
-      std::fprintf(stderr, "flatland: error: %s\n", status.error().message.c_str());
-      return kExitUsage;
-    }
-    if (!o.solve.quiet) std::printf("wrote     %s\n", o.result.c_str());
-  }
-  if (Status status = write_png(o.out, image); !status) {
-    std::fprintf(stderr, "flatland: error: %s\n", status.error().message.c_str());
-    return kExitUsage;
-  }
+  OutputFiles files;
+  if (!o.result.empty())
+    if (Status status = files.stage(o.result, json_text(result_to_json(solver, o.solve.samples))); !status)
+      return usage_error(status.error().message);
+  Result<std::string> png = encode_png(image);
+  if (!png) return usage_error(o.out + ": " + png.error().message);
+  if (Status status = files.stage(o.out, *png); !status) return usage_error(status.error().message);
+  if (const std::optional<int> code = commit_outputs(files)) return *code;
   if (!o.solve.quiet) {
+    if (!o.result.empty()) std::printf("wrote     %s\n", o.result.c_str());
     std::printf("solved    %llu photons in %u rounds, %.3f s\n",
                 static_cast<unsigned long long>(solver.photons_shot()), solver.rounds(), solver.seconds());
     std::printf("wrote     %s (%dx%d, %zu paths)\n", o.out.c_str(), o.width, o.height, paths.size());

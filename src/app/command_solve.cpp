@@ -6,6 +6,7 @@
 #include <thread>
 
 #include "app/commands.hpp"
+#include "app/output.hpp"
 #include "app/picture.hpp"
 #include "app/progress.hpp"
 #include "flatland/result_io.hpp"
@@ -153,8 +154,8 @@ void print_summary(const Solver& solver) {
 
 std::optional<int> abnormal_stop(const Solver& solver) {
   if (solver.stop_reason() == StopReason::Cancelled) {
-    std::fprintf(stderr, "flatland: interrupted after %llu photons; nothing written\n",
-                 static_cast<unsigned long long>(solver.photons_shot()));
+    std::fprintf(stderr, "flatland: interrupted after %s photons; nothing written\n",
+                 human_count(static_cast<double>(solver.photons_traced())).c_str());
     return kExitInterrupted;
   }
   if (solver.stop_reason() == StopReason::BooksUnbalanced) {
@@ -184,21 +185,22 @@ Status finish_solver_settings(SolveOptions& o) {
 }
 
 int run_solve(SolveOptions& o) {
-  if (Status status = finish_solver_settings(o); !status) {
-    std::fprintf(stderr, "flatland: error: %s\n", status.error().message.c_str());
-    return kExitUsage;
-  }
-
+  if (Status status = finish_solver_settings(o); !status) return usage_error(status.error().message);
   Result<Scene> scene = load_scene(o.scene);
-  if (!scene) {
-    std::fprintf(stderr, "flatland: error: %s\n", scene.error().message.c_str());
-    return kExitUsage;
+  if (!scene) return usage_error(scene.error().message);
+  // Everything the solve's end needs is checked before it starts: the output paths, the size of
+  // the result, and the reference (read now, so a bad one costs no solve).
+  if (const std::optional<int> code = check_outputs({o.out, o.picture})) return *code;
+  if (!o.out.empty() || !o.reference.empty())
+    if (Status status = check_result_size(*scene, o.samples); !status) return usage_error(status.error().message);
+  std::optional<nlohmann::json> reference;
+  if (!o.reference.empty()) {
+    Result<nlohmann::json> read = read_result_file(o.reference);
+    if (!read) return usage_error("--reference: " + read.error().message);
+    reference = std::move(*read);
   }
   Result<Solver> created = Solver::create(*scene, o.settings);
-  if (!created) {
-    std::fprintf(stderr, "flatland: error: %s\n", created.error().message.c_str());
-    return kExitUsage;
-  }
+  if (!created) return usage_error(created.error().message);
   Solver& solver = *created;
 
   {
@@ -208,40 +210,26 @@ int run_solve(SolveOptions& o) {
   if (const std::optional<int> code = abnormal_stop(solver)) return *code;
   if (!o.quiet) print_summary(solver);
 
-  // Read the reference before the result is written, so a bad reference writes nothing.
-  std::optional<nlohmann::json> reference;
-  if (!o.reference.empty()) {
-    Result<nlohmann::json> read = read_result_file(o.reference);
-    if (!read) {
-      std::fprintf(stderr, "flatland: error: %s\n", read.error().message.c_str());
-      return kExitUsage;
+  OutputFiles files;
+  if (!o.out.empty() || reference) {
+    const nlohmann::json document = result_to_json(solver, o.samples);
+    if (reference) {
+      Result<Comparison> comparison = compare_results(document, *reference);
+      if (!comparison) return usage_error("--reference " + o.reference + ": " + comparison.error().message);
+      if (!o.quiet) print_comparison(*comparison);
     }
-    reference = std::move(*read);
-  }
-  const nlohmann::json document = result_to_json(solver, o.samples);
-  if (reference) {
-    Result<Comparison> comparison = compare_results(document, *reference);
-    if (!comparison) {
-      std::fprintf(stderr, "flatland: error: --reference %s: %s\n", o.reference.c_str(),
-                   comparison.error().message.c_str());
-      return kExitUsage;
-    }
-    if (!o.quiet) print_comparison(*comparison);
-  }
-  if (!o.out.empty()) {
-    const std::string text = document.dump(1) + "\n";
-    if (Status status = write_file_atomically(o.out, text); !status) {
-      std::fprintf(stderr, "flatland: error: %s\n", status.error().message.c_str());
-      return kExitUsage;
-    }
-    if (!o.quiet) std::printf("wrote     %s\n", o.out.c_str());
+    if (!o.out.empty())
+      if (Status status = files.stage(o.out, json_text(document)); !status) return usage_error(status.error().message);
   }
   if (!o.picture.empty()) {
-    if (Status status = write_picture(solver, o.picture); !status) {
-      std::fprintf(stderr, "flatland: error: %s\n", status.error().message.c_str());
-      return kExitUsage;
-    }
-    if (!o.quiet) std::printf("wrote     %s\n", o.picture.c_str());
+    Result<std::string> png = encode_png(draw_picture(solver));
+    if (!png) return usage_error(o.picture + ": " + png.error().message);
+    if (Status status = files.stage(o.picture, *png); !status) return usage_error(status.error().message);
+  }
+  if (const std::optional<int> code = commit_outputs(files)) return *code;
+  if (!o.quiet) {
+    if (!o.out.empty()) std::printf("wrote     %s\n", o.out.c_str());
+    if (!o.picture.empty()) std::printf("wrote     %s\n", o.picture.c_str());
   }
   return kExitOk;
 }

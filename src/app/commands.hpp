@@ -93,6 +93,8 @@ struct ConvergeOptions {
 };
 CLI::App* add_converge_command(CLI::App& parent, ConvergeOptions& options);
 int run_converge(ConvergeOptions& options);
+// The checks run_converge makes before any work: --methods, and --budgets or --times, parse.
+Status check_converge_options(const ConvergeOptions& options);
 
 struct CompareOptions {
   std::string result;
@@ -101,8 +103,6 @@ struct CompareOptions {
 CLI::App* add_compare_command(CLI::App& parent, CompareOptions& options);
 int run_compare(const CompareOptions& options);
 
-// Reads a result file (flatland_result JSON); errors name the file and what is wrong.
-Result<nlohmann::json> read_result_file(const std::string& path);
 // Prints the per-curve and scene errors of `comparison` as a table.
 void print_comparison(const Comparison& comparison);
 

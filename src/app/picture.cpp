@@ -63,7 +63,7 @@ PngImage to_png(const Image& image) {
 
 }  // namespace
 
-Status write_picture(const Solver& solver, const std::string& path, int width, int height) {
+PngImage draw_picture(const Solver& solver, int width, int height) {
   const Scene& scene = solver.scene();
   Image image;
   image.width = width;
@@ -144,7 +144,7 @@ Status write_picture(const Solver& solver, const std::string& path, int width, i
     }
   }
 
-  return write_png(path, to_png(image));
+  return to_png(image);
 }
 
 }  // namespace flatland::app

@@ -4,12 +4,11 @@
 
 #include <string>
 
-#include "flatland/result.hpp"
+#include "app/png_io.hpp"
 #include "flatland/solver.hpp"
 
 namespace flatland::app {
 
-Status write_picture(const Solver& solver, const std::string& path, int width = 1024,
-                     int height = 768);
+PngImage draw_picture(const Solver& solver, int width = 1024, int height = 768);
 
 }  // namespace flatland::app

@@ -9,7 +9,11 @@ namespace flatland::app {
 
 std::string human_count(double value) {
   char text[32];
-  if (value >= 1e9)
+  if (value >= 1e15)
+    std::snprintf(text, sizeof text, "%.3gP", value / 1e15);
+  else if (value >= 1e12)
+    std::snprintf(text, sizeof text, "%.3gT", value / 1e12);
+  else if (value >= 1e9)
     std::snprintf(text, sizeof text, "%.3gG", value / 1e9);
   else if (value >= 1e6)
     std::snprintf(text, sizeof text, "%.3gM", value / 1e6);
@@ -17,6 +21,17 @@ std::string human_count(double value) {
     std::snprintf(text, sizeof text, "%.3gk", value / 1e3);
   else
     std::snprintf(text, sizeof text, "%.0f", value);
+  return text;
+}
+
+std::string human_duration(double seconds) {
+  char text[48];
+  if (!(seconds < 1e12)) return "ages";
+  if (seconds < 120.0) std::snprintf(text, sizeof text, "%.0f s", seconds);
+  else if (seconds < 7200.0) std::snprintf(text, sizeof text, "%.0f min", seconds / 60.0);
+  else if (seconds < 2.0 * 86400.0) std::snprintf(text, sizeof text, "%.1f h", seconds / 3600.0);
+  else if (seconds < 2.0 * 365.25 * 86400.0) std::snprintf(text, sizeof text, "%.0f days", seconds / 86400.0);
+  else std::snprintf(text, sizeof text, "%.3g years", seconds / (365.25 * 86400.0));
   return text;
 }
 
@@ -28,12 +43,7 @@ void ProgressLine::update(const SolverProgress& p) {
   if (!enabled_) return;
   const double done = p.budget > 0 ? static_cast<double>(p.photons) / static_cast<double>(p.budget) : 0.0;
   const double rate = p.seconds > 0.0 ? static_cast<double>(p.photons) / p.seconds : 0.0;
-  std::string eta = "?";
-  if (rate > 0.0) {
-    char text[32];
-    std::snprintf(text, sizeof text, "%.0f s", static_cast<double>(p.budget - p.photons) / rate);
-    eta = text;
-  }
+  const std::string eta = rate > 0.0 ? human_duration(static_cast<double>(p.budget - p.photons) / rate) : "?";
   std::fprintf(stderr, "\r\033[K  photons %s / %s (%.0f%%)  rounds %u  unshot %.3g%%  %.1f s  at most %s left",
                human_count(static_cast<double>(p.photons)).c_str(),
                human_count(static_cast<double>(p.budget)).c_str(), 100.0 * done, p.rounds,

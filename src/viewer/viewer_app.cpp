@@ -138,11 +138,11 @@ Result<std::unique_ptr<Viewer>> Viewer::create(const ViewOptions& options) {
   viewer->draw_.fade = options.path_fade;
   std::shared_ptr<const nlohmann::json> reference;
   if (!options.reference.empty()) {
-    std::ifstream file(options.reference);
-    if (!file) return Error{options.reference + ": cannot read the reference result"};
-    nlohmann::json document = nlohmann::json::parse(file, nullptr, false);
-    if (document.is_discarded() || !document.contains("curves") || !document["curves"].is_array())
-      return Error{options.reference + ": not a flatland result (write one with 'flatland reference SCENE --out FILE')"};
+    Result<nlohmann::json> read = read_result_file(options.reference);
+    if (!read) return Error{"--reference: " + read.error().message};
+    nlohmann::json document = std::move(*read);
+    if (!document.contains("curves") || !document["curves"].is_array())
+      return Error{options.reference + ": not a flatland result (no \"curves\"; write one with 'flatland reference SCENE --out FILE')"};
     // The same scene: its curves, by id, in order (compare checks the rest as the solve goes).
     const nlohmann::json& curves = document["curves"];
     const Scene& loaded = *viewer->scene_;
@@ -338,7 +338,7 @@ void Viewer::handle_key(int key, bool ctrl) {
       if (ctrl) {
         const std::string name = "flatland-" + scene_->name + "-result.json";
         Result<nlohmann::json> result = session_->result_json(100);
-        Status saved = result ? write_file_atomically(name, result->dump(1) + "\n") : Status(result.error());
+        Status saved = result ? write_file_atomically(name, json_text(*result)) : Status(result.error());
         set_message(saved ? "saved " + name : saved.error().message);
       }
       break;
