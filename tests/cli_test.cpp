@@ -183,6 +183,11 @@ TEST_F(Cli, ConvergeWritesTableAndPlots) {
   const CommandRun bad = run("converge " + scene("penumbra.json") + " --methods cubic+basis=quintic --out " + out.string());
   EXPECT_EQ(bad.exit_code, 2);
   EXPECT_NE(bad.err.find("--methods"), std::string::npos) << bad.err;
+  for (const char* count : {"elements=16x", "elements=99999999999", "band-rays=", "elements=1e3"}) {
+    const CommandRun wrong = run("converge " + scene("penumbra.json") + " --methods cubic+" + count + " --out " + out.string());
+    EXPECT_EQ(wrong.exit_code, 2) << count;
+    EXPECT_NE(wrong.err.find("must be a whole number"), std::string::npos) << wrong.err;
+  }
 }
 
 TEST_F(Cli, FailedWriteLeavesNoFile) {

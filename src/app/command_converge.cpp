@@ -5,6 +5,8 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <climits>
+#include <optional>
 #include <cmath>
 #include <cerrno>
 #include <cstdio>
@@ -28,6 +30,15 @@ struct Method {
   std::string name;  // as written on the command line
   SolverSettings settings;
 };
+
+// A whole number that fits an int ("16"), or nullopt ("16x", "1e3", "99999999999").
+std::optional<int> whole_number(const std::string& text) {
+  char* end = nullptr;
+  errno = 0;
+  const long value = std::strtol(text.c_str(), &end, 10);
+  if (end == text.c_str() || *end != '\0' || errno == ERANGE || value < INT_MIN || value > INT_MAX) return std::nullopt;
+  return static_cast<int>(value);
+}
 
 // "cubic" or "basis=cubic+sampling=uniform+ray-width=0.05+ray-mode=band+...".
 Result<Method> parse_method(const std::string& text, const SolverSettings& defaults) {
@@ -61,7 +72,9 @@ Result<Method> parse_method(const std::string& text, const SolverSettings& defau
         return Error{where + "estimator must be lumped or galerkin"};
       s.estimator = value == "galerkin" ? Estimator::Galerkin : Estimator::Lumped;
     } else if (key == "elements") {
-      s.elements = std::atoi(value.c_str());
+      const std::optional<int> count = whole_number(value);
+      if (!count) return Error{where + "elements must be a whole number"};
+      s.elements = *count;
     } else if (key == "ray-width") {
       char* end = nullptr;
       s.ray_width = std::strtod(value.c_str(), &end);
@@ -70,7 +83,9 @@ Result<Method> parse_method(const std::string& text, const SolverSettings& defau
       if (value != "footprint" && value != "band") return Error{where + "ray-mode must be footprint or band"};
       s.ray_mode = value == "band" ? RayMode::Band : RayMode::Footprint;
     } else if (key == "band-rays") {
-      s.band_rays = std::atoi(value.c_str());
+      const std::optional<int> count = whole_number(value);
+      if (!count) return Error{where + "band-rays must be a whole number"};
+      s.band_rays = *count;
     } else if (key == "tolerance") {
       char* end = nullptr;
       s.tolerance = std::strtod(value.c_str(), &end);
