@@ -316,6 +316,29 @@ TEST(Reference, WorkBeyondItsLimitsIsRefused) {
       << tight.error().message;
 }
 
+// Long solves report the form factors' progress from the calling thread: rows done, increasing,
+// never more than the rows in all.
+TEST(Reference, ReportsProgressOfTheFormFactors) {
+  const Scene scene = testing::scene_from_text(testing::circle_enclosure(0.5, 1.0));
+  ReferenceSettings settings;
+  settings.max_element_length = scene.curves[0].length / 2000;
+  std::vector<std::pair<std::size_t, std::size_t>> reports;
+  settings.progress = [&](std::size_t done, std::size_t rows) { reports.emplace_back(done, rows); };
+  const auto start = std::chrono::steady_clock::now();
+  Result<ReferenceSolution> solution = solve_reference(scene, settings);
+  ASSERT_TRUE(solution.ok()) << solution.error().message;
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  if (seconds < 0.5) GTEST_SKIP() << "solved in " << seconds << " s, before a report was due";
+  ASSERT_FALSE(reports.empty());
+  for (std::size_t k = 0; k < reports.size(); ++k) {
+    EXPECT_EQ(reports[k].second, solution->elements());  // one reflecting side per element
+    EXPECT_LE(reports[k].first, reports[k].second);
+    if (k > 0) {
+      EXPECT_GT(reports[k].first, reports[k - 1].first);
+    }
+  }
+}
+
 TEST(Reference, DISABLED_Timing) {
   const std::string path = testing::source_path("scenes2d/room_reflector.json");
   const Scene scene = testing::scene_from_file("scenes2d/room_reflector.json");

@@ -1,5 +1,6 @@
 // flatland reference: the deterministic reference solution of a scene (constant elements on
 // chords, exact visibility, a linear solve and a final gather at the output samples).
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -8,6 +9,7 @@
 
 #include "app/commands.hpp"
 #include "app/output.hpp"
+#include "app/progress.hpp"
 #include "flatland/reference.hpp"
 #include "flatland/result_io.hpp"
 
@@ -65,11 +67,11 @@ void warn_about_reference_size(const Scene& scene, const ReferenceSettings& sett
   const double elements = reference_element_count(scene, settings);
   if (quiet || elements < 10'000 || elements > static_cast<double>(kMaxReferenceElements)) return;
   const unsigned threads = settings.threads != 0 ? settings.threads : std::max(1u, std::thread::hardware_concurrency());
-  const double minutes = 4.5e-7 * elements * elements * 2.0 / threads / 60.0;
+  const double seconds = 4.5e-7 * elements * elements * 2.0 / threads;
   std::fprintf(stderr,
                "reference: %.0f elements: the form factors take time and memory growing as the "
-               "square of the count (roughly %.0f minutes here); Ctrl-C stops it\n",
-               elements, std::max(1.0, minutes));
+               "square of the count (roughly %s here); Ctrl-C stops it\n",
+               elements, human_duration(seconds).c_str());
 }
 
 }  // namespace
@@ -116,7 +118,21 @@ int run_reference(ReferenceOptions& o) {
   o.settings.cancel = &interrupt_flag();
   warn_about_reference_size(*scene, o.settings, o.quiet);
   const auto start = std::chrono::steady_clock::now();
+  // Progress of the form factors on a terminal: the solve's, then the error estimate's.
+  ProgressLine line(!o.quiet);
+  std::string phase = "reference";
+  auto phase_start = start;
+  o.settings.progress = [&](std::size_t done, std::size_t rows) {
+    const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - phase_start).count();
+    const double left = elapsed * static_cast<double>(rows - done) / static_cast<double>(std::max<std::size_t>(done, 1));
+    char text[200];
+    std::snprintf(text, sizeof text, "%s: form factors %.0f%% (%zu / %zu rows), %.0f s, about %s left",
+                  phase.c_str(), 100.0 * static_cast<double>(done) / static_cast<double>(rows), done, rows,
+                  elapsed, human_duration(left).c_str());
+    line.show(text);
+  };
   Result<ReferenceSolution> solution = solve_reference(*scene, o.settings);
+  line.finish();
   if (!solution) return reference_failure(solution.error());
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   const ReferenceSolution& reference = *solution;
@@ -125,7 +141,10 @@ int run_reference(ReferenceOptions& o) {
       [&reference](std::uint32_t c, Side side, double u) { return reference.radiosity(c, side, u); });
   std::optional<ErrorNorms> estimated;
   if (o.estimate_error) {
+    phase = "error estimate (elements twice as long)";
+    phase_start = std::chrono::steady_clock::now();
     Result<ErrorNorms> estimate = estimate_reference_error(*scene, o.settings, o.samples, curves);
+    line.finish();
     if (!estimate) return reference_failure(estimate.error());
     estimated = *estimate;
   }

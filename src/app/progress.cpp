@@ -44,10 +44,17 @@ void ProgressLine::update(const SolverProgress& p) {
   const double done = p.budget > 0 ? static_cast<double>(p.photons) / static_cast<double>(p.budget) : 0.0;
   const double rate = p.seconds > 0.0 ? static_cast<double>(p.photons) / p.seconds : 0.0;
   const std::string eta = rate > 0.0 ? human_duration(static_cast<double>(p.budget - p.photons) / rate) : "?";
-  std::fprintf(stderr, "\r\033[K  photons %s / %s (%.0f%%)  rounds %u  unshot %.3g%%  %.1f s  at most %s left",
-               human_count(static_cast<double>(p.photons)).c_str(),
-               human_count(static_cast<double>(p.budget)).c_str(), 100.0 * done, p.rounds,
-               100.0 * p.unshot_fraction, p.seconds, eta.c_str());
+  char text[256];
+  std::snprintf(text, sizeof text, "photons %s / %s (%.0f%%)  rounds %u  unshot %.3g%%  %.1f s  at most %s left",
+                human_count(static_cast<double>(p.photons)).c_str(),
+                human_count(static_cast<double>(p.budget)).c_str(), 100.0 * done, p.rounds,
+                100.0 * p.unshot_fraction, p.seconds, eta.c_str());
+  show(text);
+}
+
+void ProgressLine::show(const std::string& text) {
+  if (!enabled_) return;
+  std::fprintf(stderr, "\r\033[K  %s", text.c_str());
   std::fflush(stderr);
   shown_ = true;
 }

@@ -12,6 +12,8 @@ class ProgressLine {
   explicit ProgressLine(bool enabled);
   ~ProgressLine();
   void update(const SolverProgress& progress);
+  // Any text in place of the line.
+  void show(const std::string& text);
   void finish();  // clears the line
 
  private:

@@ -570,7 +570,9 @@ Result<ReferenceSolution> solve_reference(const Scene& scene, const ReferenceSet
   constexpr double kBytesPerEntry = 2.0 * (sizeof(std::uint32_t) + sizeof(double)) + 4.0;
   std::atomic<std::size_t> entry_count{0};
   std::atomic<bool> out_of_memory{false};
-  auto worker = [&]() {
+  std::atomic<std::size_t> rows_done{0};
+  auto worker = [&](bool reports) {
+    auto last_report = std::chrono::steady_clock::now();
     Sweeper sweeper;
     std::vector<VisibleElement> visible;
     std::vector<double> accumulated(patch_count, 0.0);
@@ -617,14 +619,19 @@ Result<ReferenceSolution> solve_reference(const Scene& scene, const ReferenceSet
       const std::size_t total = entry_count.fetch_add(entries.size()) + entries.size();
       if (static_cast<double>(total) * kBytesPerEntry > static_cast<double>(memory_limit))
         out_of_memory.store(true);
+      const std::size_t done = rows_done.fetch_add(1) + 1;
+      if (reports && settings.progress && seconds_since(last_report) >= 0.25) {
+        last_report = std::chrono::steady_clock::now();
+        settings.progress(done, rows);
+      }
     }
   };
   {
     const unsigned threads =
         static_cast<unsigned>(std::min<std::size_t>(thread_count(settings.threads), std::max<std::size_t>(rows, 1)));
     std::vector<std::thread> pool;
-    for (unsigned k = 1; k < threads; ++k) pool.emplace_back(worker);
-    worker();
+    for (unsigned k = 1; k < threads; ++k) pool.emplace_back(worker, false);
+    worker(true);
     for (std::thread& thread : pool) thread.join();
   }
   if (cancelled()) return Error{kReferenceCancelled};

@@ -31,6 +31,7 @@
 #include <atomic>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 #include "flatland/result.hpp"
@@ -52,6 +53,9 @@ struct ReferenceSettings {
   // Set (by a signal handler, say) to stop the solve: it returns the error kReferenceCancelled
   // within a row of form factors or a Krylov step.
   const std::atomic<bool>* cancel = nullptr;
+  // Called from the calling thread about every quarter second while form factors are computed
+  // (the long part of a solve), with the rows done and the rows in all.
+  std::function<void(std::size_t rows_done, std::size_t rows)> progress;
 };
 
 // At most this many elements: the form factors take time and memory that grow as the square of
