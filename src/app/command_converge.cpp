@@ -17,6 +17,7 @@
 #include <sstream>
 
 #include "app/commands.hpp"
+#include "app/output.hpp"
 #include "app/progress.hpp"
 #include "flatland/result_io.hpp"
 
@@ -461,29 +462,25 @@ CLI::App* add_converge_command(CLI::App& parent, ConvergeOptions& o) {
 }
 
 int run_converge(ConvergeOptions& o) {
-  auto fail = [](const std::string& message) {
-    std::fprintf(stderr, "flatland: error: %s\n", message.c_str());
-    return kExitUsage;
-  };
   Result<Plan> plan = parse_plan(o);
-  if (!plan) return fail(plan.error().message);
+  if (!plan) return usage_error(plan.error().message);
   std::vector<Method>& methods = plan->methods;
   const std::vector<double>& budgets = plan->budgets;
   const bool by_time = plan->by_time;
 
   Result<Scene> scene = load_scene(o.scene);
-  if (!scene) return fail(scene.error().message);
+  if (!scene) return usage_error(scene.error().message);
   const fs::path directory(o.out);
   if (o.replot) {
     std::vector<std::string> names;
     int seeds = 0;
     int elements = 0;
     Result<std::vector<Row>> rows = read_rows(directory / "convergence.csv", names, seeds, elements);
-    if (!rows) return fail(rows.error().message);
+    if (!rows) return usage_error(rows.error().message);
     double floor = -1.0;
     if (!o.reference.empty()) {
       Result<nlohmann::json> read = read_result_file(o.reference);
-      if (!read) return fail(read.error().message);
+      if (!read) return usage_error(read.error().message);
       floor = estimated_error_of(*read);
     }
     if (Status status = draw_plot({directory, scene->name, elements, seeds, names, *rows, floor}); !status) {
@@ -495,10 +492,10 @@ int run_converge(ConvergeOptions& o) {
   }
   std::error_code ec;
   fs::create_directories(o.out, ec);
-  if (ec || !fs::is_directory(o.out)) return fail(o.out + ": cannot create the output directory");
+  if (ec || !fs::is_directory(o.out)) return usage_error(o.out + ": cannot create the output directory");
   if (Status status = check_output_file((directory / "convergence.csv").string()); !status)
-    return fail(status.error().message);
-  if (Status status = check_result_size(*scene, o.samples); !status) return fail(status.error().message);
+    return usage_error(status.error().message);
+  if (Status status = check_result_size(*scene, o.samples); !status) return usage_error(status.error().message);
 
   // The reference, and an estimate of its own error: the same solve with elements twice as long
   // differs from it by about 3 times its error (second order), so floor = difference / 3.
@@ -506,7 +503,7 @@ int run_converge(ConvergeOptions& o) {
   double floor = -1.0;
   if (!o.reference.empty()) {
     Result<nlohmann::json> read = read_result_file(o.reference);
-    if (!read) return fail(read.error().message);
+    if (!read) return usage_error(read.error().message);
     reference = std::move(*read);
     floor = estimated_error_of(reference);
   } else {
@@ -514,12 +511,8 @@ int run_converge(ConvergeOptions& o) {
     ReferenceSettings settings;
     settings.threads = o.threads;
     settings.cancel = &interrupt_flag();
-    auto interrupted = [] {
-      std::fprintf(stderr, "flatland: interrupted; nothing written\n");
-      return kExitInterrupted;
-    };
     Result<ReferenceSolution> fine = solve_reference(*scene, settings);
-    if (!fine) return interrupt_flag().load() ? interrupted() : fail(fine.error().message);
+    if (!fine) return interrupt_flag().load() ? interrupted() : usage_error(fine.error().message);
     const ReferenceSolution& solution = *fine;
     reference = {{"flatland_result", 1},
                  {"curves", sampled_curves_to_json(*scene, o.samples,
@@ -541,7 +534,7 @@ int run_converge(ConvergeOptions& o) {
       SolverSettings probe = methods[m].settings;
       probe.photons = 100'000;
       Result<Solver> solver = Solver::create(*scene, probe);
-      if (!solver) return fail(solver.error().message);
+      if (!solver) return usage_error(solver.error().message);
       solver->run(&interrupt_flag());
       rate = static_cast<double>(solver->photons_shot()) / std::max(solver->seconds(), 1e-6);
     }
@@ -551,14 +544,11 @@ int run_converge(ConvergeOptions& o) {
         settings.photons = static_cast<std::uint64_t>(std::max(1.0, by_time ? budgets[b] * rate : budgets[b]));
         settings.seed = static_cast<std::uint64_t>(seed);
         Result<Solver> solver = Solver::create(*scene, settings);
-        if (!solver) return fail(solver.error().message);
+        if (!solver) return usage_error(solver.error().message);
         solver->run(&interrupt_flag());
-        if (solver->stop_reason() == StopReason::Cancelled) {
-          std::fprintf(stderr, "flatland: interrupted; nothing written\n");
-          return kExitInterrupted;
-        }
+        if (solver->stop_reason() == StopReason::Cancelled) return interrupted();
         Result<Comparison> comparison = compare_results(result_to_json(*solver, o.samples), reference);
-        if (!comparison) return fail("--reference: " + comparison.error().message);
+        if (!comparison) return usage_error("--reference: " + comparison.error().message);
         const EnergyBooks books = solver->books();
         rows.push_back({m, b, settings.seed, solver->photons_shot(), solver->rounds(),
                         books.emitted > 0.0 ? books.unshot / books.emitted : 0.0, solver->seconds(),
@@ -575,10 +565,7 @@ int run_converge(ConvergeOptions& o) {
   }
   if (tty) std::fprintf(stderr, "\r\033[K");
 
-  if (interrupt_flag().load()) {
-    std::fprintf(stderr, "flatland: interrupted; nothing written\n");
-    return kExitInterrupted;
-  }
+  if (interrupt_flag().load()) return interrupted();
   // The CSV, written atomically.
   std::string csv =
       "method,basis,sampling,discontinuities,estimator,elements,ray_width,ray_mode,ray_profile,"
@@ -596,7 +583,7 @@ int run_converge(ConvergeOptions& o) {
     csv += line;
   }
   if (Status status = write_file_atomically((directory / "convergence.csv").string(), csv); !status)
-    return fail(status.error().message);
+    return usage_error(status.error().message);
 
   int shared_elements = methods.front().settings.elements;
   for (const Method& method : methods)

@@ -54,11 +54,7 @@ CLI::App* add_reference_command(CLI::App& parent, ReferenceOptions& o) {
 namespace {
 
 int reference_failure(const Error& error) {
-  if (interrupt_flag().load()) {
-    std::fprintf(stderr, "flatland: interrupted; nothing written\n");
-    return kExitInterrupted;
-  }
-  return usage_error(error.message);
+  return interrupt_flag().load() ? interrupted() : usage_error(error.message);
 }
 
 void warn_about_reference_size(const Scene& scene, const ReferenceSettings& settings, bool quiet) {

@@ -11,6 +11,11 @@ int usage_error(const std::string& message) {
   return kExitUsage;
 }
 
+int interrupted() {
+  std::fprintf(stderr, "flatland: interrupted; nothing written\n");
+  return kExitInterrupted;
+}
+
 std::optional<int> check_outputs(const std::vector<std::string>& paths) {
   for (const std::string& path : paths) {
     if (path.empty()) continue;
@@ -22,8 +27,7 @@ std::optional<int> check_outputs(const std::vector<std::string>& paths) {
 std::optional<int> commit_outputs(OutputFiles& files) {
   if (interrupt_flag().load()) {
     files.discard();
-    std::fprintf(stderr, "flatland: interrupted; nothing written\n");
-    return kExitInterrupted;
+    return interrupted();
   }
   if (Status status = files.commit(); !status) return usage_error(status.error().message);
   return std::nullopt;

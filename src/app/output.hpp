@@ -19,6 +19,9 @@ std::optional<int> check_outputs(const std::vector<std::string>& paths);
 // error and gives 2. nullopt when everything was written.
 std::optional<int> commit_outputs(OutputFiles& files);
 
+// Prints "flatland: interrupted; nothing written" and returns 130.
+int interrupted();
+
 // Prints "flatland: error: MESSAGE" and returns 2 (bad input).
 int usage_error(const std::string& message);
 

@@ -177,12 +177,18 @@ fs::path directory_of(const fs::path& target) {
   return target.parent_path().empty() ? fs::path(".") : target.parent_path();
 }
 
-// Our temporary names: "." + target name + ".tmp" + PID + "-" + digits.
-constexpr std::string_view kTemporaryMark = ".tmp";
+// Our temporary names: temporary_prefix(target) + PID + "-" + digits.
+std::string temporary_prefix(const fs::path& target) {
+  // (Appended piece by piece: GCC 12 warns falsely about `"." + std::string` under -O3.)
+  std::string prefix = ".";
+  prefix += target.filename().string();
+  prefix += ".tmp";
+  return prefix;
+}
 
 // Removes temporary files of `target` whose writing process is gone (killed mid-write).
 void remove_stale_temporaries(const fs::path& target) {
-  const std::string prefix = "." + target.filename().string() + std::string(kTemporaryMark);
+  const std::string prefix = temporary_prefix(target);
   std::error_code ec;
   for (fs::directory_iterator it(directory_of(target), ec), end; !ec && it != end; it.increment(ec)) {
     const std::string name = it->path().filename().string();
@@ -232,10 +238,7 @@ Status OutputFiles::stage(const std::string& path, const std::string& contents) 
   remove_stale_temporaries(target);
   // A unique temporary name in the same directory, so the rename is atomic.
   std::random_device device;
-  // (Appended piece by piece: GCC 12 warns falsely about `"." + std::string` under -O3.)
-  std::string name = ".";
-  name += target.filename().string();
-  name += kTemporaryMark;
+  std::string name = temporary_prefix(target);
   name += std::to_string(::getpid());
   name += '-';
   name += std::to_string(device());
