@@ -90,18 +90,28 @@ std::vector<double> footprint_dense(const Curve& curve, const SplineBasis& basis
   return checked_dense(out, basis.size());
 }
 
-// Brute force: w_k = integral over [s_lo, s_hi] of k((s - s_hit)/a) phi_k(u(s)) ds, normalised,
-// by the midpoint rule in arc length with u(s) from point_at_arc_length. The interval is cut at
-// the arc lengths of the knots and at s_hit, so every cell sees a smooth integrand (error O(h^2)).
+// Brute force: w_k = integral over the run [s_lo, s_hi] of the spread times phi_k(u(s)) ds,
+// normalised, by the midpoint rule in arc length with u(s) from point_at_arc_length. The spread is
+// k((s - s_hit)/a) plus, where it reaches past an end of the run, its mirror image about that end
+// (the cut-off mass reflected back). The run is cut at the arc lengths of the knots, at the centres
+// and at the edges of the spread and its images, so every cell sees a smooth integrand (error
+// O(h^2)).
 std::vector<double> midpoint_weights(const Curve& curve, const SplineBasis& basis, double s_lo,
                                      double s_hi, double s_hit, double a, RayProfile profile,
                                      int cells) {
+  std::vector<double> centres = {s_hit};
+  if (s_hit - a < s_lo) centres.push_back(2.0 * s_lo - s_hit);
+  if (s_hit + a > s_hi) centres.push_back(2.0 * s_hi - s_hit);
   std::vector<double> cuts = {s_lo, s_hi};
-  if (s_hit > s_lo && s_hit < s_hi) cuts.push_back(s_hit);
-  for (double knot : basis.knots()) {
-    const double s = arc_length_at(curve, knot);
+  auto cut = [&](double s) {
     if (s > s_lo && s < s_hi) cuts.push_back(s);
+  };
+  for (double c : centres) {
+    cut(c);
+    cut(c - a);
+    cut(c + a);
   }
+  for (double knot : basis.knots()) cut(arc_length_at(curve, knot));
   std::sort(cuts.begin(), cuts.end());
   std::vector<double> dense(basis.size(), 0.0);
   std::array<double, SplineBasis::kMaxDegree + 1> phi{};
@@ -109,10 +119,11 @@ std::vector<double> midpoint_weights(const Curve& curve, const SplineBasis& basi
     const double h = (cuts[c + 1] - cuts[c]) / cells;
     for (int i = 0; i < cells; ++i) {
       const double s = cuts[c] + (i + 0.5) * h;
-      const double density = profile_density(profile, (s - s_hit) / a);
+      double density = 0.0;
+      for (double centre : centres) density += profile_density(profile, (s - centre) / a);
       const double u = point_at_arc_length(scene(), curve, s).u;
       const std::size_t first = basis.evaluate(u, phi.data());
-      for (int r = 0; r <= basis.degree(); ++r) dense[first + r] += h * density * phi[r];
+      for (int r = 0; r <= basis.degree(); ++r) dense[basis.index(first + r)] += h * density * phi[r];
     }
   }
   double total = 0.0;
@@ -300,15 +311,19 @@ TEST(Footprint, HalfLengthIsCappedAtGrazingIncidence) {
 
 TEST(Footprint, BoxOnALineGivesTheOverlapOfConstantElements) {
   // Ten constant elements of length 1 on a line of length 10: with the box profile w_k is the
-  // overlap of element k with the footprint's allowed part, divided by that part's length.
+  // overlap of element k with the footprint [s - a, s + a], the parts past the line's ends folded
+  // back about them ([s - a, 0] onto [0, a - s], [10, s + a] onto [20 - s - a, 10]), over 2a.
   const Curve& line = scene().curves[kLine];
   const CurveStorage storage = build_curve_storage(scene(), line, BasisKind::Constant, 10);
   ASSERT_EQ(storage.basis.size(), 10u);
   auto overlap_weights = [](double lo, double hi) {
     std::vector<double> w(10, 0.0);
-    for (int k = 0; k < 10; ++k) {
-      w[k] = std::max(0.0, std::min(hi, k + 1.0) - std::max(lo, 1.0 * k));
-    }
+    auto add = [&](double from, double to) {
+      for (int k = 0; k < 10; ++k) w[k] += std::max(0.0, std::min(to, k + 1.0) - std::max(from, 1.0 * k));
+    };
+    add(std::max(lo, 0.0), std::min(hi, 10.0));
+    if (lo < 0.0) add(0.0, -lo);
+    if (hi > 10.0) add(20.0 - hi, 10.0);
     for (double& v : w) v /= hi - lo;
     return w;
   };
@@ -316,11 +331,11 @@ TEST(Footprint, BoxOnALineGivesTheOverlapOfConstantElements) {
     double s_hit, a;
   };
   for (const Case& c : {Case{3.3, 0.45}, Case{5.5, 2.2}, Case{0.3, 0.8}, Case{9.9, 0.6},
-                        Case{6.0, 0.25}, Case{4.7, 1.0}}) {
+                        Case{6.0, 0.25}, Case{4.7, 1.0}, Case{0.0, 0.5}, Case{10.0, 1.5}}) {
     const std::vector<double> got =
         footprint_dense(line, storage.basis, c.s_hit / 10.0, c.a, RayProfile::Box);
-    expect_close(got, overlap_weights(std::max(0.0, c.s_hit - c.a), std::min(10.0, c.s_hit + c.a)),
-                 1e-14, "s_hit " + std::to_string(c.s_hit));
+    expect_close(got, overlap_weights(c.s_hit - c.a, c.s_hit + c.a), 1e-14,
+                 "s_hit " + std::to_string(c.s_hit));
   }
   // Grazing incidence: W = 0.3 at cos = 1e-6 is capped at a = 10 W = 3.
   const double a = footprint_half_length(0.3, 1e-6);
@@ -390,9 +405,7 @@ TEST(Footprint, CubicsMatchABruteForceIntegralAcrossJointsAndEnds) {
         const double s_hit = arc_length_at(arch, u_hit);
         const double a = 0.9;
         const std::vector<double> got = footprint_dense(arch, storage.basis, u_hit, a, profile);
-        const std::vector<double> want =
-            brute_force(arch, storage.basis, std::max(0.0, s_hit - a),
-                        std::min(arch.length, s_hit + a), s_hit, a, profile);
+        const std::vector<double> want = brute_force(arch, storage.basis, 0.0, arch.length, s_hit, a, profile);
         expect_close(got, want, 1e-11, what + " arch u " + std::to_string(u_hit));
         if (u_hit == 0.93) {  // the spill is real: weight on functions living past the joint
           double past = 0.0;
@@ -408,8 +421,8 @@ TEST(Footprint, CubicsMatchABruteForceIntegralAcrossJointsAndEnds) {
         const double s_hit = arc_length_at(kink, u_hit);
         const double a = 0.7;
         const std::vector<double> got = footprint_dense(kink, bent.basis, u_hit, a, profile);
-        const double lo = u_hit < 1.0 ? std::max(0.0, s_hit - a) : joint;
-        const double hi = u_hit < 1.0 ? joint : std::min(kink.length, s_hit + a);
+        const double lo = u_hit < 1.0 ? 0.0 : joint;
+        const double hi = u_hit < 1.0 ? joint : kink.length;
         expect_close(got, brute_force(kink, bent.basis, lo, hi, s_hit, a, profile), 1e-11,
                      what + " kink u " + std::to_string(u_hit));
         for (std::size_t k = 0; k < bent.basis.size(); ++k) {

@@ -362,18 +362,19 @@ TEST(SceneIoErrors, RootMustBeAnObject) {
 
 TEST(SceneIoErrors, Version) {
   EXPECT_CONTAINS(error_of(edited([](Json& j) { j.erase("flatland"); })),
-                  "missing \"flatland\": 1, the format version; this program reads version 1");
-  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["flatland"] = 2; })),
-                  "flatland: unsupported format version 2; this program reads version 1 only");
+                  "missing \"flatland\": 2, the format version; this program reads versions 1 and 2");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["flatland"] = 3; })),
+                  "flatland: unsupported format version 3; this program reads versions 1 and 2");
   EXPECT_CONTAINS(error_of(edited([](Json& j) { j["flatland"] = 1.5; })), "unsupported format version 1.5");
   EXPECT_CONTAINS(error_of(edited([](Json& j) { j["flatland"] = "1"; })),
                   "flatland: expected the format version as a number (1), got a string");
   // A newer file reports its version before complaining about keys it does not know.
   EXPECT_CONTAINS(error_of(edited([](Json& j) {
-                    j["flatland"] = 2;
+                    j["flatland"] = 3;
                     j["lights"] = Json::array();
                   })),
-                  "unsupported format version 2");
+                  "unsupported format version 3");
+  EXPECT_TRUE(parse(edited([](Json& j) { j["flatland"] = 2; })).ok());
   // 1.0 is the number 1.
   EXPECT_TRUE(parse(edited([](Json& j) { j["flatland"] = 1.0; })).ok());
 }
@@ -698,7 +699,10 @@ TEST(SceneIoFiles, ExampleScenesHaveTheirDocumentedProperties) {
   const Curve& ellipse = enclosure->curves[0];
   EXPECT_EQ(ellipse.segment_count, 4u);
   EXPECT_EQ(ellipse.points.front(), ellipse.points.back());
-  EXPECT_EQ(ellipse.joints, std::vector<Continuity>(3, Continuity::C1));
+  // Closed and smooth all round: four joints, the last at the closing point (format version 2).
+  EXPECT_TRUE(ellipse.closed);
+  EXPECT_EQ(ellipse.joints, std::vector<Continuity>(4, Continuity::C1));
+  EXPECT_TRUE(ellipse.periodic());
   EXPECT_NEAR(ellipse.length, 9.688448220547675, 0.01);
   EXPECT_EQ(enclosure->material_of(ellipse).reflectivity[0], 0.5);
   EXPECT_EQ(ellipse.emittance[0], 1.0);

@@ -39,23 +39,70 @@ SplineBasis::SplineBasis(int degree, double u_begin, double u_end, std::span<con
   size_ = knots_.size() - static_cast<std::size_t>(degree) - 1;
 }
 
+SplineBasis SplineBasis::periodic(int degree, double u_begin, double u_end,
+                                  std::span<const MeshNode> nodes, Continuity closing) {
+  assert(degree >= 0 && degree <= kMaxDegree && u_begin < u_end && closing != Continuity::Jump);
+  // One period of knots: the closing knot u_begin with its multiplicity, then the nodes.
+  std::vector<double> period(static_cast<std::size_t>(multiplicity(degree, closing)), u_begin);
+  for (const MeshNode& node : nodes) {
+    assert(node.u > u_begin && node.u < u_end);
+    period.insert(period.end(), static_cast<std::size_t>(multiplicity(degree, node.continuity)), node.u);
+  }
+  const auto count = static_cast<std::ptrdiff_t>(period.size());
+  assert(count >= degree + 1);
+  const double length = u_end - u_begin;
+  // Extended: knots[e] = period[(e - p) mod K] shifted by whole periods, e = 0 .. K + 2p, with
+  // knots[K + p] set to u_end exactly.
+  SplineBasis basis;
+  basis.degree_ = degree;
+  basis.periodic_ = true;
+  basis.size_ = period.size();
+  for (std::ptrdiff_t e = 0; e <= count + 2 * degree; ++e) {
+    const std::ptrdiff_t i = e - degree;
+    const std::ptrdiff_t lap = i < 0 ? -1 : i / count;
+    const double knot = period[static_cast<std::size_t>(i - lap * count)];
+    basis.knots_.push_back(knot + static_cast<double>(lap) * length);
+  }
+  for (std::size_t e = static_cast<std::size_t>(count + degree); e < basis.knots_.size(); ++e)
+    if (basis.knots_[e] <= u_end) basis.knots_[e] = u_end;  // the closing knot's copies
+  return basis;
+}
+
+double SplineBasis::wrap(double u) const {
+  const double begin = u_begin();
+  const double end = u_end();
+  if (!periodic_) return std::clamp(u, begin, end);
+  if (u >= begin && u < end) return u;
+  const double length = end - begin;
+  double wrapped = u - std::floor((u - begin) / length) * length;
+  if (!(wrapped >= begin && wrapped < end)) wrapped = begin;  // rounding at the seam, or NaN
+  return wrapped;
+}
+
 std::size_t SplineBasis::find_span(double u) const {
-  // The span i with knots[i] <= u < knots[i+1], among i in [degree, size-1]; u at the very end
-  // belongs to the last non-empty span.
+  // The span i with knots[i] <= u < knots[i+1], among i in [first_span, end_span); u at the very
+  // end of a clamped basis belongs to the last non-empty span.
   const std::size_t p = static_cast<std::size_t>(degree_);
-  if (u >= knots_[size_]) return size_ - 1;
+  const std::size_t last = end_span();
+  if (u >= knots_[last]) return last - 1;
   if (u <= knots_[p]) return p;
   // upper_bound gives the first knot > u; the span starts one before it.
   const auto it = std::upper_bound(knots_.begin() + static_cast<std::ptrdiff_t>(p),
-                                   knots_.begin() + static_cast<std::ptrdiff_t>(size_) + 1, u);
+                                   knots_.begin() + static_cast<std::ptrdiff_t>(last) + 1, u);
   return static_cast<std::size_t>(it - knots_.begin()) - 1;
 }
 
 std::size_t SplineBasis::evaluate(double u, double* values) const {
+  if (periodic_) u = wrap(u);
+  const std::size_t span = find_span(u);
+  evaluate_in_span(span, u, values);
+  return span - static_cast<std::size_t>(degree_);
+}
+
+void SplineBasis::evaluate_in_span(std::size_t span, double u, double* values) const {
   // Cox-de Boor recursion in the triangular form of Piegl and Tiller (The NURBS Book, A2.2):
   // builds the nonzero functions of degree j from those of degree j-1 without division by zero,
   // since only non-empty spans are visited.
-  const std::size_t span = find_span(u);
   const int p = degree_;
   std::array<double, kMaxDegree + 1> left{};
   std::array<double, kMaxDegree + 1> right{};
@@ -71,29 +118,32 @@ std::size_t SplineBasis::evaluate(double u, double* values) const {
     }
     values[j] = saved;
   }
-  return span - static_cast<std::size_t>(p);
 }
 
 namespace {
 
 // Visits every quadrature point of the curve's storage mesh: four 8-point Gauss-Legendre panels
-// per non-empty knot span (each span lies in one segment), with the arc-length weight
-// w = GL weight x |C'(u)| du and the basis functions alive there (values[0..degree] for
-// phi_first..phi_(first+degree)). Integrals of phi_k times smooth functions along arc length are
+// per non-empty knot span of [u_begin, u_end) (each span lies in one segment), with the arc-length
+// weight w = GL weight x |C'(u)| du and the basis functions alive there (values[j] for function
+// index[j], j = 0..degree; distinct, as a periodic basis has at least degree + 1 functions). Integrals of phi_k times smooth functions along arc length are
 // sums over these points.
 template <typename Visit>
 void for_each_quadrature_point(const Scene& scene, const Curve& curve, const SplineBasis& basis,
                                Visit visit) {
   constexpr int kPanels = 4;
   const std::vector<double>& knots = basis.knots();
+  const int p = basis.degree();
   std::array<double, SplineBasis::kMaxDegree + 1> values{};
-  for (std::size_t k = 0; k + 1 < knots.size(); ++k) {
+  std::array<std::size_t, SplineBasis::kMaxDegree + 1> index{};
+  for (std::size_t k = basis.first_span(); k < basis.end_span(); ++k) {
     const double a = knots[k];
     const double b = knots[k + 1];
     if (!(b > a)) continue;
     const auto segment_index = static_cast<std::uint32_t>(
         std::min<double>(std::floor(0.5 * (a + b)), curve.segment_count - 1));
     const SceneSegment& segment = scene.segments[curve.first_segment + segment_index];
+    for (int j = 0; j <= p; ++j)
+      index[static_cast<std::size_t>(j)] = basis.index(k - static_cast<std::size_t>(p) + static_cast<std::size_t>(j));
     for (int panel = 0; panel < kPanels; ++panel) {
       const double pa = a + (b - a) * panel / kPanels;
       const double pb = a + (b - a) * (panel + 1) / kPanels;
@@ -102,8 +152,8 @@ void for_each_quadrature_point(const Scene& scene, const Curve& curve, const Spl
         const double u = 0.5 * (pa + pb) + half * gauss::kNodes8[g];
         const double weight =
             gauss::kWeights8[g] * half * length(derivative(segment.geometry.shape, u - segment_index));
-        const std::size_t first = basis.evaluate(u, values.data());
-        visit(u, weight, first, values);
+        basis.evaluate_in_span(k, u, values.data());
+        visit(u, weight, index, values);
       }
     }
   }
@@ -119,6 +169,9 @@ BasisSampler::BasisSampler(const SplineBasis& basis) {
   const int p = basis.degree();
   std::array<double, SplineBasis::kMaxDegree + 1> values{};
   first_piece_.assign(basis.size() + 1, 0);
+  periodic_ = basis.is_periodic();
+  u_begin_ = basis.u_begin();
+  u_end_ = basis.u_end();
   for (std::size_t k = 0; k < basis.size(); ++k) {
     first_piece_[k] = static_cast<std::uint32_t>(pieces_.size());
     double cumulative = 0.0;
@@ -130,8 +183,9 @@ BasisSampler::BasisSampler(const SplineBasis& basis) {
       std::array<std::array<double, 5>, 4> system{};
       for (std::size_t row = 0; row < 4; ++row) {
         const double x = kNodes[row];
-        const std::size_t first = basis.evaluate(u0 + x * width, values.data());
-        const double phi = (k >= first && k <= first + static_cast<std::size_t>(p)) ? values[k - first] : 0.0;
+        // Function k is function k - (span - p) of this span (spans k .. k + p carry it).
+        basis.evaluate_in_span(span, u0 + x * width, values.data());
+        const double phi = values[k + static_cast<std::size_t>(p) - span];
         double power = 1.0;
         for (std::size_t col = 0; col < 4; ++col, power *= x) system[row][col] = power;
         system[row][4] = phi;
@@ -189,7 +243,7 @@ double BasisSampler::sample(std::size_t k, double u1, double u2) const {
     const double goal = u2 * table[kTable];
     const double root = std::sqrt(std::max(0.0, a[0] * a[0] + 2.0 * a[1] * goal));
     const double x = a[0] + root > 0.0 ? 2.0 * goal / (a[0] + root) : u2;
-    return piece.u0 + std::clamp(x, 0.0, 1.0) * piece.width;
+    return wrap(piece.u0 + std::clamp(x, 0.0, 1.0) * piece.width);
   }
   auto cdf = [&a](double x) { return x * (a[0] + x * (a[1] / 2 + x * (a[2] / 3 + x * (a[3] / 4)))); };
   auto density = [&a](double x) { return a[0] + x * (a[1] + x * (a[2] + x * a[3])); };
@@ -212,106 +266,166 @@ double BasisSampler::sample(std::size_t k, double u1, double u2) const {
     if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);
     x = next;
   }
-  return piece.u0 + std::clamp(x, 0.0, 1.0) * piece.width;
+  return wrap(piece.u0 + std::clamp(x, 0.0, 1.0) * piece.width);
+}
+
+double BasisSampler::wrap(double u) const {
+  // A periodic function's pieces may lie a period before u_begin or past u_end.
+  if (!periodic_ || (u >= u_begin_ && u < u_end_)) return u;
+  const double length = u_end_ - u_begin_;
+  const double wrapped = u < u_begin_ ? u + length : u - length;
+  return wrapped >= u_begin_ && wrapped < u_end_ ? wrapped : u_begin_;
 }
 
 double BasisSampler::pdf(std::size_t k, double u) const {
+  const double length = u_end_ - u_begin_;
   for (std::uint32_t i = first_piece_[k]; i < first_piece_[k + 1]; ++i) {
     const Piece& piece = pieces_[i];
-    if (u >= piece.u0 && u < piece.u0 + piece.width) {
-      const double x = (u - piece.u0) / piece.width;
-      const auto& a = piece.power;
-      return std::max(0.0, a[0] + x * (a[1] + x * (a[2] + x * a[3]))) / mass(k);
+    // On a periodic basis a piece may lie a period away from u.
+    for (const double shift : {0.0, -length, length}) {
+      if (shift != 0.0 && !periodic_) break;
+      const double v = u + shift;
+      if (v >= piece.u0 && v < piece.u0 + piece.width) {
+        const double x = (v - piece.u0) / piece.width;
+        const auto& a = piece.power;
+        return std::max(0.0, a[0] + x * (a[1] + x * (a[2] + x * a[3]))) / mass(k);
+      }
     }
   }
   return 0.0;
 }
 
-CurveStorage build_curve_storage(const Scene& scene, const Curve& curve, BasisKind kind,
-                                 int elements, bool smooth_joints, std::span<const MeshNode> extra) {
-  CurveStorage storage;
-  const std::uint32_t segment_count = curve.segment_count;
-  const int wanted = std::max(elements, 1);
+namespace {
 
+// The storage nodes of a curve for about `wanted` elements: joints, element boundaries, then the
+// extra nodes merged in. Returns the closing continuity (Jump on an open curve).
+Continuity place_nodes(const Scene& scene, const Curve& curve, int wanted, bool smooth_joints,
+                       std::span<const MeshNode> extra, std::vector<MeshNode>& nodes) {
+  const std::uint32_t segment_count = curve.segment_count;
+  nodes.clear();
   for (std::uint32_t i = 0; i < segment_count; ++i) {
     const SceneSegment& segment = scene.segments[curve.first_segment + i];
     if (i > 0)
-      storage.nodes.push_back(
-          {static_cast<double>(i), smooth_joints ? Continuity::C1 : curve.joints[i - 1]});
+      nodes.push_back({static_cast<double>(i), smooth_joints ? Continuity::C1 : curve.joints[i - 1]});
     const double share = wanted * segment.length / curve.length;
     const int pieces = std::max(1, static_cast<int>(std::lround(share)));
     for (int j = 1; j < pieces; ++j) {
       const double s = segment.length * j / pieces;
       const double t = segment.arc_length.parameter_at(segment.geometry.shape, s);
-      storage.nodes.push_back({i + t, Continuity::C1});
+      nodes.push_back({i + t, Continuity::C1});
     }
   }
+  Continuity closing = !curve.closed ? Continuity::Jump
+                       : smooth_joints ? Continuity::C1
+                                       : curve.joints.back();
   for (const MeshNode& node : extra) {
+    // A node at the closing point of a closed curve lowers the closing joint's continuity.
+    if (curve.closed && (std::fabs(node.u) <= 1e-9 || std::fabs(node.u - segment_count) <= 1e-9)) {
+      closing = std::min(closing, node.continuity);
+      continue;
+    }
     if (!(node.u > 0.0 && node.u < segment_count)) continue;
-    const auto at = std::lower_bound(
-        storage.nodes.begin(), storage.nodes.end(), node.u,
-        [](const MeshNode& a, double u) { return a.u < u; });
+    const auto at = std::lower_bound(nodes.begin(), nodes.end(), node.u,
+                                     [](const MeshNode& a, double u) { return a.u < u; });
     auto merge = [&](std::vector<MeshNode>::iterator existing) {
-      if (existing == storage.nodes.end() || std::fabs(existing->u - node.u) > 1e-9) return false;
+      if (existing == nodes.end() || std::fabs(existing->u - node.u) > 1e-9) return false;
       existing->continuity = std::min(existing->continuity, node.continuity);
       return true;
     };
-    if (merge(at) || (at != storage.nodes.begin() && merge(at - 1))) continue;
-    storage.nodes.insert(at, node);
+    if (merge(at) || (at != nodes.begin() && merge(at - 1))) continue;
+    nodes.insert(at, node);
   }
-  storage.basis = SplineBasis(degree_of(kind), 0.0, static_cast<double>(segment_count),
-                              storage.nodes);
+  return closing;
+}
+
+}  // namespace
+
+CurveStorage build_curve_storage(const Scene& scene, const Curve& curve, BasisKind kind,
+                                 int elements, bool smooth_joints, std::span<const MeshNode> extra) {
+  CurveStorage storage;
+  const std::uint32_t segment_count = curve.segment_count;
+  const int degree = degree_of(kind);
+  int wanted = std::max(elements, 1);
+  storage.closing = place_nodes(scene, curve, wanted, smooth_joints, extra, storage.nodes);
+  if (storage.closing == Continuity::Jump) {
+    storage.basis = SplineBasis(degree, 0.0, static_cast<double>(segment_count), storage.nodes);
+  } else {
+    // Periodic: K knots in the period (with multiplicity). At least 2 degree + 2 of them keep
+    // every function distinct from its neighbours around the loop (a function never meets its
+    // own other end, and the mass matrix keeps its envelope): refine until there are.
+    auto knots_in_period = [&] {
+      int count = SplineBasis::multiplicity(degree, storage.closing);
+      for (const MeshNode& node : storage.nodes) count += SplineBasis::multiplicity(degree, node.continuity);
+      return count;
+    };
+    while (knots_in_period() < 2 * degree + 2) {
+      wanted *= 2;
+      storage.closing = place_nodes(scene, curve, wanted, smooth_joints, extra, storage.nodes);
+    }
+    storage.basis = SplineBasis::periodic(degree, 0.0, static_cast<double>(segment_count),
+                                          storage.nodes, storage.closing);
+  }
 
   // Integrals of phi_k |C'(u)| du: four 8-point Gauss-Legendre panels per span integrate the
   // polynomial-times-speed product to far below Monte Carlo noise.
   const int p = storage.basis.degree();
-  storage.basis_length.assign(storage.basis.size(), 0.0);
+  const std::size_t n = storage.basis.size();
+  storage.basis_length.assign(n, 0.0);
   for_each_quadrature_point(scene, curve, storage.basis,
-                            [&](double, double weight, std::size_t first, const auto& values) {
-                              for (int j = 0; j <= p; ++j)
-                                storage.basis_length[first + static_cast<std::size_t>(j)] +=
-                                    weight * values[static_cast<std::size_t>(j)];
+                            [&](double, double weight, const auto& index, const auto& values) {
+                              for (std::size_t j = 0; j <= static_cast<std::size_t>(p); ++j)
+                                storage.basis_length[index[j]] += weight * values[j];
                             });
   storage.sampler = BasisSampler(storage.basis);
 
-  // The banded mass matrix by the same quadrature, then its Cholesky factor in place. Row k keeps
-  // columns k - p .. k (B-splines more than p apart have disjoint supports).
-  const std::size_t width = static_cast<std::size_t>(p) + 1;
-  const std::size_t n = storage.basis.size();
-  std::vector<double>& band = storage.mass_cholesky;
-  band.assign(n * width, 0.0);
-  auto entry = [&](std::size_t row, std::size_t col) -> double& {  // col <= row, row - col <= p
-    return band[row * width + (col + static_cast<std::size_t>(p) - row)];
+  // The mass matrix by the same quadrature, in envelope storage (row k from column
+  // mass_first[k]), then its Cholesky factor in place: L has the same envelope as M. B-splines
+  // more than p apart have disjoint supports, so a clamped basis is banded; on a periodic one the
+  // functions straddling the closing point (the first p) meet the last p, whose rows then reach
+  // back to column 0.
+  const auto pu = static_cast<std::size_t>(p);
+  storage.mass_first.assign(n, 0);
+  storage.mass_offset.assign(n + 1, 0);
+  for (std::size_t row = 0; row < n; ++row) {
+    const bool wraps = storage.basis.is_periodic() && row + pu >= n;
+    storage.mass_first[row] = wraps || row < pu ? 0 : row - pu;
+    storage.mass_offset[row + 1] = storage.mass_offset[row] + (row - storage.mass_first[row] + 1);
+  }
+  std::vector<double>& envelope = storage.mass_cholesky;
+  envelope.assign(storage.mass_offset[n], 0.0);
+  auto entry = [&](std::size_t row, std::size_t col) -> double& {  // mass_first[row] <= col <= row
+    return envelope[storage.mass_offset[row] + col - storage.mass_first[row]];
   };
   for_each_quadrature_point(scene, curve, storage.basis,
-                            [&](double, double weight, std::size_t first, const auto& values) {
-                              for (int i = 0; i <= p; ++i)
-                                for (int j = 0; j <= i; ++j)
-                                  entry(first + static_cast<std::size_t>(i),
-                                        first + static_cast<std::size_t>(j)) +=
-                                      weight * values[static_cast<std::size_t>(i)] *
-                                      values[static_cast<std::size_t>(j)];
+                            [&](double, double weight, const auto& index, const auto& values) {
+                              for (std::size_t i = 0; i <= pu; ++i)
+                                for (std::size_t j = 0; j <= pu; ++j)
+                                  if (index[j] <= index[i])
+                                    entry(index[i], index[j]) += weight * values[i] * values[j];
                             });
-  // Banded Cholesky: L_kk = sqrt(M_kk - sum L_kj^2), L_ik = (M_ik - sum L_ij L_kj) / L_kk.
+  // Envelope Cholesky: L_kk = sqrt(M_kk - sum L_kj^2), L_ik = (M_ik - sum L_ij L_kj) / L_kk, the
+  // sums over the columns both rows hold.
   for (std::size_t row = 0; row < n; ++row) {
-    const std::size_t start = row >= static_cast<std::size_t>(p) ? row - static_cast<std::size_t>(p) : 0;
-    for (std::size_t col = start; col <= row; ++col) {
+    for (std::size_t col = storage.mass_first[row]; col <= row; ++col) {
       double sum = entry(row, col);
-      const std::size_t inner = std::max(start, col >= static_cast<std::size_t>(p) ? col - static_cast<std::size_t>(p) : 0);
+      const std::size_t inner = std::max(storage.mass_first[row], storage.mass_first[col]);
       for (std::size_t j = inner; j < col; ++j) sum -= entry(row, j) * entry(col, j);
       entry(row, col) = col == row ? std::sqrt(std::max(sum, 0.0)) : sum / entry(col, col);
     }
   }
-  // Speed bound over each basis function's support: the largest bound of the segments it touches.
-  storage.speed_bound.assign(storage.basis.size(), 0.0);
+  // Speed bound over each basis function's support: the largest bound of the segments it touches
+  // (on a periodic basis the support may reach a period before or after [0, segment_count)).
+  storage.speed_bound.assign(n, 0.0);
   const std::vector<double>& knots = storage.basis.knots();
-  for (std::size_t k = 0; k < storage.basis.size(); ++k) {
+  const double period = static_cast<double>(segment_count);
+  for (std::size_t k = 0; k < n; ++k) {
     const double begin = knots[k];
-    const double end = knots[k + static_cast<std::size_t>(storage.basis.degree()) + 1];
+    const double end = knots[k + pu + 1];
     for (std::uint32_t i = 0; i < segment_count; ++i)
-      if (i + 1.0 > begin && i < end)
-        storage.speed_bound[k] = std::max(storage.speed_bound[k],
-                                          scene.segments[curve.first_segment + i].speed_bound);
+      for (const double shift : {0.0, -period, period})
+        if ((shift == 0.0 || storage.basis.is_periodic()) && i + 1.0 + shift > begin && i + shift < end)
+          storage.speed_bound[k] = std::max(storage.speed_bound[k],
+                                            scene.segments[curve.first_segment + i].speed_bound);
   }
   return storage;
 }
@@ -322,11 +436,10 @@ std::vector<double> project_emittance_profile(const Scene& scene, const Curve& c
   // The same quadrature as basis_length, with the profile (a cubic in t) in the integrand.
   std::vector<double> result(storage.basis.size(), 0.0);
   for_each_quadrature_point(scene, curve, storage.basis,
-                            [&](double u, double weight, std::size_t first, const auto& values) {
+                            [&](double u, double weight, const auto& index, const auto& values) {
                               const double emitted = weight * emittance_factor(curve, u);
-                              for (int j = 0; j <= storage.basis.degree(); ++j)
-                                result[first + static_cast<std::size_t>(j)] +=
-                                    emitted * values[static_cast<std::size_t>(j)];
+                              for (std::size_t j = 0; j <= static_cast<std::size_t>(storage.basis.degree()); ++j)
+                                result[index[j]] += emitted * values[j];
                             });
   return result;
 }
@@ -334,22 +447,19 @@ std::vector<double> project_emittance_profile(const Scene& scene, const Curve& c
 void galerkin_estimate(const CurveStorage& storage, const double* deposits, double* coefficients,
                        std::size_t stride) {
   const std::size_t n = storage.basis.size();
-  const auto p = static_cast<std::size_t>(storage.basis.degree());
-  const std::size_t width = p + 1;
-  auto factor = [&](std::size_t row, std::size_t col) {
-    return storage.mass_cholesky[row * width + (col + p - row)];
+  auto factor = [&](std::size_t row, std::size_t col) {  // mass_first[row] <= col <= row
+    return storage.mass_cholesky[storage.mass_offset[row] + col - storage.mass_first[row]];
   };
-  // Forward substitution L y = d, then back substitution L^T b = y.
+  // Forward substitution L y = d by rows, then back substitution L^T b = y by columns of L.
   std::vector<double> x(n);
   for (std::size_t row = 0; row < n; ++row) {
     double sum = deposits[row * stride];
-    for (std::size_t col = row >= p ? row - p : 0; col < row; ++col) sum -= factor(row, col) * x[col];
+    for (std::size_t col = storage.mass_first[row]; col < row; ++col) sum -= factor(row, col) * x[col];
     x[row] = sum / factor(row, row);
   }
   for (std::size_t row = n; row-- > 0;) {
-    double sum = x[row];
-    for (std::size_t k = row + 1; k < n && k <= row + p; ++k) sum -= factor(k, row) * x[k];
-    x[row] = sum / factor(row, row);
+    x[row] /= factor(row, row);
+    for (std::size_t col = storage.mass_first[row]; col < row; ++col) x[col] -= factor(row, col) * x[row];
   }
   // Clamp and renormalise so the power in the function equals the power deposited.
   double deposited = 0.0;

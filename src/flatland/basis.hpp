@@ -39,18 +39,41 @@ class SplineBasis {
   static constexpr int kMaxDegree = 3;
 
   SplineBasis() = default;
-  // Breakpoints run from u_begin to u_end; `nodes` are the interior ones, increasing.
+  // Breakpoints run from u_begin to u_end; `nodes` are the interior ones, increasing. The basis is
+  // clamped at both ends (degree + 1 knots there): the curve's ends are C-1.
   SplineBasis(int degree, double u_begin, double u_end, std::span<const MeshNode> nodes);
+  // A periodic basis on [u_begin, u_end) for a closed curve: u_end is u_begin again, with the
+  // continuity `closing` there (not Jump: that is the clamped basis). With K knots in a period
+  // (the closing knot and the nodes, counted with multiplicity) there are K functions; those of
+  // the first `degree` spans straddle the closing point. Needs K >= degree + 1.
+  static SplineBasis periodic(int degree, double u_begin, double u_end,
+                              std::span<const MeshNode> nodes, Continuity closing);
 
   int degree() const { return degree_; }
   std::size_t size() const { return size_; }
+  bool is_periodic() const { return periodic_; }
+  // The knot vector. Clamped: size() + degree + 1 knots. Periodic: the knots of one period
+  // extended by `degree` knots on each side (shifted by the period), size() + 2 degree + 1 knots;
+  // function k is supported on [knots[k], knots[k + degree + 1]], wrapped into [u_begin, u_end).
   const std::vector<double>& knots() const { return knots_; }
-  double u_begin() const { return knots_.front(); }
-  double u_end() const { return knots_.back(); }
+  double u_begin() const { return knots_[static_cast<std::size_t>(degree_)]; }
+  double u_end() const { return knots_[end_span()]; }
+  // The spans (indices into knots()) that cover [u_begin, u_end): [first_span(), end_span()).
+  std::size_t first_span() const { return static_cast<std::size_t>(degree_); }
+  std::size_t end_span() const { return periodic_ ? size_ + static_cast<std::size_t>(degree_) : size_; }
+  // The index of function first + j (j <= degree) as returned by evaluate: wraps on a periodic
+  // basis.
+  std::size_t index(std::size_t i) const { return i >= size_ ? i - size_ : i; }
+  // u wrapped into [u_begin, u_end) on a periodic basis, clamped on a clamped one.
+  double wrap(double u) const;
 
-  // The degree+1 basis functions that may be nonzero at u (clamped into [u_begin, u_end]):
-  // writes phi_first(u) .. phi_(first+degree)(u) into values and returns first.
+  // The degree+1 basis functions that may be nonzero at u (clamped into [u_begin, u_end], or
+  // wrapped on a periodic basis): writes phi_first(u) .. phi_(first+degree)(u) into values and
+  // returns first; function first + j is index(first + j).
   std::size_t evaluate(double u, double* values) const;
+  // The same in a given span (knots[span] <= u <= knots[span + 1], u not wrapped): the functions
+  // span - degree .. span of the extended numbering (index() maps them to the basis).
+  void evaluate_in_span(std::size_t span, double u, double* values) const;
 
   // The multiplicity a node of the given continuity gets in a spline of this degree.
   static int multiplicity(int degree, Continuity continuity);
@@ -60,6 +83,7 @@ class SplineBasis {
 
   int degree_ = 0;
   std::size_t size_ = 0;
+  bool periodic_ = false;
   std::vector<double> knots_;
 };
 
@@ -71,7 +95,8 @@ class BasisSampler {
   BasisSampler() = default;
   explicit BasisSampler(const SplineBasis& basis);
 
-  // u1 chooses the piece, u2 the place inside it (both uniform in [0,1)).
+  // u1 chooses the piece, u2 the place inside it (both uniform in [0,1)). On a periodic basis u is
+  // wrapped into [u_begin, u_end).
   double sample(std::size_t k, double u1, double u2) const;
   // The density phi_k(u) / integral(phi_k du).
   double pdf(std::size_t k, double u) const;
@@ -89,6 +114,10 @@ class BasisSampler {
     std::array<double, 9> table{};
   };
   static constexpr int kTable = 8;
+  double wrap(double u) const;  // into [u_begin, u_end) on a periodic basis
+  bool periodic_ = false;
+  double u_begin_ = 0.0;
+  double u_end_ = 1.0;
   std::vector<std::uint32_t> first_piece_;  // pieces of k: [first_piece_[k], first_piece_[k+1])
   std::vector<Piece> pieces_;
 };
@@ -101,9 +130,16 @@ struct CurveStorage {
   std::vector<MeshNode> nodes;       // interior nodes (joints and element boundaries)
   BasisSampler sampler;              // u with density phi_k(u) in the curve parameter
   std::vector<double> speed_bound;   // >= |C'(u)| over the support of phi_k
-  // Cholesky factor of the mass matrix M_kl = integral(phi_k phi_l ds), banded with half-width
-  // `degree`: row k holds L_(k, k-degree) .. L_(k, k) in band[k * (degree + 1) ...].
+  // A closed curve's storage is periodic (basis.is_periodic()) unless its closing joint is a jump;
+  // `closing` is the continuity at the closing point (Jump on open curves).
+  Continuity closing = Continuity::Jump;
+  // Cholesky factor L of the mass matrix M_kl = integral(phi_k phi_l ds) in envelope storage: row
+  // k holds L_(k, mass_first[k]) .. L_(k, k) from mass_cholesky[mass_offset[k]]. Banded with
+  // half-width `degree` on a clamped basis; on a periodic one the last `degree` rows also reach
+  // back to column 0 (the functions that straddle the closing point), and so does L.
   std::vector<double> mass_cholesky;
+  std::vector<std::size_t> mass_first;
+  std::vector<std::size_t> mass_offset;
 };
 
 // integral(phi_k(u) E(u) ds) for every k, with E the curve's emittance profile factor (one
@@ -120,12 +156,14 @@ void galerkin_estimate(const CurveStorage& storage, const double* deposits, doub
                        std::size_t stride);
 
 // About `elements` elements per curve, shared among its segments in proportion to their arc
-// length (at least one each) and of equal arc length within a segment. Joints take the curve's
+// length (at least one each) and of equal arc length within a segment. A closed curve whose
+// closing joint is not a jump gets a periodic basis, with enough elements that no function
+// overlaps itself around the loop (at least 2 degree + 2 knots in the period). Joints take the curve's
 // joint continuity (or `smooth_joints`: all C1, the no-discontinuity baseline); element
 // boundaries inside a segment are C1 (the most a piecewise cubic with selected discontinuities
 // offers). `extra` nodes (increasing u, inside the curve) are added with their own continuity; one
 // that falls on an existing node within 1e-9 of the curve parameter lowers that node's continuity
-// instead.
+// instead (on a closed curve, one at u = 0 or u = segment_count lowers the closing joint's).
 CurveStorage build_curve_storage(const Scene& scene, const Curve& curve, BasisKind kind,
                                  int elements, bool smooth_joints = false,
                                  std::span<const MeshNode> extra = {});

@@ -131,7 +131,7 @@ void deposit_point(const SplineBasis& basis, double u, std::vector<FootprintWeig
   const std::size_t first = basis.evaluate(u, phi.data());
   for (int r = 0; r <= basis.degree(); ++r) {
     const auto j = static_cast<std::size_t>(r);
-    if (phi[j] > 0.0) out.push_back({first + j, phi[j]});
+    if (phi[j] > 0.0) out.push_back({basis.index(first + j), phi[j]});
   }
   const bool ok = normalise_appended(out, begin);
   assert(ok);  // B-splines sum to one at every u
@@ -329,16 +329,24 @@ double footprint_half_length(double width, double cos_incidence) {
 void footprint_weights(const Scene& scene, const Curve& curve, const SplineBasis& basis,
                        double u_hit, double half_length, RayProfile profile,
                        std::vector<FootprintWeight>& out) {
-  // Plan. In arc length s from the curve's start the spread is k((s - s_hit)/a)/a on
-  // [s_hit - a, s_hit + a], cut to the run of tangent-continuous segments around the hit. In the
-  // curve parameter u, ds = |C'(u)| du, so
-  //   w_k = integral k(delta(u)/a) phi_k(u) |C'(u)| du / a,  delta(u) = s(u) - s_hit,
-  // over [u0, u1], the interval's image. It is split where the integrand is not smooth: knots
-  // (phi_k), segment joints (|C'|), and u_hit (the tent's kink); the ends of the footprint (box,
-  // Gaussian jumps) are u0 and u1. Each piece gets Gauss-Legendre panels. delta is carried from
-  // piece to piece: exactly linear on lines, integrated spectrally on cubics (kIntegrate8), and
-  // reset to 0 at u_hit. The constant 1/a is dropped: the weights are normalised at the end,
-  // which makes them sum to 1 whatever was cut off.
+  // Plan. Offsets x = s - s_hit along the receiver's arc length. The run is the stretch of
+  // tangent-continuous segments around the hit, [X0, X1] in x; on a closed curve it may continue
+  // across the closing point (x then runs past the curve's length and wraps), and a closed curve
+  // that is smooth all round has no ends at all. The spread is k(x / a) / a on [-a, a]. What
+  // would fall beyond an end of the run is reflected about that end (the image k((x - 2 X0) / a)
+  // on [X0, 2 X0 + a], likewise at X1): every image point lies at the same distance from the end
+  // as the mass it replaces, so energy is exact and a uniform incident flux gives a uniform
+  // deposit up to the end (renormalising instead piles the cut-off mass up near it: ln 2 of the
+  // truth at the end for a box). A run shorter than the footprint would need images of images;
+  // the one reflection at each end is then renormalised.
+  //
+  // Each image interval is cut where it wraps into pieces that lie within the curve, and on each
+  // piece, in the curve parameter u (ds = |C'(u)| du),
+  //   w_k += integral k((x(u) - c) / a) phi_k(u) |C'(u)| du,  c the image's centre,
+  // split where the integrand is not smooth: knots (phi_k), segment joints (|C'|), and the
+  // centre (the tent's kink). Each part gets Gauss-Legendre panels. x is carried from part to part:
+  // exactly linear on lines, integrated spectrally on cubics (kIntegrate8), and reset to c at the
+  // centre. The constant 1/a is dropped: the weights are normalised at the end.
   const std::uint32_t count = curve.segment_count;
   assert(count > 0 && std::isfinite(u_hit));
   // fmax/fmin also send a NaN to the curve's start instead of into an index.
@@ -351,6 +359,7 @@ void footprint_weights(const Scene& scene, const Curve& curve, const SplineBasis
   const SceneSegment* segments = scene.segments.data() + curve.first_segment;
   const std::vector<double>& start = curve.segment_start;
   const double a = half_length;
+  const double total = curve.length;
 
   // Arc length within segment j at parameter t, and its inverse: closed form on lines.
   auto length_in = [segments](std::uint32_t j, double t) {
@@ -367,130 +376,199 @@ void footprint_weights(const Scene& scene, const Curve& curve, const SplineBasis
   };
 
   const double t_hit = u_hit - hit;
-  const double s_hit = start[hit] + length_in(hit, t_hit);
+  const double into_hit = length_in(hit, t_hit);  // from the hit segment's start
+  const double s_hit = start[hit] + into_hit;
 
-  // The run: step over joints while the footprint reaches past them and they are smooth.
-  std::uint32_t first = hit;
-  while (first > 0 && start[first] > s_hit - a && is_tangent_continuous(scene, curve, first - 1))
-    --first;
-  std::uint32_t last = hit;
-  while (last + 1 < count && start[last + 1] < s_hit + a && is_tangent_continuous(scene, curve, last))
-    ++last;
+  // The run, walking over smooth joints (the closing one too, on a closed curve) while the
+  // footprint reaches past them. `before` and `after` are the run's lengths on each side of the
+  // hit; infinite when the walk comes all the way round.
+  auto smooth = [&](std::uint32_t joint) { return is_tangent_continuous(scene, curve, joint); };
+  double before = into_hit;
+  double after = segments[hit].length - into_hit;
+  bool endless = false;
+  {
+    std::uint32_t j = hit;
+    std::uint32_t steps = 0;
+    while (before < a) {
+      const bool wraps = j == 0;
+      if (wraps && !curve.closed) break;
+      const std::uint32_t previous = wraps ? count - 1 : j - 1;
+      if (!smooth(previous)) break;
+      if (++steps > count) { endless = true; break; }
+      j = previous;
+      before += segments[j].length;
+    }
+    j = hit;
+    steps = 0;
+    while (!endless && after < a) {
+      const bool wraps = j + 1 == count;
+      if (wraps && !curve.closed) break;
+      if (!smooth(j)) break;
+      if (++steps > count) { endless = true; break; }
+      j = wraps ? 0 : j + 1;
+      after += segments[j].length;
+    }
+  }
+  // The run's ends within reach (one lap each way around a flat endless loop).
+  const double reach = endless && a > 32.0 * total ? 0.5 * total : a;
+  const double x0 = endless ? -reach : std::fmax(-before, -a);
+  const double x1 = endless ? reach : std::fmin(after, a);
+  const bool cut_low = !endless && before < a;
+  const bool cut_high = !endless && after < a;
 
-  // The interval's ends in u, and delta at the lower end. Within the hit segment of a line the
-  // ends are u_hit -+ a/L directly, which keeps tiny footprints accurate.
+  // u at offset x from the hit, in lap n of the curve (s = s_hit + x - n length, within the
+  // curve); `at_end` picks the end of the previous segment (or of the curve) for a point on a
+  // joint. On the hit segment of a line u is u_hit + x / L directly, which keeps tiny footprints
+  // accurate.
   const bool hit_is_line = segments[hit].geometry.kind == SegmentKind::Line;
-  double u0;
-  double delta0;
-  if (start[first] >= s_hit - a) {
-    u0 = first;
-    delta0 = start[first] - s_hit;
-  } else {
-    delta0 = -a;
-    u0 = first == hit && hit_is_line
-             ? std::fmax(u_hit - a / segments[hit].length, static_cast<double>(hit))
-             : first + parameter_in(first, s_hit - a - start[first]);
-  }
-  double u1;
-  if (start[last + 1] <= s_hit + a) {
-    u1 = last + 1.0;
-  } else {
-    u1 = last == hit && hit_is_line
-             ? std::fmin(u_hit + a / segments[hit].length, hit + 1.0)
-             : last + parameter_in(last, s_hit + a - start[last]);
-  }
-  u0 = std::fmin(u0, u_hit);
-  u1 = std::fmax(u1, u_hit);
-  if (!(u1 > u0)) {  // too small to resolve in u
-    deposit_point(basis, u_hit, out);
-    return;
-  }
+  auto u_at = [&](double x, bool at_end, double n) {
+    if (n == 0.0 && hit_is_line && x >= -into_hit && x <= segments[hit].length - into_hit)
+      return std::clamp(u_hit + x / segments[hit].length, static_cast<double>(hit), hit + 1.0);
+    const double s = std::clamp(s_hit + x - n * total, 0.0, total);
+    const auto it = std::upper_bound(start.begin(), start.begin() + count, s);
+    auto j = static_cast<std::uint32_t>(std::max<std::ptrdiff_t>(0, (it - start.begin()) - 1));
+    if (at_end && j > 0 && s == start[j]) --j;  // the end of the previous segment
+    return j + parameter_in(j, s - start[j]);
+  };
 
-  const double inverse_a = 1.0 / a;  // 0 for an infinite footprint: a flat spread
   const bool polynomial_profile = profile == RayProfile::Box || profile == RayProfile::Tent ||
                                   profile == RayProfile::Epanechnikov;
+  // 0 for an infinite footprint: a flat spread. A closed smooth curve that the footprint would
+  // wrap round more than 64 times gets the flat spread too (its periodic sum is flat to 2 %).
+  const bool flat = endless && a > 32.0 * total;
+  const double inverse_a = flat ? 0.0 : 1.0 / a;
   // The Gaussian changes fastest: its panels span at most half the footprint (x-width 1/2), where
   // eight points reach about 1e-14 (a whole half, x-width 1, would give about 1e-9).
   auto profile_panels = [&](double x_width) {
     return profile == RayProfile::Gauss ? std::max(1, static_cast<int>(std::ceil(2.0 * x_width)))
                                         : 1;
   };
-  Accumulator accumulate(basis, out);
   const std::vector<double>& knots = basis.knots();
-  auto next_knot = std::upper_bound(knots.begin(), knots.end(), u0);
-  const auto first_span = static_cast<std::size_t>(basis.degree());
+  const std::size_t begin = out.size();
+  bool several = false;  // more than one piece appended: merge before normalising
 
-  double ua = u0;
-  double delta_a = delta0;
-  while (ua < u1) {
-    // The piece [ua, ub]: up to the next knot, joint, u_hit or u1, whichever comes first.
-    double ub = u1;
-    if (next_knot != knots.end()) ub = std::min(ub, *next_knot);
-    ub = std::min(ub, std::floor(ua) + 1.0);
-    if (ua < u_hit) ub = std::min(ub, u_hit);
-    const std::uint32_t j = std::min(static_cast<std::uint32_t>(ua), count - 1);
-    const SceneSegment& segment = segments[j];
-    const double jd = j;
-    // The knot span holding the piece: knots[span] <= ua < ub <= knots[span + 1] = *next_knot
-    // (clamped to the basis' spans, which cover [0, segment_count] in a curve's storage).
-    accumulate.enter_span(std::clamp(static_cast<std::size_t>(next_knot - knots.begin()),
-                                     first_span + 1, basis.size()) - 1);
+  // Integrates the image centred at c over the piece of offsets [xa, xb] that lies within lap n
+  // of the curve, from u0 to u1.
+  auto integrate_piece = [&](double xa, double xb, double c, double n) {
+    double u0 = u_at(xa, false, n);
+    double u1 = u_at(xb, true, n);
+    const bool has_centre = c > xa && c < xb;
+    const double u_centre = has_centre ? (c == 0.0 && n == 0.0 ? u_hit : u_at(c, false, n)) : -1.0;
+    if (has_centre) {
+      u0 = std::fmin(u0, u_centre);
+      u1 = std::fmax(u1, u_centre);
+    }
+    if (!(u1 > u0)) return;
+    if (out.size() > begin) several = true;
+    Accumulator accumulate(basis, out);
+    auto next_knot = std::upper_bound(knots.begin(), knots.end(), u0);
+    double ua = u0;
+    double delta_a = xa - c;
+    while (ua < u1) {
+      // The part [ua, ub]: up to the next knot, joint, centre or u1, whichever comes first.
+      double ub = u1;
+      if (next_knot != knots.end()) ub = std::min(ub, *next_knot);
+      ub = std::min(ub, std::floor(ua) + 1.0);
+      if (has_centre && ua < u_centre) ub = std::min(ub, u_centre);
+      const std::uint32_t j = std::min(static_cast<std::uint32_t>(ua), count - 1);
+      const SceneSegment& segment = segments[j];
+      const double jd = j;
+      // The knot span holding the part: knots[span] <= ua < ub <= knots[span + 1] = *next_knot
+      // (clamped to the spans that cover [u_begin, u_end)).
+      accumulate.enter_span(std::clamp(static_cast<std::size_t>(next_knot - knots.begin()),
+                                       basis.first_span() + 1, basis.end_span()) - 1);
 
-    if (segment.geometry.kind == SegmentKind::Line) {
-      // Constant speed L: delta(u) = delta_a + (u - ua) L exactly.
-      const double speed = segment.length;
-      const int panels = polynomial_profile ? 1 : profile_panels((ub - ua) * speed * inverse_a);
-      const double width = (ub - ua) / panels;
-      const double half = 0.5 * width;
-      for (int panel = 0; panel < panels; ++panel) {
-        const double pa = ua + panel * width;
-        const double mid = pa + half;
-        const double delta_pa = delta_a + panel * width * speed;
-        auto node = [&](double x, double w) {
-          const double delta = delta_pa + half * (1.0 + x) * speed;
-          const double offset = std::clamp(delta * inverse_a, -1.0, 1.0);
-          accumulate.add(mid + half * x, w * half * speed * density_inside(profile, offset));
-        };
-        if (polynomial_profile) {
-          for (std::size_t g = 0; g < 3; ++g) node(kNodes3[g], kWeights3[g]);
-        } else {
-          for (std::size_t g = 0; g < 8; ++g) node(kNodes8[g], kWeights8[g]);
+      if (segment.geometry.kind == SegmentKind::Line) {
+        // Constant speed L: delta(u) = delta_a + (u - ua) L exactly.
+        const double speed = segment.length;
+        const int panels = polynomial_profile ? 1 : profile_panels((ub - ua) * speed * inverse_a);
+        const double width = (ub - ua) / panels;
+        const double half = 0.5 * width;
+        for (int panel = 0; panel < panels; ++panel) {
+          const double pa = ua + panel * width;
+          const double mid = pa + half;
+          const double delta_pa = delta_a + panel * width * speed;
+          auto node = [&](double x, double w) {
+            const double delta = delta_pa + half * (1.0 + x) * speed;
+            const double offset = std::clamp(delta * inverse_a, -1.0, 1.0);
+            accumulate.add(mid + half * x, w * half * speed * density_inside(profile, offset));
+          };
+          if (polynomial_profile) {
+            for (std::size_t g = 0; g < 3; ++g) node(kNodes3[g], kWeights3[g]);
+          } else {
+            for (std::size_t g = 0; g < 8; ++g) node(kNodes8[g], kWeights8[g]);
+          }
+        }
+        delta_a += (ub - ua) * speed;
+      } else {
+        const Cubic& shape = segment.geometry.shape;
+        // speed_bound >= |C'|, so the Gaussian's panels are at most half a footprint wide.
+        const int panels =
+            std::max(profile_panels((ub - ua) * segment.speed_bound * inverse_a),
+                     static_cast<int>(std::ceil((ub - ua) / kMaxCubicPanel)));
+        const double width = (ub - ua) / panels;
+        const double half = 0.5 * width;
+        for (int panel = 0; panel < panels; ++panel) {
+          const double mid = ua + (panel + 0.5) * width;
+          std::array<double, 8> speed{};
+          for (std::size_t g = 0; g < 8; ++g)
+            speed[g] = length(derivative(shape, mid + half * kNodes8[g] - jd));
+          double panel_length = 0.0;
+          for (std::size_t g = 0; g < 8; ++g) {
+            double partial = 0.0;
+            for (std::size_t m = 0; m < 8; ++m) partial += kIntegrate8[g][m] * speed[m];
+            const double delta = delta_a + half * partial;
+            const double offset = std::clamp(delta * inverse_a, -1.0, 1.0);
+            accumulate.add(mid + half * kNodes8[g],
+                           kWeights8[g] * half * speed[g] * density_inside(profile, offset));
+            panel_length += kWeights8[g] * speed[g];
+          }
+          delta_a += half * panel_length;
         }
       }
-      delta_a += (ub - ua) * speed;
-    } else {
-      const Cubic& shape = segment.geometry.shape;
-      // speed_bound >= |C'|, so the Gaussian's panels are at most half a footprint wide.
-      const int panels =
-          std::max(profile_panels((ub - ua) * segment.speed_bound * inverse_a),
-                   static_cast<int>(std::ceil((ub - ua) / kMaxCubicPanel)));
-      const double width = (ub - ua) / panels;
-      const double half = 0.5 * width;
-      for (int panel = 0; panel < panels; ++panel) {
-        const double mid = ua + (panel + 0.5) * width;
-        std::array<double, 8> speed{};
-        for (std::size_t g = 0; g < 8; ++g)
-          speed[g] = length(derivative(shape, mid + half * kNodes8[g] - jd));
-        double panel_length = 0.0;
-        for (std::size_t g = 0; g < 8; ++g) {
-          double partial = 0.0;
-          for (std::size_t m = 0; m < 8; ++m) partial += kIntegrate8[g][m] * speed[m];
-          const double delta = delta_a + half * partial;
-          const double offset = std::clamp(delta * inverse_a, -1.0, 1.0);
-          accumulate.add(mid + half * kNodes8[g],
-                         kWeights8[g] * half * speed[g] * density_inside(profile, offset));
-          panel_length += kWeights8[g] * speed[g];
-        }
-        delta_a += half * panel_length;
+      if (has_centre && ub == u_centre) delta_a = 0.0;
+      ua = ub;
+      while (next_knot != knots.end() && *next_knot <= ua) ++next_knot;
+    }
+  };
+  // An image interval [xa, xb] cut into laps of the curve: pieces end where s_hit + x crosses a
+  // multiple of the length (only on a closed run).
+  auto integrate_image = [&](double xa, double xb, double c) {
+    if (!(xb > xa)) return;
+    if (!curve.closed) return integrate_piece(xa, xb, c, 0.0);
+    while (xa < xb) {
+      double n = std::floor((s_hit + xa) / total);
+      double lap_end = (n + 1.0) * total - s_hit;
+      if (!(lap_end > xa)) {  // xa rounded onto the lap's end: it starts the next lap
+        n += 1.0;
+        lap_end += total;
+      }
+      const double xe = std::fmin(xb, lap_end);
+      integrate_piece(xa, xe, c, n);
+      xa = xe;
+    }
+  };
+  integrate_image(x0, x1, 0.0);
+  if (cut_low) integrate_image(x0, std::fmin(2.0 * x0 + a, x1), 2.0 * x0);
+  if (cut_high) integrate_image(std::fmax(2.0 * x1 - a, x0), x1, 2.0 * x1);
+
+  // Wrapped indices on a periodic basis, and pieces naming the same coefficient, are merged.
+  if (basis.is_periodic() || several) {
+    for (std::size_t i = begin; i < out.size(); ++i) out[i].coefficient = basis.index(out[i].coefficient);
+    std::sort(out.begin() + static_cast<std::ptrdiff_t>(begin), out.end(),
+              [](const FootprintWeight& p, const FootprintWeight& q) { return p.coefficient < q.coefficient; });
+    std::size_t kept = begin;
+    for (std::size_t i = begin; i < out.size(); ++i) {
+      if (kept > begin && out[kept - 1].coefficient == out[i].coefficient) {
+        out[kept - 1].weight += out[i].weight;
+      } else {
+        out[kept++] = out[i];
       }
     }
-    if (ub == u_hit) delta_a = 0.0;
-    ua = ub;
-    while (next_knot != knots.end() && *next_knot <= ua) ++next_knot;
+    out.resize(kept);
   }
-
-  if (!normalise_appended(out, accumulate.begin())) {
-    out.resize(accumulate.begin());
+  if (!normalise_appended(out, begin)) {
+    out.resize(begin);
     deposit_point(basis, u_hit, out);
   }
 }

@@ -75,11 +75,14 @@ struct FootprintWeight {
 // residual goes to the largest weight) and name each coefficient once, in increasing order.
 //
 // The spread continues into a neighbouring segment only across a tangent-continuous joint (unit
-// tangents within 1e-9 radians, from the geometry, whatever continuity the storage mesh chose);
-// at a corner or at the curve's ends it is cut off and the rest renormalised on the hit side. A
-// hit exactly on a joint belongs to the segment that starts there. half_length = +infinity
-// spreads uniformly over the tangent-continuous run; half_length <= 0 or NaN, or a footprint too
-// small to resolve in u, deposits at the point (weights phi_k(u_hit)), the limit a -> 0.
+// tangents within 1e-9 radians, from the geometry, whatever continuity the storage mesh chose),
+// on a closed curve across its closing point too, all round a loop that is smooth everywhere. At
+// a corner or at the curve's ends the part that would fall beyond is reflected back about that
+// end: energy stays exact, a uniform incident flux is deposited uniformly right up to the end,
+// and a linear one with an error O(W^2) in every coefficient. A hit exactly on a joint belongs to
+// the segment that starts there. half_length = +infinity spreads uniformly over the
+// tangent-continuous run; half_length <= 0 or NaN, or a footprint too small to resolve in u,
+// deposits at the point (weights phi_k(u_hit)), the limit a -> 0.
 //
 // Allocation-free apart from growing `out` (the caller clears and reuses it).
 void footprint_weights(const Scene& scene, const Curve& curve, const SplineBasis& basis,

@@ -84,21 +84,30 @@ Status check_hermite_input(const HermiteInput& input) {
 HermiteReconstruction::HermiteReconstruction(const HermiteInput& input) {
   assert(check_hermite_input(input).ok());
   const std::size_t n = input.u.size() - 1;  // pieces; piece i spans [u_i, u_(i+1)]
+  // Neighbouring pieces; on a periodic input piece n - 1 is followed by piece 0 (node n is node 0).
+  const bool periodic = input.periodic;
+  const auto before = [&](std::size_t i) { return i == 0 ? n - 1 : i - 1; };
+  const auto after = [&](std::size_t i) { return i + 1 == n ? 0 : i + 1; };
   // A node whose slope is shared by its two pieces.
   const auto smooth = [&](std::size_t node) {
+    if (periodic) return input.continuity[node == n ? 0 : node] == Continuity::C1;
     return node > 0 && node < n && input.continuity[node] == Continuity::C1;
   };
+  // At the closing node of a periodic input both sides are one value unless it is a jump.
+  const bool closing_joined = periodic && input.continuity[0] != Continuity::Jump;
   // Values: negative inputs (a noisy estimate, a Galerkin solve) are clamped to zero first, so the
   // positivity filter below has nonnegative data to work with. At C0 and C1 nodes one value is
   // used on both sides (the mean, should left and right differ); at a jump each side keeps its own.
   const auto value_from_right = [&](std::size_t node) {  // the start value of piece `node`
     const double right = std::max(input.right[node], 0.0);
-    if (node == 0 || input.continuity[node] == Continuity::Jump) return right;
+    if (node == 0) return closing_joined ? 0.5 * (std::max(input.left[n], 0.0) + right) : right;
+    if (input.continuity[node] == Continuity::Jump) return right;
     return 0.5 * (std::max(input.left[node], 0.0) + right);
   };
   const auto value_from_left = [&](std::size_t node) {  // the end value of piece `node - 1`
     const double left = std::max(input.left[node], 0.0);
-    if (node == n || input.continuity[node] == Continuity::Jump) return left;
+    if (node == n) return closing_joined ? 0.5 * (left + std::max(input.right[0], 0.0)) : left;
+    if (input.continuity[node] == Continuity::Jump) return left;
     return 0.5 * (left + std::max(input.right[node], 0.0));
   };
 
@@ -115,16 +124,18 @@ HermiteReconstruction::HermiteReconstruction(const HermiteInput& input) {
   // node is C1 (the data there are one smooth function), else the piece's own secant. The end
   // slope mirrors it. Both sides of a C1 node evaluate the same expression, so they agree exactly.
   for (std::size_t i = 0; i < n; ++i) {
+    const std::size_t b = before(i);
+    const std::size_t a = after(i);
     if (smooth(i))
-      d0[i] = slope_centred(h[i - 1], h[i], secant[i - 1], secant[i]);
+      d0[i] = slope_centred(h[b], h[i], secant[b], secant[i]);
     else if (smooth(i + 1))
-      d0[i] = slope_at_start(h[i], h[i + 1], secant[i], secant[i + 1]);
+      d0[i] = slope_at_start(h[i], h[a], secant[i], secant[a]);
     else
       d0[i] = secant[i];
     if (smooth(i + 1))
-      d1[i] = slope_centred(h[i], h[i + 1], secant[i], secant[i + 1]);
+      d1[i] = slope_centred(h[i], h[a], secant[i], secant[a]);
     else if (smooth(i))
-      d1[i] = slope_at_end(h[i - 1], h[i], secant[i - 1], secant[i]);
+      d1[i] = slope_at_end(h[b], h[i], secant[b], secant[i]);
     else
       d1[i] = secant[i];
   }
@@ -142,8 +153,8 @@ HermiteReconstruction::HermiteReconstruction(const HermiteInput& input) {
     const double lower = -3.0 * f0[i] / h[i];
     const double upper = 3.0 * f1[i] / h[i];
     if (smooth(i)) {
-      d0[i] = std::clamp(d0[i], lower, 3.0 * f0[i] / h[i - 1]);
-      d1[i - 1] = d0[i];
+      d0[i] = std::clamp(d0[i], lower, 3.0 * f0[i] / h[before(i)]);
+      d1[before(i)] = d0[i];
     } else {
       d0[i] = std::max(d0[i], lower);
     }
@@ -158,8 +169,8 @@ HermiteReconstruction::HermiteReconstruction(const HermiteInput& input) {
   // 3 / sqrt(alpha^2 + beta^2). Every step only shrinks slopes towards zero, so pieces already
   // treated (and the positivity bounds) stay satisfied when a shared slope shrinks later.
   if (input.monotone) {
-    for (std::size_t node = 1; node < n; ++node)
-      if (smooth(node) && !(secant[node - 1] * secant[node] > 0.0)) d0[node] = d1[node - 1] = 0.0;
+    for (std::size_t node = periodic ? 0 : 1; node < n; ++node)
+      if (smooth(node) && !(secant[before(node)] * secant[node] > 0.0)) d0[node] = d1[before(node)] = 0.0;
     for (std::size_t i = 0; i < n; ++i) {
       if (secant[i] == 0.0) {
         d0[i] = d1[i] = 0.0;
@@ -175,8 +186,8 @@ HermiteReconstruction::HermiteReconstruction(const HermiteInput& input) {
           d1[i] *= tau;
         }
       }
-      if (smooth(i)) d1[i - 1] = d0[i];
-      if (smooth(i + 1)) d0[i + 1] = d1[i];
+      if (smooth(i)) d1[before(i)] = d0[i];
+      if (smooth(i + 1)) d0[after(i)] = d1[i];
     }
   }
 

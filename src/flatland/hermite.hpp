@@ -33,6 +33,10 @@ struct HermiteInput {
   // node between secants of opposite sign (a local extremum of the data) gets a zero slope. Off by
   // default: it flattens the reconstruction at every extremum and costs accuracy there.
   bool monotone = false;
+  // A closed curve: node n is node 0 again (u_n = u_0 + the period), continuity[0] is the closing
+  // point's, and the pieces on both sides of it are neighbours (two-sided slopes there). Unless
+  // it is a jump, the value there is the mean of left[n] and right[0].
+  bool periodic = false;
 };
 
 // Sizes agree, nodes are finite and strictly increasing, values are finite (not NaN or infinite);

@@ -116,6 +116,13 @@ nlohmann::json result_to_json(const Solver& solver, int samples_per_curve) {
     }
     nlohmann::json& entry = curves[c];
     entry["degree"] = storage.basis.degree();
+    // A periodic basis (a closed curve smooth at its closing point) lists one period of knots
+    // extended by `degree` on each side; its functions wrap round (docs/result-format.md).
+    entry["periodic"] = storage.basis.is_periodic();
+    if (curve.closed)
+      entry["closing"] = storage.closing == Continuity::C1   ? "C1"
+                         : storage.closing == Continuity::C0 ? "C0"
+                                                             : "C-1";
     entry["knots"] = storage.basis.knots();
     entry["continuity"] = std::move(nodes);
     const std::vector<double> main = solver.radiosity_coefficients(c, main_side);

@@ -174,8 +174,9 @@ CurvePoint point_at_arc_length(const Scene& scene, const Curve& curve, double s)
 }
 
 bool is_tangent_continuous(const Scene& scene, const Curve& curve, std::uint32_t joint) {
+  const std::uint32_t next = joint + 1 == curve.segment_count ? 0 : joint + 1;  // closing joint
   const Cubic& a = scene.segments[curve.first_segment + joint].geometry.shape;
-  const Cubic& b = scene.segments[curve.first_segment + joint + 1].geometry.shape;
+  const Cubic& b = scene.segments[curve.first_segment + next].geometry.shape;
   return default_joint(a, b, scene.scale) == Continuity::C1;
 }
 
@@ -311,14 +312,26 @@ Status finalize_scene(Scene& scene) {
       c.profile_mean = integral / c.length;
     }
 
+    // Closed: the chain ends where it starts. Its closing point is a joint too (the last entry
+    // of `joints`); version-1 files meant a seam there, so their default is a jump.
+    c.closed = length(c.points.back() - c.points.front()) <= zero_length;
+    const std::size_t inner_joints = count - 1;
     if (c.joints.empty()) {
-      for (std::size_t j = 0; j + 1 < count; ++j) {
+      for (std::size_t j = 0; j < inner_joints; ++j) {
         c.joints.push_back(default_joint(shapes[j], shapes[j + 1], size));
       }
-    } else if (c.joints.size() != count - 1) {
+    } else if (c.joints.size() != inner_joints && !(c.closed && c.joints.size() == count)) {
       return fail(curve_path(i) + ".joints",
-                  "expected " + std::to_string(count - 1) + " entries (one per joint between the " +
-                      std::to_string(count) + " segments), got " + std::to_string(c.joints.size()));
+                  c.closed ? "expected " + std::to_string(count) + " entries (one per joint of the closed chain of " +
+                                 std::to_string(count) + (count == 1 ? " segment" : " segments") +
+                                 ", the last at the closing point) or " + std::to_string(inner_joints) +
+                                 " (the closing point by its tangents), got " + std::to_string(c.joints.size())
+                           : "expected " + std::to_string(inner_joints) + " entries (one per joint between the " +
+                                 std::to_string(count) + " segments), got " + std::to_string(c.joints.size()));
+    }
+    if (c.closed && c.joints.size() == inner_joints) {
+      c.joints.push_back(scene.format_version == 1 ? Continuity::Jump
+                                                   : default_joint(shapes[count - 1], shapes[0], size));
     }
   }
   scene.scale = scene.bounds.diagonal();

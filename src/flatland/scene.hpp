@@ -40,6 +40,9 @@ struct Emission {
   double half_angle = 1.5707963267948966;  // Beam, radians, in (0, pi/2]
 };
 
+// The scene file format version this program writes; it reads this one and version 1.
+inline constexpr int kSceneFormatVersion = 2;
+
 struct Material {
   std::string name;
   Spectrum reflectivity{0.0, 0.0, 0.0};  // each channel in [0,1)
@@ -53,8 +56,14 @@ struct Curve {
   SegmentKind kind = SegmentKind::Line;
   // The points as written: a polyline's vertices, or a Bezier chain's 3k+1 control points.
   std::vector<Vec2> points;
-  // Continuity at the joints between consecutive segments (segment_count - 1 entries).
+  // Continuity at the joints: joints[j] between segments j and j+1. An open curve has
+  // segment_count - 1 joints; a closed one (its last point is its first) has segment_count, the
+  // last being the closing point, between the last segment and the first.
   std::vector<Continuity> joints;
+  // The chain returns to its first point (within 1e-12 of the scene's size). Its storage is
+  // periodic unless the closing joint is a jump (a corner, or a version-1 scene file, where the
+  // closing point was always a seam).
+  bool closed = false;
   Sides sides = Sides::Front;
   Spectrum emittance{0.0, 0.0, 0.0};  // the material's, or the curve's own override
   // Optional grey factors of the emittance at the points (one per point): along a Bezier segment
@@ -67,6 +76,11 @@ struct Curve {
   std::uint32_t segment_count = 0;
   double length = 0.0;
   std::vector<double> segment_start;  // cumulative arc length at each segment start (+ total)
+
+  std::uint32_t joint_count() const { return closed ? segment_count : segment_count - 1; }
+  // Whether the storage wraps around the closing point (a closed curve whose closing joint is not
+  // a value jump).
+  bool periodic() const { return closed && joints.back() != Continuity::Jump; }
 
   bool has_side(Side s) const {
     return sides == Sides::Both || (s == Side::Front ? sides == Sides::Front : sides == Sides::Back);
@@ -92,6 +106,9 @@ struct Scene {
   std::vector<SceneSegment> segments;
   Box bounds;
   double scale = 1.0;  // bounding-box diagonal: every geometric tolerance is relative to it
+  // The scene format version the scene was read from (docs/scene-format.md); it decides what the
+  // closing point of a closed curve means by default (1: a seam; 2: a joint like the others).
+  int format_version = kSceneFormatVersion;
 
   const Material& material_of(const Curve& c) const { return materials[c.material]; }
   bool has_cubics() const;
@@ -113,8 +130,9 @@ struct CurvePoint {
 };
 CurvePoint point_at_arc_length(const Scene& scene, const Curve& curve, double s);
 
-// Whether the chain is tangent-continuous at joint j (between segments j and j+1 of the curve):
-// the unit tangents agree to 1e-9 radians. Corners are where it is not.
+// Whether the chain is tangent-continuous at joint j (between segments j and j+1 of the curve, the
+// last segment and the first for the closing joint of a closed curve): the unit tangents agree to
+// 1e-9 radians. Corners are where it is not.
 bool is_tangent_continuous(const Scene& scene, const Curve& curve, std::uint32_t joint);
 
 // Parse and validate a scene (format version 1, docs/scene-format.md). `source` names the text in
@@ -128,7 +146,8 @@ Result<Scene> load_scene(const std::string& path);
 // Build the derived data (segments, lengths, bounds, scale) from curves and materials that are
 // already filled in and valid; used by the parser and by code that edits a scene (the viewer).
 // Empty Curve::joints are filled with the default (C1 where the chain is tangent-continuous, a jump
-// at corners). Fails on zero-length segments and interior cusps; its messages start with the field
+// at corners); a closed curve given one joint fewer than its segments gets its closing joint's
+// default (by the tangent test; a jump when format_version is 1). Fails on zero-length segments and interior cusps; its messages start with the field
 // path as in a scene file ("curves[1].bezier[3]: segment 1 has a cusp at t = 0.5, ...").
 Status finalize_scene(Scene& scene);
 

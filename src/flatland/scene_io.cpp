@@ -561,13 +561,15 @@ class SceneReader {
 
   Scene read_scene(const Json& root) {
     if (!root.is_object()) {
-      fail("", "a scene file must be a JSON object {\"flatland\": 1, ...}, got " + type_name(root));
+      fail("", "a scene file must be a JSON object {\"flatland\": 2, ...}, got " + type_name(root));
     }
-    read_version(root);
+    const int version = read_version(root);
+    version_ = version;
     check_keys(root, "", {"flatland", "name", "description", "materials", "curves"});
 
     Scene scene;
     scene.source = source_;
+    scene.format_version = version;
     if (const auto it = root.find("name"); it != root.end()) {
       scene.name = text_value(*it, "name", "the scene's name");
     } else {
@@ -595,20 +597,21 @@ class SceneReader {
     return scene;
   }
 
-  void read_version(const Json& root) const {
+  int read_version(const Json& root) const {
     const auto it = root.find("flatland");
     if (it == root.end()) {
-      fail("", "missing \"flatland\": 1, the format version; this program reads version 1 "
+      fail("", "missing \"flatland\": 2, the format version; this program reads versions 1 and 2 "
                "(docs/scene-format.md)");
     }
     if (!it->is_number()) {
       fail("flatland", "expected the format version as a number (1), got " + type_name(*it));
     }
     const double version = it->get<double>();
-    if (version != 1.0) {
+    if (version != 1.0 && version != 2.0) {
       fail("flatland", "unsupported format version " + format_number(version) +
-                           "; this program reads version 1 only");
+                           "; this program reads versions 1 and 2 (docs/scene-format.md)");
     }
+    return static_cast<int>(version);
   }
 
   void read_materials(const Json& root, Scene& scene, bool& colour) {
@@ -737,7 +740,12 @@ class SceneReader {
     }
 
     if (const auto it = v.find("joints"); it != v.end()) {
-      curve.joints = read_joints(*it, path + ".joints", segments);
+      // A closed chain (last point = first, exactly as written) may also name its closing joint;
+      // finalize_scene checks the count against the closure it finds.
+      // Version 1 had no closing joint (the closing point was a seam).
+      const bool closed = version_ >= 2 && curve.points.size() > 1 &&
+                          curve.points.back() == curve.points.front();
+      curve.joints = read_joints(*it, path + ".joints", segments, closed);
     }
     if (const auto it = v.find("sides"); it != v.end()) {
       curve.sides = read_sides(*it, path + ".sides");
@@ -763,16 +771,23 @@ class SceneReader {
   }
 
   std::vector<Continuity> read_joints(const Json& v, const std::string& path,
-                                      std::size_t segments) const {
+                                      std::size_t segments, bool closed) const {
     const std::size_t joints = segments - 1;
     if (v.is_string()) {
-      return std::vector<Continuity>(joints, continuity(v, path));
+      // One value for every joint, the closing point of a closed chain included.
+      return std::vector<Continuity>(closed ? segments : joints, continuity(v, path));
     }
     if (!v.is_array()) {
       fail(path, "expected \"C1\", \"C0\" or \"C-1\" for every joint, or an array with one of them "
                  "per joint, got " + type_name(v));
     }
-    if (v.size() != joints) {
+    if (v.size() != joints && !(closed && v.size() == segments)) {
+      if (closed) {
+        fail(path, "expected " + std::to_string(segments) + (segments == 1 ? " entry" : " entries") +
+                       " (one per joint of the closed chain, the last at the closing point) or " +
+                       std::to_string(joints) + " (the closing point by its tangents), got " +
+                       std::to_string(v.size()));
+      }
       fail(path, "expected " + std::to_string(joints) + (joints == 1 ? " entry" : " entries") +
                      " (one per joint between the " + std::to_string(segments) +
                      (segments == 1 ? " segment" : " segments") + "), got " +
@@ -809,6 +824,7 @@ class SceneReader {
 
   std::string_view text_;
   std::string source_;
+  int version_ = kSceneFormatVersion;  // of the file being read
   TextMap map_;
   std::unordered_map<std::string, std::uint32_t> material_index_;
   std::vector<std::string> material_names_;

@@ -269,6 +269,15 @@ HermiteReconstruction Solver::hermite_of(std::uint32_t curve, const double* valu
     input.right.push_back(value);
     input.continuity.push_back(continuity);
   }
+  if (storage.basis.is_periodic()) {
+    // Hat 0 peaks at the closing point: it is node 0 and, a lap later, node n.
+    input.periodic = true;
+    input.continuity.front() = storage.closing;
+    input.u.push_back(scene_->curves[curve].length);
+    input.left.push_back(values[0]);
+    input.right.push_back(values[0]);
+    input.continuity.push_back(storage.closing);
+  }
   return HermiteReconstruction(input);
 }
 
@@ -625,18 +634,17 @@ void Solver::receive(const SceneHit& hit, const Ray& ray, const std::array<std::
     const SplineBasis& basis = storage_[info.curve].basis;
     std::array<double, SplineBasis::kMaxDegree + 1> phi{};
     const std::size_t first = basis.evaluate(u, phi.data());
-    const int degree = basis.degree();
-    std::int64_t* target = acc.received.data() + (offset + first) * channels;
+    const auto degree = static_cast<std::size_t>(basis.degree());
+    std::int64_t* target = acc.received.data() + offset * channels;
     for (std::size_t ch = 0; ch < channels; ++ch) {
       std::int64_t left = units[ch];
-      for (int j = 0; j < degree; ++j) {
+      for (std::size_t j = 0; j < degree; ++j) {
         // Round half up by truncation (the product is >= 0); std::llround is a library call.
-        const auto share = static_cast<std::int64_t>(
-            phi[static_cast<std::size_t>(j)] * static_cast<double>(units[ch]) + 0.5);
-        target[static_cast<std::size_t>(j) * channels + ch] += share;
+        const auto share = static_cast<std::int64_t>(phi[j] * static_cast<double>(units[ch]) + 0.5);
+        target[basis.index(first + j) * channels + ch] += share;
         left -= share;
       }
-      target[static_cast<std::size_t>(degree) * channels + ch] += left;
+      target[basis.index(first + degree) * channels + ch] += left;
     }
   }
 }
@@ -916,7 +924,7 @@ Spectrum Solver::radiosity(std::uint32_t curve, Side side, double u) const {
     double reflected = 0.0;
     for (int j = 0; j <= storage.basis.degree(); ++j)
       reflected += phi[static_cast<std::size_t>(j)] *
-                   reflected_[(offset + first + static_cast<std::size_t>(j)) * channels + ch];
+                   reflected_[(offset + storage.basis.index(first + static_cast<std::size_t>(j))) * channels + ch];
     result[ch] =
         scene_->curves[curve].emittance[ch] * emittance_factor(scene_->curves[curve], u) + reflected;
   }

@@ -17,7 +17,7 @@ os.makedirs(out, exist_ok=True)
 
 def write(name, scene):
     # One line per material and per curve, as the hand-written scenes.
-    lines = ['{', ' "flatland": 1,', ' "name": %s,' % json.dumps(scene["name"]),
+    lines = ['{', ' "flatland": 2,', ' "name": %s,' % json.dumps(scene["name"]),
              ' "description": %s,' % json.dumps(scene["description"]), ' "materials": {']
     materials = list(scene["materials"].items())
     for i, (key, value) in enumerate(materials):
