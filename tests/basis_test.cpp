@@ -1,7 +1,12 @@
 #include "flatland/basis.hpp"
 
+#include <algorithm>
 #include <array>
+#include <cmath>
+#include <cstdio>
 #include <random>
+#include <string>
+#include <utility>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -19,8 +24,32 @@ double spline_value(const SplineBasis& basis, const std::vector<double>& c, doub
   Values phi{};
   const std::size_t first = basis.evaluate(u, phi.data());
   double sum = 0.0;
-  for (int j = 0; j <= basis.degree(); ++j) sum += c[first + j] * phi[j];
+  for (int j = 0; j <= basis.degree(); ++j) sum += c[basis.index(first + j)] * phi[j];
   return sum;
+}
+
+// A closed ring of radius 1: eight cubic arcs of 45 degrees (handles (4/3) tan(pi/16)), counter-
+// clockwise from (1, 0), with the given format version (1: the closing point is a seam).
+Scene ring_scene(int version) {
+  const double pi = 3.14159265358979323846;
+  const double handle = 4.0 / 3.0 * std::tan(pi / 16.0);
+  std::string points;
+  for (int i = 0; i < 8; ++i) {
+    const double a = i * pi / 4.0;
+    const double b = (i + 1) * pi / 4.0;
+    auto add = [&](double x, double y) {
+      char text[96];
+      std::snprintf(text, sizeof text, "[%.17g,%.17g],", x, y);
+      points += text;
+    };
+    if (i == 0) add(1.0, 0.0);
+    add(std::cos(a) - handle * std::sin(a), std::sin(a) + handle * std::cos(a));
+    add(std::cos(b) + handle * std::sin(b), std::sin(b) - handle * std::cos(b));
+    if (i == 7) points += "[1,0]"; else add(std::cos(b), std::sin(b));
+  }
+  return testing::scene_from_text("{\"flatland\": " + std::to_string(version) + R"(,
+    "materials": {"wall": {"reflectivity": 0.5, "emittance": 1}},
+    "curves": [{"id": "ring", "material": "wall", "bezier": [)" + points + "]}]}");
 }
 
 TEST(Basis, MultiplicityEncodesContinuity) {
@@ -86,6 +115,185 @@ TEST(Basis, PartitionOfUnityAndNonnegative) {
       }
     }
   }
+}
+
+TEST(Basis, PeriodicBasisWrapsRoundTheClosingPoint) {
+  // A periodic spline is a partition of unity everywhere, takes the same value at u and u + period,
+  // and keeps the closing point's continuity: with C1 there, value and slope agree across it.
+  std::mt19937_64 random(11);
+  std::uniform_real_distribution<double> uniform(0.0, 1.0);
+  const std::vector<MeshNode> nodes = {{0.4, Continuity::C1}, {0.9, Continuity::C0},
+                                       {1.5, Continuity::C1}, {2.1, Continuity::C1},
+                                       {2.6, Continuity::Jump}};
+  for (int degree : {1, 3}) {
+    for (Continuity closing : {Continuity::C1, Continuity::C0}) {
+      const SplineBasis basis = SplineBasis::periodic(degree, 0.0, 3.0, nodes, closing);
+      ASSERT_TRUE(basis.is_periodic());
+      int knots = SplineBasis::multiplicity(degree, closing);
+      for (const MeshNode& node : nodes) knots += SplineBasis::multiplicity(degree, node.continuity);
+      ASSERT_EQ(basis.size(), static_cast<std::size_t>(knots));  // one function per knot
+      EXPECT_EQ(basis.u_begin(), 0.0);
+      EXPECT_EQ(basis.u_end(), 3.0);
+      std::vector<double> c(basis.size());
+      for (double& v : c) v = uniform(random);
+      for (int i = 0; i < 300; ++i) {
+        const double u = 3.0 * (i + 0.37) / 300.0;  // off the nodes (one is a jump)
+        Values phi{};
+        const std::size_t first = basis.evaluate(u, phi.data());
+        ASSERT_LT(first, basis.size());
+        double sum = 0.0;
+        for (int j = 0; j <= degree; ++j) {
+          EXPECT_GE(phi[j], -1e-15);
+          sum += phi[j];
+        }
+        EXPECT_NEAR(sum, 1.0, 1e-14) << u;
+        EXPECT_NEAR(spline_value(basis, c, u + 3.0), spline_value(basis, c, u), 1e-13);
+        EXPECT_NEAR(spline_value(basis, c, u - 3.0), spline_value(basis, c, u), 1e-13);
+      }
+      // Across the closing point: value (C0) and, for a C1 cubic, slope.
+      const double e = 1e-7;
+      const double before = spline_value(basis, c, 3.0 - e);
+      const double after = spline_value(basis, c, e);
+      EXPECT_NEAR(before, after, 1e-5);
+      if (degree == 3 && closing == Continuity::C1) {
+        const double slope_before = (spline_value(basis, c, 3.0 - e) - spline_value(basis, c, 3.0 - 2 * e)) / e;
+        const double slope_after = (spline_value(basis, c, 2 * e) - spline_value(basis, c, e)) / e;
+        EXPECT_NEAR(slope_before, slope_after, 1e-4 * (1.0 + std::fabs(slope_after)));
+      }
+    }
+  }
+}
+
+TEST(Basis, ClosedCurvesGetPeriodicStorageByFormatVersion) {
+  // Version 2: the ring's closing point is a smooth joint, so the storage wraps round (16 cubic
+  // elements with C1 nodes: 32 functions, none clamped). Version 1: a seam, the clamped basis.
+  const Scene ring = ring_scene(2);
+  ASSERT_TRUE(ring.curves[0].closed);
+  EXPECT_EQ(ring.curves[0].joints.size(), 8u);
+  const CurveStorage periodic = build_curve_storage(ring, ring.curves[0], BasisKind::Cubic, 16);
+  EXPECT_TRUE(periodic.basis.is_periodic());
+  EXPECT_EQ(periodic.closing, Continuity::C1);
+  EXPECT_EQ(periodic.basis.size(), 32u);
+  const Scene seam = ring_scene(1);
+  ASSERT_TRUE(seam.curves[0].closed);
+  EXPECT_EQ(seam.curves[0].joints.back(), Continuity::Jump);
+  const CurveStorage clamped = build_curve_storage(seam, seam.curves[0], BasisKind::Cubic, 16);
+  EXPECT_FALSE(clamped.basis.is_periodic());
+  EXPECT_EQ(clamped.basis.size(), 4u + 2u * 15u);
+  // A C-1 node asked for at the closing point (a contact there) makes the storage clamped.
+  const std::vector<MeshNode> contact = {{0.0, Continuity::Jump}};
+  EXPECT_FALSE(build_curve_storage(ring, ring.curves[0], BasisKind::Cubic, 16, false, contact)
+                   .basis.is_periodic());
+  // Few elements are refined until no function meets itself round the loop.
+  for (BasisKind kind : {BasisKind::Linear, BasisKind::Cubic}) {
+    const CurveStorage few = build_curve_storage(ring, ring.curves[0], kind, 1);
+    EXPECT_TRUE(few.basis.is_periodic());
+    EXPECT_GE(few.basis.size(), static_cast<std::size_t>(2 * degree_of(kind) + 2));
+    double sum = 0.0;
+    for (double v : few.basis_length) sum += v;
+    EXPECT_NEAR(sum, ring.curves[0].length, 1e-11);
+  }
+}
+
+TEST(Basis, PeriodicStorageHasNoSeamBias) {
+  // Noise-free: exact deposits p_k = integral(B phi_k ds) of a smooth B(phi) on the ring (by a
+  // fine midpoint rule, independent of the storage's quadrature), 16 cubic elements (h = pi/8).
+  auto errors = [&](const Scene& scene, bool galerkin, auto b_of) {
+    const Curve& ring = scene.curves[0];
+    const CurveStorage storage = build_curve_storage(scene, ring, BasisKind::Cubic, 16);
+    const std::size_t n = storage.basis.size();
+    std::vector<double> deposits(n, 0.0);
+    const int steps = 80'000;
+    Values phi{};
+    for (int i = 0; i < steps; ++i) {
+      const double u = ring.segment_count * (i + 0.5) / steps;
+      const auto j = static_cast<std::uint32_t>(u);
+      const Cubic& shape = scene.segments[j].geometry.shape;
+      const Vec2 p = evaluate(shape, u - j);
+      const double ds = length(derivative(shape, u - j)) * ring.segment_count / steps;
+      const std::size_t first = storage.basis.evaluate(u, phi.data());
+      for (int r = 0; r <= 3; ++r)
+        deposits[storage.basis.index(first + r)] += b_of(std::atan2(p.y, p.x)) * phi[r] * ds;
+    }
+    std::vector<double> c(n);
+    if (galerkin) {
+      galerkin_estimate(storage, deposits.data(), c.data(), 1);
+    } else {
+      for (std::size_t k = 0; k < n; ++k) c[k] = deposits[k] / storage.basis_length[k];
+    }
+    double near = 0.0;  // largest error within 0.4 rad of the closing point, and elsewhere
+    double away = 0.0;
+    for (int i = 0; i < 2000; ++i) {
+      const double u = ring.segment_count * (i + 0.5) / 2000;
+      const auto j = static_cast<std::uint32_t>(u);
+      const Vec2 p = evaluate(scene.segments[j].geometry.shape, u - j);
+      const double angle = std::atan2(p.y, p.x);
+      const double error = std::fabs(spline_value(storage.basis, c, u) - b_of(angle));
+      double& worst = std::fabs(angle) < 0.4 ? near : away;
+      worst = std::max(worst, error);
+    }
+    return std::pair{near, away};
+  };
+  // Galerkin on the periodic storage: O(h^4) all round. The L2 projection's error is about
+  // h^4 max|B^(4)| / 384 = 0.0235 x 9 / 384 = 5.5e-4 at most for this B.
+  auto wavy = [](double phi) { return 2.0 + std::cos(phi) + 0.5 * std::sin(2.0 * phi); };
+  const auto [periodic_near, periodic_away] = errors(ring_scene(2), true, wavy);
+  EXPECT_LT(periodic_away, 5.5e-4);
+  EXPECT_LT(periodic_near, 1.5 * periodic_away);
+  // Lumped, with B steepest at the closing point (B' = 1, B'' = 0 there): the lumped estimate
+  // puts each coefficient at its function's centroid. Periodic, the closing point is like any
+  // other place; a seam (format version 1) makes it two curve ends, where the end function's
+  // centroid sits h/4 inside, an O(h) error of about B' h / 4 = 0.1.
+  auto steep = [](double phi) { return 2.0 + std::sin(phi); };
+  const auto [lumped_near, lumped_away] = errors(ring_scene(2), false, steep);
+  EXPECT_LT(lumped_near, 1.5 * lumped_away);
+  const auto [seam_near, seam_away] = errors(ring_scene(1), false, steep);
+  EXPECT_GT(seam_near, 3.0 * seam_away);
+  EXPECT_GT(seam_near, 3.0 * lumped_near);
+}
+
+TEST(Basis, PeriodicSamplerWrapsAndFollowsTheFunction) {
+  // A function straddling the closing point: samples lie in [u_begin, u_end) and follow phi_k,
+  // checked by a chi-square against midpoint integrals of SplineBasis::evaluate over the support
+  // [knots[k], knots[k + 4]] (which starts before 0: samples there come back a period later).
+  const std::vector<MeshNode> nodes = {{0.5, Continuity::C1}, {1.2, Continuity::C1},
+                                       {2.0, Continuity::C1}, {2.5, Continuity::C1}};
+  const SplineBasis basis = SplineBasis::periodic(3, 0.0, 3.0, nodes, Continuity::C1);
+  const BasisSampler sampler(basis);
+  std::size_t k = 0;  // the function whose support contains the closing point
+  while (!(basis.knots()[k] < 0.0 && basis.knots()[k + 4] > 0.0)) ++k;
+  const double a = basis.knots()[k];
+  const double b = basis.knots()[k + 4];
+  ASSERT_LT(a, 0.0);
+  ASSERT_GT(b, 0.0);
+  flatland::Rng rng(5, 0, 0);
+  const int n = 40'000;
+  const int bins = 10;
+  std::vector<double> observed(bins, 0.0);
+  for (int i = 0; i < n; ++i) {
+    const double u = sampler.sample(k, rng.uniform(), rng.uniform());
+    ASSERT_GE(u, 0.0);
+    ASSERT_LT(u, 3.0);
+    const double unwrapped = u >= b ? u - 3.0 : u;
+    observed[std::clamp(static_cast<int>((unwrapped - a) / (b - a) * bins), 0, bins - 1)] += 1;
+  }
+  std::vector<double> expected(bins, 0.0);
+  double total = 0.0;
+  for (int bin = 0; bin < bins; ++bin) {
+    for (int j = 0; j < 1000; ++j) {
+      const double u = a + (b - a) * (bin + (j + 0.5) / 1000) / bins;
+      Values phi{};
+      const std::size_t first = basis.evaluate(u, phi.data());
+      for (int r = 0; r <= 3; ++r)
+        if (basis.index(first + r) == k) expected[bin] += phi[r];
+    }
+    total += expected[bin];
+  }
+  for (double& e : expected) e *= n / total;
+  EXPECT_LT(testing::chi_square(observed, expected), testing::chi_square_critical(bins - 1));
+  EXPECT_GT(sampler.pdf(k, 0.1), 0.0);
+  EXPECT_GT(sampler.pdf(k, 2.95), 0.0);  // the part before 0, a period later
+  EXPECT_EQ(sampler.pdf(k, 1.5), 0.0);
 }
 
 TEST(Basis, CountsOfCoefficients) {

@@ -132,13 +132,13 @@ void print_summary(const Solver& solver) {
               to_string(settings.basis), to_string(settings.estimator), settings.elements,
               to_string(settings.sampling), to_string(settings.discontinuities), rays);
   // What the scene made the solver use (and so what it left out).
-  std::printf("features  %s (%d channel%s), %s, %zu discontinuity nodes (%zu from visibility "
-              "events), %zu storage coefficients\n",
+  std::printf("features  %s (%d channel%s), %s, %zu discontinuity nodes (%zu from contacts, %zu "
+              "from visibility events), %zu storage coefficients\n",
               scene.channels == 1 ? "grey" : "colour", scene.channels, scene.channels == 1 ? "" : "s",
               cubic_segments == 0 ? "lines only (no cubic solver)"
               : cubic_segments == scene.segments.size() ? "cubics only"
                                                         : "lines and cubics",
-              solver.discontinuity_nodes(), solver.visibility_event_nodes(),
+              solver.discontinuity_nodes(), solver.contact_nodes(), solver.visibility_event_nodes(),
               solver.coefficient_count());
   std::printf("solved    %s photons in %u rounds, %.3f s, %s photons/s on %u threads\n",
               human_count(static_cast<double>(solver.photons_shot())).c_str(), solver.rounds(),

@@ -85,7 +85,8 @@ std::size_t SplineBasis::find_span(double u) const {
   const std::size_t p = static_cast<std::size_t>(degree_);
   const std::size_t last = end_span();
   if (u >= knots_[last]) return last - 1;
-  if (u <= knots_[p]) return p;
+  // Clamped, the first span is never empty; periodic, the closing knot's copies may follow it.
+  if (u <= knots_[p] && !periodic_) return p;
   // upper_bound gives the first knot > u; the span starts one before it.
   const auto it = std::upper_bound(knots_.begin() + static_cast<std::ptrdiff_t>(p),
                                    knots_.begin() + static_cast<std::ptrdiff_t>(last) + 1, u);

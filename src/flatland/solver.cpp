@@ -125,8 +125,18 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
   }
   solver.accelerator_ = SegmentAccelerator(std::move(geometry));
   std::vector<std::vector<MeshNode>> events(scene.curves.size());
+  if (settings.discontinuities != DiscontinuityMode::None) {
+    // Contacts are part of the geometry (light on the two sides is unrelated): a value jump there
+    // whenever the scene's joints are honoured.
+    for (const DiscontinuityNode& node : find_contacts(scene)) {
+      events[node.curve].push_back({node.u, node.continuity});
+      ++solver.contact_nodes_;
+    }
+  }
   if (settings.discontinuities == DiscontinuityMode::Auto) {
-    for (const DiscontinuityNode& node : find_visibility_events(scene, solver.accelerator_)) {
+    EventOptions options;
+    options.elements = settings.elements;
+    for (const DiscontinuityNode& node : find_visibility_events(scene, solver.accelerator_, options)) {
       events[node.curve].push_back({node.u, node.continuity});
       ++solver.visibility_events_;
     }

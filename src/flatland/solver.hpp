@@ -177,6 +177,9 @@ class Solver {
   // visibility events (discontinuity meshing).
   std::size_t discontinuity_nodes() const;
   std::size_t visibility_event_nodes() const { return visibility_events_; }
+  // C-1 nodes asked for at contacts (an end point or corner on another curve, a crossing); with
+  // discontinuities scene or auto.
+  std::size_t contact_nodes() const { return contact_nodes_; }
   std::size_t coefficient_count() const { return coefficient_count_; }
   // Radiosity coefficients of a curve side (lumped estimate): coefficient k, channel c at
   // [k * channels + c]; B(u) = E + sum_k b_k phi_k(u). Empty for a side that does not reflect.
@@ -254,6 +257,7 @@ class Solver {
   std::vector<std::uint32_t> coefficient_block_;  // block of each coefficient
   std::size_t coefficient_count_ = 0;
   std::size_t visibility_events_ = 0;
+  std::size_t contact_nodes_ = 0;
 
   std::vector<double> received_;  // all rounds, [coefficient * channels + channel]
   std::vector<double> unshot_;    // current pool, same layout
