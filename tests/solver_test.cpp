@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <string>
 #include <filesystem>
 #include <numbers>
 #include <vector>
@@ -748,6 +750,221 @@ TEST(Solver, SettingsOutOfRangeAreErrors) {
   settings.photons = 0;
   EXPECT_FALSE(validate(settings).ok());
   EXPECT_TRUE(validate(SolverSettings{}).ok());
+}
+
+}  // namespace
+}  // namespace flatland
+
+namespace flatland {
+namespace {
+
+// A ring of radius 1 (eight cubic arcs of 45 degrees, counter-clockwise from (1, 0)) with
+// rho = 0.5, E = 1 and an emittance profile E(phi) = 1 + 0.8 sin(phi), steepest at the closing
+// point: factors at the arcs' ends, and inner factors that give the Bernstein form the profile's
+// slope (as docs/figures/seam/ring_seam.py writes it). `version` 1 makes the closing point a seam.
+std::string ring_with_profile(int version) {
+  const double pi = std::numbers::pi;
+  const double handle = 4.0 / 3.0 * std::tan(pi / 16.0);
+  auto profile = [](double phi) { return 1.0 + 0.8 * std::sin(phi); };
+  std::string points;
+  std::string factors;
+  auto add = [](std::string& list, double x, double y, bool pair) {
+    char text[96];
+    if (pair)
+      std::snprintf(text, sizeof text, "%s[%.17g,%.17g]", list.empty() ? "" : ",", x, y);
+    else
+      std::snprintf(text, sizeof text, "%s%.17g", list.empty() ? "" : ",", x);
+    list += text;
+  };
+  for (int i = 0; i < 8; ++i) {
+    const double a = i * pi / 4.0;
+    const double b = (i + 1) * pi / 4.0;
+    const double d = (b - a) / 3.0;
+    if (i == 0) {
+      add(points, 1.0, 0.0, true);
+      add(factors, profile(a), 0, false);
+    }
+    add(points, std::cos(a) - handle * std::sin(a), std::sin(a) + handle * std::cos(a), true);
+    add(points, std::cos(b) + handle * std::sin(b), std::sin(b) - handle * std::cos(b), true);
+    if (i == 7) add(points, 1.0, 0.0, true); else add(points, std::cos(b), std::sin(b), true);
+    add(factors, profile(a) + d * 0.8 * std::cos(a), 0, false);
+    add(factors, profile(b) - d * 0.8 * std::cos(b), 0, false);
+    add(factors, i == 7 ? profile(0.0) : profile(b), 0, false);
+  }
+  return "{\"flatland\": " + std::to_string(version) +
+         R"(, "materials": {"wall": {"reflectivity": 0.5, "emittance": 1}},
+    "curves": [{"id": "ring", "material": "wall", "bezier": [)" + points +
+         "], \"emittance_profile\": [" + factors + "]}]}";
+}
+
+// B(phi) on a ring of uniform rho: the kernel per unit angle is k(psi) = |sin(psi/2)| / 4, so the
+// equation is diagonal in Fourier series, B_n = E_n / (1 - rho lambda_n), lambda_0 = 1,
+// lambda_n = -1 / (4 n^2 - 1). E_n = (1/pi) integral E(phi) (cos, sin)(n phi) dphi by the midpoint
+// rule along the curve's own parameter with dphi = cross(p, p') / |p|^2 du (the cubic arcs' true
+// angles, not arc length / radius).
+struct RingSolution {
+  std::vector<double> a, b;  // cosine and sine coefficients of B
+  double operator()(double phi) const {
+    double sum = 0.5 * a[0];
+    for (std::size_t n = 1; n < a.size(); ++n) sum += a[n] * std::cos(n * phi) + b[n] * std::sin(n * phi);
+    return sum;
+  }
+};
+RingSolution solve_ring(const Scene& scene, double rho, int terms = 48) {
+  const Curve& ring = scene.curves[0];
+  RingSolution solution{std::vector<double>(terms, 0.0), std::vector<double>(terms, 0.0)};
+  const int steps = 64'000;
+  for (int i = 0; i < steps; ++i) {
+    const double u = ring.segment_count * (i + 0.5) / steps;
+    const auto j = static_cast<std::uint32_t>(u);
+    const Cubic& shape = scene.segments[ring.first_segment + j].geometry.shape;
+    const Vec2 p = evaluate(shape, u - j);
+    const Vec2 velocity = derivative(shape, u - j);
+    const double dphi = cross(p, velocity) / dot(p, p) * ring.segment_count / steps;
+    const double phi = std::atan2(p.y, p.x);
+    const double e = emittance_factor(ring, u);
+    for (int n = 0; n < terms; ++n) {
+      solution.a[n] += e * std::cos(n * phi) * dphi / std::numbers::pi;
+      solution.b[n] += e * std::sin(n * phi) * dphi / std::numbers::pi;
+    }
+  }
+  for (int n = 0; n < terms; ++n) {
+    const double lambda = n == 0 ? 1.0 : -1.0 / (4.0 * n * n - 1.0);
+    solution.a[n] /= 1.0 - rho * lambda;
+    solution.b[n] /= 1.0 - rho * lambda;
+  }
+  return solution;
+}
+
+TEST(Solver, ClosedRingHasNoSeamAtItsClosingPoint) {
+  // The RMS error of B within 0.4 rad of the closing point against elsewhere, summed over three
+  // seeds. With 16 cubic elements a 0.8 rad window holds about two elements, so one seed's RMS
+  // there rests on ~2-3 independent values (relative spread about 1/sqrt(2 x 2.5) = 0.45) and the
+  // sum over three seeds about 0.26: a periodic ring, whose closing point is like any other
+  // place, stays below 1.5 (2 sigma). A seam (format version 1) adds an O(h) end bias of the
+  // lumped estimate at 3e6 photons (measured: ratio 2.3, docs/method.md): it must exceed 1.5.
+  auto ratio = [](int version) {
+    const Scene scene = testing::scene_from_text(ring_with_profile(version));
+    const RingSolution exact = solve_ring(scene, 0.5);
+    double near = 0.0;
+    double away = 0.0;
+    for (std::uint64_t seed = 1; seed <= 3; ++seed) {
+      SolverSettings settings;
+      settings.photons = 3'000'000;
+      settings.tolerance = 1e-6;
+      settings.seed = seed;
+      Solver solver = make_solver(scene, settings);
+      solver.run();
+      double near2 = 0.0, away2 = 0.0;
+      int near_count = 0, away_count = 0;
+      for (int j = 0; j < 200; ++j) {
+        const CurvePoint point =
+            point_at_arc_length(scene, scene.curves[0], (j + 0.5) * scene.curves[0].length / 200);
+        const double phi = std::atan2(point.position.y, point.position.x);
+        const double error = solver.radiosity(0, Side::Front, point.u)[0] - exact(phi);
+        if (std::fabs(phi) < 0.4) {
+          near2 += error * error;
+          ++near_count;
+        } else {
+          away2 += error * error;
+          ++away_count;
+        }
+      }
+      near += std::sqrt(near2 / near_count);
+      away += std::sqrt(away2 / away_count);
+    }
+    return near / away;
+  };
+  EXPECT_LT(ratio(2), 1.5);
+  EXPECT_GT(ratio(1), 1.5);
+}
+
+// A lamp over a floor with an arch (an open cubic, two-sided) standing on it from x = -1 to 1.
+constexpr const char* kArchOnAFloor = R"({
+  "flatland": 2,
+  "materials": {"lamp": {"emittance": 1}, "wall": {"reflectivity": 0.5}},
+  "curves": [
+    {"id": "lamp", "material": "lamp", "line": [[3, 4], [-3, 4]]},
+    {"id": "floor", "material": "wall", "line": [[-4, 0], [4, 0]]},
+    {"id": "arch", "material": "wall", "sides": "both", "bezier": [[-1, 0], [-1, 1.5], [1, 1.5], [1, 0]]}
+  ]})";
+
+TEST(Solver, ArchOnALitFloorLeaksNoLight) {
+  // No light reaches the floor under the arch, nor the arch's inside: B there is exactly the
+  // emittance, 0. Contacts put C-1 nodes on the floor where the arch stands, so no basis function
+  // straddles them and no photon starts inside. Without them (discontinuities none) light leaks.
+  const Scene scene = testing::scene_from_text(kArchOnAFloor);
+  auto under_the_arch = [&](DiscontinuityMode mode, double width) {
+    SolverSettings settings;
+    settings.photons = 400'000;
+    settings.discontinuities = mode;
+    settings.ray_width = width;
+    Solver solver = make_solver(scene, settings);
+    solver.run();
+    double worst = 0.0;
+    for (int j = 1; j < 40; ++j) {
+      const double x = -1.0 + 2.0 * j / 40.0;       // floor: u = (x + 4) / 8
+      worst = std::max(worst, solver.radiosity(1, Side::Front, (x + 4.0) / 8.0)[0]);
+      worst = std::max(worst, solver.radiosity(2, Side::Back, j / 40.0)[0]);  // the arch's inside
+    }
+    return worst;
+  };
+  for (DiscontinuityMode mode : {DiscontinuityMode::Scene, DiscontinuityMode::Auto}) {
+    EXPECT_EQ(under_the_arch(mode, 0.0), 0.0) << to_string(mode);
+    EXPECT_EQ(under_the_arch(mode, 0.2), 0.0) << to_string(mode) << " with footprints";
+  }
+  EXPECT_GT(under_the_arch(DiscontinuityMode::None, 0.0), 0.01);
+}
+
+// B on the floor of scenes2d/tests/reference_round_occluder.json (one bounce): rho E / 2 times the
+// sum over the visible parts of the lamp (y = 2, x in [-0.5, 0.5]) of sin(theta_b) - sin(theta_a),
+// sin(theta) = (X - x) / |(X - x, 2)|. The hidden part lies between the tangent lines from (x, 0)
+// to the occluder, taken as the ideal circle (radius 0.3 about (0, 1); the cubic circle differs by
+// about 1e-6 of its radius, far below the noise here).
+double round_occluder_floor(double x) {
+  const double dx = -x;
+  const double dy = 1.0;
+  const double centre = std::atan2(dy, dx);
+  const double half = std::asin(0.3 / std::hypot(dx, dy));
+  double a = x + 2.0 / std::tan(centre - half);
+  double b = x + 2.0 / std::tan(centre + half);
+  if (a > b) std::swap(a, b);
+  auto sine = [x](double X) { return (X - x) / std::hypot(X - x, 2.0); };
+  double seen = 0.0;
+  if (std::min(0.5, a) > -0.5) seen += sine(std::min(0.5, a)) - sine(-0.5);
+  if (std::max(-0.5, b) < 0.5) seen += sine(0.5) - sine(std::max(-0.5, b));
+  return 0.5 * 0.5 * seen;
+}
+
+TEST(Solver, RoundOccluderEventsBeatSceneJointsAtEqualPhotons) {
+  // The four tangent-line events give the floor C0 nodes where its penumbrae begin and end; the
+  // cubic then follows the kinks instead of rounding them. Relative L2 error of the floor at 1e6
+  // photons, summed over three seeds: measured 0.0205 (auto) against 0.0265 (scene) per seed, each
+  // within +-4 % over seeds, so the sums differ by about 7 of their spreads.
+  const Scene scene = testing::scene_from_file("scenes2d/tests/reference_round_occluder.json");
+  auto error = [&](DiscontinuityMode mode) {
+    double total = 0.0;
+    for (std::uint64_t seed = 1; seed <= 3; ++seed) {
+      SolverSettings settings;
+      settings.photons = 1'000'000;
+      settings.seed = seed;
+      settings.discontinuities = mode;
+      Solver solver = make_solver(scene, settings);
+      solver.run();
+      if (mode == DiscontinuityMode::Auto) EXPECT_EQ(solver.visibility_event_nodes(), 4u);
+      double difference = 0.0, norm = 0.0;
+      for (int j = 0; j < 200; ++j) {
+        const double x = -2.0 + 4.0 * (j + 0.5) / 200.0;
+        const double exact = round_occluder_floor(x);
+        const double b = solver.radiosity(2, Side::Front, (x + 2.0) / 4.0)[0];
+        difference += (b - exact) * (b - exact);
+        norm += exact * exact;
+      }
+      total += std::sqrt(difference / norm);
+    }
+    return total;
+  };
+  EXPECT_LT(error(DiscontinuityMode::Auto), 0.9 * error(DiscontinuityMode::Scene));
 }
 
 }  // namespace

@@ -90,12 +90,13 @@ inline Scene scene_from_file(const std::string& relative) {
 }
 
 // A unit circle of four cubic arcs (k = 4/3 (sqrt 2 - 1)), counter-clockwise so its front faces
-// inward, with one uniform material: the closed form is B = E / (1 - rho) everywhere.
+// inward, with one uniform material: the closed form is B = E / (1 - rho) everywhere. Format
+// version 2: the closing point is a smooth joint and the storage periodic.
 inline std::string circle_enclosure(double reflectivity, double emittance) {
   const double k = 0.5522847498307936;
   char text[1024];
   std::snprintf(text, sizeof text, R"({
-    "flatland": 1,
+    "flatland": 2,
     "materials": {"glow": {"reflectivity": %.17g, "emittance": %.17g}},
     "curves": [{"id": "circle", "material": "glow", "bezier": [
       [1,0],[1,%.17g],[%.17g,1],[0,1],[%.17g,1],[-1,%.17g],[-1,0],

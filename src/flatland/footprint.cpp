@@ -328,7 +328,7 @@ double footprint_half_length(double width, double cos_incidence) {
 
 void footprint_weights(const Scene& scene, const Curve& curve, const SplineBasis& basis,
                        double u_hit, double half_length, RayProfile profile,
-                       std::vector<FootprintWeight>& out) {
+                       std::vector<FootprintWeight>& out, std::span<const double> walls) {
   // Plan. Offsets x = s - s_hit along the receiver's arc length. The run is the stretch of
   // tangent-continuous segments around the hit, [X0, X1] in x; on a closed curve it may continue
   // across the closing point (x then runs past the curve's length and wraps), and a closed curve
@@ -411,6 +411,25 @@ void footprint_weights(const Scene& scene, const Curve& curve, const SplineBasis
   }
   // The run's ends within reach (one lap each way around a flat endless loop).
   const double reach = endless && a > 32.0 * total ? 0.5 * total : a;
+  // Walls (contacts: another curve stands on this one there) end the run like corners.
+  if (!walls.empty()) {
+    if (endless) {
+      before = after = std::numeric_limits<double>::infinity();
+      endless = false;
+    }
+    for (const double wall : walls) {
+      double below = s_hit - wall;  // arc length from the wall up to the hit
+      if (curve.closed) {
+        below -= std::floor(below / total) * total;
+        before = std::fmin(before, below);
+        after = std::fmin(after, total - below);
+      } else if (below >= 0.0) {
+        before = std::fmin(before, below);
+      } else {
+        after = std::fmin(after, -below);
+      }
+    }
+  }
   const double x0 = endless ? -reach : std::fmax(-before, -a);
   const double x1 = endless ? reach : std::fmin(after, a);
   const bool cut_low = !endless && before < a;

@@ -17,6 +17,7 @@
 #pragma once
 
 #include <cstddef>
+#include <span>
 #include <string_view>
 #include <vector>
 
@@ -85,8 +86,12 @@ struct FootprintWeight {
 // deposits at the point (weights phi_k(u_hit)), the limit a -> 0.
 //
 // Allocation-free apart from growing `out` (the caller clears and reuses it).
+//
+// `walls` (arc lengths from the curve's start, increasing) end the spread like corners do: the
+// solver passes the contacts, where another curve stands on this one and the light on the two
+// sides is unrelated.
 void footprint_weights(const Scene& scene, const Curve& curve, const SplineBasis& basis,
                        double u_hit, double half_length, RayProfile profile,
-                       std::vector<FootprintWeight>& out);
+                       std::vector<FootprintWeight>& out, std::span<const double> walls = {});
 
 }  // namespace flatland

@@ -258,6 +258,8 @@ class Solver {
   std::size_t coefficient_count_ = 0;
   std::size_t visibility_events_ = 0;
   std::size_t contact_nodes_ = 0;
+  // Per curve, the arc lengths of its contacts: footprints stop there (empty without contacts).
+  std::vector<std::vector<double>> walls_;
 
   std::vector<double> received_;  // all rounds, [coefficient * channels + channel]
   std::vector<double> unshot_;    // current pool, same layout
