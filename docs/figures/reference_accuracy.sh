@@ -1,27 +1,38 @@
 #!/usr/bin/env bash
-# Estimates the reference solver's own error on every example scene: references with elements
-# no longer than scene size / N for N = 100, 200, 400, 800; the difference of two successive ones,
-# divided by 3 (second-order convergence), estimates the error of the finer one.
-# Needs build/flatland. Usage: docs/figures/reference_accuracy.sh
+# The reference solver's own error (docs/reference.md).
+#  1. Every example scene at elements no longer than scene size / N, N = 100, 200, 400, 800:
+#     `flatland reference` solves again at 2h and 4h and estimates the error of the solve at h as
+#     |R_2h - R_h| / (2^p - 1), p the order observed from the three (stats.estimated_error,
+#     stats.observed_order).
+#  2. The closed-form scenes (penumbra, round occluder, ring): that estimate against the true
+#     error, from the test that holds the closed forms (tests/reference_test.cpp,
+#     Reference.DISABLED_EstimatedAgainstTrueErrorTable).
+# Needs BUILD/flatland and BUILD/reference_test (BUILD defaults to build).
+# Usage: docs/figures/reference_accuracy.sh [BUILD]
 set -euo pipefail
 cd "$(dirname "$0")/../.."
+build=${1:-build}
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
-printf "| scene | N | elements | seconds | estimated rel. L2 error |\n|---|---|---|---|---|\n"
+printf "| scene | N | elements | seconds | estimated rel. L2 error | observed order |\n|---|---|---|---|---|---|\n"
 for scene in scenes2d/*.json; do
   name=$(basename "$scene" .json)
-  previous=""
   for n in 100 200 400 800; do
     out="$work/$name-$n.json"
-    build/flatland reference "$scene" --elements "$n" --samples 200 --quiet --out "$out"
-    elements=$(python3 -c "import json; d=json.load(open('$out')); print(d['stats']['elements'], '%.2f' % d['stats']['seconds'])")
-    if [ -n "$previous" ]; then
-      l2=$(build/flatland compare "$previous" "$out" | awk '/\(scene\)/ {print $3}')
-      estimate=$(python3 -c "print('%.2e' % (float('$l2') / 3))")
-    else
-      estimate="-"
-    fi
-    printf "| %s | %s | %s | %s | %s |\n" "$name" "$n" "${elements% *}" "${elements#* }" "$estimate"
-    previous=$out
+    "$build/flatland" reference "$scene" --elements "$n" --quiet --out "$out"
+    python3 - "$out" "$name" "$n" <<'EOF'
+import json, sys
+stats = json.load(open(sys.argv[1]))["stats"]
+order = stats.get("observed_order")
+note = stats.get("estimate_note", "")
+order_text = "-" if order is None else "%.2f" % order
+if order is None and "round-off" in note:
+    order_text = "- (round-off)"
+print("| %s | %s | %d | %.2f | %.2e | %s |" % (sys.argv[2], sys.argv[3], stats["elements"], stats["seconds"],
+                                               stats["estimated_error"]["l2"], order_text))
+EOF
   done
 done
+echo
+"$build/reference_test" --gtest_also_run_disabled_tests \
+  --gtest_filter=Reference.DISABLED_EstimatedAgainstTrueErrorTable | grep '^|'

@@ -497,8 +497,8 @@ int run_converge(ConvergeOptions& o) {
     return usage_error(status.error().message);
   if (Status status = check_result_size(*scene, o.samples); !status) return usage_error(status.error().message);
 
-  // The reference, and an estimate of its own error: the same solve with elements twice as long
-  // differs from it by about 3 times its error (second order), so floor = difference / 3.
+  // The reference, and an estimate of its own error from solves with elements twice and four
+  // times as long (the order observed from the three; docs/reference.md): the plot's floor.
   nlohmann::json reference;
   double floor = -1.0;
   if (!o.reference.empty()) {

@@ -37,8 +37,9 @@ CLI::App* add_reference_command(CLI::App& parent, ReferenceOptions& o) {
                   "Relative error of the linear solve (guaranteed by its residual)")
       ->capture_default_str();
   cmd->add_flag("!--no-error-estimate", o.estimate_error,
-                "Skip the second solve with elements twice as long that estimates the reference's "
-                "own discretisation error (written to stats.estimated_error)");
+                "Skip the two extra solves, with elements twice and four times as long, that "
+                "estimate the reference's own discretisation error: |R_2h - R_h| / (2^p - 1) with "
+                "the order p observed from the three (stats.estimated_error, stats.observed_order)");
   cmd->add_option("--threads", o.settings.threads, "Worker threads (0: every core)")
       ->capture_default_str()
       ->check(CLI::Range(0u, 1024u));
@@ -74,27 +75,10 @@ void warn_about_reference_size(const Scene& scene, const ReferenceSettings& sett
 
 Result<ErrorNorms> estimate_reference_error(const Scene& scene, ReferenceSettings settings,
                                             int samples, const nlohmann::json& curves) {
-  // The reference converges as h^2 (docs/reference.md): R_2h - R = 4 e - e = 3 e, with e the error
-  // of R at element length h, so e ~ |R_2h - R| / 3.
-  const double length = settings.max_element_length > 0.0 ? settings.max_element_length
-                                                           : scene.scale / 400.0;
-  settings.max_element_length = 2.0 * length;
-  Result<ReferenceSolution> coarse = solve_reference(scene, settings);
-  if (!coarse) return coarse.error();
-  const ReferenceSolution& rough = *coarse;
-  const nlohmann::json coarse_result = {
-      {"flatland_result", 1},
-      {"curves", sampled_curves_to_json(scene, samples, [&rough](std::uint32_t c, Side side, double u) {
-         return rough.radiosity(c, side, u);
-       })}};
-  Result<Comparison> difference =
-      compare_results(coarse_result, nlohmann::json{{"flatland_result", 1}, {"curves", curves}});
-  if (!difference) return difference.error();
-  ErrorNorms norms = difference->scene;
-  norms.l1 /= 3.0;
-  norms.l2 /= 3.0;
-  norms.linf /= 3.0;
-  return norms;
+  // Solves at 2h and 4h and extrapolates with the observed order (docs/reference.md).
+  Result<ReferenceErrorEstimate> estimate = estimate_discretisation_error(scene, settings, samples, curves);
+  if (!estimate) return estimate.error();
+  return estimate->error;
 }
 
 int run_reference(ReferenceOptions& o) {
@@ -116,7 +100,7 @@ int run_reference(ReferenceOptions& o) {
   const auto start = std::chrono::steady_clock::now();
   // Progress of the form factors on a terminal: the solve's, then the error estimate's.
   ProgressLine line(!o.quiet);
-  std::string phase = "reference";
+  std::string phase = o.estimate_error ? "reference, resolution 1 of 3" : "reference";
   auto phase_start = start;
   o.settings.progress = [&](std::size_t done, std::size_t rows) {
     const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - phase_start).count();
@@ -135,11 +119,16 @@ int run_reference(ReferenceOptions& o) {
   const nlohmann::json curves = sampled_curves_to_json(
       *scene, o.samples,
       [&reference](std::uint32_t c, Side side, double u) { return reference.radiosity(c, side, u); });
-  std::optional<ErrorNorms> estimated;
+  std::optional<ReferenceErrorEstimate> estimated;
   if (o.estimate_error) {
-    phase = "error estimate (elements twice as long)";
-    phase_start = std::chrono::steady_clock::now();
-    Result<ErrorNorms> estimate = estimate_reference_error(*scene, o.settings, o.samples, curves);
+    const auto starting = [&](int level) {
+      line.finish();
+      phase = level == 1 ? "error estimate, resolution 2 of 3 (elements twice as long)"
+                         : "error estimate, resolution 3 of 3 (elements four times as long)";
+      phase_start = std::chrono::steady_clock::now();
+    };
+    Result<ReferenceErrorEstimate> estimate =
+        estimate_discretisation_error(*scene, o.settings, o.samples, curves, starting);
     line.finish();
     if (!estimate) return reference_failure(estimate.error());
     estimated = *estimate;
@@ -153,9 +142,17 @@ int run_reference(ReferenceOptions& o) {
                 solution->error_bound() > o.settings.tolerance ? " (tolerance not reached: round-off)" : "");
     std::printf("time      %.3f s (form factors %.3f s, solve %.3f s)\n", seconds,
                 solution->form_factor_seconds(), solution->solve_seconds());
-    if (estimated)
-      std::printf("accuracy  estimated relative error L1 %.2g, L2 %.2g, Linf %.2g (against elements twice as long)\n",
-                  estimated->l1, estimated->l2, estimated->linf);
+    if (estimated) {
+      const ErrorNorms& e = estimated->error;
+      if (std::isnan(estimated->order))
+        std::printf("accuracy  estimated relative error L1 %.2g, L2 %.2g, Linf %.2g (no order: %s)\n", e.l1,
+                    e.l2, e.linf, estimated->note.c_str());
+      else
+        std::printf("accuracy  estimated relative error L1 %.2g, L2 %.2g, Linf %.2g (observed order %.2f "
+                    "from elements 1, 2 and 4 times as long%s%s)\n",
+                    e.l1, e.l2, e.linf, estimated->order, estimated->note.empty() ? "" : ": ",
+                    estimated->note.c_str());
+    }
   }
   if (!o.out.empty()) {
     nlohmann::json result;
@@ -175,9 +172,15 @@ int run_reference(ReferenceOptions& o) {
                        {"seconds", seconds},
                        {"form_factor_seconds", solution->form_factor_seconds()},
                        {"solve_seconds", solution->solve_seconds()}};
-    if (estimated)
-      result["stats"]["estimated_error"] = {
-          {"l1", estimated->l1}, {"l2", estimated->l2}, {"linf", estimated->linf}};
+    if (estimated) {
+      const ErrorNorms& e = estimated->error;
+      result["stats"]["estimated_error"] = {{"l1", e.l1}, {"l2", e.l2}, {"linf", e.linf}};
+      // null where no order could be observed (differences at round-off).
+      auto number_or_null = [](double value) { return std::isnan(value) ? nlohmann::json(nullptr) : nlohmann::json(value); };
+      result["stats"]["observed_order"] = number_or_null(estimated->observed_order);
+      result["stats"]["estimate_order"] = number_or_null(estimated->order);
+      if (!estimated->note.empty()) result["stats"]["estimate_note"] = estimated->note;
+    }
     result["curves"] = curves;
     OutputFiles files;
     if (Status status = files.stage(o.out, json_text(result)); !status) return usage_error(status.error().message);

@@ -70,8 +70,9 @@ struct ReferenceOptions {
   bool quiet = false;
   bool estimate_error = true;
 };
-// The reference's own error, estimated from a second solve with elements twice as long (second
-// order: |R_2h - R_h| / 3); `curves` are the samples of R_h (sampled_curves_to_json).
+// The reference's own error, estimated from two more solves with elements twice and four times as
+// long: |R_2h - R_h| / (2^p - 1) with the order p observed from the three (docs/reference.md);
+// `curves` are the samples of R_h (sampled_curves_to_json).
 Result<ErrorNorms> estimate_reference_error(const Scene& scene, ReferenceSettings settings,
                                             int samples, const nlohmann::json& curves);
 CLI::App* add_reference_command(CLI::App& parent, ReferenceOptions& options);

@@ -5,10 +5,13 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <string>
 #include <thread>
 
+#include "flatland/discontinuity.hpp"
 #include "flatland/resources.hpp"
+#include "flatland/result_io.hpp"
 
 namespace flatland {
 
@@ -229,6 +232,287 @@ class Sweeper {
   std::vector<std::uint32_t> active_;
 };
 
+// The point-to-element factor of one element j seen from x (normal n) with only `occluders` as
+// occluders, for element pairs that see each other partly. In the sweep's (depth, lateral)
+// coordinates j spans one interval of sin(theta) (clipped to depth >= 0, as in the sweep). An
+// occluder k spans another; where the two overlap, k hides j over the whole overlap or nowhere in
+// it (elements do not cross), so one depth comparison in the overlap's middle direction decides.
+// F = (1/2) (measure of j's interval - measure of the union of the hiding overlaps). Zero when x
+// sees the other side of j than `side_j`, or sees j edge-on.
+class PairVisibility {
+ public:
+  double factor(const std::vector<ReferenceElement>& elements, const std::vector<std::uint32_t>& occluders,
+                Vec2 x, Vec2 normal, std::uint32_t j, Side side_j) {
+    const Vec2 lateral_axis{normal.y, -normal.x};
+    Span target;
+    const ReferenceElement& e = elements[j];
+    const double orientation = cross(e.a - x, e.b - x);
+    if (std::fabs(orientation) <= 1e-12 * length(e.a - x) * length(e.b - x)) return 0.0;
+    if ((orientation > 0.0 ? Side::Front : Side::Back) != side_j) return 0.0;
+    if (!span_of(e, x, normal, lateral_axis, target)) return 0.0;
+    hidden_.clear();
+    for (const std::uint32_t k : occluders) {
+      Span occluder;
+      if (!span_of(elements[k], x, normal, lateral_axis, occluder)) continue;
+      const double low = std::max(target.low, occluder.low);
+      const double high = std::min(target.high, occluder.high);
+      if (!(high > low)) continue;
+      const double s = 0.5 * (low + high);
+      const Vec2 d{std::sqrt(std::max(0.0, 1.0 - s * s)), s};
+      // x + r d = a + w (b - a): r = cross(a, b - a) / cross(d, b - a) (x is the origin).
+      auto distance = [d](const Span& span) {
+        const Vec2 edge = span.b - span.a;
+        return cross(span.a, edge) / cross(d, edge);
+      };
+      if (distance(occluder) < distance(target)) hidden_.emplace_back(low, high);
+    }
+    double hidden = 0.0;
+    if (!hidden_.empty()) {
+      std::sort(hidden_.begin(), hidden_.end());
+      double low = hidden_[0].first;
+      double high = hidden_[0].second;
+      for (std::size_t k = 1; k < hidden_.size(); ++k) {
+        if (hidden_[k].first > high) {
+          hidden += high - low;
+          low = hidden_[k].first;
+        }
+        high = std::max(high, hidden_[k].second);
+      }
+      hidden += high - low;
+    }
+    return 0.5 * std::max(0.0, target.high - target.low - hidden);
+  }
+
+ private:
+  struct Span {
+    Vec2 a;  // (depth, lateral) of the element's ends relative to x
+    Vec2 b;
+    double low = 0.0;
+    double high = 0.0;
+  };
+  // The sin(theta) interval of an element seen from x, clipped to the half-plane in front of x;
+  // false when it lies behind, or edge-on.
+  static bool span_of(const ReferenceElement& e, Vec2 x, Vec2 normal, Vec2 lateral_axis, Span& span) {
+    const Vec2 ra = e.a - x;
+    const Vec2 rb = e.b - x;
+    span.a = {dot(ra, normal), dot(ra, lateral_axis)};
+    span.b = {dot(rb, normal), dot(rb, lateral_axis)};
+    if (span.a.x <= 0.0 && span.b.x <= 0.0) return false;
+    const double la = length(ra);
+    const double lb = length(rb);
+    if (!(la > 0.0) || !(lb > 0.0)) return false;
+    if (std::fabs(cross(ra, rb)) <= 1e-12 * la * lb) return false;
+    auto key_of = [](Vec2 p, Vec2 q, double length_p) {
+      if (p.x >= 0.0) return p.y / length_p;
+      const double s = p.x / (p.x - q.x);
+      return p.y + s * (q.y - p.y) > 0.0 ? 1.0 : -1.0;
+    };
+    const double ka = key_of(span.a, span.b, la);
+    const double kb = key_of(span.b, span.a, lb);
+    span.low = std::min(ka, kb);
+    span.high = std::max(ka, kb);
+    return span.high > span.low;
+  }
+  std::vector<std::pair<double, double>> hidden_;
+};
+
+// Form factors of element pairs that see each other partly, by quadrature split at the visibility
+// events (Heckbert's flatland discontinuity meshing, applied to one pair at a time).
+//
+// As x moves along element i, the part of element j that x sees is bounded by the directions from
+// x to j's ends and to occluder end points; F(x -> j) is smooth as long as the set of bounding
+// points stays the same, and has a kink (or a jump of its derivative's order) where it changes:
+// where x crosses a line through two bounding points (an occluder end point and an end of j, two
+// occluder end points, or the line of j itself, where x starts seeing j's other side). On chord
+// geometry a curved occluder is a chain of straight elements, so its tangent points are chord end
+// points and the lines of its chords are among these lines. A fixed Gauss rule across such a kink
+// converges only as O(n^-2); cut at the kinks, each piece is smooth and Gauss-Legendre converges
+// fast again.
+//
+// Which occluders: the triangle (x, ends of j) lies in the convex hull of i and j for every x on i,
+// so only elements meeting that hull can hide j, and only their end points inside it can bound
+// what is seen. A line through an occluder end point v matters only if it touches the chain
+// there: when v's two elements lie on opposite sides of the line, the chain crosses it and v
+// bounds nothing. (Spurious lines cost a piece of quadrature, never accuracy.)
+class PairQuadrature {
+ public:
+  PairQuadrature(const std::vector<ReferenceElement>& elements, const std::vector<double>& nodes,
+                 const std::vector<double>& weights)
+      : elements_(elements), nodes_(nodes), weights_(weights) {
+    bounds_.reserve(elements.size());
+    for (const ReferenceElement& e : elements)
+      bounds_.push_back({std::min(e.a.x, e.b.x), std::min(e.a.y, e.b.y), std::max(e.a.x, e.b.x),
+                         std::max(e.a.y, e.b.y)});
+  }
+
+  // (1/L_i) integral over element i of F(x -> j, side_j), x on the chord, normal of side_i.
+  double form_factor(std::uint32_t i, Side side_i, std::uint32_t j, Side side_j, bool split = true) {
+    const ReferenceElement& ei = elements_[i];
+    const ReferenceElement& ej = elements_[j];
+    const Vec2 normal = side_i == Side::Front ? ei.normal : -ei.normal;
+    find_occluders(i, j);
+    breaks_.assign({0.0, 1.0});
+    if (split) add_events(ei, ej);
+    double sum = 0.0;
+    for (std::size_t piece = 0; piece + 1 < breaks_.size(); ++piece) {
+      const double t0 = breaks_[piece];
+      const double width = breaks_[piece + 1] - t0;
+      for (std::size_t q = 0; q < nodes_.size(); ++q) {
+        const Vec2 x = lerp(ei.a, ei.b, t0 + width * nodes_[q]);
+        sum += width * weights_[q] * visibility_.factor(elements_, occluders_, x, normal, j, side_j);
+      }
+    }
+    return sum;
+  }
+  std::size_t pieces() const { return breaks_.size() - 1; }
+
+ private:
+  struct Box {
+    double min_x, min_y, max_x, max_y;
+  };
+
+  // Elements (other than i and j) that meet the convex hull of i and j: bounding boxes first, then
+  // separating axes (the hull's edges and the element's line).
+  void find_occluders(std::uint32_t i, std::uint32_t j) {
+    occluders_.clear();
+    const ReferenceElement& ei = elements_[i];
+    const ReferenceElement& ej = elements_[j];
+    convex_hull({ei.a, ei.b, ej.a, ej.b});
+    const Box box{std::min({ei.a.x, ei.b.x, ej.a.x, ej.b.x}), std::min({ei.a.y, ei.b.y, ej.a.y, ej.b.y}),
+                  std::max({ei.a.x, ei.b.x, ej.a.x, ej.b.x}), std::max({ei.a.y, ei.b.y, ej.a.y, ej.b.y})};
+    for (std::uint32_t k = 0; k < bounds_.size(); ++k) {
+      const Box& b = bounds_[k];
+      if (b.min_x > box.max_x || b.max_x < box.min_x || b.min_y > box.max_y || b.max_y < box.min_y) continue;
+      if (k == i || k == j) continue;
+      if (meets_hull(elements_[k].a, elements_[k].b)) occluders_.push_back(k);
+    }
+  }
+
+  // Counter-clockwise convex hull of four points (Andrew's monotone chain), into hull_.
+  void convex_hull(std::array<Vec2, 4> points) {
+    std::sort(points.begin(), points.end(),
+              [](Vec2 p, Vec2 q) { return p.x < q.x || (p.x == q.x && p.y < q.y); });
+    hull_.clear();
+    for (int pass = 0; pass < 2; ++pass) {
+      const std::size_t start = hull_.size();
+      for (int k = 0; k < 4; ++k) {
+        const Vec2 p = points[static_cast<std::size_t>(pass == 0 ? k : 3 - k)];
+        while (hull_.size() >= start + 2 &&
+               cross(hull_[hull_.size() - 1] - hull_[hull_.size() - 2], p - hull_[hull_.size() - 2]) <= 0.0)
+          hull_.pop_back();
+        hull_.push_back(p);
+      }
+      hull_.pop_back();
+    }
+  }
+
+  // Whether the closed hull meets segment (a, b): no hull edge has both points strictly outside,
+  // and the segment's line does not have the whole hull strictly on one side.
+  bool meets_hull(Vec2 a, Vec2 b) const {
+    const std::size_t n = hull_.size();
+    if (n < 3) return true;  // degenerate hull (collinear pair): keep the element, to be safe
+    for (std::size_t k = 0; k < n; ++k) {
+      const Vec2 p = hull_[k];
+      const Vec2 edge = hull_[(k + 1) % n] - p;
+      if (cross(edge, a - p) < 0.0 && cross(edge, b - p) < 0.0) return false;
+    }
+    int above = 0;
+    int below = 0;
+    for (const Vec2 p : hull_) {
+      const double side = cross(b - a, p - a);
+      above += side > 0.0 ? 1 : 0;
+      below += side < 0.0 ? 1 : 0;
+    }
+    return above != static_cast<int>(n) && below != static_cast<int>(n);
+  }
+
+  bool inside_hull(Vec2 p) const {
+    const std::size_t n = hull_.size();
+    if (n < 3) return true;
+    for (std::size_t k = 0; k < n; ++k)
+      if (cross(hull_[(k + 1) % n] - hull_[k], p - hull_[k]) < 0.0) return false;
+    return true;
+  }
+
+  // The parameters on element i where x crosses a line through two bounding points, sorted, with
+  // 0 and 1; pieces shorter than 1e-9 of the element are merged.
+  void add_events(const ReferenceElement& ei, const ReferenceElement& ej) {
+    points_.clear();
+    points_.push_back({ej.a});
+    points_.push_back({ej.b});
+    for (const std::uint32_t k : occluders_) {
+      const ReferenceElement& e = elements_[k];
+      // Each chain vertex once: the element that starts there adds it, unless its predecessor is
+      // not an occluder here.
+      for (int end = 0; end < 2; ++end) {
+        const Vec2 v = end == 0 ? e.a : e.b;
+        const std::uint32_t neighbour = end == 0 ? e.previous : e.next;
+        if (end == 1 && neighbour != kNoElement &&
+            std::binary_search(occluders_.begin(), occluders_.end(), neighbour))
+          continue;  // the neighbour adds it as its start
+        if (v == ej.a || v == ej.b || !inside_hull(v)) continue;
+        const Vec2 other = end == 0 ? e.b : e.a;
+        Vec2 across = other;
+        bool chained = false;
+        if (neighbour != kNoElement) {
+          const ReferenceElement& n = elements_[neighbour];
+          across = end == 0 ? n.a : n.b;
+          chained = true;
+        }
+        points_.push_back({v, other, across, chained, true});
+      }
+    }
+    const double scale = ei.length;
+    const Vec2 edge = ei.b - ei.a;
+    for (std::size_t p = 0; p < points_.size(); ++p) {
+      for (std::size_t q = p + 1; q < points_.size(); ++q) {
+        const Vec2 d = points_[q].position - points_[p].position;
+        if (!(length_squared(d) > 1e-24 * scale * scale)) continue;
+        if (!points_[p].touches(d) || !points_[q].touches(d)) continue;
+        // x = a_i + t edge on the line through p with direction d: cross(x - p, d) = 0.
+        const double denominator = cross(edge, d);
+        if (denominator == 0.0) continue;
+        const double t = cross(points_[p].position - ei.a, d) / denominator;
+        if (t > 1e-9 && t < 1.0 - 1e-9) breaks_.push_back(t);
+      }
+    }
+    std::sort(breaks_.begin(), breaks_.end());
+    std::size_t kept = 1;
+    for (std::size_t k = 1; k < breaks_.size(); ++k) {
+      if (breaks_[k] - breaks_[kept - 1] < 1e-9) continue;
+      breaks_[kept++] = breaks_[k];
+    }
+    breaks_.resize(kept);
+    breaks_.back() = 1.0;
+  }
+
+  struct BoundingPoint {
+    Vec2 position;
+    Vec2 other{};   // the other end of an occluder element at this point
+    Vec2 across{};  // the other end of its neighbour in the chain (if chained)
+    bool chained = false;
+    bool occluder = false;
+    // A line through an end of j always bounds j's interval; through an occluder vertex only
+    // where it does not cross the chain (the vertex's two elements on opposite sides).
+    bool touches(Vec2 d) const {
+      if (!occluder || !chained) return true;
+      const double s1 = cross(d, other - position);
+      const double s2 = cross(d, across - position);
+      return !((s1 > 0.0 && s2 < 0.0) || (s1 < 0.0 && s2 > 0.0));
+    }
+  };
+
+  const std::vector<ReferenceElement>& elements_;
+  const std::vector<double>& nodes_;
+  const std::vector<double>& weights_;
+  std::vector<Box> bounds_;
+  std::vector<std::uint32_t> occluders_;
+  std::vector<Vec2> hull_;
+  std::vector<BoundingPoint> points_;
+  std::vector<double> breaks_;
+  PairVisibility visibility_;
+};
+
 // Whether element j lies wholly in the closed half-plane in front of `side` of element i.
 bool in_front_of(const ReferenceElement& i, Side side, const ReferenceElement& j) {
   const Vec2 n = side == Side::Front ? i.normal : -i.normal;
@@ -353,6 +637,48 @@ KrylovOutcome gmres(const Apply& apply, const std::vector<double>& rhs, std::vec
   return outcome;
 }
 
+// Element boundaries of every segment, as arc lengths from its start: the segment is cut at the
+// contacts that lie inside it (find_contacts: another curve's end point or corner on it, or a
+// crossing), where light on the two sides is unrelated, and each piece between cuts is divided
+// into equal arc-length chords no longer than max_length. Without the cuts a constant element
+// straddling a contact averages the two sides and re-emits the lit side's light on the dark side
+// (a leak of about its length times B): the reference then changes by about the same amount at
+// every halving of h, as much where the contact's position inside the element moves.
+std::vector<std::vector<double>> element_boundaries(const Scene& scene, double max_length) {
+  std::vector<std::vector<double>> cuts(scene.segments.size());
+  for (const DiscontinuityNode& node : find_contacts(scene)) {
+    const Curve& curve = scene.curves[node.curve];
+    const double local = std::clamp(std::floor(node.u), 0.0, static_cast<double>(curve.segment_count) - 1.0);
+    const double t = node.u - local;
+    if (!(t > 1e-9 && t < 1.0 - 1e-9)) continue;  // at a joint: already a boundary
+    const SceneSegment& segment = scene.segments[curve.first_segment + static_cast<std::uint32_t>(local)];
+    cuts[curve.first_segment + static_cast<std::uint32_t>(local)].push_back(
+        segment.arc_length.length_at(segment.geometry.shape, t));
+  }
+  std::vector<std::vector<double>> boundaries(scene.segments.size());
+  for (std::size_t si = 0; si < scene.segments.size(); ++si) {
+    const double total = scene.segments[si].length;
+    std::vector<double>& cut = cuts[si];
+    cut.push_back(total);
+    std::sort(cut.begin(), cut.end());
+    std::vector<double>& b = boundaries[si];
+    b.push_back(0.0);
+    for (const double end : cut) {
+      const double start = b.back();
+      if (!(end - start > 1e-9 * total)) continue;
+      const double pieces = std::max(1.0, std::ceil((end - start) / max_length));
+      if (pieces > 1e8) {  // far beyond kMaxReferenceElements: marked, never built
+        b.push_back(std::numeric_limits<double>::infinity());
+        return boundaries;
+      }
+      for (double k = 1.0; k < pieces; ++k) b.push_back(start + (end - start) * k / pieces);
+      b.push_back(end);
+    }
+    b.back() = total;
+  }
+  return boundaries;
+}
+
 }  // namespace
 
 Status validate(const ReferenceSettings& settings) {
@@ -375,6 +701,17 @@ std::vector<VisibleElement> visible_elements(const std::vector<ReferenceElement>
   if (self != kNoElement && dot(normal, elements[self].normal) < 0.0) side = Side::Back;
   sweeper.run(elements, x, normal, self, side, out);
   return out;
+}
+
+double pair_form_factor(const std::vector<ReferenceElement>& elements, std::uint32_t i, Side si,
+                        std::uint32_t j, Side sj, int points, bool split, std::size_t* pieces) {
+  std::vector<double> nodes;
+  std::vector<double> weights;
+  gauss_legendre_unit(points, nodes, weights);
+  PairQuadrature quadrature(elements, nodes, weights);
+  const double f = quadrature.form_factor(i, si, j, sj, split);
+  if (pieces != nullptr) *pieces = quadrature.pieces();
+  return f;
 }
 
 double crossed_strings(Vec2 a1, Vec2 b1, Vec2 a2, Vec2 b2) {
@@ -427,11 +764,12 @@ Spectrum ReferenceSolution::radiosity(std::uint32_t curve_index, Side side, doub
   }
   if (!any_positive(material.reflectivity, scene_.channels)) return result;
 
-  // The element that holds the point: equal arc-length pieces of the segment.
+  // The element that holds the point: the last whose start is at or before it.
   const std::uint32_t pieces = segment_count_[segment_index];
   const double s = segment.arc_length.length_at(segment.geometry.shape, t);
-  const auto piece = static_cast<std::uint32_t>(
-      std::clamp(std::floor(s / (segment.length / pieces)), 0.0, pieces - 1.0));
+  const auto first = boundary_.begin() + static_cast<std::ptrdiff_t>(segment_first_[segment_index] + segment_index);
+  const auto found = std::upper_bound(first, first + pieces, s);
+  const auto piece = static_cast<std::uint32_t>(std::clamp<std::ptrdiff_t>(found - first - 1, 0, pieces - 1));
   const std::uint32_t self = segment_first_[segment_index] + piece;
 
   const Vec2 x = evaluate(segment.geometry.shape, t);
@@ -454,8 +792,10 @@ double reference_element_count(const Scene& scene, const ReferenceSettings& sett
   const double max_length =
       settings.max_element_length > 0.0 ? settings.max_element_length : scene.scale / 400.0;
   double count = 0.0;
-  for (const SceneSegment& segment : scene.segments)
-    count += std::max(1.0, std::ceil(segment.length / max_length));
+  for (const std::vector<double>& b : element_boundaries(scene, max_length)) {
+    if (!std::isfinite(b.back())) return INFINITY;
+    count += static_cast<double>(b.size() - 1);
+  }
   return count;
 }
 
@@ -490,8 +830,9 @@ Result<ReferenceSolution> solve_reference(const Scene& scene, const ReferenceSet
   const std::size_t memory_limit =
       settings.memory_limit != 0 ? settings.memory_limit : default_memory_budget();
 
-  // 1. Elements: equal arc-length chords of every segment.
+  // 1. Elements: chords of every segment, equal in arc length between contacts.
   std::vector<ReferenceElement>& elements = solution.elements_;
+  const std::vector<std::vector<double>> boundaries = element_boundaries(scene, max_length);
   solution.segment_first_.assign(scene.segments.size(), 0);
   solution.segment_count_.assign(scene.segments.size(), 0);
   for (std::uint32_t si = 0; si < scene.segments.size(); ++si) {
@@ -499,15 +840,16 @@ Result<ReferenceSolution> solve_reference(const Scene& scene, const ReferenceSet
     const Curve& curve = scene.curves[segment.curve];
     const Material& material = scene.material_of(curve);
     const Cubic& shape = segment.geometry.shape;
-    const double pieces_real = std::max(1.0, std::ceil(segment.length / max_length));
-    const auto pieces = static_cast<std::uint32_t>(pieces_real);
+    const std::vector<double>& boundary = boundaries[si];
+    const auto pieces = static_cast<std::uint32_t>(boundary.size() - 1);
     solution.segment_first_[si] = static_cast<std::uint32_t>(elements.size());
     solution.segment_count_[si] = pieces;
-    const double step = segment.length / pieces;
+    // Per segment pieces + 1 boundaries; segment si's start at segment_first_[si] + si.
+    solution.boundary_.insert(solution.boundary_.end(), boundary.begin(), boundary.end());
     auto point_at = [&](std::uint32_t k) {
       if (k == 0) return shape.p[0];
       if (k == pieces) return shape.p[3];
-      return evaluate(shape, segment.arc_length.parameter_at(shape, k * step));
+      return evaluate(shape, segment.arc_length.parameter_at(shape, boundary[k]));
     };
     Vec2 start = point_at(0);
     for (std::uint32_t k = 0; k < pieces; ++k) {
@@ -521,7 +863,8 @@ Result<ReferenceSolution> solve_reference(const Scene& scene, const ReferenceSet
       e.normal = (1.0 / e.length) * perp(end - start);
       e.curve = segment.curve;
       e.segment = si;
-      e.u_mid = segment.index_in_curve + segment.arc_length.parameter_at(shape, (k + 0.5) * step);
+      e.u_mid = segment.index_in_curve +
+                segment.arc_length.parameter_at(shape, 0.5 * (boundary[k] + boundary[k + 1]));
       const double factor = emittance_factor(curve, e.u_mid);
       for (const Side side : {Side::Front, Side::Back}) {
         if (!curve.has_side(side)) continue;
@@ -537,6 +880,23 @@ Result<ReferenceSolution> solve_reference(const Scene& scene, const ReferenceSet
     }
   }
   const auto element_count = static_cast<std::uint32_t>(elements.size());
+  // Chain neighbours: consecutive elements of a curve that share an end point exactly (joints
+  // share their control point), and the last and first of a closed curve.
+  for (std::uint32_t k = 0; k + 1 < element_count; ++k) {
+    if (elements[k + 1].curve == elements[k].curve && elements[k + 1].a == elements[k].b) {
+      elements[k].next = k + 1;
+      elements[k + 1].previous = k;
+    }
+  }
+  for (std::uint32_t first = 0; first < element_count;) {
+    std::uint32_t last = first;
+    while (last + 1 < element_count && elements[last + 1].curve == elements[first].curve) ++last;
+    if (last != first && elements[last].b == elements[first].a) {
+      elements[last].next = first;
+      elements[first].previous = last;
+    }
+    first = last + 1;
+  }
   const std::size_t patch_count = 2 * static_cast<std::size_t>(element_count);
   // Patches that carry radiosity (reflect or emit) and patches that need a row (reflect).
   std::vector<char> carries(patch_count, 0);
@@ -574,6 +934,7 @@ Result<ReferenceSolution> solve_reference(const Scene& scene, const ReferenceSet
   auto worker = [&](bool reports) {
     auto last_report = std::chrono::steady_clock::now();
     Sweeper sweeper;
+    PairQuadrature pair_quadrature(elements, nodes, weights);
     std::vector<VisibleElement> visible;
     std::vector<double> accumulated(patch_count, 0.0);
     std::vector<int> whole_count(patch_count, 0);
@@ -609,6 +970,10 @@ Result<ReferenceSolution> solve_reference(const Scene& scene, const ReferenceSet
             in_front_of(elements[j], side_j, ei)) {
           const ReferenceElement& ej = elements[j];
           f = crossed_strings(ei.a, ei.b, ej.a, ej.b);
+        } else {
+          // Seen partly (or clipped by i's plane) from some quadrature point: integrate again,
+          // split at the visibility events.
+          f = pair_quadrature.form_factor(i, side, j, side_j);
         }
         accumulated[p] = 0.0;
         whole_count[p] = 0;
@@ -699,6 +1064,78 @@ Result<ReferenceSolution> solve_reference(const Scene& scene, const ReferenceSet
   }
   solution.solve_seconds_ = seconds_since(solve_start);
   return solution;
+}
+
+ReferenceErrorEstimate estimate_from_differences(const ErrorNorms& fine, const ErrorNorms& coarse,
+                                                 double round_off) {
+  ReferenceErrorEstimate estimate;
+  estimate.fine_difference = fine;
+  estimate.coarse_difference = coarse;
+  estimate.round_off = round_off;
+  estimate.observed_order = NAN;
+  estimate.order = NAN;
+  char text[240];
+  if (!(fine.l2 > round_off)) {
+    std::snprintf(text, sizeof text,
+                  "R_h and R_2h agree to round-off (%.2g): the reference reproduces this scene at "
+                  "every resolution; the estimate is that difference",
+                  fine.l2);
+    estimate.note = text;
+    estimate.error = fine;
+    return estimate;
+  }
+  if (!(coarse.l2 > round_off)) {
+    std::snprintf(text, sizeof text,
+                  "R_4h and R_2h agree to round-off but R_h differs: no order observed; assumed "
+                  "the lowest, %.2g",
+                  kMinimumOrder);
+    estimate.note = text;
+    estimate.order = kMinimumOrder;
+  } else {
+    estimate.observed_order = std::log2(coarse.l2 / fine.l2);
+    estimate.order = std::clamp(estimate.observed_order, kMinimumOrder, kMaximumOrder);
+    if (estimate.order != estimate.observed_order) {
+      std::snprintf(text, sizeof text, "observed order %.2f clamped to %.2g", estimate.observed_order,
+                    estimate.order);
+      estimate.note = text;
+    }
+  }
+  const double factor = 1.0 / (std::exp2(estimate.order) - 1.0);
+  estimate.error = {factor * fine.l1, factor * fine.l2, factor * fine.linf};
+  return estimate;
+}
+
+Result<ReferenceErrorEstimate> estimate_discretisation_error(const Scene& scene,
+                                                              const ReferenceSettings& settings,
+                                                              int samples, const nlohmann::json& curves,
+                                                              const std::function<void(int level)>& starting) {
+  const double length =
+      settings.max_element_length > 0.0 ? settings.max_element_length : scene.scale / 400.0;
+  nlohmann::json previous = {{"flatland_result", 1}, {"curves", curves}};
+  std::array<ErrorNorms, 2> differences;
+  double largest_bound = 0.0;
+  for (int level = 1; level <= 2; ++level) {
+    if (starting) starting(level);
+    ReferenceSettings coarser = settings;
+    coarser.max_element_length = std::ldexp(length, level);
+    Result<ReferenceSolution> solved = solve_reference(scene, coarser);
+    if (!solved) return solved.error();
+    const ReferenceSolution& solution = *solved;
+    largest_bound = std::max(largest_bound, solution.error_bound());
+    nlohmann::json sampled = {
+        {"flatland_result", 1},
+        {"curves", sampled_curves_to_json(scene, samples, [&solution](std::uint32_t c, Side side, double u) {
+           return solution.radiosity(c, side, u);
+         })}};
+    Result<Comparison> difference = compare_results(sampled, previous);
+    if (!difference) return difference.error();
+    differences[static_cast<std::size_t>(level - 1)] = difference->scene;
+    previous = std::move(sampled);
+  }
+  // Round-off: sums of rounded terms (about 1e-15 relative; 1e-13 leaves room for the many terms
+  // of a gather), and the linear solves' own guaranteed error.
+  const double round_off = std::max(1e-13, 4.0 * largest_bound);
+  return estimate_from_differences(differences[0], differences[1], round_off);
 }
 
 }  // namespace flatland

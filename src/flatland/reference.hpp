@@ -3,16 +3,19 @@
 //   B(x) = E(x) + rho(x) * integral G(x,y) B(y) ds_y,   G = cos(theta_x) cos(theta_y) / (2 r) V(x,y)
 //
 // 1. Every segment is flattened into chords of equal arc length (at most max_element_length; the
-//    chord ends lie on the curve). Each chord is a constant element with two sides; the front
+//    chord ends lie on the curve), cut first at contacts (find_contacts: another curve's end
+//    point or corner on it, a crossing), so that no element straddles one. Each chord is a constant element with two sides; the front
 //    normal is perp(chord direction). A side the scene names reflects (rho = the material's
 //    reflectivity) and emits (the curve's emittance times the profile factor at the element's
 //    arc-length midpoint); the other side absorbs and emits nothing.
 // 2. Exact point-to-elements visibility by an angular sweep around the point (all elements are
 //    occluders): F(x -> j) = (1/2) sum over the visible angular intervals of j of (sin b - sin a),
 //    angles from the point's normal.
-// 3. Element form factors F_ij = (1/L_i) integral over element i of F(x -> j) ds by Gauss-Legendre;
-//    pairs that every quadrature point sees whole, and that lie wholly in front of each other, take
-//    Hottel's crossed strings instead (exact, and it removes the log singularity of neighbours).
+// 3. Element form factors F_ij = (1/L_i) integral over element i of F(x -> j) ds: pairs that every
+//    Gauss-Legendre point of element i sees whole, and that lie wholly in front of each other,
+//    take Hottel's crossed strings (exact, and it removes the log singularity of neighbours); the
+//    others are integrated again with element i cut at the visibility events of the pair
+//    (pair_form_factor), Gauss-Legendre on each piece.
 // 4. (I - diag(rho) F) b = e per channel by restarted GMRES, until the residual r guarantees a
 //    relative error of b below `tolerance`: |b - b*|_inf <= |r|_inf / (1 - q), q = max rho x row
 //    sum of F (< 1 for rho < 1), so it converges, and knows its error, up to rho = 0.999 and beyond.
@@ -32,8 +35,12 @@
 #include <cstddef>
 #include <cstdint>
 #include <functional>
+#include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
+#include "flatland/metrics.hpp"
 #include "flatland/result.hpp"
 #include "flatland/scene.hpp"
 #include "flatland/vec2.hpp"
@@ -68,6 +75,8 @@ inline constexpr const char* kReferenceCancelled = "the reference solve was canc
 // Checks ranges; the message names the setting and the accepted range.
 Status validate(const ReferenceSettings& settings);
 
+inline constexpr std::uint32_t kNoElement = 0xffffffffu;
+
 // A constant element: a chord of a segment.
 struct ReferenceElement {
   Vec2 a;  // start (on the curve)
@@ -77,6 +86,10 @@ struct ReferenceElement {
   std::uint32_t curve = 0;
   std::uint32_t segment = 0;  // index into Scene::segments
   double u_mid = 0.0;         // curve parameter at the element's arc-length midpoint
+  // The elements before and after it in its curve's chain (sharing the end point a, b exactly;
+  // across joints, and across the closing point of a closed curve), or kNoElement at a chain end.
+  std::uint32_t previous = kNoElement;
+  std::uint32_t next = kNoElement;
   // Per side (Side::Front = 0, Side::Back = 1): reflectivity and emittance (zero on inactive sides).
   std::array<Spectrum, 2> reflectivity{};
   std::array<Spectrum, 2> emittance{};
@@ -99,9 +112,20 @@ struct VisibleElement {
 // ends); those directions go to `self`, and likewise for elements with an end point at x.
 // Elements seen edge-on (x on their line) are skipped. Results are in increasing element order,
 // one entry per (element, side).
-inline constexpr std::uint32_t kNoElement = 0xffffffffu;
 std::vector<VisibleElement> visible_elements(const std::vector<ReferenceElement>& elements, Vec2 x,
                                              Vec2 normal, std::uint32_t self);
+
+// The form factor F from (element i, side si) to (element j, side sj) of a pair that sees each
+// other partly: (1/L_i) integral over i of F(x -> j), with every other element that meets the
+// convex hull of i and j as an occluder. `split`: element i's parameter interval is cut at the
+// visibility events (the lines through two points that bound what x sees of j: ends of j and
+// occluder end points, and the line of j) and each piece takes `points` Gauss-Legendre points, as
+// solve_reference does for every pair that some quadrature point does not see whole; otherwise
+// one `points`-point rule over the whole element (the rule before the split, for comparison).
+// `pieces`, if given, receives the number of pieces.
+double pair_form_factor(const std::vector<ReferenceElement>& elements, std::uint32_t i, Side si,
+                        std::uint32_t j, Side sj, int points, bool split = true,
+                        std::size_t* pieces = nullptr);
 
 // Hottel's crossed strings for two straight segments that see each other whole:
 // F_12 = (crossed - uncrossed) / (2 L_1), crossed = |a1 b2| + |b1 a2|, uncrossed = |a1 a2| + |b1 b2|
@@ -144,6 +168,8 @@ class ReferenceSolution {
   // Per segment: first element and count (elements of a segment are consecutive).
   std::vector<std::uint32_t> segment_first_;
   std::vector<std::uint32_t> segment_count_;
+  // Element boundaries as arc lengths from each segment's start (segment_count_ + 1 per segment).
+  std::vector<double> boundary_;
   // Rows of F for reflecting patches (sparse: receiving patch, value); patch = 2 element + side.
   std::vector<std::uint32_t> row_patch_;             // patch of each row
   std::vector<std::uint32_t> patch_row_;             // row of each patch, or kNoElement
@@ -164,5 +190,38 @@ class ReferenceSolution {
 double reference_element_count(const Scene& scene, const ReferenceSettings& settings);
 
 Result<ReferenceSolution> solve_reference(const Scene& scene, const ReferenceSettings& settings);
+
+// The reference's own discretisation error, from references with elements of length h, 2h and 4h
+// (each one flattens the curves anew, so the chords' departure from the curves is in it as much
+// as the constant elements' and the quadrature's). With d1 = |R_2h - R_h| and d2 = |R_4h - R_2h|
+// (relative norms over all output samples, as compare_results forms them), the error of R_h is
+// e ~ C h^p with observed order p = log2(d2 / d1), and d1 = (2^p - 1) e, so e ~ d1 / (2^p - 1).
+// Guards: p is clamped to [kMinimumOrder, kMaximumOrder]; when d1 is at round-off level the
+// references agree to rounding at every resolution and d1 itself is the estimate (no order);
+// when only d2 is, no order is observed and the lowest order is assumed (the largest estimate).
+inline constexpr double kMinimumOrder = 0.5;
+inline constexpr double kMaximumOrder = 4.0;
+struct ReferenceErrorEstimate {
+  ErrorNorms error;              // the estimated relative error of R_h (L1, L2, L-infinity)
+  ErrorNorms fine_difference;    // R_2h against R_h (d1)
+  ErrorNorms coarse_difference;  // R_4h against R_2h (d2)
+  double observed_order = 0.0;   // log2(d2 / d1) of the L2 differences, unclamped (NaN: none)
+  double order = 0.0;            // the order the estimate uses (NaN: differences at round-off)
+  double round_off = 0.0;        // relative differences at or below this are round-off
+  std::string note;              // why `order` is not `observed_order` (empty when it is)
+};
+
+// The estimate from the two differences; the L2 differences decide the order, whose factor
+// 1 / (2^p - 1) then scales all three norms of d1.
+ReferenceErrorEstimate estimate_from_differences(const ErrorNorms& fine, const ErrorNorms& coarse,
+                                                 double round_off);
+
+// Solves at 2h and 4h (h = settings' element length; the settings' progress and cancel apply to
+// both), samples them like `curves` (the samples of R_h, from sampled_curves_to_json with
+// `samples` per curve) and estimates R_h's error. `starting(level)` is called before the solve
+// at 2^level h (level 1, 2). Returns kReferenceCancelled when cancelled.
+Result<ReferenceErrorEstimate> estimate_discretisation_error(
+    const Scene& scene, const ReferenceSettings& settings, int samples, const nlohmann::json& curves,
+    const std::function<void(int level)>& starting = {});
 
 }  // namespace flatland
