@@ -444,8 +444,8 @@ TEST(Footprint, EndsKeepUniformFluxExactAndLinearFluxSecondOrder) {
   // k is p_k = integral f(s) w_k(s) ds with w the footprint weights of a hit at s, against the
   // point deposit's q_k = integral f(s) phi_k(s) ds (what the footprint should not change). Both
   // by the midpoint rule in s (40,000 cells: 1e-9 here). Reflecting the cut-off mass about an end
-  // keeps every q_k for uniform f (renormalising it instead gave the end element ln 2 + 1/2 of
-  // its share for a box reaching over it, 1.19x at W/2 from the end); for linear f the error is
+  // keeps every q_k for uniform f (renormalising it instead made the deposited density ln 2 of the
+  // truth at the end and 1.19x at W/2 from it, box profile); for linear f the error is
   // O(a^2): halving the footprint quarters it. At a line's ends and at a corner (of a polyline 4
   // and 6 long), linear storage of ten elements, box and tent profiles.
   for (const std::size_t index : {kLine, kCorner}) {

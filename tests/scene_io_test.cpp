@@ -969,3 +969,57 @@ TEST(SceneIoErrors, OverlappingCurvesAreRefused) {
 
 }  // namespace
 }  // namespace flatland
+
+namespace flatland {
+namespace {
+
+// A closed square (four straight sides, corners everywhere) and a closed smooth loop (a circle of
+// two cubic halves, handles 4/3 r), in either format version, with the given "joints" entry.
+std::string closed_curves(int version, const std::string& loop_joints) {
+  return "{\"flatland\": " + std::to_string(version) + R"(,
+    "materials": {"wall": {"reflectivity": 0.5, "emittance": 1}},
+    "curves": [
+      {"id": "square", "material": "wall", "line": [[0,0],[1,0],[1,1],[0,1],[0,0]]},
+      {"id": "loop", "material": "wall", "bezier": [[3,0],[3,1.3333333333333333],[5,1.3333333333333333],[5,0],
+                                                     [5,-1.3333333333333333],[3,-1.3333333333333333],[3,0]])" +
+         (loop_joints.empty() ? "" : ", \"joints\": " + loop_joints) + "}]}";
+}
+
+TEST(SceneIoClosedCurves, TheClosingPointIsAJointInVersionTwo) {
+  const Result<Scene> v2 = parse(closed_curves(2, ""));
+  ASSERT_TRUE(v2.ok()) << v2.error().message;
+  const Curve& square = v2->curves[0];
+  const Curve& loop = v2->curves[1];
+  EXPECT_TRUE(square.closed);
+  EXPECT_TRUE(loop.closed);
+  // One joint per segment; the square's closing corner is a jump, the loop's smooth closing C1.
+  EXPECT_EQ(square.joints, std::vector<Continuity>(4, Continuity::Jump));
+  EXPECT_FALSE(square.periodic());
+  EXPECT_EQ(loop.joints, (std::vector<Continuity>{Continuity::C1, Continuity::C1}));
+  EXPECT_TRUE(loop.periodic());
+  EXPECT_TRUE(is_tangent_continuous(*v2, loop, 1));     // the closing joint
+  EXPECT_FALSE(is_tangent_continuous(*v2, square, 3));
+  // Version 1: the same loop keeps its seam.
+  const Result<Scene> v1 = parse(closed_curves(1, ""));
+  ASSERT_TRUE(v1.ok()) << v1.error().message;
+  EXPECT_EQ(v1->curves[1].joints, (std::vector<Continuity>{Continuity::C1, Continuity::Jump}));
+  EXPECT_FALSE(v1->curves[1].periodic());
+  // Explicit entries: one string for all joints (the closing one too in version 2, not in 1),
+  // s - 1 entries (closing by default) or s.
+  EXPECT_EQ(parse(closed_curves(2, "\"C0\""))->curves[1].joints, std::vector<Continuity>(2, Continuity::C0));
+  EXPECT_EQ(parse(closed_curves(1, "\"C0\""))->curves[1].joints,
+            (std::vector<Continuity>{Continuity::C0, Continuity::Jump}));
+  EXPECT_EQ(parse(closed_curves(2, "[\"C0\"]"))->curves[1].joints,
+            (std::vector<Continuity>{Continuity::C0, Continuity::C1}));
+  EXPECT_EQ(parse(closed_curves(2, "[\"C1\", \"C-1\"]"))->curves[1].joints,
+            (std::vector<Continuity>{Continuity::C1, Continuity::Jump}));
+  EXPECT_FALSE(parse(closed_curves(2, "[\"C1\", \"C-1\"]"))->curves[1].periodic());
+  EXPECT_CONTAINS(error_of(closed_curves(2, "[\"C1\", \"C1\", \"C1\"]")),
+                  "curves[1].joints: expected 2 entries (one per joint of the closed chain, the last "
+                  "at the closing point) or 1 (the closing point by its tangents), got 3");
+  // Version 1 has no closing entry.
+  EXPECT_CONTAINS(error_of(closed_curves(1, "[\"C1\", \"C1\"]")), "curves[1].joints: expected 1 entry");
+}
+
+}  // namespace
+}  // namespace flatland

@@ -49,8 +49,9 @@ void add_solver_options(CLI::App* cmd, SolveOptions& o) {
       ->check(CLI::IsMember({"uniform", "reconstructed"}));
   cmd->add_option("--discontinuities", o.discontinuities,
                   "Nodes where illumination may jump or kink: none (smooth everywhere), scene (the "
-                  "scene's joints: C-1 at corners by default) or auto (scene joints plus C0 nodes "
-                  "at visibility events: penumbra boundaries)")
+                  "scene's joints, C-1 at corners by default, and C-1 at contacts, where a curve "
+                  "ends on or crosses another) or auto (those plus C0 nodes at direct-light "
+                  "events: penumbra boundaries from emitters' end points, corners and silhouettes)")
       ->capture_default_str()
       ->check(CLI::IsMember({"none", "scene", "auto"}));
   cmd->add_option("--estimator", o.estimator,
