@@ -85,6 +85,11 @@ void describe_solver(const Solver& solver, const std::vector<CurveTrace>& traces
       snapshot.nodes[c].push_back({evaluate(scene.segments[curve.first_segment + segment].geometry.shape, t),
                                     node.continuity, !joint && node.continuity == Continuity::C0});
     }
+    // A closed curve is one loop: its closing point is a node too (C1 or C0 where the storage wraps
+    // round, C-1 at a corner or a seam).
+    if (curve.closed)
+      snapshot.nodes[c].push_back({scene.segments[curve.first_segment].geometry.shape.p[0],
+                                   solver.storage(c).closing, false});
   }
   if (total_reflected > 0.0)
     for (double& share : snapshot.received_share) share /= total_reflected;
