@@ -806,7 +806,10 @@ struct RingSolution {
   std::vector<double> a, b;  // cosine and sine coefficients of B
   double operator()(double phi) const {
     double sum = 0.5 * a[0];
-    for (std::size_t n = 1; n < a.size(); ++n) sum += a[n] * std::cos(n * phi) + b[n] * std::sin(n * phi);
+    for (std::size_t n = 1; n < a.size(); ++n) {
+      const double angle = static_cast<double>(n) * phi;
+      sum += a[n] * std::cos(angle) + b[n] * std::sin(angle);
+    }
     return sum;
   }
 };
@@ -951,7 +954,9 @@ TEST(Solver, RoundOccluderEventsBeatSceneJointsAtEqualPhotons) {
       settings.discontinuities = mode;
       Solver solver = make_solver(scene, settings);
       solver.run();
-      if (mode == DiscontinuityMode::Auto) EXPECT_EQ(solver.visibility_event_nodes(), 4u);
+      if (mode == DiscontinuityMode::Auto) {
+        EXPECT_EQ(solver.visibility_event_nodes(), 4u);
+      }
       double difference = 0.0, norm = 0.0;
       for (int j = 0; j < 200; ++j) {
         const double x = -2.0 + 4.0 * (j + 0.5) / 200.0;

@@ -344,12 +344,12 @@ double ArcLengthTable::parameter_at(const Cubic& c, double s) const {
   return t;
 }
 
-double distance_to_cubic(const Cubic& c, Vec2 p) {
+CubicPoint closest_point_on_cubic(const Cubic& c, Vec2 p) {
   constexpr int kSamples = 32;
   int best = 0;
   double best_distance = INFINITY;
   for (int k = 0; k <= kSamples; ++k) {
-    const double d = length(evaluate(c, static_cast<double>(k) / kSamples) - p);
+    const double d = length_squared(evaluate(c, static_cast<double>(k) / kSamples) - p);
     if (d < best_distance) {
       best_distance = d;
       best = k;
@@ -358,15 +358,25 @@ double distance_to_cubic(const Cubic& c, Vec2 p) {
   const double low = std::max(0, best - 1) / static_cast<double>(kSamples);
   const double high = std::min(kSamples, best + 1) / static_cast<double>(kSamples);
   double t = static_cast<double>(best) / kSamples;
-  for (int iteration = 0; iteration < 8; ++iteration) {
+  for (int iteration = 0; iteration < 30; ++iteration) {
     const Vec2 offset = evaluate(c, t) - p;
     const Vec2 velocity = derivative(c, t);
     const double g = dot(velocity, offset);
     const double slope = dot(velocity, velocity) + dot(second_derivative(c, t), offset);
     if (!(slope > 0.0)) break;  // not a minimum's basin: keep the sample
-    t = std::clamp(t - g / slope, low, high);
+    const double next = std::clamp(t - g / slope, low, high);
+    const bool done = std::fabs(next - t) <= 4.0 * std::numeric_limits<double>::epsilon();
+    t = next;
+    if (done) break;
   }
-  return std::min(best_distance, length(evaluate(c, t) - p));
+  CubicPoint nearest{t, length(evaluate(c, t) - p)};
+  // Newton never loses to its start, the best sample (an end among them: the nearest point may be
+  // at t = 0 or 1).
+  const double sampled = std::sqrt(best_distance);
+  if (sampled < nearest.distance) nearest = {static_cast<double>(best) / kSamples, sampled};
+  return nearest;
 }
+
+double distance_to_cubic(const Cubic& c, Vec2 p) { return closest_point_on_cubic(c, p).distance; }
 
 }  // namespace flatland

@@ -53,9 +53,16 @@ double speed_bound(const Cubic& c);
 // accuracy of about 1e-13.
 double arc_length(const Cubic& c, double t0 = 0.0, double t1 = 1.0);
 
-// The distance from p to the curve c (t in [0,1]): the nearest of 32 uniform samples, refined by
-// Newton on g(t) = C'(t) . (C(t) - p), half the derivative of the squared distance, kept inside
-// the samples' bracket (a few steps reach rounding: g is smooth and the start is close).
+// The point of c (t in [0,1]) nearest to p: the nearest of 32 uniform samples, refined by Newton on
+// g(t) = C'(t) . (C(t) - p), half the derivative of the squared distance, kept inside the samples'
+// bracket (a few steps reach rounding: g is smooth and the start is close); an end of the curve
+// wins when it is nearer.
+struct CubicPoint {
+  double t = 0.0;
+  double distance = 0.0;
+};
+CubicPoint closest_point_on_cubic(const Cubic& c, Vec2 p);
+// closest_point_on_cubic(c, p).distance.
 double distance_to_cubic(const Cubic& c, Vec2 p);
 
 // An interior parameter t in (0,1) where C'(t) = 0 (a cusp, where the normal flips), if any.

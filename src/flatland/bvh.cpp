@@ -88,6 +88,8 @@ struct SlabRay {
   }
 };
 
+}  // namespace
+
 Box segment_box(const SegmentGeometry& g) {
   if (g.kind == SegmentKind::Line) {
     Box box;
@@ -98,7 +100,6 @@ Box segment_box(const SegmentGeometry& g) {
   return hull_bounds(g.shape);
 }
 
-}  // namespace
 
 SegmentAccelerator::SegmentAccelerator(std::vector<SegmentGeometry> segments)
     : segments_(std::move(segments)) {

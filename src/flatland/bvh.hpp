@@ -34,6 +34,9 @@ struct RayOrigin {
   double t = 0.0;
 };
 
+// The segment's bounding box: its two ends for a line, the control points' hull box for a cubic.
+Box segment_box(const SegmentGeometry& g);
+
 class SegmentAccelerator {
  public:
   SegmentAccelerator() = default;

@@ -135,16 +135,6 @@ bool overlap(const Box& a, const Box& b) {
          b.lower.y <= a.upper.y;
 }
 
-Box segment_box(const SegmentGeometry& g) {
-  if (g.kind == SegmentKind::Line) {
-    Box box;
-    box.extend(g.shape.p[0]);
-    box.extend(g.shape.p[3]);
-    return box;
-  }
-  return hull_bounds(g.shape);
-}
-
 // Whether the segment is straight for the purpose of tangent points: a line, or a cubic whose inner
 // control points lie within kStraight * scale of the chord (then the whole curve does).
 bool is_straight(const SegmentGeometry& g, double scale) {
@@ -172,42 +162,8 @@ std::pair<double, double> closest_parameter(const SegmentGeometry& g, Vec2 p) {
     const double t = std::clamp(dot(p - c.p[0], d) / dot(d, d), 0.0, 1.0);
     return {t, length(lerp(c.p[0], c.p[3], t) - p)};
   }
-  constexpr int kSamples = 32;
-  int best = 0;
-  double best_distance = INFINITY;
-  for (int k = 0; k <= kSamples; ++k) {
-    const double distance = length_squared(evaluate(c, static_cast<double>(k) / kSamples) - p);
-    if (distance < best_distance) {
-      best_distance = distance;
-      best = k;
-    }
-  }
-  const double lo = std::max(0, best - 1) / static_cast<double>(kSamples);
-  const double hi = std::min(kSamples, best + 1) / static_cast<double>(kSamples);
-  double t = static_cast<double>(best) / kSamples;
-  for (int iteration = 0; iteration < 30; ++iteration) {
-    const Vec2 offset = evaluate(c, t) - p;
-    const Vec2 d1 = derivative(c, t);
-    const double h = dot(d1, offset);
-    const double slope = dot(d1, d1) + dot(second_derivative(c, t), offset);
-    if (!(slope > 0.0)) break;
-    const double next = std::clamp(t - h / slope, lo, hi);
-    if (std::fabs(next - t) <= 4.0 * kEpsilon) {
-      t = next;
-      break;
-    }
-    t = next;
-  }
-  // The ends of the bracket may be nearer (the nearest point at t = 0 or 1).
-  double distance = length(evaluate(c, t) - p);
-  for (const double end : {0.0, 1.0}) {
-    const double d = length(evaluate(c, end) - p);
-    if (d < distance) {
-      distance = d;
-      t = end;
-    }
-  }
-  return {t, distance};
+  const CubicPoint nearest = closest_point_on_cubic(c, p);
+  return {nearest.t, nearest.distance};
 }
 
 // ---------------------------------------------------------------------------------------------
