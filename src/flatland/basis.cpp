@@ -101,6 +101,7 @@ std::size_t SplineBasis::evaluate(double u, double* values) const {
 }
 
 void SplineBasis::evaluate_in_span(std::size_t span, double u, double* values) const {
+  assert(span >= static_cast<std::size_t>(degree_) && span + static_cast<std::size_t>(degree_) < knots_.size());
   // Cox-de Boor recursion in the triangular form of Piegl and Tiller (The NURBS Book, A2.2):
   // builds the nonzero functions of degree j from those of degree j-1 without division by zero,
   // since only non-empty spans are visited.
@@ -184,8 +185,14 @@ BasisSampler::BasisSampler(const SplineBasis& basis) {
       std::array<std::array<double, 5>, 4> system{};
       for (std::size_t row = 0; row < 4; ++row) {
         const double x = kNodes[row];
-        // Function k is function k - (span - p) of this span (spans k .. k + p carry it).
-        basis.evaluate_in_span(span, u0 + x * width, values.data());
+        // Function k is function k - (span - p) of this span (spans k .. k + p carry it). On a
+        // periodic basis the first p spans (before u_begin) are evaluated a period later, as
+        // span + K, where the recursion has the p knots it reads on the left.
+        if (span < static_cast<std::size_t>(p))
+          basis.evaluate_in_span(span + basis.size(), u0 + x * width + (basis.u_end() - basis.u_begin()),
+                                 values.data());
+        else
+          basis.evaluate_in_span(span, u0 + x * width, values.data());
         const double phi = values[k + static_cast<std::size_t>(p) - span];
         double power = 1.0;
         for (std::size_t col = 0; col < 4; ++col, power *= x) system[row][col] = power;

@@ -71,7 +71,8 @@ class SplineBasis {
   // wrapped on a periodic basis): writes phi_first(u) .. phi_(first+degree)(u) into values and
   // returns first; function first + j is index(first + j).
   std::size_t evaluate(double u, double* values) const;
-  // The same in a given span (knots[span] <= u <= knots[span + 1], u not wrapped): the functions
+  // The same in a given span (knots[span] <= u <= knots[span + 1], u not wrapped, and
+  // span >= degree: the recursion reads `degree` knots on each side): the functions
   // span - degree .. span of the extended numbering (index() maps them to the basis).
   void evaluate_in_span(std::size_t span, double u, double* values) const;
 
