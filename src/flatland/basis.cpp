@@ -68,15 +68,15 @@ SplineBasis SplineBasis::periodic(int degree, double u_begin, double u_end,
   return basis;
 }
 
-double SplineBasis::wrap(double u) const {
-  const double begin = u_begin();
-  const double end = u_end();
-  if (!periodic_) return std::clamp(u, begin, end);
+double wrap_into_period(double u, double begin, double end) {
   if (u >= begin && u < end) return u;
   const double length = end - begin;
-  double wrapped = u - std::floor((u - begin) / length) * length;
-  if (!(wrapped >= begin && wrapped < end)) wrapped = begin;  // rounding at the seam, or NaN
-  return wrapped;
+  const double wrapped = u - std::floor((u - begin) / length) * length;
+  return wrapped >= begin && wrapped < end ? wrapped : begin;  // rounding at the seam, or NaN
+}
+
+double SplineBasis::wrap(double u) const {
+  return periodic_ ? wrap_into_period(u, u_begin(), u_end()) : std::clamp(u, u_begin(), u_end());
 }
 
 std::size_t SplineBasis::find_span(double u) const {
@@ -279,10 +279,7 @@ double BasisSampler::sample(std::size_t k, double u1, double u2) const {
 
 double BasisSampler::wrap(double u) const {
   // A periodic function's pieces may lie a period before u_begin or past u_end.
-  if (!periodic_ || (u >= u_begin_ && u < u_end_)) return u;
-  const double length = u_end_ - u_begin_;
-  const double wrapped = u < u_begin_ ? u + length : u - length;
-  return wrapped >= u_begin_ && wrapped < u_end_ ? wrapped : u_begin_;
+  return periodic_ ? wrap_into_period(u, u_begin_, u_end_) : u;
 }
 
 double BasisSampler::pdf(std::size_t k, double u) const {

@@ -34,6 +34,9 @@ struct MeshNode {
   Continuity continuity = Continuity::C1;
 };
 
+// u moved by whole periods into [begin, end) (begin for a NaN or a value that rounds onto end).
+double wrap_into_period(double u, double begin, double end);
+
 class SplineBasis {
  public:
   static constexpr int kMaxDegree = 3;

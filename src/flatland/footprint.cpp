@@ -409,8 +409,6 @@ void footprint_weights(const Scene& scene, const Curve& curve, const SplineBasis
       after += segments[j].length;
     }
   }
-  // The run's ends within reach (one lap each way around a flat endless loop).
-  const double reach = endless && a > 32.0 * total ? 0.5 * total : a;
   // Walls (contacts: another curve stands on this one there) end the run like corners.
   if (!walls.empty()) {
     if (endless) {
@@ -430,6 +428,10 @@ void footprint_weights(const Scene& scene, const Curve& curve, const SplineBasis
       }
     }
   }
+  // A closed smooth curve that the footprint would wrap round more than 64 times gets a flat
+  // spread (its periodic sum is flat to 2 %), one lap each way.
+  const bool flat = endless && a > 32.0 * total;
+  const double reach = flat ? 0.5 * total : a;
   const double x0 = endless ? -reach : std::fmax(-before, -a);
   const double x1 = endless ? reach : std::fmin(after, a);
   const bool cut_low = !endless && before < a;
@@ -452,9 +454,7 @@ void footprint_weights(const Scene& scene, const Curve& curve, const SplineBasis
 
   const bool polynomial_profile = profile == RayProfile::Box || profile == RayProfile::Tent ||
                                   profile == RayProfile::Epanechnikov;
-  // 0 for an infinite footprint: a flat spread. A closed smooth curve that the footprint would
-  // wrap round more than 64 times gets the flat spread too (its periodic sum is flat to 2 %).
-  const bool flat = endless && a > 32.0 * total;
+  // 0 for an infinite footprint, or a flat one: a flat spread.
   const double inverse_a = flat ? 0.0 : 1.0 / a;
   // The Gaussian changes fastest: its panels span at most half the footprint (x-width 1/2), where
   // eight points reach about 1e-14 (a whole half, x-width 1, would give about 1e-9).

@@ -125,10 +125,10 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
   }
   solver.accelerator_ = SegmentAccelerator(std::move(geometry));
   std::vector<std::vector<MeshNode>> events(scene.curves.size());
+  solver.walls_.resize(scene.curves.size());
   if (settings.discontinuities != DiscontinuityMode::None) {
     // Contacts are part of the geometry (light on the two sides is unrelated): a value jump there
     // whenever the scene's joints are honoured.
-    solver.walls_.resize(scene.curves.size());
     for (const DiscontinuityNode& node : find_contacts(scene)) {
       events[node.curve].push_back({node.u, node.continuity});
       solver.walls_[node.curve].push_back(solver.arc_length_at(node.curve, node.u));
@@ -627,8 +627,7 @@ void Solver::receive(const SceneHit& hit, const Ray& ray, const std::array<std::
     footprint.clear();
     footprint_weights(*scene_, scene_->curves[info.curve], storage_[info.curve].basis, u,
                       footprint_half_length(settings_.ray_width, cos_incidence),
-                      settings_.ray_profile, footprint,
-                      walls_.empty() ? std::span<const double>{} : std::span<const double>(walls_[info.curve]));
+                      settings_.ray_profile, footprint, walls_[info.curve]);
     std::size_t largest = 0;
     for (std::size_t i = 1; i < footprint.size(); ++i)
       if (footprint[i].weight > footprint[largest].weight) largest = i;

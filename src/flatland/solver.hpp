@@ -258,7 +258,8 @@ class Solver {
   std::size_t coefficient_count_ = 0;
   std::size_t visibility_events_ = 0;
   std::size_t contact_nodes_ = 0;
-  // Per curve, the arc lengths of its contacts: footprints stop there (empty without contacts).
+  // Per curve, the arc lengths of its contacts: footprints stop there (empty with discontinuities
+  // none).
   std::vector<std::vector<double>> walls_;
 
   std::vector<double> received_;  // all rounds, [coefficient * channels + channel]
