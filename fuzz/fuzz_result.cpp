@@ -58,5 +58,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   number = 2.0 * number.get<double>() + 1.0;
   (void)flatland::compare_results(*changed, *document);
   (void)flatland::compare_results(*document, *changed);
+  // The reflected part B - E, read from the samples' "E": the same documents.
+  (void)flatland::compare_results(*changed, *document, flatland::Measure::Reflected);
+  (void)flatland::compare_results(*document, *changed, flatland::Measure::Reflected);
   return 0;
 }

@@ -3,7 +3,9 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cmath>
 #include <csignal>
+#include <map>
 #include <vector>
 
 #include <cstdio>
@@ -128,6 +130,96 @@ TEST_F(Cli, CompareAgainstAReference) {
   EXPECT_NE(missing.err.find("none.json"), std::string::npos);
 }
 
+// The three numbers of the table row that starts with `label` (a curve id or "(scene)").
+std::vector<double> row_of(const std::string& table, const std::string& label) {
+  std::istringstream lines_in(table);
+  std::string line;
+  while (std::getline(lines_in, line))
+    if (line.rfind(label + " ", 0) == 0) {
+      std::istringstream fields(line.substr(label.size()));
+      std::vector<double> values(3, -1.0);
+      fields >> values[0] >> values[1] >> values[2];
+      return values;
+    }
+  return {};
+}
+
+// compare measures B - E by default: relative to the reference's B - E, so its relative L2 error is
+// that of B times |B| / |B - E|, the two norms computed here from the reference file itself.
+TEST_F(Cli, CompareMeasuresTheReflectedPartByDefault) {
+  const fs::path a = directory_ / "a.json";
+  const fs::path b = directory_ / "b.json";
+  const std::string scene_path = scene("penumbra.json");
+  ASSERT_EQ(run("solve " + scene_path + " --photons 50000 --seed 1 --samples 40 --quiet --out " + a.string()).exit_code, 0);
+  ASSERT_EQ(run("solve " + scene_path + " --photons 50000 --seed 2 --samples 40 --quiet --out " + b.string()).exit_code, 0);
+  // The emitter's samples carry E (= its emittance 1, no profile); the others emit nothing.
+  const nlohmann::json reference = nlohmann::json::parse(read_file(b));
+  double square_b = 0.0, square_reflected = 0.0;
+  for (const auto& curve : reference["curves"]) {
+    const bool emitter = curve["id"] == "emitter";
+    for (const auto& sample : curve["samples"]) {
+      EXPECT_EQ(sample.contains("E"), emitter);
+      const double e = emitter ? sample["E"].get<double>() : 0.0;
+      if (emitter) {
+        EXPECT_EQ(e, 1.0);
+      }
+      const double value = sample["B"].get<double>();
+      square_b += value * value * curve["length"].get<double>();
+      square_reflected += (value - e) * (value - e) * curve["length"].get<double>();
+    }
+  }
+  const CommandRun reflected = run("compare " + a.string() + " " + b.string());
+  ASSERT_EQ(reflected.exit_code, 0) << reflected.err;
+  EXPECT_NE(reflected.out.find("B - E"), std::string::npos) << reflected.out;
+  EXPECT_NE(reflected.out.find("emitter                  "), std::string::npos);
+  EXPECT_NE(reflected.out.find("(reflects no light in the reference)"), std::string::npos) << reflected.out;
+  const CommandRun total = run("compare " + a.string() + " " + b.string() + " --measure total");
+  ASSERT_EQ(total.exit_code, 0) << total.err;
+  EXPECT_NE(total.out.find("radiosity B"), std::string::npos) << total.out;
+  const std::vector<double> scene_reflected = row_of(reflected.out, "(scene)");
+  const std::vector<double> scene_total = row_of(total.out, "(scene)");
+  ASSERT_EQ(scene_reflected.size(), 3u) << reflected.out;
+  ASSERT_EQ(scene_total.size(), 3u) << total.out;
+  EXPECT_NEAR(scene_reflected[1], scene_total[1] * std::sqrt(square_b / square_reflected), 2e-4 * scene_reflected[1]);
+  EXPECT_GT(std::sqrt(square_b / square_reflected), 2.0);  // the emitter dilutes the error of B
+  // Only the receiver reflects: its row is the scene's. --curve prints that row alone.
+  EXPECT_EQ(row_of(reflected.out, "receiver"), scene_reflected);
+  const CommandRun one = run("compare " + a.string() + " " + b.string() + " --curve receiver");
+  ASSERT_EQ(one.exit_code, 0) << one.err;
+  EXPECT_EQ(row_of(one.out, "receiver"), scene_reflected);
+  EXPECT_EQ(one.out.find("(scene)"), std::string::npos) << one.out;
+  EXPECT_EQ(one.out.find("occluder"), std::string::npos) << one.out;
+  // A bad id, a curve without reflected light, a bad measure: one line, exit 2, naming the option.
+  const CommandRun bad = run("compare " + a.string() + " " + b.string() + " --curve floor");
+  EXPECT_EQ(bad.exit_code, 2);
+  EXPECT_EQ(lines(bad.err), 1) << bad.err;
+  for (const char* word : {"--curve", "'floor'", "emitter, occluder, receiver"})
+    EXPECT_NE(bad.err.find(word), std::string::npos) << word << ": " << bad.err;
+  const CommandRun dark = run("compare " + a.string() + " " + b.string() + " --curve emitter");
+  EXPECT_EQ(dark.exit_code, 2);
+  EXPECT_EQ(lines(dark.err), 1) << dark.err;
+  EXPECT_NE(dark.err.find("--measure total"), std::string::npos) << dark.err;
+  const CommandRun lamp_total = run("compare " + a.string() + " " + b.string() + " --curve emitter --measure total");
+  EXPECT_EQ(lamp_total.exit_code, 0) << lamp_total.err;
+  const CommandRun measure = run("compare " + a.string() + " " + b.string() + " --measure emitted");
+  EXPECT_EQ(measure.exit_code, 2);
+  EXPECT_EQ(lines(measure.err), 1) << measure.err;
+  EXPECT_NE(measure.err.find("--measure"), std::string::npos) << measure.err;
+  // A scene where nothing reflects has no B - E to measure: a clear error, not a division by zero.
+  nlohmann::json dark_scene = nlohmann::json::parse(read_file(scene_path));
+  dark_scene["materials"]["receiver"]["reflectivity"] = 0.0;
+  const fs::path dark_file = directory_ / "dark.json";
+  std::ofstream(dark_file) << dark_scene.dump();
+  const fs::path c = directory_ / "c.json";
+  ASSERT_EQ(run("solve " + dark_file.string() + " --photons 20000 --samples 10 --quiet --out " + c.string()).exit_code, 0);
+  const CommandRun nothing = run("compare " + c.string() + " " + c.string());
+  EXPECT_EQ(nothing.exit_code, 2);
+  EXPECT_EQ(lines(nothing.err), 1) << nothing.err;
+  EXPECT_NE(nothing.err.find("zero everywhere"), std::string::npos) << nothing.err;
+  EXPECT_NE(nothing.err.find("--measure total"), std::string::npos) << nothing.err;
+  EXPECT_EQ(run("compare " + c.string() + " " + c.string() + " --measure total").exit_code, 0);
+}
+
 TEST_F(Cli, ReferenceWritesTheResultFormat) {
   const fs::path ref = directory_ / "ref.json";
   const CommandRun r = run("reference " + scene("penumbra.json") + " --elements 200 --samples 30 --out " + ref.string());
@@ -164,7 +256,7 @@ TEST_F(Cli, ConvergeWritesTableAndPlots) {
   const std::string csv = read_file(out / "convergence.csv");
   EXPECT_EQ(csv.substr(0, csv.find('\n')),
             "method,basis,sampling,discontinuities,estimator,elements,ray_width,ray_mode,ray_profile,"
-            "band_rays,tolerance,seed,photons,rounds,unshot,seconds,rel_l1,rel_l2,rel_linf");
+            "band_rays,tolerance,seed,photons,rounds,unshot,seconds,rel_l1,rel_l2,rel_linf,measure,curve");
   EXPECT_EQ(lines(csv), 1 + 2 * 2 * 2);  // header + methods x budgets x seeds
   EXPECT_NE(csv.find("\"cubic+sampling=uniform\",cubic,uniform"), std::string::npos);
   const std::string png = read_file(out / "convergence.png");
@@ -188,6 +280,119 @@ TEST_F(Cli, ConvergeWritesTableAndPlots) {
     EXPECT_EQ(wrong.exit_code, 2) << count;
     EXPECT_NE(wrong.err.find("must be a whole number"), std::string::npos) << wrong.err;
   }
+}
+
+// Least squares on log-log axes, written out here: the slope of ln y against ln x.
+double fitted_slope(const std::vector<double>& x, const std::vector<double>& y) {
+  double su = 0.0, sv = 0.0, suu = 0.0, suv = 0.0;
+  const double n = static_cast<double>(x.size());
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    su += std::log(x[i]);
+    sv += std::log(y[i]);
+    suu += std::log(x[i]) * std::log(x[i]);
+    suv += std::log(x[i]) * std::log(y[i]);
+  }
+  return (n * suv - su * sv) / (n * suu - su * su);
+}
+
+// The rows of convergence.csv whose method is `method`, as column name -> field (no field of these
+// tables holds a comma).
+std::vector<std::map<std::string, std::string>> csv_rows(const std::string& csv, const std::string& method) {
+  std::istringstream table(csv);
+  std::string line;
+  std::vector<std::string> header;
+  std::getline(table, line);
+  std::stringstream names(line);
+  for (std::string name; std::getline(names, name, ',');) header.push_back(name);
+  std::vector<std::map<std::string, std::string>> rows;
+  while (std::getline(table, line)) {
+    std::map<std::string, std::string> row;
+    std::stringstream parts(line);
+    std::size_t column = 0;
+    for (std::string field; std::getline(parts, field, ',') && column < header.size(); ++column) row[header[column]] = field;
+    if (line.back() == ',' && column < header.size()) row[header[column]] = "";
+    if (row["method"] == "\"" + method + "\"") rows.push_back(row);
+  }
+  return rows;
+}
+
+// converge measures B - E over the scene by default, or one curve, prints each method's observed
+// slope (the least-squares fit of its table rows) and puts it in the plot's legend.
+TEST_F(Cli, ConvergeMeasuresTheReflectedPartAndPrintsSlopes) {
+  const fs::path out = directory_ / "reflected";
+  const CommandRun r = run("converge " + scene("penumbra.json") +
+                           " --methods constant,linear --budgets 2000,8000,32000 --seeds 2 --samples 20 --out " +
+                           out.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const std::string csv = read_file(out / "convergence.csv");
+  EXPECT_EQ(csv_rows(csv, "constant").size(), 6u);
+  std::vector<double> photons, errors;
+  for (auto& row : csv_rows(csv, "linear")) {
+    EXPECT_EQ(row["measure"], "reflected");
+    EXPECT_EQ(row["curve"], "");
+    photons.push_back(std::stod(row["photons"]));
+    errors.push_back(std::stod(row["rel_l2"]));
+  }
+  ASSERT_EQ(photons.size(), 6u);
+  // The printed slope of linear against photons is the fit of its rows.
+  EXPECT_NE(r.out.find("observed slopes of the relative L2 error of B - E"), std::string::npos) << r.out;
+  const std::size_t at = r.out.find("  linear ");
+  ASSERT_NE(at, std::string::npos) << r.out;
+  std::istringstream printed(r.out.substr(at));
+  std::string name;
+  double slope_photons = 0.0, slope_time = 0.0;
+  printed >> name >> slope_photons >> slope_time;
+  EXPECT_NEAR(slope_photons, fitted_slope(photons, errors), 0.0051) << r.out;
+  EXPECT_LT(slope_photons, -0.2) << r.out;  // the noise falls with the photons
+  const std::string script = read_file(out / "convergence.gp");
+  EXPECT_NE(script.find("relative L2 error of B - E"), std::string::npos) << script;
+  EXPECT_NE(script.find("'linear: slope "), std::string::npos) << script;
+  EXPECT_NE(script.find(" vs photons'"), std::string::npos) << script;
+  // --replot prints the same slopes from the table.
+  const CommandRun replot = run("converge " + scene("penumbra.json") + " --replot --out " + out.string());
+  ASSERT_EQ(replot.exit_code, 0) << replot.err;
+  EXPECT_NE(replot.out.find(r.out.substr(at, r.out.find('\n', at) - at)), std::string::npos) << replot.out;
+
+  // One curve: the table says which, and the receiver (the only reflector) has the error of the
+  // scene's B - E, so the same errors as above, seed for seed.
+  const fs::path receiver = directory_ / "receiver";
+  const CommandRun one = run("converge " + scene("penumbra.json") +
+                             " --methods linear --budgets 2000,8000,32000 --seeds 2 --samples 20 --curve receiver --out " +
+                             receiver.string());
+  ASSERT_EQ(one.exit_code, 0) << one.err;
+  std::vector<double> receiver_errors;
+  for (auto& row : csv_rows(read_file(receiver / "convergence.csv"), "linear")) {
+    EXPECT_EQ(row["measure"], "reflected");
+    EXPECT_EQ(row["curve"], "receiver");
+    receiver_errors.push_back(std::stod(row["rel_l2"]));
+  }
+  ASSERT_EQ(receiver_errors.size(), errors.size());
+  for (std::size_t i = 0; i < errors.size(); ++i) EXPECT_NEAR(receiver_errors[i], errors[i], 1e-6 * errors[i]) << i;
+  EXPECT_NE(read_file(receiver / "convergence.gp").find("on curve ''receiver''"), std::string::npos);
+  const fs::path total = directory_ / "total";
+  const CommandRun b = run("converge " + scene("penumbra.json") +
+                           " --methods linear --budgets 2000 --seeds 1 --samples 20 --measure total --out " + total.string());
+  ASSERT_EQ(b.exit_code, 0) << b.err;
+  const auto total_rows = csv_rows(read_file(total / "convergence.csv"), "linear");
+  ASSERT_EQ(total_rows.size(), 1u);
+  EXPECT_EQ(total_rows[0].at("measure"), "total");
+  EXPECT_NE(b.out.find("n/a"), std::string::npos) << b.out;  // one budget: no slope
+
+  // A bad id: one line, exit 2, naming the option and the valid ids, before any work.
+  for (const std::string& id : {std::string("floor"), std::string("emitter")}) {
+    const CommandRun bad = run("converge " + scene("penumbra.json") + " --methods linear --budgets 2000 --seeds 1 "
+                               "--samples 20 --curve " + id + " --out " + (directory_ / "bad").string());
+    EXPECT_EQ(bad.exit_code, 2) << id;
+    EXPECT_EQ(lines(bad.err), 1) << bad.err;
+    EXPECT_NE(bad.err.find("--curve"), std::string::npos) << bad.err;
+    EXPECT_FALSE(fs::exists(directory_ / "bad" / "convergence.csv"));
+  }
+  const CommandRun bad = run("converge " + scene("penumbra.json") + " --curve floor --out " + (directory_ / "bad").string());
+  EXPECT_NE(bad.err.find("emitter, occluder, receiver"), std::string::npos) << bad.err;
+  const CommandRun measure = run("converge " + scene("penumbra.json") + " --measure emitted --out " + (directory_ / "bad").string());
+  EXPECT_EQ(measure.exit_code, 2);
+  EXPECT_EQ(lines(measure.err), 1) << measure.err;
+  EXPECT_NE(measure.err.find("--measure"), std::string::npos) << measure.err;
 }
 
 TEST_F(Cli, FailedWriteLeavesNoFile) {

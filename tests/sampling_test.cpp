@@ -204,5 +204,44 @@ TEST(Sampling, DiscreteDistributionFollowsWeightsAndSkipsZeros) {
   EXPECT_LT(testing::chi_square(observed, expected), testing::chi_square_critical(2));
 }
 
+TEST(Sampling, DiscreteDistributionRestIsUniformGivenTheIndex) {
+  // sample(u, rest) chooses as sample(u) does, and what is left of u is uniform in [0,1) and
+  // independent of the index: a chi-square test over (index, quarter of rest) cells.
+  const std::vector<double> weights = {0.0, 3.0, 0.0, 1.0, 6.0, 0.0};
+  const DiscreteDistribution distribution(weights);
+  Rng rng(5, 0, 0);
+  const int n = 200'000;
+  std::vector<double> counts(weights.size() * 4, 0.0);
+  for (int i = 0; i < n; ++i) {
+    const double u = rng.uniform();
+    double rest = -1.0;
+    const std::size_t index = distribution.sample(u, rest);
+    ASSERT_EQ(index, distribution.sample(u));
+    ASSERT_GE(rest, 0.0);
+    ASSERT_LT(rest, 1.0);
+    counts[index * 4 + static_cast<std::size_t>(rest * 4.0)] += 1;
+  }
+  std::vector<double> observed;
+  std::vector<double> expected;
+  for (std::size_t index : {1u, 3u, 4u})
+    for (std::size_t quarter = 0; quarter < 4; ++quarter) {
+      observed.push_back(counts[index * 4 + quarter]);
+      expected.push_back(distribution.pmf(index) * n / 4.0);
+    }
+  EXPECT_LT(testing::chi_square(observed, expected), testing::chi_square_critical(11));
+  // A stratified u stays stratified: 4096 midpoints give every index's rests evenly spaced, so
+  // each quarter of rest holds a quarter of the index's points (to one point per piece of u).
+  std::vector<double> stratified(weights.size() * 4, 0.0);
+  for (int i = 0; i < 4096; ++i) {
+    double rest = 0.0;
+    const std::size_t index = distribution.sample((i + 0.5) / 4096.0, rest);
+    stratified[index * 4 + static_cast<std::size_t>(rest * 4.0)] += 1;
+  }
+  for (std::size_t index : {1u, 3u, 4u})
+    for (std::size_t quarter = 0; quarter < 4; ++quarter)
+      EXPECT_NEAR(stratified[index * 4 + quarter], distribution.pmf(index) * 4096 / 4.0, 12.0)
+          << index << " " << quarter;
+}
+
 }  // namespace
 }  // namespace flatland

@@ -972,5 +972,167 @@ TEST(Solver, RoundOccluderEventsBeatSceneJointsAtEqualPhotons) {
   EXPECT_LT(error(DiscontinuityMode::Auto), 0.9 * error(DiscontinuityMode::Scene));
 }
 
+// Randomised quasi-Monte Carlo: results depend on the seed only, never on the thread count or on
+// how the round is cut into steps (the viewer's partial batches take the same points).
+TEST(Solver, SobolGivesIdenticalResultsOnAnyThreadCountAndStep) {
+  const Scene scene = testing::scene_from_file("scenes2d/mixed.json");
+  auto dump = [](const Solver& solver) {
+    nlohmann::json result = result_to_json(solver, 50);
+    result["stats"].erase("seconds");
+    result["settings"].erase("threads");
+    return result.dump();
+  };
+  SolverSettings settings;
+  settings.photons = 200'000;
+  settings.seed = 99;
+  settings.sampler = SamplerKind::Sobol;
+  std::vector<std::string> dumps;
+  for (unsigned threads : {1u, 2u, 3u}) {
+    settings.threads = threads;
+    Solver solver = make_solver(scene, settings);
+    solver.run();
+    EXPECT_GT(solver.rounds(), 1u);
+    dumps.push_back(dump(solver));
+  }
+  EXPECT_EQ(dumps[0], dumps[1]);
+  EXPECT_EQ(dumps[0], dumps[2]);
+  // Steps of any size, across batch boundaries, with two threads.
+  settings.threads = 2;
+  Solver stepped = make_solver(scene, settings);
+  const std::uint64_t sizes[] = {1, 2, 3, 4000, 97, 8192, 1, 10'000};
+  for (std::size_t step = 0; !stepped.stopped(); ++step) stepped.step_photons(sizes[step % std::size(sizes)]);
+  EXPECT_EQ(dumps[0], dump(stepped));
+  // Another seed is another randomisation, and the pseudo-random sampler gives other numbers.
+  settings.seed = 100;
+  Solver other_seed = make_solver(scene, settings);
+  other_seed.run();
+  nlohmann::json a = nlohmann::json::parse(dump(other_seed));
+  a["settings"]["seed"] = 99;
+  EXPECT_NE(dumps[0], a.dump());
+  settings.seed = 99;
+  settings.sampler = SamplerKind::Random;
+  Solver random = make_solver(scene, settings);
+  random.run();
+  nlohmann::json b = nlohmann::json::parse(dump(random));
+  EXPECT_EQ(b["settings"]["sampler"], "random");
+  b["settings"]["sampler"] = "sobol";
+  EXPECT_NE(dumps[0], b.dump());
+}
+
+TEST(Solver, SobolEnergyBooksBalanceOnEveryExampleScene) {
+  // Every origin sampler (uniform, by coefficient, Hermite), both estimators and extended rays:
+  // the books close to round-off, as with pseudo-random numbers.
+  int scenes = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(testing::source_path("scenes2d"))) {
+    if (entry.path().extension() != ".json") continue;
+    ++scenes;
+    const Scene scene = testing::scene_from_file("scenes2d/" + entry.path().filename().string());
+    for (int variant = 0; variant < 4; ++variant) {
+      SolverSettings settings;
+      settings.photons = 100'000;
+      settings.sampler = SamplerKind::Sobol;
+      settings.basis = variant == 0 ? BasisKind::Constant : variant == 3 ? BasisKind::Hermite : BasisKind::Cubic;
+      if (variant == 1) {
+        settings.estimator = Estimator::Galerkin;
+        settings.sampling = PositionSampling::Uniform;
+      }
+      if (variant == 2) {
+        settings.ray_width = 0.01 * scene.scale;
+        settings.ray_mode = RayMode::Band;
+      }
+      Solver solver = make_solver(scene, settings);
+      solver.run();
+      EXPECT_TRUE(solver.stop_reason() == StopReason::Converged ||
+                  solver.stop_reason() == StopReason::BudgetSpent)
+          << entry.path() << ": " << to_string(solver.stop_reason()) << " " << solver.books_error();
+      const EnergyBooks books = solver.books();
+      EXPECT_NEAR(books.imbalance(), 0.0, 1e-9 * books.emitted) << entry.path() << " variant " << variant;
+      EXPECT_GE(books.absorbed, 0.0);
+      EXPECT_GE(books.escaped, 0.0);
+    }
+  }
+  EXPECT_GE(scenes, 5);
+}
+
+// Mean and variance over seeds of the floor's coefficients after the first round of the penumbra
+// scene (the floor's light is final then: everything else is black).
+struct CoefficientStatistics {
+  std::vector<double> mean;
+  std::vector<double> variance;  // of one run
+};
+CoefficientStatistics penumbra_coefficients(const PenumbraSetup& setup, SolverSettings settings, int seeds) {
+  const Scene scene = testing::scene_from_text(setup.scene_text());
+  CoefficientStatistics stats;
+  std::vector<std::vector<double>> runs;
+  for (int seed = 1; seed <= seeds; ++seed) {
+    settings.seed = static_cast<std::uint64_t>(seed);
+    Solver solver = make_solver(scene, settings);
+    EXPECT_TRUE(solver.step_round());
+    runs.push_back(solver.radiosity_coefficients(1, Side::Front));
+  }
+  const std::size_t size = runs[0].size();
+  stats.mean.assign(size, 0.0);
+  stats.variance.assign(size, 0.0);
+  for (const auto& run : runs)
+    for (std::size_t k = 0; k < size; ++k) stats.mean[k] += run[k] / seeds;
+  for (const auto& run : runs)
+    for (std::size_t k = 0; k < size; ++k)
+      stats.variance[k] += (run[k] - stats.mean[k]) * (run[k] - stats.mean[k]) / (seeds - 1);
+  return stats;
+}
+
+TEST(Solver, SobolIsUnbiasedOnThePenumbraClosedForm) {
+  // Over 20 seeds (independent scrambles) the mean of every floor coefficient must match the
+  // expectation from the closed form within 6 standard errors, the error estimated from the
+  // spread over the seeds (Student's t with 19 degrees of freedom: |t| > 6 has odds 1e-5). For
+  // each origin sampler: uniform with constant storage, by coefficient (cubic), Hermite.
+  const PenumbraSetup setup;
+  const int seeds = 20;
+  for (int variant = 0; variant < 3; ++variant) {
+    SolverSettings settings;
+    settings.photons = 100'000;
+    settings.elements = 24;
+    settings.estimator = Estimator::Lumped;  // the expectation below is the lumped one
+    settings.sampler = SamplerKind::Sobol;
+    settings.basis = variant == 0 ? BasisKind::Constant : variant == 1 ? BasisKind::Cubic : BasisKind::Hermite;
+    if (variant == 0) settings.sampling = PositionSampling::Uniform;
+    const CoefficientStatistics sobol = penumbra_coefficients(setup, settings, seeds);
+    settings.sampler = SamplerKind::Random;
+    const CoefficientStatistics random = penumbra_coefficients(setup, settings, seeds);
+
+    const Scene scene = testing::scene_from_text(setup.scene_text());
+    settings.sampler = SamplerKind::Sobol;
+    Solver solver = make_solver(scene, settings);
+    const CurveStorage& storage = solver.storage(1);
+    ASSERT_EQ(sobol.mean.size(), storage.basis.size());
+    // Expected lumped deposits: rho integral(phi_k H ds) / integral(phi_k ds) (midpoint rule).
+    const double length = setup.floor_right - setup.floor_left;
+    const int steps = 200'000;
+    std::vector<double> expected(storage.basis.size(), 0.0);
+    std::array<double, SplineBasis::kMaxDegree + 1> phi{};
+    for (int i = 0; i < steps; ++i) {
+      const double u = (i + 0.5) / steps;
+      const double h = setup.irradiance(setup.floor_left + u * length);
+      const std::size_t first = storage.basis.evaluate(u, phi.data());
+      for (int j = 0; j <= storage.basis.degree(); ++j)
+        expected[first + static_cast<std::size_t>(j)] += phi[static_cast<std::size_t>(j)] * h * length / steps;
+    }
+    double sobol_variance = 0.0;
+    double random_variance = 0.0;
+    for (std::size_t k = 0; k < expected.size(); ++k) {
+      // Lumped for constant and cubic; Hermite stores hat coefficients of the same kind.
+      const double b = setup.rho * expected[k] / storage.basis_length[k];
+      const double error = std::sqrt(sobol.variance[k] / seeds);
+      EXPECT_LT(std::fabs(sobol.mean[k] - b), 6.0 * error + 1e-12 * setup.rho)
+          << "variant " << variant << ", coefficient " << k << ": " << sobol.mean[k] << " vs " << b;
+      sobol_variance += sobol.variance[k];
+      random_variance += random.variance[k];
+    }
+    std::printf("penumbra, %s basis: variance of the coefficients, random / sobol = %.3g\n",
+                to_string(settings.basis), random_variance / sobol_variance);
+    EXPECT_LT(sobol_variance, random_variance) << "variant " << variant;
+  }
+}
+
 }  // namespace
 }  // namespace flatland

@@ -2,26 +2,54 @@
 #include <cstdio>
 
 #include "app/commands.hpp"
+#include "app/output.hpp"
 #include "flatland/result_io.hpp"
 
 namespace flatland::app {
 
-void print_comparison(const Comparison& comparison) {
+Measure parse_measure(const std::string& text) { return text == "total" ? Measure::Total : Measure::Reflected; }
+
+Result<std::size_t> find_curve(const std::vector<std::string>& ids, const std::string& id) {
+  for (std::size_t c = 0; c < ids.size(); ++c)
+    if (ids[c] == id) return c;
+  // The valid ids, the first 20 of them: the message stays one line on a scene of many curves.
+  std::string choices;
+  for (std::size_t c = 0; c < ids.size() && c < 20; ++c) choices += (c > 0 ? ", " : "") + ids[c];
+  if (ids.size() > 20) choices += ", ... (" + std::to_string(ids.size() - 20) + " more)";
+  return Error{"--curve: no curve with id '" + id + "'; the curves are: " + choices};
+}
+
+void print_comparison(const Comparison& comparison, bool scene_row) {
+  std::printf("%s\n", comparison.measure == Measure::Reflected
+                          ? "errors of the reflected part B - E (emitted light E is exact in every method)"
+                          : "errors of the radiosity B (emitted + reflected)");
   std::printf("%-24s %12s %12s %12s\n", "curve", "rel. L1", "rel. L2", "rel. Linf");
-  for (const CurveError& curve : comparison.curves)
-    std::printf("%-24s %12.4e %12.4e %12.4e\n", curve.id.c_str(), curve.norms.l1, curve.norms.l2,
-                curve.norms.linf);
-  std::printf("%-24s %12.4e %12.4e %12.4e\n", "(scene)", comparison.scene.l1, comparison.scene.l2,
-              comparison.scene.linf);
+  for (const CurveError& curve : comparison.curves) {
+    if (curve.measured)
+      std::printf("%-24s %12.4e %12.4e %12.4e\n", curve.id.c_str(), curve.norms.l1, curve.norms.l2,
+                  curve.norms.linf);
+    else
+      std::printf("%-24s %38s\n", curve.id.c_str(), "(reflects no light in the reference)");
+  }
+  if (scene_row)
+    std::printf("%-24s %12.4e %12.4e %12.4e\n", "(scene)", comparison.scene.l1, comparison.scene.l2,
+                comparison.scene.linf);
 }
 
 CLI::App* add_compare_command(CLI::App& parent, CompareOptions& o) {
   CLI::App* cmd = parent.add_subcommand(
       "compare",
-      "Relative L1, L2 and L-infinity errors of B along arc length, per curve and for the scene, "
-      "of RESULT against REFERENCE (both written by 'flatland solve --out' with the same --samples)");
+      "Relative L1, L2 and L-infinity errors along arc length, of the reflected part B - E by "
+      "default, per curve and for the scene, of RESULT against REFERENCE (both written by "
+      "'flatland solve --out' or 'flatland reference --out' with the same --samples)");
   cmd->add_option("result", o.result, "The result to judge (JSON)")->required();
   cmd->add_option("reference", o.reference, "The reference result (JSON)")->required();
+  cmd->add_option("--measure", o.measure,
+                  "What is measured: 'reflected' (B - E, relative to the reference's B - E; the "
+                  "emitters' exact E left out) or 'total' (B)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"reflected", "total"}));
+  cmd->add_option("--curve", o.curve, "Print only the curve with this id (as in the scene file)");
   return cmd;
 }
 
@@ -36,13 +64,25 @@ int run_compare(const CompareOptions& o) {
     std::fprintf(stderr, "flatland: error: %s\n", reference.error().message.c_str());
     return kExitUsage;
   }
-  Result<Comparison> comparison = compare_results(*result, *reference);
+  const Measure measure = parse_measure(o.measure);
+  Result<Comparison> comparison = compare_results(*result, *reference, measure);
   if (!comparison) {
-    std::fprintf(stderr, "flatland: error: %s and %s: %s\n", o.result.c_str(), o.reference.c_str(),
-                 comparison.error().message.c_str());
+    std::fprintf(stderr, "flatland: error: %s and %s: %s%s\n", o.result.c_str(), o.reference.c_str(),
+                 comparison.error().message.c_str(), measure == Measure::Reflected ? " (--measure total)" : "");
     return kExitUsage;
   }
-  print_comparison(*comparison);
+  if (!o.curve.empty()) {
+    std::vector<std::string> ids;
+    for (const CurveError& curve : comparison->curves) ids.push_back(curve.id);
+    Result<std::size_t> index = find_curve(ids, o.curve);
+    if (!index) return usage_error(index.error().message);
+    const CurveError chosen = comparison->curves[*index];
+    if (!chosen.measured)
+      return usage_error("--curve: '" + o.curve + "' reflects no light in the reference (B - E is zero "
+                         "along it), so it has no relative error of B - E; use --measure total");
+    comparison->curves = {chosen};
+  }
+  print_comparison(*comparison, o.curve.empty());
   return kExitOk;
 }
 

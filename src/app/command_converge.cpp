@@ -69,9 +69,9 @@ Result<Method> parse_method(const std::string& text, const SolverSettings& defau
                           : value == "scene" ? DiscontinuityMode::Scene
                                              : DiscontinuityMode::Auto;
     } else if (key == "estimator") {
-      if (value != "lumped" && value != "galerkin")
-        return Error{where + "estimator must be lumped or galerkin"};
-      s.estimator = value == "galerkin" ? Estimator::Galerkin : Estimator::Lumped;
+      const std::optional<Estimator> estimator = estimator_from_string(value);
+      if (!estimator) return Error{where + "estimator must be lumped, galerkin or local"};
+      s.estimator = *estimator;
     } else if (key == "elements") {
       const std::optional<int> count = whole_number(value);
       if (!count) return Error{where + "elements must be a whole number"};
@@ -95,10 +95,13 @@ Result<Method> parse_method(const std::string& text, const SolverSettings& defau
       Result<RayProfile> profile = parse_ray_profile(value);
       if (!profile) return Error{where + profile.error().message};
       s.ray_profile = *profile;
+    } else if (key == "sampler") {
+      if (value != "random" && value != "sobol") return Error{where + "sampler must be random or sobol"};
+      s.sampler = value == "sobol" ? SamplerKind::Sobol : SamplerKind::Random;
     } else {
       return Error{where + "unknown key '" + key +
                    "'; keys: basis, sampling, discontinuities, estimator, elements, ray-width, "
-                   "ray-mode, ray-profile, band-rays, tolerance"};
+                   "ray-mode, ray-profile, band-rays, tolerance, sampler"};
     }
   }
   if (Status status = validate(method.settings); !status) return Error{"--methods: '" + text + "': " + status.error().message};
@@ -191,6 +194,59 @@ std::vector<std::string> method_names(const std::vector<Method>& methods) {
   return names;
 }
 
+// What the table's errors measure: B or B - E, over the scene or on one curve.
+struct Measured {
+  Measure measure = Measure::Reflected;
+  std::string curve;  // a curve id, or empty for the whole scene
+
+  std::string describe() const {
+    return std::string(measure == Measure::Reflected ? "B - E" : "B") +
+           (curve.empty() ? "" : " on curve '" + curve + "'");
+  }
+};
+
+// Each method's observed convergence rate: the exponent of the power law fitted by least squares
+// to the relative L2 error of every run (each seed a point) against the photons shot and against
+// the solve time, on log-log axes (power_law_exponent); nullopt with fewer than two distinct
+// photon counts (or times).
+struct Slopes {
+  std::optional<double> photons;
+  std::optional<double> seconds;
+};
+
+std::vector<Slopes> observed_slopes(const std::vector<Row>& rows, std::size_t methods) {
+  std::vector<Slopes> slopes(methods);
+  for (std::size_t m = 0; m < methods; ++m) {
+    std::vector<double> photons, seconds, errors;
+    for (const Row& row : rows)
+      if (row.method == m) {
+        photons.push_back(static_cast<double>(row.photons));
+        seconds.push_back(row.seconds);
+        errors.push_back(row.error.l2);
+      }
+    slopes[m] = {power_law_exponent(photons, errors), power_law_exponent(seconds, errors)};
+  }
+  return slopes;
+}
+
+std::string slope_text(const std::optional<double>& slope) {
+  if (!slope) return "n/a";
+  char text[32];
+  std::snprintf(text, sizeof text, "%.2f", *slope);
+  return text;
+}
+
+// The slopes as a table on stdout, one line per method.
+void print_slopes(const std::vector<std::string>& methods, const std::vector<Row>& rows, const Measured& measured) {
+  const std::vector<Slopes> slopes = observed_slopes(rows, methods.size());
+  std::printf("observed slopes of the relative L2 error of %s (least squares on log-log axes over every run):\n",
+              measured.describe().c_str());
+  std::printf("  %-40s %12s %12s\n", "method", "vs photons", "vs time");
+  for (std::size_t m = 0; m < methods.size(); ++m)
+    std::printf("  %-40s %12s %12s\n", methods[m].c_str(), slope_text(slopes[m].photons).c_str(),
+                slope_text(slopes[m].seconds).c_str());
+}
+
 struct PlotInput {
   fs::path directory;
   std::string scene_name;
@@ -198,6 +254,7 @@ struct PlotInput {
   int seeds;
   std::vector<std::string> methods;
   const std::vector<Row>& rows;
+  Measured measured;
   double floor;  // the reference's estimated error, or <= 0 when unknown
 };
 
@@ -237,14 +294,19 @@ Status draw_plot(const PlotInput& in) {
   const std::string subtitle =
       (in.elements > 0 ? std::to_string(in.elements) + " elements per curve, " : "") + "median over " +
       std::to_string(in.seeds) + " seeds, bars from min to max";
-  std::string script = "set logscale xy\nset xlabel 'solve time (s)'\nset ylabel 'relative L2 error of B'\n"
+  std::string script = "set logscale xy\nset xlabel 'solve time (s)'\nset ylabel " +
+                       gnuplot_string("relative L2 error of " + in.measured.describe()) + " noenhanced\n"
                        "set key below\nset grid\n"
                        "set title " + gnuplot_string(in.scene_name) + ".\"\\n\"." + gnuplot_string(subtitle) +
                        " noenhanced\n";
+  // Each method's legend entry carries its observed slopes (observed_slopes).
+  const std::vector<Slopes> slopes = observed_slopes(in.rows, in.methods.size());
   std::string plot = "plot ";
   for (std::size_t m = 0; m < in.methods.size(); ++m) {
+    const std::string title = in.methods[m] + ": slope " + slope_text(slopes[m].seconds) + " vs time, " +
+                              slope_text(slopes[m].photons) + " vs photons";
     plot += "'convergence.dat' index " + std::to_string(m) +
-            " using 1:2:3:4 with yerrorlines lw 2 title " + gnuplot_string(in.methods[m]) + " noenhanced, ";
+            " using 1:2:3:4 with yerrorlines lw 2 title " + gnuplot_string(title) + " noenhanced, ";
   }
   char guide[256];
   std::snprintf(guide, sizeof guide, "%.9g * (x / %.9g)**(-0.5) with lines dt 2 lc rgb 'gray40' title 'slope -1/2'",
@@ -291,8 +353,42 @@ double estimated_error_of(const nlohmann::json& result) {
 
 // Reads DIR/convergence.csv back (as written by converge) for --replot: methods in order of first
 // appearance; within a method, rows come budget by budget with the seeds innermost.
+// A CSV field: quoted when it holds a comma, a quote or a space (a quote inside doubled), with
+// control characters (a line break would split the row) turned into spaces.
+std::string csv_field(const std::string& text) {
+  std::string out;
+  bool quote = false;
+  for (const char c : text) {
+    if (c == '"') out += "\"\"";
+    else if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) out += ' ';
+    else out += c;
+    quote = quote || c == ',' || c == '"' || c == ' ' || static_cast<unsigned char>(c) < 0x20;
+  }
+  return quote ? "\"" + out + "\"" : out;
+}
+
+// The fields of one CSV line: commas inside double quotes belong to the field, "" is a quote.
+std::vector<std::string> csv_fields(const std::string& line) {
+  std::vector<std::string> fields(1);
+  bool quoted = false;
+  for (std::size_t i = 0; i < line.size(); ++i) {
+    const char c = line[i];
+    if (quoted && c == '"' && i + 1 < line.size() && line[i + 1] == '"') {
+      fields.back() += '"';
+      ++i;
+    } else if (c == '"') {
+      quoted = !quoted;
+    } else if (c == ',' && !quoted) {
+      fields.emplace_back();
+    } else {
+      fields.back() += c;
+    }
+  }
+  return fields;
+}
+
 Result<std::vector<Row>> read_rows(const fs::path& path, std::vector<std::string>& methods, int& seeds,
-                                   int& elements) {
+                                   int& elements, Measured& measured) {
   std::ifstream in(path);
   if (!in) return Error{path.string() + ": cannot read it (run converge without --replot first)"};
   std::string line;
@@ -304,7 +400,8 @@ Result<std::vector<Row>> read_rows(const fs::path& path, std::vector<std::string
   };
   const int c_method = column("method"), c_seed = column("seed"), c_photons = column("photons"),
             c_seconds = column("seconds"), c_l1 = column("rel_l1"), c_l2 = column("rel_l2"),
-            c_linf = column("rel_linf"), c_elements = column("elements");
+            c_linf = column("rel_linf"), c_elements = column("elements"), c_measure = column("measure"),
+            c_curve = column("curve");
   if (c_method < 0 || c_seed < 0 || c_photons < 0 || c_seconds < 0 || c_l1 < 0 || c_l2 < 0 || c_linf < 0)
     return Error{path.string() + ":1: not a convergence table (expected the columns method, seed, "
                  "photons, seconds, rel_l1, rel_l2, rel_linf)"};
@@ -322,17 +419,17 @@ Result<std::vector<Row>> read_rows(const fs::path& path, std::vector<std::string
   while (std::getline(in, line)) {
     ++number;
     if (line.empty()) continue;
-    std::vector<std::string> fields;
-    std::stringstream parts(line);
-    std::string field;
-    while (std::getline(parts, field, ',')) fields.push_back(field);
+    const std::vector<std::string> fields = csv_fields(line);
     if (fields.size() != header.size())
       return Error{path.string() + ":" + std::to_string(number) + ": " + std::to_string(fields.size()) +
                    " fields against " + std::to_string(header.size()) + " in the header"};
     Parsed p;
     p.method = fields[static_cast<std::size_t>(c_method)];
-    if (p.method.size() >= 2 && p.method.front() == '"' && p.method.back() == '"')
-      p.method = p.method.substr(1, p.method.size() - 2);
+    // A table written before converge measured B - E has no measure column: it measured B.
+    if (parsed.empty()) {
+      measured.measure = c_measure >= 0 ? parse_measure(fields[static_cast<std::size_t>(c_measure)]) : Measure::Total;
+      measured.curve = c_curve >= 0 ? fields[static_cast<std::size_t>(c_curve)] : "";
+    }
     char* end = nullptr;
     auto number_at = [&](int c) {
       const std::string& text = fields[static_cast<std::size_t>(c)];
@@ -421,7 +518,9 @@ CLI::App* add_converge_command(CLI::App& parent, ConvergeOptions& o) {
       "Error against run time: solve SCENE with every method over a range of photon budgets (or "
       "time budgets) and seeds; write DIR/convergence.csv and a log-log plot (PNG and SVG, by "
       "gnuplot) of the median error against the median time, with the spread over seeds, a guide "
-      "slope of -1/2 and the reference's own error floor");
+      "slope of -1/2 and the reference's own error floor; print and plot each method's observed "
+      "slope. The error is that of the reflected part B - E by default (--measure), over the "
+      "scene or on one curve (--curve)");
   cmd->add_option("scene", o.scene, "Scene file (JSON)")->required();
   cmd->add_option("--reference", o.reference,
                   "Reference result (flatland reference --out); computed when not given");
@@ -454,11 +553,31 @@ CLI::App* add_converge_command(CLI::App& parent, ConvergeOptions& o) {
                   "small, so that each solve spends its whole budget")
       ->capture_default_str()
       ->check(finite_range(1e-15, 0.5));
+  cmd->add_option("--measure", o.measure,
+                  "What is measured: 'reflected' (B - E, relative to the reference's B - E; the "
+                  "emitters' exact E left out) or 'total' (B)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"reflected", "total"}));
+  cmd->add_option("--curve", o.curve,
+                  "Measure the error on the curve with this id (as in the scene file) instead of "
+                  "over the whole scene");
   cmd->add_option("--out", o.out, "Output directory (created if missing)")->required();
   cmd->add_flag("--replot", o.replot,
-                "Solve nothing: draw the plot again from DIR/convergence.csv (the floor from "
-                "--reference, when given)");
+                "Solve nothing: draw the plot again from DIR/convergence.csv, with the measure it "
+                "was written with (the floor from --reference, when given)");
   return cmd;
+}
+
+// The reference's error estimate (relative L2 of B over the scene) converted to what the table
+// measures: the estimate's numerator |R_2h - R_h| is the same for B and for B - E, so it scales
+// by |R| / |R - E|. None (-1) for one curve: the estimate is the whole scene's.
+double floor_for(const nlohmann::json& reference, double floor, const Measured& measured) {
+  if (floor <= 0.0 || !measured.curve.empty()) return -1.0;
+  if (measured.measure == Measure::Total) return floor;
+  Result<Comparison> total = compare_results(reference, reference, Measure::Total);
+  Result<Comparison> reflected = compare_results(reference, reference, Measure::Reflected);
+  if (!total || !reflected || !(reflected->reference_l2 > 0.0) || !std::isfinite(total->reference_l2)) return -1.0;
+  return floor * total->reference_l2 / reflected->reference_l2;
 }
 
 int run_converge(ConvergeOptions& o) {
@@ -475,21 +594,46 @@ int run_converge(ConvergeOptions& o) {
     std::vector<std::string> names;
     int seeds = 0;
     int elements = 0;
-    Result<std::vector<Row>> rows = read_rows(directory / "convergence.csv", names, seeds, elements);
+    Measured table_measured;
+    Result<std::vector<Row>> rows = read_rows(directory / "convergence.csv", names, seeds, elements, table_measured);
     if (!rows) return usage_error(rows.error().message);
     double floor = -1.0;
     if (!o.reference.empty()) {
       Result<nlohmann::json> read = read_result_file(o.reference);
       if (!read) return usage_error(read.error().message);
-      floor = estimated_error_of(*read);
+      floor = floor_for(*read, estimated_error_of(*read), table_measured);
     }
-    if (Status status = draw_plot({directory, scene->name, elements, seeds, names, *rows, floor}); !status) {
+    if (Status status = draw_plot({directory, scene->name, elements, seeds, names, *rows, table_measured, floor});
+        !status) {
       std::fprintf(stderr, "flatland: error: %s\n", status.error().message.c_str());
       return kExitFailure;
     }
     std::printf("wrote     %s/convergence.png, convergence.svg (%zu runs)\n", o.out.c_str(), rows->size());
+    print_slopes(names, *rows, table_measured);
     return kExitOk;
   }
+  // What is measured; a curve is named by its id in the scene file. A curve (or a scene) whose
+  // materials reflect nothing has no B - E: said now, before any work; one that reflects but
+  // receives no light is found in the reference below.
+  const Measured measured{parse_measure(o.measure), o.curve};
+  std::size_t curve_index = 0;
+  const auto reflects = [&scene](const Curve& curve) {
+    const Spectrum& rho = scene->material_of(curve).reflectivity;
+    return std::any_of(rho.begin(), rho.begin() + scene->channels, [](double r) { return r > 0.0; });
+  };
+  if (!o.curve.empty()) {
+    std::vector<std::string> ids;
+    for (const Curve& curve : scene->curves) ids.push_back(curve.id);
+    Result<std::size_t> index = find_curve(ids, o.curve);
+    if (!index) return usage_error(index.error().message + " (in " + o.scene + ")");
+    curve_index = *index;
+    if (measured.measure == Measure::Reflected && !reflects(scene->curves[curve_index]))
+      return usage_error("--curve: '" + o.curve + "' reflects no light (its material's reflectivity is 0), so "
+                         "it has no relative error of B - E; use --measure total");
+  }
+  if (measured.measure == Measure::Reflected && std::none_of(scene->curves.begin(), scene->curves.end(), reflects))
+    return usage_error("--measure reflected: " + o.scene + ": no curve reflects light (every reflectivity is 0), "
+                       "so B - E is zero everywhere and has no relative error; use --measure total");
   std::error_code ec;
   fs::create_directories(o.out, ec);
   if (ec || !fs::is_directory(o.out)) return usage_error(o.out + ": cannot create the output directory");
@@ -523,6 +667,18 @@ int run_converge(ConvergeOptions& o) {
     if (interrupt_flag().load()) return interrupted();
     if (estimate) floor = estimate->l2;
   }
+  // The reference against itself: whether it has the measured quantity (B - E is zero everywhere
+  // in a scene where nothing reflects, and on a curve that reflects nothing), before any solve.
+  {
+    Result<Comparison> self = compare_results(reference, reference, measured.measure);
+    if (!self)
+      return usage_error("--measure " + o.measure + ": " + (o.reference.empty() ? "" : o.reference + ": ") +
+                         self.error().message + (measured.measure == Measure::Reflected ? " (--measure total)" : ""));
+    if (!o.curve.empty() && !self->curves[curve_index].measured)
+      return usage_error("--curve: '" + o.curve + "' reflects no light in the reference (B - E is zero along "
+                         "it), so it has no relative error of B - E; use --measure total");
+  }
+  floor = floor_for(reference, floor, measured);
 
   // Every run: one CSV row.
   std::vector<Row> rows;
@@ -547,12 +703,13 @@ int run_converge(ConvergeOptions& o) {
         if (!solver) return usage_error(solver.error().message);
         solver->run(&interrupt_flag());
         if (solver->stop_reason() == StopReason::Cancelled) return interrupted();
-        Result<Comparison> comparison = compare_results(result_to_json(*solver, o.samples), reference);
+        Result<Comparison> comparison =
+            compare_results(result_to_json(*solver, o.samples), reference, measured.measure);
         if (!comparison) return usage_error("--reference: " + comparison.error().message);
         const EnergyBooks books = solver->books();
         rows.push_back({m, b, settings.seed, solver->photons_shot(), solver->rounds(),
                         books.emitted > 0.0 ? books.unshot / books.emitted : 0.0, solver->seconds(),
-                        comparison->scene});
+                        o.curve.empty() ? comparison->scene : comparison->curves[curve_index].norms});
         if (tty)
           std::fprintf(stderr, "\r\033[K  converge: %zu / %zu runs (%s, %s photons, seed %d)", rows.size(),
                        total, methods[m].name.c_str(),
@@ -569,18 +726,21 @@ int run_converge(ConvergeOptions& o) {
   // The CSV, written atomically.
   std::string csv =
       "method,basis,sampling,discontinuities,estimator,elements,ray_width,ray_mode,ray_profile,"
-      "band_rays,tolerance,seed,photons,rounds,unshot,seconds,rel_l1,rel_l2,rel_linf\n";
+      "band_rays,tolerance,seed,photons,rounds,unshot,seconds,rel_l1,rel_l2,rel_linf,measure,curve\n";
+  // measure and curve say what rel_* measure: "reflected" (B - E) or "total" (B), over the curve
+  // with that id, or over the scene when the curve is empty.
+  const std::string measured_fields = std::string(",") + to_string(measured.measure) + "," + csv_field(measured.curve) + "\n";
   for (const Row& row : rows) {
     const SolverSettings& s = methods[row.method].settings;
     char line[512];
     std::snprintf(line, sizeof line,
-                  "\"%s\",%s,%s,%s,%s,%d,%.17g,%s,%s,%d,%.9g,%llu,%llu,%u,%.9g,%.9g,%.9g,%.9g,%.9g\n",
+                  "\"%s\",%s,%s,%s,%s,%d,%.17g,%s,%s,%d,%.9g,%llu,%llu,%u,%.9g,%.9g,%.9g,%.9g,%.9g",
                   methods[row.method].name.c_str(), to_string(s.basis), to_string(s.sampling),
                   to_string(s.discontinuities), to_string(s.estimator), s.elements, s.ray_width,
                   to_string(s.ray_mode), to_string(s.ray_profile), s.band_rays, s.tolerance,
                   static_cast<unsigned long long>(row.seed), static_cast<unsigned long long>(row.photons),
                   row.rounds, row.unshot, row.seconds, row.error.l1, row.error.l2, row.error.linf);
-    csv += line;
+    csv += line + measured_fields;
   }
   if (Status status = write_file_atomically((directory / "convergence.csv").string(), csv); !status)
     return usage_error(status.error().message);
@@ -588,7 +748,8 @@ int run_converge(ConvergeOptions& o) {
   int shared_elements = methods.front().settings.elements;
   for (const Method& method : methods)
     if (method.settings.elements != shared_elements) shared_elements = 0;
-  if (Status status = draw_plot({directory, scene->name, shared_elements, o.seeds, method_names(methods), rows, floor});
+  if (Status status =
+          draw_plot({directory, scene->name, shared_elements, o.seeds, method_names(methods), rows, measured, floor});
       !status) {
     std::fprintf(stderr, "flatland: error: %s; %s/convergence.csv is written, the plot is not\n",
                  status.error().message.c_str(), o.out.c_str());
@@ -597,6 +758,7 @@ int run_converge(ConvergeOptions& o) {
   std::printf("wrote     %s/convergence.csv, convergence.png, convergence.svg (%zu runs)\n",
               o.out.c_str(), rows.size());
   if (floor > 0.0) std::printf("reference error (estimated) %.3g relative L2\n", floor);
+  print_slopes(method_names(methods), rows, measured);
   return kExitOk;
 }
 

@@ -55,10 +55,18 @@ void add_solver_options(CLI::App* cmd, SolveOptions& o) {
       ->capture_default_str()
       ->check(CLI::IsMember({"none", "scene", "auto"}));
   cmd->add_option("--estimator", o.estimator,
-                  "Coefficients from deposits: lumped (power over the basis function's length; "
-                  "positive, smooths by O(h^2)) or galerkin (L2 projection, clamped nonnegative)")
+                  "Coefficients from deposits: lumped (power over the basis function's length, the "
+                  "paper's; positive, bias O(h^2) inside and O(h) at ends and nodes), galerkin (L2 "
+                  "projection) or local (least-variance local quasi-interpolant; Hermite: nodal "
+                  "values); galerkin and local have bias O(h^(p+1)) everywhere and may dip below zero")
       ->capture_default_str()
-      ->check(CLI::IsMember({"lumped", "galerkin"}));
+      ->check(CLI::IsMember({"lumped", "galerkin", "local"}));
+  cmd->add_option("--sampler", o.sampler,
+                  "Where each photon's uniforms come from: random (independent pseudo-random "
+                  "numbers) or sobol (randomised quasi-Monte Carlo: an Owen-scrambled Sobol' "
+                  "point per photon; same seed, same bits on any thread count)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"random", "sobol"}));
   cmd->add_option("--ray-width", o.settings.ray_width,
                   "Width of extended rays in scene units (0: point rays, no extended-ray code runs)")
       ->capture_default_str();
@@ -129,9 +137,10 @@ void print_summary(const Solver& solver) {
                     to_string(settings.ray_profile));
   }
   std::printf("method    %s basis (%s), %d elements per curve, %s positions, discontinuities %s, "
-              "%s\n",
+              "%s, %s sampler\n",
               to_string(settings.basis), to_string(settings.estimator), settings.elements,
-              to_string(settings.sampling), to_string(settings.discontinuities), rays);
+              to_string(settings.sampling), to_string(settings.discontinuities), rays,
+              to_string(settings.sampler));
   // What the scene made the solver use (and so what it left out).
   std::printf("features  %s (%d channel%s), %s, %zu discontinuity nodes (%zu from contacts, %zu "
               "from visibility events), %zu storage coefficients\n",
@@ -179,7 +188,8 @@ Status finish_solver_settings(SolveOptions& o) {
                                                               : DiscontinuityMode::Auto;
   o.settings.ray_profile = *parse_ray_profile(o.ray_profile);
   o.settings.ray_mode = o.ray_mode == "band" ? RayMode::Band : RayMode::Footprint;
-  o.settings.estimator = o.estimator == "galerkin" ? Estimator::Galerkin : Estimator::Lumped;
+  o.settings.estimator = *estimator_from_string(o.estimator);
+  o.settings.sampler = o.sampler == "sobol" ? SamplerKind::Sobol : SamplerKind::Random;
   o.settings.sampling =
       o.sampling == "uniform" ? PositionSampling::Uniform : PositionSampling::Reconstructed;
   return validate(o.settings);

@@ -51,6 +51,7 @@ struct SolveOptions {
   std::string sampling = "reconstructed";
   std::string discontinuities = "auto";
   std::string estimator = "lumped";
+  std::string sampler = "random";
   std::string ray_profile = "box";
   std::string ray_mode = "footprint";
   int samples = 100;
@@ -91,6 +92,8 @@ struct ConvergeOptions {
   int elements = 16;
   std::string out;
   bool replot = false;
+  std::string measure = "reflected";  // "reflected" (B - E) or "total" (B)
+  std::string curve;                  // a curve id: that curve's error instead of the scene's
 };
 CLI::App* add_converge_command(CLI::App& parent, ConvergeOptions& options);
 int run_converge(ConvergeOptions& options);
@@ -100,12 +103,20 @@ Status check_converge_options(const ConvergeOptions& options);
 struct CompareOptions {
   std::string result;
   std::string reference;
+  std::string measure = "reflected";  // "reflected" (B - E) or "total" (B)
+  std::string curve;                  // a curve id: print that curve's row only
 };
 CLI::App* add_compare_command(CLI::App& parent, CompareOptions& options);
 int run_compare(const CompareOptions& options);
 
-// Prints the per-curve and scene errors of `comparison` as a table.
-void print_comparison(const Comparison& comparison);
+// Prints what `comparison` measures and its per-curve errors as a table, with a last row for the
+// whole scene unless `scene_row` is false.
+void print_comparison(const Comparison& comparison, bool scene_row = true);
+// The measure named by --measure: "reflected" (B - E) or "total" (B).
+Measure parse_measure(const std::string& text);
+// The index of the curve with id `id` among `ids`, or a one-line error for --curve that names the
+// valid ids.
+Result<std::size_t> find_curve(const std::vector<std::string>& ids, const std::string& id);
 
 CLI::App* add_solve_command(CLI::App& parent, SolveOptions& options);
 // The solver's options (--photons, --seed, --threads, --basis, ...), shared by solve, view, render.

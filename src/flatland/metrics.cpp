@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <string>
 #include <utility>
 #include <vector>
@@ -52,9 +53,71 @@ Result<std::vector<double>> channels_of(const nlohmann::json& v, const std::stri
   return Error{where + ": expected a number or [r, g, b]"};
 }
 
+// The emitted radiosity E at one sample, `channels` values: the reference sample's "E", else the
+// result sample's, else zero on a curve that emits nothing (its "emittance" zero or absent in
+// both documents). A curve that emits but whose samples carry no "E" (a result written before
+// flatland wrote it) is an error: E cannot be rebuilt from the document alone, since an emittance
+// profile varies it along the curve.
+Result<std::vector<double>> emitted_at(const nlohmann::json& result_sample, const nlohmann::json& reference_sample,
+                                       const nlohmann::json& result_curve, const nlohmann::json& reference_curve,
+                                       std::size_t channels, const std::string& where) {
+  for (const nlohmann::json* sample : {&reference_sample, &result_sample}) {
+    if (!sample->contains("E")) continue;
+    Result<std::vector<double>> e = channels_of((*sample)["E"], where + ".E");
+    if (e && e->size() != channels) return Error{where + ".E: grey against colour B"};
+    return e;
+  }
+  for (const nlohmann::json* curve : {&reference_curve, &result_curve}) {
+    if (!curve->contains("emittance")) continue;
+    Result<std::vector<double>> e = channels_of((*curve)["emittance"], where + " emittance");
+    if (!e) return e.error();
+    for (const double value : *e)
+      if (value != 0.0)
+        return Error{where + ": the curve emits but its samples carry no \"E\" (a result written by an "
+                     "older flatland); solve it again, or measure the total B"};
+  }
+  return std::vector<double>(channels, 0.0);
+}
+
+// B - E, with a difference below 1e-12 of |B| counted as zero: E is computed twice (by the solver
+// and for the sample's "E", or by the reference at its own point) and may differ in the last bits,
+// which would otherwise make a curve that reflects nothing look like one that reflects a little.
+double reflected_part(double b, double e) {
+  const double d = b - e;
+  return std::fabs(d) <= 1e-12 * std::fabs(b) ? 0.0 : d;
+}
+
 }  // namespace
 
-Result<Comparison> compare_results(const nlohmann::json& result, const nlohmann::json& reference) {
+const char* to_string(Measure measure) { return measure == Measure::Reflected ? "reflected" : "total"; }
+
+std::optional<double> power_law_exponent(const std::vector<double>& x, const std::vector<double>& error) {
+  // Least squares for ln e = ln c + k ln x: k = sum (u - mean u)(v - mean v) / sum (u - mean u)^2
+  // with u = ln x, v = ln e; centred sums, so that large x lose no digits.
+  std::vector<double> u, v;
+  for (std::size_t i = 0; i < std::min(x.size(), error.size()); ++i) {
+    if (!(x[i] > 0.0) || !(error[i] > 0.0) || !std::isfinite(x[i]) || !std::isfinite(error[i])) continue;
+    u.push_back(std::log(x[i]));
+    v.push_back(std::log(error[i]));
+  }
+  if (u.size() < 2) return std::nullopt;
+  const double n = static_cast<double>(u.size());
+  double mean_u = 0.0, mean_v = 0.0;
+  for (std::size_t i = 0; i < u.size(); ++i) {
+    mean_u += u[i] / n;
+    mean_v += v[i] / n;
+  }
+  double suu = 0.0, suv = 0.0;
+  for (std::size_t i = 0; i < u.size(); ++i) {
+    suu += (u[i] - mean_u) * (u[i] - mean_u);
+    suv += (u[i] - mean_u) * (v[i] - mean_v);
+  }
+  // Distinct x: the spread of ln x is more than round-off of its size.
+  if (!(suu > 1e-24 * n * std::max(1.0, mean_u * mean_u))) return std::nullopt;
+  return suv / suu;
+}
+
+Result<Comparison> compare_results(const nlohmann::json& result, const nlohmann::json& reference, Measure measure) {
   const auto curves_of = [](const nlohmann::json& doc) -> const nlohmann::json* {
     if (!doc.is_object() || !doc.contains("flatland_result") || !doc.contains("curves") ||
         !doc["curves"].is_array())
@@ -69,7 +132,8 @@ Result<Comparison> compare_results(const nlohmann::json& result, const nlohmann:
     return Error{"the results do not describe the same scene: " + std::to_string(mine->size()) +
                  " curves against " + std::to_string(theirs->size())};
 
-  // Every (B, reference, cell length) triple, per curve; the sums are formed afterwards on values
+  // Every (measured value of the result, of the reference, cell length) triple, per curve: B, or
+  // B - E under Measure::Reflected; the sums are formed afterwards on values
   // divided by the largest |B| and cell lengths divided by the longest cell (the norms are ratios,
   // so they do not change), which keeps squares of B up to 1e308 finite.
   struct Term {
@@ -110,9 +174,17 @@ Result<Comparison> compare_results(const nlohmann::json& result, const nlohmann:
           if (!vb) return vb.error();
           if (va->size() != vb->size())
             return Error{"the results do not describe the same scene: grey against colour at " + where};
+          std::vector<double> emitted(va->size(), 0.0);
+          if (measure == Measure::Reflected) {
+            Result<std::vector<double>> e = emitted_at(sa[j], sb[j], a, b, va->size(), where + ".samples[" + std::to_string(j) + "]");
+            if (!e) return e.error();
+            emitted = std::move(*e);
+          }
           for (std::size_t ch = 0; ch < va->size(); ++ch) {
-            curve.push_back({(*va)[ch], (*vb)[ch], ds});
-            value_scale = std::max({value_scale, std::fabs((*va)[ch]), std::fabs((*vb)[ch])});
+            const double mine_value = measure == Measure::Reflected ? reflected_part((*va)[ch], emitted[ch]) : (*va)[ch];
+            const double their_value = measure == Measure::Reflected ? reflected_part((*vb)[ch], emitted[ch]) : (*vb)[ch];
+            curve.push_back({mine_value, their_value, ds});
+            value_scale = std::max({value_scale, std::fabs(mine_value), std::fabs(their_value)});
           }
         }
       }
@@ -121,16 +193,26 @@ Result<Comparison> compare_results(const nlohmann::json& result, const nlohmann:
     return Error{std::string("malformed result: ") + e.what()};
   }
   Comparison comparison;
+  comparison.measure = measure;
   Sums scene;
   if (!(value_scale > 0.0)) value_scale = 1.0;
   if (!(length_scale > 0.0)) length_scale = 1.0;
+  constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
   for (const auto& [id, curve_terms] : terms) {
     Sums curve;
     for (const Term& t : curve_terms) curve.add(t.b / value_scale, t.r / value_scale, t.ds / length_scale);
-    comparison.curves.push_back({id, curve.norms()});
+    // Under Reflected a curve that reflects nothing in the reference has no relative error.
+    if (measure == Measure::Reflected && curve.max_reference == 0.0)
+      comparison.curves.push_back({id, {kNaN, kNaN, kNaN}, false});
+    else
+      comparison.curves.push_back({id, curve.norms(), true});
     scene.add(curve);
   }
+  if (measure == Measure::Reflected && scene.max_reference == 0.0)
+    return Error{"the reference's reflected part B - E is zero everywhere (no curve reflects light), so its "
+                 "relative error is undefined; measure the total B instead"};
   comparison.scene = scene.norms();
+  comparison.reference_l2 = value_scale * std::sqrt(scene.square_reference * length_scale);
   return comparison;
 }
 

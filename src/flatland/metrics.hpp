@@ -1,7 +1,9 @@
 // Errors of one result against another (usually a reference), along arc length: relative L1, L2
-// and L-infinity of B per curve and for the whole scene (docs/result-format.md for the inputs).
+// and L-infinity of B, or of its reflected part B - E, per curve and for the whole scene
+// (docs/result-format.md for the inputs); and the observed slope of a power law through errors.
 #pragma once
 
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -17,14 +19,29 @@ struct ErrorNorms {
   double linf = 0.0;  // max |B - R| / max |R|
 };
 
+// What a comparison measures. Every method computes the emitted radiosity E exactly, so the error
+// of B = E + reflected lies in the reflected part alone; measured against B it is divided by a norm
+// that the emitters inflate (8x on the penumbra scene). Reflected measures B - E against the
+// reference's B - E: the error of what the solvers actually estimate.
+enum class Measure { Total, Reflected };
+const char* to_string(Measure measure);  // "total", "reflected"
+
 struct CurveError {
   std::string id;
   ErrorNorms norms;
+  // False when the reference's measured quantity is zero along the whole curve (under Reflected:
+  // a curve that reflects no light, such as a black lamp); its norms are then NaN.
+  bool measured = true;
 };
 
 struct Comparison {
+  Measure measure = Measure::Total;
   std::vector<CurveError> curves;
   ErrorNorms scene;  // over every curve, side and channel together
+  // sqrt(integral R^2 ds) of the reference's measured quantity R (B, or B - E) over every curve,
+  // side and channel: the denominator of scene.l2. Two comparisons of one reference under two
+  // measures convert a relative L2 error from one measure to the other.
+  double reference_l2 = 0.0;
 };
 
 // Both documents must describe the same scene: the same curves (ids, in order, lengths equal to
@@ -32,6 +49,20 @@ struct Comparison {
 // what differs. Samples sit at the midpoints of equal arc-length cells, so sums weighted by the
 // cell length are midpoint-rule integrals. Every side present in both (B, B_back) and every
 // channel counts.
-Result<Comparison> compare_results(const nlohmann::json& result, const nlohmann::json& reference);
+//
+// Under Measure::Total a reference that is zero along a curve (or everywhere) gives that curve's
+// errors relative to the largest |B| of the comparison. Under Measure::Reflected E is read from
+// the samples' "E" (the reference's, else the result's; a curve whose "emittance" is zero or absent
+// needs none), a reflected part below 1e-12 of B counts as zero (the round-off of B - E), a curve
+// whose reference reflects nothing is marked unmeasured, and a reference that reflects nothing
+// anywhere is an error: its relative error is undefined.
+Result<Comparison> compare_results(const nlohmann::json& result, const nlohmann::json& reference,
+                                   Measure measure = Measure::Total);
+
+// The exponent k of the power law error = c x^k that fits the points (x_i, error_i) best in
+// the least-squares sense on log-log axes: the slope of the straight line through (ln x_i,
+// ln error_i). Points with x or error not positive and finite are left out; nullopt when fewer
+// than two distinct x remain (no line is determined).
+std::optional<double> power_law_exponent(const std::vector<double>& x, const std::vector<double>& error);
 
 }  // namespace flatland

@@ -42,6 +42,7 @@ nlohmann::json sampled_curves_to_json(const Scene& scene, int samples_per_curve,
     const Curve& curve = scene.curves[c];
     const bool two_sided = curve.sides == Sides::Both;
     const Side main_side = curve.sides == Sides::Back ? Side::Back : Side::Front;
+    const bool emits = scene.is_emitter(curve);
     nlohmann::json samples = nlohmann::json::array();
     for (int j = 0; j < samples_per_curve; ++j) {
       const double s = (j + 0.5) * curve.length / samples_per_curve;
@@ -52,6 +53,13 @@ nlohmann::json sampled_curves_to_json(const Scene& scene, int samples_per_curve,
                                {"B", spectrum_to_json(radiosity(c, main_side, point.u), scene.channels)}};
       if (two_sided)
         sample["B_back"] = spectrum_to_json(radiosity(c, Side::Back, point.u), scene.channels);
+      // The emitted part of B (and of B_back: both sides of a two-sided emitter emit alike), so
+      // that compare can measure the reflected part B - E from the documents alone.
+      if (emits) {
+        const double factor = emittance_factor(curve, point.u);
+        sample["E"] = spectrum_to_json(
+            {curve.emittance[0] * factor, curve.emittance[1] * factor, curve.emittance[2] * factor}, scene.channels);
+      }
       samples.push_back(std::move(sample));
     }
     curves.push_back({{"id", curve.id},
@@ -82,6 +90,7 @@ nlohmann::json result_to_json(const Solver& solver, int samples_per_curve) {
       {"sampling", to_string(settings.sampling)},
       {"discontinuities", to_string(settings.discontinuities)},
       {"estimator", to_string(settings.estimator)},
+      {"sampler", to_string(settings.sampler)},
       {"ray_width", settings.ray_width},
       {"ray_profile", to_string(settings.ray_profile)},
       {"ray_mode", to_string(settings.ray_mode)},

@@ -5,9 +5,11 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <numbers>
 #include <numeric>
 #include <thread>
 
+#include "flatland/qmc.hpp"
 #include "flatland/resources.hpp"
 
 namespace flatland {
@@ -37,8 +39,23 @@ const char* to_string(StopReason reason) {
 
 const char* to_string(RayMode mode) { return mode == RayMode::Footprint ? "footprint" : "band"; }
 
+const char* to_string(SamplerKind sampler) {
+  return sampler == SamplerKind::Random ? "random" : "sobol";
+}
+
 const char* to_string(Estimator estimator) {
-  return estimator == Estimator::Lumped ? "lumped" : "galerkin";
+  switch (estimator) {
+    case Estimator::Lumped: return "lumped";
+    case Estimator::Galerkin: return "galerkin";
+    case Estimator::Local: return "local";
+  }
+  return "?";
+}
+
+std::optional<Estimator> estimator_from_string(std::string_view name) {
+  for (Estimator e : {Estimator::Lumped, Estimator::Galerkin, Estimator::Local})
+    if (name == to_string(e)) return e;
+  return std::nullopt;
 }
 
 const char* to_string(PositionSampling sampling) {
@@ -159,6 +176,8 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
     solver.storage_.push_back(build_curve_storage(
         scene, curve, settings.basis, settings.elements,
         settings.discontinuities == DiscontinuityMode::None, events[c]));
+    if (settings.estimator == Estimator::Local)
+      build_local_estimator(scene, curve, solver.storage_.back(), settings.basis == BasisKind::Hermite);
     const Material& material = scene.material_of(curve);
     for (Side side : {Side::Front, Side::Back}) {
       if (!curve.has_side(side)) continue;
@@ -240,6 +259,8 @@ void Solver::estimate(const std::vector<double>& power, std::vector<double>& coe
         const std::size_t first = offset * channels + ch;
         if (settings_.estimator == Estimator::Galerkin) {
           galerkin_estimate(storage, &power[first], &coefficients[first], channels);
+        } else if (settings_.estimator == Estimator::Local) {
+          local_estimate(storage, &power[first], &coefficients[first], channels);
         } else {
           for (std::size_t k = 0; k < storage.basis.size(); ++k)
             coefficients[first + k * channels] = power[first + k * channels] / storage.basis_length[k];
@@ -375,15 +396,18 @@ bool Solver::begin_round() {
   std::vector<double> source_weights(sources, 0.0);
   round_.photon_units.assign(sources, {});
   const double per_photon = unshot / static_cast<double>(round_.photons);
-  // With the Galerkin estimator the reconstructed unshot density is M^-1 U rather than U / L;
-  // coefficient k then carries the power g_k integral(phi_k ds) (the same total per curve).
+  // With the Galerkin or local estimator the reconstructed unshot density has coefficients g
+  // (M^-1 U, or the local weights times U) rather than U / L: clamped at zero, keeping each
+  // curve side's power, coefficient k carries the power g_k integral(phi_k ds).
   std::vector<double> density_power;
-  if (by_coefficient && settings_.estimator == Estimator::Galerkin) {
+  if (by_coefficient && settings_.estimator != Estimator::Lumped) {
     estimate(unshot_, density_power);
     for (std::uint32_t c = 0; c < scene_->curves.size(); ++c)
       for (Side side : {Side::Front, Side::Back}) {
         const std::uint32_t offset = block_offset(c, side);
         if (offset == kNoBlock) continue;
+        for (std::size_t ch = 0; ch < channels; ++ch)
+          clamp_keeping_power(storage_[c], &density_power[offset * channels + ch], channels);
         for (std::size_t k = 0; k < storage_[c].basis.size(); ++k)
           for (std::size_t ch = 0; ch < channels; ++ch)
             density_power[(offset + k) * channels + ch] *= storage_[c].basis_length[k];
@@ -402,27 +426,52 @@ bool Solver::begin_round() {
   return true;
 }
 
-void Solver::shoot_batch(Rng& rng, std::uint64_t count, Accumulator& acc,
+void Solver::shoot_batch(Rng& rng, std::uint64_t first, std::uint64_t count, Accumulator& acc,
                          std::vector<PhotonPath>* paths, std::size_t path_limit) const {
   // The ray kind is fixed per solve: each kind gets its own compiled loop, so point rays carry no
   // footprint or band code at all.
   switch (ray_kind_) {
-    case RayKind::Point: return shoot<RayKind::Point>(rng, count, acc, paths, path_limit);
-    case RayKind::Footprint: return shoot<RayKind::Footprint>(rng, count, acc, paths, path_limit);
-    case RayKind::Band: return shoot<RayKind::Band>(rng, count, acc, paths, path_limit);
+    case RayKind::Point: return shoot<RayKind::Point>(rng, first, count, acc, paths, path_limit);
+    case RayKind::Footprint:
+      return shoot<RayKind::Footprint>(rng, first, count, acc, paths, path_limit);
+    case RayKind::Band: return shoot<RayKind::Band>(rng, first, count, acc, paths, path_limit);
   }
 }
 
 template <Solver::RayKind kRays>
-void Solver::shoot(Rng& rng, std::uint64_t count, Accumulator& acc,
+void Solver::shoot(Rng& rng, std::uint64_t first, std::uint64_t count, Accumulator& acc,
                    std::vector<PhotonPath>* paths, std::size_t path_limit) const {
   std::vector<FootprintWeight> footprint;
   if constexpr (kRays == RayKind::Footprint) footprint.reserve(64);
   const auto channels = static_cast<std::size_t>(channels_);
   const double scale = scene_->scale;
+  // Randomised quasi-Monte Carlo: photon j of the round takes point j of the round's scrambled
+  // Sobol' sequence (named by seed and round), whichever batch, step or thread shoots it. Its
+  // dimensions: kPlace the source and, with what that choice leaves of it, the segment and the
+  // place on it (uniform origins) or inside the basis function's piece (reconstructed origins);
+  // kDirection the direction; kPiece the piece of the origin density; the first proposal's
+  // acceptance tests (speed bound, emittance profile, lobe). A rejection loop takes its first
+  // proposal from the point and any further ones from the batch's stream: each photon's uniforms
+  // are still independent and uniform, so the estimate stays unbiased, and the nets stratify the
+  // proposals that are accepted first (all of them on a straight segment of uniform emittance).
+  constexpr int kPlace = 0;
+  constexpr int kDirection = 1;
+  constexpr int kPiece = 2;
+  constexpr int kAcceptSpeed = 3;
+  constexpr int kAcceptProfile = 4;
+  constexpr int kAcceptLobe = 5;
+  static_assert(kAcceptLobe < kSobolDimensions);
+  const bool qmc = settings_.sampler == SamplerKind::Sobol;
+  const ScrambledSobol sobol(settings_.seed, rounds_);
+  // A parameter from what is left of kPlace, inside (0, 1) as Rng::uniform_open's.
+  auto open = [](double rest) { return std::max(rest, 0x1.0p-54); };
   for (std::uint64_t i = 0; i < count; ++i) {
+    const auto index = static_cast<std::uint32_t>(first + i);  // < kMaxPhotonsPerRound
+    auto quasi = [&sobol, index](int dimension) { return sobol.sample(index, dimension); };
     // The source, by unshot power: a side of a curve, or one of its coefficients.
-    const std::size_t source = round_.sources.sample(rng.uniform());
+    double place = 0.0;  // Sobol': what choosing the source left of dimension kPlace
+    const std::size_t source = qmc ? round_.sources.sample(quasi(kPlace), place)
+                                   : round_.sources.sample(rng.uniform());
     const bool by_coefficient = sample_by_coefficient_;
     const std::uint32_t block =
         by_coefficient ? coefficient_block_[source] : static_cast<std::uint32_t>(source);
@@ -440,16 +489,24 @@ void Solver::shoot(Rng& rng, std::uint64_t count, Accumulator& acc,
     // the profile says: uniform in arc length, accepted with probability E(u) / max E.
     const bool profiled = rounds_ == 0 && !curve.emittance_profile.empty();
     if (profiled) {
-      for (;;) {
-        segment_index = curve.first_segment + static_cast<std::uint32_t>(
-                                                  segment_choice_[curve_index].sample(rng.uniform()));
+      for (int attempt = 0;; ++attempt) {
+        const bool from_point = qmc && attempt == 0;
+        double along = 0.0;
+        segment_index = curve.first_segment +
+                        static_cast<std::uint32_t>(
+                            from_point ? segment_choice_[curve_index].sample(place, along)
+                                       : segment_choice_[curve_index].sample(rng.uniform()));
         const Cubic& shape = scene_->segments[segment_index].geometry.shape;
-        t = rng.uniform_open();
+        t = from_point ? open(along) : rng.uniform_open();
         const Vec2 velocity = derivative(shape, t);
         const double speed = length(velocity);
-        if (!(rng.uniform() * scene_->segments[segment_index].speed_bound < speed)) continue;
+        if (!((from_point ? quasi(kAcceptSpeed) : rng.uniform()) *
+                  scene_->segments[segment_index].speed_bound < speed))
+          continue;
         const double u = (segment_index - curve.first_segment) + t;
-        if (!(rng.uniform() * curve.profile_max < emittance_factor(curve, u))) continue;
+        if (!((from_point ? quasi(kAcceptProfile) : rng.uniform()) * curve.profile_max <
+              emittance_factor(curve, u)))
+          continue;
         tangent = (1.0 / speed) * velocity;
         origin = evaluate(shape, t);
         break;
@@ -460,15 +517,19 @@ void Solver::shoot(Rng& rng, std::uint64_t count, Accumulator& acc,
       // phi_k(u) |C'(u)|: u from phi_k in the curve parameter, accepted with |C'(u)| / max|C'|.
       const std::size_t k = source - block_offset_[block];
       const CurveStorage& storage = storage_[curve_index];
-      for (;;) {
-        const double u = storage.sampler.sample(k, rng.uniform(), rng.uniform());
+      for (int attempt = 0;; ++attempt) {
+        // Sobol': the place inside the piece from kPlace (for constant storage, whose basis
+        // functions have one piece, the whole origin is then one stratified coordinate).
+        const bool from_point = qmc && attempt == 0;
+        const double u = from_point ? storage.sampler.sample(k, quasi(kPiece), place)
+                                    : storage.sampler.sample(k, rng.uniform(), rng.uniform());
         const auto local = static_cast<std::uint32_t>(
             std::min<double>(std::floor(u), curve.segment_count - 1.0));
         segment_index = curve.first_segment + local;
         t = u - local;
         const Vec2 velocity = derivative(scene_->segments[segment_index].geometry.shape, t);
         const double speed = length(velocity);
-        if (rng.uniform() * storage.speed_bound[k] < speed) {
+        if ((from_point ? quasi(kAcceptSpeed) : rng.uniform()) * storage.speed_bound[k] < speed) {
           tangent = (1.0 / speed) * velocity;
           break;
         }
@@ -479,7 +540,8 @@ void Solver::shoot(Rng& rng, std::uint64_t count, Accumulator& acc,
     } else if (sample_hermite_) {
       // Density proportional to the Hermite reconstruction of the unshot radiosity, which lives
       // in arc length already: no Jacobian, the inverse of s(t) places the point.
-      const double s = hermite_unshot_[block].sample(rng.uniform(), rng.uniform());
+      const double s = qmc ? hermite_unshot_[block].sample(quasi(kPiece), place)
+                           : hermite_unshot_[block].sample(rng.uniform(), rng.uniform());
       const CurvePoint point = point_at_arc_length(*scene_, curve, s);
       segment_index = curve.first_segment + point.segment_in_curve;
       t = point.t;
@@ -488,20 +550,26 @@ void Solver::shoot(Rng& rng, std::uint64_t count, Accumulator& acc,
     } else {
       // Uniform in arc length: a segment by length, then t with density |C'(t)| / L by
       // rejection against the speed bound (exact; a line's speed is constant).
+      // Sobol': the segment and then t from what is left of kPlace, so the origin is one
+      // stratified coordinate along the whole source.
+      double along = 0.0;
       segment_index = curve.first_segment +
-                      static_cast<std::uint32_t>(segment_choice_[curve_index].sample(rng.uniform()));
+                      static_cast<std::uint32_t>(
+                          qmc ? segment_choice_[curve_index].sample(place, along)
+                              : segment_choice_[curve_index].sample(rng.uniform()));
       const SceneSegment& segment = scene_->segments[segment_index];
       const Cubic& shape = segment.geometry.shape;
       if (segment.geometry.kind == SegmentKind::Line) {
-        t = rng.uniform_open();
+        t = qmc ? open(along) : rng.uniform_open();
         origin = lerp(shape.p[0], shape.p[3], t);
         tangent = segment_info_[segment_index].line_tangent;
       } else {
-        for (;;) {
-          t = rng.uniform_open();
+        for (int attempt = 0;; ++attempt) {
+          const bool from_point = qmc && attempt == 0;
+          t = from_point ? open(along) : rng.uniform_open();
           const Vec2 velocity = derivative(shape, t);
           const double speed = length(velocity);
-          if (rng.uniform() * segment.speed_bound < speed) {
+          if ((from_point ? quasi(kAcceptSpeed) : rng.uniform()) * segment.speed_bound < speed) {
             tangent = (1.0 / speed) * velocity;
             break;
           }
@@ -514,12 +582,20 @@ void Solver::shoot(Rng& rng, std::uint64_t count, Accumulator& acc,
     const Vec2 normal = back ? -perp(tangent) : perp(tangent);
     Vec2 direction;
     const Emission& emission = scene_->material_of(curve).emission;
-    if (rounds_ != 0 || emission.kind == Emission::Kind::Diffuse)
-      direction = square_to_diffuse(rng.uniform(), normal);
-    else if (emission.kind == Emission::Kind::Lobe)
-      direction = sample_lobe(rng, emission.exponent, normal);
-    else
-      direction = square_to_beam(rng.uniform(), emission.half_angle, normal);
+    if (rounds_ != 0 || emission.kind == Emission::Kind::Diffuse) {
+      direction = square_to_diffuse(qmc ? quasi(kDirection) : rng.uniform(), normal);
+    } else if (emission.kind == Emission::Kind::Lobe) {
+      // Sobol': sample_lobe's first proposal (theta uniform, kept with probability cos^n) from
+      // the point; when it is refused, sample_lobe draws afresh from the stream.
+      const double theta = qmc ? (quasi(kDirection) - 0.5) * std::numbers::pi : 0.0;
+      const double c = std::cos(theta);
+      if (qmc && quasi(kAcceptLobe) < std::pow(c, emission.exponent))
+        direction = std::sin(theta) * Vec2{normal.y, -normal.x} + c * normal;
+      else
+        direction = sample_lobe(rng, emission.exponent, normal);
+    } else {
+      direction = square_to_beam(qmc ? quasi(kDirection) : rng.uniform(), emission.half_angle, normal);
+    }
     const Ray ray{origin, direction};
 
     PhotonPath* path = nullptr;
@@ -762,14 +838,14 @@ std::uint64_t Solver::step_photons(std::uint64_t max_photons, const std::atomic<
   auto room = [&]() -> std::size_t {
     return paths != nullptr && paths->size() < path_limit ? path_limit - paths->size() : 0;
   };
-  auto shoot_here = [&](Rng& rng, std::uint64_t count) {
-    shoot_batch(rng, count, round_deposits_[0], room() > 0 ? paths : nullptr, path_limit);
+  auto shoot_here = [&](Rng& rng, std::uint64_t from, std::uint64_t count) {
+    shoot_batch(rng, from, count, round_deposits_[0], room() > 0 ? paths : nullptr, path_limit);
   };
   std::uint64_t position = first;
   // The rest of a batch that an earlier step began, with the stream it left off.
   if (position % kBatchSize != 0) {
     const std::uint64_t end = std::min(last, (position / kBatchSize + 1) * kBatchSize);
-    shoot_here(*partial_batch_rng_, end - position);
+    shoot_here(*partial_batch_rng_, position, end - position);
     position = end;
   }
   // Whole batches (the round's last, short one included), shared among the threads.
@@ -804,7 +880,7 @@ std::uint64_t Solver::step_photons(std::uint64_t max_photons, const std::atomic<
           recorded->reserve(limit);
         }
         Rng rng(settings_.seed, rounds_, batch);
-        shoot_batch(rng, count, acc, recorded, limit);
+        shoot_batch(rng, batch * kBatchSize, count, acc, recorded, limit);
         photons_done.fetch_add(count, std::memory_order_relaxed);
         if (reports && progress && seconds_since(last_report) >= progress_interval) {
           last_report = Clock::now();
@@ -834,7 +910,7 @@ std::uint64_t Solver::step_photons(std::uint64_t max_photons, const std::atomic<
   // A batch begun here and finished by a later step keeps its stream.
   if (position < last) {
     partial_batch_rng_.emplace(settings_.seed, rounds_, position / kBatchSize);
-    shoot_here(*partial_batch_rng_, last - position);
+    shoot_here(*partial_batch_rng_, position, last - position);
     position = last;
   }
   round_done_ = last;

@@ -9,7 +9,8 @@
 // falls below tolerance x emitted power or the photon budget is spent.
 //
 // Determinism: photon i of a round belongs to batch i / kBatchSize, whose random stream is named
-// by (seed, round, batch). Deposits are accumulated in 64-bit fixed point (units of 2^-k of the
+// by (seed, round, batch); with the Sobol' sampler its uniforms come first from point i of the
+// round's scrambled sequence, named by (seed, round). Deposits are accumulated in 64-bit fixed point (units of 2^-k of the
 // round's power, k chosen so the round cannot overflow), and integer addition does not depend on
 // order, so any number of threads gives bit-identical results.
 #pragma once
@@ -20,6 +21,7 @@
 #include <optional>
 #include <span>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "flatland/basis.hpp"
@@ -39,13 +41,25 @@ namespace flatland {
 enum class PositionSampling { Uniform, Reconstructed };
 const char* to_string(PositionSampling sampling);
 
-// How coefficients are estimated from deposits: lumped (b_k = p_k / integral(phi_k ds): positive,
-// smooths by O(h^2)) or Galerkin (the L2 projection M b = p, clamped to be nonnegative).
-enum class Estimator { Lumped, Galerkin };
+// How coefficients are estimated from deposits (basis.hpp): lumped (b_k = p_k / integral(phi_k ds),
+// the paper's distance-weighted deposit: positive, but it puts each coefficient at its function's
+// centroid, a bias of O(h^2) inside and O(h) at ends and discontinuity nodes), Galerkin (the L2
+// projection M b = p) or local (a least-variance local quasi-interpolant; Hermite: nodal values).
+// Galerkin and local have bias O(h^(p+1)) up to ends and nodes and may dip below zero; the density
+// that photon origins are drawn from is clamped at zero with its power kept.
+enum class Estimator { Lumped, Galerkin, Local };
 const char* to_string(Estimator estimator);
+// "lumped", "galerkin" or "local"; nullopt for anything else.
+std::optional<Estimator> estimator_from_string(std::string_view name);
 
 enum class RayMode { Footprint, Band };
 const char* to_string(RayMode mode);
+
+// Where a photon's uniforms come from: independent pseudo-random numbers, or randomised
+// quasi-Monte Carlo (an Owen-scrambled Sobol' point per photon, indexed by its number in the
+// round; qmc.hpp and docs/method.md).
+enum class SamplerKind { Random, Sobol };
+const char* to_string(SamplerKind sampler);
 
 struct SolverSettings {
   std::uint64_t photons = 1'000'000;  // total budget over all rounds
@@ -64,6 +78,7 @@ struct SolverSettings {
   RayProfile ray_profile = RayProfile::Box;
   RayMode ray_mode = RayMode::Footprint;
   int band_rays = 8;
+  SamplerKind sampler = SamplerKind::Random;
   // Memory the solver's storage may take (0: default_memory_budget(), three quarters of the
   // machine's); settings that would need more are refused by Solver::create before allocating.
   std::size_t memory_limit = 0;
@@ -225,10 +240,12 @@ class Solver {
   }
   bool begin_round();
   enum class RayKind { Point, Footprint, Band };
-  void shoot_batch(Rng& rng, std::uint64_t count, Accumulator& accumulator,
+  // Shoots photons first .. first + count - 1 of the round (`first` names their quasi-Monte Carlo
+  // points; `rng` is their batch's stream).
+  void shoot_batch(Rng& rng, std::uint64_t first, std::uint64_t count, Accumulator& accumulator,
                    std::vector<PhotonPath>* paths, std::size_t path_limit) const;
   template <RayKind kRays>
-  void shoot(Rng& rng, std::uint64_t count, Accumulator& accumulator,
+  void shoot(Rng& rng, std::uint64_t first, std::uint64_t count, Accumulator& accumulator,
              std::vector<PhotonPath>* paths, std::size_t path_limit) const;
   // What a photon (or a band's sub-ray) carrying `units` does where it lands.
   template <RayKind kRays>

@@ -21,7 +21,7 @@ const char* const kBasisNames[] = {"constant", "linear", "cubic", "hermite"};
 const BasisKind kBases[] = {BasisKind::Constant, BasisKind::Linear, BasisKind::Cubic, BasisKind::Hermite};
 const char* const kSamplingNames[] = {"uniform", "reconstructed"};
 const char* const kDiscontinuityNames[] = {"none", "scene", "auto"};
-const char* const kEstimatorNames[] = {"lumped", "galerkin"};
+const char* const kEstimatorNames[] = {"lumped", "galerkin", "local"};
 const char* const kProfileNames[] = {"box", "tent", "epanechnikov", "cosine", "gauss"};
 const char* const kModeNames[] = {"footprint", "band"};
 
@@ -202,9 +202,9 @@ void Viewer::draw_solve_panel(const Snapshot& snapshot) {
     settings_.discontinuities = static_cast<DiscontinuityMode>(discontinuities);
     changed = true;
   }
-  int estimator = settings_.estimator == Estimator::Lumped ? 0 : 1;
-  if (combo("estimator", &estimator, kEstimatorNames, 2)) {
-    settings_.estimator = estimator == 0 ? Estimator::Lumped : Estimator::Galerkin;
+  int estimator = static_cast<int>(settings_.estimator);
+  if (combo("estimator", &estimator, kEstimatorNames, 3)) {
+    settings_.estimator = static_cast<Estimator>(estimator);
     changed = true;
   }
   // Ray width as a fraction of the scene's size; profile and mode only matter for wide rays.
