@@ -624,6 +624,59 @@ TEST(Basis, LocalNodalValuesAreFourthOrder) {
   }
 }
 
+TEST(Basis, NestedLevelsRestrictAndProlongExactly) {
+  // Storages built with more subdivisions nest: every coarse function is a nonnegative combination
+  // of fine ones, so a coarse spline prolonged into the fine basis is the same function, and the
+  // deposits a photon leaves on the coarse functions are the restriction of its fine deposits.
+  // Checked pointwise on an open curve with C0 and C-1 nodes and on the periodic ring.
+  const Scene curved = testing::scene_from_text(R"({"flatland": 2,
+    "materials": {"wall": {"reflectivity": 0.5, "emittance": 1}},
+    "curves": [{"id": "s", "material": "wall", "bezier": [[0,0],[1,2],[3,-1],[4,1]]}]})");
+  const Scene ring = ring_scene(2);
+  const std::vector<MeshNode> nodes = {{0.37, Continuity::C0}, {0.71, Continuity::Jump}};
+  std::mt19937_64 random(5);
+  std::uniform_real_distribution<double> uniform(0.0, 1.0);
+  for (const Scene* scene : {&curved, &ring}) {
+    const Curve& curve = scene->curves[0];
+    const std::span<const MeshNode> extra = scene == &curved ? std::span<const MeshNode>(nodes) : std::span<const MeshNode>();
+    for (BasisKind kind : {BasisKind::Constant, BasisKind::Linear, BasisKind::Cubic}) {
+      SCOPED_TRACE(to_string(kind));
+      const CurveStorage fine = build_curve_storage(*scene, curve, kind, 4, false, extra, 3);
+      for (int level = 0; level < 3; ++level) {
+        const CurveStorage coarse = build_curve_storage(*scene, curve, kind, 4, false, extra, level);
+        ASSERT_LT(coarse.basis.size(), fine.basis.size());
+        const Restriction r = restriction_between(coarse.basis, fine.basis);
+        for (double w : r.weight) EXPECT_GE(w, 0.0);
+        std::vector<double> b(coarse.basis.size());
+        for (double& v : b) v = uniform(random);
+        std::vector<double> prolonged(fine.basis.size());
+        prolong_coefficients(r, b.data(), prolonged.data(), 1);
+        double worst_function = 0.0;
+        double worst_deposit = 0.0;
+        for (int i = 0; i < 500; ++i) {
+          const double u = curve.segment_count * uniform(random);
+          worst_function = std::max(worst_function, std::fabs(spline_value(coarse.basis, b, u) -
+                                                              spline_value(fine.basis, prolonged, u)));
+          // One photon at u: fine deposits phi_fine(u), restricted, against phi_coarse(u).
+          std::vector<double> deposit(fine.basis.size(), 0.0);
+          Values phi{};
+          std::size_t first = fine.basis.evaluate(u, phi.data());
+          for (int j = 0; j <= fine.basis.degree(); ++j) deposit[fine.basis.index(first + j)] += phi[j];
+          std::vector<double> restricted(coarse.basis.size());
+          restrict_deposits(r, deposit.data(), 1, restricted.data());
+          std::vector<double> direct(coarse.basis.size(), 0.0);
+          first = coarse.basis.evaluate(u, phi.data());
+          for (int j = 0; j <= coarse.basis.degree(); ++j) direct[coarse.basis.index(first + j)] += phi[j];
+          for (std::size_t k = 0; k < direct.size(); ++k)
+            worst_deposit = std::max(worst_deposit, std::fabs(restricted[k] - direct[k]));
+        }
+        EXPECT_LT(worst_function, 1e-12);
+        EXPECT_LT(worst_deposit, 1e-12);
+      }
+    }
+  }
+}
+
 TEST(Basis, SamplerMassIsTheClosedFormIntegral) {
   // integral(phi_k du) = (knot[k + p + 1] - knot[k]) / (p + 1) for a normalised B-spline.
   const std::vector<MeshNode> nodes = {

@@ -278,7 +278,7 @@ TEST_F(Cli, ConvergeWritesTableAndPlots) {
   for (const char* count : {"elements=16x", "elements=99999999999", "band-rays=", "elements=1e3"}) {
     const CommandRun wrong = run("converge " + scene("penumbra.json") + " --methods cubic+" + count + " --out " + out.string());
     EXPECT_EQ(wrong.exit_code, 2) << count;
-    EXPECT_NE(wrong.err.find("must be a whole number"), std::string::npos) << wrong.err;
+    EXPECT_NE(wrong.err.find("whole number"), std::string::npos) << wrong.err;
   }
 }
 
@@ -321,7 +321,8 @@ std::vector<std::map<std::string, std::string>> csv_rows(const std::string& csv,
 TEST_F(Cli, ConvergeMeasuresTheReflectedPartAndPrintsSlopes) {
   const fs::path out = directory_ / "reflected";
   const CommandRun r = run("converge " + scene("penumbra.json") +
-                           " --methods constant,linear --budgets 2000,8000,32000 --seeds 2 --samples 20 --out " +
+                           " --methods constant,linear --budgets 2000,8000,32000 --seeds 2 --samples 20 "
+                           "--elements 16 --out " +
                            out.string());
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const std::string csv = read_file(out / "convergence.csv");
@@ -357,7 +358,8 @@ TEST_F(Cli, ConvergeMeasuresTheReflectedPartAndPrintsSlopes) {
   // scene's B - E, so the same errors as above, seed for seed.
   const fs::path receiver = directory_ / "receiver";
   const CommandRun one = run("converge " + scene("penumbra.json") +
-                             " --methods linear --budgets 2000,8000,32000 --seeds 2 --samples 20 --curve receiver --out " +
+                             " --methods linear --budgets 2000,8000,32000 --seeds 2 --samples 20 --elements 16 "
+                             "--curve receiver --out " +
                              receiver.string());
   ASSERT_EQ(one.exit_code, 0) << one.err;
   std::vector<double> receiver_errors;

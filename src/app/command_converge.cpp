@@ -73,8 +73,8 @@ Result<Method> parse_method(const std::string& text, const SolverSettings& defau
       if (!estimator) return Error{where + "estimator must be lumped, galerkin or local"};
       s.estimator = *estimator;
     } else if (key == "elements") {
-      const std::optional<int> count = whole_number(value);
-      if (!count) return Error{where + "elements must be a whole number"};
+      const std::optional<int> count = parse_elements(value, 1 << 20);
+      if (!count) return Error{where + "elements must be auto or a whole number from 1 to 1048576"};
       s.elements = *count;
     } else if (key == "ray-width") {
       char* end = nullptr;
@@ -485,7 +485,7 @@ Result<Plan> parse_plan(const ConvergeOptions& o) {
   SolverSettings defaults;
   defaults.threads = o.threads;
   defaults.tolerance = o.tolerance;
-  defaults.elements = o.elements;
+  defaults.elements = *parse_elements(o.elements, 1 << 20);
   for (const std::string& text : split(o.methods)) {
     Result<Method> method = parse_method(text, defaults);
     if (!method) return method.error();
@@ -527,7 +527,8 @@ CLI::App* add_converge_command(CLI::App& parent, ConvergeOptions& o) {
   cmd->add_option("--methods", o.methods,
                   "Comma-separated methods: a basis name, or key=value pairs joined by '+' "
                   "(basis, sampling, discontinuities, estimator, elements, ray-width, ray-mode, "
-                  "ray-profile, band-rays, tolerance), e.g. constant,cubic,cubic+sampling=uniform")
+                  "ray-profile, band-rays, tolerance, sampler), e.g. "
+                  "constant,cubic,cubic+sampling=uniform,cubic+elements=64+sampler=sobol")
       ->capture_default_str();
   auto* budgets = cmd->add_option("--budgets", o.budgets, "Comma-separated photon budgets")
                       ->capture_default_str();
@@ -545,9 +546,10 @@ CLI::App* add_converge_command(CLI::App& parent, ConvergeOptions& o) {
       ->capture_default_str()
       ->check(CLI::Range(0u, 1024u));
   cmd->add_option("--elements", o.elements,
-                  "Storage elements per curve of every method (a method's elements=N overrides it)")
+                  "Storage elements per curve of every method, or auto (each curve's mesh follows "
+                  "its photons); a method's elements=N overrides it")
       ->capture_default_str()
-      ->check(CLI::Range(1, 1 << 20));
+      ->check(elements_check(1 << 20));
   cmd->add_option("--tolerance", o.tolerance,
                   "Unshot-power tolerance of every solve (a method's tolerance=X overrides it); "
                   "small, so that each solve spends its whole budget")
@@ -734,9 +736,10 @@ int run_converge(ConvergeOptions& o) {
     const SolverSettings& s = methods[row.method].settings;
     char line[512];
     std::snprintf(line, sizeof line,
-                  "\"%s\",%s,%s,%s,%s,%d,%.17g,%s,%s,%d,%.9g,%llu,%llu,%u,%.9g,%.9g,%.9g,%.9g,%.9g",
+                  "\"%s\",%s,%s,%s,%s,%s,%.17g,%s,%s,%d,%.9g,%llu,%llu,%u,%.9g,%.9g,%.9g,%.9g,%.9g",
                   methods[row.method].name.c_str(), to_string(s.basis), to_string(s.sampling),
-                  to_string(s.discontinuities), to_string(s.estimator), s.elements, s.ray_width,
+                  to_string(s.discontinuities), to_string(s.estimator),
+                  s.elements == kAutoElements ? "auto" : std::to_string(s.elements).c_str(), s.ray_width,
                   to_string(s.ray_mode), to_string(s.ray_profile), s.band_rays, s.tolerance,
                   static_cast<unsigned long long>(row.seed), static_cast<unsigned long long>(row.photons),
                   row.rounds, row.unshot, row.seconds, row.error.l1, row.error.l2, row.error.linf);

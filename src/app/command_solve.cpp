@@ -1,6 +1,10 @@
 // flatland solve: progressive Monte Carlo shooting on one scene.
+#include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
+#include <limits>
 #include <map>
 #include <optional>
 #include <thread>
@@ -83,14 +87,34 @@ void add_solver_options(CLI::App* cmd, SolveOptions& o) {
   cmd->add_option("--band-rays", o.settings.band_rays, "Sub-rays per photon in band mode")
       ->capture_default_str()
       ->check(CLI::Range(1, 256));
-  cmd->add_option("--elements", o.settings.elements,
+  cmd->add_option("--elements", o.elements,
                   "Storage elements per curve (shared among its segments by arc length, at least "
-                  "one each)")
+                  "one each), or auto: each curve's mesh follows the photons that land on it, "
+                  "chosen after every round among nested halvings by least estimated error "
+                  "(Hermite: 16 elements)")
       ->capture_default_str()
-      ->check(CLI::Range(1, 1 << 16));
+      ->check(elements_check(1 << 16));
   cmd->add_option("--tolerance", o.settings.tolerance,
                   "Stop when the unshot power falls below this fraction of the emitted power")
       ->capture_default_str();
+}
+
+std::optional<int> parse_elements(const std::string& text, int max) {
+  if (text == "auto") return kAutoElements;
+  char* end = nullptr;
+  errno = 0;
+  const long value = std::strtol(text.c_str(), &end, 10);
+  if (end == text.c_str() || *end != '\0' || errno == ERANGE || value < 1 || value > max) return std::nullopt;
+  return static_cast<int>(value);
+}
+
+CLI::Validator elements_check(int max) {
+  return CLI::Validator(
+      [max](std::string& text) -> std::string {
+        if (parse_elements(text, max)) return {};
+        return "must be auto or a whole number from 1 to " + std::to_string(max) + ", not '" + text + "'";
+      },
+      "auto|1.." + std::to_string(max));
 }
 
 CLI::App* add_solve_command(CLI::App& parent, SolveOptions& o) {
@@ -136,9 +160,27 @@ void print_summary(const Solver& solver) {
       std::snprintf(rays, sizeof rays, "footprint rays %g wide (%s)", settings.ray_width,
                     to_string(settings.ray_profile));
   }
-  std::printf("method    %s basis (%s), %d elements per curve, %s positions, discontinuities %s, "
+  // The storage mesh: fixed, or with auto storage the elements each curve chose (min .. max).
+  char storage_text[96];
+  if (solver.auto_storage()) {
+    int fewest = std::numeric_limits<int>::max();
+    int most = 0;
+    for (std::uint32_t c = 0; c < scene.curves.size(); ++c) {
+      const Spectrum& rho = scene.material_of(scene.curves[c]).reflectivity;
+      if (!(rho[0] + rho[1] + rho[2] > 0.0)) continue;  // nothing to estimate: the finest is kept
+      fewest = std::min(fewest, solver.storage_elements(c));
+      most = std::max(most, solver.storage_elements(c));
+    }
+    std::snprintf(storage_text, sizeof storage_text, "auto elements (%d .. %d per reflecting curve chosen)",
+                  most == 0 ? 0 : fewest, most);
+  } else {
+    std::snprintf(storage_text, sizeof storage_text, "%d elements per curve%s",
+                  settings.elements == kAutoElements ? kHermiteAutoElements : settings.elements,
+                  settings.elements == kAutoElements ? " (auto: Hermite storage does not nest)" : "");
+  }
+  std::printf("method    %s basis (%s), %s, %s positions, discontinuities %s, "
               "%s, %s sampler\n",
-              to_string(settings.basis), to_string(settings.estimator), settings.elements,
+              to_string(settings.basis), to_string(settings.estimator), storage_text,
               to_string(settings.sampling), to_string(settings.discontinuities), rays,
               to_string(settings.sampler));
   // What the scene made the solver use (and so what it left out).
@@ -189,6 +231,7 @@ Status finish_solver_settings(SolveOptions& o) {
   o.settings.ray_profile = *parse_ray_profile(o.ray_profile);
   o.settings.ray_mode = o.ray_mode == "band" ? RayMode::Band : RayMode::Footprint;
   o.settings.estimator = *estimator_from_string(o.estimator);
+  o.settings.elements = *parse_elements(o.elements, 1 << 16);
   o.settings.sampler = o.sampler == "sobol" ? SamplerKind::Sobol : SamplerKind::Random;
   o.settings.sampling =
       o.sampling == "uniform" ? PositionSampling::Uniform : PositionSampling::Reconstructed;

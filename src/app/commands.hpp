@@ -43,6 +43,11 @@ inline CLI::Validator finite_range(double low, double high) {
 // Set by SIGINT / SIGTERM; long work checks it between batches.
 std::atomic<bool>& interrupt_flag();
 
+// --elements: "auto" (kAutoElements) or a whole number in [1, max]; nullopt for anything else.
+std::optional<int> parse_elements(const std::string& text, int max);
+// The matching CLI11 check, with a message naming what is accepted.
+CLI::Validator elements_check(int max);
+
 struct SolveOptions {
   std::string scene;
   std::string photons = "1e6";  // parsed by parse_count, so "1e6" and "250000" both work
@@ -52,6 +57,7 @@ struct SolveOptions {
   std::string discontinuities = "auto";
   std::string estimator = "lumped";
   std::string sampler = "random";
+  std::string elements = "auto";
   std::string ray_profile = "box";
   std::string ray_mode = "footprint";
   int samples = 100;
@@ -89,7 +95,7 @@ struct ConvergeOptions {
   int samples = 100;
   unsigned threads = 0;
   double tolerance = 1e-6;
-  int elements = 16;
+  std::string elements = "auto";
   std::string out;
   bool replot = false;
   std::string measure = "reflected";  // "reflected" (B - E) or "total" (B)

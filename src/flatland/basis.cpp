@@ -306,8 +306,9 @@ namespace {
 
 // The storage nodes of a curve for about `wanted` elements: joints, element boundaries, then the
 // extra nodes merged in. Returns the closing continuity (Jump on an open curve).
-Continuity place_nodes(const Scene& scene, const Curve& curve, int wanted, bool smooth_joints,
-                       std::span<const MeshNode> extra, std::vector<MeshNode>& nodes) {
+Continuity place_nodes(const Scene& scene, const Curve& curve, int wanted, int subdivisions,
+                       bool smooth_joints, std::span<const MeshNode> extra,
+                       std::vector<MeshNode>& nodes) {
   const std::uint32_t segment_count = curve.segment_count;
   nodes.clear();
   for (std::uint32_t i = 0; i < segment_count; ++i) {
@@ -315,7 +316,10 @@ Continuity place_nodes(const Scene& scene, const Curve& curve, int wanted, bool 
     if (i > 0)
       nodes.push_back({static_cast<double>(i), smooth_joints ? Continuity::C1 : curve.joints[i - 1]});
     const double share = wanted * segment.length / curve.length;
-    const int pieces = std::max(1, static_cast<int>(std::lround(share)));
+    // Each element of the `wanted` placement split into 2^subdivisions of equal arc length: the
+    // boundaries s = length j / pieces of a coarser placement are those of a finer one exactly
+    // (j and pieces both doubled), so the meshes nest.
+    const int pieces = std::max(1, static_cast<int>(std::lround(share))) << subdivisions;
     for (int j = 1; j < pieces; ++j) {
       const double s = segment.length * j / pieces;
       const double t = segment.arc_length.parameter_at(segment.geometry.shape, s);
@@ -348,12 +352,13 @@ Continuity place_nodes(const Scene& scene, const Curve& curve, int wanted, bool 
 }  // namespace
 
 CurveStorage build_curve_storage(const Scene& scene, const Curve& curve, BasisKind kind,
-                                 int elements, bool smooth_joints, std::span<const MeshNode> extra) {
+                                 int elements, bool smooth_joints, std::span<const MeshNode> extra,
+                                 int subdivisions) {
   CurveStorage storage;
   const std::uint32_t segment_count = curve.segment_count;
   const int degree = degree_of(kind);
-  int wanted = std::max(elements, 1);
-  storage.closing = place_nodes(scene, curve, wanted, smooth_joints, extra, storage.nodes);
+  const int wanted = std::max(elements, 1);
+  storage.closing = place_nodes(scene, curve, wanted, subdivisions, smooth_joints, extra, storage.nodes);
   if (storage.closing == Continuity::Jump) {
     storage.basis = SplineBasis(degree, 0.0, static_cast<double>(segment_count), storage.nodes);
   } else {
@@ -366,8 +371,8 @@ CurveStorage build_curve_storage(const Scene& scene, const Curve& curve, BasisKi
       return count;
     };
     while (knots_in_period() < 2 * degree + 2) {
-      wanted *= 2;
-      storage.closing = place_nodes(scene, curve, wanted, smooth_joints, extra, storage.nodes);
+      ++subdivisions;
+      storage.closing = place_nodes(scene, curve, wanted, subdivisions, smooth_joints, extra, storage.nodes);
     }
     storage.basis = SplineBasis::periodic(degree, 0.0, static_cast<double>(segment_count),
                                           storage.nodes, storage.closing);
@@ -735,6 +740,92 @@ void build_local_estimator(const Scene& scene, const Curve& curve, CurveStorage&
     storage.local_first[k + 1] = storage.local_index.size();
     storage.local_degree[k] = static_cast<std::int8_t>(window.degree);
   }
+}
+
+Restriction restriction_between(const SplineBasis& coarse, const SplineBasis& fine) {
+  const int p = fine.degree();
+  const auto pu = static_cast<std::size_t>(p);
+  const std::size_t terms = pu + 1;
+  const std::vector<double>& knots = fine.knots();
+  // Rows of R as (fine column, weight) lists, each pair set from the first fine span where both
+  // functions are alive (nested bases make every span give the same numbers).
+  std::vector<std::vector<std::pair<std::uint32_t, double>>> rows(coarse.size());
+  std::array<double, SplineBasis::kMaxDegree + 1> values{};
+  for (std::size_t span = fine.first_span(); span < fine.end_span(); ++span) {
+    const double a = knots[span];
+    const double b = knots[span + 1];
+    if (!(b > a)) continue;
+    // A[m][r] = phi_fine_(span - p + r)(x_m); right-hand sides: the coarse functions at x_m.
+    std::array<std::array<double, SplineBasis::kMaxDegree + 1>, SplineBasis::kMaxDegree + 1> matrix{};
+    std::array<std::array<double, SplineBasis::kMaxDegree + 1>, SplineBasis::kMaxDegree + 1> rhs{};
+    std::array<std::size_t, SplineBasis::kMaxDegree + 1> coarse_index{};
+    for (std::size_t m = 0; m < terms; ++m) {
+      const double x = a + (b - a) * (static_cast<double>(m) + 0.5) / static_cast<double>(terms);
+      fine.evaluate_in_span(span, x, values.data());
+      for (std::size_t r = 0; r < terms; ++r) matrix[m][r] = values[r];
+      const std::size_t first = coarse.evaluate(x, values.data());
+      for (std::size_t r = 0; r < terms; ++r) {
+        rhs[m][r] = values[r];
+        coarse_index[r] = coarse.index(first + r);  // the same coarse span for every x_m
+      }
+    }
+    // Gaussian elimination with partial pivoting, all right-hand sides at once.
+    for (std::size_t col = 0; col < terms; ++col) {
+      std::size_t pivot = col;
+      for (std::size_t m = col + 1; m < terms; ++m)
+        if (std::fabs(matrix[m][col]) > std::fabs(matrix[pivot][col])) pivot = m;
+      std::swap(matrix[col], matrix[pivot]);
+      std::swap(rhs[col], rhs[pivot]);
+      for (std::size_t m = col + 1; m < terms; ++m) {
+        const double factor = matrix[m][col] / matrix[col][col];
+        for (std::size_t r = col; r < terms; ++r) matrix[m][r] -= factor * matrix[col][r];
+        for (std::size_t r = 0; r < terms; ++r) rhs[m][r] -= factor * rhs[col][r];
+      }
+    }
+    for (std::size_t col = terms; col-- > 0;) {
+      for (std::size_t r = 0; r < terms; ++r) {
+        double sum = rhs[col][r];
+        for (std::size_t m = col + 1; m < terms; ++m) sum -= matrix[col][m] * rhs[m][r];
+        rhs[col][r] = sum / matrix[col][col];
+      }
+    }
+    // rhs[f][r]: the weight of fine function span - p + f in coarse function coarse_index[r].
+    for (std::size_t r = 0; r < terms; ++r) {
+      auto& row = rows[coarse_index[r]];
+      for (std::size_t f = 0; f < terms; ++f) {
+        const auto column = static_cast<std::uint32_t>(fine.index(span - pu + f));
+        const bool known = std::any_of(row.begin(), row.end(), [&](const auto& e) { return e.first == column; });
+        if (!known) row.emplace_back(column, rhs[f][r]);
+      }
+    }
+  }
+  Restriction result;
+  result.fine_size = fine.size();
+  result.first.assign(coarse.size() + 1, 0);
+  for (std::size_t i = 0; i < coarse.size(); ++i) {
+    std::sort(rows[i].begin(), rows[i].end());
+    for (const auto& [column, weight] : rows[i]) {
+      if (!(std::fabs(weight) > 1e-14)) continue;
+      result.column.push_back(column);
+      result.weight.push_back(weight);
+    }
+    result.first[i + 1] = result.column.size();
+  }
+  return result;
+}
+
+void restrict_deposits(const Restriction& r, const double* fine, std::size_t stride, double* coarse) {
+  for (std::size_t i = 0; i + 1 < r.first.size(); ++i) {
+    double sum = 0.0;
+    for (std::size_t e = r.first[i]; e < r.first[i + 1]; ++e) sum += r.weight[e] * fine[r.column[e] * stride];
+    coarse[i] = sum;
+  }
+}
+
+void prolong_coefficients(const Restriction& r, const double* coarse, double* fine, std::size_t stride) {
+  for (std::size_t j = 0; j < r.fine_size; ++j) fine[j * stride] = 0.0;
+  for (std::size_t i = 0; i + 1 < r.first.size(); ++i)
+    for (std::size_t e = r.first[i]; e < r.first[i + 1]; ++e) fine[r.column[e] * stride] += r.weight[e] * coarse[i];
 }
 
 void local_estimate(const CurveStorage& storage, const double* deposits, double* coefficients,

@@ -85,7 +85,7 @@ nlohmann::json result_to_json(const Solver& solver, int samples_per_curve) {
       {"seed", settings.seed},
       {"threads", solver.thread_count()},
       {"basis", to_string(settings.basis)},
-      {"elements", settings.elements},
+      {"elements", settings.elements == kAutoElements ? nlohmann::json("auto") : nlohmann::json(settings.elements)},
       {"tolerance", settings.tolerance},
       {"sampling", to_string(settings.sampling)},
       {"discontinuities", to_string(settings.discontinuities)},
@@ -125,6 +125,9 @@ nlohmann::json result_to_json(const Solver& solver, int samples_per_curve) {
     }
     nlohmann::json& entry = curves[c];
     entry["degree"] = storage.basis.degree();
+    // The mesh in use: with auto storage the chosen level, held exactly by the finest basis whose
+    // knots and coefficients follow (docs/result-format.md).
+    entry["elements"] = solver.storage_elements(c);
     // A periodic basis (a closed curve smooth at its closing point) lists one period of knots
     // extended by `degree` on each side; its functions wrap round (docs/result-format.md).
     entry["periodic"] = storage.basis.is_periodic();

@@ -67,8 +67,8 @@ Status validate(const SolverSettings& settings) {
     return Error{"--photons: must be at least 1"};
   if (settings.photons > (std::uint64_t{1} << 50))
     return Error{"--photons: at most 2^50 (about 1.1e15) photons per solve"};
-  if (settings.elements < 1 || settings.elements > kMaxElements)
-    return Error{"--elements: must be between 1 and " + std::to_string(kMaxElements)};
+  if (settings.elements != kAutoElements && (settings.elements < 1 || settings.elements > kMaxElements))
+    return Error{"--elements: must be auto or between 1 and " + std::to_string(kMaxElements)};
   if (!std::isfinite(settings.tolerance) || settings.tolerance <= 0.0 || settings.tolerance >= 1.0)
     return Error{"--tolerance: must be a number in (0, 1), e.g. 1e-3"};
   if (settings.threads > 1024) return Error{"--threads: at most 1024 (0 uses every core)"};
@@ -126,7 +126,30 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
   solver.channels_ = scene.channels;
   solver.threads_ = settings.threads != 0 ? settings.threads
                                           : std::max(1u, std::thread::hardware_concurrency());
-  if (Status status = check_memory(scene, settings, solver.threads_); !status) return status.error();
+  // Auto storage: the finest level that a reflecting curve's share of the budget still fills
+  // with kAutoPhotonsPerElement photons per element (DESIGN: the best element length shrinks
+  // with the photon count, so a bigger budget reaches finer levels).
+  const bool hermite = settings.basis == BasisKind::Hermite;
+  solver.auto_storage_ = settings.elements == kAutoElements && !hermite;
+  const int elements = settings.elements != kAutoElements ? settings.elements
+                       : hermite                          ? kHermiteAutoElements
+                                                          : kAutoBaseElements;
+  int finest_level = 0;
+  if (solver.auto_storage_) {
+    std::size_t reflecting = 0;
+    for (const Curve& curve : scene.curves) {
+      const Spectrum& rho = scene.material_of(curve).reflectivity;
+      reflecting += rho[0] + rho[1] + rho[2] > 0.0;
+    }
+    const double share = static_cast<double>(settings.photons) / static_cast<double>(std::max<std::size_t>(reflecting, 1));
+    while (finest_level + 1 < kAutoMaxLevels &&
+           (kAutoBaseElements << (finest_level + 1)) * kAutoPhotonsPerElement <= share)
+      ++finest_level;
+  }
+  const int finest_elements = elements << finest_level;
+  SolverSettings sized = settings;
+  sized.elements = finest_elements;
+  if (Status status = check_memory(scene, sized, solver.threads_); !status) return status.error();
 
   std::vector<SegmentGeometry> geometry;
   geometry.reserve(scene.segments.size());
@@ -155,7 +178,7 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
   }
   if (settings.discontinuities == DiscontinuityMode::Auto) {
     EventOptions options;
-    options.elements = settings.elements;
+    options.elements = finest_elements;
     for (const DiscontinuityNode& node : find_visibility_events(scene, solver.accelerator_, options)) {
       events[node.curve].push_back({node.u, node.continuity});
       ++solver.visibility_events_;
@@ -173,11 +196,20 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
     for (std::uint32_t i = 0; i < curve.segment_count; ++i)
       lengths.push_back(scene.segments[curve.first_segment + i].length);
     solver.segment_choice_.emplace_back(lengths);
-    solver.storage_.push_back(build_curve_storage(
-        scene, curve, settings.basis, settings.elements,
-        settings.discontinuities == DiscontinuityMode::None, events[c]));
+    const bool smooth = settings.discontinuities == DiscontinuityMode::None;
+    solver.storage_.push_back(
+        build_curve_storage(scene, curve, settings.basis, elements, smooth, events[c], finest_level));
     if (settings.estimator == Estimator::Local)
-      build_local_estimator(scene, curve, solver.storage_.back(), settings.basis == BasisKind::Hermite);
+      build_local_estimator(scene, curve, solver.storage_.back(), hermite);
+    // The coarser levels, each with its restriction from the finest.
+    std::vector<Level>& levels = solver.levels_.emplace_back();
+    for (int level = 0; level < finest_level; ++level) {
+      Level& coarse = levels.emplace_back();
+      coarse.storage = build_curve_storage(scene, curve, settings.basis, elements, smooth, events[c], level);
+      if (settings.estimator == Estimator::Local) build_local_estimator(scene, curve, coarse.storage, hermite);
+      coarse.restriction = restriction_between(coarse.storage.basis, solver.storage_.back().basis);
+    }
+    solver.chosen_level_.push_back(static_cast<int>(levels.size()));
     const Material& material = scene.material_of(curve);
     for (Side side : {Side::Front, Side::Back}) {
       if (!curve.has_side(side)) continue;
@@ -196,6 +228,7 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
 
   // The first round shoots the emitted power: on each emitting side E times the basis integrals.
   solver.received_.assign(solver.coefficient_count_ * channels, 0.0);
+  if (solver.auto_storage_) solver.received_half_.assign(solver.coefficient_count_ * channels, 0.0);
   solver.unshot_.assign(solver.coefficient_count_ * channels, 0.0);
   solver.reflected_.assign(solver.coefficient_count_ * channels, 0.0);
   if (settings.ray_width > 0.0) {
@@ -247,27 +280,143 @@ bool Solver::has_side(std::uint32_t curve, Side side) const {
   return block_offset(curve, side) != kNoBlock;
 }
 
+void Solver::estimate_on(const CurveStorage& storage, const double* power, double* coefficients,
+                         std::size_t stride) const {
+  if (settings_.estimator == Estimator::Galerkin) {
+    galerkin_estimate(storage, power, coefficients, stride);
+  } else if (settings_.estimator == Estimator::Local) {
+    local_estimate(storage, power, coefficients, stride);
+  } else {
+    for (std::size_t k = 0; k < storage.basis.size(); ++k)
+      coefficients[k * stride] = power[k * stride] / storage.basis_length[k];
+  }
+}
+
+void Solver::estimate_at_level(std::uint32_t curve, int level, const double* power,
+                               double* coefficients, std::size_t stride) const {
+  const std::vector<Level>& levels = levels_[curve];
+  if (level >= static_cast<int>(levels.size())) {
+    estimate_on(storage_[curve], power, coefficients, stride);
+    return;
+  }
+  // Deposits of the coarse level follow from the fine ones; its estimate, prolonged, is the same
+  // function in the fine basis.
+  const Level& coarse = levels[static_cast<std::size_t>(level)];
+  const std::size_t n = coarse.storage.basis.size();
+  std::vector<double> deposits(n);
+  std::vector<double> estimate(n);
+  restrict_deposits(coarse.restriction, power, stride, deposits.data());
+  estimate_on(coarse.storage, deposits.data(), estimate.data(), 1);
+  prolong_coefficients(coarse.restriction, estimate.data(), coefficients, stride);
+}
+
 void Solver::estimate(const std::vector<double>& power, std::vector<double>& coefficients) const {
   const auto channels = static_cast<std::size_t>(channels_);
   coefficients.assign(power.size(), 0.0);
-  for (std::uint32_t c = 0; c < scene_->curves.size(); ++c) {
-    const CurveStorage& storage = storage_[c];
+  for (std::uint32_t c = 0; c < scene_->curves.size(); ++c)
     for (Side side : {Side::Front, Side::Back}) {
       const std::uint32_t offset = block_offset(c, side);
       if (offset == kNoBlock) continue;
       for (std::size_t ch = 0; ch < channels; ++ch) {
         const std::size_t first = offset * channels + ch;
-        if (settings_.estimator == Estimator::Galerkin) {
-          galerkin_estimate(storage, &power[first], &coefficients[first], channels);
-        } else if (settings_.estimator == Estimator::Local) {
-          local_estimate(storage, &power[first], &coefficients[first], channels);
-        } else {
-          for (std::size_t k = 0; k < storage.basis.size(); ++k)
-            coefficients[first + k * channels] = power[first + k * channels] / storage.basis_length[k];
-        }
+        estimate_at_level(c, chosen_level_[c], &power[first], &coefficients[first], channels);
       }
     }
+}
+
+void Solver::choose_levels(const std::vector<double>& received, const std::vector<double>& half) {
+  // Per curve, with the reflected power summed over channels (rho times received) on each side:
+  // the estimate f_l at every level l, and f_l^A, f_l^B from the two halves of the photons (odd
+  // and even numbers in their round: independent, with equal means). Then, in the L2 norm along
+  // the curve (the fine mass matrix),
+  //   variance  V_l = |f_l^A - f_l^B|^2     (its expectation is Var f_l^A + Var f_l^B = Var f_l),
+  //   bias^2    |f_l - f_L|^2 less its own noise |D^A - D^B|^2, D^X = f_l^X - f_L^X, against the
+  //             finest level L (whose bias is taken as negligible: it is the level of least bias),
+  // and the level kept minimises bias^2 + V (ties: the coarser). Differences against the finest
+  // level rather than sums of steps between neighbours: each step's estimate is noisy and never
+  // negative, and summing them would push every choice towards the finer levels.
+  const auto channels = static_cast<std::size_t>(channels_);
+  for (std::uint32_t c = 0; c < scene_->curves.size(); ++c) {
+    const int finest = static_cast<int>(levels_[c].size());
+    if (finest == 0) continue;
+    const CurveStorage& fine = storage_[c];
+    const std::size_t n = fine.basis.size();
+    const auto count = static_cast<std::size_t>(finest) + 1;
+    // [level][side][k]: full, A and B estimates, prolonged into the fine basis.
+    std::vector<std::vector<double>> full(count), part_a(count), part_b(count);
+    std::size_t sides = 0;
+    double total = 0.0;
+    for (Side side : {Side::Front, Side::Back}) {
+      const std::uint32_t offset = block_offset(c, side);
+      if (offset == kNoBlock) continue;
+      const Spectrum& rho = block_reflectivity_[c * 2 + static_cast<std::uint32_t>(side)];
+      std::vector<double> all(n, 0.0), a(n, 0.0), b(n, 0.0);
+      for (std::size_t k = 0; k < n; ++k)
+        for (std::size_t ch = 0; ch < channels; ++ch) {
+          const std::size_t index = (offset + k) * channels + ch;
+          all[k] += rho[ch] * received[index];
+          a[k] += rho[ch] * half[index];
+        }
+      for (std::size_t k = 0; k < n; ++k) {
+        b[k] = all[k] - a[k];
+        total += all[k];
+      }
+      for (std::size_t level = 0; level < count; ++level) {
+        const std::array<std::pair<std::vector<std::vector<double>>*, const std::vector<double>*>, 3>
+            sets = {{{&full, &all}, {&part_a, &a}, {&part_b, &b}}};
+        for (const auto& [target, source] : sets) {
+          std::vector<double>& out = (*target)[level];
+          out.resize((sides + 1) * n);
+          estimate_at_level(c, static_cast<int>(level), source->data(), out.data() + sides * n, 1);
+        }
+      }
+      ++sides;
+    }
+    if (sides == 0 || !(total > 0.0)) continue;
+    // |x|^2 = x^T M x = |L^T x|^2 per side, with M's Cholesky factor L in envelope storage.
+    auto norm2 = [&](auto value) {
+      double sum = 0.0;
+      std::vector<double> y(n);
+      for (std::size_t s = 0; s < sides; ++s) {
+        std::fill(y.begin(), y.end(), 0.0);
+        for (std::size_t row = 0; row < n; ++row) {
+          const double x = value(s * n + row);
+          for (std::size_t col = fine.mass_first[row]; col <= row; ++col)
+            y[col] += fine.mass_cholesky[fine.mass_offset[row] + col - fine.mass_first[row]] * x;
+        }
+        for (double v : y) sum += v * v;
+      }
+      return sum;
+    };
+    const std::size_t last = count - 1;
+    double best = norm2([&](std::size_t i) { return part_a[last][i] - part_b[last][i]; });
+    int chosen = finest;
+    for (std::size_t l = last; l-- > 0;) {
+      const double variance = norm2([&](std::size_t i) { return part_a[l][i] - part_b[l][i]; });
+      const double difference = norm2([&](std::size_t i) { return full[l][i] - full[last][i]; });
+      const double noise = norm2([&](std::size_t i) {
+        return (part_a[l][i] - part_a[last][i]) - (part_b[l][i] - part_b[last][i]);
+      });
+      const double error = std::max(difference - noise, 0.0) + variance;
+      if (error <= best) {
+        best = error;
+        chosen = static_cast<int>(l);
+      }
+    }
+    chosen_level_[c] = chosen;
   }
+}
+
+int Solver::storage_elements(std::uint32_t curve) const {
+  const int level = chosen_level_[curve];
+  const CurveStorage& storage = level < static_cast<int>(levels_[curve].size())
+                                    ? levels_[curve][static_cast<std::size_t>(level)].storage
+                                    : storage_[curve];
+  int spans = 0;
+  const std::vector<double>& knots = storage.basis.knots();
+  for (std::size_t span = storage.basis.first_span(); span < storage.basis.end_span(); ++span)
+    spans += knots[span + 1] > knots[span];
+  return spans;
 }
 
 double Solver::arc_length_at(std::uint32_t curve, double u) const {
@@ -397,10 +546,11 @@ bool Solver::begin_round() {
   round_.photon_units.assign(sources, {});
   const double per_photon = unshot / static_cast<double>(round_.photons);
   // With the Galerkin or local estimator the reconstructed unshot density has coefficients g
-  // (M^-1 U, or the local weights times U) rather than U / L: clamped at zero, keeping each
-  // curve side's power, coefficient k carries the power g_k integral(phi_k ds).
+  // (M^-1 U, or the local weights times U) rather than U / L, and with auto storage it is the
+  // chosen level's estimate: clamped at zero, keeping each curve side's power, coefficient k of the
+  // finest basis carries the power g_k integral(phi_k ds).
   std::vector<double> density_power;
-  if (by_coefficient && settings_.estimator != Estimator::Lumped) {
+  if (by_coefficient && (settings_.estimator != Estimator::Lumped || auto_storage_)) {
     estimate(unshot_, density_power);
     for (std::uint32_t c = 0; c < scene_->curves.size(); ++c)
       for (Side side : {Side::Front, Side::Back}) {
@@ -467,6 +617,9 @@ void Solver::shoot(Rng& rng, std::uint64_t first, std::uint64_t count, Accumulat
   auto open = [](double rest) { return std::max(rest, 0x1.0p-54); };
   for (std::uint64_t i = 0; i < count; ++i) {
     const auto index = static_cast<std::uint32_t>(first + i);  // < kMaxPhotonsPerRound
+    // Auto storage: odd-numbered photons deposit into the accumulator's second half, so two
+    // independent halves of the round measure the estimate's variance.
+    if (auto_storage_) acc.half_offset = (index & 1u) != 0 ? coefficient_count_ * static_cast<std::size_t>(channels_) : 0;
     auto quasi = [&sobol, index](int dimension) { return sobol.sample(index, dimension); };
     // The source, by unshot power: a side of a curve, or one of its coefficients.
     double place = 0.0;  // Sobol': what choosing the source left of dimension kPlace
@@ -712,10 +865,10 @@ void Solver::receive(const SceneHit& hit, const Ray& ray, const std::array<std::
       for (std::size_t i = 0; i < footprint.size(); ++i) {
         if (i == largest) continue;
         const auto share = static_cast<std::int64_t>(footprint[i].weight * static_cast<double>(units[ch]) + 0.5);
-        acc.received[(offset + footprint[i].coefficient) * channels + ch] += share;
+        acc.received[acc.half_offset + (offset + footprint[i].coefficient) * channels + ch] += share;
         left -= share;
       }
-      acc.received[(offset + footprint[largest].coefficient) * channels + ch] += left;
+      acc.received[acc.half_offset + (offset + footprint[largest].coefficient) * channels + ch] += left;
     }
   } else {
     // Deposit on the basis functions alive at u; the last share takes the remainder so every
@@ -724,7 +877,7 @@ void Solver::receive(const SceneHit& hit, const Ray& ray, const std::array<std::
     std::array<double, SplineBasis::kMaxDegree + 1> phi{};
     const std::size_t first = basis.evaluate(u, phi.data());
     const auto degree = static_cast<std::size_t>(basis.degree());
-    std::int64_t* target = acc.received.data() + offset * channels;
+    std::int64_t* target = acc.received.data() + acc.half_offset + offset * channels;
     for (std::size_t ch = 0; ch < channels; ++ch) {
       std::int64_t left = units[ch];
       for (std::size_t j = 0; j < degree; ++j) {
@@ -748,7 +901,9 @@ void Solver::end_round(std::span<const Accumulator> accumulators) {
       escaped[ch] += acc.escaped[ch];
       black[ch] += acc.black[ch];
     }
-  // Power shot this round leaves the pool; what was received comes back as rho times itself.
+  // Power shot this round leaves the pool; what was received comes back as rho times itself. With
+  // auto storage, odd-numbered photons deposited into the accumulators' second half.
+  const std::size_t half = coefficient_count_ * channels;
   double previous_pool = 0.0;
   for (double value : unshot_) previous_pool += value;
   for (std::uint32_t c = 0; c < scene_->curves.size(); ++c) {
@@ -761,9 +916,15 @@ void Solver::end_round(std::span<const Accumulator> accumulators) {
         for (std::size_t ch = 0; ch < channels; ++ch) {
           const std::size_t index = (offset + k) * channels + ch;
           std::int64_t units = 0;
-          for (const Accumulator& acc : accumulators) units += acc.received[index];
+          std::int64_t odd = 0;
+          for (const Accumulator& acc : accumulators) {
+            units += acc.received[index];
+            if (auto_storage_) odd += acc.received[half + index];
+          }
+          units += odd;
           const double power = static_cast<double>(units) * inverse_scale;
           received_[index] += power;
+          if (auto_storage_) received_half_[index] += static_cast<double>(odd) * inverse_scale;
           unshot_[index] = rho[ch] * power;
           absorbed_[ch].add(power - unshot_[index]);
         }
@@ -774,7 +935,7 @@ void Solver::end_round(std::span<const Accumulator> accumulators) {
     escaped_[ch].add(static_cast<double>(escaped[ch]) * inverse_scale);
     absorbed_[ch].add(static_cast<double>(black[ch]) * inverse_scale);
   }
-  update_reflected(received_);
+  update_reflected(received_, received_half_);
   previous_unshot_ = previous_pool;
   ++rounds_;
 
@@ -794,8 +955,10 @@ void Solver::end_round(std::span<const Accumulator> accumulators) {
   }
 }
 
-void Solver::update_reflected(const std::vector<double>& received) {
+void Solver::update_reflected(const std::vector<double>& received,
+                              const std::vector<double>& received_half) {
   const auto channels = static_cast<std::size_t>(channels_);
+  if (auto_storage_) choose_levels(received, received_half);
   // Reflected radiosity coefficients, kept current for readers between rounds.
   estimate(received, reflected_);
   for (std::uint32_t c = 0; c < scene_->curves.size(); ++c)
@@ -829,7 +992,7 @@ std::uint64_t Solver::step_photons(std::uint64_t max_photons, const std::atomic<
     round_done_ = 0;
     round_deposits_.resize(threads_);
     for (Accumulator& acc : round_deposits_)
-      acc.reset(coefficient_count_ * static_cast<std::size_t>(channels_));
+      acc.reset(coefficient_count_ * static_cast<std::size_t>(channels_) * (auto_storage_ ? 2 : 1));
   }
   const Clock::time_point start = Clock::now();
   const std::uint64_t first = round_done_;
@@ -928,12 +1091,19 @@ void Solver::include_open_round() {
   if (!round_open_) return;
   const double inverse_scale = 1.0 / round_.scale;
   std::vector<double> received = received_;
+  std::vector<double> received_half = received_half_;
+  const std::size_t half = received.size();
   for (std::size_t index = 0; index < received.size(); ++index) {
     std::int64_t units = 0;
-    for (const Accumulator& acc : round_deposits_) units += acc.received[index];
-    received[index] += static_cast<double>(units) * inverse_scale;
+    std::int64_t odd = 0;
+    for (const Accumulator& acc : round_deposits_) {
+      units += acc.received[index];
+      if (auto_storage_) odd += acc.received[half + index];
+    }
+    received[index] += static_cast<double>(units + odd) * inverse_scale;
+    if (auto_storage_) received_half[index] += static_cast<double>(odd) * inverse_scale;
   }
-  update_reflected(received);
+  update_reflected(received, received_half);
 }
 
 bool Solver::step_round(const std::atomic<bool>* cancel, const ProgressCallback& progress,

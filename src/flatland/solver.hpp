@@ -61,12 +61,29 @@ const char* to_string(RayMode mode);
 enum class SamplerKind { Random, Sobol };
 const char* to_string(SamplerKind sampler);
 
+// SolverSettings::elements for storage that follows the photons (`--elements auto`): deposits
+// land on a fine dyadic mesh, every coarser level's deposits follow exactly (the meshes nest), and
+// after every round each curve takes the level with the least estimated error, bias (from the
+// differences between levels) squared plus variance (from two independent halves of the photons).
+// Hermite storage is not a spline space that nests: it uses kHermiteAutoElements fixed elements.
+inline constexpr int kAutoElements = 0;
+inline constexpr int kHermiteAutoElements = 16;
+// Auto storage's levels: the coarsest has about kAutoBaseElements elements per curve (and at
+// least one per segment), each next level halves every element, and the finest stops where a
+// reflecting curve's equal share of the photon budget would put fewer than kAutoPhotonsPerElement
+// photons on an element, or at kAutoMaxLevels levels.
+inline constexpr int kAutoBaseElements = 4;
+inline constexpr int kAutoMaxLevels = 11;
+inline constexpr double kAutoPhotonsPerElement = 2048.0;
+
 struct SolverSettings {
   std::uint64_t photons = 1'000'000;  // total budget over all rounds
   std::uint64_t seed = 1;
   unsigned threads = 0;  // 0: all hardware threads
   BasisKind basis = BasisKind::Cubic;
-  int elements = 16;        // storage elements per curve (about; at least one per segment)
+  // Storage elements per curve (about; at least one per segment), or kAutoElements: each curve's
+  // mesh chosen after every round from nested levels by the photons that landed there.
+  int elements = kAutoElements;
   double tolerance = 1e-3;  // stop when unshot power < tolerance x emitted power
   PositionSampling sampling = PositionSampling::Reconstructed;
   DiscontinuityMode discontinuities = DiscontinuityMode::Auto;
@@ -196,6 +213,10 @@ class Solver {
   // discontinuities scene or auto.
   std::size_t contact_nodes() const { return contact_nodes_; }
   std::size_t coefficient_count() const { return coefficient_count_; }
+  // Storage elements (non-empty knot spans) of a curve's mesh in use: with auto storage the level
+  // chosen after the last round (coefficients stay in the finest basis, which holds it exactly).
+  int storage_elements(std::uint32_t curve) const;
+  bool auto_storage() const { return auto_storage_; }
   // Radiosity coefficients of a curve side (lumped estimate): coefficient k, channel c at
   // [k * channels + c]; B(u) = E + sum_k b_k phi_k(u). Empty for a side that does not reflect.
   std::vector<double> radiosity_coefficients(std::uint32_t curve, Side side) const;
@@ -220,7 +241,10 @@ class Solver {
   // by side in a vector, and sharing a line cost a third of the two-thread rate, or not, as the
   // heap happened to align them).
   struct alignas(64) Accumulator {
-    std::vector<std::int64_t> received;  // [coefficient * channels + channel]
+    // [coefficient * channels + channel]; with auto storage twice that, odd-numbered photons of
+    // the round depositing into the second half (half_offset, set per photon).
+    std::vector<std::int64_t> received;
+    std::size_t half_offset = 0;
     std::array<std::int64_t, 3> escaped{};
     std::array<std::int64_t, 3> black{};  // absorbed by sides that do not reflect
     std::array<std::int64_t, 3> shot{};
@@ -254,15 +278,23 @@ class Solver {
                std::vector<FootprintWeight>& footprint) const;
   void end_round(std::span<const Accumulator> accumulators);
   // reflected_ (and the Hermite reconstructions) from the power received in all rounds.
-  void update_reflected(const std::vector<double>& received);
+  void update_reflected(const std::vector<double>& received, const std::vector<double>& received_half);
+  // Auto storage: each curve's level with the least estimated error (bias^2 + variance).
+  void choose_levels(const std::vector<double>& received, const std::vector<double>& half);
   std::uint64_t photons_for_round(double unshot) const;
   // The Hermite interpolant, in arc length, of the nodal values of a curve's hat basis
   // (`values[k * stride]`); C-1 nodes (double knots) keep their two values.
   HermiteReconstruction hermite_of(std::uint32_t curve, const double* values, std::size_t stride) const;
   // Arc length from the start of the curve to curve parameter u.
   double arc_length_at(std::uint32_t curve, double u) const;
-  // Per-unit-length coefficients of `power` (same layout) by the chosen estimator.
+  // Per-unit-length coefficients of `power` (same layout) by the chosen estimator, at each curve's
+  // chosen level (prolonged into the finest basis).
   void estimate(const std::vector<double>& power, std::vector<double>& coefficients) const;
+  void estimate_on(const CurveStorage& storage, const double* power, double* coefficients,
+                   std::size_t stride) const;
+  // One curve side's channel at a level (levels_[curve].size() is the finest: storage_[curve]).
+  void estimate_at_level(std::uint32_t curve, int level, const double* power, double* coefficients,
+                         std::size_t stride) const;
 
   const Scene* scene_ = nullptr;
   SolverSettings settings_;
@@ -271,7 +303,17 @@ class Solver {
   SegmentAccelerator accelerator_;
   std::vector<SegmentInfo> segment_info_;
   std::vector<DiscreteDistribution> segment_choice_;  // per curve, by segment length
-  std::vector<CurveStorage> storage_;
+  std::vector<CurveStorage> storage_;  // the finest level of each curve
+  // Auto storage: each curve's coarser levels (coarse to fine) with their restrictions from the
+  // finest, and the level in use (levels_[c].size() for the finest). Fixed storage: no levels.
+  struct Level {
+    CurveStorage storage;
+    Restriction restriction;
+  };
+  std::vector<std::vector<Level>> levels_;
+  std::vector<int> chosen_level_;
+  bool auto_storage_ = false;
+  std::vector<double> received_half_;  // auto storage: the part of received_ from odd photons
   std::vector<std::uint32_t> block_offset_;  // first coefficient of each (curve, side), or kNoBlock
   std::vector<Spectrum> block_reflectivity_;
   std::vector<std::uint32_t> coefficient_block_;  // block of each coefficient

@@ -187,10 +187,17 @@ void Viewer::draw_solve_panel(const Snapshot& snapshot) {
     settings_.basis = kBases[basis];
     changed = true;
   }
-  int elements = settings_.elements;
-  if (ImGui::SliderInt("elements", &elements, 1, 256, "%d", ImGuiSliderFlags_Logarithmic)) {
-    settings_.elements = elements;
+  bool auto_elements = settings_.elements == kAutoElements;
+  if (ImGui::Checkbox("auto elements", &auto_elements)) {
+    settings_.elements = auto_elements ? kAutoElements : 16;
     changed = true;
+  }
+  if (!auto_elements) {
+    int elements = settings_.elements;
+    if (ImGui::SliderInt("elements", &elements, 1, 256, "%d", ImGuiSliderFlags_Logarithmic)) {
+      settings_.elements = elements;
+      changed = true;
+    }
   }
   int sampling = settings_.sampling == PositionSampling::Uniform ? 0 : 1;
   if (combo("sampling", &sampling, kSamplingNames, 2)) {
