@@ -55,7 +55,7 @@ struct SolveOptions {
   std::string basis = "cubic";
   std::string sampling = "reconstructed";
   std::string discontinuities = "auto";
-  std::string estimator = "lumped";
+  std::string estimator = "galerkin";
   std::string sampler = "random";
   std::string elements = "auto";
   std::string ray_profile = "box";

@@ -794,7 +794,13 @@ Restriction restriction_between(const SplineBasis& coarse, const SplineBasis& fi
       auto& row = rows[coarse_index[r]];
       for (std::size_t f = 0; f < terms; ++f) {
         const auto column = static_cast<std::uint32_t>(fine.index(span - pu + f));
-        const bool known = std::any_of(row.begin(), row.end(), [&](const auto& e) { return e.first == column; });
+        // Spans come in order, so a pair seen before was added within the last few entries (the
+        // functions of the previous spans), or, round a periodic basis's closing point, within the
+        // first few: two short searches keep this linear.
+        const auto reach = static_cast<std::ptrdiff_t>(std::min(row.size(), 2 * terms));
+        auto same = [&](const auto& e) { return e.first == column; };
+        const bool known = std::any_of(row.end() - reach, row.end(), same) ||
+                           std::any_of(row.begin(), row.begin() + reach, same);
         if (!known) row.emplace_back(column, rhs[f][r]);
       }
     }

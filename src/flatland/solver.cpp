@@ -330,11 +330,13 @@ void Solver::choose_levels(const std::vector<double>& received, const std::vecto
   // and even numbers in their round: independent, with equal means). Then, in the L2 norm along
   // the curve (the fine mass matrix),
   //   variance  V_l = |f_l^A - f_l^B|^2     (its expectation is Var f_l^A + Var f_l^B = Var f_l),
-  //   bias^2    |f_l - f_L|^2 less its own noise |D^A - D^B|^2, D^X = f_l^X - f_L^X, against the
-  //             finest level L (whose bias is taken as negligible: it is the level of least bias),
-  // and the level kept minimises bias^2 + V (ties: the coarser). Differences against the finest
-  // level rather than sums of steps between neighbours: each step's estimate is noisy and never
-  // negative, and summing them would push every choice towards the finer levels.
+  //   bias^2    |f_l - f_(l+1)|^2 less its own noise |D^A - D^B|^2 (D^X = f_l^X - f_(l+1)^X),
+  //             times (2^q / (2^q - 1))^2: with the bias shrinking by 2^q per level (q the
+  //             estimator's order), f_l - f_(l+1) is (1 - 2^-q) of level l's bias; the finest
+  //             level's bias is the one below it over 2^q,
+  // and the level kept minimises bias^2 + V (ties: the coarser). Each level's bias comes from its
+  // own step to the next: sums of steps accumulate their noise, and differences to the finest
+  // level carry the finest level's large variance, both of which pushed choices off the best.
   const auto channels = static_cast<std::size_t>(channels_);
   for (std::uint32_t c = 0; c < scene_->curves.size(); ++c) {
     const int finest = static_cast<int>(levels_[c].size());
@@ -388,18 +390,27 @@ void Solver::choose_levels(const std::vector<double>& received, const std::vecto
       }
       return sum;
     };
+    // The estimator's order q: its bias shrinks by 2^q per level.
+    const int degree = fine.basis.degree();
+    const double order = settings_.estimator == Estimator::Lumped ? std::min(degree + 1, 2) : degree + 1.0;
+    const double richardson = std::pow(2.0, order) / (std::pow(2.0, order) - 1.0);
     const std::size_t last = count - 1;
-    double best = norm2([&](std::size_t i) { return part_a[last][i] - part_b[last][i]; });
+    double best = std::numeric_limits<double>::infinity();
+    double bias2 = 0.0;
     int chosen = finest;
-    for (std::size_t l = last; l-- > 0;) {
+    for (std::size_t l = 0; l < count; ++l) {
+      if (l < last) {
+        const double difference = norm2([&](std::size_t i) { return full[l][i] - full[l + 1][i]; });
+        const double noise = norm2([&](std::size_t i) {
+          return (part_a[l][i] - part_a[l + 1][i]) - (part_b[l][i] - part_b[l + 1][i]);
+        });
+        bias2 = std::max(difference - noise, 0.0) * richardson * richardson;
+      } else {
+        bias2 /= std::pow(2.0, 2.0 * order);  // the finest: the last step's bias, one level on
+      }
       const double variance = norm2([&](std::size_t i) { return part_a[l][i] - part_b[l][i]; });
-      const double difference = norm2([&](std::size_t i) { return full[l][i] - full[last][i]; });
-      const double noise = norm2([&](std::size_t i) {
-        return (part_a[l][i] - part_a[last][i]) - (part_b[l][i] - part_b[last][i]);
-      });
-      const double error = std::max(difference - noise, 0.0) + variance;
-      if (error <= best) {
-        best = error;
+      if (bias2 + variance < best) {
+        best = bias2 + variance;
         chosen = static_cast<int>(l);
       }
     }

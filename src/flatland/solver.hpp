@@ -87,7 +87,7 @@ struct SolverSettings {
   double tolerance = 1e-3;  // stop when unshot power < tolerance x emitted power
   PositionSampling sampling = PositionSampling::Reconstructed;
   DiscontinuityMode discontinuities = DiscontinuityMode::Auto;
-  Estimator estimator = Estimator::Lumped;
+  Estimator estimator = Estimator::Galerkin;
   // Extended rays: width in scene units (0: point rays), energy profile across the width, and
   // how the width is realised: a footprint spread along the receiver around the centre ray's
   // hit, or a band of `band_rays` parallel sub-rays each traced on its own.
