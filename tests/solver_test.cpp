@@ -142,6 +142,23 @@ struct PenumbraSetup {
   }
 };
 
+// integral(phi_k H ds) for the floor's storage functions, H the closed-form irradiance, by a fine
+// midpoint rule along the floor (u runs over [0, 1], ds = L du): the expected deposits.
+std::vector<double> expected_floor_power(const PenumbraSetup& setup, const CurveStorage& storage) {
+  const double length = setup.floor_right - setup.floor_left;
+  const int steps = 200'000;
+  std::vector<double> expected(storage.basis.size(), 0.0);
+  std::array<double, SplineBasis::kMaxDegree + 1> phi{};
+  for (int i = 0; i < steps; ++i) {
+    const double u = (i + 0.5) / steps;
+    const double h = setup.irradiance(setup.floor_left + u * length);
+    const std::size_t first = storage.basis.evaluate(u, phi.data());
+    for (std::size_t j = 0; j <= static_cast<std::size_t>(storage.basis.degree()); ++j)
+      expected[first + j] += phi[j] * h * length / steps;
+  }
+  return expected;
+}
+
 void check_penumbra(const PenumbraSetup& setup, BasisKind basis) {
   const Scene scene = testing::scene_from_text(setup.scene_text());
   ASSERT_EQ(scene.curves[1].id, "floor");
@@ -162,19 +179,8 @@ void check_penumbra(const PenumbraSetup& setup, BasisKind basis) {
   const CurveStorage& storage = solver.storage(1);
   const std::vector<double> b = solver.radiosity_coefficients(1, Side::Front);
   ASSERT_EQ(b.size(), storage.basis.size());
-  // Expected lumped coefficient: rho * integral(phi_k H ds) / integral(phi_k ds), by a fine
-  // midpoint rule along the floor (u runs over [0, 1], ds = L du).
-  const double length = setup.floor_right - setup.floor_left;
-  const int steps = 200'000;
-  std::vector<double> expected_power(storage.basis.size(), 0.0);
-  std::array<double, SplineBasis::kMaxDegree + 1> phi{};
-  for (int i = 0; i < steps; ++i) {
-    const double u = (i + 0.5) / steps;
-    const double h = setup.irradiance(setup.floor_left + u * length);
-    const std::size_t first = storage.basis.evaluate(u, phi.data());
-    for (int j = 0; j <= storage.basis.degree(); ++j)
-      expected_power[first + j] += phi[j] * h * length / steps;
-  }
+  // Expected lumped coefficient: rho * integral(phi_k H ds) / integral(phi_k ds).
+  const std::vector<double> expected_power = expected_floor_power(setup, storage);
   double worst = 0.0;
   for (std::size_t k = 0; k < b.size(); ++k) {
     const double expected_b = setup.rho * expected_power[k] / storage.basis_length[k];
@@ -1180,18 +1186,8 @@ TEST(Solver, SobolIsUnbiasedOnThePenumbraClosedForm) {
     Solver solver = make_solver(scene, settings);
     const CurveStorage& storage = solver.storage(1);
     ASSERT_EQ(sobol.mean.size(), storage.basis.size());
-    // Expected lumped deposits: rho integral(phi_k H ds) / integral(phi_k ds) (midpoint rule).
-    const double length = setup.floor_right - setup.floor_left;
-    const int steps = 200'000;
-    std::vector<double> expected(storage.basis.size(), 0.0);
-    std::array<double, SplineBasis::kMaxDegree + 1> phi{};
-    for (int i = 0; i < steps; ++i) {
-      const double u = (i + 0.5) / steps;
-      const double h = setup.irradiance(setup.floor_left + u * length);
-      const std::size_t first = storage.basis.evaluate(u, phi.data());
-      for (int j = 0; j <= storage.basis.degree(); ++j)
-        expected[first + static_cast<std::size_t>(j)] += phi[static_cast<std::size_t>(j)] * h * length / steps;
-    }
+    // Expected lumped deposits: rho integral(phi_k H ds) / integral(phi_k ds).
+    const std::vector<double> expected = expected_floor_power(setup, storage);
     double sobol_variance = 0.0;
     double random_variance = 0.0;
     for (std::size_t k = 0; k < expected.size(); ++k) {
