@@ -427,7 +427,11 @@ TEST(Basis, GalerkinConservesPowerAndClampKeepsIt) {
   }
   EXPECT_LT(lowest, 0.0);
   EXPECT_NEAR(power, 2.0, 1e-13);
-  clamp_keeping_power(storage, b.data(), 1);
+  EXPECT_TRUE(clamp_keeping_power(storage, b.data(), 1, 2.0));
+  // Nothing positive left: false, all zero (the solver then falls back to the lumped density).
+  std::vector<double> negative(storage.basis.size(), -1.0);
+  EXPECT_FALSE(clamp_keeping_power(storage, negative.data(), 1, 2.0));
+  for (double v : negative) EXPECT_EQ(v, 0.0);
   power = 0.0;
   for (std::size_t k = 0; k < b.size(); ++k) {
     EXPECT_GE(b[k], 0.0);

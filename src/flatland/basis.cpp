@@ -476,18 +476,19 @@ void galerkin_estimate(const CurveStorage& storage, const double* deposits, doub
   for (std::size_t k = 0; k < n; ++k) coefficients[k * stride] = x[k];
 }
 
-void clamp_keeping_power(const CurveStorage& storage, double* coefficients, std::size_t stride) {
-  double power = 0.0;
+bool clamp_keeping_power(const CurveStorage& storage, double* coefficients, std::size_t stride,
+                         double power) {
   double kept = 0.0;
   const std::size_t n = storage.basis.size();
   for (std::size_t k = 0; k < n; ++k) {
     double& b = coefficients[k * stride];
-    power += b * storage.basis_length[k];
-    b = std::max(b, 0.0);
+    b = b > 0.0 ? b : 0.0;  // a NaN too
     kept += b * storage.basis_length[k];
   }
-  const double rescale = power > 0.0 && kept > 0.0 ? power / kept : 0.0;
+  const bool positive = kept > 0.0 && std::isfinite(kept);
+  const double rescale = positive ? power / kept : 0.0;
   for (std::size_t k = 0; k < n; ++k) coefficients[k * stride] *= rescale;
+  return positive;
 }
 
 namespace {

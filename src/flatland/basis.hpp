@@ -190,10 +190,11 @@ void build_local_estimator(const Scene& scene, const Curve& curve, CurveStorage&
 void local_estimate(const CurveStorage& storage, const double* deposits, double* coefficients,
                     std::size_t stride);
 
-// Negative coefficients set to zero and the rest scaled so that sum_k b_k integral(phi_k ds) keeps
-// its value: a nonnegative density with the same power (the photon origins' sampling density).
-// All zero when nothing positive is left.
-void clamp_keeping_power(const CurveStorage& storage, double* coefficients, std::size_t stride);
+// Negative coefficients set to zero and the rest scaled so that sum_k b_k integral(phi_k ds) equals
+// `power`: a nonnegative density holding a given power (the photon origins' sampling density).
+// False, with every coefficient zero, when nothing positive is left to scale.
+bool clamp_keeping_power(const CurveStorage& storage, double* coefficients, std::size_t stride,
+                         double power);
 
 // About `elements` elements per curve, shared among its segments in proportion to their arc
 // length (at least one each) and of equal arc length within a segment. A closed curve whose

@@ -567,8 +567,17 @@ bool Solver::begin_round() {
       for (Side side : {Side::Front, Side::Back}) {
         const std::uint32_t offset = block_offset(c, side);
         if (offset == kNoBlock) continue;
-        for (std::size_t ch = 0; ch < channels; ++ch)
-          clamp_keeping_power(storage_[c], &density_power[offset * channels + ch], channels);
+        const CurveStorage& storage = storage_[c];
+        for (std::size_t ch = 0; ch < channels; ++ch) {
+          // The side's deposited unshot power, exactly; where the estimate has no positive part
+          // left (a local estimate on a region too short for its window can), the lumped density.
+          double power = 0.0;
+          for (std::size_t k = 0; k < storage.basis.size(); ++k) power += unshot_[(offset + k) * channels + ch];
+          if (!clamp_keeping_power(storage, &density_power[offset * channels + ch], channels, power))
+            for (std::size_t k = 0; k < storage.basis.size(); ++k)
+              density_power[(offset + k) * channels + ch] =
+                  unshot_[(offset + k) * channels + ch] / storage.basis_length[k];
+        }
         for (std::size_t k = 0; k < storage_[c].basis.size(); ++k)
           for (std::size_t ch = 0; ch < channels; ++ch)
             density_power[(offset + k) * channels + ch] *= storage_[c].basis_length[k];
