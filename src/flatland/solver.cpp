@@ -327,7 +327,8 @@ void Solver::estimate(const std::vector<double>& power, std::vector<double>& coe
 void Solver::choose_levels(const std::vector<double>& received, const std::vector<double>& half) {
   // Per curve, with the reflected power summed over channels (rho times received) on each side:
   // the estimate f_l at every level l, and f_l^A, f_l^B from the two halves of the photons (odd
-  // and even numbers in their round: independent, with equal means). Then, in the L2 norm along
+  // and even numbers in their round: independent, with equal means; with Sobol' two independently
+  // scrambled nets, see shoot). Then, in the L2 norm along
   // the curve (the fine mass matrix),
   //   variance  V_l = |f_l^A - f_l^B|^2     (its expectation is Var f_l^A + Var f_l^B = Var f_l),
   //   bias^2    |f_l - f_(l+1)|^2 less its own noise |D^A - D^B|^2 (D^X = f_l^X - f_(l+1)^X),
@@ -632,15 +633,26 @@ void Solver::shoot(Rng& rng, std::uint64_t first, std::uint64_t count, Accumulat
   constexpr int kAcceptLobe = 5;
   static_assert(kAcceptLobe < kSobolDimensions);
   const bool qmc = settings_.sampler == SamplerKind::Sobol;
-  const ScrambledSobol sobol(settings_.seed, rounds_);
+  // With auto storage the round's photons form two halves, even and odd numbers, whose spread
+  // measures the estimate's variance (choose_levels): the halves must be independent, so with
+  // Sobol' each is a net of its own, scrambled independently (streams 2 round and 2 round + 1),
+  // photon i taking point i / 2 of its half's. (Halves of one net are stratified against each
+  // other: parity fixes the first digit of the first coordinate, and their difference is far
+  // from noise.) A fixed mesh keeps one net per round (stream `round`).
+  const bool halves = qmc && auto_storage_;
+  const ScrambledSobol sobol(settings_.seed, halves ? 2 * std::uint64_t{rounds_} : rounds_);
+  const ScrambledSobol sobol_odd(settings_.seed, 2 * std::uint64_t{rounds_} + 1);
   // A parameter from what is left of kPlace, inside (0, 1) as Rng::uniform_open's.
   auto open = [](double rest) { return std::max(rest, 0x1.0p-54); };
   for (std::uint64_t i = 0; i < count; ++i) {
     const auto index = static_cast<std::uint32_t>(first + i);  // < kMaxPhotonsPerRound
-    // Auto storage: odd-numbered photons deposit into the accumulator's second half, so two
-    // independent halves of the round measure the estimate's variance.
+    // Auto storage: odd-numbered photons deposit into the accumulator's second half.
     if (auto_storage_) acc.half_offset = (index & 1u) != 0 ? coefficient_count_ * static_cast<std::size_t>(channels_) : 0;
-    auto quasi = [&sobol, index](int dimension) { return sobol.sample(index, dimension); };
+    const bool odd = halves && (index & 1u) != 0;
+    const std::uint32_t net_index = halves ? index >> 1 : index;
+    auto quasi = [&sobol, &sobol_odd, odd, net_index](int dimension) {
+      return odd ? sobol_odd.sample(net_index, dimension) : sobol.sample(net_index, dimension);
+    };
     // The source, by unshot power: a side of a curve, or one of its coefficients.
     double place = 0.0;  // Sobol': what choosing the source left of dimension kPlace
     const std::size_t source = qmc ? round_.sources.sample(quasi(kPlace), place)
