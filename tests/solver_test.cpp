@@ -1010,16 +1010,17 @@ TEST(Solver, RoundOccluderEventsBeatSceneJointsAtEqualPhotons) {
 // 0.0200 -> 0.0052, round occluder floor 0.0152 -> 0.0049, ratios 0.26 and 0.33 (pure Monte Carlo
 // noise would give 0.32; each seed's error spreads by about 10 %). The paper's lumped estimate on
 // the former default of 16 fixed elements shows the floor the test guards against: on the penumbra
-// its ratio is about 1 (measured 0.0773 -> 0.0766).
+// its ratio is about 1 (measured, seed 1: 0.0387 -> 0.0385).
 TEST(Solver, AutoStorageKeepsConvergingWithoutAFloor) {
   const PenumbraSetup setup;
   const Scene penumbra = testing::scene_from_text(setup.scene_text());
   const Scene round = testing::scene_from_file("scenes2d/tests/reference_round_occluder.json");
-  // Relative L2 error of the floor, summed over seeds 1 and 2.
+  // Relative L2 error of the floor, summed over seeds 1 .. `seeds`.
   auto floor_error = [&](const Scene& scene, std::uint32_t floor, auto exact, double x0, double x1,
-                         std::uint64_t photons, int elements, SamplerKind sampler = SamplerKind::Random) {
+                         std::uint64_t photons, int elements, SamplerKind sampler = SamplerKind::Random,
+                         std::uint64_t seeds = 2) {
     double total = 0.0;
-    for (std::uint64_t seed = 1; seed <= 2; ++seed) {
+    for (std::uint64_t seed = 1; seed <= seeds; ++seed) {
       SolverSettings settings;
       settings.photons = photons;
       settings.seed = seed;
@@ -1045,19 +1046,23 @@ TEST(Solver, AutoStorageKeepsConvergingWithoutAFloor) {
   const double pen7 = floor_error(penumbra, 1, penumbra_exact, setup.floor_left, setup.floor_right, 10'000'000, kAutoElements);
   const double round6 = floor_error(round, 2, round_occluder_floor, -2.0, 2.0, 1'000'000, kAutoElements);
   const double round7 = floor_error(round, 2, round_occluder_floor, -2.0, 2.0, 10'000'000, kAutoElements);
-  const double fixed6 = floor_error(penumbra, 1, penumbra_exact, setup.floor_left, setup.floor_right, 1'000'000, 16);
-  const double fixed7 = floor_error(penumbra, 1, penumbra_exact, setup.floor_left, setup.floor_right, 10'000'000, 16);
+  // One seed is enough for the contrast (its ratio is about 1, far from the bound).
+  const double fixed6 = floor_error(penumbra, 1, penumbra_exact, setup.floor_left, setup.floor_right, 1'000'000, 16,
+                                    SamplerKind::Random, 1);
+  const double fixed7 = floor_error(penumbra, 1, penumbra_exact, setup.floor_left, setup.floor_right, 10'000'000, 16,
+                                    SamplerKind::Random, 1);
   std::printf("auto storage: penumbra %.4g -> %.4g, round occluder %.4g -> %.4g; fixed 16: %.4g -> %.4g\n",
               pen6, pen7, round6, round7, fixed6, fixed7);
   EXPECT_LT(pen7, 0.5 * pen6);
   EXPECT_LT(round7, 0.5 * round6);
   EXPECT_GT(fixed7, 0.7 * fixed6);
   // With Sobol' points the halves that measure the variance are independently scrambled nets:
-  // halves of one net made auto storage stall on its coarsest level (0.12 % -> 0.10 %).
+  // halves of one net made auto storage stall on its coarsest level (0.12 % -> 0.10 %). One seed:
+  // measured 0.00136 -> 0.00036 (ratio 0.26, far below the bound).
   const double sobol6 = floor_error(penumbra, 1, penumbra_exact, setup.floor_left, setup.floor_right,
-                                    1'000'000, kAutoElements, SamplerKind::Sobol);
+                                    1'000'000, kAutoElements, SamplerKind::Sobol, 1);
   const double sobol7 = floor_error(penumbra, 1, penumbra_exact, setup.floor_left, setup.floor_right,
-                                    10'000'000, kAutoElements, SamplerKind::Sobol);
+                                    10'000'000, kAutoElements, SamplerKind::Sobol, 1);
   std::printf("auto storage with sobol: penumbra %.4g -> %.4g\n", sobol6, sobol7);
   EXPECT_LT(sobol7, 0.5 * sobol6);
 }
