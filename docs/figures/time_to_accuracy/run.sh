@@ -2,7 +2,7 @@
 # Issue 12, part 5: time to accuracy. Solves every method at every photon budget and seed on five
 # scenes (flatland converge), then prints the table (analyse.py) and draws the plots (plot.gp).
 # Reduced settings by default (3 seeds); the issue's full run is SEEDS=5 run.sh.
-#   FLATLAND  binary (default: build/flatland; the 2026-12-02 run used a copy, /tmp/flatland-tta)
+#   FLATLAND  binary (default: build/flatland; the 2026-12-02 run used a copy of it)
 #   SEEDS     seeds per method and budget (default 3; the issue asks for 5)
 #   BUDGETS   photon budgets (default 1e4,3e4,1e5,3e5,1e6,3e6,1e7)
 #   THREADS   solver threads (default 2)
