@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <string>
 #include <filesystem>
+#include <functional>
 #include <numbers>
 #include <vector>
 
@@ -271,12 +272,36 @@ TEST(Solver, CubicWithAutomaticDiscontinuitiesBeatsConstantAndLinearOnThePenumbr
   std::printf("penumbra relative L2: hermite %.4g\n", hermite.mean);
 }
 
-TEST(Solver, EnergyBooksBalanceOnEveryExampleScene) {
+// Solves every scene of scenes2d/ with each of the settings `variants(scene)` gives and checks
+// that each stops normally with its books closed to round-off and its budget kept.
+void expect_books_balance_on_every_example_scene(
+    const std::function<std::vector<SolverSettings>(const Scene&)>& variants) {
   int scenes = 0;
   for (const auto& entry : std::filesystem::directory_iterator(testing::source_path("scenes2d"))) {
     if (entry.path().extension() != ".json") continue;
     ++scenes;
     const Scene scene = testing::scene_from_file("scenes2d/" + entry.path().filename().string());
+    int variant = 0;
+    for (const SolverSettings& settings : variants(scene)) {
+      Solver solver = make_solver(scene, settings);
+      solver.run();
+      EXPECT_TRUE(solver.stop_reason() == StopReason::Converged ||
+                  solver.stop_reason() == StopReason::BudgetSpent)
+          << entry.path() << ": " << to_string(solver.stop_reason()) << " " << solver.books_error();
+      const EnergyBooks books = solver.books();
+      EXPECT_NEAR(books.imbalance(), 0.0, 1e-9 * books.emitted) << entry.path() << " variant " << variant;
+      EXPECT_GE(books.absorbed, 0.0);
+      EXPECT_GE(books.escaped, 0.0);
+      EXPECT_LE(solver.photons_shot(), settings.photons);
+      ++variant;
+    }
+  }
+  EXPECT_GE(scenes, 5);
+}
+
+TEST(Solver, EnergyBooksBalanceOnEveryExampleScene) {
+  expect_books_balance_on_every_example_scene([](const Scene&) {
+    std::vector<SolverSettings> variants;
     for (BasisKind basis : {BasisKind::Constant, BasisKind::Linear, BasisKind::Cubic, BasisKind::Hermite}) {
       SolverSettings settings;
       settings.photons = 200'000;
@@ -292,19 +317,10 @@ TEST(Solver, EnergyBooksBalanceOnEveryExampleScene) {
         settings.estimator = Estimator::Galerkin;
         settings.sampling = PositionSampling::Uniform;
       }
-      Solver solver = make_solver(scene, settings);
-      solver.run();
-      EXPECT_TRUE(solver.stop_reason() == StopReason::Converged ||
-                  solver.stop_reason() == StopReason::BudgetSpent)
-          << entry.path() << ": " << to_string(solver.stop_reason()) << " " << solver.books_error();
-      const EnergyBooks books = solver.books();
-      EXPECT_NEAR(books.imbalance(), 0.0, 1e-9 * books.emitted) << entry.path();
-      EXPECT_GE(books.absorbed, 0.0);
-      EXPECT_GE(books.escaped, 0.0);
-      EXPECT_LE(solver.photons_shot(), settings.photons);
+      variants.push_back(settings);
     }
-  }
-  EXPECT_GE(scenes, 5);
+    return variants;
+  });
 }
 
 // B is power per unit length and form factors do not change when a scene is scaled or moved, so
@@ -1117,11 +1133,8 @@ TEST(Solver, SobolGivesIdenticalResultsOnAnyThreadCountAndStep) {
 TEST(Solver, SobolEnergyBooksBalanceOnEveryExampleScene) {
   // Every origin sampler (uniform, by coefficient, Hermite), both estimators and extended rays:
   // the books close to round-off, as with pseudo-random numbers.
-  int scenes = 0;
-  for (const auto& entry : std::filesystem::directory_iterator(testing::source_path("scenes2d"))) {
-    if (entry.path().extension() != ".json") continue;
-    ++scenes;
-    const Scene scene = testing::scene_from_file("scenes2d/" + entry.path().filename().string());
+  expect_books_balance_on_every_example_scene([](const Scene& scene) {
+    std::vector<SolverSettings> variants;
     for (int variant = 0; variant < 4; ++variant) {
       SolverSettings settings;
       settings.photons = 100'000;
@@ -1135,18 +1148,10 @@ TEST(Solver, SobolEnergyBooksBalanceOnEveryExampleScene) {
         settings.ray_width = 0.01 * scene.scale;
         settings.ray_mode = RayMode::Band;
       }
-      Solver solver = make_solver(scene, settings);
-      solver.run();
-      EXPECT_TRUE(solver.stop_reason() == StopReason::Converged ||
-                  solver.stop_reason() == StopReason::BudgetSpent)
-          << entry.path() << ": " << to_string(solver.stop_reason()) << " " << solver.books_error();
-      const EnergyBooks books = solver.books();
-      EXPECT_NEAR(books.imbalance(), 0.0, 1e-9 * books.emitted) << entry.path() << " variant " << variant;
-      EXPECT_GE(books.absorbed, 0.0);
-      EXPECT_GE(books.escaped, 0.0);
+      variants.push_back(settings);
     }
-  }
-  EXPECT_GE(scenes, 5);
+    return variants;
+  });
 }
 
 // Mean and variance over seeds of the floor's coefficients after the first round of the penumbra

@@ -32,15 +32,6 @@ struct Method {
   SolverSettings settings;
 };
 
-// A whole number that fits an int ("16"), or nullopt ("16x", "1e3", "99999999999").
-std::optional<int> whole_number(const std::string& text) {
-  char* end = nullptr;
-  errno = 0;
-  const long value = std::strtol(text.c_str(), &end, 10);
-  if (end == text.c_str() || *end != '\0' || errno == ERANGE || value < INT_MIN || value > INT_MAX) return std::nullopt;
-  return static_cast<int>(value);
-}
-
 // "cubic" or "basis=cubic+sampling=uniform+ray-width=0.05+ray-mode=band+...".
 Result<Method> parse_method(const std::string& text, const SolverSettings& defaults) {
   Method method{text, defaults};

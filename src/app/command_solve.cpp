@@ -1,6 +1,7 @@
 // flatland solve: progressive Monte Carlo shooting on one scene.
 #include <algorithm>
 #include <cerrno>
+#include <climits>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -99,13 +100,19 @@ void add_solver_options(CLI::App* cmd, SolveOptions& o) {
       ->capture_default_str();
 }
 
-std::optional<int> parse_elements(const std::string& text, int max) {
-  if (text == "auto") return kAutoElements;
+std::optional<int> whole_number(const std::string& text) {
   char* end = nullptr;
   errno = 0;
   const long value = std::strtol(text.c_str(), &end, 10);
-  if (end == text.c_str() || *end != '\0' || errno == ERANGE || value < 1 || value > max) return std::nullopt;
+  if (end == text.c_str() || *end != '\0' || errno == ERANGE || value < INT_MIN || value > INT_MAX) return std::nullopt;
   return static_cast<int>(value);
+}
+
+std::optional<int> parse_elements(const std::string& text, int max) {
+  if (text == "auto") return kAutoElements;
+  const std::optional<int> value = whole_number(text);
+  if (!value || *value < 1 || *value > max) return std::nullopt;
+  return value;
 }
 
 CLI::Validator elements_check(int max) {
