@@ -675,6 +675,21 @@ TEST(Solver, CancelStopsBeforeTheRoundEnds) {
   EXPECT_EQ(solver.rounds(), 0u);
 }
 
+// Setting up a large budget's storage levels takes a moment (0.3 s for the default scene at 1e12
+// photons, seconds under a sanitizer); a cancel set during it ends create with kSolverCancelled,
+// and the same settings without one build a solver.
+TEST(Solver, CancelStopsTheSetUp) {
+  const Scene scene = testing::scene_from_text(testing::circle_enclosure(0.5, 1.0));
+  SolverSettings settings;
+  settings.photons = 1'000'000'000'000;
+  std::atomic<bool> cancel{true};
+  const Result<Solver> cancelled = Solver::create(scene, settings, &cancel);
+  ASSERT_FALSE(cancelled);
+  EXPECT_EQ(cancelled.error().message, kSolverCancelled);
+  cancel = false;
+  EXPECT_TRUE(Solver::create(scene, settings, &cancel));
+}
+
 // A closed room of rho = 0.9999999 lit by a black lamp needs about ln(1/tolerance) / (fraction
 // absorbed per bounce) rounds, more than 1e6 photons pay for at one batch a round. Rounds of a
 // single photon used to let one photon that hit the lamp empty the pool: "converged, unshot 0%"

@@ -682,8 +682,8 @@ int run_converge(ConvergeOptions& o) {
     if (by_time) {
       SolverSettings probe = methods[m].settings;
       probe.photons = 100'000;
-      Result<Solver> solver = Solver::create(*scene, probe);
-      if (!solver) return usage_error(solver.error().message);
+      Result<Solver> solver = Solver::create(*scene, probe, &interrupt_flag());
+      if (!solver) return interrupt_flag().load() ? interrupted() : usage_error(solver.error().message);
       solver->run(&interrupt_flag());
       rate = static_cast<double>(solver->photons_shot()) / std::max(solver->seconds(), 1e-6);
     }
@@ -692,8 +692,8 @@ int run_converge(ConvergeOptions& o) {
         SolverSettings settings = methods[m].settings;
         settings.photons = static_cast<std::uint64_t>(std::max(1.0, by_time ? budgets[b] * rate : budgets[b]));
         settings.seed = static_cast<std::uint64_t>(seed);
-        Result<Solver> solver = Solver::create(*scene, settings);
-        if (!solver) return usage_error(solver.error().message);
+        Result<Solver> solver = Solver::create(*scene, settings, &interrupt_flag());
+        if (!solver) return interrupt_flag().load() ? interrupted() : usage_error(solver.error().message);
         solver->run(&interrupt_flag());
         if (solver->stop_reason() == StopReason::Cancelled) return interrupted();
         Result<Comparison> comparison =

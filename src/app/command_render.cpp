@@ -69,8 +69,9 @@ int run_render(RenderOptions& o) {
     std::fprintf(stderr, "flatland: error: %s\n", renderer.error().message.c_str());
     return kExitUsage;
   }
-  Result<Solver> created = Solver::create(*scene, o.solve.settings);
+  Result<Solver> created = Solver::create(*scene, o.solve.settings, &interrupt_flag());
   if (!created) {
+    if (interrupt_flag().load()) return interrupted();
     std::fprintf(stderr, "flatland: error: %s\n", created.error().message.c_str());
     return kExitUsage;
   }

@@ -260,8 +260,8 @@ int run_solve(SolveOptions& o) {
     if (!read) return usage_error("--reference: " + read.error().message);
     reference = std::move(*read);
   }
-  Result<Solver> created = Solver::create(*scene, o.settings);
-  if (!created) return usage_error(created.error().message);
+  Result<Solver> created = Solver::create(*scene, o.settings, &interrupt_flag());
+  if (!created) return interrupt_flag().load() ? interrupted() : usage_error(created.error().message);
   Solver& solver = *created;
 
   {

@@ -115,7 +115,9 @@ void Solver::Accumulator::reset(std::size_t size) {
   shot = {};
 }
 
-Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings) {
+Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings,
+                              const std::atomic<bool>* cancel) {
+  auto cancelled = [cancel] { return cancel != nullptr && cancel->load(std::memory_order_relaxed); };
   if (Status status = validate(settings); !status) return status.error();
   if (scene.curves.empty() || scene.segments.empty())
     return Error{scene.source + ": the scene has no curves"};
@@ -191,6 +193,7 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
   solver.block_offset_.assign(scene.curves.size() * 2, kNoBlock);
   solver.block_reflectivity_.assign(scene.curves.size() * 2, Spectrum{});
   for (std::uint32_t c = 0; c < scene.curves.size(); ++c) {
+    if (cancelled()) return Error{kSolverCancelled};
     const Curve& curve = scene.curves[c];
     std::vector<double> lengths;
     for (std::uint32_t i = 0; i < curve.segment_count; ++i)
@@ -204,6 +207,7 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
     // The coarser levels, each with its restriction from the finest.
     std::vector<Level>& levels = solver.levels_.emplace_back();
     for (int level = 0; level < finest_level; ++level) {
+      if (cancelled()) return Error{kSolverCancelled};
       Level& coarse = levels.emplace_back();
       coarse.storage = build_curve_storage(scene, curve, settings.basis, elements, smooth, events[c], level);
       if (settings.estimator == Estimator::Local) build_local_estimator(scene, curve, coarse.storage, hermite);
@@ -273,6 +277,7 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
                   scene.source.c_str(), solver.emitted_total_);
     return Error{message};
   }
+  if (cancelled()) return Error{kSolverCancelled};
   return solver;
 }
 

@@ -139,6 +139,9 @@ struct PhotonPath {
   Spectrum power{};                  // power carried (channels as in the scene)
 };
 
+// The message of the error a cancelled Solver::create returns.
+inline constexpr const char* kSolverCancelled = "the solve was cancelled while it was being set up";
+
 class Solver {
  public:
   static constexpr std::uint64_t kBatchSize = 4096;
@@ -152,7 +155,10 @@ class Solver {
   // by at most n 2^-61 of itself; 2^30 photons keep that below 5e-10.
   static constexpr std::uint64_t kMaxPhotonsPerRound = std::uint64_t{1} << 30;
 
-  static Result<Solver> create(const Scene& scene, const SolverSettings& settings);
+  // `cancel` is checked between the curves' storage levels (building them all for a large budget
+  // takes a moment): once it is set, create returns the error kSolverCancelled.
+  static Result<Solver> create(const Scene& scene, const SolverSettings& settings,
+                               const std::atomic<bool>* cancel = nullptr);
 
   // Shoot one whole round; returns false (and does nothing) once the solve has stopped.
   // `progress` is called from the calling thread about every `progress_interval` seconds.
