@@ -39,6 +39,40 @@ TEST(Discontinuity, PenumbraEventsSitWhereEmitterAndOccluderEndsLineUp) {
   for (std::size_t i = 0; i < 4; ++i) EXPECT_NEAR(floor_x[i], sorted[i], 1e-12);
 }
 
+// The penumbra scene's emitter made a reflector (panel), lit from below by a lamp off to the
+// side that emits upward only: with secondary sources the panel's end points past the occluder's
+// mark the floor where the emitter's did (x = P.x + 2 (O.x - P.x)); without them nothing marks the
+// floor (the lamp's light goes up, and the panel's lines past the lamp's ends pass beyond the floor).
+TEST(Discontinuity, ReflectorsAreSecondarySourcesOnRequest) {
+  const Scene scene = testing::scene_from_text(R"({
+    "flatland": 2,
+    "materials": {"lamp": {"emittance": 1}, "black": {}, "grey": {"reflectivity": 0.5}},
+    "curves": [
+      {"id": "panel", "material": "grey", "line": [[0.5,2],[-0.5,2]]},
+      {"id": "lamp", "material": "lamp", "line": [[1.5,1.9],[2.5,1.9]]},
+      {"id": "occluder", "material": "black", "line": [[-0.1,1],[0.7,1]]},
+      {"id": "floor", "material": "grey", "line": [[-3,0],[3,0]]}]})");
+  const SegmentAccelerator accelerator(geometry_of(scene));
+  auto floor_events = [&](bool secondary) {
+    EventOptions options;
+    options.secondary = secondary;
+    std::vector<double> x;
+    for (const DiscontinuityNode& node : find_visibility_events(scene, accelerator, options)) {
+      if (scene.curves[node.curve].id != "floor") continue;
+      EXPECT_EQ(node.continuity, Continuity::C0);
+      x.push_back(-3.0 + 6.0 * node.u);
+    }
+    return x;
+  };
+  EXPECT_TRUE(floor_events(false).empty());
+  std::vector<double> expected = {0.5 + 2 * (-0.1 - 0.5), -0.5 + 2 * (-0.1 + 0.5), 0.5 + 2 * (0.7 - 0.5),
+                                  -0.5 + 2 * (0.7 + 0.5)};
+  std::sort(expected.begin(), expected.end());
+  const std::vector<double> found = floor_events(true);
+  ASSERT_EQ(found.size(), expected.size());
+  for (std::size_t i = 0; i < expected.size(); ++i) EXPECT_NEAR(found[i], expected[i], 1e-12);
+}
+
 TEST(Discontinuity, HiddenVerticesMakeNoEvents) {
   // A wall between the lamp and the occluder's left end hides it from the lamp's right end only.
   const Scene scene = testing::scene_from_text(R"({

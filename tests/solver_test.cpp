@@ -675,6 +675,25 @@ TEST(Solver, CancelStopsBeforeTheRoundEnds) {
   EXPECT_EQ(solver.rounds(), 0u);
 }
 
+// `secondary` adds the reflectors' events to the emitters' (discontinuity_test checks where they
+// land): on the curved room, whose walls and pillar reflect, it finds more nodes than `auto`
+// does, and the solve's books still balance.
+TEST(Solver, SecondarySourcesAddEventsToTheEmitters) {
+  const Scene scene = testing::scene_from_file("scenes2d/curved_room.json");
+  SolverSettings settings;
+  settings.photons = 100'000;
+  settings.discontinuities = DiscontinuityMode::Auto;
+  Solver primary = make_solver(scene, settings);
+  settings.discontinuities = DiscontinuityMode::Secondary;
+  Solver secondary = make_solver(scene, settings);
+  EXPECT_GT(secondary.visibility_event_nodes(), primary.visibility_event_nodes());
+  EXPECT_GE(secondary.coefficient_count(), primary.coefficient_count());
+  secondary.run();
+  const EnergyBooks books = secondary.books();
+  EXPECT_NEAR(books.imbalance(), 0.0, 1e-9 * books.emitted);
+  EXPECT_STREQ(to_string(DiscontinuityMode::Secondary), "secondary");
+}
+
 // Setting up a large budget's storage levels takes a moment (0.3 s for the default scene at 1e12
 // photons, seconds under a sanitizer); a cancel set during it ends create with kSolverCancelled,
 // and the same settings without one build a solver.

@@ -54,11 +54,12 @@ Result<Method> parse_method(const std::string& text, const SolverSettings& defau
         return Error{where + "sampling must be uniform or reconstructed"};
       s.sampling = value == "uniform" ? PositionSampling::Uniform : PositionSampling::Reconstructed;
     } else if (key == "discontinuities") {
-      if (value != "none" && value != "scene" && value != "auto")
-        return Error{where + "discontinuities must be none, scene or auto"};
-      s.discontinuities = value == "none" ? DiscontinuityMode::None
+      if (value != "none" && value != "scene" && value != "auto" && value != "secondary")
+        return Error{where + "discontinuities must be none, scene, auto or secondary"};
+      s.discontinuities = value == "none"    ? DiscontinuityMode::None
                           : value == "scene" ? DiscontinuityMode::Scene
-                                             : DiscontinuityMode::Auto;
+                          : value == "auto"  ? DiscontinuityMode::Auto
+                                             : DiscontinuityMode::Secondary;
     } else if (key == "estimator") {
       const std::optional<Estimator> estimator = estimator_from_string(value);
       if (!estimator) return Error{where + "estimator must be lumped, galerkin or local"};

@@ -56,9 +56,11 @@ void add_solver_options(CLI::App* cmd, SolveOptions& o) {
                   "Nodes where illumination may jump or kink: none (smooth everywhere), scene (the "
                   "scene's joints, C-1 at corners by default, and C-1 at contacts, where a curve "
                   "ends on or crosses another) or auto (those plus C0 nodes at direct-light "
-                  "events: penumbra boundaries from emitters' end points, corners and silhouettes)")
+                  "events: penumbra boundaries from emitters' end points, corners and silhouettes) "
+                  "or secondary (auto plus the same events of every reflecting curve, as a source "
+                  "of the light it reflects)")
       ->capture_default_str()
-      ->check(CLI::IsMember({"none", "scene", "auto"}));
+      ->check(CLI::IsMember({"none", "scene", "auto", "secondary"}));
   cmd->add_option("--estimator", o.estimator,
                   "Coefficients from deposits: lumped (power over the basis function's length, the "
                   "paper's; positive, bias O(h^2) inside and O(h) at ends and nodes), galerkin (L2 "
@@ -234,7 +236,8 @@ Status finish_solver_settings(SolveOptions& o) {
                                             : BasisKind::Cubic;
   o.settings.discontinuities = o.discontinuities == "none"    ? DiscontinuityMode::None
                                : o.discontinuities == "scene" ? DiscontinuityMode::Scene
-                                                              : DiscontinuityMode::Auto;
+                               : o.discontinuities == "auto"  ? DiscontinuityMode::Auto
+                                                              : DiscontinuityMode::Secondary;
   o.settings.ray_profile = *parse_ray_profile(o.ray_profile);
   o.settings.ray_mode = o.ray_mode == "band" ? RayMode::Band : RayMode::Footprint;
   o.settings.estimator = *estimator_from_string(o.estimator);

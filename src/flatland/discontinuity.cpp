@@ -16,6 +16,7 @@ const char* to_string(DiscontinuityMode mode) {
     case DiscontinuityMode::None: return "none";
     case DiscontinuityMode::Scene: return "scene";
     case DiscontinuityMode::Auto: return "auto";
+    case DiscontinuityMode::Secondary: return "secondary";
   }
   return "?";
 }
@@ -649,6 +650,14 @@ bool line_crosses_at(const Scene& scene, const Vertex& v, Vec2 d) {
   return a * b < 0;
 }
 
+// Whether some channel of the curve's material reflects (a secondary source).
+bool reflects(const Scene& scene, const Curve& curve) {
+  const Material& material = scene.material_of(curve);
+  for (int channel = 0; channel < scene.channels; ++channel)
+    if (material.reflectivity[static_cast<std::size_t>(channel)] > 0.0) return true;
+  return false;
+}
+
 bool emits_toward(const Curve& curve, const Vec2 normal, Vec2 d, bool straight) {
   const double facing = dot(normal, d);
   if (facing > kAlongSine) return curve.has_side(Side::Front);
@@ -670,8 +679,10 @@ bool source_allows(const Scene& scene, const Feature& a, Vec2 d) {
   const Curve& curve = scene.curves[a.curve];
   if (a.vertex != nullptr) {
     const Vertex& v = *a.vertex;
-    if (line_crosses_at(scene, v, d) && scene.material_of(curve).emission.kind == Emission::Kind::Diffuse)
-      return false;
+    // (A reflector reflects diffusely: a secondary source is diffuse whatever its emission.)
+    const bool diffuse = !scene.is_emitter(curve) ||
+                         scene.material_of(curve).emission.kind == Emission::Kind::Diffuse;
+    if (line_crosses_at(scene, v, d) && diffuse) return false;
     for (const std::uint32_t s : {v.before, v.after}) {
       if (s == kNoSegment) continue;
       const SegmentGeometry& g = scene.segments[s].geometry;
@@ -979,7 +990,8 @@ std::vector<DiscontinuityNode> find_visibility_events(const Scene& scene,
 
   EventFinder finder{scene, accelerator, {}};
   for (std::uint32_t s = 0; s < curve_count; ++s) {
-    if (!scene.is_emitter(scene.curves[s])) continue;
+    const Curve& source = scene.curves[s];
+    if (!scene.is_emitter(source) && !(options.secondary && reflects(scene, source))) continue;
     // VV and VT: from the emitter's vertices to every vertex and every tangent point.
     for (const Vertex& v : vertices[s]) {
       const Feature a = vertex_feature(v);

@@ -19,8 +19,9 @@ namespace flatland {
 
 // Which nodes the storage mesh gets: none (every joint C1, the smooth baseline), the joints as the
 // scene file sets them (by default C-1 at corners, C1 at tangent joints), or those joints plus C0
-// nodes at the visibility events found below.
-enum class DiscontinuityMode { None, Scene, Auto };
+// nodes at the visibility events found below; secondary adds the events of every reflecting curve
+// as a source (the kinks its reflected light makes past occluders).
+enum class DiscontinuityMode { None, Scene, Auto, Secondary };
 const char* to_string(DiscontinuityMode mode);
 
 struct DiscontinuityNode {
@@ -49,9 +50,14 @@ std::vector<DiscontinuityNode> find_contacts(const Scene& scene);
 struct EventOptions {
   int elements = 16;
   double merge_fraction = 0.05;
+  // Reflecting curves are sources too (secondary sources: the light they reflect is continuous
+  // along them, so the lines from their end points, corners and silhouettes bound the part of
+  // them a point sees just as an emitter's do), each with the sides that the curve has.
+  bool secondary = false;
 };
 
-// Complete direct-light events of every emitter S (a curve with positive emittance): the critical
+// Complete direct-light events of every emitter S (a curve with positive emittance; with
+// options.secondary also every curve whose material reflects): the critical
 // lines VV, VT, TV and TT from a point A of S to a point B of any curve O (S itself included) that
 //  - leave S on an emitting side at A: at a vertex, an adjacent segment whose emitting side faces
 //    the line's direction (or a straight one that the line runs along; a corner that the line

@@ -178,9 +178,11 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
     }
     for (std::vector<double>& walls : solver.walls_) std::sort(walls.begin(), walls.end());
   }
-  if (settings.discontinuities == DiscontinuityMode::Auto) {
+  if (settings.discontinuities == DiscontinuityMode::Auto ||
+      settings.discontinuities == DiscontinuityMode::Secondary) {
     EventOptions options;
     options.elements = finest_elements;
+    options.secondary = settings.discontinuities == DiscontinuityMode::Secondary;
     for (const DiscontinuityNode& node : find_visibility_events(scene, solver.accelerator_, options)) {
       events[node.curve].push_back({node.u, node.continuity});
       ++solver.visibility_events_;

@@ -20,7 +20,7 @@ namespace {
 const char* const kBasisNames[] = {"constant", "linear", "cubic", "hermite"};
 const BasisKind kBases[] = {BasisKind::Constant, BasisKind::Linear, BasisKind::Cubic, BasisKind::Hermite};
 const char* const kSamplingNames[] = {"uniform", "reconstructed"};
-const char* const kDiscontinuityNames[] = {"none", "scene", "auto"};
+const char* const kDiscontinuityNames[] = {"none", "scene", "auto", "secondary"};
 const char* const kEstimatorNames[] = {"lumped", "galerkin", "local"};
 const char* const kProfileNames[] = {"box", "tent", "epanechnikov", "cosine", "gauss"};
 const char* const kModeNames[] = {"footprint", "band"};
@@ -205,7 +205,7 @@ void Viewer::draw_solve_panel(const Snapshot& snapshot) {
     changed = true;
   }
   int discontinuities = static_cast<int>(settings_.discontinuities);
-  if (combo("discontinuities", &discontinuities, kDiscontinuityNames, 3)) {
+  if (combo("discontinuities", &discontinuities, kDiscontinuityNames, 4)) {
     settings_.discontinuities = static_cast<DiscontinuityMode>(discontinuities);
     changed = true;
   }
