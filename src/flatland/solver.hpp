@@ -149,7 +149,7 @@ class Solver {
   // few photons estimates the pool so coarsely that one photon landing on an absorber could empty
   // it and stop the solve as "converged" far from the answer (a room of rho = 0.9999999 with a
   // black lamp did). One batch.
-  static constexpr std::uint64_t kMinPhotonsPerRound = kBatchSize;
+  static constexpr std::uint64_t kMinPhotonsPerRound = 256;
   // And at most this many: the fixed-point deposits quantise each photon's power to 2^-60 of the
   // round's power (half a unit per deposit), so a round of n photons rounds each photon's power
   // by at most n 2^-61 of itself; 2^30 photons keep that below 5e-10.
