@@ -531,10 +531,12 @@ bool Solver::begin_round() {
   const double unshot = std::accumulate(weights.begin(), weights.end(), 0.0);
   if (!(unshot > settings_.tolerance * emitted_total_)) {
     stop_reason_ = StopReason::Converged;
+    choose_final_levels();
     return false;
   }
   if (photons_shot_ >= settings_.photons) {
     stop_reason_ = StopReason::BudgetSpent;
+    choose_final_levels();
     return false;
   }
   round_.photons = photons_for_round(unshot);
@@ -994,10 +996,27 @@ void Solver::end_round(std::span<const Accumulator> accumulators) {
   }
 }
 
+void Solver::choose_final_levels() {
+  if (auto_storage_ && (photons_at_choice_ != photons_shot_ || chosen_level_ != scheduled_level_))
+    update_reflected(received_, received_half_, LevelChoice::Final);
+}
+
 void Solver::update_reflected(const std::vector<double>& received,
-                              const std::vector<double>& received_half) {
+                              const std::vector<double>& received_half, LevelChoice choice) {
   const auto channels = static_cast<std::size_t>(channels_);
-  if (auto_storage_) choose_levels(received, received_half);
+  if (auto_storage_) {
+    const bool due = scheduled_level_.empty() ||
+                     static_cast<double>(photons_shot_) >= kLevelChoiceGrowth * static_cast<double>(photons_at_choice_);
+    if (choice == LevelChoice::Now) {
+      choose_levels(received, received_half);
+    } else if (choice == LevelChoice::Final || due) {
+      choose_levels(received, received_half);
+      scheduled_level_ = chosen_level_;
+      photons_at_choice_ = photons_shot_;
+    } else {
+      chosen_level_ = scheduled_level_;
+    }
+  }
   // Reflected radiosity coefficients, kept current for readers between rounds.
   estimate(received, reflected_);
   for (std::uint32_t c = 0; c < scene_->curves.size(); ++c)
@@ -1142,7 +1161,7 @@ void Solver::include_open_round() {
     received[index] += static_cast<double>(units + odd) * inverse_scale;
     if (auto_storage_) received_half[index] += static_cast<double>(odd) * inverse_scale;
   }
-  update_reflected(received, received_half);
+  update_reflected(received, received_half, LevelChoice::Now);
 }
 
 bool Solver::step_round(const std::atomic<bool>* cancel, const ProgressCallback& progress,

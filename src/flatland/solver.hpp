@@ -284,7 +284,14 @@ class Solver {
                std::vector<FootprintWeight>& footprint) const;
   void end_round(std::span<const Accumulator> accumulators);
   // reflected_ (and the Hermite reconstructions) from the power received in all rounds.
-  void update_reflected(const std::vector<double>& received, const std::vector<double>& received_half);
+  // `choice`: with auto storage, whether the levels are chosen again (Scheduled: when the photons
+  // shot have grown by kLevelChoiceGrowth since the last choice; Now: always, without moving the
+  // schedule, for a reader's view of an open round; Final: always, at the end of the solve).
+  enum class LevelChoice { Scheduled, Now, Final };
+  // With auto storage, the levels chosen from all the photons when the solve stops.
+  void choose_final_levels();
+  void update_reflected(const std::vector<double>& received, const std::vector<double>& received_half,
+                        LevelChoice choice = LevelChoice::Scheduled);
   // Auto storage: each curve's level with the least estimated error (bias^2 + variance).
   void choose_levels(const std::vector<double>& received, const std::vector<double>& half);
   std::uint64_t photons_for_round(double unshot) const;
@@ -318,6 +325,14 @@ class Solver {
   };
   std::vector<std::vector<Level>> levels_;
   std::vector<int> chosen_level_;
+  // Choosing levels estimates every level three times (all photons and the two halves): per round
+  // that cost 2-3x the photons' own time in stiff scenes of thousands of small rounds. So levels are
+  // chosen again only when the photons shot have grown by this factor since the last choice (and
+  // once more when the solve stops), which is deterministic and independent of how rounds are
+  // stepped; in between, the last scheduled choice is kept.
+  static constexpr double kLevelChoiceGrowth = 1.25;
+  std::vector<int> scheduled_level_;
+  std::uint64_t photons_at_choice_ = 0;
   bool auto_storage_ = false;
   std::vector<double> received_half_;  // auto storage: the part of received_ from odd photons
   std::vector<std::uint32_t> block_offset_;  // first coefficient of each (curve, side), or kNoBlock
