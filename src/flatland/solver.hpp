@@ -148,7 +148,8 @@ class Solver {
   // Every round shoots at least this many photons (or what is left of the budget): a round of a
   // few photons estimates the pool so coarsely that one photon landing on an absorber could empty
   // it and stop the solve as "converged" far from the answer (a room of rho = 0.9999999 with a
-  // black lamp did). One batch.
+  // black lamp did). Not a whole batch (4096): the reserve for the rounds still expected starved
+  // the first rounds of small budgets (docs/method.md, Progressive shooting).
   static constexpr std::uint64_t kMinPhotonsPerRound = 256;
   // And at most this many: the fixed-point deposits quantise each photon's power to 2^-60 of the
   // round's power (half a unit per deposit), so a round of n photons rounds each photon's power
