@@ -54,12 +54,9 @@ Result<Method> parse_method(const std::string& text, const SolverSettings& defau
         return Error{where + "sampling must be uniform or reconstructed"};
       s.sampling = value == "uniform" ? PositionSampling::Uniform : PositionSampling::Reconstructed;
     } else if (key == "discontinuities") {
-      if (value != "none" && value != "scene" && value != "auto" && value != "secondary")
-        return Error{where + "discontinuities must be none, scene, auto or secondary"};
-      s.discontinuities = value == "none"    ? DiscontinuityMode::None
-                          : value == "scene" ? DiscontinuityMode::Scene
-                          : value == "auto"  ? DiscontinuityMode::Auto
-                                             : DiscontinuityMode::Secondary;
+      const std::optional<DiscontinuityMode> mode = discontinuity_mode_from_string(value);
+      if (!mode) return Error{where + "discontinuities must be none, scene, auto or secondary"};
+      s.discontinuities = *mode;
     } else if (key == "estimator") {
       const std::optional<Estimator> estimator = estimator_from_string(value);
       if (!estimator) return Error{where + "estimator must be lumped, galerkin or local"};

@@ -234,10 +234,7 @@ Status finish_solver_settings(SolveOptions& o) {
                      : o.basis == "linear" ? BasisKind::Linear
                      : o.basis == "hermite" ? BasisKind::Hermite
                                             : BasisKind::Cubic;
-  o.settings.discontinuities = o.discontinuities == "none"    ? DiscontinuityMode::None
-                               : o.discontinuities == "scene" ? DiscontinuityMode::Scene
-                               : o.discontinuities == "auto"  ? DiscontinuityMode::Auto
-                                                              : DiscontinuityMode::Secondary;
+  o.settings.discontinuities = *discontinuity_mode_from_string(o.discontinuities);
   o.settings.ray_profile = *parse_ray_profile(o.ray_profile);
   o.settings.ray_mode = o.ray_mode == "band" ? RayMode::Band : RayMode::Footprint;
   o.settings.estimator = *estimator_from_string(o.estimator);

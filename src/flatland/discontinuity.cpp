@@ -21,6 +21,13 @@ const char* to_string(DiscontinuityMode mode) {
   return "?";
 }
 
+std::optional<DiscontinuityMode> discontinuity_mode_from_string(std::string_view name) {
+  for (DiscontinuityMode mode : {DiscontinuityMode::None, DiscontinuityMode::Scene, DiscontinuityMode::Auto,
+                                 DiscontinuityMode::Secondary})
+    if (name == to_string(mode)) return mode;
+  return std::nullopt;
+}
+
 namespace {
 
 constexpr double kEpsilon = std::numeric_limits<double>::epsilon();
