@@ -7,11 +7,13 @@
 # 200 samples per curve, with its own error estimate), then flatland converge over photon budgets
 # 1e4 .. 1e7 and SEEDS seeds. Writes docs/figures/experiments/SCENE/eELEMENTS/GROUP/convergence.{csv,png,svg}.
 # Needs build/flatland and gnuplot.
-# Usage: [ELEMENTS=N] docs/figures/experiments/error_vs_time.sh [SEEDS] [SCENES...]
+# THREADS=N passes --threads N to every solve (default: all cores).
+# Usage: [ELEMENTS=N] [THREADS=N] docs/figures/experiments/error_vs_time.sh [SEEDS] [SCENES...]
 set -euo pipefail
 cd "$(dirname "$0")/../../.."
 seeds=${1:-5}
 elements=${ELEMENTS:-32}
+threads=(${THREADS:+--threads "$THREADS"})
 shift || true
 scenes=("$@")
 [ ${#scenes[@]} -gt 0 ] || scenes=(penumbra curved_room room_reflector syndrome)
@@ -23,14 +25,14 @@ declare -A groups=(
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 for scene in "${scenes[@]}"; do
-  build/flatland reference "scenes2d/$scene.json" --elements 800 --samples 200 --quiet \
+  build/flatland reference "scenes2d/$scene.json" --elements 800 --samples 200 --quiet "${threads[@]}" \
     --out "$work/$scene-reference.json"
   for group in storage origins rays; do
     out=docs/figures/experiments/$scene/e$elements/$group
     mkdir -p "$out"
     build/flatland converge "scenes2d/$scene.json" --reference "$work/$scene-reference.json" \
       --methods "${groups[$group]}" --elements "$elements" --budgets 1e4,3e4,1e5,3e5,1e6,3e6,1e7 \
-      --seeds "$seeds" --samples 200 --out "$out"
+      --seeds "$seeds" --samples 200 "${threads[@]}" --out "$out"
     rm -f "$out/convergence.gp" "$out/convergence.dat"
   done
 done

@@ -4,21 +4,23 @@
 # floor, from the reference and from solves at equal photon counts with photon origins uniform in
 # arc length and following the reconstruction, for constant and cubic storage. Writes
 # docs/figures/experiments/syndrome.png and prints the table of errors (median over SEEDS seeds).
-# Needs build/flatland, python3 and gnuplot. Usage: docs/figures/experiments/syndrome.sh [PHOTONS] [SEEDS]
+# Needs build/flatland, python3 and gnuplot. THREADS=N passes --threads N (default: all cores).
+# Usage: [THREADS=N] docs/figures/experiments/syndrome.sh [PHOTONS] [SEEDS]
 set -euo pipefail
 cd "$(dirname "$0")/../../.."
 photons=${1:-1e6}
 seeds=${2:-5}
+threads=(${THREADS:+--threads "$THREADS"})
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 scene=scenes2d/syndrome.json
-build/flatland reference "$scene" --elements 800 --samples 200 --quiet --out "$work/reference.json"
+build/flatland reference "$scene" --elements 800 --samples 200 --quiet "${threads[@]}" --out "$work/reference.json"
 for basis in constant cubic; do
   for sampling in uniform reconstructed; do
     for elements in 16 64; do
       for seed in $(seq 1 "$seeds"); do
         build/flatland solve "$scene" --basis "$basis" --sampling "$sampling" --elements "$elements" \
-          --photons "$photons" --tolerance 1e-6 --seed "$seed" --samples 200 --quiet \
+          --photons "$photons" --tolerance 1e-6 --seed "$seed" --samples 200 --quiet "${threads[@]}" \
           --out "$work/$basis-$sampling-$elements-$seed.json"
       done
     done
