@@ -75,18 +75,25 @@ std::string make_scene(Layout layout) {
          curves + "]}";
 }
 
+void solve(benchmark::State& state, Layout layout, const SolverSettings& base);
+
 void solve(benchmark::State& state, Layout layout) {
+  SolverSettings settings;
+  settings.sampling = state.range(1) == 0 ? PositionSampling::Uniform : PositionSampling::Reconstructed;
+  solve(state, layout, settings);
+}
+
+void solve(benchmark::State& state, Layout layout, const SolverSettings& base) {
   Result<Scene> scene = parse_scene(make_scene(layout), "benchmark");
   if (!scene) {
     state.SkipWithError(scene.error().message.c_str());
     return;
   }
-  SolverSettings settings;
+  SolverSettings settings = base;
   settings.photons = 2'000'000;
   settings.threads = static_cast<unsigned>(state.range(0));
   settings.tolerance = 1e-9;  // spend the whole budget
   settings.basis = BasisKind::Cubic;
-  settings.sampling = state.range(1) == 0 ? PositionSampling::Uniform : PositionSampling::Reconstructed;
   std::uint64_t photons = 0;
   for (auto _ : state) {
     Result<Solver> solver = Solver::create(*scene, settings);
@@ -103,10 +110,33 @@ void Cubics(benchmark::State& state) { solve(state, Layout::Cubics); }
 void Lines(benchmark::State& state) { solve(state, Layout::Lines); }
 void LinesAsCubics(benchmark::State& state) { solve(state, Layout::LinesAsCubics); }
 
+// The cubic room with extended rays 0.05 wide (a hundredth of the room's radius), box profile,
+// reconstructed positions, auto storage: 0 point rays, 1 footprints, 2 a band of 8 sub-rays.
+void CubicsRays(benchmark::State& state) {
+  SolverSettings settings;
+  if (state.range(1) > 0) {
+    settings.ray_width = 0.05;
+    settings.ray_mode = state.range(1) == 1 ? RayMode::Footprint : RayMode::Band;
+  }
+  solve(state, Layout::Cubics, settings);
+}
+
+// The cubic room with a fixed storage mesh of about N elements per curve (reconstructed
+// positions, point rays): the cost of the mesh's size at a fixed photon count.
+void CubicsStorage(benchmark::State& state) {
+  SolverSettings settings;
+  settings.elements = static_cast<int>(state.range(1));
+  solve(state, Layout::Cubics, settings);
+}
+
 // Arguments: threads, then positions (0 uniform in arc length, 1 reconstructed).
 BENCHMARK(Cubics)->ArgsProduct({{1, 2}, {0, 1}})->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(Lines)->ArgsProduct({{1, 2}, {0, 1}})->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(LinesAsCubics)->ArgsProduct({{1, 2}, {0, 1}})->Unit(benchmark::kMillisecond)->UseRealTime();
+// Arguments: threads, then the ray kind (0 point, 1 footprint, 2 band).
+BENCHMARK(CubicsRays)->ArgsProduct({{1, 2}, {0, 1, 2}})->Unit(benchmark::kMillisecond)->UseRealTime();
+// Arguments: threads, then elements per curve.
+BENCHMARK(CubicsStorage)->ArgsProduct({{1}, {4, 64, 1024, 4096}})->Unit(benchmark::kMillisecond)->UseRealTime();
 
 }  // namespace
 

@@ -84,9 +84,10 @@ std::vector<double> checked_dense(const std::vector<FootprintWeight>& weights, s
 }
 
 std::vector<double> footprint_dense(const Curve& curve, const SplineBasis& basis, double u_hit,
-                                    double a, RayProfile profile) {
+                                    double a, RayProfile profile,
+                                    const FootprintTable* table = nullptr) {
   std::vector<FootprintWeight> out;
-  footprint_weights(scene(), curve, basis, u_hit, a, profile, out);
+  footprint_weights(scene(), curve, basis, u_hit, a, profile, out, {}, table);
   return checked_dense(out, basis.size());
 }
 
@@ -401,12 +402,16 @@ TEST(Footprint, CubicsMatchABruteForceIntegralAcrossJointsAndEnds) {
       const std::string what = std::string(to_string(kind)) + " " + to_string(profile);
       // Arch, straddling the joint from either side, and at both ends.
       const CurveStorage storage = build_curve_storage(scene(), arch, kind, 8);
+      const FootprintTable table(scene(), arch, storage.basis);
       for (double u_hit : {0.93, 1.04, 0.02, 1.97, 0.5, 1.0, 0.0, 2.0}) {
         const double s_hit = arc_length_at(arch, u_hit);
         const double a = 0.9;
         const std::vector<double> got = footprint_dense(arch, storage.basis, u_hit, a, profile);
         const std::vector<double> want = brute_force(arch, storage.basis, 0.0, arch.length, s_hit, a, profile);
         expect_close(got, want, 1e-11, what + " arch u " + std::to_string(u_hit));
+        // Whole spans from the table's moments (the polynomial profiles use them).
+        expect_close(footprint_dense(arch, storage.basis, u_hit, a, profile, &table), want, 1e-11,
+                     what + " arch, table, u " + std::to_string(u_hit));
         if (u_hit == 0.93) {  // the spill is real: weight on functions living past the joint
           double past = 0.0;
           for (std::size_t k = 0; k < storage.basis.size(); ++k)
@@ -416,6 +421,7 @@ TEST(Footprint, CubicsMatchABruteForceIntegralAcrossJointsAndEnds) {
       }
       // Kink, near the corner from either side: all weight on the hit side.
       const CurveStorage bent = build_curve_storage(scene(), kink, kind, 8);
+      const FootprintTable bent_table(scene(), kink, bent.basis);
       const double joint = kink.segment_start[1];
       for (double u_hit : {0.93, 1.06, 1.0}) {  // 1.0: on the corner, the right side's
         const double s_hit = arc_length_at(kink, u_hit);
@@ -423,8 +429,10 @@ TEST(Footprint, CubicsMatchABruteForceIntegralAcrossJointsAndEnds) {
         const std::vector<double> got = footprint_dense(kink, bent.basis, u_hit, a, profile);
         const double lo = u_hit < 1.0 ? 0.0 : joint;
         const double hi = u_hit < 1.0 ? joint : kink.length;
-        expect_close(got, brute_force(kink, bent.basis, lo, hi, s_hit, a, profile), 1e-11,
-                     what + " kink u " + std::to_string(u_hit));
+        const std::vector<double> want = brute_force(kink, bent.basis, lo, hi, s_hit, a, profile);
+        expect_close(got, want, 1e-11, what + " kink u " + std::to_string(u_hit));
+        expect_close(footprint_dense(kink, bent.basis, u_hit, a, profile, &bent_table), want, 1e-11,
+                     what + " kink, table, u " + std::to_string(u_hit));
         for (std::size_t k = 0; k < bent.basis.size(); ++k) {
           const std::vector<double>& knots = bent.basis.knots();
           const bool only_right = knots[k] >= 1.0;
@@ -549,6 +557,79 @@ TEST(Footprint, TinyFootprintApproachesThePointDeposit) {
           expect_close(footprint_dense(curve, storage.basis, u_hit, a, RayProfile::Tent), point,
                        1e-15, curve.id + " degenerate");
         }
+      }
+    }
+  }
+}
+
+TEST(Footprint, SpanTableHoldsTheBasisIntegralsAndLengths) {
+  // Independent of the footprint: summed over the spans, a function's zeroth moments are its
+  // integral over the curve (build_curve_storage's basis_length, its own quadrature), and a span's
+  // zeroth moments sum to its arc length (B-splines sum to one); the first moments of a line's span
+  // in y = (s - s_mid) / h vanish for a function symmetric about the span's middle (a constant
+  // element), and the second moments of a constant element are its length / 3.
+  const Scene ring = testing::scene_from_text(testing::circle_enclosure(0.5, 1.0));
+  struct Case { const Scene* scene; std::uint32_t curve; };
+  for (const Case& c : {Case{&scene(), kLine}, Case{&scene(), kCorner}, Case{&scene(), kArch},
+                        Case{&scene(), kKink}, Case{&ring, 0}}) {
+    const Curve& curve = c.scene->curves[c.curve];
+    for (BasisKind kind : {BasisKind::Constant, BasisKind::Linear, BasisKind::Cubic}) {
+      const std::string what = curve.id + " " + to_string(kind);
+      const CurveStorage storage = build_curve_storage(*c.scene, curve, kind, 11);
+      const SplineBasis& basis = storage.basis;
+      const FootprintTable table(*c.scene, curve, basis);
+      const std::size_t p = static_cast<std::size_t>(basis.degree());
+      std::vector<double> integral(basis.size(), 0.0);
+      double total = 0.0;
+      for (std::size_t span = basis.first_span(); span < basis.end_span(); ++span) {
+        const double* m = table.moments(span);
+        double sum = 0.0;
+        for (std::size_t r = 0; r <= p; ++r) {
+          integral[basis.index(span - p + r)] += m[r];
+          sum += m[r];
+        }
+        EXPECT_NEAR(sum, table.length(span), 1e-13 * curve.length) << what << " span " << span;
+        total += table.length(span);
+        if (kind == BasisKind::Constant && curve.id == "line") {
+          EXPECT_NEAR(m[1], 0.0, 1e-14 * curve.length) << what;
+          EXPECT_NEAR(m[2], table.length(span) / 3.0, 1e-14 * curve.length) << what;
+        }
+      }
+      EXPECT_NEAR(total, curve.length, 1e-12 * curve.length) << what;
+      for (std::size_t k = 0; k < basis.size(); ++k)
+        EXPECT_NEAR(integral[k], storage.basis_length[k], 1e-12 * curve.length) << what << " k " << k;
+    }
+  }
+}
+
+TEST(Footprint, SpanTableGivesTheQuadraturesWeightsEverywhere) {
+  // Whole knot spans from the table against the footprint's own Gauss points: the same weights to
+  // rounding for every polynomial profile, on lines, corners, cubics with smooth and corner joints,
+  // a periodic ring, with walls, and footprints from a fraction of a span to many spans and the
+  // whole curve (flat).
+  const Scene ring = testing::scene_from_text(testing::circle_enclosure(0.5, 1.0));
+  struct Case { const Scene* scene; std::uint32_t curve; };
+  Rng rng(7, 1, 2);
+  for (const Case& c : {Case{&scene(), kLine}, Case{&scene(), kCollinear}, Case{&scene(), kCorner},
+                        Case{&scene(), kArch}, Case{&scene(), kKink}, Case{&ring, 0}}) {
+    const Curve& curve = c.scene->curves[c.curve];
+    for (BasisKind kind : {BasisKind::Constant, BasisKind::Linear, BasisKind::Cubic}) {
+      const CurveStorage storage = build_curve_storage(*c.scene, curve, kind, 40);
+      const FootprintTable table(*c.scene, curve, storage.basis);
+      const std::vector<double> walls = {0.37 * curve.length};
+      for (int trial = 0; trial < 200; ++trial) {
+        const double u_hit = curve.segment_count * rng.uniform();
+        const double a = trial == 0 ? kInfinity : curve.length * std::pow(10.0, -3.0 + 3.5 * rng.uniform());
+        const auto profile = static_cast<RayProfile>(trial % 3);  // box, tent, Epanechnikov
+        const std::span<const double> wall = trial % 4 == 1 ? std::span<const double>(walls) : std::span<const double>();
+        std::vector<FootprintWeight> plain;
+        std::vector<FootprintWeight> tabled;
+        footprint_weights(*c.scene, curve, storage.basis, u_hit, a, profile, plain, wall);
+        footprint_weights(*c.scene, curve, storage.basis, u_hit, a, profile, tabled, wall, &table);
+        const std::vector<double> want = checked_dense(plain, storage.basis.size());
+        expect_close(checked_dense(tabled, storage.basis.size()), want, 1e-12,
+                     curve.id + " " + to_string(kind) + " " + to_string(profile) + " trial " +
+                         std::to_string(trial));
       }
     }
   }

@@ -253,6 +253,65 @@ ErrorStats penumbra_errors(BasisKind basis, DiscontinuityMode mode) {
   return stats;
 }
 
+TEST(Solver, FootprintsStopAutoStorageAtAQuarterOfTheRayWidth) {
+  // A budget of 1e9 photons asks for auto storage's finest levels; footprints 0.05 wide smooth
+  // every deposit on that scale, so no curve's deposit mesh goes below a mean element of
+  // kFootprintFinestElement x 0.05 (and it stops within one halving of it), while point rays and
+  // bands refine further.
+  const PenumbraSetup setup;
+  const Scene scene = testing::scene_from_text(setup.scene_text());
+  SolverSettings settings;
+  settings.photons = 1'000'000'000;
+  const double width = 0.05;
+  auto mean_element = [&](const Solver& solver, std::uint32_t c) {
+    const SplineBasis& basis = solver.storage(c).basis;
+    std::size_t spans = 0;
+    for (std::size_t k = basis.first_span(); k < basis.end_span(); ++k)
+      spans += basis.knots()[k + 1] > basis.knots()[k];
+    // Discontinuity nodes split a few elements more: count the elements of the dyadic mesh.
+    const std::size_t nodes = solver.discontinuity_nodes();
+    return scene.curves[c].length / static_cast<double>(spans > nodes ? spans - nodes : spans);
+  };
+  settings.ray_width = width;
+  settings.ray_mode = RayMode::Footprint;
+  const Solver footprints = make_solver(scene, settings);
+  settings.ray_mode = RayMode::Band;
+  const Solver bands = make_solver(scene, settings);
+  settings.ray_width = 0.0;
+  const Solver points = make_solver(scene, settings);
+  for (std::uint32_t c = 0; c < scene.curves.size(); ++c) {
+    const double limit = kFootprintFinestElement * width;
+    EXPECT_GE(mean_element(footprints, c), limit) << scene.curves[c].id;
+    EXPECT_LT(mean_element(footprints, c), 2.0 * limit) << scene.curves[c].id;
+    EXPECT_LT(mean_element(points, c), 0.5 * limit) << scene.curves[c].id;
+    EXPECT_LT(mean_element(bands, c), 0.5 * limit) << scene.curves[c].id;
+  }
+}
+
+TEST(Solver, BlackSidesTakeNoDeposits) {
+  // The penumbra's occluder reflects nothing: what lands on it is absorbed without a deposit (its
+  // coefficients stay empty of power), the books balance, and the floor is what it was.
+  const PenumbraSetup setup;
+  const Scene scene = testing::scene_from_text(setup.scene_text());
+  for (double width : {0.0, 0.05}) {
+    SolverSettings settings;
+    settings.photons = 200'000;
+    settings.ray_width = width;
+    Solver solver = make_solver(scene, settings);
+    solver.run();
+    const EnergyBooks books = solver.books();
+    EXPECT_NEAR(books.imbalance(), 0.0, 1e-12 * books.emitted);
+    // Direct light on the occluder's top: the lamp's view of it, a large share of the power.
+    EXPECT_GT(books.absorbed, 0.2 * books.emitted);
+    for (Side side : {Side::Front, Side::Back})
+      for (double b : solver.radiosity_coefficients(2, side)) EXPECT_EQ(b, 0.0);
+    // The floor (rho = 0.5) under the lamp still reflects half its irradiance: the skip is for
+    // black sides only (20 % is many standard deviations at 2e5 photons).
+    EXPECT_NEAR(solver.radiosity(1, Side::Front, 0.45)[0], setup.rho * setup.irradiance(-0.3),
+                0.2 * setup.rho * setup.irradiance(-0.3));
+  }
+}
+
 TEST(Solver, CubicWithAutomaticDiscontinuitiesBeatsConstantAndLinearOnThePenumbra) {
   // Equal photon counts and storage elements; over six seeds each, the cubic reconstruction with
   // C0 nodes at the visibility events must have a smaller mean error than constant and linear by

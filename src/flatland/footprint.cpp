@@ -163,13 +163,24 @@ class Accumulator {
     const std::size_t needed = begin_ + (first - base_) + degree_ + 1;
     while (out_.size() < needed) out_.push_back({base_ + (out_.size() - begin_), 0.0});
     offset_ = begin_ + (first - base_);
-    for (std::size_t j = 1; j <= degree_; ++j)
-      for (std::size_t r = 0; r < j; ++r)
-        inverse_[j][r] = 1.0 / (knots_[span + r + 1] - knots_[span + 1 - j + r]);
+    inverses_ready_ = false;
+  }
+
+  // The current span whole, with the profile c0 + c1 y + c2 y^2 (FootprintTable's moments).
+  void add_moments(const double* moments, std::size_t stride, double c0, double c1, double c2) {
+    FootprintWeight* run = out_.data() + offset_;
+    for (std::size_t r = 0; r <= degree_; ++r)
+      run[r].weight += c0 * moments[r] + c1 * moments[stride + r] + c2 * moments[2 * stride + r];
   }
 
   // u inside the current span.
   void add(double u, double weight) {
+    if (!inverses_ready_) {
+      for (std::size_t j = 1; j <= degree_; ++j)
+        for (std::size_t r = 0; r < j; ++r)
+          inverse_[j][r] = 1.0 / (knots_[span_ + r + 1] - knots_[span_ + 1 - j + r]);
+      inverses_ready_ = true;
+    }
     std::array<double, SplineBasis::kMaxDegree + 1> phi{};
     std::array<double, SplineBasis::kMaxDegree + 1> left{};
     std::array<double, SplineBasis::kMaxDegree + 1> right{};
@@ -199,6 +210,7 @@ class Accumulator {
   std::size_t base_ = 0;
   std::size_t span_ = 0;
   std::size_t offset_ = 0;
+  bool inverses_ready_ = false;
   std::array<std::array<double, SplineBasis::kMaxDegree>, SplineBasis::kMaxDegree + 1> inverse_{};
 };
 
@@ -326,9 +338,71 @@ double footprint_half_length(double width, double cos_incidence) {
   return width / (2.0 * std::fmax(std::fabs(cos_incidence), kGrazingCosine));
 }
 
+FootprintTable::FootprintTable(const Scene& scene, const Curve& curve, const SplineBasis& basis)
+    : first_(basis.first_span()), stride_(static_cast<std::size_t>(basis.degree()) + 1) {
+  // Raw moments A_j = integral z^j phi_r ds with z the arc length from the span's start, then
+  // shifted to y = z / h - 1: M_0 = A_0, M_1 = A_1 / h - A_0, M_2 = A_2 / h^2 - 2 A_1 / h + A_0.
+  // A span lies within one segment (joints are knots). On a cubic, z at the Gauss nodes comes from
+  // the speeds by spectral integration (kIntegrate8) on panels of at most 1/16 in u.
+  const std::vector<double>& knots = basis.knots();
+  const std::size_t spans = basis.end_span() - first_;
+  length_.assign(spans, 0.0);
+  moments_.assign(spans * 3 * stride_, 0.0);
+  std::array<double, SplineBasis::kMaxDegree + 1> phi{};
+  for (std::size_t k = first_; k < basis.end_span(); ++k) {
+    const double ua = knots[k];
+    const double ub = knots[k + 1];
+    if (!(ub > ua)) continue;
+    const auto j = static_cast<std::uint32_t>(
+        std::min<double>(std::floor(0.5 * (ua + ub)), curve.segment_count - 1));
+    const SceneSegment& segment = scene.segments[curve.first_segment + j];
+    const bool line = segment.geometry.kind == SegmentKind::Line;
+    const int panels = line ? 1 : std::max(4, static_cast<int>(std::ceil((ub - ua) * 16.0)));
+    const double width = (ub - ua) / panels;
+    const double half = 0.5 * width;
+    std::array<std::array<double, SplineBasis::kMaxDegree + 1>, 3> raw{};
+    double z_panel = 0.0;
+    for (int panel = 0; panel < panels; ++panel) {
+      const double mid = ua + (panel + 0.5) * width;
+      std::array<double, 8> speed{};
+      for (std::size_t g = 0; g < 8; ++g)
+        speed[g] = line ? segment.length
+                        : flatland::length(derivative(segment.geometry.shape, mid + half * kNodes8[g] - j));
+      double panel_length = 0.0;
+      for (std::size_t g = 0; g < 8; ++g) {
+        double partial = 0.0;
+        for (std::size_t m = 0; m < 8; ++m) partial += kIntegrate8[g][m] * speed[m];
+        const double z = line ? half * (1.0 + kNodes8[g]) * segment.length : z_panel + half * partial;
+        const double u = mid + half * kNodes8[g];
+        basis.evaluate_in_span(k, u, phi.data());
+        const double w = kWeights8[g] * half * speed[g];
+        for (std::size_t r = 0; r < stride_; ++r) {
+          raw[0][r] += w * phi[r];
+          raw[1][r] += w * z * phi[r];
+          raw[2][r] += w * z * z * phi[r];
+        }
+        panel_length += kWeights8[g] * speed[g];
+      }
+      z_panel += half * panel_length;
+    }
+    const double total = line ? (ub - ua) * segment.length : z_panel;
+    length_[k - first_] = total;
+    if (!(total > 0.0)) continue;
+    const double inverse_h = 2.0 / total;
+    double* m = moments_.data() + (k - first_) * 3 * stride_;
+    for (std::size_t r = 0; r < stride_; ++r) {
+      m[r] = raw[0][r];
+      m[stride_ + r] = raw[1][r] * inverse_h - raw[0][r];
+      m[2 * stride_ + r] =
+          (raw[2][r] * inverse_h - 2.0 * raw[1][r]) * inverse_h + raw[0][r];
+    }
+  }
+}
+
 void footprint_weights(const Scene& scene, const Curve& curve, const SplineBasis& basis,
                        double u_hit, double half_length, RayProfile profile,
-                       std::vector<FootprintWeight>& out, std::span<const double> walls) {
+                       std::vector<FootprintWeight>& out, std::span<const double> walls,
+                       const FootprintTable* table) {
   // Plan. Offsets x = s - s_hit along the receiver's arc length. The run is the stretch of
   // tangent-continuous segments around the hit, [X0, X1] in x; on a closed curve it may continue
   // across the closing point (x then runs past the curve's length and wraps), and a closed curve
@@ -454,6 +528,7 @@ void footprint_weights(const Scene& scene, const Curve& curve, const SplineBasis
 
   const bool polynomial_profile = profile == RayProfile::Box || profile == RayProfile::Tent ||
                                   profile == RayProfile::Epanechnikov;
+  const bool use_table = polynomial_profile && table != nullptr && !table->empty();
   // 0 for an infinite footprint, or a flat one: a flat spread.
   const double inverse_a = flat ? 0.0 : 1.0 / a;
   // The Gaussian changes fastest: its panels span at most half the footprint (x-width 1/2), where
@@ -494,10 +569,31 @@ void footprint_weights(const Scene& scene, const Curve& curve, const SplineBasis
       const double jd = j;
       // The knot span holding the part: knots[span] <= ua < ub <= knots[span + 1] = *next_knot
       // (clamped to the spans that cover [u_begin, u_end)).
-      accumulate.enter_span(std::clamp(static_cast<std::size_t>(next_knot - knots.begin()),
-                                       basis.first_span() + 1, basis.end_span()) - 1);
+      const std::size_t span = std::clamp(static_cast<std::size_t>(next_knot - knots.begin()),
+                                          basis.first_span() + 1, basis.end_span()) - 1;
+      accumulate.enter_span(span);
 
-      if (segment.geometry.kind == SegmentKind::Line) {
+      if (use_table && ua == knots[span] && ub == knots[span + 1]) {
+        // A whole span, on one side of the centre: the profile in y = (s - s_mid) / h is a
+        // polynomial of degree <= 2 with x = x_mid + beta y.
+        const double span_length = table->length(span);
+        const double beta = 0.5 * span_length * inverse_a;
+        const double x_mid = (delta_a + 0.5 * span_length) * inverse_a;
+        double c0 = 0.5;
+        double c1 = 0.0;
+        double c2 = 0.0;
+        if (profile == RayProfile::Tent) {
+          const double sign = x_mid < 0.0 ? -1.0 : 1.0;  // 1 - |x|
+          c0 = 1.0 - sign * x_mid;
+          c1 = -sign * beta;
+        } else if (profile == RayProfile::Epanechnikov) {  // 3/4 (1 - x^2)
+          c0 = 0.75 * (1.0 - x_mid * x_mid);
+          c1 = -1.5 * x_mid * beta;
+          c2 = -0.75 * beta * beta;
+        }
+        accumulate.add_moments(table->moments(span), table->stride(), c0, c1, c2);
+        delta_a += span_length;
+      } else if (segment.geometry.kind == SegmentKind::Line) {
         // Constant speed L: delta(u) = delta_a + (u - ua) L exactly.
         const double speed = segment.length;
         const int panels = polynomial_profile ? 1 : profile_panels((ub - ua) * speed * inverse_a);

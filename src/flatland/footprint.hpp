@@ -70,6 +70,35 @@ struct FootprintWeight {
   double weight = 0.0;
 };
 
+// Per knot span of a storage basis, what a footprint needs to deposit a polynomial profile (box,
+// tent, Epanechnikov) over a whole span without quadrature: the span's arc length 2h and the
+// moments M_j[r] = integral over the span of y^j phi_r(u) ds, j = 0, 1, 2, with y = (s - s_mid) / h
+// in [-1, 1] and phi_r the span's degree + 1 basis functions (r = 0 is function span - degree).
+// On such a span the profile is c0 + c1 y + c2 y^2, so its weights are c0 M_0 + c1 M_1 + c2 M_2:
+// a footprint covering many spans costs a few multiply-adds per span instead of Gauss points
+// with a Cox-de Boor recursion each. The moments are integrated once, on the same Gauss-Legendre
+// panels as the footprint's own quadrature (finer on cubics), so weights agree with it to
+// rounding.
+class FootprintTable {
+ public:
+  FootprintTable() = default;
+  FootprintTable(const Scene& scene, const Curve& curve, const SplineBasis& basis);
+
+  bool empty() const { return length_.empty(); }
+  // Span `span` (first_span() <= span < end_span() of the basis it was built for).
+  double length(std::size_t span) const { return length_[span - first_]; }
+  const double* moments(std::size_t span) const {
+    return moments_.data() + (span - first_) * 3 * stride_;
+  }
+  std::size_t stride() const { return stride_; }  // degree + 1: M_j[r] is moments(span)[j * stride + r]
+
+ private:
+  std::size_t first_ = 0;
+  std::size_t stride_ = 1;
+  std::vector<double> length_;
+  std::vector<double> moments_;
+};
+
 // Appends to `out` the weights of the spread of half-length `half_length` (arc length) centred at
 // curve parameter u_hit (segment index + t) on `curve`, deposited on `basis` (the curve's storage
 // basis in u). The appended weights are > 0, sum to 1 (to the last bit or two: the rounding
@@ -90,8 +119,11 @@ struct FootprintWeight {
 // `walls` (arc lengths from the curve's start, increasing) end the spread like corners do: the
 // solver passes the contacts, where another curve stands on this one and the light on the two
 // sides is unrelated.
+//
+// `table` (optional; built for `basis`) makes whole knot spans cheap for the polynomial profiles.
 void footprint_weights(const Scene& scene, const Curve& curve, const SplineBasis& basis,
                        double u_hit, double half_length, RayProfile profile,
-                       std::vector<FootprintWeight>& out, std::span<const double> walls = {});
+                       std::vector<FootprintWeight>& out, std::span<const double> walls = {},
+                       const FootprintTable* table = nullptr);
 
 }  // namespace flatland

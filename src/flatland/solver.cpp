@@ -194,6 +194,7 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
   double weighted_reflectivity = 0.0;
   solver.block_offset_.assign(scene.curves.size() * 2, kNoBlock);
   solver.block_reflectivity_.assign(scene.curves.size() * 2, Spectrum{});
+  solver.block_black_.assign(scene.curves.size() * 2, 0);
   for (std::uint32_t c = 0; c < scene.curves.size(); ++c) {
     if (cancelled()) return Error{kSolverCancelled};
     const Curve& curve = scene.curves[c];
@@ -202,13 +203,23 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
       lengths.push_back(scene.segments[curve.first_segment + i].length);
     solver.segment_choice_.emplace_back(lengths);
     const bool smooth = settings.discontinuities == DiscontinuityMode::None;
+    // Footprints spread every deposit over the ray's width, so the deposited density is smooth on
+    // that scale: elements shorter than kFootprintFinestElement x the width resolve only the
+    // spread, while each hit pays for every span it covers. Auto storage stops refining there.
+    int curve_finest = finest_level;
+    if (solver.auto_storage_ && settings.ray_width > 0.0 && settings.ray_mode == RayMode::Footprint) {
+      const double coarsest = std::max<double>(kAutoBaseElements, curve.segment_count);
+      while (curve_finest > 0 && curve.length / (coarsest * static_cast<double>(1 << curve_finest)) <
+                                     kFootprintFinestElement * settings.ray_width)
+        --curve_finest;
+    }
     solver.storage_.push_back(
-        build_curve_storage(scene, curve, settings.basis, elements, smooth, events[c], finest_level));
+        build_curve_storage(scene, curve, settings.basis, elements, smooth, events[c], curve_finest));
     if (settings.estimator == Estimator::Local)
       build_local_estimator(scene, curve, solver.storage_.back(), hermite);
     // The coarser levels, each with its restriction from the finest.
     std::vector<Level>& levels = solver.levels_.emplace_back();
-    for (int level = 0; level < finest_level; ++level) {
+    for (int level = 0; level < curve_finest; ++level) {
       if (cancelled()) return Error{kSolverCancelled};
       Level& coarse = levels.emplace_back();
       coarse.storage = build_curve_storage(scene, curve, settings.basis, elements, smooth, events[c], level);
@@ -222,6 +233,9 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
       const std::uint32_t block = c * 2 + static_cast<std::uint32_t>(side);
       solver.block_offset_[block] = static_cast<std::uint32_t>(solver.coefficient_count_);
       solver.block_reflectivity_[block] = material.reflectivity;
+      bool black = true;
+      for (std::size_t ch = 0; ch < channels; ++ch) black = black && !(material.reflectivity[ch] > 0.0);
+      solver.block_black_[block] = black ? 1 : 0;
       solver.coefficient_count_ += solver.storage_[c].basis.size();
       solver.coefficient_block_.resize(solver.coefficient_count_, block);
       double mean = 0.0;
@@ -242,6 +256,14 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
     if (solver.ray_kind_ == RayKind::Band) {
       profile_quadrature(settings.ray_profile, settings.band_rays, solver.band_offsets_,
                          solver.band_weights_);
+    } else if (settings.ray_profile == RayProfile::Box || settings.ray_profile == RayProfile::Tent ||
+               settings.ray_profile == RayProfile::Epanechnikov) {
+      // Whole knot spans of the deposit mesh from precomputed moments (footprint.hpp).
+      solver.footprint_tables_.reserve(scene.curves.size());
+      for (std::uint32_t c = 0; c < scene.curves.size(); ++c) {
+        if (cancelled()) return Error{kSolverCancelled};
+        solver.footprint_tables_.emplace_back(scene, scene.curves[c], solver.storage_[c].basis);
+      }
     }
   }
   const bool reconstructed = settings.sampling == PositionSampling::Reconstructed;
@@ -885,7 +907,9 @@ void Solver::receive(const SceneHit& hit, const Ray& ray, const std::array<std::
     path->hit_side = side;
   }
   const std::uint32_t offset = block_offset(info.curve, side);
-  if (offset == kNoBlock) {
+  // A side that reflects nothing (rho = 0 in every channel) turns all it receives into absorbed
+  // power whatever the deposit's shape: no footprint or deposit is computed for it.
+  if (offset == kNoBlock || block_black_[info.curve * 2 + static_cast<std::uint32_t>(side)]) {
     for (std::size_t ch = 0; ch < channels; ++ch) acc.black[ch] += units[ch];
     return;
   }
@@ -897,7 +921,8 @@ void Solver::receive(const SceneHit& hit, const Ray& ray, const std::array<std::
     footprint.clear();
     footprint_weights(*scene_, scene_->curves[info.curve], storage_[info.curve].basis, u,
                       footprint_half_length(settings_.ray_width, cos_incidence),
-                      settings_.ray_profile, footprint, walls_[info.curve]);
+                      settings_.ray_profile, footprint, walls_[info.curve],
+                      footprint_tables_.empty() ? nullptr : &footprint_tables_[info.curve]);
     std::size_t largest = 0;
     for (std::size_t i = 1; i < footprint.size(); ++i)
       if (footprint[i].weight > footprint[largest].weight) largest = i;

@@ -75,6 +75,10 @@ inline constexpr int kHermiteAutoElements = 16;
 inline constexpr int kAutoBaseElements = 4;
 inline constexpr int kAutoMaxLevels = 11;
 inline constexpr double kAutoPhotonsPerElement = 2048.0;
+// With footprint rays, auto storage refines a curve only while its mean element is at least this
+// fraction of the ray's width: the footprint's spread smooths every deposit on that scale (its
+// bias is O(width^2)), so finer elements would resolve nothing but cost time on every hit.
+inline constexpr double kFootprintFinestElement = 0.25;
 
 struct SolverSettings {
   std::uint64_t photons = 1'000'000;  // total budget over all rounds
@@ -338,6 +342,7 @@ class Solver {
   std::vector<double> received_half_;  // auto storage: the part of received_ from odd photons
   std::vector<std::uint32_t> block_offset_;  // first coefficient of each (curve, side), or kNoBlock
   std::vector<Spectrum> block_reflectivity_;
+  std::vector<std::uint8_t> block_black_;  // 1 where the side reflects nothing in any channel
   std::vector<std::uint32_t> coefficient_block_;  // block of each coefficient
   std::size_t coefficient_count_ = 0;
   std::size_t visibility_events_ = 0;
@@ -345,6 +350,9 @@ class Solver {
   // Per curve, the arc lengths of its contacts: footprints stop there (empty with discontinuities
   // none).
   std::vector<std::vector<double>> walls_;
+  // Per curve, the footprint's span moments on its deposit mesh (footprint rays with a
+  // polynomial profile only; empty otherwise).
+  std::vector<FootprintTable> footprint_tables_;
 
   std::vector<double> received_;  // all rounds, [coefficient * channels + channel]
   std::vector<double> unshot_;    // current pool, same layout
