@@ -138,6 +138,23 @@ TEST(Qmc, PointsAreDeterministicInOpenUnitIntervalAndDifferBySeed) {
   EXPECT_EQ(first_point.size(), static_cast<std::size_t>(kSobolDimensions));
 }
 
+TEST(Qmc, CursorWalksThePointsBitForBit) {
+  // Consecutive indices by one XOR per dimension, jumps (back, ahead, to 0, across the top bit of
+  // a 2^m block) by recomputation: every coordinate equal to ScrambledSobol::sample exactly.
+  const ScrambledSobol sobol(11, 3);
+  SobolCursor cursor(sobol);
+  std::vector<std::uint32_t> indices;
+  for (std::uint32_t i = 0; i < 5000; ++i) indices.push_back(i);
+  for (std::uint32_t i : {70000u, 70001u, 65535u, 65536u, 65537u, 3u, 0u, 1u, 0x7fffffffu,
+                          0x80000000u, 0xfffffffeu, 0xffffffffu, 12u, 12u, 13u})
+    indices.push_back(i);
+  for (std::uint32_t index : indices) {
+    cursor.seek(index);
+    for (int d = 0; d < kSobolDimensions; ++d)
+      ASSERT_EQ(cursor.sample(d), sobol.sample(index, d)) << "index " << index << " dimension " << d;
+  }
+}
+
 TEST(Qmc, EachScrambledPointIsUniformOverSeeds) {
   // Over independent scrambles, a fixed point is uniform in [0,1): chi-square over 32 bins, for
   // a few points and dimensions (one point is all an unbiased estimator needs).

@@ -64,6 +64,23 @@ std::uint32_t sobol_bits(std::uint32_t index, int dimension) {
 }
 
 std::uint32_t nested_uniform_scramble(std::uint32_t bits, std::uint32_t seed) {
+  return nested_uniform_scramble_mirrored(reverse_bits(bits), seed);
+}
+
+const std::array<std::array<std::uint32_t, 32>, kSobolDimensions>& sobol_mirrored_steps() {
+  static const auto steps = [] {
+    std::array<std::array<std::uint32_t, 32>, kSobolDimensions> table{};
+    for (int d = 0; d < kSobolDimensions; ++d)
+      for (std::uint32_t k = 0; k < 32; ++k) {
+        const std::uint32_t ones = k == 31 ? 0xffffffffu : (2u << k) - 1u;  // bits 0..k
+        table[static_cast<std::size_t>(d)][k] = reverse_bits(sobol_bits(ones, d));
+      }
+    return table;
+  }();
+  return steps;
+}
+
+std::uint32_t nested_uniform_scramble_mirrored(std::uint32_t mirrored, std::uint32_t seed) {
   // Mirrored, the leading digit is bit 0, and each step below changes bit j by a function of bits
   // 0..j-1 only: an addition (carries move up), a product with an odd number (bit j of x m is
   // x_j plus terms in the lower bits of x), x ^= x * c with c even (x c has bit j from bits below
@@ -71,7 +88,7 @@ std::uint32_t nested_uniform_scramble(std::uint32_t bits, std::uint32_t seed) {
   // scramble. Two seed-dependent steps (the added constant and the odd factor) and three fixed
   // mixing steps spread each digit's influence over all digits below it.
   const std::uint32_t factor = (seed * 0x2c1b3c6du ^ (seed >> 13)) | 1u;
-  std::uint32_t x = reverse_bits(bits);
+  std::uint32_t x = mirrored;
   x += seed;
   x ^= x * 0x9e3779b8u;  // even constants: the fractions of the golden ratio, sqrt 2 and sqrt 3
   x *= factor;

@@ -21,6 +21,7 @@
 #pragma once
 
 #include <array>
+#include <bit>
 #include <cstdint>
 
 namespace flatland {
@@ -46,6 +47,13 @@ std::uint32_t sobol_bits(std::uint32_t index, int dimension);
 // of the digits above j, so that elementary intervals map onto elementary intervals of the same
 // size.
 std::uint32_t nested_uniform_scramble(std::uint32_t bits, std::uint32_t seed);
+// The same scramble of bits given mirrored (reverse_bits(bits): the leading digit at bit 0), the
+// form the scramble works in; returns the scrambled fraction the right way round.
+std::uint32_t nested_uniform_scramble_mirrored(std::uint32_t mirrored, std::uint32_t seed);
+// Mirrored steps between consecutive points: point i + 1 is point i XOR step[k] with k the number
+// of trailing zero bits of i + 1 (the bits 0..k of the index flip, so their direction numbers
+// v[0] ^ .. ^ v[k] do); step[d][k] = reverse_bits(sobol_bits(2^(k+1) - 1, d)).
+const std::array<std::array<std::uint32_t, 32>, kSobolDimensions>& sobol_mirrored_steps();
 
 // One randomisation of the Sobol' sequence, named by (seed, stream): any point can be computed on
 // its own, from its index, so points are the same whatever thread computes them, and different
@@ -63,9 +71,45 @@ class ScrambledSobol {
     return nested_uniform_scramble(sobol_bits(index, dimension),
                                    seeds_[static_cast<std::size_t>(dimension)]);
   }
+  std::uint32_t seed(int dimension) const { return seeds_[static_cast<std::size_t>(dimension)]; }
 
  private:
   std::array<std::uint32_t, kSobolDimensions> seeds_{};
+};
+
+// Walks the points of one ScrambledSobol in index order: moving to the next index costs one XOR
+// per dimension (sobol_mirrored_steps), any other move recomputes the point from its index. The
+// same values as ScrambledSobol::sample, bit for bit; a photon loop over consecutive indices pays
+// a few operations per coordinate instead of a loop over the index's bits.
+class SobolCursor {
+ public:
+  explicit SobolCursor(const ScrambledSobol& sobol)
+      : sobol_(&sobol), steps_(&sobol_mirrored_steps()) {}
+
+  void seek(std::uint32_t index) {
+    if (valid_ && index == index_ + 1u && index != 0u) {
+      const auto k = static_cast<std::size_t>(std::countr_zero(index));
+      for (std::size_t d = 0; d < mirrored_.size(); ++d) mirrored_[d] ^= (*steps_)[d][k];
+    } else if (!valid_ || index != index_) {
+      for (std::size_t d = 0; d < mirrored_.size(); ++d)
+        mirrored_[d] = reverse_bits(sobol_bits(index, static_cast<int>(d)));
+    }
+    index_ = index;
+    valid_ = true;
+  }
+  // Coordinate `dimension` of the current point, as ScrambledSobol::sample.
+  double sample(int dimension) const {
+    const std::uint32_t bits = nested_uniform_scramble_mirrored(
+        mirrored_[static_cast<std::size_t>(dimension)], sobol_->seed(dimension));
+    return (static_cast<double>(bits) + 0.5) * 0x1.0p-32;
+  }
+
+ private:
+  const ScrambledSobol* sobol_;
+  const std::array<std::array<std::uint32_t, 32>, kSobolDimensions>* steps_;
+  std::uint32_t index_ = 0;
+  bool valid_ = false;
+  std::array<std::uint32_t, kSobolDimensions> mirrored_{};
 };
 
 }  // namespace flatland

@@ -673,6 +673,9 @@ void Solver::shoot(Rng& rng, std::uint64_t first, std::uint64_t count, Accumulat
   const bool halves = qmc && auto_storage_;
   const ScrambledSobol sobol(settings_.seed, halves ? 2 * std::uint64_t{rounds_} : rounds_);
   const ScrambledSobol sobol_odd(settings_.seed, 2 * std::uint64_t{rounds_} + 1);
+  // Consecutive photons of a half take consecutive points: one XOR per dimension each.
+  SobolCursor cursor(sobol);
+  SobolCursor cursor_odd(sobol_odd);
   // A parameter from what is left of kPlace, inside (0, 1) as Rng::uniform_open's.
   auto open = [](double rest) { return std::max(rest, 0x1.0p-54); };
   for (std::uint64_t i = 0; i < count; ++i) {
@@ -681,9 +684,9 @@ void Solver::shoot(Rng& rng, std::uint64_t first, std::uint64_t count, Accumulat
     if (auto_storage_) acc.half_offset = (index & 1u) != 0 ? coefficient_count_ * static_cast<std::size_t>(channels_) : 0;
     const bool odd = halves && (index & 1u) != 0;
     const std::uint32_t net_index = halves ? index >> 1 : index;
-    auto quasi = [&sobol, &sobol_odd, odd, net_index](int dimension) {
-      return odd ? sobol_odd.sample(net_index, dimension) : sobol.sample(net_index, dimension);
-    };
+    SobolCursor& net_point = odd ? cursor_odd : cursor;
+    if (qmc) net_point.seek(net_index);
+    auto quasi = [&net_point](int dimension) { return net_point.sample(dimension); };
     // The source, by unshot power: a side of a curve, or one of its coefficients.
     double place = 0.0;  // Sobol': what choosing the source left of dimension kPlace
     const std::size_t source = qmc ? round_.sources.sample(quasi(kPlace), place)
