@@ -275,6 +275,7 @@ ArcLengthTable::ArcLengthTable(const Cubic& c) {
     pieces[k] = arc_length(c, k / double(kIntervals), (k + 1) / double(kIntervals));
     lengths_[k + 1] = lengths_[k] + pieces[k];
   }
+  for (int k = 0; k <= kIntervals; ++k) speeds_[k] = speed(c, k / double(kIntervals));
   const double total = lengths_[kIntervals];
   double extrema[4];
   int n = coordinate_extrema(c.p[0].x, c.p[1].x, c.p[2].x, c.p[3].x, extrema);
@@ -323,8 +324,23 @@ double ArcLengthTable::parameter_at(const Cubic& c, double s) const {
   const double target = s - lengths_[k];
   const double interval = lengths_[k + 1] - lengths_[k];
   if (!(interval > 0.0)) return lo;
-  // Initial guess by linear interpolation within the interval.
-  double t = lo + (hi - lo) * std::clamp(target / interval, 0.0, 1.0);
+  // Initial guess: the cubic Hermite interpolant of the inverse t(s) on the interval, with the
+  // slopes dt/ds = 1 / |C'| at its knots (error O(h^4) where the speed is smooth, so one or two
+  // Newton steps finish); linear interpolation where a knot's speed vanishes, and clamped into the
+  // interval.
+  const double x = std::clamp(target / interval, 0.0, 1.0);
+  double t = lo + (hi - lo) * x;
+  const double v0 = speeds_[k];
+  const double v1 = speeds_[k + 1];
+  if (v0 > 0.0 && v1 > 0.0) {
+    // On x in [0, 1]: t = lo + h (x + m0 x (1 - x)^2 - m1 x^2 (1 - x)) with m = (interval / h) / v - 1,
+    // the slopes' departures from the chord's.
+    const double h = hi - lo;
+    const double m0 = interval / (h * v0) - 1.0;
+    const double m1 = interval / (h * v1) - 1.0;
+    const double guess = lo + h * (x + m0 * x * (1.0 - x) * (1.0 - x) - m1 * x * x * (1.0 - x));
+    if (guess > lo && guess < hi) t = guess;
+  }
   const double tolerance = 1e-15 * total;
   for (int iteration = 0; iteration < 100; ++iteration) {
     const double residual = length_from_knot(c, k, t) - target;

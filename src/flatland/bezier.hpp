@@ -88,6 +88,7 @@ class ArcLengthTable {
   double length_from_knot(const Cubic& c, int k, double t) const;
 
   std::array<double, kIntervals + 1> lengths_{};
+  std::array<double, kIntervals + 1> speeds_{};  // |C'| at the knots: parameter_at's first guess
   // Bit k set: |C'| is smooth enough on interval k that one 8-point Gauss-Legendre rule gives the
   // length of any part of it to full accuracy (checked when the table is built).
   std::uint32_t smooth_ = 0;
