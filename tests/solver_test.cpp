@@ -35,6 +35,7 @@ void check_enclosure(double rho, double tolerance, BasisKind basis) {
   settings.basis = basis;
   settings.elements = 16;
   settings.seed = 12;
+  settings.sampler = SamplerKind::Random;  // the tolerance below is derived for independent samples
   Solver solver = make_solver(scene, settings);
   solver.run();
   ASSERT_EQ(solver.stop_reason(), StopReason::Converged);
@@ -78,6 +79,7 @@ TEST(Solver, ExtendedRaysKeepTheEnclosureClosedForm) {
       settings.elements = 16;
       settings.ray_width = 0.05;
       settings.ray_mode = mode;
+      settings.sampler = SamplerKind::Random;  // binomial noise below, as in check_enclosure
       settings.ray_profile = profile;
       settings.band_rays = 5;
       Solver solver = make_solver(scene, settings);
@@ -169,6 +171,7 @@ void check_penumbra(const PenumbraSetup& setup, BasisKind basis) {
   settings.elements = 24;
   settings.estimator = Estimator::Lumped;  // the expectation below is the lumped estimate's
   settings.seed = 3;
+  settings.sampler = SamplerKind::Random;  // the tolerance below is derived for independent samples
   Solver solver = make_solver(scene, settings);
   // The floor receives light only in the first round (everything else is black and the floor is
   // flat), so its coefficients are final after it.
@@ -441,6 +444,7 @@ TEST(Solver, SameSeedGivesIdenticalResultsOnAnyThreadCount) {
     settings.photons = 300'000;
     settings.threads = threads;
     settings.seed = 99;
+    settings.sampler = SamplerKind::Random;  // Sobol': SobolGivesIdenticalResultsOnAnyThreadCountAndStep
     Solver solver = make_solver(scene, settings);
     solver.run();
     nlohmann::json result = result_to_json(solver, 50);
@@ -454,6 +458,7 @@ TEST(Solver, SameSeedGivesIdenticalResultsOnAnyThreadCount) {
   SolverSettings other;
   other.photons = 300'000;
   other.seed = 100;
+  other.sampler = SamplerKind::Random;
   Solver solver = make_solver(scene, other);
   solver.run();
   nlohmann::json result = result_to_json(solver, 50);
@@ -473,6 +478,7 @@ TEST(Solver, StepsOfAnySizeGiveTheSameResultAsWholeRounds) {
   settings.threads = 2;
   settings.seed = 7;
   settings.ray_width = 0.02 * scene.scale;  // extended rays draw more random numbers per photon
+  settings.sampler = SamplerKind::Random;  // Sobol': SobolGivesIdenticalResultsOnAnyThreadCountAndStep
   Solver whole = make_solver(scene, settings);
   whole.record_paths(5000);
   ASSERT_TRUE(whole.step_round());
@@ -828,6 +834,7 @@ TEST(Solver, EmittanceAtBothEndsOfItsRangeBalancesTheBooks) {
     const Scene scene = testing::scene_from_text(testing::circle_enclosure(0.5, emittance));
     SolverSettings settings;
     settings.photons = 100'000;
+    settings.sampler = SamplerKind::Random;  // binomial noise below
     Solver solver = make_solver(scene, settings);
     solver.run();
     EXPECT_EQ(solver.stop_reason(), StopReason::Converged) << emittance;
@@ -994,6 +1001,7 @@ TEST(Solver, ClosedRingHasNoSeamAtItsClosingPoint) {
       settings.seed = seed;
       settings.elements = 16;
       settings.estimator = Estimator::Lumped;  // the seam's O(h) end bias is the lumped estimate's
+      settings.sampler = SamplerKind::Random;  // the spread below counts independent values
       Solver solver = make_solver(scene, settings);
       solver.run();
       double near2 = 0.0, away2 = 0.0;

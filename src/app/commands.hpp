@@ -58,7 +58,7 @@ struct SolveOptions {
   std::string sampling = "reconstructed";
   std::string discontinuities = "auto";
   std::string estimator = "galerkin";
-  std::string sampler = "random";
+  std::string sampler = "sobol";
   std::string elements = "auto";
   std::string ray_profile = "box";
   std::string ray_mode = "footprint";

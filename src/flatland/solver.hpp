@@ -99,7 +99,7 @@ struct SolverSettings {
   RayProfile ray_profile = RayProfile::Box;
   RayMode ray_mode = RayMode::Footprint;
   int band_rays = 8;
-  SamplerKind sampler = SamplerKind::Random;
+  SamplerKind sampler = SamplerKind::Sobol;
   // Memory the solver's storage may take (0: default_memory_budget(), three quarters of the
   // machine's); settings that would need more are refused by Solver::create before allocating.
   std::size_t memory_limit = 0;

@@ -23,6 +23,8 @@ def key_of(method):
 BUDGETS = [float(b) for b in os.environ.get("BUDGETS", "1e4,3e4,1e5,3e5,1e6,3e6,1e7").split(",")]
 
 
+THREADS = os.environ.get("THREADS", "2")
+THREADS_LABEL = "1 thread" if THREADS == "1" else THREADS + " threads"
 EXTEND = [float(b) for b in os.environ.get("EXTEND", "3e7").split(",") if b]
 
 
@@ -118,13 +120,13 @@ def plot(d, scene, med):
 set output '%s'
 set logscale xy
 set format x '10^{%%L}'; set format y '10^{%%L}'
-set xlabel 'median solve time (s, 2 threads)'; set ylabel 'median relative L2 error of B - E'
+set xlabel 'median solve time (s, %s)'; set ylabel 'median relative L2 error of B - E'
 set title '%s: error against time, medians of seeds'
 set key bottom left
 set grid
 plot 0.01 with lines lc rgb '#bbbbbb' dt 3 notitle, 0.001 with lines lc rgb '#bbbbbb' dt 3 notitle, \\
  %s
-""" % (os.path.join(d, scene + ".png"), scene.replace("_", " "), ", \\\n ".join(lines))
+""" % (os.path.join(d, scene + ".png"), THREADS_LABEL, scene.replace("_", " "), ", \\\n ".join(lines))
     subprocess.run(["gnuplot"], input=gp.encode(), check=True)
 
 

@@ -22,7 +22,7 @@ SCENES=${SCENES:-"penumbra round_occluder lit_ring ring_profile curved_room"}
 EXTEND=${EXTEND-3e7}
 EXTEND_SCENES=${EXTEND_SCENES:-"penumbra round_occluder"}
 MAIN=${MAIN:-1}
-export BUDGETS EXTEND
+export BUDGETS EXTEND THREADS
 
 scene_file() {
     case "$1" in
