@@ -111,9 +111,11 @@ void Lines(benchmark::State& state) { solve(state, Layout::Lines); }
 void LinesAsCubics(benchmark::State& state) { solve(state, Layout::LinesAsCubics); }
 
 // The cubic room with extended rays 0.05 wide (a hundredth of the room's radius), box profile,
-// reconstructed positions, auto storage: 0 point rays, 1 footprints, 2 a band of 8 sub-rays.
+// reconstructed positions, auto storage: 0 point rays, 1 footprints, 2 a band of 8 sub-rays; with
+// the random (0) or Sobol' (1) sampler.
 void CubicsRays(benchmark::State& state) {
   SolverSettings settings;
+  settings.sampler = state.range(2) == 0 ? SamplerKind::Random : SamplerKind::Sobol;
   if (state.range(1) > 0) {
     settings.ray_width = 0.05;
     settings.ray_mode = state.range(1) == 1 ? RayMode::Footprint : RayMode::Band;
@@ -133,8 +135,8 @@ void CubicsStorage(benchmark::State& state) {
 BENCHMARK(Cubics)->ArgsProduct({{1, 2}, {0, 1}})->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(Lines)->ArgsProduct({{1, 2}, {0, 1}})->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(LinesAsCubics)->ArgsProduct({{1, 2}, {0, 1}})->Unit(benchmark::kMillisecond)->UseRealTime();
-// Arguments: threads, then the ray kind (0 point, 1 footprint, 2 band).
-BENCHMARK(CubicsRays)->ArgsProduct({{1, 2}, {0, 1, 2}})->Unit(benchmark::kMillisecond)->UseRealTime();
+// Arguments: threads, the ray kind (0 point, 1 footprint, 2 band), the sampler (0 random, 1 Sobol').
+BENCHMARK(CubicsRays)->ArgsProduct({{1, 2}, {0, 1, 2}, {0, 1}})->Unit(benchmark::kMillisecond)->UseRealTime();
 // Arguments: threads, then elements per curve.
 BENCHMARK(CubicsStorage)->ArgsProduct({{1}, {4, 64, 1024, 4096}})->Unit(benchmark::kMillisecond)->UseRealTime();
 

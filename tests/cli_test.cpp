@@ -17,6 +17,8 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include "flatland/sha256.hpp"
+
 #include "test_support.hpp"
 
 namespace flatland {
@@ -142,6 +144,61 @@ std::vector<double> row_of(const std::string& table, const std::string& label) {
       return values;
     }
   return {};
+}
+
+// Results name what made them: the program's version and commit, the scene file and the SHA-256
+// of its bytes (checked here against the hash of the file as read by the test; the hash itself is
+// tested against FIPS 180-4's vectors in sha256_test). compare --json gives the table's numbers as
+// data.
+TEST_F(Cli, ResultsCarryProvenanceAndCompareSpeaksJson) {
+  const fs::path a = directory_ / "a.json";
+  const fs::path b = directory_ / "b.json";
+  const fs::path r = directory_ / "r.json";
+  const std::string scene_path = scene("penumbra.json");
+  ASSERT_EQ(run("solve " + scene_path + " --photons 50000 --seed 1 --samples 40 --quiet --out " + a.string()).exit_code, 0);
+  ASSERT_EQ(run("solve " + scene_path + " --photons 50000 --seed 2 --samples 40 --quiet --out " + b.string()).exit_code, 0);
+  ASSERT_EQ(run("reference " + scene_path + " --samples 40 --quiet --out " + r.string()).exit_code, 0);
+  const std::string version = run("--version").out;
+  for (const fs::path& file : {a, r}) {
+    const nlohmann::json result = nlohmann::json::parse(read_file(file));
+    ASSERT_TRUE(result.contains("program")) << file;
+    EXPECT_EQ(result["program"]["name"], "flatland");
+    const std::string commit = result["program"]["commit"].get<std::string>();
+    const std::string program_version = result["program"]["version"].get<std::string>();
+    EXPECT_NE(version.find("flatland " + program_version + " (commit " + commit + ")"), std::string::npos)
+        << version;
+    const bool hex = commit.size() >= 40 &&
+                     commit.find_first_not_of("0123456789abcdef") >= 40;  // 40 hex digits (+ "-dirty")
+    EXPECT_TRUE(hex || commit == "unknown") << commit;
+    EXPECT_EQ(result["scene"]["sha256"], sha256_hex(read_file(scene_path))) << file;
+    EXPECT_EQ(result["scene"]["file"], scene_path);
+  }
+  const CommandRun table = run("compare " + a.string() + " " + b.string());
+  const CommandRun json = run("compare " + a.string() + " " + b.string() + " --json");
+  ASSERT_EQ(json.exit_code, 0) << json.err;
+  const nlohmann::json errors = nlohmann::json::parse(json.out);
+  EXPECT_EQ(errors["measure"], "reflected");
+  EXPECT_EQ(errors["result"], a.string());
+  ASSERT_EQ(errors["curves"].size(), 3u);
+  for (const auto& curve : errors["curves"]) {
+    if (!curve["measured"].get<bool>()) {
+      EXPECT_FALSE(curve.contains("l2")) << curve;
+      continue;
+    }
+    // The table prints 5 significant digits of the same numbers.
+    const std::vector<double> row = row_of(table.out, curve["id"].get<std::string>());
+    ASSERT_EQ(row.size(), 3u);
+    EXPECT_NEAR(curve["l1"].get<double>(), row[0], 1e-4 * row[0]);
+    EXPECT_NEAR(curve["l2"].get<double>(), row[1], 1e-4 * row[1]);
+    EXPECT_NEAR(curve["linf"].get<double>(), row[2], 1e-4 * row[2]);
+  }
+  EXPECT_NEAR(errors["scene"]["l2"].get<double>(), row_of(table.out, "(scene)")[1],
+              1e-4 * row_of(table.out, "(scene)")[1]);
+  const nlohmann::json one = nlohmann::json::parse(
+      run("compare " + a.string() + " " + b.string() + " --json --curve receiver --measure total").out);
+  EXPECT_EQ(one["measure"], "total");
+  ASSERT_EQ(one["curves"].size(), 1u);
+  EXPECT_EQ(one["curves"][0]["id"], "receiver");
 }
 
 // compare measures B - E by default: relative to the reference's B - E, so its relative L2 error is

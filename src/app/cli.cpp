@@ -10,6 +10,7 @@
 
 #include "flatland/reference.hpp"
 #include "flatland/text.hpp"
+#include "flatland/version.hpp"
 #ifdef FLATLAND_HAVE_VIEWER
 #include "viewer/viewer_app.hpp"
 #endif
@@ -70,7 +71,8 @@ CommandLine::CommandLine()
           "'Cubic Monte Carlo Radiosity' (Elias, Feda, Ferschin, Purgathofer).\n"
           "Scenes are JSON files (docs/scene-format.md); examples are in scenes2d/.",
           "flatland"} {
-  app.set_version_flag("--version", "flatland 0.1.0");
+  app.set_version_flag("--version", std::string("flatland ") + program_version() + " (commit " +
+                                        program_commit() + ")");
   app.require_subcommand(1);
   app.fallthrough(false);
   add_solve_command(app, solve);

@@ -19,6 +19,22 @@ Result<std::size_t> find_curve(const std::vector<std::string>& ids, const std::s
   return Error{"--curve: no curve with id '" + id + "'; the curves are: " + choices};
 }
 
+nlohmann::json comparison_to_json(const Comparison& comparison, const std::string& result,
+                                  const std::string& reference) {
+  auto norms = [](const ErrorNorms& n) { return nlohmann::json{{"l1", n.l1}, {"l2", n.l2}, {"linf", n.linf}}; };
+  nlohmann::json curves = nlohmann::json::array();
+  for (const CurveError& curve : comparison.curves) {
+    nlohmann::json entry = {{"id", curve.id}, {"measured", curve.measured}};
+    if (curve.measured) entry.update(norms(curve.norms));
+    curves.push_back(std::move(entry));
+  }
+  return {{"measure", comparison.measure == Measure::Reflected ? "reflected" : "total"},
+          {"result", result},
+          {"reference", reference},
+          {"curves", std::move(curves)},
+          {"scene", norms(comparison.scene)}};
+}
+
 void print_comparison(const Comparison& comparison, bool scene_row) {
   std::printf("%s\n", comparison.measure == Measure::Reflected
                           ? "errors of the reflected part B - E (emitted light E is exact in every method)"
@@ -50,6 +66,9 @@ CLI::App* add_compare_command(CLI::App& parent, CompareOptions& o) {
       ->capture_default_str()
       ->check(CLI::IsMember({"reflected", "total"}));
   cmd->add_option("--curve", o.curve, "Print only the curve with this id (as in the scene file)");
+  cmd->add_flag("--json", o.json,
+                "Print the errors as one JSON document (measure, per-curve and scene L1, L2, "
+                "Linf; docs/result-format.md) instead of a table");
   return cmd;
 }
 
@@ -82,7 +101,11 @@ int run_compare(const CompareOptions& o) {
                          "along it), so it has no relative error of B - E; use --measure total");
     comparison->curves = {chosen};
   }
-  print_comparison(*comparison, o.curve.empty());
+  if (o.json) {
+    std::printf("%s\n", comparison_to_json(*comparison, o.result, o.reference).dump(2).c_str());
+  } else {
+    print_comparison(*comparison, o.curve.empty());
+  }
   return kExitOk;
 }
 

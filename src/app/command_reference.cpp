@@ -157,6 +157,7 @@ int run_reference(ReferenceOptions& o) {
   if (!o.out.empty()) {
     nlohmann::json result;
     result["flatland_result"] = 1;
+    result["program"] = program_to_json();
     result["scene"] = scene_to_json(*scene);
     result["settings"] = {{"method", "reference"},
                           {"max_element_length", o.settings.max_element_length > 0.0

@@ -113,6 +113,7 @@ struct CompareOptions {
   std::string reference;
   std::string measure = "reflected";  // "reflected" (B - E) or "total" (B)
   std::string curve;                  // a curve id: print that curve's row only
+  bool json = false;                  // print the errors as a JSON document instead of a table
 };
 CLI::App* add_compare_command(CLI::App& parent, CompareOptions& options);
 int run_compare(const CompareOptions& options);

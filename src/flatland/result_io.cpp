@@ -1,5 +1,7 @@
 #include "flatland/result_io.hpp"
 
+#include "flatland/version.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cerrno>
@@ -32,7 +34,12 @@ const char* sides_name(Sides sides) {
 }  // namespace
 
 nlohmann::json scene_to_json(const Scene& scene) {
-  return {{"name", scene.name}, {"file", scene.source}, {"channels", scene.channels}};
+  return {{"name", scene.name}, {"file", scene.source}, {"sha256", scene.source_sha256},
+          {"channels", scene.channels}};
+}
+
+nlohmann::json program_to_json() {
+  return {{"name", "flatland"}, {"version", program_version()}, {"commit", program_commit()}};
 }
 
 nlohmann::json sampled_curves_to_json(const Scene& scene, int samples_per_curve,
@@ -78,6 +85,7 @@ nlohmann::json result_to_json(const Solver& solver, int samples_per_curve) {
   const EnergyBooks books = solver.books();
   nlohmann::json result;
   result["flatland_result"] = 1;
+  result["program"] = program_to_json();
   result["scene"] = scene_to_json(scene);
   result["settings"] = {
       {"method", "shooting"},

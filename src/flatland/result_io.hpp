@@ -30,6 +30,8 @@ nlohmann::json sampled_curves_to_json(const Scene& scene, int samples_per_curve,
                                       const RadiosityFunction& radiosity);
 // The "scene" entry of a result.
 nlohmann::json scene_to_json(const Scene& scene);
+// The program that wrote a result: {"name": "flatland", "version", "commit"} (version.hpp).
+nlohmann::json program_to_json();
 
 // A result document from its text (`source` names it in errors): JSON whose top level is an
 // object with "flatland_result": 1. Errors name the source, line and column (numbers beyond a

@@ -100,6 +100,7 @@ struct Scene {
   std::string name;
   std::string description;  // free text from the file ("description"), for people; may be empty
   std::string source;  // file the scene came from, for messages
+  std::string source_sha256;  // SHA-256 of the text it was parsed from (results' provenance)
   int channels = 1;    // 1 (grey) or 3 (colour)
   std::vector<Material> materials;
   std::vector<Curve> curves;

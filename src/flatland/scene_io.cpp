@@ -28,6 +28,7 @@
 #include <nlohmann/json.hpp>
 
 #include "flatland/scene.hpp"
+#include "flatland/sha256.hpp"
 #include "flatland/text.hpp"
 
 namespace flatland {
@@ -835,7 +836,9 @@ class SceneReader {
 Result<Scene> parse_scene(std::string_view text, std::string_view source) {
   try {
     SceneReader reader(text, source);
-    return reader.read();
+    Result<Scene> scene = reader.read();
+    if (scene) scene->source_sha256 = sha256_hex(text);
+    return scene;
   } catch (const ParseFailure& failure) {
     return Error{failure.message};
   } catch (const std::exception& e) {
