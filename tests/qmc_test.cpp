@@ -146,7 +146,7 @@ TEST(Qmc, CursorWalksThePointsBitForBit) {
   std::vector<std::uint32_t> indices;
   for (std::uint32_t i = 0; i < 5000; ++i) indices.push_back(i);
   for (std::uint32_t i : {70000u, 70001u, 65535u, 65536u, 65537u, 3u, 0u, 1u, 0x7fffffffu,
-                          0x80000000u, 0xfffffffeu, 0xffffffffu, 12u, 12u, 13u})
+                          0x80000000u, 0xfffffffeu, 0xffffffffu, 0u, 12u, 12u, 13u})
     indices.push_back(i);
   for (std::uint32_t index : indices) {
     cursor.seek(index);

@@ -102,7 +102,9 @@ int run_compare(const CompareOptions& o) {
     comparison->curves = {chosen};
   }
   if (o.json) {
-    std::printf("%s\n", comparison_to_json(*comparison, o.result, o.reference).dump(2).c_str());
+    std::printf("%s\n", comparison_to_json(*comparison, o.result, o.reference)
+                              .dump(2, ' ', false, nlohmann::json::error_handler_t::replace)
+                              .c_str());
   } else {
     print_comparison(*comparison, o.curve.empty());
   }

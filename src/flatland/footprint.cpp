@@ -529,6 +529,7 @@ void footprint_weights(const Scene& scene, const Curve& curve, const SplineBasis
   const bool polynomial_profile = profile == RayProfile::Box || profile == RayProfile::Tent ||
                                   profile == RayProfile::Epanechnikov;
   const bool use_table = polynomial_profile && table != nullptr && !table->empty();
+  assert(table == nullptr || table->empty() || table->matches(basis));
   // 0 for an infinite footprint, or a flat one: a flat spread.
   const double inverse_a = flat ? 0.0 : 1.0 / a;
   // The Gaussian changes fastest: its panels span at most half the footprint (x-width 1/2), where

@@ -91,6 +91,11 @@ class FootprintTable {
     return moments_.data() + (span - first_) * 3 * stride_;
   }
   std::size_t stride() const { return stride_; }  // degree + 1: M_j[r] is moments(span)[j * stride + r]
+  // Whether it was built for a basis of this shape (its spans and degree).
+  bool matches(const SplineBasis& basis) const {
+    return first_ == basis.first_span() && length_.size() == basis.end_span() - first_ &&
+           stride_ == static_cast<std::size_t>(basis.degree()) + 1;
+  }
 
  private:
   std::size_t first_ = 0;

@@ -85,6 +85,7 @@ class SobolCursor {
  public:
   explicit SobolCursor(const ScrambledSobol& sobol)
       : sobol_(&sobol), steps_(&sobol_mirrored_steps()) {}
+  SobolCursor(const ScrambledSobol&&) = delete;  // it keeps a pointer: no temporaries
 
   void seek(std::uint32_t index) {
     if (valid_ && index == index_ + 1u && index != 0u) {

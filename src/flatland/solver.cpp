@@ -205,11 +205,18 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
     const bool smooth = settings.discontinuities == DiscontinuityMode::None;
     // Footprints spread every deposit over the ray's width, so the deposited density is smooth on
     // that scale: elements shorter than kFootprintFinestElement x the width resolve only the
-    // spread, while each hit pays for every span it covers. Auto storage stops refining there.
+    // spread, while each hit pays for every span it covers. Auto storage stops refining where the
+    // curve's longest element (build_curve_storage's placement: a segment of length L_i gets
+    // max(1, round(base L_i / L)) elements, each split 2^level times) would be shorter.
     int curve_finest = finest_level;
     if (solver.auto_storage_ && settings.ray_width > 0.0 && settings.ray_mode == RayMode::Footprint) {
-      const double coarsest = std::max<double>(kAutoBaseElements, curve.segment_count);
-      while (curve_finest > 0 && curve.length / (coarsest * static_cast<double>(1 << curve_finest)) <
+      double longest = 0.0;  // at level 0
+      for (std::uint32_t i = 0; i < curve.segment_count; ++i) {
+        const double length = scene.segments[curve.first_segment + i].length;
+        const double share = kAutoBaseElements * length / curve.length;
+        longest = std::max(longest, length / std::max(1.0, static_cast<double>(std::lround(share))));
+      }
+      while (curve_finest > 0 && longest / static_cast<double>(1 << curve_finest) <
                                      kFootprintFinestElement * settings.ray_width)
         --curve_finest;
     }

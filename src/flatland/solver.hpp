@@ -75,8 +75,8 @@ inline constexpr int kHermiteAutoElements = 16;
 inline constexpr int kAutoBaseElements = 4;
 inline constexpr int kAutoMaxLevels = 11;
 inline constexpr double kAutoPhotonsPerElement = 2048.0;
-// With footprint rays, auto storage refines a curve only while its mean element is at least this
-// fraction of the ray's width: the footprint's spread smooths every deposit on that scale (its
+// With footprint rays, auto storage refines a curve only while its longest element is at least
+// this fraction of the ray's width: the footprint's spread smooths every deposit on that scale (its
 // bias is O(width^2)), so finer elements would resolve nothing but cost time on every hit.
 inline constexpr double kFootprintFinestElement = 0.25;
 
