@@ -302,6 +302,10 @@ double BasisSampler::pdf(std::size_t k, double u) const {
   return 0.0;
 }
 
+int segment_elements(int elements, double segment_length, double curve_length) {
+  return std::max(1, static_cast<int>(std::lround(elements * segment_length / curve_length)));
+}
+
 namespace {
 
 // The storage nodes of a curve for about `wanted` elements: joints, element boundaries, then the
@@ -315,11 +319,10 @@ Continuity place_nodes(const Scene& scene, const Curve& curve, int wanted, int s
     const SceneSegment& segment = scene.segments[curve.first_segment + i];
     if (i > 0)
       nodes.push_back({static_cast<double>(i), smooth_joints ? Continuity::C1 : curve.joints[i - 1]});
-    const double share = wanted * segment.length / curve.length;
     // Each element of the `wanted` placement split into 2^subdivisions of equal arc length: the
     // boundaries s = length j / pieces of a coarser placement are those of a finer one exactly
     // (j and pieces both doubled), so the meshes nest.
-    const int pieces = std::max(1, static_cast<int>(std::lround(share))) << subdivisions;
+    const int pieces = segment_elements(wanted, segment.length, curve.length) << subdivisions;
     for (int j = 1; j < pieces; ++j) {
       const double s = segment.length * j / pieces;
       const double t = segment.arc_length.parameter_at(segment.geometry.shape, s);

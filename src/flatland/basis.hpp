@@ -196,6 +196,11 @@ void local_estimate(const CurveStorage& storage, const double* deposits, double*
 bool clamp_keeping_power(const CurveStorage& storage, double* coefficients, std::size_t stride,
                          double power);
 
+// How many elements build_curve_storage gives a segment of arc length `segment_length` on a curve
+// of length `curve_length` for `elements` per curve, before the 2^subdivisions split: its share of
+// `elements` by arc length, rounded, at least one.
+int segment_elements(int elements, double segment_length, double curve_length);
+
 // About `elements` elements per curve, shared among its segments in proportion to their arc
 // length (at least one each) and of equal arc length within a segment. A closed curve whose
 // closing joint is not a jump gets a periodic basis, with enough elements that no function

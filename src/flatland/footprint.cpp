@@ -526,8 +526,7 @@ void footprint_weights(const Scene& scene, const Curve& curve, const SplineBasis
     return j + parameter_in(j, s - start[j]);
   };
 
-  const bool polynomial_profile = profile == RayProfile::Box || profile == RayProfile::Tent ||
-                                  profile == RayProfile::Epanechnikov;
+  const bool polynomial_profile = is_polynomial(profile);
   const bool use_table = polynomial_profile && table != nullptr && !table->empty();
   assert(table == nullptr || table->empty() || table->matches(basis));
   // 0 for an infinite footprint, or a flat one: a flat spread.

@@ -35,6 +35,12 @@ const char* to_string(RayProfile profile);
 // "did you mean" hint for a likely typo).
 Result<RayProfile> parse_ray_profile(std::string_view name);
 
+// Box, tent and Epanechnikov: polynomial on each side of the centre (FootprintTable serves them).
+inline bool is_polynomial(RayProfile profile) {
+  return profile == RayProfile::Box || profile == RayProfile::Tent ||
+         profile == RayProfile::Epanechnikov;
+}
+
 // Sample / Pdf / Invert set of a profile. The density is 0 outside [-1, 1]; the CDF is a closed
 // form (erf for the Gaussian), 0 below -1 and 1 above 1.
 double profile_density(RayProfile profile, double x);

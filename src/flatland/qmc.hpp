@@ -55,6 +55,10 @@ std::uint32_t nested_uniform_scramble_mirrored(std::uint32_t mirrored, std::uint
 // v[0] ^ .. ^ v[k] do); step[d][k] = reverse_bits(sobol_bits(2^(k+1) - 1, d)).
 const std::array<std::array<std::uint32_t, 32>, kSobolDimensions>& sobol_mirrored_steps();
 
+// A 32-bit binary fraction as a double in (0, 1): the digits and half a unit of the last, so never
+// exactly 0 or 1, and the average over a net is exactly 1/2.
+inline double fraction_to_unit(std::uint32_t bits) { return (static_cast<double>(bits) + 0.5) * 0x1.0p-32; }
+
 // One randomisation of the Sobol' sequence, named by (seed, stream): any point can be computed on
 // its own, from its index, so points are the same whatever thread computes them, and different
 // seeds (or streams) give independent randomisations.
@@ -65,7 +69,7 @@ class ScrambledSobol {
   // Coordinate `dimension` of point `index`, in (0, 1): the 32 scrambled digits and half a unit
   // of the last (so never exactly 0 or 1, and the average over a net is exactly 1/2).
   double sample(std::uint32_t index, int dimension) const {
-    return (static_cast<double>(scrambled_bits(index, dimension)) + 0.5) * 0x1.0p-32;
+    return fraction_to_unit(scrambled_bits(index, dimension));
   }
   std::uint32_t scrambled_bits(std::uint32_t index, int dimension) const {
     return nested_uniform_scramble(sobol_bits(index, dimension),
@@ -100,9 +104,8 @@ class SobolCursor {
   }
   // Coordinate `dimension` of the current point, as ScrambledSobol::sample.
   double sample(int dimension) const {
-    const std::uint32_t bits = nested_uniform_scramble_mirrored(
-        mirrored_[static_cast<std::size_t>(dimension)], sobol_->seed(dimension));
-    return (static_cast<double>(bits) + 0.5) * 0x1.0p-32;
+    return fraction_to_unit(nested_uniform_scramble_mirrored(
+        mirrored_[static_cast<std::size_t>(dimension)], sobol_->seed(dimension)));
   }
 
  private:

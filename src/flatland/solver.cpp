@@ -206,15 +206,14 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
     // Footprints spread every deposit over the ray's width, so the deposited density is smooth on
     // that scale: elements shorter than kFootprintFinestElement x the width resolve only the
     // spread, while each hit pays for every span it covers. Auto storage stops refining where the
-    // curve's longest element (build_curve_storage's placement: a segment of length L_i gets
-    // max(1, round(base L_i / L)) elements, each split 2^level times) would be shorter.
+    // curve's longest element (at level l: a segment's segment_elements split 2^l times) would be
+    // shorter.
     int curve_finest = finest_level;
     if (solver.auto_storage_ && settings.ray_width > 0.0 && settings.ray_mode == RayMode::Footprint) {
       double longest = 0.0;  // at level 0
       for (std::uint32_t i = 0; i < curve.segment_count; ++i) {
         const double length = scene.segments[curve.first_segment + i].length;
-        const double share = kAutoBaseElements * length / curve.length;
-        longest = std::max(longest, length / std::max(1.0, static_cast<double>(std::lround(share))));
+        longest = std::max(longest, length / segment_elements(elements, length, curve.length));
       }
       while (curve_finest > 0 && longest / static_cast<double>(1 << curve_finest) <
                                      kFootprintFinestElement * settings.ray_width)
@@ -263,8 +262,7 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
     if (solver.ray_kind_ == RayKind::Band) {
       profile_quadrature(settings.ray_profile, settings.band_rays, solver.band_offsets_,
                          solver.band_weights_);
-    } else if (settings.ray_profile == RayProfile::Box || settings.ray_profile == RayProfile::Tent ||
-               settings.ray_profile == RayProfile::Epanechnikov) {
+    } else if (is_polynomial(settings.ray_profile)) {
       // Whole knot spans of the deposit mesh from precomputed moments (footprint.hpp).
       solver.footprint_tables_.reserve(scene.curves.size());
       for (std::uint32_t c = 0; c < scene.curves.size(); ++c) {
