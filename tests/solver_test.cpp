@@ -162,7 +162,7 @@ std::vector<double> expected_floor_power(const PenumbraSetup& setup, const Curve
   return expected;
 }
 
-void check_penumbra(const PenumbraSetup& setup, BasisKind basis) {
+void check_penumbra(const PenumbraSetup& setup, BasisKind basis, Transport transport = Transport::Shooting) {
   const Scene scene = testing::scene_from_text(setup.scene_text());
   ASSERT_EQ(scene.curves[1].id, "floor");
   SolverSettings settings;
@@ -172,10 +172,15 @@ void check_penumbra(const PenumbraSetup& setup, BasisKind basis) {
   settings.estimator = Estimator::Lumped;  // the expectation below is the lumped estimate's
   settings.seed = 3;
   settings.sampler = SamplerKind::Random;  // the tolerance below is derived for independent samples
+  settings.transport = transport;
   Solver solver = make_solver(scene, settings);
   // The floor receives light only in the first round (everything else is black and the floor is
-  // flat), so its coefficients are final after it.
-  ASSERT_TRUE(solver.step_round());
+  // flat), so its coefficients are final after it. Walks: the floor receives only their first
+  // flights, and every round estimates the whole, so all rounds pool into one estimate.
+  if (transport == Transport::Walk)
+    solver.run();
+  else
+    ASSERT_TRUE(solver.step_round());
   const double n = static_cast<double>(solver.photons_shot());
   const double emitted = solver.books().emitted;
   const double q = emitted / n;  // power per photon
@@ -1330,6 +1335,279 @@ TEST(Solver, SobolIsUnbiasedOnThePenumbraClosedForm) {
                 to_string(settings.basis), random_variance / sobol_variance);
     EXPECT_LT(sobol_variance, random_variance) << "variant " << variant;
   }
+}
+
+// ---- Random walks (the collision estimator) ----
+
+TEST(Solver, WalksMatchTheOneBouncePenumbraClosedForm) {
+  // Only the walks' first flights reach the floor (the rest is black or the sky), so the floor's
+  // deposits have the same expectation and variance bound as one round of shooting.
+  PenumbraSetup setup;
+  check_penumbra(setup, BasisKind::Constant, Transport::Walk);
+  check_penumbra(setup, BasisKind::Cubic, Transport::Walk);
+}
+
+// The closed enclosure (B = E / (1 - rho)) by walks, with a variance of its own. A walk makes
+// H flights, geometric with P(H > h) = rho^h (mean 1 / (1 - rho), variance rho / (1 - rho)^2), each
+// landing on a storage element of share p; if the landings were independent, the number N_k on
+// element k would have mean p E[H] and variance p (1 - p) E[H] + p^2 Var(H), a relative variance
+// per walk of (1 - p) / (p E[H]) + Var(H) / E[H]^2. (In a circle a flight rarely lands next to
+// where it left, so successive landings are negatively correlated and the true variance is
+// smaller.) p is the smallest element's share.
+void check_walk_enclosure(double rho, BasisKind basis) {
+  const Scene scene = testing::scene_from_text(testing::circle_enclosure(rho, 1.0));
+  SolverSettings settings;
+  settings.photons = 1'000'000;
+  settings.basis = basis;
+  settings.elements = 16;
+  settings.seed = 5;
+  settings.sampler = SamplerKind::Random;  // the tolerance below is derived for independent samples
+  settings.transport = Transport::Walk;
+  Solver solver = make_solver(scene, settings);
+  solver.run();
+  ASSERT_EQ(solver.stop_reason(), StopReason::BudgetSpent);
+  ASSERT_EQ(solver.photons_shot(), settings.photons);
+  const EnergyBooks books = solver.books();
+  EXPECT_EQ(books.escaped, 0.0);
+  EXPECT_EQ(books.unshot, 0.0);
+  EXPECT_NEAR(books.imbalance(), 0.0, 1e-9 * books.emitted);
+  // About 1 / (1 - rho) rays per walk: 5 sigma of the mean of n geometric counts.
+  const double n = static_cast<double>(solver.photons_shot());
+  const double mean_rays = 1.0 / (1.0 - rho);
+  EXPECT_NEAR(static_cast<double>(solver.rays_traced()) / n, mean_rays,
+              5.0 * std::sqrt(rho / ((1.0 - rho) * (1.0 - rho)) / n));
+
+  const double exact = 1.0 / (1.0 - rho);
+  const double reflected = exact - 1.0;
+  const CurveStorage& storage = solver.storage(0);
+  const double shortest = *std::min_element(storage.basis_length.begin(), storage.basis_length.end());
+  const double p = shortest / scene.curves[0].length;
+  const double relative_variance = (1.0 - p) / (p * mean_rays) + rho;
+  const double sigma = reflected * std::sqrt(relative_variance / n);
+  for (int j = 0; j < 200; ++j) {
+    const CurvePoint point = point_at_arc_length(scene, scene.curves[0], (j + 0.5) * scene.curves[0].length / 200);
+    const double b = solver.radiosity(0, Side::Front, point.u)[0];
+    EXPECT_NEAR(b, exact, 5 * sigma) << "at sample " << j;
+  }
+}
+
+TEST(Solver, WalksMatchTheClosedEnclosureConstant) { check_walk_enclosure(0.5, BasisKind::Constant); }
+TEST(Solver, WalksMatchTheClosedEnclosureCubic) { check_walk_enclosure(0.5, BasisKind::Cubic); }
+TEST(Solver, WalksMatchTheStiffClosedEnclosure) { check_walk_enclosure(0.9, BasisKind::Linear); }
+
+TEST(Solver, WalksConserveEveryChannelsPowerInAColouredEnclosure) {
+  // A closed circle of E = 1 and rho = (0.8, 0.5, 0.1): every channel's integral of B is
+  // E L / (1 - rho_c) (all power is absorbed in the end, a fraction 1 - rho_c at each landing),
+  // whatever the mesh, since both estimators keep each side's deposited power. Walks go on with
+  // q = 0.8 and weight channel c by a = rho_c / q at each bounce, so a walk's tally in channel c is
+  // T = sum over its flights k = 0 .. H-1 of a^k: E[T] = sum_k (q a)^k = 1 / (1 - rho_c), and
+  // E[T^2] = sum_{j,k} a^(j+k) q^max(j,k), summed here as a series (an answer independent of the
+  // solver). The test fails if the reweighting is wrong in any channel.
+  const double rho[3] = {0.8, 0.5, 0.1};
+  char text[1024];
+  const double k = 0.5522847498307936;
+  std::snprintf(text, sizeof text, R"({
+    "flatland": 2,
+    "materials": {"glow": {"reflectivity": [%.17g, %.17g, %.17g], "emittance": [1, 1, 1]}},
+    "curves": [{"id": "circle", "material": "glow", "bezier": [
+      [1,0],[1,%.17g],[%.17g,1],[0,1],[%.17g,1],[-1,%.17g],[-1,0],
+      [-1,%.17g],[%.17g,-1],[0,-1],[%.17g,-1],[1,%.17g],[1,0]]}]})",
+                rho[0], rho[1], rho[2], k, k, -k, k, -k, -k, k, -k);
+  const Scene scene = testing::scene_from_text(text);
+  ASSERT_EQ(scene.channels, 3);
+  SolverSettings settings;
+  settings.photons = 400'000;
+  settings.elements = 12;
+  settings.seed = 8;
+  settings.sampler = SamplerKind::Random;
+  settings.transport = Transport::Walk;
+  Solver solver = make_solver(scene, settings);
+  solver.run();
+  const EnergyBooks books = solver.books();
+  EXPECT_NEAR(books.imbalance(), 0.0, 1e-9 * books.emitted);
+  const Curve& circle = scene.curves[0];
+  const double length = circle.length;
+  const int steps = 4000;
+  const double q = 0.8;
+  const double n = static_cast<double>(solver.photons_shot());
+  for (int ch = 0; ch < 3; ++ch) {
+    double integral = 0.0;  // of B, by the midpoint rule in arc length
+    for (int j = 0; j < steps; ++j) {
+      const CurvePoint point = point_at_arc_length(scene, circle, (j + 0.5) * length / steps);
+      integral += solver.radiosity(0, Side::Front, point.u)[static_cast<std::size_t>(ch)] * length / steps;
+    }
+    const double a = rho[ch] / q;
+    double second = 0.0;
+    for (int i = 0; i < 400; ++i)
+      for (int j = 0; j < 400; ++j) second += std::pow(a, i + j) * std::pow(q, std::max(i, j));
+    const double mean = 1.0 / (1.0 - rho[ch]);
+    // The estimate of integral(B) = E L + rho_c E L T-bar, T-bar the mean of n walks' tallies.
+    const double sigma = rho[ch] * length * std::sqrt((second - mean * mean) / n);
+    EXPECT_NEAR(integral, length / (1.0 - rho[ch]), 5.0 * sigma + 1e-9 * length) << "channel " << ch;
+  }
+}
+
+TEST(Solver, WalksMatchTheLitRingsClosedForm) {
+  // The ring of profile E(phi) = 1 + 0.8 sin(phi), rho = 0.5: the mean over 10 seeds of B's
+  // Fourier coefficients a0 and b1 (by quadrature of the solver's B) must match the closed form
+  // within 5 standard errors estimated from the seeds' spread (Student's t, 9 degrees of freedom:
+  // odds about 1e-3 per coefficient). The cubic mesh's own bias on so smooth a B is far below that.
+  const Scene scene = testing::scene_from_text(ring_with_profile(2));
+  const RingSolution exact = solve_ring(scene, 0.5);
+  const Curve& ring = scene.curves[0];
+  const int seeds = 10;
+  std::vector<double> a0, b1;
+  for (int seed = 1; seed <= seeds; ++seed) {
+    SolverSettings settings;
+    settings.photons = 200'000;
+    settings.elements = 16;
+    settings.seed = static_cast<std::uint64_t>(seed);
+    settings.transport = Transport::Walk;
+    Solver solver = make_solver(scene, settings);
+    solver.run();
+    double a = 0.0, b = 0.0;
+    const int steps = 2000;
+    for (int j = 0; j < steps; ++j) {
+      // Midpoint rule in the curve parameter, dphi = cross(p, p') / |p|^2 du (as solve_ring).
+      const double u = ring.segment_count * (j + 0.5) / steps;
+      const auto i = static_cast<std::uint32_t>(u);
+      const Cubic& shape = scene.segments[ring.first_segment + i].geometry.shape;
+      const Vec2 p = evaluate(shape, u - i);
+      const double dphi = cross(p, derivative(shape, u - i)) / dot(p, p) * ring.segment_count / steps;
+      const double phi = std::atan2(p.y, p.x);
+      const double value = solver.radiosity(0, Side::Front, u)[0];
+      a += value * dphi / std::numbers::pi;
+      b += value * std::sin(phi) * dphi / std::numbers::pi;
+    }
+    a0.push_back(a);
+    b1.push_back(b);
+  }
+  auto check = [&](const std::vector<double>& values, double expected, const char* name) {
+    double mean = 0.0;
+    for (double v : values) mean += v / seeds;
+    double variance = 0.0;
+    for (double v : values) variance += (v - mean) * (v - mean) / (seeds - 1);
+    const double error = std::sqrt(variance / seeds);
+    EXPECT_GT(error, 0.0) << name;
+    EXPECT_LT(std::fabs(mean - expected), 5.0 * error) << name << ": " << mean << " vs " << expected;
+  };
+  check(a0, exact.a[0], "a0");
+  check(b1, exact.b[1], "b1");
+}
+
+TEST(Solver, WalksGiveIdenticalResultsOnAnyThreadCountAndStep) {
+  const Scene scene = testing::scene_from_file("scenes2d/mixed.json");
+  auto dump = [](const Solver& solver) {
+    nlohmann::json result = result_to_json(solver, 50);
+    result["stats"].erase("seconds");
+    result["settings"].erase("threads");
+    return result.dump();
+  };
+  SolverSettings settings;
+  settings.photons = 60'000;
+  settings.seed = 41;
+  settings.transport = Transport::Walk;
+  std::vector<std::string> dumps;
+  for (unsigned threads : {1u, 2u, 3u}) {
+    settings.threads = threads;
+    Solver solver = make_solver(scene, settings);
+    solver.run();
+    EXPECT_GT(solver.rounds(), 1u);
+    EXPECT_GT(solver.rays_traced(), solver.photons_shot());
+    dumps.push_back(dump(solver));
+  }
+  EXPECT_EQ(dumps[0], dumps[1]);
+  EXPECT_EQ(dumps[0], dumps[2]);
+  settings.threads = 2;
+  Solver stepped = make_solver(scene, settings);
+  const std::uint64_t sizes[] = {1, 2, 3, 4000, 97, 8192, 1, 10'000};
+  for (std::size_t step = 0; !stepped.stopped(); ++step) stepped.step_photons(sizes[step % std::size(sizes)]);
+  EXPECT_EQ(dumps[0], dump(stepped));
+  // And with footprints.
+  settings.ray_width = 0.02 * scene.scale;
+  settings.threads = 1;
+  Solver one = make_solver(scene, settings);
+  one.run();
+  settings.threads = 3;
+  Solver three = make_solver(scene, settings);
+  three.run();
+  EXPECT_EQ(dump(one), dump(three));
+  EXPECT_NE(dump(one), dumps[0]);
+}
+
+TEST(Solver, WalkEnergyBooksBalanceOnEveryExampleScene) {
+  expect_books_balance_on_every_example_scene([](const Scene& scene) {
+    std::vector<SolverSettings> variants;
+    for (int variant = 0; variant < 3; ++variant) {
+      SolverSettings settings;
+      settings.photons = 50'000;
+      settings.transport = Transport::Walk;
+      settings.basis = variant == 2 ? BasisKind::Hermite : BasisKind::Cubic;
+      if (variant == 1) {
+        settings.sampling = PositionSampling::Uniform;
+        settings.ray_width = 0.01 * scene.scale;
+        settings.sampler = SamplerKind::Random;
+      }
+      variants.push_back(settings);
+    }
+    return variants;
+  });
+}
+
+TEST(Solver, WalkPathsFollowOneJourneyHopByHop) {
+  // Recorded walks: each flight starts where the last one landed, bounces count up from 0 (the
+  // emitted light), and a walk ends once: escaped or absorbed, on its last flight only.
+  const Scene scene = testing::scene_from_file("scenes2d/room_reflector.json");
+  SolverSettings settings;
+  settings.photons = 1000;
+  settings.transport = Transport::Walk;
+  Solver solver = make_solver(scene, settings);
+  std::vector<PhotonPath> paths;
+  solver.step_photons(40, nullptr, &paths, 100'000);
+  ASSERT_FALSE(paths.empty());
+  int walks = 0;
+  std::size_t longest = 0;
+  std::size_t length = 0;
+  for (std::size_t i = 0; i < paths.size(); ++i) {
+    const PhotonPath& path = paths[i];
+    if (path.bounce == 0) {
+      ++walks;
+      length = 0;
+      EXPECT_TRUE(scene.is_emitter(scene.curves[path.source_curve])) << "path " << i;
+    } else {
+      ASSERT_GT(i, 0u);
+      const PhotonPath& before = paths[i - 1];
+      EXPECT_EQ(path.bounce, before.bounce + 1) << "path " << i;
+      EXPECT_FALSE(before.escaped || before.absorbed) << "path " << i;
+      EXPECT_LT(flatland::length(path.origin - before.end), 1e-9 * scene.scale) << "path " << i;
+      EXPECT_EQ(path.source_curve, before.hit_curve);
+      EXPECT_EQ(path.source_side, before.hit_side);
+    }
+    longest = std::max(longest, ++length);
+    const bool last = i + 1 == paths.size() || paths[i + 1].bounce == 0;
+    EXPECT_EQ(last, path.escaped || path.absorbed) << "path " << i;
+    EXPECT_FALSE(path.escaped && path.absorbed);
+  }
+  EXPECT_EQ(walks, 40);
+  EXPECT_GT(longest, 1u);  // some walk bounced
+}
+
+TEST(Solver, WalksRefuseBandsAndNearlyPerfectReflectors) {
+  SolverSettings settings;
+  settings.transport = Transport::Walk;
+  settings.ray_width = 0.01;
+  settings.ray_mode = RayMode::Band;
+  const Status band = validate(settings);
+  ASSERT_FALSE(band.ok());
+  EXPECT_NE(band.error().message.find("--ray-mode footprint"), std::string::npos) << band.error().message;
+  settings.ray_width = 0.0;
+  const Scene scene = testing::scene_from_text(testing::circle_enclosure(0.9999999, 1.0));
+  Result<Solver> solver = Solver::create(scene, settings);
+  ASSERT_FALSE(solver.ok());
+  EXPECT_NE(solver.error().message.find("circle"), std::string::npos) << solver.error().message;
+  EXPECT_NE(solver.error().message.find("--transport shooting"), std::string::npos);
+  settings.transport = Transport::Shooting;
+  EXPECT_TRUE(Solver::create(scene, settings).ok());
 }
 
 }  // namespace

@@ -87,10 +87,14 @@ Result<Method> parse_method(const std::string& text, const SolverSettings& defau
     } else if (key == "sampler") {
       if (value != "random" && value != "sobol") return Error{where + "sampler must be random or sobol"};
       s.sampler = value == "sobol" ? SamplerKind::Sobol : SamplerKind::Random;
+    } else if (key == "transport") {
+      const std::optional<Transport> transport = transport_from_string(value);
+      if (!transport) return Error{where + "transport must be shooting or walk"};
+      s.transport = *transport;
     } else {
       return Error{where + "unknown key '" + key +
                    "'; keys: basis, sampling, discontinuities, estimator, elements, ray-width, "
-                   "ray-mode, ray-profile, band-rays, tolerance, sampler"};
+                   "ray-mode, ray-profile, band-rays, tolerance, sampler, transport"};
     }
   }
   if (Status status = validate(method.settings); !status) return Error{"--methods: '" + text + "': " + status.error().message};
@@ -516,8 +520,9 @@ CLI::App* add_converge_command(CLI::App& parent, ConvergeOptions& o) {
   cmd->add_option("--methods", o.methods,
                   "Comma-separated methods: a basis name, or key=value pairs joined by '+' "
                   "(basis, sampling, discontinuities, estimator, elements, ray-width, ray-mode, "
-                  "ray-profile, band-rays, tolerance, sampler), e.g. "
-                  "constant,cubic,cubic+sampling=uniform,cubic+elements=64+sampler=sobol")
+                  "ray-profile, band-rays, tolerance, sampler, transport), e.g. "
+                  "constant,cubic,cubic+sampling=uniform,cubic+elements=64+sampler=sobol,"
+                  "cubic+transport=walk")
       ->capture_default_str();
   auto* budgets = cmd->add_option("--budgets", o.budgets, "Comma-separated photon budgets")
                       ->capture_default_str();

@@ -74,6 +74,13 @@ void add_solver_options(CLI::App* cmd, SolveOptions& o) {
                   "point per photon; same seed, same bits on any thread count)")
       ->capture_default_str()
       ->check(CLI::IsMember({"random", "sobol"}));
+  cmd->add_option("--transport", o.transport,
+                  "How light travels: shooting (progressive rounds, each shooting the light the last "
+                  "one reflected: the paper's method) or walk (each photon a random walk from an "
+                  "emitter, tallied at every hit and ended by Russian roulette; --photons counts "
+                  "walks, --tolerance is not used)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"shooting", "walk"}));
   cmd->add_option("--ray-width", o.settings.ray_width,
                   "Width of extended rays in scene units (0: point rays, no extended-ray code runs)")
       ->capture_default_str();
@@ -187,9 +194,9 @@ void print_summary(const Solver& solver) {
                   settings.elements == kAutoElements ? kHermiteAutoElements : settings.elements,
                   settings.elements == kAutoElements ? " (auto: Hermite storage does not nest)" : "");
   }
-  std::printf("method    %s basis (%s), %s, %s positions, discontinuities %s, "
+  std::printf("method    %s%s basis (%s), %s, %s positions, discontinuities %s, "
               "%s, %s sampler\n",
-              to_string(settings.basis), to_string(settings.estimator), storage_text,
+              settings.transport == Transport::Walk ? "random walks, " : "", to_string(settings.basis), to_string(settings.estimator), storage_text,
               to_string(settings.sampling), to_string(settings.discontinuities), rays,
               to_string(settings.sampler));
   // What the scene made the solver use (and so what it left out).
@@ -201,12 +208,18 @@ void print_summary(const Solver& solver) {
                                                         : "lines and cubics",
               solver.discontinuity_nodes(), solver.contact_nodes(), solver.visibility_event_nodes(),
               solver.coefficient_count());
-  std::printf("solved    %s photons in %u rounds, %.3f s, %s photons/s on %u threads\n",
-              human_count(static_cast<double>(solver.photons_shot())).c_str(), solver.rounds(),
-              solver.seconds(), human_count(rate).c_str(), solver.thread_count());
-  std::printf("stopped   %s: unshot power %.3g%% of emitted (tolerance %.3g%%)\n",
-              to_string(solver.stop_reason()), 100.0 * books.unshot / books.emitted,
-              100.0 * solver.settings().tolerance);
+  const bool walks = settings.transport == Transport::Walk;
+  std::printf("solved    %s %s (%s rays) in %u rounds, %.3f s, %s %s/s on %u threads\n",
+              human_count(static_cast<double>(solver.photons_shot())).c_str(), walks ? "walks" : "photons",
+              human_count(static_cast<double>(solver.rays_traced())).c_str(), solver.rounds(),
+              solver.seconds(), human_count(rate).c_str(), walks ? "walks" : "photons", solver.thread_count());
+  if (walks)
+    std::printf("stopped   %s (walks end by themselves: nothing is left unshot)\n",
+                to_string(solver.stop_reason()));
+  else
+    std::printf("stopped   %s: unshot power %.3g%% of emitted (tolerance %.3g%%)\n",
+                to_string(solver.stop_reason()), 100.0 * books.unshot / books.emitted,
+                100.0 * solver.settings().tolerance);
   std::printf("energy    emitted %.6g = absorbed %.6g + escaped %.6g + unshot %.6g (imbalance %.2g)\n",
               books.emitted, books.absorbed, books.escaped, books.unshot, books.imbalance());
 }
@@ -240,6 +253,7 @@ Status finish_solver_settings(SolveOptions& o) {
   o.settings.estimator = *estimator_from_string(o.estimator);
   o.settings.elements = *parse_elements(o.elements, 1 << 16);
   o.settings.sampler = o.sampler == "sobol" ? SamplerKind::Sobol : SamplerKind::Random;
+  o.settings.transport = *transport_from_string(o.transport);
   o.settings.sampling =
       o.sampling == "uniform" ? PositionSampling::Uniform : PositionSampling::Reconstructed;
   return validate(o.settings);

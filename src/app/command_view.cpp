@@ -41,9 +41,11 @@ CLI::App* add_view_command(CLI::App& parent, ViewCommandOptions& o) {
       ->check(CLI::Range(1, 10000000));
   cmd->add_flag("--control-points", o.control_points, "Show control points (drag them to edit the scene)");
   cmd->add_option("--select", o.select, "Inspect this curve from the start (its id or index)");
-  cmd->add_option("--colour-by", o.colour_by, "Colour photon paths by their power (and light colour) or by round")
+  cmd->add_option("--colour-by", o.colour_by,
+                  "Colour photon paths by their power (and light colour), by round, or by bounce "
+                  "(reflections before the flight: a walk's hops, shooting's rounds)")
       ->capture_default_str()
-      ->check(CLI::IsMember({"power", "round"}));
+      ->check(CLI::IsMember({"power", "round", "bounce"}));
   cmd->add_option("--fade", o.fade,
                   "Fading of the photon paths by age: 0 keeps every kept path equally bright, 1 fades "
                   "the oldest to about 5 %")

@@ -59,6 +59,7 @@ struct SolveOptions {
   std::string discontinuities = "auto";
   std::string estimator = "galerkin";
   std::string sampler = "sobol";
+  std::string transport = "shooting";
   std::string elements = "auto";
   std::string ray_profile = "box";
   std::string ray_mode = "footprint";

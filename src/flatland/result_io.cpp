@@ -88,7 +88,8 @@ nlohmann::json result_to_json(const Solver& solver, int samples_per_curve) {
   result["program"] = program_to_json();
   result["scene"] = scene_to_json(scene);
   result["settings"] = {
-      {"method", "shooting"},
+      {"method", to_string(settings.transport)},
+      {"transport", to_string(settings.transport)},
       {"photons", settings.photons},
       {"seed", settings.seed},
       {"threads", solver.thread_count()},
@@ -108,6 +109,7 @@ nlohmann::json result_to_json(const Solver& solver, int samples_per_curve) {
   result["stats"] = {
       {"photons", solver.photons_shot()},
       {"rounds", solver.rounds()},
+      {"rays", solver.rays_traced()},
       {"seconds", solver.seconds()},
       {"stop_reason", to_string(solver.stop_reason())},
       {"emitted_power", books.emitted},

@@ -58,6 +58,16 @@ std::optional<Estimator> estimator_from_string(std::string_view name) {
   return std::nullopt;
 }
 
+const char* to_string(Transport transport) {
+  return transport == Transport::Shooting ? "shooting" : "walk";
+}
+
+std::optional<Transport> transport_from_string(std::string_view name) {
+  for (Transport t : {Transport::Shooting, Transport::Walk})
+    if (name == to_string(t)) return t;
+  return std::nullopt;
+}
+
 const char* to_string(PositionSampling sampling) {
   return sampling == PositionSampling::Uniform ? "uniform" : "reconstructed";
 }
@@ -76,6 +86,9 @@ Status validate(const SolverSettings& settings) {
     return Error{"--ray-width: must be a finite width >= 0 in scene units (0: point rays)"};
   if (settings.band_rays < 1 || settings.band_rays > 256)
     return Error{"--band-rays: must be between 1 and 256"};
+  if (settings.transport == Transport::Walk && settings.ray_width > 0.0 && settings.ray_mode == RayMode::Band)
+    return Error{"--transport walk: a band's sub-rays have no single point to bounce from; use "
+                 "--ray-mode footprint (or --transport shooting)"};
   return ok_status();
 }
 
@@ -111,8 +124,9 @@ Status check_memory(const Scene& scene, const SolverSettings& settings, unsigned
 void Solver::Accumulator::reset(std::size_t size) {
   received.assign(size, 0);
   escaped = {};
-  black = {};
+  absorbed = {};
   shot = {};
+  rays = 0;
 }
 
 Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings,
@@ -251,6 +265,30 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
     }
   }
   if (reflecting_length > 0.0) solver.initial_ratio_ = weighted_reflectivity / reflecting_length;
+  solver.walk_ = settings.transport == Transport::Walk;
+  if (solver.walk_) {
+    // A walk goes on with probability max rho at every hit, so its number of rays is at most
+    // geometric with mean 1 / (1 - max rho) over the scene's reflecting sides.
+    double most = 0.0;
+    const Curve* brightest = nullptr;
+    for (const Curve& curve : scene.curves)
+      for (std::size_t ch = 0; ch < channels; ++ch)
+        if (scene.material_of(curve).reflectivity[ch] > most) {
+          most = scene.material_of(curve).reflectivity[ch];
+          brightest = &curve;
+        }
+    if (most > kWalkMaxReflectivity) {
+      char message[320];
+      std::snprintf(message, sizeof message,
+                    "%s: curve '%s' reflects %.9g: a random walk would average %.3g rays; "
+                    "--transport walk needs every reflectivity at most %.6f (use --transport "
+                    "shooting)",
+                    scene.source.c_str(), brightest->id.c_str(), most, 1.0 / (1.0 - most),
+                    kWalkMaxReflectivity);
+      return Error{message};
+    }
+    solver.walk_expected_rays_ = 1.0 / (1.0 - most);
+  }
 
   // The first round shoots the emitted power: on each emitting side E times the basis integrals.
   solver.received_.assign(solver.coefficient_count_ * channels, 0.0);
@@ -294,6 +332,11 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
     }
   }
   for (std::size_t ch = 0; ch < channels; ++ch) solver.emitted_total_ += solver.emitted_[ch];
+  // Walks start from the emission in every round; nothing waits to be shot.
+  if (solver.walk_) {
+    solver.emission_ = solver.unshot_;
+    std::fill(solver.unshot_.begin(), solver.unshot_.end(), 0.0);
+  }
   if (!(solver.emitted_total_ > 0.0))
     return Error{scene.source + ": no curve emits light (give a material or curve an emittance > 0)"};
   // Emittance (<= 1e100 with profile factors <= 1e100) times a length (<= 1e100 x segments) fits
@@ -539,8 +582,15 @@ std::uint64_t Solver::photons_for_round(double unshot) const {
   return std::min({photons, remaining, kMaxPhotonsPerRound});
 }
 
+std::uint64_t Solver::walks_for_round() const {
+  const std::uint64_t remaining = settings_.photons - photons_shot_;
+  return std::min({std::max(kMinWalksPerRound, photons_shot_ / 2), kMaxWalksPerRound, remaining});
+}
+
 bool Solver::begin_round() {
   const auto channels = static_cast<std::size_t>(channels_);
+  // Shooting draws from the power waiting to be shot, walks from the emission.
+  const std::vector<double>& pool = walk_ ? emission_ : unshot_;
   std::vector<double> weights(block_offset_.size(), 0.0);
   std::vector<Spectrum> block_unshot(block_offset_.size(), Spectrum{});
   for (std::uint32_t c = 0; c < scene_->curves.size(); ++c) {
@@ -551,12 +601,12 @@ bool Solver::begin_round() {
       const std::size_t count = storage_[c].basis.size();
       for (std::size_t k = 0; k < count; ++k)
         for (std::size_t ch = 0; ch < channels; ++ch)
-          block_unshot[block][ch] += unshot_[(offset + k) * channels + ch];
+          block_unshot[block][ch] += pool[(offset + k) * channels + ch];
       for (std::size_t ch = 0; ch < channels; ++ch) weights[block] += block_unshot[block][ch];
     }
   }
   const double unshot = std::accumulate(weights.begin(), weights.end(), 0.0);
-  if (!(unshot > settings_.tolerance * emitted_total_)) {
+  if (!walk_ && !(unshot > settings_.tolerance * emitted_total_)) {
     stop_reason_ = StopReason::Converged;
     choose_final_levels();
     return false;
@@ -566,10 +616,21 @@ bool Solver::begin_round() {
     choose_final_levels();
     return false;
   }
-  round_.photons = photons_for_round(unshot);
+  round_.photons = walk_ ? walks_for_round() : photons_for_round(unshot);
 
   // Fixed point: unshot * scale < 2^61, and scale a power of two so units convert exactly.
-  round_.scale = std::ldexp(1.0, 60 - std::ilogb(unshot));
+  // A walk tallies its power at every hop, so a round of n walks deposits about n R times a
+  // walk's power, R the mean rays per walk (at most walk_expected_rays_): the scale gives up H
+  // bits, 2^H >= R (1 + 64 / n), so the total stays below 2^63 unless the round's rays exceed
+  // 4 R n + 256 R, which for a sum of n geometric counts is rarer than e^-60. With n <= 2^20 and
+  // R <= 1e6 a walk still carries at least 2^18 units.
+  round_.headroom_bits = 0;
+  if (walk_) {
+    const double rays = walk_expected_rays_ * (1.0 + 64.0 / static_cast<double>(round_.photons));
+    round_.headroom_bits = std::max(0, static_cast<int>(std::ceil(std::log2(rays))));
+    walk_headroom_bits_ = std::max(walk_headroom_bits_, round_.headroom_bits);
+  }
+  round_.scale = std::ldexp(1.0, 60 - round_.headroom_bits - std::ilogb(unshot));
   // A photon from source j carries U_j / (n p_j) with p_j = w_j / U: its channels sum to U / n.
   // Sources are the sides of curves (uniform sampling) or single coefficients (reconstructed
   // sampling, so a photon also takes the colour of the unshot light where it starts).
@@ -578,7 +639,7 @@ bool Solver::begin_round() {
     // The unshot density of every block, channels summed, for the positions; each photon carries
     // its block's colour (its power comes from the deposits, so the books stay exact).
     std::vector<double> density;
-    estimate(unshot_, density);
+    estimate(pool, density);
     std::vector<double> summed(coefficient_count_, 0.0);
     for (std::size_t k = 0; k < coefficient_count_; ++k)
       for (std::size_t ch = 0; ch < channels; ++ch) summed[k] += density[k * channels + ch];
@@ -599,7 +660,7 @@ bool Solver::begin_round() {
   // finest basis carries the power g_k integral(phi_k ds).
   std::vector<double> density_power;
   if (by_coefficient && (settings_.estimator != Estimator::Lumped || auto_storage_)) {
-    estimate(unshot_, density_power);
+    estimate(pool, density_power);
     for (std::uint32_t c = 0; c < scene_->curves.size(); ++c)
       for (Side side : {Side::Front, Side::Back}) {
         const std::uint32_t offset = block_offset(c, side);
@@ -609,18 +670,18 @@ bool Solver::begin_round() {
           // The side's deposited unshot power, exactly; where the estimate has no positive part
           // left (a local estimate on a region too short for its window can), the lumped density.
           double power = 0.0;
-          for (std::size_t k = 0; k < storage.basis.size(); ++k) power += unshot_[(offset + k) * channels + ch];
+          for (std::size_t k = 0; k < storage.basis.size(); ++k) power += pool[(offset + k) * channels + ch];
           if (!clamp_keeping_power(storage, &density_power[offset * channels + ch], channels, power))
             for (std::size_t k = 0; k < storage.basis.size(); ++k)
               density_power[(offset + k) * channels + ch] =
-                  unshot_[(offset + k) * channels + ch] / storage.basis_length[k];
+                  pool[(offset + k) * channels + ch] / storage.basis_length[k];
         }
         for (std::size_t k = 0; k < storage_[c].basis.size(); ++k)
           for (std::size_t ch = 0; ch < channels; ++ch)
             density_power[(offset + k) * channels + ch] *= storage_[c].basis_length[k];
       }
   }
-  const std::vector<double>& coefficient_power = density_power.empty() ? unshot_ : density_power;
+  const std::vector<double>& coefficient_power = density_power.empty() ? pool : density_power;
   for (std::size_t j = 0; j < sources; ++j) {
     const double* power = by_coefficient ? &coefficient_power[j * channels] : block_unshot[j].data();
     for (std::size_t ch = 0; ch < channels; ++ch) source_weights[j] += power[ch];
@@ -711,7 +772,9 @@ void Solver::shoot(Rng& rng, std::uint64_t first, std::uint64_t count, Accumulat
     Vec2 tangent;
     // Emitted light of a curve with an emittance profile (first round only) starts exactly where
     // the profile says: uniform in arc length, accepted with probability E(u) / max E.
-    const bool profiled = rounds_ == 0 && !curve.emittance_profile.empty();
+    // (Every walk starts as emitted light.)
+    const bool emitted_light = rounds_ == 0 || walk_;
+    const bool profiled = emitted_light && !curve.emittance_profile.empty();
     if (profiled) {
       for (int attempt = 0;; ++attempt) {
         const bool from_point = qmc && attempt == 0;
@@ -806,7 +869,7 @@ void Solver::shoot(Rng& rng, std::uint64_t first, std::uint64_t count, Accumulat
     const Vec2 normal = back ? -perp(tangent) : perp(tangent);
     Vec2 direction;
     const Emission& emission = scene_->material_of(curve).emission;
-    if (rounds_ != 0 || emission.kind == Emission::Kind::Diffuse) {
+    if (!emitted_light || emission.kind == Emission::Kind::Diffuse) {
       direction = square_to_diffuse(qmc ? quasi(kDirection) : rng.uniform(), normal);
     } else if (emission.kind == Emission::Kind::Lobe) {
       // Sobol': sample_lobe's first proposal (theta uniform, kept with probability cos^n) from
@@ -832,6 +895,7 @@ void Solver::shoot(Rng& rng, std::uint64_t first, std::uint64_t count, Accumulat
       path->source_t = t;
       for (std::size_t ch = 0; ch < channels; ++ch)
         path->power[ch] = static_cast<double>(units[ch]) / round_.scale;
+      path->bounce = walk_ ? 0 : rounds_;
     }
     if constexpr (kRays == RayKind::Band) {
       // K parallel sub-rays across the width W. Each starts on the source segment itself, moved
@@ -874,10 +938,92 @@ void Solver::shoot(Rng& rng, std::uint64_t first, std::uint64_t count, Accumulat
         receive<RayKind::Point>(hit, sub, share, acc,
                                 ray_index == band_offsets_.size() / 2 ? path : nullptr, footprint);
       }
+      acc.rays += band_offsets_.size();
     } else {
       const SceneHit hit = accelerator_.closest_hit(ray, RayOrigin{segment_index, t});
+      ++acc.rays;
       receive<kRays>(hit, ray, units, acc, path, footprint);
+      if (walk_) walk_on<kRays>(rng, hit, ray, units, acc, paths, path_limit, path, footprint);
     }
+  }
+}
+
+Side Solver::side_hit(const SceneHit& hit, const Ray& ray, Vec2& tangent) const {
+  // The ray arrives on the front when it travels against the front normal, i.e. when
+  // cross(C'(t), d) < 0. Only the sign matters, so C'(t) need not be normalised; where it
+  // vanishes (an end point with coincident control points) the tangent comes from the first
+  // non-vanishing derivative.
+  const SegmentInfo& info = segment_info_[hit.segment];
+  tangent = info.line_tangent;
+  if (info.kind == SegmentKind::Cubic) {
+    const Cubic& shape = scene_->segments[hit.segment].geometry.shape;
+    tangent = derivative(shape, hit.t);
+    if (length_squared(tangent) <= 1e-24 * scene_->scale * scene_->scale)
+      tangent = unit_tangent(shape, hit.t, scene_->scale);
+  }
+  return cross(tangent, ray.direction) < 0.0 ? Side::Front : Side::Back;
+}
+
+template <Solver::RayKind kRays>
+void Solver::walk_on(Rng& rng, SceneHit hit, Ray ray, std::array<std::int64_t, 3> units,
+                     Accumulator& acc, std::vector<PhotonPath>* paths, std::size_t path_limit,
+                     PhotonPath* last, std::vector<FootprintWeight>& footprint) const {
+  const auto channels = static_cast<std::size_t>(channels_);
+  for (std::uint32_t bounce = 1;; ++bounce) {
+    if (hit.segment == kNoSegment) return;  // escaped (receive booked it)
+    Vec2 tangent;
+    const Side side = side_hit(hit, ray, tangent);
+    const std::uint32_t curve = segment_info_[hit.segment].curve;
+    const std::uint32_t block = curve * 2 + static_cast<std::uint32_t>(side);
+    if (block_offset_[block] == kNoBlock || block_black_[block]) {  // absorbed (receive booked it)
+      if (last != nullptr) last->absorbed = true;
+      return;
+    }
+    // Russian roulette: go on with probability q = max rho, each channel then carrying rho / q of
+    // its power, so every channel's expected power after the bounce is rho times what arrived.
+    // What the reweighting leaves behind (channels below the maximum, and rounding) is absorbed,
+    // so every walk's units end exactly as absorbed or escaped.
+    const Spectrum& rho = block_reflectivity_[block];
+    double survive = 0.0;
+    for (std::size_t ch = 0; ch < channels; ++ch) survive = std::max(survive, rho[ch]);
+    if (!(rng.uniform() < survive)) {
+      for (std::size_t ch = 0; ch < channels; ++ch) acc.absorbed[ch] += units[ch];
+      if (last != nullptr) last->absorbed = true;
+      return;
+    }
+    std::int64_t carried = 0;
+    for (std::size_t ch = 0; ch < channels; ++ch) {
+      const auto kept = static_cast<std::int64_t>(static_cast<double>(units[ch]) * (rho[ch] / survive) + 0.5);
+      acc.absorbed[ch] += units[ch] - kept;
+      units[ch] = kept;
+      carried += kept;
+    }
+    if (carried == 0) return;  // (all absorbed above)
+    // A diffuse bounce from the side that was hit, starting on the curve itself.
+    const SceneSegment& segment = scene_->segments[hit.segment];
+    const Cubic& shape = segment.geometry.shape;
+    const Vec2 point = segment.geometry.kind == SegmentKind::Line ? lerp(shape.p[0], shape.p[3], hit.t)
+                                                                  : evaluate(shape, hit.t);
+    const Vec2 front = perp(normalized(tangent));
+    const Vec2 normal = side == Side::Front ? front : -front;
+    ray = Ray{point, square_to_diffuse(rng.uniform(), normal)};
+    const RayOrigin origin{hit.segment, hit.t};
+    hit = accelerator_.closest_hit(ray, origin);
+    ++acc.rays;
+    PhotonPath* path = nullptr;
+    if (paths != nullptr && paths->size() < path_limit) {
+      path = &paths->emplace_back();
+      path->origin = point;
+      path->source_curve = curve;
+      path->source_side = side;
+      path->source_segment = origin.segment;
+      path->source_t = origin.t;
+      for (std::size_t ch = 0; ch < channels; ++ch)
+        path->power[ch] = static_cast<double>(units[ch]) / round_.scale;
+      path->bounce = bounce;
+    }
+    last = path;
+    receive<kRays>(hit, ray, units, acc, path, footprint);
   }
 }
 
@@ -886,7 +1032,6 @@ void Solver::receive(const SceneHit& hit, const Ray& ray, const std::array<std::
                      Accumulator& acc, PhotonPath* path,
                      std::vector<FootprintWeight>& footprint) const {
   const auto channels = static_cast<std::size_t>(channels_);
-  const double scale = scene_->scale;
   if (hit.segment == kNoSegment) {
     for (std::size_t ch = 0; ch < channels; ++ch) acc.escaped[ch] += units[ch];
     if (path != nullptr) {
@@ -895,20 +1040,9 @@ void Solver::receive(const SceneHit& hit, const Ray& ray, const std::array<std::
     }
     return;
   }
-  // Which side was hit: the ray arrives on the front when it travels against the front normal,
-  // i.e. when cross(C'(t), d) < 0.
   const SegmentInfo& info = segment_info_[hit.segment];
-  const SceneSegment& receiver = scene_->segments[hit.segment];
-  // Only the sign matters, so C'(t) need not be normalised; where it vanishes (an end point
-  // with coincident control points) the tangent comes from the first non-vanishing derivative.
-  Vec2 hit_tangent = info.line_tangent;
-  if (info.kind == SegmentKind::Cubic) {
-    hit_tangent = derivative(receiver.geometry.shape, hit.t);
-    if (length_squared(hit_tangent) <= 1e-24 * scale * scale)
-      hit_tangent = unit_tangent(receiver.geometry.shape, hit.t, scale);
-  }
-  const double crossing = cross(hit_tangent, ray.direction);
-  const Side side = crossing < 0.0 ? Side::Front : Side::Back;
+  Vec2 hit_tangent;
+  const Side side = side_hit(hit, ray, hit_tangent);
   if (path != nullptr) {
     path->end = ray.origin + hit.distance * ray.direction;
     path->hit_curve = info.curve;
@@ -918,14 +1052,14 @@ void Solver::receive(const SceneHit& hit, const Ray& ray, const std::array<std::
   // A side that reflects nothing (rho = 0 in every channel) turns all it receives into absorbed
   // power whatever the deposit's shape: no footprint or deposit is computed for it.
   if (offset == kNoBlock || block_black_[info.curve * 2 + static_cast<std::uint32_t>(side)]) {
-    for (std::size_t ch = 0; ch < channels; ++ch) acc.black[ch] += units[ch];
+    for (std::size_t ch = 0; ch < channels; ++ch) acc.absorbed[ch] += units[ch];
     return;
   }
   const double u = info.index_in_curve + hit.t;
   if constexpr (kRays == RayKind::Footprint) {
     // Spread along the receiver over the projected width with the profile; the weights sum to
     // one and the largest share takes the rounding remainder.
-    const double cos_incidence = std::fabs(crossing) / length(hit_tangent);
+    const double cos_incidence = std::fabs(cross(hit_tangent, ray.direction)) / length(hit_tangent);
     footprint.clear();
     footprint_weights(*scene_, scene_->curves[info.curve], storage_[info.curve].basis, u,
                       footprint_half_length(settings_.ray_width, cos_incidence),
@@ -969,15 +1103,42 @@ void Solver::end_round(std::span<const Accumulator> accumulators) {
   const auto channels = static_cast<std::size_t>(channels_);
   const double inverse_scale = 1.0 / round_.scale;
   std::array<std::int64_t, 3> escaped{};
-  std::array<std::int64_t, 3> black{};
-  for (const Accumulator& acc : accumulators)
+  std::array<std::int64_t, 3> absorbed{};
+  for (const Accumulator& acc : accumulators) {
     for (std::size_t ch = 0; ch < channels; ++ch) {
       escaped[ch] += acc.escaped[ch];
-      black[ch] += acc.black[ch];
+      absorbed[ch] += acc.absorbed[ch];
     }
+    rays_traced_ += acc.rays;
+  }
+  const std::size_t half = coefficient_count_ * channels;
+  if (walk_) {
+    // Each round's tallies estimate the whole received power (its walks carry all the emitted
+    // power between them): the running estimate is their average weighted by walks. Power is
+    // absorbed or escapes only where a walk's units end, so the books stay exact per round.
+    const double weight = static_cast<double>(round_.photons) / static_cast<double>(photons_shot_);
+    for (std::size_t index = 0; index < half; ++index) {
+      std::int64_t units = 0;
+      std::int64_t odd = 0;
+      for (const Accumulator& acc : accumulators) {
+        units += acc.received[index];
+        if (auto_storage_) odd += acc.received[half + index];
+      }
+      received_[index] += weight * (static_cast<double>(units + odd) * inverse_scale - received_[index]);
+      if (auto_storage_)
+        received_half_[index] += weight * (static_cast<double>(odd) * inverse_scale - received_half_[index]);
+    }
+    for (std::size_t ch = 0; ch < channels; ++ch) {
+      walk_escaped_[ch] += weight * (static_cast<double>(escaped[ch]) * inverse_scale - walk_escaped_[ch]);
+      walk_absorbed_[ch] += weight * (static_cast<double>(absorbed[ch]) * inverse_scale - walk_absorbed_[ch]);
+    }
+    update_reflected(received_, received_half_);
+    ++rounds_;
+    check_books();
+    return;
+  }
   // Power shot this round leaves the pool; what was received comes back as rho times itself. With
   // auto storage, odd-numbered photons deposited into the accumulators' second half.
-  const std::size_t half = coefficient_count_ * channels;
   double previous_pool = 0.0;
   for (double value : unshot_) previous_pool += value;
   for (std::uint32_t c = 0; c < scene_->curves.size(); ++c) {
@@ -1007,17 +1168,21 @@ void Solver::end_round(std::span<const Accumulator> accumulators) {
   }
   for (std::size_t ch = 0; ch < channels; ++ch) {
     escaped_[ch].add(static_cast<double>(escaped[ch]) * inverse_scale);
-    absorbed_[ch].add(static_cast<double>(black[ch]) * inverse_scale);
+    absorbed_[ch].add(static_cast<double>(absorbed[ch]) * inverse_scale);
   }
   update_reflected(received_, received_half_);
   previous_unshot_ = previous_pool;
   ++rounds_;
+  check_books();
+}
 
+void Solver::check_books() {
   // Always-on check of the books. Fixed-point quantisation moves at most half a unit per photon
-  // and channel, 2^-61 of the round's power each; allow that plus double round-off.
+  // and channel, 2^-61 of the round's power each (walks: 2^(H-61), H the headroom given up);
+  // allow that plus double round-off.
   const EnergyBooks totals = books();
   const double allowed =
-      emitted_total_ * (1e-12 + static_cast<double>(photons_shot_) * 3.0 * 0x1.0p-60);
+      emitted_total_ * (1e-12 + static_cast<double>(photons_shot_) * 3.0 * std::ldexp(1.0, walk_headroom_bits_ - 60));
   if (!(std::fabs(totals.imbalance()) <= allowed)) {
     char message[256];
     std::snprintf(message, sizeof message,
@@ -1184,6 +1349,11 @@ void Solver::include_open_round() {
   std::vector<double> received = received_;
   std::vector<double> received_half = received_half_;
   const std::size_t half = received.size();
+  // Walks: the round's walks so far, each carrying 1/n of the emitted power, estimate
+  // round_done_ / n of the received power; averaged with the finished rounds by walks.
+  const double before = static_cast<double>(photons_shot_ - round_done_);
+  const double done = static_cast<double>(round_done_);
+  const double walks = static_cast<double>(round_.photons);
   for (std::size_t index = 0; index < received.size(); ++index) {
     std::int64_t units = 0;
     std::int64_t odd = 0;
@@ -1191,8 +1361,17 @@ void Solver::include_open_round() {
       units += acc.received[index];
       if (auto_storage_) odd += acc.received[half + index];
     }
-    received[index] += static_cast<double>(units + odd) * inverse_scale;
-    if (auto_storage_) received_half[index] += static_cast<double>(odd) * inverse_scale;
+    const double power = static_cast<double>(units + odd) * inverse_scale;
+    const double power_odd = static_cast<double>(odd) * inverse_scale;
+    if (walk_) {
+      if (done > 0.0) {
+        received[index] = (before * received[index] + walks * power) / (before + done);
+        if (auto_storage_) received_half[index] = (before * received_half[index] + walks * power_odd) / (before + done);
+      }
+      continue;
+    }
+    received[index] += power;
+    if (auto_storage_) received_half[index] += power_odd;
   }
   update_reflected(received, received_half, LevelChoice::Now);
 }
@@ -1219,10 +1398,12 @@ EnergyBooks Solver::books() const {
   EnergyBooks books;
   for (int ch = 0; ch < channels_; ++ch) {
     books.emitted += emitted_[static_cast<std::size_t>(ch)];
-    books.absorbed += absorbed_[static_cast<std::size_t>(ch)].value();
-    books.escaped += escaped_[static_cast<std::size_t>(ch)].value();
+    books.absorbed += walk_ ? walk_absorbed_[static_cast<std::size_t>(ch)] : absorbed_[static_cast<std::size_t>(ch)].value();
+    books.escaped += walk_ ? walk_escaped_[static_cast<std::size_t>(ch)] : escaped_[static_cast<std::size_t>(ch)].value();
   }
   for (double value : unshot_) books.unshot += value;
+  // Walks: until a round has finished nothing is accounted for; the emitted power is still to go.
+  if (walk_ && rounds_ == 0) books.unshot = books.emitted;
   return books;
 }
 

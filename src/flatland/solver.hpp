@@ -61,6 +61,21 @@ const char* to_string(RayMode mode);
 enum class SamplerKind { Random, Sobol };
 const char* to_string(SamplerKind sampler);
 
+// How light gets from the emitters to its last bounce (docs/method.md, Transport):
+// - Shooting: progressive rounds, each shooting the power the previous round reflected, one hop
+//   per photon (the paper's method).
+// - Walk: every photon is a random walk from an emitter that, at each hit, tallies the power it
+//   carries as received there and goes on with probability max rho (Russian roulette) in a new
+//   diffuse direction, its channels weighted by rho / max rho: the collision estimator. The same
+//   storage and estimators turn its tallies into B = E + rho x received; a walk costs about
+//   1 / (1 - rho) rays, and its whole journey can be shown.
+enum class Transport { Shooting, Walk };
+const char* to_string(Transport transport);
+// "shooting" or "walk"; nullopt for anything else.
+std::optional<Transport> transport_from_string(std::string_view name);
+// Walks are refused where a side reflects more than this (a walk would average over 1e6 rays).
+inline constexpr double kWalkMaxReflectivity = 0.999999;
+
 // SolverSettings::elements for storage that follows the photons (`--elements auto`): deposits
 // land on a fine dyadic mesh, every coarser level's deposits follow exactly (the meshes nest), and
 // after every round each curve takes the level with the least estimated error, bias (from the
@@ -100,6 +115,9 @@ struct SolverSettings {
   RayMode ray_mode = RayMode::Footprint;
   int band_rays = 8;
   SamplerKind sampler = SamplerKind::Sobol;
+  // With Transport::Walk, `photons` counts walks; `tolerance` is not used (a walk ends by itself),
+  // and rays must be points or footprints (a band's sub-rays have no single place to go on from).
+  Transport transport = Transport::Shooting;
   // Memory the solver's storage may take (0: default_memory_budget(), three quarters of the
   // machine's); settings that would need more are refused by Solver::create before allocating.
   std::size_t memory_limit = 0;
@@ -141,6 +159,13 @@ struct PhotonPath {
   std::uint32_t hit_curve = 0;       // meaningless when escaped
   Side hit_side = Side::Front;
   Spectrum power{};                  // power carried (channels as in the scene)
+  // Times the light carried has been reflected before this flight: shooting's round number, or
+  // the hop's number in its walk (0: straight from an emitter). A walk's hops are consecutive
+  // paths, its first with bounce 0.
+  std::uint32_t bounce = 0;
+  // Walks: the walk ended where this flight landed (Russian roulette, or a side that reflects
+  // nothing). A flight that escaped ends its walk too (`escaped`).
+  bool absorbed = false;
 };
 
 // The message of the error a cancelled Solver::create returns.
@@ -199,6 +224,9 @@ class Solver {
   const SolverSettings& settings() const { return settings_; }
   unsigned thread_count() const { return threads_; }
   std::uint64_t photons_shot() const { return photons_shot_; }
+  // Rays cast in finished rounds: one per photon when shooting point rays or footprints, a band's
+  // sub-rays each, and every hop of a walk.
+  std::uint64_t rays_traced() const { return rays_traced_; }
   // Photons shot including those of a round that a cancel cut short (their deposits are dropped,
   // so they are not in photons_shot() or the books): what "interrupted after N photons" says.
   std::uint64_t photons_traced() const { return photons_shot_ + photons_cancelled_; }
@@ -257,13 +285,18 @@ class Solver {
     std::vector<std::int64_t> received;
     std::size_t half_offset = 0;
     std::array<std::int64_t, 3> escaped{};
-    std::array<std::int64_t, 3> black{};  // absorbed by sides that do not reflect
+    // Absorbed outright: by sides that do not reflect, and (walks) where a walk ends or Russian
+    // roulette's reweighting of its channels leaves power behind.
+    std::array<std::int64_t, 3> absorbed{};
     std::array<std::int64_t, 3> shot{};
+    std::uint64_t rays = 0;
     void reset(std::size_t size);
   };
   struct Round {
     std::uint64_t photons = 0;
     double scale = 0.0;  // fixed-point units per unit of power
+    // Walks: bits of scale given up so that every hop's tally fits (end_round's books allow for it).
+    int headroom_bits = 0;
     // Over blocks (curve * 2 + side) for uniform sampling, over coefficients for reconstructed.
     DiscreteDistribution sources;
     std::vector<std::array<std::int64_t, 3>> photon_units;  // per source
@@ -288,6 +321,9 @@ class Solver {
                Accumulator& accumulator, PhotonPath* path,
                std::vector<FootprintWeight>& footprint) const;
   void end_round(std::span<const Accumulator> accumulators);
+  // Always-on: emitted = absorbed + escaped + unshot within the fixed point's rounding, or the
+  // solve stops (StopReason::BooksUnbalanced).
+  void check_books();
   // reflected_ (and the Hermite reconstructions) from the power received in all rounds.
   // `choice`: with auto storage, whether the levels are chosen again (Scheduled: when the photons
   // shot have grown by kLevelChoiceGrowth since the last choice; Now: always, without moving the
@@ -300,6 +336,21 @@ class Solver {
   // Auto storage: each curve's level with the least estimated error (bias^2 + variance).
   void choose_levels(const std::vector<double>& received, const std::vector<double>& half);
   std::uint64_t photons_for_round(double unshot) const;
+  // Walks per round: growing with the walks done (so the level choices and a viewer's picture
+  // follow), at most kMaxWalksPerRound.
+  std::uint64_t walks_for_round() const;
+  static constexpr std::uint64_t kMinWalksPerRound = 16384;
+  static constexpr std::uint64_t kMaxWalksPerRound = std::uint64_t{1} << 20;
+  // The side of a curve that `ray` hits; `tangent` gets the curve's (unnormalised) tangent there.
+  Side side_hit(const SceneHit& hit, const Ray& ray, Vec2& tangent) const;
+  // Walks: the rest of a walk whose first flight `ray` landed at `hit` carrying `units` (already
+  // received there): Russian roulette, a diffuse bounce from the side hit, the next flight's
+  // deposit, until the walk ends. Its flights' paths are appended while `paths` has room;
+  // `first_path` is the first flight's (or null), marked when the walk ends where it landed.
+  template <RayKind kRays>
+  void walk_on(Rng& rng, SceneHit hit, Ray ray, std::array<std::int64_t, 3> units,
+               Accumulator& accumulator, std::vector<PhotonPath>* paths, std::size_t path_limit,
+               PhotonPath* first_path, std::vector<FootprintWeight>& footprint) const;
   // The Hermite interpolant, in arc length, of the nodal values of a curve's hat basis
   // (`values[k * stride]`); C-1 nodes (double knots) keep their two values.
   HermiteReconstruction hermite_of(std::uint32_t curve, const double* values, std::size_t stride) const;
@@ -354,8 +405,19 @@ class Solver {
   // polynomial profile only; empty otherwise).
   std::vector<FootprintTable> footprint_tables_;
 
-  std::vector<double> received_;  // all rounds, [coefficient * channels + channel]
-  std::vector<double> unshot_;    // current pool, same layout
+  // Shooting: all rounds' received power. Walks: each round's tallies estimate the whole received
+  // power; this is their average weighted by walks (so it is an estimate after every round).
+  std::vector<double> received_;  // [coefficient * channels + channel]
+  std::vector<double> unshot_;    // current pool, same layout (walks: always zero)
+  // Walks: the emitted power on each coefficient, where every round's walks start.
+  std::vector<double> emission_;
+  bool walk_ = false;
+  double walk_expected_rays_ = 1.0;  // an upper bound on a walk's mean number of rays
+  int walk_headroom_bits_ = 0;       // the most any round gave up
+  // Walks: absorbed and escaped power per channel, averaged over rounds as received_ is.
+  std::array<double, 3> walk_absorbed_{};
+  std::array<double, 3> walk_escaped_{};
+  std::uint64_t rays_traced_ = 0;
   std::vector<double> reflected_;  // reflected radiosity coefficients b_k (estimator applied)
   // Hermite basis only: reflected radiosity per block and channel, and the unshot density per
   // block (channels summed) that reconstructed sampling draws from; both in arc length.

@@ -55,7 +55,7 @@ std::vector<CurveTrace> trace_curves(const Scene& scene, int samples_per_segment
 }
 
 PathRecord path_record(const PhotonPath& path, const Scene& scene, std::uint64_t serial, std::uint32_t round) {
-  PathRecord record{serial, path.origin, path.end, path.power, round, path.escaped};
+  PathRecord record{serial, path.origin, path.end, path.power, round, path.bounce, path.escaped, path.absorbed};
   if (path.escaped) {
     // Exit from the box: the smallest positive slab distance along the direction.
     const Vec2 d = path.end - path.origin;
@@ -275,6 +275,12 @@ constexpr std::array<std::array<float, 3>, 6> kRoundPalette{{{1.0f, 0.45f, 0.05f
                                                            {0.55f, 0.25f, 1.0f},
                                                            {0.05f, 0.95f, 0.9f}}};
 
+}  // namespace
+
+std::array<float, 3> path_palette(std::uint32_t index) { return kRoundPalette[index % kRoundPalette.size()]; }
+
+namespace {
+
 bool same_view(const ViewTransform& a, const ViewTransform& b) {
   return a.center == b.center && a.scale == b.scale && a.width == b.width && a.height == b.height;
 }
@@ -286,7 +292,9 @@ PathInstance PathLayer::instance(const Entry& entry, double factor, int channels
   const PathRecord& path = entry.path;
   std::array<float, 3> colour{1.0f, 1.0f, 1.0f};
   if (options.path_colour == PathColour::Round) {
-    colour = kRoundPalette[path.round % kRoundPalette.size()];
+    colour = path_palette(path.round);
+  } else if (options.path_colour == PathColour::Bounce) {
+    colour = path_palette(path.bounce);
   } else if (channels == 3) {
     // The light's colour: channels relative to their mean (the weight carries the power).
     const double mean = luminance(path.power, 3);

@@ -55,7 +55,9 @@ struct PathRecord {
   Vec2 to;
   Spectrum power{};
   std::uint32_t round = 0;
+  std::uint32_t bounce = 0;  // reflections before this flight (PhotonPath::bounce)
   bool escaped = false;
+  bool absorbed = false;     // a walk ended where this flight landed
 };
 
 // A photon path for drawing: from its origin to its hit, or, for a photon that escaped (`end` is
@@ -113,8 +115,12 @@ struct PathInstance {
   float width;
 };
 
-enum class PathColour { Power, Round };
+// Paths coloured by their light (power and colour), by the round that shot them, or by the
+// number of reflections their light has had (a walk's hops; shooting's round number).
+enum class PathColour { Power, Round, Bounce };
 enum class ChannelView { All, Red, Green, Blue };
+// The colour of round or bounce `index` (six saturated colours, repeating).
+std::array<float, 3> path_palette(std::uint32_t index);
 
 struct DrawOptions {
   bool curves = true;

@@ -22,6 +22,7 @@ const BasisKind kBases[] = {BasisKind::Constant, BasisKind::Linear, BasisKind::C
 const char* const kSamplingNames[] = {"uniform", "reconstructed"};
 const char* const kDiscontinuityNames[] = {"none", "scene", "auto", "secondary"};
 const char* const kEstimatorNames[] = {"lumped", "galerkin", "local"};
+const char* const kTransportNames[] = {"shooting", "walk"};
 const char* const kProfileNames[] = {"box", "tent", "epanechnikov", "cosine", "gauss"};
 const char* const kModeNames[] = {"footprint", "band"};
 
@@ -214,6 +215,14 @@ void Viewer::draw_solve_panel(const Snapshot& snapshot) {
     settings_.estimator = static_cast<Estimator>(estimator);
     changed = true;
   }
+  int transport = static_cast<int>(settings_.transport);
+  if (combo("transport", &transport, kTransportNames, 2)) {
+    settings_.transport = static_cast<Transport>(transport);
+    changed = true;
+  }
+  if (ImGui::IsItemHovered())
+    ImGui::SetTooltip("shooting: rounds of one hop each (the paper's method)\n"
+                      "walk: each photon a whole random walk, ended by Russian roulette");
   // Ray width as a fraction of the scene's size; profile and mode only matter for wide rays.
   float width = static_cast<float>(settings_.ray_width / scene_->scale);
   if (ImGui::SliderFloat("ray width", &width, 0.0f, 0.2f, width == 0.0f ? "point rays" : "%.4f x scale",
@@ -280,8 +289,18 @@ void Viewer::draw_display_panel(const Snapshot& snapshot) {
     }
     ImGui::SliderFloat("fade by age", &draw_.fade, 0.0f, 3.0f, "%.2f");
     int colour = static_cast<int>(draw_.path_colour);
-    const char* const names[] = {"power", "round"};
-    combo("colour by", &colour, names, 2);
+    const char* const names[] = {"power", "round", "bounce"};
+    combo("colour by", &colour, names, 3);
+    if (draw_.path_colour != PathColour::Power) {
+      // The palette's key: which colour is which round or bounce (it repeats after six).
+      const char* const what = draw_.path_colour == PathColour::Round ? "round" : "bounce";
+      for (std::uint32_t i = 0; i < 6; ++i) {
+        const std::array<float, 3> c = path_palette(i);
+        if (i > 0) ImGui::SameLine();
+        ImGui::TextColored(ImVec4(c[0], c[1], c[2], 1.0f), "%s%u", i == 0 ? what : "", i);
+      }
+      ImGui::TextDisabled("(the colours repeat after 6)");
+    }
     draw_.path_colour = static_cast<PathColour>(colour);
   }
   if (changed) overlay_generation_ = ~0ull;

@@ -131,9 +131,11 @@ Result<std::unique_ptr<Viewer>> Viewer::create(const ViewOptions& options) {
       return Error{"--select: the scene has no curve '" + options.select + "' (give an id or an index below " +
                    std::to_string(loaded.curves.size()) + ")"};
   }
-  if (options.colour_by != "power" && options.colour_by != "round")
-    return Error{"--colour-by: expected power or round, got '" + options.colour_by + "'"};
-  viewer->draw_.path_colour = options.colour_by == "round" ? PathColour::Round : PathColour::Power;
+  if (options.colour_by != "power" && options.colour_by != "round" && options.colour_by != "bounce")
+    return Error{"--colour-by: expected power, round or bounce, got '" + options.colour_by + "'"};
+  viewer->draw_.path_colour = options.colour_by == "round"    ? PathColour::Round
+                              : options.colour_by == "bounce" ? PathColour::Bounce
+                                                              : PathColour::Power;
   viewer->draw_.path_exposure = options.path_exposure;
   viewer->draw_.fade = options.path_fade;
   std::shared_ptr<const nlohmann::json> reference;
