@@ -313,7 +313,8 @@ TEST_F(Cli, ConvergeWritesTableAndPlots) {
   const std::string csv = read_file(out / "convergence.csv");
   EXPECT_EQ(csv.substr(0, csv.find('\n')),
             "method,basis,sampling,discontinuities,estimator,elements,ray_width,ray_mode,ray_profile,"
-            "band_rays,tolerance,seed,photons,rounds,unshot,seconds,rel_l1,rel_l2,rel_linf,measure,curve");
+            "band_rays,tolerance,seed,photons,rounds,unshot,seconds,rel_l1,rel_l2,rel_linf,measure,curve,"
+            "sampler,transport,rays");
   EXPECT_EQ(lines(csv), 1 + 2 * 2 * 2);  // header + methods x budgets x seeds
   EXPECT_NE(csv.find("\"cubic+sampling=uniform\",cubic,uniform"), std::string::npos);
   const std::string png = read_file(out / "convergence.png");

@@ -251,6 +251,51 @@ TEST_F(Viewer, UiControlsDriveTheSolve) {
   EXPECT_EQ(viewer.session().snapshot()->progress.photons, 0u);
 }
 
+// The transport control switches to random walks; stepping photons then keeps whole journeys (a run
+// of paths with bounce 0, 1, 2, ..., each starting where the last landed, ending once), and the
+// paths can be coloured by bounce.
+TEST_F(Viewer, WalkTransportStepsWholeJourneys) {
+  ViewOptions options;
+  options.scene = scene("room_reflector.json");
+  options.width = 1100;
+  options.height = 760;
+  options.paused = true;
+  options.vsync = false;
+  options.settings.photons = 10'000;
+  Result<std::unique_ptr<viewer::Viewer>> created = viewer::Viewer::create(options);
+  ASSERT_TRUE(created) << created.error().message;
+  viewer::Viewer& viewer = **created;
+  frames_until(viewer, [] { return false; }, 3);
+  click(viewer, "transport");
+  click(viewer, "transport:walk");
+  EXPECT_EQ(viewer.settings().transport, Transport::Walk);
+  viewer.session().wait_idle();
+  frames_until(viewer, [&] { return viewer.session().snapshot()->settings.transport == Transport::Walk; });
+  for (int i = 0; i < 5; ++i) {
+    click(viewer, "Photon");
+    viewer.session().wait_idle();
+  }
+  frames_until(viewer, [&] { return viewer.session().snapshot()->progress.photons == 5; });
+  const std::vector<PathRecord>& paths = viewer.session().snapshot()->paths;
+  ASSERT_FALSE(paths.empty());
+  int walks = 0;
+  for (std::size_t i = 0; i < paths.size(); ++i) {
+    if (paths[i].bounce == 0) {
+      ++walks;
+    } else {
+      ASSERT_GT(i, 0u);
+      EXPECT_EQ(paths[i].bounce, paths[i - 1].bounce + 1);
+      EXPECT_LT(flatland::length(paths[i].from - paths[i - 1].to), 1e-9 * viewer.scene().scale);
+    }
+    const bool last = i + 1 == paths.size() || paths[i + 1].bounce == 0;
+    EXPECT_EQ(last, paths[i].escaped || paths[i].absorbed) << "path " << i;
+  }
+  EXPECT_EQ(walks, 5);
+  click(viewer, "colour by");
+  click(viewer, "colour by:bounce");
+  EXPECT_EQ(viewer.path_colour(), PathColour::Bounce);
+}
+
 // A deterministic step (--step rounds=1) draws every path it kept before the frame is shown; live
 // frames draw at most path_budget new ones each.
 TEST_F(Viewer, SteppedFramesDrawEveryKeptPath) {

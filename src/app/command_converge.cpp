@@ -179,6 +179,7 @@ struct Row {
   double unshot;  // unshot / emitted power when the solve stopped
   double seconds;
   ErrorNorms error;
+  std::uint64_t rays;  // rays cast (a walk casts several)
 };
 
 std::vector<std::string> method_names(const std::vector<Method>& methods) {
@@ -460,7 +461,7 @@ Result<std::vector<Row>> read_rows(const fs::path& path, std::vector<std::string
       it = methods.end() - 1;
     }
     const auto m = static_cast<std::size_t>(it - methods.begin());
-    rows.push_back({m, seen[m]++ / static_cast<std::size_t>(seeds), p.seed, p.photons, 0, 0.0, p.seconds, p.error});
+    rows.push_back({m, seen[m]++ / static_cast<std::size_t>(seeds), p.seed, p.photons, 0, 0.0, p.seconds, p.error, 0});
   }
   return rows;
 }
@@ -705,7 +706,8 @@ int run_converge(ConvergeOptions& o) {
         const EnergyBooks books = solver->books();
         rows.push_back({m, b, settings.seed, solver->photons_shot(), solver->rounds(),
                         books.emitted > 0.0 ? books.unshot / books.emitted : 0.0, solver->seconds(),
-                        o.curve.empty() ? comparison->scene : comparison->curves[curve_index].norms});
+                        o.curve.empty() ? comparison->scene : comparison->curves[curve_index].norms,
+                        solver->rays_traced()});
         if (tty)
           std::fprintf(stderr, "\r\033[K  converge: %zu / %zu runs (%s, %s photons, seed %d)", rows.size(),
                        total, methods[m].name.c_str(),
@@ -722,10 +724,11 @@ int run_converge(ConvergeOptions& o) {
   // The CSV, written atomically.
   std::string csv =
       "method,basis,sampling,discontinuities,estimator,elements,ray_width,ray_mode,ray_profile,"
-      "band_rays,tolerance,seed,photons,rounds,unshot,seconds,rel_l1,rel_l2,rel_linf,measure,curve\n";
+      "band_rays,tolerance,seed,photons,rounds,unshot,seconds,rel_l1,rel_l2,rel_linf,measure,curve,"
+      "sampler,transport,rays\n";
   // measure and curve say what rel_* measure: "reflected" (B - E) or "total" (B), over the curve
   // with that id, or over the scene when the curve is empty.
-  const std::string measured_fields = std::string(",") + to_string(measured.measure) + "," + csv_field(measured.curve) + "\n";
+  const std::string measured_fields = std::string(",") + to_string(measured.measure) + "," + csv_field(measured.curve);
   for (const Row& row : rows) {
     const SolverSettings& s = methods[row.method].settings;
     char line[512];
@@ -738,6 +741,9 @@ int run_converge(ConvergeOptions& o) {
                   static_cast<unsigned long long>(row.seed), static_cast<unsigned long long>(row.photons),
                   row.rounds, row.unshot, row.seconds, row.error.l1, row.error.l2, row.error.linf);
     csv += line + measured_fields;
+    std::snprintf(line, sizeof line, ",%s,%s,%llu\n", to_string(s.sampler), to_string(s.transport),
+                  static_cast<unsigned long long>(row.rays));
+    csv += line;
   }
   if (Status status = write_file_atomically((directory / "convergence.csv").string(), csv); !status)
     return usage_error(status.error().message);

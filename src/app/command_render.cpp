@@ -128,8 +128,10 @@ int run_render(RenderOptions& o) {
   if (const std::optional<int> code = commit_outputs(files)) return *code;
   if (!o.solve.quiet) {
     if (!o.result.empty()) std::printf("wrote     %s\n", o.result.c_str());
-    std::printf("solved    %llu photons in %u rounds, %.3f s\n",
-                static_cast<unsigned long long>(solver.photons_shot()), solver.rounds(), solver.seconds());
+    std::printf("solved    %llu %s (%llu rays) in %u rounds, %.3f s\n",
+                static_cast<unsigned long long>(solver.photons_shot()),
+                solver.settings().transport == Transport::Walk ? "walks" : "photons",
+                static_cast<unsigned long long>(solver.rays_traced()), solver.rounds(), solver.seconds());
     std::printf("wrote     %s (%dx%d, %zu paths)\n", o.out.c_str(), o.width, o.height, paths.size());
   }
   return kExitOk;

@@ -81,6 +81,7 @@ class Viewer {
   const SolverSettings& settings() const { return settings_; }
   const Scene& scene() const { return *scene_; }
   int selected_curve() const { return draw_.selected_curve; }
+  PathColour path_colour() const { return draw_.path_colour; }
   std::size_t paths_drawn() const;  // photon paths in the path buffer after the last frame
 
   // UI automation for tests: the rectangle (x0, y0, x1, y1, pixels) of the widget drawn last
