@@ -32,6 +32,42 @@ TEST(Frame, FitViewShowsTheWholeSceneWithItsMargin) {
   EXPECT_LT(view.to_pixels(bounds.upper).y, view.to_pixels(bounds.lower).y);
 }
 
+TEST(Frame, DockedLayoutKeepsTheStageClearOfThePanelColumns) {
+  for (const auto& [width, height] : {std::pair{1280, 800}, {1024, 768}, {800, 600}, {1920, 1080}, {640, 900}}) {
+    for (float scale : {1.0f, 1.5f, 2.0f}) {
+      const StageLayout layout = stage_layout(width, height, scale, true, 20.0f);
+      EXPECT_FALSE(layout.left.overlaps(layout.stage)) << width << "x" << height << " scale " << scale;
+      EXPECT_FALSE(layout.right.overlaps(layout.stage)) << width << "x" << height << " scale " << scale;
+      // The three share the window below the menu exactly, and the stage keeps at least 40 %.
+      EXPECT_FLOAT_EQ(layout.left.width() + layout.stage.width() + layout.right.width(), static_cast<float>(width));
+      EXPECT_GE(layout.stage.width(), 0.4f * width - 1.0f);
+      EXPECT_EQ(layout.stage.y0, 20.0f);
+      EXPECT_EQ(layout.stage.y1, static_cast<float>(height));
+      // Any scene fitted to the stage stays inside it: wide, tall, and a single point.
+      for (const auto& [lower, upper] : {std::pair{Vec2{-3, -1}, Vec2{5, 2}}, {Vec2{0, 0}, Vec2{0.1, 7}}, {Vec2{1, 1}, Vec2{1, 1}}}) {
+        Box bounds;
+        bounds.extend(lower);
+        bounds.extend(upper);
+        const ViewTransform view = fit_view(bounds, width, height, layout.stage);
+        for (Vec2 corner : {bounds.lower, bounds.upper}) {
+          const Vec2 p = view.to_pixels(corner);
+          EXPECT_GE(p.x, layout.stage.x0 - 1e-6);
+          EXPECT_LE(p.x, layout.stage.x1 + 1e-6);
+          EXPECT_GE(p.y, layout.stage.y0 - 1e-6);
+          EXPECT_LE(p.y, layout.stage.y1 + 1e-6);
+        }
+        // Centred in the stage.
+        const Vec2 centre = view.to_pixels(0.5 * (bounds.lower + bounds.upper));
+        EXPECT_NEAR(centre.x, 0.5 * (layout.stage.x0 + layout.stage.x1), 1e-6);
+        EXPECT_NEAR(centre.y, 0.5 * (layout.stage.y0 + layout.stage.y1), 1e-6);
+      }
+    }
+  }
+  // Without panels the stage is the whole window below the menu.
+  const StageLayout bare = stage_layout(1280, 800, 1.0f, false, 20.0f);
+  EXPECT_EQ(bare.stage, (PixelRect{0.0f, 20.0f, 1280.0f, 800.0f}));
+}
+
 TEST(Frame, ZoomKeepsThePointUnderTheCursor) {
   Box bounds;
   bounds.extend(Vec2{0.0, 0.0});

@@ -232,9 +232,7 @@ TEST_F(Viewer, UiControlsDriveTheSolve) {
   EXPECT_FALSE(viewer.session().running());
 
   // Click the receiver (curve 2): the curve panel opens on it.
-  const Scene& scene = viewer.scene();
-  const ViewTransform view = fit_view(scene.bounds, options.width, options.height);
-  const Vec2 at = view.to_pixels({2.5, 0.0});  // right: the display panel covers the lower left
+  const Vec2 at = viewer.view().to_pixels({2.5, 0.0});
   viewer.queue_click(static_cast<float>(at.x), static_cast<float>(at.y));
   frames_until(viewer, [&] { return viewer.selected_curve() == 2; }, 6);
   EXPECT_EQ(viewer.selected_curve(), 2);
@@ -249,6 +247,45 @@ TEST_F(Viewer, UiControlsDriveTheSolve) {
   EXPECT_FALSE(viewer.session().running());
   EXPECT_NE(viewer.session().snapshot()->generation, generation);
   EXPECT_EQ(viewer.session().snapshot()->progress.photons, 0u);
+}
+
+// The docked layout: at several window sizes, with every default panel and the curve panel open, no
+// panel covers the scene's bounding box on screen; the status panel shows the energy books without
+// a scroll bar at the default size; Tab hides the panels and the scene is fitted to the whole window.
+TEST_F(Viewer, PanelsNeverCoverTheScene) {
+  for (const auto& [width, height] : {std::pair{1280, 800}, {1024, 768}, {1600, 900}, {1920, 1080}}) {
+    for (const char* name : {"room_reflector.json", "syndrome.json", "curved_room.json", "penumbra.json"}) {
+      ViewOptions options;
+      options.scene = scene(name);
+      options.width = width;
+      options.height = height;
+      options.paused = true;
+      options.vsync = false;
+      options.select = "0";
+      options.settings.photons = 10'000;
+      Result<std::unique_ptr<viewer::Viewer>> created = viewer::Viewer::create(options);
+      ASSERT_TRUE(created) << created.error().message;
+      viewer::Viewer& viewer = **created;
+      frames_until(viewer, [] { return false; }, 4);
+      const Box& bounds = viewer.scene().bounds;
+      const Vec2 a = viewer.view().to_pixels(bounds.lower);
+      const Vec2 b = viewer.view().to_pixels(bounds.upper);
+      const PixelRect box{static_cast<float>(std::min(a.x, b.x)), static_cast<float>(std::min(a.y, b.y)),
+                          static_cast<float>(std::max(a.x, b.x)), static_cast<float>(std::max(a.y, b.y))};
+      for (const char* panel : {"Solve", "Display", "Status", "Curve"}) {
+        const std::optional<PixelRect> rect = viewer.panel_rect(panel);
+        ASSERT_TRUE(rect.has_value()) << panel;
+        EXPECT_FALSE(rect->overlaps(box)) << name << " at " << width << "x" << height << ": " << panel;
+      }
+      if (width == 1280) {
+        EXPECT_FALSE(viewer.panel_scrolls("Status")) << name;
+      }
+      viewer.queue_key(SDLK_TAB);
+      frames_until(viewer, [] { return false; }, 3);
+      EXPECT_FALSE(viewer.panel_rect("Solve").has_value());
+      EXPECT_EQ(viewer.layout().stage.width(), static_cast<float>(width));
+    }
+  }
 }
 
 // The transport control switches to random walks; stepping photons then keeps whole journeys (a run
@@ -331,7 +368,7 @@ TEST_F(Viewer, DraggingAControlPointEditsTheSceneAndRestarts) {
   ASSERT_TRUE(created) << created.error().message;
   viewer::Viewer& viewer = **created;
   viewer.frame();
-  const ViewTransform view = fit_view(viewer.scene().bounds, options.width, options.height);
+  const ViewTransform view = viewer.view();  // fitted to the stage between the panels
   // The occluder's right end (0.7, 1) dragged to (1.2, 1.1).
   const std::uint64_t generation = viewer.session().snapshot()->generation;
   const Vec2 from = view.to_pixels({0.7, 1.0});

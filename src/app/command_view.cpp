@@ -55,6 +55,10 @@ CLI::App* add_view_command(CLI::App& parent, ViewCommandOptions& o) {
       ->capture_default_str()
       ->check(finite_range(1e-3, 1e3));
   cmd->add_flag("--no-ui", o.no_ui, "Hide the panels");
+  cmd->add_option("--ui-scale", o.ui_scale,
+                  "Size of the panels' text and widgets, and of their columns (1.5-2 for a projector)")
+      ->capture_default_str()
+      ->check(finite_range(0.5, 4.0));
   cmd->add_flag("--no-vsync", o.no_vsync, "Do not wait for the display's refresh (to measure frame rates)");
   cmd->add_option("--max-fps", o.max_fps,
                   "Frames per second at most (0: 40 with software OpenGL, which draws on the solver's "
@@ -101,6 +105,7 @@ int run_view(ViewCommandOptions& o) {
   options.path_exposure = o.exposure;
   options.path_fade = o.fade;
   options.show_ui = !o.no_ui;
+  options.ui_scale = o.ui_scale;
   options.vsync = !o.no_vsync;
   options.max_fps = o.max_fps;
   options.report = o.report;

@@ -157,6 +157,7 @@ struct ViewCommandOptions {
   float exposure = 1.0f;
   float fade = 1.0f;
   bool no_ui = false;
+  float ui_scale = 1.0f;
   bool no_vsync = false;
   int max_fps = 0;
   bool report = false;

@@ -28,6 +28,45 @@ ViewTransform fit_view(const Box& bounds, int width, int height, double margin) 
   return view;
 }
 
+StageLayout stage_layout(int width, int height, float ui_scale, bool panels, float menu_height) {
+  const auto w = static_cast<float>(std::max(width, 1));
+  const auto h = static_cast<float>(std::max(height, 1));
+  const float top = std::clamp(menu_height, 0.0f, h);
+  StageLayout layout;
+  if (!panels) {
+    layout.stage = {0.0f, top, w, h};
+    layout.left = {0.0f, top, 0.0f, h};
+    layout.right = {w, top, w, h};
+    return layout;
+  }
+  float left = 340.0f * ui_scale;
+  float right = 370.0f * ui_scale;
+  const float room = 0.6f * w;  // what the columns may take together
+  if (left + right > room) {
+    const float shrink = room / (left + right);
+    left *= shrink;
+    right *= shrink;
+  }
+  layout.left = {0.0f, top, std::floor(left), h};
+  layout.right = {w - std::floor(right), top, w, h};
+  layout.stage = {layout.left.x1, top, layout.right.x0, h};
+  return layout;
+}
+
+ViewTransform fit_view(const Box& bounds, int width, int height, const PixelRect& stage, double margin) {
+  // Fit to the stage as if it were the window, then move the centre so that the stage's centre,
+  // not the window's, shows the scene's.
+  const int stage_width = std::max(1, static_cast<int>(stage.width()));
+  const int stage_height = std::max(1, static_cast<int>(stage.height()));
+  ViewTransform view = fit_view(bounds, stage_width, stage_height, margin);
+  view.width = std::max(width, 1);
+  view.height = std::max(height, 1);
+  const double dx = 0.5 * (stage.x0 + stage.x1) - 0.5 * view.width;   // pixels right of the window's centre
+  const double dy = 0.5 * (stage.y0 + stage.y1) - 0.5 * view.height;  // pixels below it
+  view.center = view.center - Vec2{dx / view.scale, -dy / view.scale};
+  return view;
+}
+
 std::vector<CurveTrace> trace_curves(const Scene& scene, int samples_per_segment) {
   std::vector<CurveTrace> traces(scene.curves.size());
   const int n = std::max(samples_per_segment, 2);

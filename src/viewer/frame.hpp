@@ -38,6 +38,35 @@ struct ViewTransform {
 // side on every edge.
 ViewTransform fit_view(const Box& bounds, int width, int height, double margin = 0.06);
 
+// A rectangle in window pixels (y down), x0 <= x1, y0 <= y1.
+struct PixelRect {
+  float x0 = 0.0f, y0 = 0.0f, x1 = 0.0f, y1 = 0.0f;
+  float width() const { return x1 - x0; }
+  float height() const { return y1 - y0; }
+  // Whether the two share interior points (touching edges do not count).
+  bool overlaps(const PixelRect& other) const {
+    return x0 < other.x1 && other.x0 < x1 && y0 < other.y1 && other.y0 < y1;
+  }
+  bool operator==(const PixelRect&) const = default;
+};
+
+// The viewer's docked layout: the panels live in two columns at the window's sides (solve and
+// display controls on the left, status and the inspected curve on the right), below the menu bar,
+// and the scene is fitted to the stage between them, so no panel ever covers it. At `ui_scale` 1
+// the columns are 340 and 370 pixels wide; where the window is too narrow for them and a stage of
+// 40 % of its width, they shrink alike. Without panels (`panels` false) the stage is the whole
+// window below the menu bar.
+struct StageLayout {
+  PixelRect left;
+  PixelRect right;
+  PixelRect stage;
+};
+StageLayout stage_layout(int width, int height, float ui_scale, bool panels, float menu_height);
+
+// The whole of `bounds` inside `stage` of a width x height window, with a margin of `margin` of the
+// stage's smaller side.
+ViewTransform fit_view(const Box& bounds, int width, int height, const PixelRect& stage, double margin = 0.05);
+
 // A curve sampled for drawing: every segment from end to end (corners stay sharp), positions,
 // unit front normals, curve parameter u and arc length s at each sample.
 struct CurveTrace {

@@ -43,7 +43,8 @@ const char* const kHelp[][2] = {
     {"B", "step one batch (4096 photons)"},
     {"R", "step one round"},
     {"Backspace", "reset (restart the solve)"},
-    {"F", "fit the scene to the window"},
+    {"F", "fit the scene to the stage (the space between the panels)"},
+    {"Tab", "hide or show the panels (the scene takes the whole window)"},
     {"C", "show control points (drag them to edit)"},
     {"N", "show storage nodes"},
     {"G", "graph of B along the normals"},
@@ -84,18 +85,42 @@ void Viewer::track(const char* label) {
   widget_rects_[label] = {lo.x, lo.y, hi.x, hi.y};
 }
 
+void Viewer::record_panel(const char* name) {
+  const ImVec2 position = ImGui::GetWindowPos();
+  const ImVec2 size = ImGui::GetWindowSize();
+  panel_rects_[name] = {position.x, position.y, position.x + size.x, position.y + size.y};
+  panel_scrolls_[name] = ImGui::GetScrollMaxY() > 0.0f;
+}
+
+namespace {
+
+// Docked panels: placed by the layout every frame, not moved or resized by hand (a title bar
+// click still folds one away).
+constexpr ImGuiWindowFlags kDocked = ImGuiWindowFlags_NoMove | ImGuiWindowFlags_NoResize;
+
+// The next panel at the top of what is left of `column` below `above` (its y1; the column's top
+// for the first panel), as wide as the column; its height follows its content up to what is left.
+void dock_next(const PixelRect& column, float above) {
+  const float top = std::max(column.y0, above);
+  ImGui::SetNextWindowPos(ImVec2(column.x0, top), ImGuiCond_Always);
+  ImGui::SetNextWindowSizeConstraints(ImVec2(column.width(), 0.0f),
+                                      ImVec2(column.width(), std::max(column.y1 - top, 40.0f)));
+}
+
+}  // namespace
+
 void Viewer::draw_ui(const Snapshot& snapshot) {
   draw_menu(snapshot);
-  draw_solve_panel(snapshot);
-  draw_display_panel(snapshot);
-  draw_status_panel(snapshot);
-  if (draw_.selected_curve >= 0 && static_cast<std::size_t>(draw_.selected_curve) < scene_->curves.size())
-    draw_curve_panel(snapshot);
+  if (panels_visible_) {
+    draw_solve_panel(snapshot);
+    draw_display_panel(snapshot);
+    draw_status_panel(snapshot);
+    if (draw_.selected_curve >= 0 && static_cast<std::size_t>(draw_.selected_curve) < scene_->curves.size())
+      draw_curve_panel(snapshot);
+  }
   if (show_help_) draw_help_panel();
   if (!message_.empty() && seconds_since_start() - message_time_ < 8.0) {
-    const ImGuiViewport* viewport = ImGui::GetMainViewport();
-    ImGui::SetNextWindowPos(ImVec2(viewport->WorkPos.x + viewport->WorkSize.x * 0.5f,
-                                   viewport->WorkPos.y + viewport->WorkSize.y - 10.0f),
+    ImGui::SetNextWindowPos(ImVec2(0.5f * (layout_.stage.x0 + layout_.stage.x1), layout_.stage.y1 - 10.0f),
                             ImGuiCond_Always, ImVec2(0.5f, 1.0f));
     ImGui::SetNextWindowBgAlpha(0.8f);
     ImGui::Begin("##message", nullptr,
@@ -130,6 +155,7 @@ void Viewer::draw_menu(const Snapshot& snapshot) {
   }
   if (ImGui::BeginMenu("View")) {
     if (ImGui::MenuItem("Fit scene", "F")) view_fitted_ = false;
+    if (ImGui::MenuItem("Panels", "Tab", panels_visible_)) panels_visible_ = !panels_visible_;
     ImGui::EndMenu();
   }
   if (ImGui::MenuItem("Help")) show_help_ = !show_help_;
@@ -137,9 +163,9 @@ void Viewer::draw_menu(const Snapshot& snapshot) {
 }
 
 void Viewer::draw_solve_panel(const Snapshot& snapshot) {
-  ImGui::SetNextWindowPos(ImVec2(8, 28), ImGuiCond_FirstUseEver);
-  ImGui::SetNextWindowSize(ImVec2(350, 0), ImGuiCond_FirstUseEver);
-  ImGui::Begin("Solve");
+  dock_next(layout_.left, layout_.left.y0);
+  ImGui::Begin("Solve", nullptr, kDocked | ImGuiWindowFlags_AlwaysAutoResize);
+  record_panel("Solve");
   const bool running = session_->running();
   // A stopped solve (converged, budget spent) cannot run on: Reset or a new setting starts over.
   const bool stopped = snapshot.stop_reason != StopReason::Running;
@@ -259,9 +285,10 @@ void Viewer::draw_solve_panel(const Snapshot& snapshot) {
 
 void Viewer::draw_display_panel(const Snapshot& snapshot) {
   (void)snapshot;
-  ImGui::SetNextWindowPos(ImVec2(8, 430), ImGuiCond_FirstUseEver);
-  ImGui::SetNextWindowSize(ImVec2(330, 0), ImGuiCond_FirstUseEver);
-  ImGui::Begin("Display");
+  const auto solve = panel_rects_.find("Solve");
+  dock_next(layout_.left, solve != panel_rects_.end() ? solve->second.y1 : layout_.left.y0);
+  ImGui::Begin("Display", nullptr, kDocked | ImGuiWindowFlags_AlwaysAutoResize);
+  record_panel("Display");
   bool changed = false;
   changed |= ImGui::Checkbox("band", &draw_.band);
   ImGui::SameLine();
@@ -308,11 +335,9 @@ void Viewer::draw_display_panel(const Snapshot& snapshot) {
 }
 
 void Viewer::draw_status_panel(const Snapshot& snapshot) {
-  const ImGuiViewport* viewport = ImGui::GetMainViewport();
-  ImGui::SetNextWindowPos(ImVec2(viewport->WorkPos.x + viewport->WorkSize.x - 8.0f, viewport->WorkPos.y + 8.0f),
-                          ImGuiCond_FirstUseEver, ImVec2(1.0f, 0.0f));
-  ImGui::SetNextWindowSize(ImVec2(370, 0), ImGuiCond_FirstUseEver);
-  ImGui::Begin("Status");
+  dock_next(layout_.right, layout_.right.y0);
+  ImGui::Begin("Status", nullptr, kDocked | ImGuiWindowFlags_AlwaysAutoResize);
+  record_panel("Status");
   ImGui::Text("scene    %s (%s)", scene_->name.c_str(), scene_->channels == 1 ? "grey" : "colour");
   ImGui::Text("photons  %llu of %llu", static_cast<unsigned long long>(snapshot.progress.photons),
               static_cast<unsigned long long>(settings_.photons));
@@ -373,12 +398,13 @@ void Viewer::draw_curve_panel(const Snapshot& snapshot) {
   const auto c = static_cast<std::size_t>(draw_.selected_curve);
   const Curve& curve = scene_->curves[c];
   const Material& material = scene_->material_of(curve);
-  const ImGuiViewport* viewport = ImGui::GetMainViewport();
-  ImGui::SetNextWindowPos(ImVec2(viewport->WorkPos.x + viewport->WorkSize.x - 8.0f,
-                                 viewport->WorkPos.y + viewport->WorkSize.y - 8.0f),
-                          ImGuiCond_FirstUseEver, ImVec2(1.0f, 1.0f));
-  ImGui::SetNextWindowSize(ImVec2(420, 360), ImGuiCond_FirstUseEver);
-  ImGui::Begin("Curve");
+  // The rest of the right column, below the status panel.
+  const auto status = panel_rects_.find("Status");
+  const float top = status != panel_rects_.end() ? status->second.y1 : layout_.right.y0;
+  ImGui::SetNextWindowPos(ImVec2(layout_.right.x0, top), ImGuiCond_Always);
+  ImGui::SetNextWindowSize(ImVec2(layout_.right.width(), std::max(layout_.right.y1 - top, 120.0f)), ImGuiCond_Always);
+  ImGui::Begin("Curve", nullptr, kDocked);
+  record_panel("Curve");
   ImGui::Text("curve    %zu '%s'", c, curve.id.c_str());
   ImGui::Text("material %s: rho %.3g %.3g %.3g", material.name.c_str(), material.reflectivity[0],
               material.reflectivity[1], material.reflectivity[2]);
@@ -440,7 +466,9 @@ void Viewer::draw_curve_panel(const Snapshot& snapshot) {
 }
 
 void Viewer::draw_help_panel() {
-  ImGui::SetNextWindowPos(ImVec2(330, 60), ImGuiCond_FirstUseEver);
+  // Over the stage, as long as it is asked for (Help, F1 or H closes it again).
+  ImGui::SetNextWindowPos(ImVec2(0.5f * (layout_.stage.x0 + layout_.stage.x1), layout_.stage.y0 + 20.0f),
+                          ImGuiCond_Appearing, ImVec2(0.5f, 0.0f));
   ImGui::Begin("Help", &show_help_, ImGuiWindowFlags_AlwaysAutoResize);
   ImGui::TextUnformatted("Keyboard shortcuts (when no panel has the keyboard)");
   ImGui::Separator();

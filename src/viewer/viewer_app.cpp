@@ -215,6 +215,11 @@ Result<std::unique_ptr<Viewer>> Viewer::create(const ViewOptions& options) {
   ImGuiIO& io = ImGui::GetIO();
   io.IniFilename = nullptr;  // no imgui.ini left in the working directory
   ImGui::StyleColorsDark();
+  // Projectors: every size and the font scaled alike (the docked columns follow in stage_layout).
+  if (options.ui_scale != 1.0f) {
+    ImGui::GetStyle().ScaleAllSizes(options.ui_scale);
+    io.FontGlobalScale = options.ui_scale;
+  }
   ImGui_ImplSDL2_InitForOpenGL(impl->window, impl->context);
   ImGui_ImplOpenGL3_Init("#version 330 core");
   impl->imgui = true;
@@ -314,6 +319,7 @@ void Viewer::handle_key(int key, bool ctrl) {
     case SDLK_r: session_->step(StepKind::Round); break;
     case SDLK_BACKSPACE: restart(); break;
     case SDLK_f: view_fitted_ = false; break;
+    case SDLK_TAB: panels_visible_ = !panels_visible_; break;
     case SDLK_c: draw_.control_points = !draw_.control_points; break;
     case SDLK_n: draw_.storage_nodes = !draw_.storage_nodes; break;
     case SDLK_g: draw_.graph = !draw_.graph; break;
@@ -367,6 +373,7 @@ void Viewer::handle_event(const void* raw) {
         int y = 0;
         SDL_GetMouseState(&x, &y);
         view_.zoom_about({static_cast<double>(x), static_cast<double>(y)}, std::pow(1.15, event.wheel.y));
+        view_auto_ = false;
       }
       break;
     default: break;
@@ -396,14 +403,22 @@ void Viewer::drop_reference(const std::string& why) {
   reference_path_.clear();
 }
 
-void Viewer::render_scene(const Snapshot& snapshot, int width, int height) {
+std::optional<PixelRect> Viewer::panel_rect(const std::string& name) const {
+  const auto it = panel_rects_.find(name);
+  if (it == panel_rects_.end()) return std::nullopt;
+  return it->second;
+}
+
+bool Viewer::panel_scrolls(const std::string& name) const {
+  const auto it = panel_scrolls_.find(name);
+  return it != panel_scrolls_.end() && it->second;
+}
+
+void Viewer::render_scene(const Snapshot& snapshot, const ViewTransform& view) {
   if (snapshot.generation != overlay_generation_ || overlay_snapshot_.get() != &snapshot) {
     overlay_ = build_overlay(snapshot, draw_);
     overlay_generation_ = snapshot.generation;
   }
-  ViewTransform view = view_;
-  view.width = width;
-  view.height = height;
   // Live, a frame draws at most path_budget new paths (the rest of the kept set follows over the
   // next frames); a deterministic step (--step) draws everything it shot before the frame.
   const std::size_t budget = frame_step_.mode == FrameStep::Mode::Live
@@ -422,6 +437,8 @@ bool Viewer::frame() {
   step_solve();
   const std::shared_ptr<const Snapshot> snapshot = session_->snapshot();
   handle_scene_mouse(*snapshot);
+  panel_rects_.clear();
+  panel_scrolls_.clear();
   if (options_.show_ui) draw_ui(*snapshot);
   ImGui::Render();
   draw(snapshot);
@@ -440,9 +457,16 @@ void Viewer::handle_events() {
   int width = 0;
   int height = 0;
   SDL_GL_GetDrawableSize(impl_->window, &width, &height);
+  // The docked layout: panels in the side columns, the scene fitted to the stage between them
+  // (again whenever the stage changes, unless the user has zoomed or panned since the last fit).
+  const float menu = options_.show_ui ? ImGui::GetFrameHeight() : 0.0f;
+  const StageLayout layout = stage_layout(width, height, options_.ui_scale, options_.show_ui && panels_visible_, menu);
+  if (!(layout.stage == layout_.stage) && view_auto_) view_fitted_ = false;
+  layout_ = layout;
   if (!view_fitted_) {
-    view_ = fit_view(scene_->bounds, width, height);
+    view_ = fit_view(scene_->bounds, width, height, layout_.stage);
     view_fitted_ = true;
+    view_auto_ = true;
   }
   view_.width = width;
   view_.height = height;
@@ -528,6 +552,7 @@ void Viewer::handle_scene_mouse(const Snapshot& snapshot) {
     if (ImGui::IsAnyMouseDown()) {
       const ImVec2 delta = io.MouseDelta;
       view_.center = view_.center - Vec2{delta.x / view_.scale, -delta.y / view_.scale};
+      if (delta.x != 0.0f || delta.y != 0.0f) view_auto_ = false;
     } else {
       panning_ = false;
     }
@@ -542,7 +567,7 @@ void Viewer::draw(const std::shared_ptr<const Snapshot>& snapshot) {
   if (snapshot.get() != overlay_snapshot_.get()) overlay_generation_ = ~0ull;
   overlay_snapshot_ = snapshot;
   glBindFramebuffer(GL_FRAMEBUFFER, 0);
-  if (view_.width > 0 && view_.height > 0) render_scene(*snapshot, view_.width, view_.height);
+  if (view_.width > 0 && view_.height > 0) render_scene(*snapshot, view_);
   ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
 }
 
@@ -565,7 +590,12 @@ Status Viewer::save_screenshot(const std::string& path) {
   }
   const std::shared_ptr<const Snapshot> snapshot = session_->snapshot();
   overlay_generation_ = ~0ull;
-  render_scene(*snapshot, width, height);
+  // The scene without panels: the fitted view fits the whole picture; a zoomed or panned one is
+  // kept as the user set it.
+  ViewTransform view = view_auto_ ? fit_view(scene_->bounds, width, height) : view_;
+  view.width = width;
+  view.height = height;
+  render_scene(*snapshot, view);
   PngImage image{width, height, 4, Renderer::read_pixels(width, height)};
   glBindFramebuffer(GL_FRAMEBUFFER, 0);
   for (std::size_t i = 3; i < image.pixels.size(); i += 4) image.pixels[i] = 255;

@@ -36,10 +36,12 @@ struct ViewOptions {
   std::size_t path_budget = 600;  // new paths drawn per frame at most (newest first)
   bool show_control_points = false;
   std::string select;              // a curve to inspect at start: its id or index
-  std::string colour_by = "power";  // photon paths coloured by "power" or "round"
+  std::string colour_by = "power";  // photon paths coloured by "power", "round" or "bounce"
   float path_exposure = 1.0f;
   float path_fade = 1.0f;  // 0: every kept path equally bright; 1: the oldest fade to about 5 %
   bool show_ui = true;
+  // Size of the panels' text and widgets (and their columns): 1 at a desk, 1.5-2 on a projector.
+  float ui_scale = 1.0f;
   bool vsync = true;
   // Frames per second at most: 0 chooses 40 with a software OpenGL renderer (it draws on the
   // solver's cores) and no limit otherwise (vsync paces the frames); negative is no limit.
@@ -82,6 +84,13 @@ class Viewer {
   const Scene& scene() const { return *scene_; }
   int selected_curve() const { return draw_.selected_curve; }
   PathColour path_colour() const { return draw_.path_colour; }
+  // The view (scene to window pixels), the docked layout of the last frame, and the rectangle of
+  // a panel ("Solve", "Display", "Status", "Curve") drawn in the last frame.
+  const ViewTransform& view() const { return view_; }
+  const StageLayout& layout() const { return layout_; }
+  std::optional<PixelRect> panel_rect(const std::string& name) const;
+  // Whether that panel's content was taller than the panel (it showed a scroll bar).
+  bool panel_scrolls(const std::string& name) const;
   std::size_t paths_drawn() const;  // photon paths in the path buffer after the last frame
 
   // UI automation for tests: the rectangle (x0, y0, x1, y1, pixels) of the widget drawn last
@@ -117,7 +126,9 @@ class Viewer {
   void track(const char* label);
   // ImGui::Combo with every item tracked as "label:item" for the UI tests.
   bool combo(const char* label, int* index, const char* const* names, int count);
-  void render_scene(const Snapshot& snapshot, int width, int height);
+  void render_scene(const Snapshot& snapshot, const ViewTransform& view);
+  // Records the current ImGui window's rectangle as panel `name` (call between Begin and End).
+  void record_panel(const char* name);
   void apply_edit();
   void drop_reference(const std::string& why);
   void check_file_changed();
@@ -136,6 +147,13 @@ class Viewer {
   DrawOptions draw_;
   ViewTransform view_;
   bool view_fitted_ = false;
+  // Whether the view is the fitted one (no zoom or pan since): it follows the stage when the
+  // panels change, and a scene screenshot fits the whole picture.
+  bool view_auto_ = true;
+  StageLayout layout_;
+  bool panels_visible_ = true;
+  std::map<std::string, PixelRect> panel_rects_;
+  std::map<std::string, bool> panel_scrolls_;
   std::uint64_t overlay_generation_ = ~0ull;
   std::shared_ptr<const Snapshot> overlay_snapshot_;
   std::vector<LineVertex> overlay_;
