@@ -40,7 +40,7 @@ TEST(Frame, DockedLayoutKeepsTheStageClearOfThePanelColumns) {
       EXPECT_FALSE(layout.right.overlaps(layout.stage)) << width << "x" << height << " scale " << scale;
       // The three share the window below the menu exactly, and the stage keeps at least 40 %.
       EXPECT_FLOAT_EQ(layout.left.width() + layout.stage.width() + layout.right.width(), static_cast<float>(width));
-      EXPECT_GE(layout.stage.width(), 0.4f * width - 1.0f);
+      EXPECT_GE(layout.stage.width(), 0.4f * static_cast<float>(width) - 1.0f);
       EXPECT_EQ(layout.stage.y0, 20.0f);
       EXPECT_EQ(layout.stage.y1, static_cast<float>(height));
       // Any scene fitted to the stage stays inside it: wide, tall, and a single point.
@@ -66,6 +66,29 @@ TEST(Frame, DockedLayoutKeepsTheStageClearOfThePanelColumns) {
   // Without panels the stage is the whole window below the menu.
   const StageLayout bare = stage_layout(1280, 800, 1.0f, false, 20.0f);
   EXPECT_EQ(bare.stage, (PixelRect{0.0f, 20.0f, 1280.0f, 800.0f}));
+}
+
+TEST(Frame, NewestJourneyIsTheLastRunOfConnectedBounces) {
+  auto hop = [](Vec2 from, Vec2 to, std::uint32_t bounce, bool escaped = false, bool absorbed = false) {
+    PathRecord record;
+    record.from = from;
+    record.to = to;
+    record.bounce = bounce;
+    record.escaped = escaped;
+    record.absorbed = absorbed;
+    return record;
+  };
+  EXPECT_EQ(newest_journey({}), (std::pair<std::size_t, std::size_t>{0, 0}));
+  // An earlier walk that escaped, then a walk of three hops (the last absorbed).
+  std::vector<PathRecord> paths{hop({0, 0}, {1, 0}, 0), hop({1, 0}, {5, 5}, 1, true),
+                                hop({0, 1}, {2, 2}, 0), hop({2, 2}, {3, 0}, 1), hop({3, 0}, {0, 0}, 2, false, true)};
+  EXPECT_EQ(newest_journey(paths), (std::pair<std::size_t, std::size_t>{2, 5}));
+  // A hop that does not start where the last one landed begins a new journey.
+  paths[4].from = {3.5, 0};
+  EXPECT_EQ(newest_journey(paths), (std::pair<std::size_t, std::size_t>{4, 5}));
+  // Shooting: every path of a round has the same bounce, so the newest is the last path alone.
+  std::vector<PathRecord> round{hop({0, 0}, {1, 0}, 2), hop({1, 0}, {2, 0}, 2)};
+  EXPECT_EQ(newest_journey(round), (std::pair<std::size_t, std::size_t>{1, 2}));
 }
 
 TEST(Frame, ZoomKeepsThePointUnderTheCursor) {

@@ -80,8 +80,10 @@ PngImage draw_picture(const Solver& solver, int width, int height) {
     return Vec2{0.5 * width + zoom * (p.x - centre.x), 0.5 * height - zoom * (p.y - centre.y)};
   };
 
-  // Radiosity along every side, sampled about every two pixels; the exposure puts the 90th
-  // percentile of reflected light at mid-grey so emitters saturate and walls stay readable.
+  // Radiosity along every side, sampled about every two pixels. The tone mapping (docs/viewer.md,
+  // Pictures): the exposure puts the 90th percentile of B on the curves that do not emit at
+  // mid-grey, so reflectors are readable and emitters, usually far brighter, saturate; only when
+  // nothing but emitters is lit do they set the scale.
   struct Band {
     std::vector<Vec2> points;
     std::vector<Vec2> normals;  // scene-space front normals
@@ -89,9 +91,11 @@ PngImage draw_picture(const Solver& solver, int width, int height) {
     bool has_front = false, has_back = false;
   };
   std::vector<Band> bands;
-  std::vector<double> levels;
+  std::vector<double> levels;          // on curves that do not emit
+  std::vector<double> emitter_levels;  // on emitters
   for (std::uint32_t c = 0; c < scene.curves.size(); ++c) {
     const Curve& curve = scene.curves[c];
+    std::vector<double>& into = scene.is_emitter(curve) ? emitter_levels : levels;
     Band band;
     band.has_front = solver.has_side(c, Side::Front);
     band.has_back = solver.has_side(c, Side::Back);
@@ -106,11 +110,12 @@ PngImage draw_picture(const Solver& solver, int width, int height) {
       band.back.push_back(solver.radiosity(c, Side::Back, point.u));
       for (const Spectrum* value : {&band.front.back(), &band.back.back()})
         for (int ch = 0; ch < scene.channels; ++ch)
-          if ((*value)[static_cast<std::size_t>(ch)] > 0.0) levels.push_back((*value)[static_cast<std::size_t>(ch)]);
+          if ((*value)[static_cast<std::size_t>(ch)] > 0.0) into.push_back((*value)[static_cast<std::size_t>(ch)]);
     }
     bands.push_back(std::move(band));
   }
   double exposure = 1.0;
+  if (levels.empty()) levels.swap(emitter_levels);
   if (!levels.empty()) {
     const auto percentile = levels.begin() + static_cast<std::ptrdiff_t>(levels.size() * 9 / 10);
     std::nth_element(levels.begin(), percentile, levels.end());

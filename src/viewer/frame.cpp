@@ -224,6 +224,23 @@ std::array<float, 4> rgba(const std::array<float, 3>& c, float a) { return {c[0]
 
 }  // namespace
 
+std::pair<std::size_t, std::size_t> newest_journey(const std::vector<PathRecord>& paths) {
+  const std::size_t end = paths.size();
+  if (end == 0) return {0, 0};
+  std::size_t first = end - 1;
+  while (first > 0) {
+    const PathRecord& hop = paths[first];
+    const PathRecord& before = paths[first - 1];
+    // (A hop starts on the curve where the last one landed: the same point to rounding.)
+    const double size = length(hop.from) + length(before.from) + length(before.to - before.from);
+    if (hop.bounce != before.bounce + 1 || before.escaped || before.absorbed ||
+        !(length(hop.from - before.to) <= 1e-9 * size))
+      break;
+    --first;
+  }
+  return {first, end};
+}
+
 std::vector<LineVertex> build_overlay(const Snapshot& snapshot, const DrawOptions& options) {
   std::vector<LineVertex> vertices;
   if (!snapshot.scene || !snapshot.traces) return vertices;
@@ -287,6 +304,35 @@ std::vector<LineVertex> build_overlay(const Snapshot& snapshot, const DrawOption
         } else if (options.storage_nodes) {
           out.square(node.position, 2.0f, {0.6f, 0.6f, 1.0f, 1.0f});
         }
+      }
+    }
+  }
+  if (options.paths && options.journey) {
+    const auto [first, end] = newest_journey(snapshot.paths);
+    for (std::size_t i = first; i < end; ++i) {
+      const PathRecord& hop = snapshot.paths[i];
+      const std::array<float, 4> colour = rgba(path_palette(hop.bounce), 1.0f);
+      const std::array<float, 4> dark{0.0f, 0.0f, 0.0f, 0.9f};
+      // A dark casing under the coloured line, so it stands out on bright kept paths.
+      out.stroke({hop.from, hop.to}, {Vec2{}, Vec2{}}, 5.0f, dark);
+      out.stroke({hop.from, hop.to}, {Vec2{}, Vec2{}}, 2.5f, colour);
+      // The direction: an arrowhead 60 % along the hop (its pixel frame has y up, like the scene).
+      const Vec2 d = hop.to - hop.from;
+      const double len = length(d);
+      if (len > 0.0) {
+        const Vec2 u = d * (1.0 / len);
+        const Vec2 across{-u.y, u.x};
+        const Vec2 tip = hop.from + 0.6 * d;
+        out.quad(tip, tip, Vec2{}, u * -12.0 + across * 6.0, Vec2{}, u * -12.0 - across * 6.0, colour, colour);
+      }
+      if (hop.escaped) continue;  // it leaves the scene's box: nothing marks the end
+      out.square(hop.to, 4.5f, dark);
+      out.square(hop.to, 3.0f, hop.absorbed ? std::array<float, 4>{1.0f, 0.25f, 0.2f, 1.0f}
+                                            : std::array<float, 4>{1.0f, 1.0f, 1.0f, 1.0f});
+      if (hop.absorbed) {  // a cross where the walk ended
+        const std::array<float, 4> red{1.0f, 0.25f, 0.2f, 1.0f};
+        out.quad(hop.to, hop.to, {-9.0, -7.0}, {-7.0, -9.0}, {9.0, 7.0}, {7.0, 9.0}, red, red);
+        out.quad(hop.to, hop.to, {-9.0, 7.0}, {-7.0, 9.0}, {9.0, -7.0}, {7.0, -9.0}, red, red);
       }
     }
   }

@@ -97,6 +97,7 @@ PathRecord path_record(const PhotonPath& path, const Scene& scene, std::uint64_t
 // A storage-mesh node of a curve: where, and the continuity of the illumination there.
 struct NodeMark {
   Vec2 position;
+  double s = 0.0;  // arc length from the curve's start
   Continuity continuity = Continuity::C1;
   bool visibility_event = false;  // added by discontinuity meshing (not a scene joint)
 };
@@ -154,11 +155,16 @@ std::array<float, 3> path_palette(std::uint32_t index);
 struct DrawOptions {
   bool curves = true;
   bool band = true;           // colour-mapped band of B along each lit side
-  bool graph = true;          // B(s) as a graph offset along the normal
+  // B(s) as a graph offset along the normal: off by default (drawn beside the curves it reads as
+  // more geometry); the curve panel plots B(s) with axes instead.
+  bool graph = false;
   bool control_points = false;
   bool storage_nodes = false;
   bool discontinuities = true;  // mark nodes below C1
   bool paths = true;
+  // The newest photon's journey drawn on top of the kept paths: every hop thick in its bounce's
+  // colour with an arrowhead, a square where it landed, a cross where it was absorbed.
+  bool journey = true;
   float path_exposure = 1.0f;  // multiplies the automatic path normalisation
   float band_exposure = 1.0f;  // multiplies the automatic radiosity normalisation
   float graph_height = 60.0f;  // pixels for the largest B
@@ -183,6 +189,11 @@ std::array<float, 3> colour_map(double t);
 // The overlay's triangles for the given snapshot and options; sizes in pixels (independent of
 // zoom, so this is rebuilt only when the snapshot or the options change).
 std::vector<LineVertex> build_overlay(const Snapshot& snapshot, const DrawOptions& options);
+
+// The newest photon's journey among `paths` (oldest first): the indices [first, paths.size()) of
+// the run of paths that ends with the last one, each a bounce after the one before and starting
+// where it landed (a walk's hops). With shooting, the last path alone. Empty for no paths.
+std::pair<std::size_t, std::size_t> newest_journey(const std::vector<PathRecord>& paths);
 
 // What the path buffer does this frame (see PathLayer).
 struct PathDraw {

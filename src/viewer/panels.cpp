@@ -62,6 +62,23 @@ const char* const kHelp[][2] = {
 
 }  // namespace
 
+namespace {
+
+// A step of 1, 2 or 5 times a power of ten, near span / 4: the axis ticks of a plot.
+double nice_step(double span) {
+  if (!(span > 0.0) || !std::isfinite(span)) return 1.0;
+  const double raw = span / 4.0;
+  const double decade = std::pow(10.0, std::floor(std::log10(raw)));
+  const double f = raw / decade;
+  return decade * (f < 1.5 ? 1.0 : f < 3.5 ? 2.0 : f < 7.5 ? 5.0 : 10.0);
+}
+
+ImU32 to_u32(const std::array<float, 3>& c, float alpha = 1.0f) {
+  return ImGui::ColorConvertFloat4ToU32(ImVec4(c[0], c[1], c[2], alpha));
+}
+
+}  // namespace
+
 bool Viewer::combo(const char* label, int* index, const char* const* names, int count) {
   bool changed = false;
   const bool open = ImGui::BeginCombo(label, names[std::clamp(*index, 0, count - 1)]);
@@ -119,6 +136,23 @@ void Viewer::draw_ui(const Snapshot& snapshot) {
       draw_curve_panel(snapshot);
   }
   if (show_help_) draw_help_panel();
+  // The newest journey's hops, numbered at their middles (the overlay draws the hops themselves).
+  if (draw_.paths && draw_.journey) {
+    const auto [first, end] = newest_journey(snapshot.paths);
+    ImDrawList* draw = ImGui::GetBackgroundDrawList();
+    for (std::size_t i = first; i < end && end - first > 1; ++i) {
+      const PathRecord& hop = snapshot.paths[i];
+      const Vec2 mid = view_.to_pixels(hop.from + 0.4 * (hop.to - hop.from));
+      char label[16];
+      std::snprintf(label, sizeof label, "%zu", i - first + 1);
+      const ImVec2 size = ImGui::CalcTextSize(label);
+      const ImVec2 at(static_cast<float>(mid.x) - 0.5f * size.x, static_cast<float>(mid.y) - 0.5f * size.y);
+      draw->AddRectFilled(ImVec2(at.x - 3.0f, at.y - 1.0f), ImVec2(at.x + size.x + 3.0f, at.y + size.y + 1.0f),
+                          IM_COL32(0, 0, 0, 200), 3.0f);
+      const std::array<float, 3> c = path_palette(hop.bounce);
+      draw->AddText(at, to_u32(c), label);
+    }
+  }
   if (!message_.empty() && seconds_since_start() - message_time_ < 8.0) {
     ImGui::SetNextWindowPos(ImVec2(0.5f * (layout_.stage.x0 + layout_.stage.x1), layout_.stage.y1 - 10.0f),
                             ImGuiCond_Always, ImVec2(0.5f, 1.0f));
@@ -283,8 +317,49 @@ void Viewer::draw_solve_panel(const Snapshot& snapshot) {
   ImGui::End();
 }
 
+
+// The key of the band's colours: the colour scale from 0 to the band's range with its values,
+// in the units of B (power per unit length, in the scene's emittance units).
+void Viewer::draw_colour_key(const Snapshot& snapshot) {
+  if (!snapshot.scene) return;
+  const int channels = snapshot.scene->channels;
+  const double range = radiosity_range(snapshot, draw_.channel) / std::max(draw_.band_exposure, 1e-6f);
+  ImGui::Separator();
+  ImGui::TextUnformatted("band colour = B, power per unit length");
+  ImDrawList* draw = ImGui::GetWindowDrawList();
+  const ImVec2 origin = ImGui::GetCursorScreenPos();
+  const float width = ImGui::GetContentRegionAvail().x;
+  const float height = ImGui::GetTextLineHeight();
+  ImGui::InvisibleButton("##colour key", ImVec2(width, height));
+  track("colour key");
+  const int steps = 48;
+  for (int i = 0; i < steps; ++i) {
+    // The band's own mapping at B = (i + 0.5) / steps x range (grey level for colour scenes).
+    const double b = (i + 0.5) / steps * range;
+    const std::array<float, 3> colour = radiosity_colour({b, b, b}, range, channels, draw_.channel);
+    const float x0 = origin.x + width * static_cast<float>(i) / steps;
+    draw->AddRectFilled(ImVec2(x0, origin.y), ImVec2(x0 + width / steps + 0.5f, origin.y + height), to_u32(colour));
+  }
+  const double step = nice_step(range);
+  for (double v = 0.0; v <= range * (1.0 + 1e-9); v += step) {
+    const float x = origin.x + width * static_cast<float>(v / range);
+    draw->AddLine(ImVec2(x, origin.y + height), ImVec2(x, origin.y + height + 4.0f), IM_COL32(220, 220, 220, 255));
+    char label[32];
+    std::snprintf(label, sizeof label, "%.3g", v);
+    const float text_width = ImGui::CalcTextSize(label).x;
+    draw->AddText(ImVec2(std::clamp(x - 0.5f * text_width, origin.x, origin.x + width - text_width), origin.y + height + 4.0f),
+                  IM_COL32(220, 220, 220, 255), label);
+  }
+  ImGui::Dummy(ImVec2(width, ImGui::GetTextLineHeight() + 6.0f));
+  ImGui::PushStyleColor(ImGuiCol_Text, ImGui::GetStyle().Colors[ImGuiCol_TextDisabled]);
+  ImGui::TextWrapped(channels == 3 && draw_.channel == ChannelView::All
+                         ? "each channel 1 - exp(-2 B / %.3g); emitters saturate"
+                         : "scale: the 99th percentile of B off the emitters, %.3g",
+                     range);
+  ImGui::PopStyleColor();
+}
+
 void Viewer::draw_display_panel(const Snapshot& snapshot) {
-  (void)snapshot;
   const auto solve = panel_rects_.find("Solve");
   dock_next(layout_.left, solve != panel_rects_.end() ? solve->second.y1 : layout_.left.y0);
   ImGui::Begin("Display", nullptr, kDocked | ImGuiWindowFlags_AlwaysAutoResize);
@@ -293,6 +368,9 @@ void Viewer::draw_display_panel(const Snapshot& snapshot) {
   changed |= ImGui::Checkbox("band", &draw_.band);
   ImGui::SameLine();
   changed |= ImGui::Checkbox("graph", &draw_.graph);
+  if (ImGui::IsItemHovered())
+    ImGui::SetTooltip("B drawn as a graph along each lit side's normal: a side's curve is its\n"
+                      "baseline, the graph's height is proportional to B (graph height = the key's end)");
   ImGui::SameLine();
   changed |= ImGui::Checkbox("paths", &draw_.paths);
   changed |= ImGui::Checkbox("control points", &draw_.control_points);
@@ -308,6 +386,11 @@ void Viewer::draw_display_panel(const Snapshot& snapshot) {
     draw_.channel = static_cast<ChannelView>(channel);
   }
   if (draw_.paths) {
+    changed |= ImGui::Checkbox("newest journey", &draw_.journey);
+    if (ImGui::IsItemHovered())
+      ImGui::SetTooltip("The newest photon on top of the kept paths: hops numbered and coloured by\n"
+                        "bounce, an arrow for the direction, a white square where it landed, a red\n"
+                        "cross where a walk was absorbed (--transport walk shows whole journeys)");
     ImGui::SliderFloat("path exposure", &draw_.path_exposure, 0.05f, 50.0f, "%.2f", ImGuiSliderFlags_Logarithmic);
     float keep = static_cast<float>(keep_slider_);
     if (ImGui::SliderFloat("paths kept", &keep, 0.0f, 200000.0f, "%.0f", ImGuiSliderFlags_Logarithmic)) {
@@ -330,6 +413,7 @@ void Viewer::draw_display_panel(const Snapshot& snapshot) {
     }
     draw_.path_colour = static_cast<PathColour>(colour);
   }
+  if (draw_.band || draw_.graph) draw_colour_key(snapshot);
   if (changed) overlay_generation_ = ~0ull;
   ImGui::End();
 }
@@ -431,36 +515,104 @@ void Viewer::draw_curve_panel(const Snapshot& snapshot) {
       ImGui::EndChild();
     }
   }
-  // B(s) along the curve (main side), with the reference when loaded.
+  // B(s) along the curve with axes in the units of the scene: the sides that emit or reflect
+  // (front orange, back blue, each labelled), the reference's B (green, main side), and the storage
+  // nodes below C1 (C0 grey, C-1 red), where the illumination may kink or jump.
   const CurveTrace* trace = snapshot.traces && c < snapshot.traces->size() ? &(*snapshot.traces)[c] : nullptr;
-  const int side = curve.sides == Sides::Back ? 1 : 0;
-  const std::vector<Spectrum>* samples =
-      c < snapshot.radiosity.size() ? &snapshot.radiosity[c][static_cast<std::size_t>(side)] : nullptr;
-  if (trace != nullptr && samples != nullptr && samples->size() == trace->s.size() && !samples->empty()) {
+  const int main_side = curve.sides == Sides::Back ? 1 : 0;
+  struct Line {
+    const std::vector<Spectrum>* samples;
+    ImU32 colour;
+    const char* name;
+  };
+  std::vector<Line> lines;
+  for (int side = 0; side < 2; ++side) {
+    const std::vector<Spectrum>* samples =
+        c < snapshot.radiosity.size() ? &snapshot.radiosity[c][static_cast<std::size_t>(side)] : nullptr;
+    if (trace == nullptr || samples == nullptr || samples->size() != trace->s.size() || samples->empty()) continue;
+    lines.push_back({samples, side == 0 ? IM_COL32(255, 190, 70, 255) : IM_COL32(110, 170, 255, 255),
+                     side == 0 ? "front" : "back"});
+  }
+  if (!lines.empty()) {
     const std::vector<std::array<double, 2>>* reference =
-        c < snapshot.reference_curves.size() ? &snapshot.reference_curves[c] : nullptr;
+        c < snapshot.reference_curves.size() && !snapshot.reference_curves[c].empty() ? &snapshot.reference_curves[c]
+                                                                                     : nullptr;
     double hi = 0.0;
-    for (const Spectrum& b : *samples) hi = std::max(hi, luminance(b, scene_->channels));
+    for (const Line& line : lines)
+      for (const Spectrum& b : *line.samples) hi = std::max(hi, luminance(b, scene_->channels));
     if (reference != nullptr)
       for (const auto& point : *reference) hi = std::max(hi, point[1]);
     hi = hi > 0.0 ? 1.1 * hi : 1.0;
+    // Legend.
+    for (std::size_t i = 0; i < lines.size(); ++i) {
+      if (i > 0) ImGui::SameLine();
+      ImGui::TextColored(ImGui::ColorConvertU32ToFloat4(lines[i].colour), "-- %s%s", lines[i].name,
+                         lines.size() == 1 ? " side" : "");
+    }
+    if (reference != nullptr) {
+      ImGui::SameLine();
+      ImGui::TextColored(ImVec4(0.47f, 0.86f, 0.47f, 1.0f), "-- reference (%s)", main_side == 0 ? "front" : "back");
+    }
+    ImGui::SameLine();
+    ImGui::TextColored(ImVec4(0.8f, 0.35f, 0.35f, 1.0f), "| C-1");
+    ImGui::SameLine();
+    ImGui::TextColored(ImVec4(0.6f, 0.6f, 0.6f, 1.0f), "| C0");
     ImDrawList* draw = ImGui::GetWindowDrawList();
-    const ImVec2 origin = ImGui::GetCursorScreenPos();
-    const ImVec2 size(ImGui::GetContentRegionAvail().x, std::max(ImGui::GetContentRegionAvail().y - 24.0f, 60.0f));
+    const float text = ImGui::GetTextLineHeight();
+    const ImVec2 corner = ImGui::GetCursorScreenPos();
+    const ImVec2 avail = ImGui::GetContentRegionAvail();
+    const ImVec2 size(avail.x, std::max(avail.y - 2.0f * text - 8.0f, 80.0f));
     ImGui::InvisibleButton("##bplot", size);
-    draw->AddRectFilled(origin, ImVec2(origin.x + size.x, origin.y + size.y), IM_COL32(30, 30, 40, 255));
+    track("B plot");
+    // The plot area, leaving room for the value labels on the left and the arc lengths below.
+    const float left = ImGui::CalcTextSize("0.000e+00").x * 0.8f;
+    const ImVec2 lo(corner.x + left, corner.y + 4.0f);
+    const ImVec2 hi_corner(corner.x + size.x - 4.0f, corner.y + size.y - text - 6.0f);
+    draw->AddRectFilled(lo, hi_corner, IM_COL32(30, 30, 40, 255));
     auto point = [&](double s, double b) {
-      return ImVec2(origin.x + static_cast<float>(s / curve.length) * size.x,
-                    origin.y + static_cast<float>(1.0 - b / hi) * size.y);
+      return ImVec2(lo.x + static_cast<float>(s / curve.length) * (hi_corner.x - lo.x),
+                    hi_corner.y - static_cast<float>(b / hi) * (hi_corner.y - lo.y));
     };
+    const ImU32 axis = IM_COL32(200, 200, 200, 255);
+    const ImU32 grid = IM_COL32(70, 70, 85, 255);
+    const double b_step = nice_step(hi);
+    for (double v = 0.0; v <= hi * (1.0 + 1e-9); v += b_step) {
+      const ImVec2 p = point(0.0, v);
+      draw->AddLine(ImVec2(lo.x, p.y), ImVec2(hi_corner.x, p.y), grid);
+      char label[32];
+      std::snprintf(label, sizeof label, "%.3g", v);
+      draw->AddText(ImVec2(lo.x - ImGui::CalcTextSize(label).x - 4.0f, p.y - 0.5f * text), axis, label);
+    }
+    const double s_step = nice_step(curve.length);
+    for (double v = 0.0; v <= curve.length * (1.0 + 1e-9); v += s_step) {
+      const ImVec2 p = point(v, 0.0);
+      draw->AddLine(ImVec2(p.x, hi_corner.y), ImVec2(p.x, hi_corner.y + 4.0f), axis);
+      char label[32];
+      std::snprintf(label, sizeof label, "%.3g", v);
+      const float w = ImGui::CalcTextSize(label).x;
+      draw->AddText(ImVec2(std::min(p.x - 0.5f * w, hi_corner.x - w), hi_corner.y + 5.0f), axis, label);
+    }
+    draw->AddLine(ImVec2(lo.x, lo.y), ImVec2(lo.x, hi_corner.y), axis);
+    draw->AddLine(ImVec2(lo.x, hi_corner.y), ImVec2(hi_corner.x, hi_corner.y), axis);
+    if (c < snapshot.nodes.size())
+      for (const NodeMark& node : snapshot.nodes[c]) {
+        if (node.continuity == Continuity::C1) continue;
+        const float x = point(node.s, 0.0).x;
+        draw->AddLine(ImVec2(x, lo.y), ImVec2(x, hi_corner.y),
+                      node.continuity == Continuity::Jump ? IM_COL32(200, 90, 90, 200) : IM_COL32(150, 150, 150, 160));
+      }
     if (reference != nullptr)
       for (std::size_t i = 1; i < reference->size(); ++i)
         draw->AddLine(point((*reference)[i - 1][0], (*reference)[i - 1][1]), point((*reference)[i][0], (*reference)[i][1]),
                       IM_COL32(120, 220, 120, 255), 1.5f);
-    for (std::size_t i = 1; i < samples->size(); ++i)
-      draw->AddLine(point(trace->s[i - 1], luminance((*samples)[i - 1], scene_->channels)),
-                    point(trace->s[i], luminance((*samples)[i], scene_->channels)), IM_COL32(255, 200, 80, 255), 1.5f);
-    ImGui::Text("B(s), 0 .. %.3g%s", hi, reference != nullptr && !reference->empty() ? "  (green: reference)" : "");
+    draw->PushClipRect(lo, hi_corner, true);
+    for (const Line& line : lines)
+      for (std::size_t i = 1; i < line.samples->size(); ++i)
+        draw->AddLine(point(trace->s[i - 1], luminance((*line.samples)[i - 1], scene_->channels)),
+                      point(trace->s[i], luminance((*line.samples)[i], scene_->channels)), line.colour, 1.5f);
+    draw->PopClipRect();
+    ImGui::TextWrapped("B (power per unit length) against s (arc length from the first point)%s",
+                       scene_->channels == 3 ? "; mean of r, g, b" : "");
   }
   ImGui::End();
 }

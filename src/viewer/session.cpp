@@ -82,13 +82,15 @@ void describe_solver(const Solver& solver, const std::vector<CurveTrace>& traces
           std::clamp(std::floor(node.u), 0.0, static_cast<double>(curve.segment_count - 1)));
       const double t = node.u - segment;
       const bool joint = t == 0.0 || t == 1.0;
-      snapshot.nodes[c].push_back({evaluate(scene.segments[curve.first_segment + segment].geometry.shape, t),
-                                    node.continuity, !joint && node.continuity == Continuity::C0});
+      const SceneSegment& piece = scene.segments[curve.first_segment + segment];
+      snapshot.nodes[c].push_back({evaluate(piece.geometry.shape, t),
+                                   curve.segment_start[segment] + piece.arc_length.length_at(piece.geometry.shape, t),
+                                   node.continuity, !joint && node.continuity == Continuity::C0});
     }
     // A closed curve is one loop: its closing point is a node too (C1 or C0 where the storage wraps
     // round, C-1 at a corner or a seam).
     if (curve.closed)
-      snapshot.nodes[c].push_back({scene.segments[curve.first_segment].geometry.shape.p[0],
+      snapshot.nodes[c].push_back({scene.segments[curve.first_segment].geometry.shape.p[0], curve.length,
                                    solver.storage(c).closing, false});
   }
   if (total_reflected > 0.0)

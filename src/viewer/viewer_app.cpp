@@ -303,6 +303,8 @@ void Viewer::queue_drag(float from_x, float from_y, float to_x, float to_y) {
   queued_.push_back({to_x, to_y, false, 0});
 }
 
+void Viewer::resize_window(int width, int height) { SDL_SetWindowSize(impl_->window, width, height); }
+
 void Viewer::queue_key(int sdl_keycode, bool ctrl) { queued_.push_back({0.0f, 0.0f, false, sdl_keycode, ctrl}); }
 
 void Viewer::handle_key(int key, bool ctrl) {

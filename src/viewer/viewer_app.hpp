@@ -99,6 +99,11 @@ class Viewer {
   void queue_click(float x, float y);
   void queue_drag(float from_x, float from_y, float to_x, float to_y);
   void queue_key(int sdl_keycode, bool ctrl = false);
+  // Resizes the window (as a user dragging its border would); the next frames lay out again.
+  void resize_window(int width, int height);
+  // Opens another scene file (as File > Open scene does) and inspects curve `curve` (-1: none).
+  void open_scene(const std::string& path) { load_scene_file(path); }
+  void select_curve(int curve) { draw_.selected_curve = curve; }
 
   // The scene view without panels, as a PNG (--screenshot-ui takes the whole window).
   Status save_screenshot(const std::string& path);
@@ -122,6 +127,7 @@ class Viewer {
   void draw_display_panel(const Snapshot& snapshot);
   void draw_status_panel(const Snapshot& snapshot);
   void draw_curve_panel(const Snapshot& snapshot);
+  void draw_colour_key(const Snapshot& snapshot);
   void draw_help_panel();
   void track(const char* label);
   // ImGui::Combo with every item tracked as "label:item" for the UI tests.
