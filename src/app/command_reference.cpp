@@ -155,34 +155,8 @@ int run_reference(ReferenceOptions& o) {
     }
   }
   if (!o.out.empty()) {
-    nlohmann::json result;
-    result["flatland_result"] = 1;
-    result["program"] = program_to_json();
-    result["scene"] = scene_to_json(*scene);
-    result["settings"] = {{"method", "reference"},
-                          {"max_element_length", o.settings.max_element_length > 0.0
-                                                     ? o.settings.max_element_length
-                                                     : scene->scale / 400.0},
-                          {"quadrature", o.settings.quadrature},
-                          {"tolerance", o.settings.tolerance},
-                          {"samples", o.samples}};
-    result["stats"] = {{"elements", solution->elements()},
-                       {"iterations", solution->iterations()},
-                       {"residual", solution->residual()},
-                       {"error_bound", solution->error_bound()},
-                       {"seconds", seconds},
-                       {"form_factor_seconds", solution->form_factor_seconds()},
-                       {"solve_seconds", solution->solve_seconds()}};
-    if (estimated) {
-      const ErrorNorms& e = estimated->error;
-      result["stats"]["estimated_error"] = {{"l1", e.l1}, {"l2", e.l2}, {"linf", e.linf}};
-      // null where no order could be observed (differences at round-off).
-      auto number_or_null = [](double value) { return std::isnan(value) ? nlohmann::json(nullptr) : nlohmann::json(value); };
-      result["stats"]["observed_order"] = number_or_null(estimated->observed_order);
-      result["stats"]["estimate_order"] = number_or_null(estimated->order);
-      if (!estimated->note.empty()) result["stats"]["estimate_note"] = estimated->note;
-    }
-    result["curves"] = curves;
+    const nlohmann::json result = reference_result_to_json(*scene, o.settings, *solution, o.samples, seconds,
+                                                           estimated ? &*estimated : nullptr, curves);
     OutputFiles files;
     if (Status status = files.stage(o.out, json_text(result)); !status) return usage_error(status.error().message);
     if (const std::optional<int> code = commit_outputs(files)) return *code;

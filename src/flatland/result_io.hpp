@@ -13,6 +13,7 @@
 #include "flatland/result.hpp"
 #include "flatland/scene.hpp"
 #include "flatland/solver.hpp"
+#include "flatland/reference.hpp"
 
 namespace flatland {
 
@@ -21,6 +22,13 @@ nlohmann::json spectrum_to_json(const Spectrum& value, int channels);
 
 // The whole result document: scene, settings, stats and K samples per curve at s_j = (j+0.5) L/K.
 nlohmann::json result_to_json(const Solver& solver, int samples_per_curve);
+
+// The document `flatland reference --out` writes: the reference's settings and statistics, its
+// estimated error when `estimate` is given, and `curves` (sampled_curves_to_json of its radiosity).
+nlohmann::json reference_result_to_json(const Scene& scene, const ReferenceSettings& settings,
+                                        const ReferenceSolution& solution, int samples_per_curve,
+                                        double seconds, const ReferenceErrorEstimate* estimate,
+                                        const nlohmann::json& curves);
 
 // The "curves" array of a result for any method: per curve id, length, sides and K samples of
 // the radiosity given by `radiosity(curve, side, u)` (B of the main side, B_back on two-sided

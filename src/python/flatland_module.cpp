@@ -1,0 +1,389 @@
+// The Python module `flatland` (docs/python.md): a thin layer over the core, with the command line's
+// option names as keywords and its one-line messages as exceptions. No second copy of anything:
+// scenes are parsed by the core's parser, solves are the core's Solver, results are written by the
+// core's result_to_json (so to_json() is the document `flatland solve --out` writes), comparisons
+// are the core's compare_results.
+#include <pybind11/functional.h>
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "flatland/discontinuity.hpp"
+#include "flatland/footprint.hpp"
+#include "flatland/metrics.hpp"
+#include "flatland/reference.hpp"
+#include "flatland/result_io.hpp"
+#include "flatland/scene.hpp"
+#include "flatland/solver.hpp"
+#include "flatland/version.hpp"
+
+namespace py = pybind11;
+
+namespace flatland::python {
+namespace {
+
+// The module's exception: a ValueError whose message is the command line's one-line error.
+[[noreturn]] void fail(const std::string& message) { throw py::value_error(message); }
+
+template <typename T>
+T value_or_fail(Result<T> result) {
+  if (!result) fail(result.error().message);
+  return std::move(*result);
+}
+
+// A scene shared by every solver made from it (a Solver keeps a pointer to its scene).
+struct PyScene {
+  std::shared_ptr<const Scene> scene;
+  std::uint32_t curve_index(const std::string& id) const {
+    for (std::uint32_t c = 0; c < scene->curves.size(); ++c)
+      if (scene->curves[c].id == id) return c;
+    std::string ids;
+    for (const Curve& curve : scene->curves) ids += (ids.empty() ? "" : ", ") + curve.id;
+    fail(scene->source + ": no curve '" + id + "'; the curves are " + ids);
+  }
+};
+
+PyScene load(const std::string& path) { return {std::make_shared<const Scene>(value_or_fail(load_scene(path)))}; }
+
+PyScene from_dict(const py::dict& document, const std::string& name) {
+  const std::string text = py::module_::import("json").attr("dumps")(document).cast<std::string>();
+  return {std::make_shared<const Scene>(value_or_fail(parse_scene(text, name)))};
+}
+
+// A photon count: an int, or a float that is a whole number (1e6), as --photons accepts.
+std::uint64_t photon_count(const py::object& value) {
+  double number = 0.0;
+  if (py::isinstance<py::int_>(value) || py::isinstance<py::float_>(value)) number = value.cast<double>();
+  else fail("photons: expected a whole number such as 250000 or 1e6, got " + py::repr(value).cast<std::string>());
+  if (!(number >= 1.0 && number <= 0x1.0p53) || number != std::floor(number))
+    fail("photons: expected a whole number from 1 to 2^53 such as 250000 or 1e6, got " + py::repr(value).cast<std::string>());
+  return static_cast<std::uint64_t>(number);
+}
+
+// Keyword settings, named as the command line's options (--ray-width is ray_width).
+SolverSettings settings_from(const py::object& photons, std::uint64_t seed, unsigned threads, const std::string& basis,
+                             const py::object& elements, const std::string& sampling,
+                             const std::string& discontinuities, const std::string& estimator,
+                             const std::string& sampler, const std::string& transport, double ray_width,
+                             const std::string& ray_profile, const std::string& ray_mode, int band_rays,
+                             double tolerance) {
+  SolverSettings s;
+  s.photons = photon_count(photons);
+  s.seed = seed;
+  s.threads = threads;
+  if (basis == "constant") s.basis = BasisKind::Constant;
+  else if (basis == "linear") s.basis = BasisKind::Linear;
+  else if (basis == "cubic") s.basis = BasisKind::Cubic;
+  else if (basis == "hermite") s.basis = BasisKind::Hermite;
+  else fail("basis: expected constant, linear, cubic or hermite, got '" + basis + "'");
+  if (py::isinstance<py::str>(elements)) {
+    if (elements.cast<std::string>() != "auto") fail("elements: expected \"auto\" or a whole number, got '" + elements.cast<std::string>() + "'");
+    s.elements = kAutoElements;
+  } else {
+    const long long count = elements.cast<long long>();
+    if (count < 1 || count > (1 << 16)) fail("elements: must be auto or between 1 and 65536, got " + std::to_string(count));
+    s.elements = static_cast<int>(count);
+  }
+  if (sampling != "uniform" && sampling != "reconstructed")
+    fail("sampling: expected uniform or reconstructed, got '" + sampling + "'");
+  s.sampling = sampling == "uniform" ? PositionSampling::Uniform : PositionSampling::Reconstructed;
+  const std::optional<DiscontinuityMode> mode = discontinuity_mode_from_string(discontinuities);
+  if (!mode) fail("discontinuities: expected none, scene, auto or secondary, got '" + discontinuities + "'");
+  s.discontinuities = *mode;
+  const std::optional<Estimator> e = estimator_from_string(estimator);
+  if (!e) fail("estimator: expected lumped, galerkin or local, got '" + estimator + "'");
+  s.estimator = *e;
+  if (sampler != "random" && sampler != "sobol") fail("sampler: expected random or sobol, got '" + sampler + "'");
+  s.sampler = sampler == "sobol" ? SamplerKind::Sobol : SamplerKind::Random;
+  const std::optional<Transport> t = transport_from_string(transport);
+  if (!t) fail("transport: expected shooting or walk, got '" + transport + "'");
+  s.transport = *t;
+  s.ray_width = ray_width;
+  s.ray_profile = value_or_fail(parse_ray_profile(ray_profile));
+  if (ray_mode != "footprint" && ray_mode != "band") fail("ray_mode: expected footprint or band, got '" + ray_mode + "'");
+  s.ray_mode = ray_mode == "band" ? RayMode::Band : RayMode::Footprint;
+  s.band_rays = band_rays;
+  s.tolerance = tolerance;
+  if (Status status = validate(s); !status) fail(status.error().message);
+  return s;
+}
+
+// A solve: steppable (step_round, step_photons, run) and readable at any time.
+class PySolver {
+ public:
+  PySolver(PyScene scene, const SolverSettings& settings) : scene_(std::move(scene)) {
+    solver_ = std::make_unique<Solver>(value_or_fail(Solver::create(*scene_.scene, settings)));
+  }
+
+  // Runs (with the GIL released) until the solve stops; `progress` (called about every
+  // `interval` seconds with a dict) may be None. Ctrl-C stops the solve and raises KeyboardInterrupt.
+  void run(const py::object& progress, double interval) {
+    drive(progress, interval, [this](const std::atomic<bool>* cancel, const ProgressCallback& report, double every) {
+      solver_->run(cancel, report, every);
+    });
+  }
+  bool step_round(const py::object& progress, double interval) {
+    bool stepped = false;
+    drive(progress, interval, [&](const std::atomic<bool>* cancel, const ProgressCallback& report, double every) {
+      stepped = solver_->step_round(cancel, report, every);
+    });
+    return stepped;
+  }
+  std::uint64_t step_photons(std::uint64_t photons) {
+    std::uint64_t shot = 0;
+    drive(py::none(), 0.25, [&](const std::atomic<bool>* cancel, const ProgressCallback&, double) {
+      shot = solver_->step_photons(photons, cancel);
+      solver_->include_open_round();
+    });
+    return shot;
+  }
+
+  // B at arc lengths `s` along a curve, front side unless `back`: shape (n,) for grey scenes,
+  // (n, 3) for colour.
+  py::array_t<double> radiosity(const std::string& curve_id, const py::array_t<double>& s, bool back) const {
+    const std::uint32_t c = scene_.curve_index(curve_id);
+    const Curve& curve = scene_.scene->curves[c];
+    const Side side = back ? Side::Back : Side::Front;
+    if (!solver_->has_side(c, side) && !scene_.scene->is_emitter(curve))
+      fail("curve '" + curve_id + "' has no " + (back ? "back" : "front") + " side that emits or reflects (sides: " +
+           (curve.sides == Sides::Both ? "both" : curve.sides == Sides::Front ? "front" : "back") + ")");
+    const auto values = s.unchecked<1>();
+    const int channels = scene_.scene->channels;
+    std::vector<py::ssize_t> shape{values.shape(0)};
+    if (channels == 3) shape.push_back(3);
+    py::array_t<double> out(shape);
+    double* data = out.mutable_data();
+    for (py::ssize_t i = 0; i < values.shape(0); ++i) {
+      const double at = values(i);
+      if (!(at >= 0.0 && at <= curve.length))
+        fail("s: arc lengths along '" + curve_id + "' run from 0 to " + std::to_string(curve.length) + ", got " + std::to_string(at));
+      const Spectrum b = solver_->radiosity(c, side, point_at_arc_length(*scene_.scene, curve, at).u);
+      for (int ch = 0; ch < channels; ++ch) data[i * channels + ch] = b[static_cast<std::size_t>(ch)];
+    }
+    return out;
+  }
+  py::array_t<double> coefficients(const std::string& curve_id, bool back) const {
+    const std::vector<double> b = solver_->radiosity_coefficients(scene_.curve_index(curve_id), back ? Side::Back : Side::Front);
+    return py::array_t<double>(static_cast<py::ssize_t>(b.size()), b.data());
+  }
+  py::array_t<double> knots(const std::string& curve_id) const {
+    const std::vector<double>& k = solver_->storage(scene_.curve_index(curve_id)).basis.knots();
+    return py::array_t<double>(static_cast<py::ssize_t>(k.size()), k.data());
+  }
+  py::dict stats() const {
+    const EnergyBooks books = solver_->books();
+    py::dict d;
+    d["photons"] = solver_->photons_shot();
+    d["rounds"] = solver_->rounds();
+    d["rays"] = solver_->rays_traced();
+    d["seconds"] = solver_->seconds();
+    d["stop_reason"] = to_string(solver_->stop_reason());
+    d["emitted_power"] = books.emitted;
+    d["absorbed_power"] = books.absorbed;
+    d["escaped_power"] = books.escaped;
+    d["unshot_power"] = books.unshot;
+    d["stopped"] = solver_->stopped();
+    return d;
+  }
+  std::string to_json(int samples) const {
+    if (samples < 1 || samples > 1'000'000) fail("samples: must be between 1 and 1000000");
+    return json_text(result_to_json(*solver_, samples));
+  }
+  const PyScene& scene() const { return scene_; }
+
+ private:
+  template <typename Work>
+  void drive(const py::object& progress, double interval, Work&& work) {
+    if (solver_->stop_reason() == StopReason::Cancelled) fail("this solve was interrupted; make a new one");
+    std::atomic<bool> cancel{false};
+    bool interrupted = false;
+    std::optional<py::error_already_set> callback_error;
+    // Called on this thread with the GIL released: take it, check for Ctrl-C, report.
+    const ProgressCallback report = [&](const SolverProgress& p) {
+      py::gil_scoped_acquire gil;
+      if (PyErr_CheckSignals() != 0) {
+        interrupted = true;
+        cancel.store(true);
+        PyErr_Clear();
+        return;
+      }
+      if (progress.is_none() || callback_error) return;
+      try {
+        py::dict d;
+        d["photons"] = p.photons;
+        d["budget"] = p.budget;
+        d["rounds"] = p.rounds;
+        d["unshot_fraction"] = p.unshot_fraction;
+        d["seconds"] = p.seconds;
+        progress(d);
+      } catch (py::error_already_set& error) {
+        callback_error = std::move(error);
+        cancel.store(true);
+      }
+    };
+    {
+      py::gil_scoped_release release;
+      work(&cancel, report, std::max(interval, 0.02));
+    }
+    if (callback_error) throw *callback_error;
+    if (interrupted || solver_->stop_reason() == StopReason::Cancelled) throw py::error_already_set([] {
+        PyErr_SetNone(PyExc_KeyboardInterrupt);
+        return py::error_already_set();
+      }());
+    if (solver_->stop_reason() == StopReason::BooksUnbalanced) throw std::runtime_error(solver_->books_error());
+  }
+
+  PyScene scene_;
+  std::unique_ptr<Solver> solver_;
+};
+
+// flatland.reference: the deterministic reference solution (flatland reference), as the document
+// `flatland reference --out` writes.
+std::string reference(const PyScene& scene, int samples, double max_element_length, bool estimate_error) {
+  ReferenceSettings settings;
+  settings.max_element_length = max_element_length;
+  if (Status status = validate(settings); !status) fail(status.error().message);
+  if (samples < 1 || samples > 1'000'000) fail("samples: must be between 1 and 1000000");
+  const auto start = std::chrono::steady_clock::now();
+  std::optional<ReferenceSolution> solution;
+  {
+    py::gil_scoped_release release;
+    Result<ReferenceSolution> solved = solve_reference(*scene.scene, settings);
+    if (solved) solution.emplace(std::move(*solved));
+    else {
+      py::gil_scoped_acquire gil;
+      fail(solved.error().message);
+    }
+  }
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const ReferenceSolution& r = *solution;
+  const nlohmann::json curves = sampled_curves_to_json(
+      *scene.scene, samples, [&r](std::uint32_t c, Side side, double u) { return r.radiosity(c, side, u); });
+  std::optional<ReferenceErrorEstimate> estimate;
+  if (estimate_error) estimate = value_or_fail(estimate_discretisation_error(*scene.scene, settings, samples, curves));
+  return json_text(reference_result_to_json(*scene.scene, settings, r, samples, seconds,
+                                            estimate ? &*estimate : nullptr, curves));
+}
+
+nlohmann::json document_of(const py::object& value, const char* what) {
+  std::string text;
+  if (py::isinstance<PySolver>(value)) text = value.cast<const PySolver&>().to_json(100);
+  else if (py::isinstance<py::str>(value)) text = value.cast<std::string>();
+  else fail(std::string(what) + ": expected a Solver (a solve) or a result's JSON text");
+  return value_or_fail(parse_result(text, what));
+}
+
+py::dict norms(const ErrorNorms& e) {
+  py::dict d;
+  d["l1"] = e.l1;
+  d["l2"] = e.l2;
+  d["linf"] = e.linf;
+  return d;
+}
+
+// flatland.compare: the errors of a result against a reference, as `compare --json` prints them.
+py::dict compare(const py::object& result, const py::object& reference, const std::string& measure) {
+  if (measure != "reflected" && measure != "total") fail("measure: expected reflected or total, got '" + measure + "'");
+  const Comparison comparison = value_or_fail(compare_results(
+      document_of(result, "result"), document_of(reference, "reference"),
+      measure == "total" ? Measure::Total : Measure::Reflected));
+  py::dict d;
+  d["measure"] = measure;
+  d["scene"] = norms(comparison.scene);
+  py::dict curves;
+  for (const CurveError& curve : comparison.curves) curves[py::str(curve.id)] = norms(curve.norms);
+  d["curves"] = curves;
+  return d;
+}
+
+}  // namespace
+}  // namespace flatland::python
+
+PYBIND11_MODULE(flatland, m) {
+  using namespace flatland;
+  using namespace flatland::python;
+  m.doc() = "Flatland: Monte Carlo radiosity in 2D (docs/python.md)";
+  m.attr("__version__") = program_version();
+
+  py::class_<PyScene>(m, "Scene", "A scene (docs/scene-format.md), checked as the command line checks it")
+      .def_static("load", &load, py::arg("path"), "Loads a scene file; ValueError with the one-line message if it is bad")
+      .def_static("from_dict", &from_dict, py::arg("document"), py::arg("name") = "<dict>",
+                  "A scene from a dict in the scene format")
+      .def_property_readonly("name", [](const PyScene& s) { return s.scene->name; })
+      .def_property_readonly("channels", [](const PyScene& s) { return s.scene->channels; })
+      .def_property_readonly("curves", [](const PyScene& s) {
+        std::vector<std::string> ids;
+        for (const Curve& curve : s.scene->curves) ids.push_back(curve.id);
+        return ids;
+      }, "The curves' ids, in order")
+      .def("length", [](const PyScene& s, const std::string& id) { return s.scene->curves[s.curve_index(id)].length; },
+           py::arg("curve"), "Arc length of a curve")
+      .def("__repr__", [](const PyScene& s) {
+        return "<flatland.Scene '" + s.scene->name + "': " + std::to_string(s.scene->curves.size()) + " curves>";
+      });
+
+  py::class_<PySolver>(m, "Solver", "A solve that can be stepped and read at any time (the viewer's object)")
+      .def(py::init([](const PyScene& scene, const py::object& photons, std::uint64_t seed, unsigned threads,
+                       const std::string& basis, const py::object& elements, const std::string& sampling,
+                       const std::string& discontinuities, const std::string& estimator, const std::string& sampler,
+                       const std::string& transport, double ray_width, const std::string& ray_profile,
+                       const std::string& ray_mode, int band_rays, double tolerance) {
+             return std::make_unique<PySolver>(
+                 scene, settings_from(photons, seed, threads, basis, elements, sampling, discontinuities, estimator,
+                                      sampler, transport, ray_width, ray_profile, ray_mode, band_rays, tolerance));
+           }),
+           py::arg("scene"), py::kw_only(), py::arg("photons") = py::int_(1'000'000), py::arg("seed") = 1, py::arg("threads") = 0,
+           py::arg("basis") = "cubic", py::arg("elements") = py::str("auto"), py::arg("sampling") = "reconstructed",
+           py::arg("discontinuities") = "auto", py::arg("estimator") = "galerkin", py::arg("sampler") = "sobol",
+           py::arg("transport") = "shooting", py::arg("ray_width") = 0.0, py::arg("ray_profile") = "box",
+           py::arg("ray_mode") = "footprint", py::arg("band_rays") = 8, py::arg("tolerance") = 1e-3)
+      .def("run", &PySolver::run, py::arg("progress") = py::none(), py::arg("interval") = 0.25,
+           "Shoots until converged or the budget is spent (GIL released; Ctrl-C raises KeyboardInterrupt)")
+      .def("step_round", &PySolver::step_round, py::arg("progress") = py::none(), py::arg("interval") = 0.25,
+           "Shoots one whole round; False once the solve has stopped")
+      .def("step_photons", &PySolver::step_photons, py::arg("photons"),
+           "Shoots up to this many photons of the current round (bit-identical to whole rounds)")
+      .def("B", &PySolver::radiosity, py::arg("curve"), py::arg("s"), py::arg("back") = false,
+           "Radiosity at arc lengths s (NumPy array) along a curve, front side unless back=True")
+      .def("coefficients", &PySolver::coefficients, py::arg("curve"), py::arg("back") = false,
+           "Reflected radiosity coefficients b_k (B = E + sum b_k phi_k); channels interleaved")
+      .def("knots", &PySolver::knots, py::arg("curve"), "Knots of the curve's storage B-splines, in u")
+      .def_property_readonly("stats", &PySolver::stats)
+      .def_property_readonly("scene", &PySolver::scene)
+      .def("to_json", &PySolver::to_json, py::arg("samples") = 100,
+           "The document `flatland solve --out` writes");
+
+  m.def("solve", [](const PyScene& scene, const py::object& photons, std::uint64_t seed, unsigned threads,
+                    const std::string& basis, const py::object& elements, const std::string& sampling,
+                    const std::string& discontinuities, const std::string& estimator, const std::string& sampler,
+                    const std::string& transport, double ray_width, const std::string& ray_profile,
+                    const std::string& ray_mode, int band_rays, double tolerance, const py::object& progress) {
+          auto solver = std::make_unique<PySolver>(
+              scene, settings_from(photons, seed, threads, basis, elements, sampling, discontinuities, estimator,
+                                   sampler, transport, ray_width, ray_profile, ray_mode, band_rays, tolerance));
+          solver->run(progress, 0.25);
+          return solver;
+        },
+        py::arg("scene"), py::kw_only(), py::arg("photons") = py::int_(1'000'000), py::arg("seed") = 1, py::arg("threads") = 0,
+        py::arg("basis") = "cubic", py::arg("elements") = py::str("auto"), py::arg("sampling") = "reconstructed",
+        py::arg("discontinuities") = "auto", py::arg("estimator") = "galerkin", py::arg("sampler") = "sobol",
+        py::arg("transport") = "shooting", py::arg("ray_width") = 0.0, py::arg("ray_profile") = "box",
+        py::arg("ray_mode") = "footprint", py::arg("band_rays") = 8, py::arg("tolerance") = 1e-3,
+        py::arg("progress") = py::none(),
+        "Solves a scene (as `flatland solve`, same keywords, same bits for the same seed); returns the Solver");
+  m.def("reference", &reference, py::arg("scene"), py::kw_only(), py::arg("samples") = 100,
+        py::arg("max_element_length") = 0.0, py::arg("estimate_error") = false,
+        "The reference solution's JSON document (as `flatland reference --out`)");
+  m.def("compare", &compare, py::arg("result"), py::arg("reference"), py::arg("measure") = "reflected",
+        "Relative errors (l1, l2, linf) of a result against a reference, over the scene and per curve");
+}

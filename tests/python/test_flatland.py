@@ -1,0 +1,194 @@
+"""The Python module `flatland` (src/python/flatland_module.cpp, docs/python.md), run by ctest with
+PYTHONPATH=build/python and FLATLAND_BINARY set to the command-line program, from the repository's
+top directory. Statistical tolerances are derived from the estimator's variance, as in the C++ tests."""
+import json
+import math
+import os
+import signal
+import subprocess
+import threading
+import time
+
+import numpy as np
+import pytest
+
+import flatland
+
+BINARY = os.environ.get("FLATLAND_BINARY", "build/flatland")
+
+
+def run_cli(*args):
+    return subprocess.run([BINARY, *args], capture_output=True, text=True)
+
+
+def without_timing(text):
+    document = json.loads(text)
+    document["stats"].pop("seconds")
+    document["settings"].pop("threads")
+    return document
+
+
+def circle_enclosure(rho, emittance):
+    k = 0.5522847498307936
+    return {
+        "flatland": 2,
+        "materials": {"glow": {"reflectivity": rho, "emittance": emittance}},
+        "curves": [{"id": "circle", "material": "glow", "bezier": [
+            [1, 0], [1, k], [k, 1], [0, 1], [-k, 1], [-1, k], [-1, 0],
+            [-1, -k], [-k, -1], [0, -1], [k, -1], [1, -k], [1, 0]]}],
+    }
+
+
+def test_version_is_the_programs():
+    out = run_cli("--version").stdout
+    assert flatland.__version__ in out
+
+
+def test_same_seed_gives_the_same_bits_as_the_command_line(tmp_path):
+    out = tmp_path / "result.json"
+    cli = run_cli("solve", "scenes2d/mixed.json", "--photons", "200000", "--seed", "7", "--out", str(out), "--quiet")
+    assert cli.returncode == 0, cli.stderr
+    scene = flatland.Scene.load("scenes2d/mixed.json")
+    result = flatland.solve(scene, photons=200_000, seed=7)
+    assert without_timing(result.to_json()) == without_timing(out.read_text())
+    # And with other settings named as the command line's options.
+    cli = run_cli("solve", "scenes2d/mixed.json", "--photons", "50000", "--basis", "linear", "--elements", "24",
+                  "--transport", "walk", "--ray-width", "0.05", "--out", str(out), "--quiet")
+    assert cli.returncode == 0, cli.stderr
+    result = flatland.solve(scene, photons=50_000, basis="linear", elements=24, transport="walk", ray_width=0.05)
+    assert without_timing(result.to_json()) == without_timing(out.read_text())
+
+
+def test_bad_scenes_and_options_raise_the_command_lines_message(tmp_path):
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"flatland": 2, "curves": [{"id": "a", "line": [[0, 0], [1, 0]], "material": "nope"}]}')
+    cli = run_cli("solve", str(bad))
+    assert cli.returncode == 2
+    with pytest.raises(ValueError) as error:
+        flatland.Scene.load(str(bad))
+    assert str(error.value) in cli.stderr
+    assert "\n" not in str(error.value)
+    scene = flatland.Scene.load("scenes2d/penumbra.json")
+    with pytest.raises(ValueError, match="basis"):
+        flatland.solve(scene, basis="quartic")
+    with pytest.raises(ValueError, match="photons"):
+        flatland.solve(scene, photons=2.5)
+    assert flatland.solve(scene, photons=1e4).stats["photons"] <= 10_000  # 1e4 reads as --photons 1e4 does
+    with pytest.raises(ValueError, match="--tolerance"):
+        flatland.solve(scene, tolerance=2.0)
+    with pytest.raises(ValueError, match="no curve 'floor'"):
+        flatland.solve(scene, photons=1000).B("floor", np.array([0.0]))
+    with pytest.raises(ValueError):
+        flatland.Scene.from_dict({"flatland": 2, "curves": []})
+
+
+def test_enclosure_matches_its_closed_form():
+    # B = E / (1 - rho) on a closed circle; the reflected part of a coefficient is a sum of
+    # binomial hits: relative standard deviation sqrt((1 - p) / (n p)), p the smallest element's
+    # share; stopping at tolerance t adds at most t of bias.
+    rho, tolerance = 0.5, 1e-4
+    scene = flatland.Scene.from_dict(circle_enclosure(rho, 1.0))
+    result = flatland.solve(scene, photons=1_000_000, basis="constant", elements=16, sampler="random",
+                            tolerance=tolerance, seed=12)
+    assert result.stats["stop_reason"] == "converged"
+    length = scene.length("circle")
+    s = (np.arange(200) + 0.5) * length / 200
+    b = result.B("circle", s)
+    exact = 1.0 / (1.0 - rho)
+    p = 1.0 / 16
+    n = result.stats["photons"]
+    sigma = (exact - 1.0) * math.sqrt((1 - p) / (n * p))
+    assert np.all(np.abs(b - exact) < 5 * sigma + tolerance * exact)
+    books = result.stats
+    assert books["emitted_power"] == pytest.approx(books["absorbed_power"] + books["escaped_power"] + books["unshot_power"], rel=1e-9)
+
+
+def test_stepping_gives_the_bits_of_one_solve():
+    scene = flatland.Scene.load("scenes2d/penumbra.json")
+    whole = flatland.solve(scene, photons=100_000, seed=4)
+    stepped = flatland.Solver(scene, photons=100_000, seed=4)
+    sizes = [1, 3, 4000, 97, 8192]
+    i = 0
+    while not stepped.stats["stopped"]:
+        stepped.step_photons(sizes[i % len(sizes)])
+        i += 1
+    assert without_timing(stepped.to_json()) == without_timing(whole.to_json())
+    rounds = flatland.Solver(scene, photons=100_000, seed=4)
+    while rounds.step_round():
+        pass
+    assert without_timing(rounds.to_json()) == without_timing(whole.to_json())
+
+
+def test_results_as_arrays():
+    scene = flatland.Scene.load("scenes2d/default.json")
+    assert scene.channels == 3
+    result = flatland.solve(scene, photons=50_000)
+    b = result.B("screen", np.array([0.1, 0.5]))
+    assert b.shape == (2, 3)
+    back = result.B("screen", np.array([0.1, 0.5]), back=True)
+    assert back.shape == (2, 3)
+    knots = result.knots("screen")
+    coefficients = result.coefficients("screen")
+    assert np.all(np.diff(knots) >= 0)
+    assert coefficients.size % 3 == 0 and coefficients.size > 0
+    document = json.loads(result.to_json(samples=7))
+    assert len(document["curves"][0]["samples"]) == 7
+
+
+def test_compare_against_a_reference():
+    scene = flatland.Scene.load("scenes2d/penumbra.json")
+    reference = flatland.reference(scene)
+    assert json.loads(reference)["settings"]["method"] == "reference"
+    itself = flatland.compare(reference, reference)
+    assert itself["scene"]["l2"] == 0.0
+    result = flatland.solve(scene, photons=200_000)
+    errors = flatland.compare(result, reference)
+    assert errors["measure"] == "reflected"
+    assert 0.0 < errors["scene"]["l2"] < 0.05
+    assert set(errors["curves"]) == set(scene.curves)
+
+
+def test_progress_callback_and_its_errors():
+    scene = flatland.Scene.load("scenes2d/curved_room.json")
+    seen = []
+    flatland.solve(scene, photons=300_000, elements=16, progress=lambda p: seen.append(p["photons"]))
+    assert seen, "the callback was never called"
+    assert all(a <= b for a, b in zip(seen, seen[1:]))
+    assert seen[-1] <= 300_000
+
+    def boom(_):
+        raise RuntimeError("stop here")
+
+    with pytest.raises(RuntimeError, match="stop here"):
+        flatland.solve(scene, photons=5_000_000, elements=16, progress=boom)
+
+
+def test_the_gil_is_released_while_solving():
+    scene = flatland.Scene.load("scenes2d/curved_room.json")
+    ticks = [0]
+    done = threading.Event()
+
+    def count():
+        while not done.is_set():
+            ticks[0] += 1
+            time.sleep(0.001)
+
+    counter = threading.Thread(target=count)
+    counter.start()
+    start = time.perf_counter()
+    flatland.solve(scene, photons=2_000_000, elements=16, threads=1)
+    elapsed = time.perf_counter() - start
+    done.set()
+    counter.join()
+    # A thread sleeping 1 ms at a time ticks hundreds of times a second unless the GIL is held.
+    assert ticks[0] > 20 * elapsed
+
+
+def test_ctrl_c_interrupts_a_solve():
+    scene = flatland.Scene.load("scenes2d/curved_room.json")
+    timer = threading.Timer(0.5, lambda: os.kill(os.getpid(), signal.SIGINT))
+    timer.start()
+    start = time.perf_counter()
+    with pytest.raises(KeyboardInterrupt):
+        flatland.solve(scene, photons=10**12, elements=16, tolerance=1e-9)
+    assert time.perf_counter() - start < 10
