@@ -1362,6 +1362,7 @@ void check_walk_enclosure(double rho, BasisKind basis) {
   settings.elements = 16;
   settings.seed = 5;
   settings.sampler = SamplerKind::Random;  // the tolerance below is derived for independent samples
+  settings.estimator = Estimator::Lumped;  // and for each coefficient's own deposits
   settings.transport = Transport::Walk;
   Solver solver = make_solver(scene, settings);
   solver.run();

@@ -342,6 +342,33 @@ TEST_F(Viewer, WalkTransportStepsWholeJourneys) {
   EXPECT_EQ(viewer.path_colour(), PathColour::Bounce);
 }
 
+// The lecture preset: one button switches to random walks coloured by bounce and steps a photon
+// every kFirstPhotonsSeconds on its own; stepping by hand takes over.
+TEST_F(Viewer, FirstPhotonsPresetStepsWalksSlowly) {
+  ViewOptions options;
+  options.scene = scene("room_reflector.json");
+  options.width = 1100;
+  options.height = 760;
+  options.paused = true;
+  options.vsync = false;
+  options.settings.photons = 10'000;
+  Result<std::unique_ptr<viewer::Viewer>> created = viewer::Viewer::create(options);
+  ASSERT_TRUE(created) << created.error().message;
+  viewer::Viewer& viewer = **created;
+  frames_until(viewer, [] { return false; }, 3);
+  click(viewer, "First photons");
+  EXPECT_EQ(viewer.settings().transport, Transport::Walk);
+  EXPECT_EQ(viewer.path_colour(), PathColour::Bounce);
+  EXPECT_TRUE(viewer.slow_stepping());
+  const auto start = std::chrono::steady_clock::now();
+  frames_until(viewer, [&] { return viewer.session().snapshot()->progress.photons >= 2; }, 100'000);
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  EXPECT_GE(viewer.session().snapshot()->progress.photons, 2u);
+  EXPECT_GE(seconds, viewer::Viewer::kFirstPhotonsSeconds * 0.9);  // slowly: two photons take a step's wait
+  click(viewer, "Photon");
+  EXPECT_FALSE(viewer.slow_stepping());
+}
+
 // Stepping walks one photon a frame draws the newest journey over the kept paths: each of its hops
 // in its bounce's colour (sampled a third of the way along, away from the arrowhead).
 TEST_F(Viewer, SteppedWalksDrawTheNewestJourney) {
@@ -351,7 +378,7 @@ TEST_F(Viewer, SteppedWalksDrawTheNewestJourney) {
   options.height = 600;
   options.vsync = false;
   options.step = "photons=1";
-  options.colour_by = "bounce";
+  options.colour_by = "power";  // the kept paths grey: only the journey has the bounce colours
   options.keep_paths = 30;
   options.path_exposure = 0.2f;
   options.settings.photons = 1000;

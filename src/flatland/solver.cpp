@@ -281,7 +281,7 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
       char message[320];
       std::snprintf(message, sizeof message,
                     "%s: curve '%s' reflects %.9g: a random walk would average %.3g rays; "
-                    "--transport walk needs every reflectivity at most %.6f (use --transport "
+                    "--transport walk needs every reflectivity at most %g (use --transport "
                     "shooting)",
                     scene.source.c_str(), brightest->id.c_str(), most, 1.0 / (1.0 - most),
                     kWalkMaxReflectivity);
@@ -998,7 +998,10 @@ void Solver::walk_on(Rng& rng, SceneHit hit, Ray ray, std::array<std::int64_t, 3
       units[ch] = kept;
       carried += kept;
     }
-    if (carried == 0) return;  // (all absorbed above)
+    if (carried == 0) {  // (all absorbed above)
+      if (last != nullptr) last->absorbed = true;
+      return;
+    }
     // A diffuse bounce from the side that was hit, starting on the curve itself.
     const SceneSegment& segment = scene_->segments[hit.segment];
     const Cubic& shape = segment.geometry.shape;
@@ -1011,6 +1014,7 @@ void Solver::walk_on(Rng& rng, SceneHit hit, Ray ray, std::array<std::int64_t, 3
     hit = accelerator_.closest_hit(ray, origin);
     ++acc.rays;
     PhotonPath* path = nullptr;
+    if (paths != nullptr && paths->size() >= path_limit && last != nullptr) last->cut = true;
     if (paths != nullptr && paths->size() < path_limit) {
       path = &paths->emplace_back();
       path->origin = point;

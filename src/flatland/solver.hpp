@@ -73,8 +73,9 @@ enum class Transport { Shooting, Walk };
 const char* to_string(Transport transport);
 // "shooting" or "walk"; nullopt for anything else.
 std::optional<Transport> transport_from_string(std::string_view name);
-// Walks are refused where a side reflects more than this (a walk would average over 1e6 rays).
-inline constexpr double kWalkMaxReflectivity = 0.999999;
+// Walks are refused where a side reflects more than this: a walk would average over 1000 rays,
+// and a batch of 4096 walks (the unit between checks for a cancel) several seconds.
+inline constexpr double kWalkMaxReflectivity = 0.999;
 
 // SolverSettings::elements for storage that follows the photons (`--elements auto`): deposits
 // land on a fine dyadic mesh, every coarser level's deposits follow exactly (the meshes nest), and
@@ -166,6 +167,8 @@ struct PhotonPath {
   // Walks: the walk ended where this flight landed (Russian roulette, or a side that reflects
   // nothing). A flight that escaped ends its walk too (`escaped`).
   bool absorbed = false;
+  // Walks: the walk went on after this flight, but the record was full (path_limit).
+  bool cut = false;
 };
 
 // The message of the error a cancelled Solver::create returns.

@@ -63,7 +63,8 @@ PyScene from_dict(const py::dict& document, const std::string& name) {
 // A photon count: an int, or a float that is a whole number (1e6), as --photons accepts.
 std::uint64_t photon_count(const py::object& value) {
   double number = 0.0;
-  if (py::isinstance<py::int_>(value) || py::isinstance<py::float_>(value)) number = value.cast<double>();
+  if (!py::isinstance<py::bool_>(value) && (py::isinstance<py::int_>(value) || py::isinstance<py::float_>(value)))
+    number = value.cast<double>();
   else fail("photons: expected a whole number such as 250000 or 1e6, got " + py::repr(value).cast<std::string>());
   if (!(number >= 1.0 && number <= 0x1.0p53) || number != std::floor(number))
     fail("photons: expected a whole number from 1 to 2^53 such as 250000 or 1e6, got " + py::repr(value).cast<std::string>());
@@ -89,6 +90,8 @@ SolverSettings settings_from(const py::object& photons, std::uint64_t seed, unsi
   if (py::isinstance<py::str>(elements)) {
     if (elements.cast<std::string>() != "auto") fail("elements: expected \"auto\" or a whole number, got '" + elements.cast<std::string>() + "'");
     s.elements = kAutoElements;
+  } else if (!py::isinstance<py::int_>(elements) || py::isinstance<py::bool_>(elements)) {
+    fail("elements: expected \"auto\" or a whole number, got " + py::repr(elements).cast<std::string>());
   } else {
     const long long count = elements.cast<long long>();
     if (count < 1 || count > (1 << 16)) fail("elements: must be auto or between 1 and 65536, got " + std::to_string(count));
@@ -141,8 +144,8 @@ class PySolver {
   }
   std::uint64_t step_photons(std::uint64_t photons) {
     std::uint64_t shot = 0;
-    drive(py::none(), 0.25, [&](const std::atomic<bool>* cancel, const ProgressCallback&, double) {
-      shot = solver_->step_photons(photons, cancel);
+    drive(py::none(), 0.25, [&](const std::atomic<bool>* cancel, const ProgressCallback& report, double every) {
+      shot = solver_->step_photons(photons, cancel, nullptr, 0, report, every);
       solver_->include_open_round();
     });
     return shot;
@@ -151,6 +154,7 @@ class PySolver {
   // B at arc lengths `s` along a curve, front side unless `back`: shape (n,) for grey scenes,
   // (n, 3) for colour.
   py::array_t<double> radiosity(const std::string& curve_id, const py::array_t<double>& s, bool back) const {
+    check_idle();
     const std::uint32_t c = scene_.curve_index(curve_id);
     const Curve& curve = scene_.scene->curves[c];
     const Side side = back ? Side::Back : Side::Front;
@@ -173,14 +177,17 @@ class PySolver {
     return out;
   }
   py::array_t<double> coefficients(const std::string& curve_id, bool back) const {
+    check_idle();
     const std::vector<double> b = solver_->radiosity_coefficients(scene_.curve_index(curve_id), back ? Side::Back : Side::Front);
     return py::array_t<double>(static_cast<py::ssize_t>(b.size()), b.data());
   }
   py::array_t<double> knots(const std::string& curve_id) const {
+    check_idle();
     const std::vector<double>& k = solver_->storage(scene_.curve_index(curve_id)).basis.knots();
     return py::array_t<double>(static_cast<py::ssize_t>(k.size()), k.data());
   }
   py::dict stats() const {
+    check_idle();
     const EnergyBooks books = solver_->books();
     py::dict d;
     d["photons"] = solver_->photons_shot();
@@ -196,28 +203,39 @@ class PySolver {
     return d;
   }
   std::string to_json(int samples) const {
+    check_idle();
     if (samples < 1 || samples > 1'000'000) fail("samples: must be between 1 and 1000000");
     return json_text(result_to_json(*solver_, samples));
   }
   const PyScene& scene() const { return scene_; }
 
  private:
+  // A solve runs with the GIL released, so another Python thread (or the progress callback) could
+  // reach the solver meanwhile: it is refused rather than left to read half-written storage.
+  void check_idle() const {
+    if (busy_) throw std::runtime_error("this Solver is busy: a run or step is in progress (from another thread or its progress callback)");
+  }
+
   template <typename Work>
   void drive(const py::object& progress, double interval, Work&& work) {
+    check_idle();
     if (solver_->stop_reason() == StopReason::Cancelled) fail("this solve was interrupted; make a new one");
+    if (!std::isfinite(interval) || interval < 0.0) fail("interval: must be a number of seconds >= 0");
     std::atomic<bool> cancel{false};
-    bool interrupted = false;
-    std::optional<py::error_already_set> callback_error;
-    // Called on this thread with the GIL released: take it, check for Ctrl-C, report.
+    // What stops the work: an exception from a signal handler (Ctrl-C: KeyboardInterrupt) or from
+    // the callback, kept to be raised once the solver is back in a consistent state.
+    std::optional<py::error_already_set> raised;
+    std::exception_ptr failure;
+    // Called on this thread with the GIL released: take it, check for signals, report.
     const ProgressCallback report = [&](const SolverProgress& p) {
       py::gil_scoped_acquire gil;
+      if (raised || failure) return;
       if (PyErr_CheckSignals() != 0) {
-        interrupted = true;
+        raised.emplace();  // fetches the handler's exception
         cancel.store(true);
-        PyErr_Clear();
         return;
       }
-      if (progress.is_none() || callback_error) return;
+      if (progress.is_none()) return;
       try {
         py::dict d;
         d["photons"] = p.photons;
@@ -227,24 +245,34 @@ class PySolver {
         d["seconds"] = p.seconds;
         progress(d);
       } catch (py::error_already_set& error) {
-        callback_error = std::move(error);
+        raised.emplace(std::move(error));
+        cancel.store(true);
+      } catch (...) {
+        failure = std::current_exception();
         cancel.store(true);
       }
     };
     {
+      struct Busy {
+        std::atomic<bool>& flag;
+        explicit Busy(std::atomic<bool>& f) : flag(f) { flag = true; }
+        ~Busy() { flag = false; }
+      } busy(busy_);
       py::gil_scoped_release release;
       work(&cancel, report, std::max(interval, 0.02));
     }
-    if (callback_error) throw *callback_error;
-    if (interrupted || solver_->stop_reason() == StopReason::Cancelled) throw py::error_already_set([] {
-        PyErr_SetNone(PyExc_KeyboardInterrupt);
-        return py::error_already_set();
-      }());
+    if (raised) throw *raised;
+    if (failure) std::rethrow_exception(failure);
+    if (solver_->stop_reason() == StopReason::Cancelled) {
+      PyErr_SetNone(PyExc_KeyboardInterrupt);
+      throw py::error_already_set();
+    }
     if (solver_->stop_reason() == StopReason::BooksUnbalanced) throw std::runtime_error(solver_->books_error());
   }
 
   PyScene scene_;
   std::unique_ptr<Solver> solver_;
+  std::atomic<bool> busy_{false};
 };
 
 // flatland.reference: the deterministic reference solution (flatland reference), as the document

@@ -94,7 +94,7 @@ std::vector<CurveTrace> trace_curves(const Scene& scene, int samples_per_segment
 }
 
 PathRecord path_record(const PhotonPath& path, const Scene& scene, std::uint64_t serial, std::uint32_t round) {
-  PathRecord record{serial, path.origin, path.end, path.power, round, path.bounce, path.escaped, path.absorbed};
+  PathRecord record{serial, path.origin, path.end, path.power, round, path.bounce, path.escaped, path.absorbed, path.cut};
   if (path.escaped) {
     // Exit from the box: the smallest positive slab distance along the direction.
     const Vec2 d = path.end - path.origin;
@@ -225,20 +225,25 @@ std::array<float, 4> rgba(const std::array<float, 3>& c, float a) { return {c[0]
 }  // namespace
 
 std::pair<std::size_t, std::size_t> newest_journey(const std::vector<PathRecord>& paths) {
-  const std::size_t end = paths.size();
+  // The run of connected bounces that ends just before `end`.
+  auto run_start = [&paths](std::size_t end) {
+    std::size_t first = end - 1;
+    while (first > 0) {
+      const PathRecord& hop = paths[first];
+      const PathRecord& before = paths[first - 1];
+      // (A hop starts on the curve where the last one landed: the same point to rounding.)
+      const double size = length(hop.from) + length(before.from) + length(before.to - before.from);
+      if (hop.bounce != before.bounce + 1 || before.escaped || before.absorbed || before.cut ||
+          !(length(hop.from - before.to) <= 1e-9 * size))
+        break;
+      --first;
+    }
+    return first;
+  };
+  std::size_t end = paths.size();
+  while (end > 0 && paths[end - 1].cut) end = run_start(end);
   if (end == 0) return {0, 0};
-  std::size_t first = end - 1;
-  while (first > 0) {
-    const PathRecord& hop = paths[first];
-    const PathRecord& before = paths[first - 1];
-    // (A hop starts on the curve where the last one landed: the same point to rounding.)
-    const double size = length(hop.from) + length(before.from) + length(before.to - before.from);
-    if (hop.bounce != before.bounce + 1 || before.escaped || before.absorbed ||
-        !(length(hop.from - before.to) <= 1e-9 * size))
-      break;
-    --first;
-  }
-  return {first, end};
+  return {run_start(end), end};
 }
 
 std::vector<LineVertex> build_overlay(const Snapshot& snapshot, const DrawOptions& options) {
@@ -331,8 +336,9 @@ std::vector<LineVertex> build_overlay(const Snapshot& snapshot, const DrawOption
                                             : std::array<float, 4>{1.0f, 1.0f, 1.0f, 1.0f});
       if (hop.absorbed) {  // a cross where the walk ended
         const std::array<float, 4> red{1.0f, 0.25f, 0.2f, 1.0f};
-        out.quad(hop.to, hop.to, {-9.0, -7.0}, {-7.0, -9.0}, {9.0, 7.0}, {7.0, 9.0}, red, red);
-        out.quad(hop.to, hop.to, {-9.0, 7.0}, {-7.0, 9.0}, {9.0, -7.0}, {7.0, -9.0}, red, red);
+        // Two bars: quad(a, b, a_lo, a_hi, b_lo, b_hi) takes the lo offsets on one long edge.
+        out.quad(hop.to, hop.to, {-9.0, -7.0}, {-7.0, -9.0}, {7.0, 9.0}, {9.0, 7.0}, red, red);
+        out.quad(hop.to, hop.to, {-9.0, 7.0}, {-7.0, 9.0}, {7.0, -9.0}, {9.0, -7.0}, red, red);
       }
     }
   }

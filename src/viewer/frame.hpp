@@ -87,6 +87,7 @@ struct PathRecord {
   std::uint32_t bounce = 0;  // reflections before this flight (PhotonPath::bounce)
   bool escaped = false;
   bool absorbed = false;     // a walk ended where this flight landed
+  bool cut = false;          // the walk went on, unrecorded (the record was full)
 };
 
 // A photon path for drawing: from its origin to its hit, or, for a photon that escaped (`end` is
@@ -192,7 +193,8 @@ std::vector<LineVertex> build_overlay(const Snapshot& snapshot, const DrawOption
 
 // The newest photon's journey among `paths` (oldest first): the indices [first, paths.size()) of
 // the run of paths that ends with the last one, each a bounce after the one before and starting
-// where it landed (a walk's hops). With shooting, the last path alone. Empty for no paths.
+// where it landed (a walk's hops); a walk whose record was cut short is passed over for the one
+// before. With shooting, the last path alone. Empty for no paths.
 std::pair<std::size_t, std::size_t> newest_journey(const std::vector<PathRecord>& paths);
 
 // What the path buffer does this frame (see PathLayer).

@@ -51,7 +51,8 @@ const char* const kHelp[][2] = {
     {"K", "colour band of B"},
     {"P", "photon paths"},
     {"+ / -", "path exposure"},
-    {"Ctrl+S", "save a screenshot (PNG, the scene view)"},
+    {"Ctrl+S", "save a screenshot (PNG, the whole window with its legends)"},
+    {"1", "first photons: random walks stepped slowly, coloured by bounce"},
     {"Ctrl+E", "save the result (JSON, as solve --out)"},
     {"F5", "reload the scene file"},
     {"F1 / H", "this help"},
@@ -64,13 +65,24 @@ const char* const kHelp[][2] = {
 
 namespace {
 
-// A step of 1, 2 or 5 times a power of ten, near span / 4: the axis ticks of a plot.
+// A step of 1, 2 or 5 times a power of ten, near span / 4: the axis ticks of a plot; 0 where there
+// is nothing to tick (a span that is not a positive finite number, or too small to divide).
 double nice_step(double span) {
-  if (!(span > 0.0) || !std::isfinite(span)) return 1.0;
+  if (!(span > 0.0) || !std::isfinite(span)) return 0.0;
   const double raw = span / 4.0;
   const double decade = std::pow(10.0, std::floor(std::log10(raw)));
+  if (!(decade > 0.0) || !std::isfinite(decade)) return 0.0;
   const double f = raw / decade;
   return decade * (f < 1.5 ? 1.0 : f < 3.5 ? 2.0 : f < 7.5 ? 5.0 : 10.0);
+}
+
+// The ticks 0, step, 2 step, ... up to `span` (none when nice_step found no step; at most 12).
+std::vector<double> ticks(double span) {
+  std::vector<double> values;
+  const double step = nice_step(span);
+  if (step > 0.0)
+    for (int i = 0; i <= 12 && i * step <= span * (1.0 + 1e-9); ++i) values.push_back(i * step);
+  return values;
 }
 
 ImU32 to_u32(const std::array<float, 3>& c, float alpha = 1.0f) {
@@ -183,6 +195,11 @@ void Viewer::draw_menu(const Snapshot& snapshot) {
     }
     if (ImGui::MenuItem("Reload scene", "F5")) load_scene_file(scene_path_);
     if (ImGui::MenuItem("Save screenshot", "Ctrl+S")) handle_key(SDLK_s, true);
+    if (ImGui::MenuItem("Save scene picture (no panels)")) {
+      const std::string name = "flatland-" + scene_->name + "-scene.png";
+      const Status saved = save_screenshot(name);
+      set_message(saved ? "saved " + name : saved.error().message);
+    }
     if (ImGui::MenuItem("Save result", "Ctrl+E")) handle_key(SDLK_e, true);
     if (ImGui::MenuItem("Quit", "Esc")) quit_ = true;
     ImGui::EndMenu();
@@ -190,6 +207,7 @@ void Viewer::draw_menu(const Snapshot& snapshot) {
   if (ImGui::BeginMenu("View")) {
     if (ImGui::MenuItem("Fit scene", "F")) view_fitted_ = false;
     if (ImGui::MenuItem("Panels", "Tab", panels_visible_)) panels_visible_ = !panels_visible_;
+    if (ImGui::MenuItem("First photons (lecture preset)", "1")) first_photons();
     ImGui::EndMenu();
   }
   if (ImGui::MenuItem("Help")) show_help_ = !show_help_;
@@ -210,14 +228,30 @@ void Viewer::draw_solve_panel(const Snapshot& snapshot) {
   ImGui::SameLine();
   if (ImGui::Button("Reset")) restart();
   track("Reset");
-  if (ImGui::Button("Photon")) session_->step(StepKind::Photon);
+  if (ImGui::Button("Photon")) {
+    slow_stepping_ = false;
+    session_->step(StepKind::Photon);
+  }
   track("Photon");
   ImGui::SameLine();
-  if (ImGui::Button("Batch")) session_->step(StepKind::Batch);
+  if (ImGui::Button("Batch")) {
+    slow_stepping_ = false;
+    session_->step(StepKind::Batch);
+  }
   track("Batch");
   ImGui::SameLine();
-  if (ImGui::Button("Round")) session_->step(StepKind::Round);
+  if (ImGui::Button("Round")) {
+    slow_stepping_ = false;
+    session_->step(StepKind::Round);
+  }
   track("Round");
+  ImGui::SameLine();
+  if (ImGui::Button("First photons")) first_photons();
+  track("First photons");
+  if (ImGui::IsItemHovered())
+    ImGui::SetTooltip("A lecture preset: random walks, one every %.1f s, coloured by bounce,\n"
+                      "the newest journey on top (Space runs on, '.' steps by hand)",
+                      kFirstPhotonsSeconds);
   ImGui::Separator();
 
   bool changed = false;
@@ -340,8 +374,7 @@ void Viewer::draw_colour_key(const Snapshot& snapshot) {
     const float x0 = origin.x + width * static_cast<float>(i) / steps;
     draw->AddRectFilled(ImVec2(x0, origin.y), ImVec2(x0 + width / steps + 0.5f, origin.y + height), to_u32(colour));
   }
-  const double step = nice_step(range);
-  for (double v = 0.0; v <= range * (1.0 + 1e-9); v += step) {
+  for (const double v : ticks(range)) {
     const float x = origin.x + width * static_cast<float>(v / range);
     draw->AddLine(ImVec2(x, origin.y + height), ImVec2(x, origin.y + height + 4.0f), IM_COL32(220, 220, 220, 255));
     char label[32];
@@ -575,16 +608,15 @@ void Viewer::draw_curve_panel(const Snapshot& snapshot) {
     };
     const ImU32 axis = IM_COL32(200, 200, 200, 255);
     const ImU32 grid = IM_COL32(70, 70, 85, 255);
-    const double b_step = nice_step(hi);
-    for (double v = 0.0; v <= hi * (1.0 + 1e-9); v += b_step) {
+    if (!std::isfinite(hi)) hi = 1.0;  // (a sample that is not finite: keep the plot usable)
+    for (const double v : ticks(hi)) {
       const ImVec2 p = point(0.0, v);
       draw->AddLine(ImVec2(lo.x, p.y), ImVec2(hi_corner.x, p.y), grid);
       char label[32];
       std::snprintf(label, sizeof label, "%.3g", v);
       draw->AddText(ImVec2(lo.x - ImGui::CalcTextSize(label).x - 4.0f, p.y - 0.5f * text), axis, label);
     }
-    const double s_step = nice_step(curve.length);
-    for (double v = 0.0; v <= curve.length * (1.0 + 1e-9); v += s_step) {
+    for (const double v : ticks(curve.length)) {
       const ImVec2 p = point(v, 0.0);
       draw->AddLine(ImVec2(p.x, hi_corner.y), ImVec2(p.x, hi_corner.y + 4.0f), axis);
       char label[32];

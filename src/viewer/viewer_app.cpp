@@ -316,7 +316,10 @@ void Viewer::handle_key(int key, bool ctrl) {
       else
         session_->set_running(!session_->running());
       break;
-    case SDLK_PERIOD: session_->step(StepKind::Photon); break;
+    case SDLK_PERIOD:
+      slow_stepping_ = false;
+      session_->step(StepKind::Photon);
+      break;
     case SDLK_b: session_->step(StepKind::Batch); break;
     case SDLK_r: session_->step(StepKind::Round); break;
     case SDLK_BACKSPACE: restart(); break;
@@ -338,12 +341,14 @@ void Viewer::handle_key(int key, bool ctrl) {
     case SDLK_ESCAPE: quit_ = true; break;
     case SDLK_s:
       if (ctrl) {
+        // The whole window as drawn at the end of this frame: the scene with the panels, so the
+        // picture carries its colour key, the bounce colours and the B(s) plot's axes.
         char name[128];
         std::snprintf(name, sizeof name, "flatland-%s-%d.png", scene_->name.c_str(), frames_done_);
-        Status saved = save_screenshot(name);
-        set_message(saved ? std::string("saved ") + name : saved.error().message);
+        window_picture_ = name;
       }
       break;
+    case SDLK_1: first_photons(); break;
     case SDLK_e:
       if (ctrl) {
         const std::string name = "flatland-" + scene_->name + "-result.json";
@@ -447,6 +452,11 @@ bool Viewer::frame() {
   ++frames_done_;
   if (options_.frames > 0 && frames_done_ >= options_.frames && !options_.screenshot_ui.empty())
     save_window_picture(options_.screenshot_ui);  // the back buffer, panels included, before it is shown
+  if (!window_picture_.empty()) {
+    save_window_picture(window_picture_);
+    set_message("saved " + window_picture_);
+    window_picture_.clear();
+  }
   SDL_GL_SwapWindow(impl_->window);
   frame_seconds_.push_back(seconds_since_start() - frame_start);
   return !quit_;
@@ -461,7 +471,11 @@ void Viewer::handle_events() {
   SDL_GL_GetDrawableSize(impl_->window, &width, &height);
   // The docked layout: panels in the side columns, the scene fitted to the stage between them
   // (again whenever the stage changes, unless the user has zoomed or panned since the last fit).
-  const float menu = options_.show_ui ? ImGui::GetFrameHeight() : 0.0f;
+  // The menu bar's height: ImGui's frame height, which it only knows after its first frame (the
+  // default font is 13 pixels before it is loaded).
+  const ImGuiIO& imgui_io = ImGui::GetIO();
+  const float font = (imgui_io.Fonts->Fonts.empty() ? 13.0f : imgui_io.Fonts->Fonts[0]->FontSize) * imgui_io.FontGlobalScale;
+  const float menu = options_.show_ui ? font + 2.0f * ImGui::GetStyle().FramePadding.y : 0.0f;
   const StageLayout layout = stage_layout(width, height, options_.ui_scale, options_.show_ui && panels_visible_, menu);
   if (!(layout.stage == layout_.stage) && view_auto_) view_fitted_ = false;
   layout_ = layout;
@@ -490,7 +504,31 @@ void Viewer::handle_events() {
   ImGui::NewFrame();
 }
 
+void Viewer::first_photons() {
+  settings_.transport = Transport::Walk;
+  draw_.path_colour = PathColour::Bounce;
+  draw_.paths = true;
+  draw_.journey = true;
+  draw_.fade = 0.6f;
+  keep_slider_ = 24;
+  session_->set_path_limit(24);
+  session_->set_running(false);
+  restart();
+  slow_stepping_ = true;
+  last_slow_step_ = -1e9;
+  overlay_generation_ = ~0ull;
+  set_message("first photons: one random walk every 0.8 s; Space runs, '.' steps");
+}
+
 void Viewer::step_solve() {
+  if (slow_stepping_ && frame_step_.mode == FrameStep::Mode::Live) {
+    if (session_->running()) {
+      slow_stepping_ = false;  // Run takes over
+    } else if (seconds_since_start() - last_slow_step_ >= kFirstPhotonsSeconds) {
+      last_slow_step_ = seconds_since_start();
+      session_->step(StepKind::Photon);
+    }
+  }
   // Deterministic stepping: this frame's steps are finished before it is drawn.
   switch (frame_step_.mode) {
     case FrameStep::Mode::Live: return;

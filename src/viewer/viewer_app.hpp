@@ -101,6 +101,12 @@ class Viewer {
   void queue_key(int sdl_keycode, bool ctrl = false);
   // Resizes the window (as a user dragging its border would); the next frames lay out again.
   void resize_window(int width, int height);
+  // The "first photons" preset for a lecture: random walks, paths coloured by bounce, a few kept,
+  // the solve restarted and stepped one photon every `kFirstPhotonsSeconds` so a class can follow
+  // each journey. Any step or Run key ends the slow stepping.
+  void first_photons();
+  static constexpr double kFirstPhotonsSeconds = 0.8;
+  bool slow_stepping() const { return slow_stepping_; }
   // Opens another scene file (as File > Open scene does) and inspects curve `curve` (-1: none).
   void open_scene(const std::string& path) { load_scene_file(path); }
   void select_curve(int curve) { draw_.selected_curve = curve; }
@@ -185,6 +191,9 @@ class Viewer {
   std::string message_;
   double message_time_ = 0.0;
   bool show_help_ = false;
+  bool slow_stepping_ = false;     // the first-photons preset's timed steps
+  double last_slow_step_ = -1e9;
+  std::string window_picture_;     // Ctrl+S: the whole window, legends included, after this frame
   bool quit_ = false;
   bool software_renderer_ = false;  // GL_RENDERER is llvmpipe or softpipe
   int frames_done_ = 0;

@@ -163,6 +163,24 @@ def test_progress_callback_and_its_errors():
         flatland.solve(scene, photons=5_000_000, elements=16, progress=boom)
 
 
+def test_walks_step_like_one_solve_and_a_busy_solver_is_refused():
+    scene = flatland.Scene.load("scenes2d/room_reflector.json")
+    whole = flatland.solve(scene, photons=30_000, transport="walk", seed=2)
+    stepped = flatland.Solver(scene, photons=30_000, transport="walk", seed=2)
+    sizes = [1, 5000, 3, 20_000, 10_000]
+    i = 0
+    while not stepped.stats["stopped"]:
+        stepped.step_photons(sizes[i % len(sizes)])
+        stepped.B(scene.curves[0], np.array([0.0]))  # reading an open round is allowed between steps
+        i += 1
+    assert without_timing(stepped.to_json()) == without_timing(whole.to_json())
+    assert whole.stats["rays"] > whole.stats["photons"]
+    # From its own progress callback (the GIL is released meanwhile) the solver refuses to be read.
+    busy = flatland.Solver(scene, photons=2_000_000, elements=16)
+    with pytest.raises(RuntimeError, match="busy"):
+        busy.run(progress=lambda p: busy.stats, interval=0.01)
+
+
 def test_the_gil_is_released_while_solving():
     scene = flatland.Scene.load("scenes2d/curved_room.json")
     ticks = [0]
