@@ -1198,14 +1198,17 @@ TEST(Solver, AutoStorageKeepsConvergingWithoutAFloor) {
 
 // Randomised quasi-Monte Carlo: results depend on the seed only, never on the thread count or on
 // how the round is cut into steps (the viewer's partial batches take the same points).
+// A solve's result document without what may differ between runs of the same solve: its wall
+// time and its thread count.
+std::string dump(const Solver& solver) {
+  nlohmann::json result = result_to_json(solver, 50);
+  result["stats"].erase("seconds");
+  result["settings"].erase("threads");
+  return result.dump();
+}
+
 TEST(Solver, SobolGivesIdenticalResultsOnAnyThreadCountAndStep) {
   const Scene scene = testing::scene_from_file("scenes2d/mixed.json");
-  auto dump = [](const Solver& solver) {
-    nlohmann::json result = result_to_json(solver, 50);
-    result["stats"].erase("seconds");
-    result["settings"].erase("threads");
-    return result.dump();
-  };
   SolverSettings settings;
   settings.photons = 200'000;
   settings.seed = 99;
@@ -1498,12 +1501,6 @@ TEST(Solver, WalksMatchTheLitRingsClosedForm) {
 
 TEST(Solver, WalksGiveIdenticalResultsOnAnyThreadCountAndStep) {
   const Scene scene = testing::scene_from_file("scenes2d/mixed.json");
-  auto dump = [](const Solver& solver) {
-    nlohmann::json result = result_to_json(solver, 50);
-    result["stats"].erase("seconds");
-    result["settings"].erase("threads");
-    return result.dump();
-  };
   SolverSettings settings;
   settings.photons = 60'000;
   settings.seed = 41;

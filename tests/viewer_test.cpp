@@ -37,6 +37,17 @@ class Viewer : public testing::ScratchDirectoryTest {
     return testing::run_flatland(arguments, directory_, environment);
   }
   std::string scene(const std::string& name) { return testing::source_path("scenes2d/" + name); }
+  // A window of 1100 x 760 on scenes2d/`name`, paused (UI tests step it), unpaced.
+  ViewOptions paused_window(const std::string& name, std::uint64_t photons) {
+    ViewOptions options;
+    options.scene = scene(name);
+    options.width = 1100;
+    options.height = 760;
+    options.paused = true;
+    options.vsync = false;
+    options.settings.photons = photons;
+    return options;
+  }
 };
 
 struct Rgb {
@@ -195,13 +206,7 @@ void click(viewer::Viewer& viewer, const std::string& label) {
 }
 
 TEST_F(Viewer, UiControlsDriveTheSolve) {
-  ViewOptions options;
-  options.scene = scene("penumbra.json");
-  options.width = 1100;
-  options.height = 760;
-  options.paused = true;
-  options.vsync = false;
-  options.settings.photons = 100'000;
+  const ViewOptions options = paused_window("penumbra.json", 100'000);
   Result<std::unique_ptr<viewer::Viewer>> created = viewer::Viewer::create(options);
   ASSERT_TRUE(created) << created.error().message;
   viewer::Viewer& viewer = **created;
@@ -256,13 +261,9 @@ TEST_F(Viewer, UiControlsDriveTheSolve) {
 TEST_F(Viewer, PanelsNeverCoverTheScene) {
   // One window for every scene and size (SDL, torn down and set up again many times in one
   // process under Xvfb, now and then failed to open the display).
-  ViewOptions options;
-  options.scene = scene("room_reflector.json");
+  ViewOptions options = paused_window("room_reflector.json", 10'000);
   options.width = 1280;
   options.height = 800;
-  options.paused = true;
-  options.vsync = false;
-  options.settings.photons = 10'000;
   Result<std::unique_ptr<viewer::Viewer>> created = viewer::Viewer::create(options);
   ASSERT_TRUE(created) << created.error().message;
   viewer::Viewer& viewer = **created;
@@ -301,13 +302,7 @@ TEST_F(Viewer, PanelsNeverCoverTheScene) {
 // of paths with bounce 0, 1, 2, ..., each starting where the last landed, ending once), and the
 // paths can be coloured by bounce.
 TEST_F(Viewer, WalkTransportStepsWholeJourneys) {
-  ViewOptions options;
-  options.scene = scene("room_reflector.json");
-  options.width = 1100;
-  options.height = 760;
-  options.paused = true;
-  options.vsync = false;
-  options.settings.photons = 10'000;
+  const ViewOptions options = paused_window("room_reflector.json", 10'000);
   Result<std::unique_ptr<viewer::Viewer>> created = viewer::Viewer::create(options);
   ASSERT_TRUE(created) << created.error().message;
   viewer::Viewer& viewer = **created;
@@ -345,13 +340,7 @@ TEST_F(Viewer, WalkTransportStepsWholeJourneys) {
 // The lecture preset: one button switches to random walks coloured by bounce and steps a photon
 // every kFirstPhotonsSeconds on its own; stepping by hand takes over.
 TEST_F(Viewer, FirstPhotonsPresetStepsWalksSlowly) {
-  ViewOptions options;
-  options.scene = scene("room_reflector.json");
-  options.width = 1100;
-  options.height = 760;
-  options.paused = true;
-  options.vsync = false;
-  options.settings.photons = 10'000;
+  const ViewOptions options = paused_window("room_reflector.json", 10'000);
   Result<std::unique_ptr<viewer::Viewer>> created = viewer::Viewer::create(options);
   ASSERT_TRUE(created) << created.error().message;
   viewer::Viewer& viewer = **created;

@@ -44,15 +44,13 @@ Result<Method> parse_method(const std::string& text, const SolverSettings& defau
     SolverSettings& s = method.settings;
     const std::string where = "--methods: '" + text + "': ";
     if (key == "basis") {
-      if (value == "constant") s.basis = BasisKind::Constant;
-      else if (value == "linear") s.basis = BasisKind::Linear;
-      else if (value == "cubic") s.basis = BasisKind::Cubic;
-      else if (value == "hermite") s.basis = BasisKind::Hermite;
-      else return Error{where + "basis must be constant, linear, cubic or hermite"};
+      const std::optional<BasisKind> basis = basis_from_string(value);
+      if (!basis) return Error{where + "basis must be constant, linear, cubic or hermite"};
+      s.basis = *basis;
     } else if (key == "sampling") {
-      if (value != "uniform" && value != "reconstructed")
-        return Error{where + "sampling must be uniform or reconstructed"};
-      s.sampling = value == "uniform" ? PositionSampling::Uniform : PositionSampling::Reconstructed;
+      const std::optional<PositionSampling> sampling = sampling_from_string(value);
+      if (!sampling) return Error{where + "sampling must be uniform or reconstructed"};
+      s.sampling = *sampling;
     } else if (key == "discontinuities") {
       const std::optional<DiscontinuityMode> mode = discontinuity_mode_from_string(value);
       if (!mode) return Error{where + "discontinuities must be none, scene, auto or secondary"};
@@ -70,8 +68,9 @@ Result<Method> parse_method(const std::string& text, const SolverSettings& defau
       s.ray_width = std::strtod(value.c_str(), &end);
       if (end == value.c_str() || *end != '\0') return Error{where + "ray-width must be a number"};
     } else if (key == "ray-mode") {
-      if (value != "footprint" && value != "band") return Error{where + "ray-mode must be footprint or band"};
-      s.ray_mode = value == "band" ? RayMode::Band : RayMode::Footprint;
+      const std::optional<RayMode> mode = ray_mode_from_string(value);
+      if (!mode) return Error{where + "ray-mode must be footprint or band"};
+      s.ray_mode = *mode;
     } else if (key == "band-rays") {
       const std::optional<int> count = whole_number(value);
       if (!count) return Error{where + "band-rays must be a whole number"};
@@ -85,8 +84,9 @@ Result<Method> parse_method(const std::string& text, const SolverSettings& defau
       if (!profile) return Error{where + profile.error().message};
       s.ray_profile = *profile;
     } else if (key == "sampler") {
-      if (value != "random" && value != "sobol") return Error{where + "sampler must be random or sobol"};
-      s.sampler = value == "sobol" ? SamplerKind::Sobol : SamplerKind::Random;
+      const std::optional<SamplerKind> sampler = sampler_from_string(value);
+      if (!sampler) return Error{where + "sampler must be random or sobol"};
+      s.sampler = *sampler;
     } else if (key == "transport") {
       const std::optional<Transport> transport = transport_from_string(value);
       if (!transport) return Error{where + "transport must be shooting or walk"};

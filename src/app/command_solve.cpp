@@ -243,19 +243,16 @@ Status finish_solver_settings(SolveOptions& o) {
   Result<std::uint64_t> photons = parse_count(o.photons, "--photons");
   if (!photons) return photons.error();
   o.settings.photons = *photons;
-  o.settings.basis = o.basis == "constant" ? BasisKind::Constant
-                     : o.basis == "linear" ? BasisKind::Linear
-                     : o.basis == "hermite" ? BasisKind::Hermite
-                                            : BasisKind::Cubic;
+  // (The option checks have let only these names through.)
+  o.settings.basis = *basis_from_string(o.basis);
   o.settings.discontinuities = *discontinuity_mode_from_string(o.discontinuities);
   o.settings.ray_profile = *parse_ray_profile(o.ray_profile);
-  o.settings.ray_mode = o.ray_mode == "band" ? RayMode::Band : RayMode::Footprint;
+  o.settings.ray_mode = *ray_mode_from_string(o.ray_mode);
   o.settings.estimator = *estimator_from_string(o.estimator);
   o.settings.elements = *parse_elements(o.elements, 1 << 16);
-  o.settings.sampler = o.sampler == "sobol" ? SamplerKind::Sobol : SamplerKind::Random;
+  o.settings.sampler = *sampler_from_string(o.sampler);
   o.settings.transport = *transport_from_string(o.transport);
-  o.settings.sampling =
-      o.sampling == "uniform" ? PositionSampling::Uniform : PositionSampling::Reconstructed;
+  o.settings.sampling = *sampling_from_string(o.sampling);
   return validate(o.settings);
 }
 

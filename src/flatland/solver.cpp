@@ -43,6 +43,26 @@ const char* to_string(SamplerKind sampler) {
   return sampler == SamplerKind::Random ? "random" : "sobol";
 }
 
+// The names of a two-valued setting, as its to_string writes them.
+template <typename Enum>
+std::optional<Enum> one_of(std::string_view name, Enum a, Enum b) {
+  if (name == to_string(a)) return a;
+  if (name == to_string(b)) return b;
+  return std::nullopt;
+}
+
+std::optional<SamplerKind> sampler_from_string(std::string_view name) {
+  return one_of(name, SamplerKind::Random, SamplerKind::Sobol);
+}
+
+std::optional<RayMode> ray_mode_from_string(std::string_view name) {
+  return one_of(name, RayMode::Footprint, RayMode::Band);
+}
+
+std::optional<PositionSampling> sampling_from_string(std::string_view name) {
+  return one_of(name, PositionSampling::Uniform, PositionSampling::Reconstructed);
+}
+
 const char* to_string(Estimator estimator) {
   switch (estimator) {
     case Estimator::Lumped: return "lumped";
@@ -63,9 +83,7 @@ const char* to_string(Transport transport) {
 }
 
 std::optional<Transport> transport_from_string(std::string_view name) {
-  for (Transport t : {Transport::Shooting, Transport::Walk})
-    if (name == to_string(t)) return t;
-  return std::nullopt;
+  return one_of(name, Transport::Shooting, Transport::Walk);
 }
 
 const char* to_string(PositionSampling sampling) {

@@ -40,6 +40,8 @@ namespace flatland {
 // or with density proportional to the reconstructed unshot radiosity (the paper's section 3.4).
 enum class PositionSampling { Uniform, Reconstructed };
 const char* to_string(PositionSampling sampling);
+// "uniform" or "reconstructed"; nullopt for anything else.
+std::optional<PositionSampling> sampling_from_string(std::string_view name);
 
 // How coefficients are estimated from deposits (basis.hpp): lumped (b_k = p_k / integral(phi_k ds),
 // the paper's distance-weighted deposit: positive, but it puts each coefficient at its function's
@@ -54,12 +56,16 @@ std::optional<Estimator> estimator_from_string(std::string_view name);
 
 enum class RayMode { Footprint, Band };
 const char* to_string(RayMode mode);
+// "footprint" or "band"; nullopt for anything else.
+std::optional<RayMode> ray_mode_from_string(std::string_view name);
 
 // Where a photon's uniforms come from: independent pseudo-random numbers, or randomised
 // quasi-Monte Carlo (an Owen-scrambled Sobol' point per photon, indexed by its number in the
 // round; qmc.hpp and docs/method.md).
 enum class SamplerKind { Random, Sobol };
 const char* to_string(SamplerKind sampler);
+// "random" or "sobol"; nullopt for anything else.
+std::optional<SamplerKind> sampler_from_string(std::string_view name);
 
 // How light gets from the emitters to its last bounce (docs/method.md, Transport):
 // - Shooting: progressive rounds, each shooting the power the previous round reflected, one hop

@@ -82,11 +82,12 @@ SolverSettings settings_from(const py::object& photons, std::uint64_t seed, unsi
   s.photons = photon_count(photons);
   s.seed = seed;
   s.threads = threads;
-  if (basis == "constant") s.basis = BasisKind::Constant;
-  else if (basis == "linear") s.basis = BasisKind::Linear;
-  else if (basis == "cubic") s.basis = BasisKind::Cubic;
-  else if (basis == "hermite") s.basis = BasisKind::Hermite;
-  else fail("basis: expected constant, linear, cubic or hermite, got '" + basis + "'");
+  // Each name through the core's own parser; the message names the keyword and what it accepts.
+  auto parse = [](const auto& parsed, const char* keyword, const char* accepted, const std::string& name) {
+    if (!parsed) fail(std::string(keyword) + ": expected " + accepted + ", got '" + name + "'");
+    return *parsed;
+  };
+  s.basis = parse(basis_from_string(basis), "basis", "constant, linear, cubic or hermite", basis);
   if (py::isinstance<py::str>(elements)) {
     if (elements.cast<std::string>() != "auto") fail("elements: expected \"auto\" or a whole number, got '" + elements.cast<std::string>() + "'");
     s.elements = kAutoElements;
@@ -97,24 +98,15 @@ SolverSettings settings_from(const py::object& photons, std::uint64_t seed, unsi
     if (count < 1 || count > (1 << 16)) fail("elements: must be auto or between 1 and 65536, got " + std::to_string(count));
     s.elements = static_cast<int>(count);
   }
-  if (sampling != "uniform" && sampling != "reconstructed")
-    fail("sampling: expected uniform or reconstructed, got '" + sampling + "'");
-  s.sampling = sampling == "uniform" ? PositionSampling::Uniform : PositionSampling::Reconstructed;
-  const std::optional<DiscontinuityMode> mode = discontinuity_mode_from_string(discontinuities);
-  if (!mode) fail("discontinuities: expected none, scene, auto or secondary, got '" + discontinuities + "'");
-  s.discontinuities = *mode;
-  const std::optional<Estimator> e = estimator_from_string(estimator);
-  if (!e) fail("estimator: expected lumped, galerkin or local, got '" + estimator + "'");
-  s.estimator = *e;
-  if (sampler != "random" && sampler != "sobol") fail("sampler: expected random or sobol, got '" + sampler + "'");
-  s.sampler = sampler == "sobol" ? SamplerKind::Sobol : SamplerKind::Random;
-  const std::optional<Transport> t = transport_from_string(transport);
-  if (!t) fail("transport: expected shooting or walk, got '" + transport + "'");
-  s.transport = *t;
+  s.sampling = parse(sampling_from_string(sampling), "sampling", "uniform or reconstructed", sampling);
+  s.discontinuities = parse(discontinuity_mode_from_string(discontinuities), "discontinuities",
+                            "none, scene, auto or secondary", discontinuities);
+  s.estimator = parse(estimator_from_string(estimator), "estimator", "lumped, galerkin or local", estimator);
+  s.sampler = parse(sampler_from_string(sampler), "sampler", "random or sobol", sampler);
+  s.transport = parse(transport_from_string(transport), "transport", "shooting or walk", transport);
   s.ray_width = ray_width;
   s.ray_profile = value_or_fail(parse_ray_profile(ray_profile));
-  if (ray_mode != "footprint" && ray_mode != "band") fail("ray_mode: expected footprint or band, got '" + ray_mode + "'");
-  s.ray_mode = ray_mode == "band" ? RayMode::Band : RayMode::Footprint;
+  s.ray_mode = parse(ray_mode_from_string(ray_mode), "ray_mode", "footprint or band", ray_mode);
   s.band_rays = band_rays;
   s.tolerance = tolerance;
   if (Status status = validate(s); !status) fail(status.error().message);
