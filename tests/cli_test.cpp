@@ -680,5 +680,87 @@ TEST_F(Cli, InterruptsStopLongWorkAndWriteNothing) {
   }
 }
 
+#ifdef FLATLAND_MPIRUN
+// The command line under mpirun (docs/mpi.md): K processes write what one writes, bit for bit,
+// and bad input is reported once with exit code 2.
+std::string mpirun(int processes) {
+  return "OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 " + std::string(FLATLAND_MPIRUN) +
+         " --oversubscribe -np " + std::to_string(processes);
+}
+
+// A result document without what may differ between runs of the same solve.
+std::string solution_of(const fs::path& path) {
+  nlohmann::json result = nlohmann::json::parse(read_file(path));
+  result["stats"].erase("seconds");
+  for (const char* key : {"threads", "processes"}) result["settings"].erase(key);
+  return result.dump();
+}
+
+TEST_F(Cli, MpiSolveWritesTheResultOfOneProcess) {
+  const std::string arguments = "solve " + scene("curved_room.json") + " --photons 3e5 --seed 4 --threads 1 --out ";
+  const CommandRun alone = run(arguments + (directory_ / "alone.json").string());
+  ASSERT_EQ(alone.exit_code, 0) << alone.err;
+  for (int processes : {2, 3}) {
+    const fs::path out = directory_ / ("shared" + std::to_string(processes) + ".json");
+    const CommandRun shared = testing::run_flatland(arguments + out.string(), directory_, mpirun(processes));
+    ASSERT_EQ(shared.exit_code, 0) << shared.err;
+    EXPECT_EQ(solution_of(out), solution_of(directory_ / "alone.json"));
+    EXPECT_EQ(nlohmann::json::parse(read_file(out))["settings"]["processes"], processes);
+    // One summary (rank 0's), saying how many processes shared the work.
+    EXPECT_NE(shared.out.find(std::to_string(processes) + " processes x 1 threads"), std::string::npos) << shared.out;
+    int solved = 0;
+    for (std::size_t at = shared.out.find("solved "); at != std::string::npos; at = shared.out.find("solved ", at + 1))
+      ++solved;
+    EXPECT_EQ(solved, 1) << shared.out;
+  }
+}
+
+TEST_F(Cli, MpiBadInputIsReportedOnceWithExitCode2) {
+  const std::string missing = (directory_ / "missing" / "r.json").string();
+  for (const std::string& command :
+       {"solve " + (directory_ / "no-such-scene.json").string(),
+        "solve " + scene("penumbra.json") + " --photons many",
+        "solve " + scene("penumbra.json") + " --photons 1e15 --out " + missing,
+        "converge " + scene("penumbra.json") + " --methods cubic:nonsense --out " + directory_.string(),
+        "reference " + scene("penumbra.json")}) {
+    const CommandRun r = testing::run_flatland(command, directory_, mpirun(2));
+    EXPECT_EQ(r.exit_code, 2) << command;
+    std::size_t errors = 0;
+    for (std::size_t at = r.err.find("flatland: error"); at != std::string::npos; at = r.err.find("flatland: error", at + 1))
+      ++errors;
+    EXPECT_EQ(errors, 1u) << command << "\n" << r.err;
+  }
+}
+
+TEST_F(Cli, MpiConvergeDealsRunsOutAndWritesOneTable) {
+  const std::string arguments = "converge " + scene("penumbra.json") +
+                                " --methods linear,cubic --budgets 1e4,3e4 --seeds 2 --threads 1 --out ";
+  const CommandRun alone = run(arguments + (directory_ / "alone").string());
+  ASSERT_EQ(alone.exit_code, 0) << alone.err;
+  const CommandRun shared = testing::run_flatland(arguments + (directory_ / "shared").string(), directory_, mpirun(3));
+  ASSERT_EQ(shared.exit_code, 0) << shared.err;
+  // Every row as one process wrote it, but for its wall time (column 16).
+  auto without_seconds = [](const std::string& csv) {
+    std::string kept;
+    std::istringstream lines_in(csv);
+    for (std::string line; std::getline(lines_in, line);) {
+      int field = 0;
+      bool quoted = false;
+      for (char c : line) {
+        if (c == '"') quoted = !quoted;
+        if (c == ',' && !quoted) ++field;
+        if (field != 15) kept += c;
+      }
+      kept += '\n';
+    }
+    return kept;
+  };
+  const std::string table = read_file(directory_ / "alone" / "convergence.csv");
+  EXPECT_EQ(lines(table), 1 + 2 * 2 * 2);
+  EXPECT_EQ(without_seconds(read_file(directory_ / "shared" / "convergence.csv")), without_seconds(table));
+  EXPECT_TRUE(fs::exists(directory_ / "shared" / "convergence.png"));
+}
+#endif
+
 }  // namespace
 }  // namespace flatland

@@ -1,6 +1,11 @@
 #include "flatland/solver.hpp"
 
 #include <algorithm>
+#include <atomic>
+#include <barrier>
+#include <mutex>
+#include <span>
+#include <thread>
 #include <cmath>
 #include <cstdio>
 #include <string>
@@ -1204,7 +1209,120 @@ std::string dump(const Solver& solver) {
   nlohmann::json result = result_to_json(solver, 50);
   result["stats"].erase("seconds");
   result["settings"].erase("threads");
+  result["settings"].erase("processes");
   return result.dump();
+}
+
+// K solvers in K threads of this process, standing in for K MPI processes: `sum` adds every
+// participant's vector through a shared buffer, between barriers, as MPI_Allreduce would.
+class ThreadSharing final : public RoundSharing {
+ public:
+  struct Shared {
+    explicit Shared(unsigned k) : size(k), barrier(k) {}
+    unsigned size;
+    std::barrier<> barrier;
+    std::mutex mutex;
+    std::vector<std::int64_t> total;
+    int sums = 0;
+  };
+  ThreadSharing(Shared& shared, unsigned rank) : shared_(shared), rank_(rank) {}
+  unsigned rank() const override { return rank_; }
+  unsigned size() const override { return shared_.size; }
+  void sum(std::span<std::int64_t> values) override {
+    if (rank_ == 0) {
+      shared_.total.assign(values.size(), 0);
+      ++shared_.sums;
+    }
+    shared_.barrier.arrive_and_wait();
+    {
+      std::lock_guard lock(shared_.mutex);
+      EXPECT_EQ(shared_.total.size(), values.size());
+      for (std::size_t i = 0; i < values.size(); ++i) shared_.total[i] += values[i];
+    }
+    shared_.barrier.arrive_and_wait();
+    std::copy(shared_.total.begin(), shared_.total.end(), values.begin());
+    bytes_summed_ += values.size() * sizeof(std::int64_t);
+    shared_.barrier.arrive_and_wait();
+  }
+
+ private:
+  Shared& shared_;
+  unsigned rank_;
+};
+
+// Every participant's dump(), each having solved `scene` with `settings` as one of `k` sharing
+// the rounds; `cancel_after` (rounds), when set, cancels participant k - 1 alone after that many.
+std::vector<std::string> shared_dumps(const Scene& scene, const SolverSettings& settings, unsigned k,
+                                      std::vector<StopReason>* stops = nullptr, std::uint32_t cancel_after = 0) {
+  ThreadSharing::Shared shared(k);
+  std::vector<std::string> dumps(k);
+  std::vector<StopReason> reasons(k);
+  {
+    std::vector<std::jthread> participants;
+    for (unsigned rank = 0; rank < k; ++rank) {
+      participants.emplace_back([&, rank] {
+        ThreadSharing sharing(shared, rank);
+        Solver solver = make_solver(scene, settings);
+        solver.share_rounds(&sharing);
+        std::atomic<bool> cancel{false};
+        while (solver.step_round(&cancel)) {
+          if (cancel_after > 0 && rank == k - 1 && solver.rounds() >= cancel_after) cancel = true;
+        }
+        reasons[rank] = solver.stop_reason();
+        dumps[rank] = dump(solver);
+      });
+    }
+  }
+  if (stops != nullptr) *stops = reasons;
+  return dumps;
+}
+
+// Processes sharing rounds (the MPI path, DESIGN: every process shoots the batches b = rank mod K
+// and the integer deposits are summed) give the bits of one process, for any K, for shooting and
+// walks, with footprints and in colour.
+TEST(Solver, SharedRoundsGiveTheBitsOfOneProcess) {
+  struct Case {
+    const char* scene;
+    Transport transport;
+    double ray_width;
+  };
+  for (const Case& c : {Case{"scenes2d/mixed.json", Transport::Shooting, 0.0},
+                        Case{"scenes2d/syndrome.json", Transport::Shooting, 0.02},
+                        Case{"scenes2d/curved_room.json", Transport::Walk, 0.0}}) {
+    SCOPED_TRACE(c.scene);
+    const Scene scene = testing::scene_from_file(c.scene);
+    SolverSettings settings;
+    settings.photons = 150'000;
+    settings.seed = 5;
+    settings.threads = 1;
+    settings.transport = c.transport;
+    settings.ray_width = c.ray_width;
+    Solver alone = make_solver(scene, settings);
+    alone.run();
+    ASSERT_GT(alone.rounds(), 1u);
+    const std::string expected = dump(alone);
+    for (unsigned k : {2u, 3u, 64u}) {  // 64: more processes than a small round has batches
+      SCOPED_TRACE(k);
+      settings.threads = k == 2 ? 2 : 1;
+      const std::vector<std::string> dumps = shared_dumps(scene, settings, k);
+      for (const std::string& d : dumps) EXPECT_EQ(d, expected);
+    }
+  }
+}
+
+// A cancel on one process cancels the round on all of them (none waits for the others forever),
+// and none keeps the round's deposits.
+TEST(Solver, SharedRoundsCancelTogether) {
+  const Scene scene = testing::scene_from_file("scenes2d/mixed.json");
+  SolverSettings settings;
+  settings.photons = 400'000;
+  settings.threads = 1;
+  std::vector<StopReason> stops;
+  const std::vector<std::string> dumps = shared_dumps(scene, settings, 3, &stops, 2);
+  for (unsigned rank = 0; rank < 3; ++rank) EXPECT_EQ(stops[rank], StopReason::Cancelled) << rank;
+  EXPECT_EQ(dumps[0], dumps[1]);
+  EXPECT_EQ(dumps[0], dumps[2]);
+  EXPECT_NE(dumps[0].find("\"rounds\":2"), std::string::npos);
 }
 
 TEST(Solver, SobolGivesIdenticalResultsOnAnyThreadCountAndStep) {

@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <bit>
 #include <climits>
 #include <optional>
 #include <cmath>
@@ -18,6 +19,7 @@
 
 #include "app/commands.hpp"
 #include "app/output.hpp"
+#include "app/processes.hpp"
 #include "app/progress.hpp"
 #include "flatland/result_io.hpp"
 
@@ -577,15 +579,61 @@ double floor_for(const nlohmann::json& reference, double floor, const Measured& 
   return floor * total->reference_l2 / reflected->reference_l2;
 }
 
+// Collective: every process's rows (each run done by exactly one) on rank 0; alone, nothing to do.
+// A row travels as integers (its doubles bit for bit), zero where another process did the run.
+void gather_rows(std::vector<std::optional<Row>>& rows) {
+  if (process_count() == 1) return;
+  constexpr std::size_t kFields = 11;
+  std::vector<std::int64_t> values(rows.size() * kFields, 0);
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    if (!rows[i]) continue;
+    const Row& row = *rows[i];
+    std::int64_t* out = &values[i * kFields];
+    out[0] = 1;
+    out[1] = static_cast<std::int64_t>(row.method);
+    out[2] = static_cast<std::int64_t>(row.budget);
+    out[3] = static_cast<std::int64_t>(row.seed);
+    out[4] = static_cast<std::int64_t>(row.photons);
+    out[5] = row.rounds;
+    out[6] = std::bit_cast<std::int64_t>(row.unshot);
+    out[7] = std::bit_cast<std::int64_t>(row.seconds);
+    out[8] = std::bit_cast<std::int64_t>(row.error.l1);
+    out[9] = std::bit_cast<std::int64_t>(row.error.l2);
+    out[10] = std::bit_cast<std::int64_t>(row.error.linf);
+  }
+  std::vector<std::int64_t> rays(rows.size(), 0);
+  for (std::size_t i = 0; i < rows.size(); ++i)
+    if (rows[i]) rays[i] = static_cast<std::int64_t>(rows[i]->rays);
+  shared_processes()->sum(values);
+  shared_processes()->sum(rays);
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    const std::int64_t* in = &values[i * kFields];
+    if (in[0] != 1) continue;  // cannot happen once every process agreed that it finished
+    ErrorNorms error;
+    error.l1 = std::bit_cast<double>(in[8]);
+    error.l2 = std::bit_cast<double>(in[9]);
+    error.linf = std::bit_cast<double>(in[10]);
+    rows[i] = Row{static_cast<std::size_t>(in[1]), static_cast<std::size_t>(in[2]), static_cast<std::uint64_t>(in[3]),
+                  static_cast<std::uint64_t>(in[4]), static_cast<std::uint32_t>(in[5]), std::bit_cast<double>(in[6]),
+                  std::bit_cast<double>(in[7]), error, static_cast<std::uint64_t>(rays[i])};
+  }
+}
+
 int run_converge(ConvergeOptions& o) {
+  // A replot draws what a run wrote: rank 0's work alone.
+  if (o.replot && !speaks_for_the_run()) return kExitOk;
   Result<Plan> plan = parse_plan(o);
-  if (!plan) return usage_error(plan.error().message);
+  Result<Scene> scene = plan ? load_scene(o.scene) : Result<Scene>(Error{""});
+  std::optional<int> unusable;
+  if (!plan) unusable = usage_error(plan.error().message);
+  else if (!scene) unusable = usage_error(scene.error().message);
+  if (o.replot && unusable) return *unusable;
+  if (!o.replot)
+    if (const std::optional<int> code = agree(unusable)) return *code;
   std::vector<Method>& methods = plan->methods;
   const std::vector<double>& budgets = plan->budgets;
   const bool by_time = plan->by_time;
 
-  Result<Scene> scene = load_scene(o.scene);
-  if (!scene) return usage_error(scene.error().message);
   const fs::path directory(o.out);
   if (o.replot) {
     std::vector<std::string> names;
@@ -614,59 +662,62 @@ int run_converge(ConvergeOptions& o) {
   // receives no light is found in the reference below.
   const Measured measured{parse_measure(o.measure), o.curve};
   std::size_t curve_index = 0;
-  const auto reflects = [&scene](const Curve& curve) {
-    const Spectrum& rho = scene->material_of(curve).reflectivity;
-    return std::any_of(rho.begin(), rho.begin() + scene->channels, [](double r) { return r > 0.0; });
-  };
-  if (!o.curve.empty()) {
-    std::vector<std::string> ids;
-    for (const Curve& curve : scene->curves) ids.push_back(curve.id);
-    Result<std::size_t> index = find_curve(ids, o.curve);
-    if (!index) return usage_error(index.error().message + " (in " + o.scene + ")");
-    curve_index = *index;
-    if (measured.measure == Measure::Reflected && !reflects(scene->curves[curve_index]))
-      return usage_error("--curve: '" + o.curve + "' reflects no light (its material's reflectivity is 0), so "
-                         "it has no relative error of B - E; use --measure total");
-  }
-  if (measured.measure == Measure::Reflected && std::none_of(scene->curves.begin(), scene->curves.end(), reflects))
-    return usage_error("--measure reflected: " + o.scene + ": no curve reflects light (every reflectivity is 0), "
-                       "so B - E is zero everywhere and has no relative error; use --measure total");
-  std::error_code ec;
-  fs::create_directories(o.out, ec);
-  if (ec || !fs::is_directory(o.out)) return usage_error(o.out + ": cannot create the output directory");
-  if (Status status = check_output_file((directory / "convergence.csv").string()); !status)
-    return usage_error(status.error().message);
-  if (Status status = check_result_size(*scene, o.samples); !status) return usage_error(status.error().message);
-
-  // The reference, and an estimate of its own error from solves with elements twice and four
-  // times as long (the order observed from the three; docs/reference.md): the plot's floor.
   nlohmann::json reference;
   double floor = -1.0;
-  if (!o.reference.empty()) {
-    Result<nlohmann::json> read = read_result_file(o.reference);
-    if (!read) return usage_error(read.error().message);
-    reference = std::move(*read);
-    floor = estimated_error_of(reference);
-  } else {
-    std::fprintf(stderr, "converge: computing the reference of %s\n", o.scene.c_str());
-    ReferenceSettings settings;
-    settings.threads = o.threads;
-    settings.cancel = &interrupt_flag();
-    Result<ReferenceSolution> fine = solve_reference(*scene, settings);
-    if (!fine) return interrupt_flag().load() ? interrupted() : usage_error(fine.error().message);
-    const ReferenceSolution& solution = *fine;
-    reference = {{"flatland_result", 1},
-                 {"curves", sampled_curves_to_json(*scene, o.samples,
-                                                   [&solution](std::uint32_t c, Side side, double u) {
-                                                     return solution.radiosity(c, side, u);
-                                                   })}};
-    Result<ErrorNorms> estimate = estimate_reference_error(*scene, settings, o.samples, reference["curves"]);
-    if (interrupt_flag().load()) return interrupted();
-    if (estimate) floor = estimate->l2;
-  }
-  // The reference against itself: whether it has the measured quantity (B - E is zero everywhere
-  // in a scene where nothing reflects, and on a curve that reflects nothing), before any solve.
-  {
+  // Under mpirun every process checks the plan and the scene; rank 0 alone checks the outputs and
+  // reads or computes the reference, which it then hands to the others (processes.hpp).
+  auto prepare = [&]() -> std::optional<int> {
+    const auto reflects = [&scene](const Curve& curve) {
+      const Spectrum& rho = scene->material_of(curve).reflectivity;
+      return std::any_of(rho.begin(), rho.begin() + scene->channels, [](double r) { return r > 0.0; });
+    };
+    if (!o.curve.empty()) {
+      std::vector<std::string> ids;
+      for (const Curve& curve : scene->curves) ids.push_back(curve.id);
+      Result<std::size_t> index = find_curve(ids, o.curve);
+      if (!index) return usage_error(index.error().message + " (in " + o.scene + ")");
+      curve_index = *index;
+      if (measured.measure == Measure::Reflected && !reflects(scene->curves[curve_index]))
+        return usage_error("--curve: '" + o.curve + "' reflects no light (its material's reflectivity is 0), so "
+                           "it has no relative error of B - E; use --measure total");
+    }
+    if (measured.measure == Measure::Reflected && std::none_of(scene->curves.begin(), scene->curves.end(), reflects))
+      return usage_error("--measure reflected: " + o.scene + ": no curve reflects light (every reflectivity is 0), "
+                         "so B - E is zero everywhere and has no relative error; use --measure total");
+    if (!speaks_for_the_run()) return std::nullopt;
+    std::error_code ec;
+    fs::create_directories(o.out, ec);
+    if (ec || !fs::is_directory(o.out)) return usage_error(o.out + ": cannot create the output directory");
+    if (Status status = check_output_file((directory / "convergence.csv").string()); !status)
+      return usage_error(status.error().message);
+    if (Status status = check_result_size(*scene, o.samples); !status) return usage_error(status.error().message);
+
+    // The reference, and an estimate of its own error from solves with elements twice and four
+    // times as long (the order observed from the three; docs/reference.md): the plot's floor.
+    if (!o.reference.empty()) {
+      Result<nlohmann::json> read = read_result_file(o.reference);
+      if (!read) return usage_error(read.error().message);
+      reference = std::move(*read);
+      floor = estimated_error_of(reference);
+    } else {
+      std::fprintf(stderr, "converge: computing the reference of %s\n", o.scene.c_str());
+      ReferenceSettings settings;
+      settings.threads = o.threads;
+      settings.cancel = &interrupt_flag();
+      Result<ReferenceSolution> fine = solve_reference(*scene, settings);
+      if (!fine) return interrupt_flag().load() ? interrupted() : usage_error(fine.error().message);
+      const ReferenceSolution& solution = *fine;
+      reference = {{"flatland_result", 1},
+                   {"curves", sampled_curves_to_json(*scene, o.samples,
+                                                     [&solution](std::uint32_t c, Side side, double u) {
+                                                       return solution.radiosity(c, side, u);
+                                                     })}};
+      Result<ErrorNorms> estimate = estimate_reference_error(*scene, settings, o.samples, reference["curves"]);
+      if (interrupt_flag().load()) return interrupted();
+      if (estimate) floor = estimate->l2;
+    }
+    // The reference against itself: whether it has the measured quantity (B - E is zero everywhere
+    // in a scene where nothing reflects, and on a curve that reflects nothing), before any solve.
     Result<Comparison> self = compare_results(reference, reference, measured.measure);
     if (!self)
       return usage_error("--measure " + o.measure + ": " + (o.reference.empty() ? "" : o.reference + ": ") +
@@ -674,53 +725,85 @@ int run_converge(ConvergeOptions& o) {
     if (!o.curve.empty() && !self->curves[curve_index].measured)
       return usage_error("--curve: '" + o.curve + "' reflects no light in the reference (B - E is zero along "
                          "it), so it has no relative error of B - E; use --measure total");
+    floor = floor_for(reference, floor, measured);
+    return std::nullopt;
+  };
+  if (const std::optional<int> code = agree(prepare())) return *code;
+  if (process_count() > 1) {
+    std::string text = speaks_for_the_run() ? reference.dump() : std::string();
+    share_text(text);
+    if (!speaks_for_the_run()) reference = nlohmann::json::parse(text);
   }
-  floor = floor_for(reference, floor, measured);
 
-  // Every run: one CSV row.
-  std::vector<Row> rows;
+  // Every run: one CSV row. Run i (methods, then budgets, then seeds) is done by process i mod K.
   const std::size_t total = methods.size() * budgets.size() * static_cast<std::size_t>(o.seeds);
+  const std::size_t processes = process_count();
+  const std::size_t own_total = total / processes + (process_rank() < total % processes ? 1 : 0);
+  std::vector<std::optional<Row>> done(total);
+  std::size_t own_done = 0;
+  std::optional<int> failure;
   const bool tty = ::isatty(STDERR_FILENO) == 1;
-  for (std::size_t m = 0; m < methods.size(); ++m) {
+  for (std::size_t m = 0; m < methods.size() && !failure; ++m) {
     double rate = 0.0;  // photons per second, measured for time budgets
     if (by_time) {
       SolverSettings probe = methods[m].settings;
       probe.photons = 100'000;
       Result<Solver> solver = Solver::create(*scene, probe, &interrupt_flag());
-      if (!solver) return interrupt_flag().load() ? interrupted() : usage_error(solver.error().message);
+      if (!solver) {
+        failure = interrupt_flag().load() ? interrupted() : usage_error(solver.error().message);
+        break;
+      }
       solver->run(&interrupt_flag());
       rate = static_cast<double>(solver->photons_shot()) / std::max(solver->seconds(), 1e-6);
     }
-    for (std::size_t b = 0; b < budgets.size(); ++b) {
-      for (int seed = 1; seed <= o.seeds; ++seed) {
+    for (std::size_t b = 0; b < budgets.size() && !failure; ++b) {
+      for (int seed = 1; seed <= o.seeds && !failure; ++seed) {
+        const std::size_t run = (m * budgets.size() + b) * static_cast<std::size_t>(o.seeds) + (seed - 1);
+        if (run % processes != process_rank()) continue;
         SolverSettings settings = methods[m].settings;
         settings.photons = static_cast<std::uint64_t>(std::max(1.0, by_time ? budgets[b] * rate : budgets[b]));
         settings.seed = static_cast<std::uint64_t>(seed);
         Result<Solver> solver = Solver::create(*scene, settings, &interrupt_flag());
-        if (!solver) return interrupt_flag().load() ? interrupted() : usage_error(solver.error().message);
+        if (!solver) {
+          failure = interrupt_flag().load() ? interrupted() : usage_error(solver.error().message);
+          break;
+        }
         solver->run(&interrupt_flag());
-        if (solver->stop_reason() == StopReason::Cancelled) return interrupted();
+        if (solver->stop_reason() == StopReason::Cancelled) {
+          failure = interrupted();
+          break;
+        }
         Result<Comparison> comparison =
             compare_results(result_to_json(*solver, o.samples), reference, measured.measure);
-        if (!comparison) return usage_error("--reference: " + comparison.error().message);
+        if (!comparison) {
+          failure = usage_error("--reference: " + comparison.error().message);
+          break;
+        }
         const EnergyBooks books = solver->books();
-        rows.push_back({m, b, settings.seed, solver->photons_shot(), solver->rounds(),
+        done[run] = Row{m, b, settings.seed, solver->photons_shot(), solver->rounds(),
                         books.emitted > 0.0 ? books.unshot / books.emitted : 0.0, solver->seconds(),
                         o.curve.empty() ? comparison->scene : comparison->curves[curve_index].norms,
-                        solver->rays_traced()});
-        if (tty)
-          std::fprintf(stderr, "\r\033[K  converge: %zu / %zu runs (%s, %s photons, seed %d)", rows.size(),
-                       total, methods[m].name.c_str(),
+                        solver->rays_traced()};
+        ++own_done;
+        if (tty && speaks_for_the_run())
+          std::fprintf(stderr, "\r\033[K  converge: %zu / %zu runs%s (%s, %s photons, seed %d)", own_done,
+                       own_total, processes > 1 ? " of this process" : "", methods[m].name.c_str(),
                        human_count(static_cast<double>(settings.photons)).c_str(), seed);
       }
     }
-    if (!tty)
-      std::fprintf(stderr, "converge: method %zu / %zu done (%s), %zu / %zu runs\n", m + 1,
-                   methods.size(), methods[m].name.c_str(), rows.size(), total);
+    if (!tty && speaks_for_the_run())
+      std::fprintf(stderr, "converge: method %zu / %zu done (%s), %zu / %zu runs%s\n", m + 1,
+                   methods.size(), methods[m].name.c_str(), own_done, own_total,
+                   processes > 1 ? " of this process" : "");
   }
-  if (tty) std::fprintf(stderr, "\r\033[K");
+  if (tty && speaks_for_the_run()) std::fprintf(stderr, "\r\033[K");
+  if (!failure && interrupt_flag().load()) failure = interrupted();
+  if (const std::optional<int> code = agree(failure)) return *code;
+  gather_rows(done);
+  if (!speaks_for_the_run()) return kExitOk;
+  std::vector<Row> rows;
+  for (const std::optional<Row>& row : done) rows.push_back(*row);
 
-  if (interrupt_flag().load()) return interrupted();
   // The CSV, written atomically.
   std::string csv =
       "method,basis,sampling,discontinuities,estimator,elements,ray_width,ray_mode,ray_profile,"

@@ -13,6 +13,7 @@
 #include "app/commands.hpp"
 #include "app/output.hpp"
 #include "app/picture.hpp"
+#include "app/processes.hpp"
 #include "app/progress.hpp"
 #include "flatland/result_io.hpp"
 #include "flatland/scene.hpp"
@@ -209,10 +210,15 @@ void print_summary(const Solver& solver) {
               solver.discontinuity_nodes(), solver.contact_nodes(), solver.visibility_event_nodes(),
               solver.coefficient_count());
   const bool walks = settings.transport == Transport::Walk;
-  std::printf("solved    %s %s (%s rays) in %u rounds, %.3f s, %s %s/s on %u threads\n",
+  char workers[64];
+  if (process_count() > 1)
+    std::snprintf(workers, sizeof workers, "%u processes x %u threads", process_count(), solver.thread_count());
+  else
+    std::snprintf(workers, sizeof workers, "%u threads", solver.thread_count());
+  std::printf("solved    %s %s (%s rays) in %u rounds, %.3f s, %s %s/s on %s\n",
               human_count(static_cast<double>(solver.photons_shot())).c_str(), walks ? "walks" : "photons",
               human_count(static_cast<double>(solver.rays_traced())).c_str(), solver.rounds(),
-              solver.seconds(), human_count(rate).c_str(), walks ? "walks" : "photons", solver.thread_count());
+              solver.seconds(), human_count(rate).c_str(), walks ? "walks" : "photons", workers);
   if (walks)
     std::printf("stopped   %s (walks end by themselves: nothing is left unshot)\n",
                 to_string(solver.stop_reason()));
@@ -220,6 +226,10 @@ void print_summary(const Solver& solver) {
     std::printf("stopped   %s: unshot power %.3g%% of emitted (tolerance %.3g%%)\n",
                 to_string(solver.stop_reason()), 100.0 * books.unshot / books.emitted,
                 100.0 * solver.settings().tolerance);
+  if (const RoundSharing* sharing = solver.round_sharing(); sharing != nullptr && solver.rounds() > 0)
+    std::printf("shared    %u processes summed %s bytes per round (%s in all, %u rounds)\n", sharing->size(),
+                human_count(static_cast<double>(solver.bytes_shared()) / solver.rounds()).c_str(),
+                human_count(static_cast<double>(solver.bytes_shared())).c_str(), solver.rounds());
   std::printf("energy    emitted %.6g = absorbed %.6g + escaped %.6g + unshot %.6g (imbalance %.2g)\n",
               books.emitted, books.absorbed, books.escaped, books.unshot, books.imbalance());
 }
@@ -227,6 +237,12 @@ void print_summary(const Solver& solver) {
 }  // namespace
 
 std::optional<int> abnormal_stop(const Solver& solver) {
+  // Every process of a shared solve stops alike; rank 0 says why.
+  if (!speaks_for_the_run()) {
+    if (solver.stop_reason() == StopReason::Cancelled) return kExitInterrupted;
+    if (solver.stop_reason() == StopReason::BooksUnbalanced) return kExitFailure;
+    return std::nullopt;
+  }
   if (solver.stop_reason() == StopReason::Cancelled) {
     std::fprintf(stderr, "flatland: interrupted after %s photons; nothing written\n",
                  human_count(static_cast<double>(solver.photons_traced())).c_str());
@@ -257,29 +273,49 @@ Status finish_solver_settings(SolveOptions& o) {
 }
 
 int run_solve(SolveOptions& o) {
-  if (Status status = finish_solver_settings(o); !status) return usage_error(status.error().message);
-  Result<Scene> scene = load_scene(o.scene);
-  if (!scene) return usage_error(scene.error().message);
-  // Everything the solve's end needs is checked before it starts: the output paths, the size of
-  // the result, and the reference (read now, so a bad one costs no solve).
-  if (const std::optional<int> code = check_outputs({o.out, o.picture})) return *code;
-  if (!o.out.empty() || !o.reference.empty())
-    if (Status status = check_result_size(*scene, o.samples); !status) return usage_error(status.error().message);
+  std::optional<Scene> scene;
   std::optional<nlohmann::json> reference;
-  if (!o.reference.empty()) {
-    Result<nlohmann::json> read = read_result_file(o.reference);
-    if (!read) return usage_error("--reference: " + read.error().message);
-    reference = std::move(*read);
-  }
-  Result<Solver> created = Solver::create(*scene, o.settings, &interrupt_flag());
-  if (!created) return interrupt_flag().load() ? interrupted() : usage_error(created.error().message);
-  Solver& solver = *created;
+  std::optional<Solver> solver_slot;
+  // Under mpirun every process loads the scene and sets up the same solver; rank 0 alone checks
+  // and writes the outputs. All agree to go on before the set-up and after it (processes.hpp).
+  auto prepare = [&]() -> std::optional<int> {
+    if (Status status = finish_solver_settings(o); !status) return usage_error(status.error().message);
+    Result<Scene> loaded = load_scene(o.scene);
+    if (!loaded) return usage_error(loaded.error().message);
+    scene = std::move(*loaded);
+    // Everything the solve's end needs is checked before it starts: the output paths, the size of
+    // the result, and the reference (read now, so a bad one costs no solve).
+    if (speaks_for_the_run()) {
+      if (const std::optional<int> code = check_outputs({o.out, o.picture})) return *code;
+      if (!o.out.empty() || !o.reference.empty())
+        if (Status status = check_result_size(*scene, o.samples); !status) return usage_error(status.error().message);
+      if (!o.reference.empty()) {
+        Result<nlohmann::json> read = read_result_file(o.reference);
+        if (!read) return usage_error("--reference: " + read.error().message);
+        reference = std::move(*read);
+      }
+    }
+    return std::nullopt;
+  };
+  if (const std::optional<int> code = agree(prepare())) return *code;
+  // Set-up can take a while (storage for a large budget): only once every process may go on.
+  auto create = [&]() -> std::optional<int> {
+    Result<Solver> created = Solver::create(*scene, o.settings, &interrupt_flag());
+    if (!created) return interrupt_flag().load() ? interrupted() : usage_error(created.error().message);
+    solver_slot.emplace(std::move(*created));
+    return std::nullopt;
+  };
+  if (const std::optional<int> code = agree(create())) return *code;
+  Solver& solver = *solver_slot;
+  solver.share_rounds(shared_processes());
 
   {
-    ProgressLine line(!o.quiet);
+    ProgressLine line(!o.quiet && speaks_for_the_run());
     solver.run(&interrupt_flag(), [&](const SolverProgress& p) { line.update(p); });
   }
   if (const std::optional<int> code = abnormal_stop(solver)) return *code;
+  // The other processes have the same solution; rank 0 reports and writes it.
+  if (!speaks_for_the_run()) return kExitOk;
   if (!o.quiet) print_summary(solver);
 
   OutputFiles files;

@@ -1,9 +1,18 @@
 // flatland: diffuse light transport in 2D after "Cubic Monte Carlo Radiosity".
 #include <csignal>
+#include <cstdio>
 #include <optional>
+
+#include <fcntl.h>
+#include <unistd.h>
 
 #include "app/cli.hpp"
 #include "app/commands.hpp"
+#include "app/output.hpp"
+#include "app/processes.hpp"
+#ifdef FLATLAND_HAVE_MPI
+#include "mpi/world.hpp"
+#endif
 
 namespace flatland::app {
 
@@ -20,10 +29,57 @@ extern "C" void handle_interrupt(int) { interrupt_flag().store(true); }
 
 }  // namespace flatland::app
 
+namespace {
+
+using namespace flatland::app;
+
+// Points `fd` at /dev/null; returns a duplicate of what it was (or -1).
+int silence(int fd) {
+  std::fflush(nullptr);
+  const int saved = ::dup(fd);
+  const int null = ::open("/dev/null", O_WRONLY);
+  if (null >= 0) {
+    ::dup2(null, fd);
+    ::close(null);
+  }
+  return saved;
+}
+
+void restore(int fd, int saved) {
+  if (saved < 0) return;
+  std::fflush(nullptr);
+  ::dup2(saved, fd);
+  ::close(saved);
+}
+
+// Commands that share their work among the processes of mpirun (docs/mpi.md).
+bool shares_work(Command command) { return command == Command::Solve || command == Command::Converge; }
+
+}  // namespace
+
 int main(int argc, char** argv) {
-  using namespace flatland::app;
+#ifdef FLATLAND_HAVE_MPI
+  // Started by mpirun: join the run (MPI is never initialised for a program started alone).
+  std::optional<flatland::mpi::World> world;
+  if (flatland::mpi::started_by_launcher()) {
+    world.emplace(&argc, &argv);
+    if (world->size() > 1) set_shared_processes(&*world);
+  }
+#endif
+  // Only rank 0 prints; the others' output is dropped (their errors are kept, processes.hpp).
+  int saved_error = -1;
+  if (!speaks_for_the_run()) {
+    ::close(silence(STDOUT_FILENO));
+    saved_error = silence(STDERR_FILENO);
+  }
   CommandLine command_line;
-  if (const std::optional<int> exit_code = parse_command_line(argc, argv, command_line)) return *exit_code;
+  std::optional<int> parsed = parse_command_line(argc, argv, command_line);
+  if (!speaks_for_the_run()) restore(STDERR_FILENO, saved_error);
+  if (!parsed && process_count() > 1 && !shares_work(command_line.command))
+    parsed = usage_error(
+        "this command runs in one process; under mpirun only solve and converge share their work "
+        "(run it without mpirun, or with -np 1)");
+  if (const std::optional<int> exit_code = agree(parsed)) return *exit_code;
 
   std::signal(SIGINT, handle_interrupt);
   std::signal(SIGTERM, handle_interrupt);

@@ -3,16 +3,29 @@
 #include <cstdio>
 
 #include "app/commands.hpp"
+#include "app/processes.hpp"
 
 namespace flatland::app {
 
+namespace {
+
+// Rank 0 prints; the other ranks of an MPI run keep the message for agree().
+void say(const std::string& line) {
+  if (speaks_for_the_run())
+    std::fputs(line.c_str(), stderr);
+  else
+    deferred_messages() += line;
+}
+
+}  // namespace
+
 int usage_error(const std::string& message) {
-  std::fprintf(stderr, "flatland: error: %s\n", message.c_str());
+  say("flatland: error: " + message + "\n");
   return kExitUsage;
 }
 
 int interrupted() {
-  std::fprintf(stderr, "flatland: interrupted; nothing written\n");
+  say("flatland: interrupted; nothing written\n");
   return kExitInterrupted;
 }
 

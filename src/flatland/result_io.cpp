@@ -93,6 +93,7 @@ nlohmann::json result_to_json(const Solver& solver, int samples_per_curve) {
       {"photons", settings.photons},
       {"seed", settings.seed},
       {"threads", solver.thread_count()},
+      {"processes", solver.round_sharing() != nullptr ? solver.round_sharing()->size() : 1u},
       {"basis", to_string(settings.basis)},
       {"elements", settings.elements == kAutoElements ? nlohmann::json("auto") : nlohmann::json(settings.elements)},
       {"tolerance", settings.tolerance},

@@ -1274,7 +1274,11 @@ std::uint64_t Solver::step_photons(std::uint64_t max_photons, const std::atomic<
   }
   const Clock::time_point start = Clock::now();
   const std::uint64_t first = round_done_;
-  const std::uint64_t last = first + std::min(max_photons, round_.photons - first);
+  // Shared rounds are shot whole: every process must reach the round's sum.
+  const std::uint64_t last =
+      sharing_ != nullptr ? round_.photons : first + std::min(max_photons, round_.photons - first);
+  const std::uint64_t share_rank = sharing_ != nullptr ? sharing_->rank() : 0;
+  const std::uint64_t share_size = sharing_ != nullptr ? sharing_->size() : 1;
   const std::uint64_t photons_before = photons_shot_;
   auto room = [&]() -> std::size_t {
     return paths != nullptr && paths->size() < path_limit ? path_limit - paths->size() : 0;
@@ -1291,9 +1295,12 @@ std::uint64_t Solver::step_photons(std::uint64_t max_photons, const std::atomic<
   }
   // Whole batches (the round's last, short one included), shared among the threads.
   const std::uint64_t whole_end = last == round_.photons ? last : last / kBatchSize * kBatchSize;
-  if (whole_end > position) {
+  if (whole_end > position || sharing_ != nullptr) {
+    // Batch batch_begin + i * share_size + share_rank is this process's i-th.
     const std::uint64_t batch_begin = position / kBatchSize;
-    const std::uint64_t batches = (whole_end - position + kBatchSize - 1) / kBatchSize;
+    const std::uint64_t all_batches = (whole_end - position + kBatchSize - 1) / kBatchSize;
+    const std::uint64_t batches =
+        all_batches > share_rank ? (all_batches - share_rank + share_size - 1) / share_size : 0;
     const unsigned workers = static_cast<unsigned>(std::min<std::uint64_t>(threads_, batches));
     const std::size_t path_room = room();
     const std::uint64_t path_batches =
@@ -1311,7 +1318,7 @@ std::uint64_t Solver::step_photons(std::uint64_t max_photons, const std::atomic<
         }
         const std::uint64_t i = next_batch.fetch_add(1);
         if (i >= batches) return;
-        const std::uint64_t batch = batch_begin + i;
+        const std::uint64_t batch = batch_begin + i * share_size + share_rank;
         const std::uint64_t count = std::min(kBatchSize, round_.photons - batch * kBatchSize);
         std::vector<PhotonPath>* recorded = nullptr;
         std::size_t limit = 0;
@@ -1336,6 +1343,11 @@ std::uint64_t Solver::step_photons(std::uint64_t max_photons, const std::atomic<
       std::vector<std::jthread> pool;
       for (unsigned w = 1; w < workers; ++w) pool.emplace_back(work, std::ref(round_deposits_[w]), false);
       work(round_deposits_[0], true);
+    }
+    if (sharing_ != nullptr) {
+      const auto [all_done, any_aborted] = share_round(photons_done.load(), aborted.load());
+      photons_done.store(all_done);
+      aborted.store(any_aborted);
     }
     if (aborted.load()) {
       photons_cancelled_ = (position - first) + photons_done.load();
@@ -1363,6 +1375,37 @@ std::uint64_t Solver::step_photons(std::uint64_t max_photons, const std::atomic<
     end_round(round_deposits_);
   }
   return last - first;
+}
+
+std::pair<std::uint64_t, bool> Solver::share_round(std::uint64_t photons_done, bool aborted) {
+  Accumulator& total = round_deposits_[0];
+  for (std::size_t w = 1; w < round_deposits_.size(); ++w) {
+    Accumulator& acc = round_deposits_[w];
+    for (std::size_t index = 0; index < total.received.size(); ++index) total.received[index] += acc.received[index];
+    for (std::size_t ch = 0; ch < 3; ++ch) {
+      total.escaped[ch] += acc.escaped[ch];
+      total.absorbed[ch] += acc.absorbed[ch];
+      total.shot[ch] += acc.shot[ch];
+    }
+    total.rays += acc.rays;
+    acc.reset(total.received.size());
+  }
+  // One message per round: the deposits, then the books' counters, rays, photons and the cancel.
+  std::vector<std::int64_t> values(total.received);
+  for (const std::array<std::int64_t, 3>* counters : {&total.escaped, &total.absorbed, &total.shot})
+    values.insert(values.end(), counters->begin(), counters->end());
+  values.push_back(static_cast<std::int64_t>(total.rays));
+  values.push_back(static_cast<std::int64_t>(photons_done));
+  values.push_back(aborted ? 1 : 0);
+  sharing_->sum(values);
+  bytes_shared_ += values.size() * sizeof(std::int64_t);
+  std::size_t at = total.received.size();
+  std::copy(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(at), total.received.begin());
+  for (std::array<std::int64_t, 3>* counters : {&total.escaped, &total.absorbed, &total.shot})
+    for (std::int64_t& counter : *counters) counter = values[at++];
+  total.rays = static_cast<std::uint64_t>(values[at++]);
+  const auto all_done = static_cast<std::uint64_t>(values[at++]);
+  return {all_done, values[at] != 0};
 }
 
 void Solver::include_open_round() {

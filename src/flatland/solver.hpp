@@ -22,6 +22,7 @@
 #include <span>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "flatland/basis.hpp"
@@ -177,6 +178,26 @@ struct PhotonPath {
   bool cut = false;
 };
 
+// Processes that share every round of one solve (the MPI ranks of src/mpi; the core knows nothing
+// of MPI). Process `rank()` of `size()` shoots the round's batches b with b mod size() == rank(),
+// the same batches with the same streams as one process would, into its own integer deposits;
+// `sum` adds a vector of integers over all processes, in place, on every process. Integer addition
+// does not depend on order, so every process ends each round with the deposits of one process and
+// derives the next round identically: the result is bit-identical for any number of processes.
+class RoundSharing {
+ public:
+  virtual ~RoundSharing() = default;
+  virtual unsigned rank() const = 0;
+  virtual unsigned size() const = 0;
+  // Collective: every process calls it with a vector of the same length. Wrapping addition.
+  virtual void sum(std::span<std::int64_t> values) = 0;
+  // Bytes this process handed to `sum` so far (what a round moves, for the performance notes).
+  std::uint64_t bytes_summed() const { return bytes_summed_; }
+
+ protected:
+  std::uint64_t bytes_summed_ = 0;
+};
+
 // The message of the error a cancelled Solver::create returns.
 inline constexpr const char* kSolverCancelled = "the solve was cancelled while it was being set up";
 
@@ -243,6 +264,15 @@ class Solver {
   double seconds() const { return seconds_; }
   EnergyBooks books() const;
   SolverProgress progress() const;
+
+  // Share every round with other processes (null: this process alone, the default). Every process
+  // must create its solver from the same scene and settings and step it by whole rounds (a
+  // step_photons call finishes the open round); a cancel on any of them cancels all. Paths are
+  // those of the batches this process shot; seconds() its own wall time.
+  void share_rounds(RoundSharing* sharing) { sharing_ = sharing; }
+  const RoundSharing* round_sharing() const { return sharing_; }
+  // Bytes this solver handed to the sharing's sum (one message per round).
+  std::uint64_t bytes_shared() const { return bytes_shared_; }
 
   // Keep the paths of the first `count` photons of every round (0, the default, keeps none).
   void record_paths(std::size_t count) { path_limit_ = count; }
@@ -448,6 +478,11 @@ class Solver {
   std::uint64_t round_done_ = 0;            // photons of the open round shot so far
   std::vector<Accumulator> round_deposits_;  // per worker thread, for the open round
   std::optional<Rng> partial_batch_rng_;     // stream of a batch left half done by a step
+  RoundSharing* sharing_ = nullptr;
+  std::uint64_t bytes_shared_ = 0;
+  // With sharing: the threads' deposits added into round_deposits_[0], then over all processes,
+  // with this process's photons shot and whether it was cancelled; returns the totals of both.
+  std::pair<std::uint64_t, bool> share_round(std::uint64_t photons_done, bool aborted);
   std::size_t path_limit_ = 0;
   std::vector<PhotonPath> paths_;
 

@@ -1,0 +1,97 @@
+// src/mpi: the processes of an MPI run. This executable runs under `mpirun -np K` (ctest starts it
+// so); every process runs every test, and each test's collective calls are made by all of them.
+#include "mpi/world.hpp"
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "flatland/result_io.hpp"
+#include "flatland/solver.hpp"
+#include "test_support.hpp"
+
+namespace flatland {
+namespace {
+
+mpi::World* world = nullptr;
+
+// The sum is exact integer addition over the processes, in place, for vectors of any length.
+TEST(Mpi, SumAddsEveryProcessesIntegersExactly) {
+  const std::int64_t k = world->size();
+  const std::int64_t r = world->rank();
+  std::vector<std::int64_t> values{r, 1, (std::int64_t{1} << 52) + r, -3 * r};
+  world->sum(values);
+  EXPECT_EQ(values[0], k * (k - 1) / 2);
+  EXPECT_EQ(values[1], k);
+  EXPECT_EQ(values[2], k * (std::int64_t{1} << 52) + k * (k - 1) / 2);
+  EXPECT_EQ(values[3], -3 * k * (k - 1) / 2);
+  std::vector<std::int64_t> empty;
+  world->sum(empty);
+  std::vector<std::int64_t> large(1 << 20, r + 1);
+  world->sum(large);
+  EXPECT_EQ(large.front(), k * (k + 1) / 2);
+  EXPECT_EQ(large.back(), k * (k + 1) / 2);
+}
+
+// A solve's result without what may differ between runs of the same solve.
+std::string dump(const Solver& solver) {
+  nlohmann::json result = result_to_json(solver, 50);
+  result["stats"].erase("seconds");
+  result["settings"].erase("threads");
+  result["settings"].erase("processes");
+  return result.dump();
+}
+
+// Every process solves alone and then with the others sharing the rounds: the shared solve has the
+// bits of the lone one, for shooting (points, footprints, colour) and walks, on any thread count.
+TEST(Mpi, SharedSolveHasTheBitsOfOneProcess) {
+  struct Case {
+    const char* scene;
+    Transport transport;
+    double ray_width;
+    unsigned threads;
+  };
+  for (const Case& c : {Case{"scenes2d/mixed.json", Transport::Shooting, 0.0, 1},
+                        Case{"scenes2d/syndrome.json", Transport::Shooting, 0.02, 2},
+                        Case{"scenes2d/curved_room.json", Transport::Walk, 0.0, 1}}) {
+    SCOPED_TRACE(c.scene);
+    const Scene scene = testing::scene_from_file(c.scene);
+    SolverSettings settings;
+    settings.photons = 200'000;
+    settings.seed = 11;
+    settings.threads = 1;
+    settings.transport = c.transport;
+    settings.ray_width = c.ray_width;
+    Result<Solver> alone = Solver::create(scene, settings);
+    ASSERT_TRUE(alone.ok());
+    alone->run();
+    settings.threads = c.threads;
+    Result<Solver> shared = Solver::create(scene, settings);
+    ASSERT_TRUE(shared.ok());
+    shared->share_rounds(world);
+    const std::uint64_t bytes_before = world->bytes_summed();
+    shared->run();
+    EXPECT_GT(shared->rounds(), 1u);
+    EXPECT_EQ(dump(*shared), dump(*alone));
+    EXPECT_EQ(shared->photons_shot(), alone->photons_shot());
+    // One message per round: the deposits (twice over with auto storage) and 12 counters (escaped, absorbed and shot per channel, rays, photons, cancel).
+    const std::uint64_t per_round =
+        (shared->coefficient_count() * static_cast<std::uint64_t>(scene.channels) * (shared->auto_storage() ? 2 : 1) + 12) * 8;
+    EXPECT_EQ(world->bytes_summed() - bytes_before, per_round * shared->rounds());
+    EXPECT_EQ(shared->bytes_shared(), per_round * shared->rounds());
+  }
+}
+
+}  // namespace
+}  // namespace flatland
+
+int main(int argc, char** argv) {
+  flatland::mpi::World world(&argc, &argv);
+  flatland::world = &world;
+  ::testing::InitGoogleTest(&argc, argv);
+  if (world.size() < 2) std::printf("note: one process; ctest runs this under mpirun -np 2 and 3\n");
+  return RUN_ALL_TESTS();
+}
