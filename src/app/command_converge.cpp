@@ -21,6 +21,7 @@
 #include "app/output.hpp"
 #include "app/processes.hpp"
 #include "app/progress.hpp"
+#include "flatland/converge.hpp"
 #include "flatland/result_io.hpp"
 
 namespace flatland::app {
@@ -29,79 +30,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-struct Method {
-  std::string name;  // as written on the command line
-  SolverSettings settings;
-};
-
-// "cubic" or "basis=cubic+sampling=uniform+ray-width=0.05+ray-mode=band+...".
-Result<Method> parse_method(const std::string& text, const SolverSettings& defaults) {
-  Method method{text, defaults};
-  std::stringstream parts(text);
-  std::string part;
-  while (std::getline(parts, part, '+')) {
-    const auto equals = part.find('=');
-    const std::string key = equals == std::string::npos ? "basis" : part.substr(0, equals);
-    const std::string value = equals == std::string::npos ? part : part.substr(equals + 1);
-    SolverSettings& s = method.settings;
-    const std::string where = "--methods: '" + text + "': ";
-    if (key == "basis") {
-      const std::optional<BasisKind> basis = basis_from_string(value);
-      if (!basis) return Error{where + "basis must be constant, linear, cubic or hermite"};
-      s.basis = *basis;
-    } else if (key == "sampling") {
-      const std::optional<PositionSampling> sampling = sampling_from_string(value);
-      if (!sampling) return Error{where + "sampling must be uniform or reconstructed"};
-      s.sampling = *sampling;
-    } else if (key == "discontinuities") {
-      const std::optional<DiscontinuityMode> mode = discontinuity_mode_from_string(value);
-      if (!mode) return Error{where + "discontinuities must be none, scene, auto or secondary"};
-      s.discontinuities = *mode;
-    } else if (key == "estimator") {
-      const std::optional<Estimator> estimator = estimator_from_string(value);
-      if (!estimator) return Error{where + "estimator must be lumped, galerkin or local"};
-      s.estimator = *estimator;
-    } else if (key == "elements") {
-      const std::optional<int> count = parse_elements(value, 1 << 20);
-      if (!count) return Error{where + "elements must be auto or a whole number from 1 to 1048576"};
-      s.elements = *count;
-    } else if (key == "ray-width") {
-      char* end = nullptr;
-      s.ray_width = std::strtod(value.c_str(), &end);
-      if (end == value.c_str() || *end != '\0') return Error{where + "ray-width must be a number"};
-    } else if (key == "ray-mode") {
-      const std::optional<RayMode> mode = ray_mode_from_string(value);
-      if (!mode) return Error{where + "ray-mode must be footprint or band"};
-      s.ray_mode = *mode;
-    } else if (key == "band-rays") {
-      const std::optional<int> count = whole_number(value);
-      if (!count) return Error{where + "band-rays must be a whole number"};
-      s.band_rays = *count;
-    } else if (key == "tolerance") {
-      char* end = nullptr;
-      s.tolerance = std::strtod(value.c_str(), &end);
-      if (end == value.c_str() || *end != '\0') return Error{where + "tolerance must be a number"};
-    } else if (key == "ray-profile") {
-      Result<RayProfile> profile = parse_ray_profile(value);
-      if (!profile) return Error{where + profile.error().message};
-      s.ray_profile = *profile;
-    } else if (key == "sampler") {
-      const std::optional<SamplerKind> sampler = sampler_from_string(value);
-      if (!sampler) return Error{where + "sampler must be random or sobol"};
-      s.sampler = *sampler;
-    } else if (key == "transport") {
-      const std::optional<Transport> transport = transport_from_string(value);
-      if (!transport) return Error{where + "transport must be shooting or walk"};
-      s.transport = *transport;
-    } else {
-      return Error{where + "unknown key '" + key +
-                   "'; keys: basis, sampling, discontinuities, estimator, elements, ray-width, "
-                   "ray-mode, ray-profile, band-rays, tolerance, sampler, transport"};
-    }
-  }
-  if (Status status = validate(method.settings); !status) return Error{"--methods: '" + text + "': " + status.error().message};
-  return method;
-}
+using Method = ConvergeMethod;
 
 std::vector<std::string> split(const std::string& text) {
   std::vector<std::string> out;
@@ -172,17 +101,7 @@ Status run_gnuplot(const fs::path& directory, const std::string& script) {
 }
 
 // One run: a row of convergence.csv.
-struct Row {
-  std::size_t method;  // index into the methods
-  std::size_t budget;  // index into the budgets
-  std::uint64_t seed;
-  std::uint64_t photons;
-  std::uint32_t rounds;
-  double unshot;  // unshot / emitted power when the solve stopped
-  double seconds;
-  ErrorNorms error;
-  std::uint64_t rays;  // rays cast (a walk casts several)
-};
+using Row = ConvergeRow;
 
 std::vector<std::string> method_names(const std::vector<Method>& methods) {
   std::vector<std::string> names;
@@ -481,9 +400,9 @@ Result<Plan> parse_plan(const ConvergeOptions& o) {
   SolverSettings defaults;
   defaults.threads = o.threads;
   defaults.tolerance = o.tolerance;
-  defaults.elements = *parse_elements(o.elements, 1 << 20);
+  defaults.elements = *elements_from_string(o.elements, 1 << 20);
   for (const std::string& text : split(o.methods)) {
-    Result<Method> method = parse_method(text, defaults);
+    Result<Method> method = parse_converge_method(text, defaults);
     if (!method) return method.error();
     plan.methods.push_back(std::move(*method));
   }
@@ -613,9 +532,17 @@ void gather_rows(std::vector<std::optional<Row>>& rows) {
     error.l1 = std::bit_cast<double>(in[8]);
     error.l2 = std::bit_cast<double>(in[9]);
     error.linf = std::bit_cast<double>(in[10]);
-    rows[i] = Row{static_cast<std::size_t>(in[1]), static_cast<std::size_t>(in[2]), static_cast<std::uint64_t>(in[3]),
-                  static_cast<std::uint64_t>(in[4]), static_cast<std::uint32_t>(in[5]), std::bit_cast<double>(in[6]),
-                  std::bit_cast<double>(in[7]), error, static_cast<std::uint64_t>(rays[i])};
+    Row row;
+    row.method = static_cast<std::size_t>(in[1]);
+    row.budget = static_cast<std::size_t>(in[2]);
+    row.seed = static_cast<std::uint64_t>(in[3]);
+    row.photons = static_cast<std::uint64_t>(in[4]);
+    row.rounds = static_cast<std::uint32_t>(in[5]);
+    row.unshot = std::bit_cast<double>(in[6]);
+    row.seconds = std::bit_cast<double>(in[7]);
+    row.error = error;
+    row.rays = static_cast<std::uint64_t>(rays[i]);
+    rows[i] = row;
   }
 }
 
@@ -763,27 +690,16 @@ int run_converge(ConvergeOptions& o) {
         SolverSettings settings = methods[m].settings;
         settings.photons = static_cast<std::uint64_t>(std::max(1.0, by_time ? budgets[b] * rate : budgets[b]));
         settings.seed = static_cast<std::uint64_t>(seed);
-        Result<Solver> solver = Solver::create(*scene, settings, &interrupt_flag());
-        if (!solver) {
-          failure = interrupt_flag().load() ? interrupted() : usage_error(solver.error().message);
+        Result<Row> row = converge_run(*scene, settings, reference, measured.measure,
+                                       o.curve.empty() ? std::nullopt : std::optional<std::size_t>(curve_index),
+                                       o.samples, &interrupt_flag());
+        if (!row) {
+          failure = interrupt_flag().load() ? interrupted() : usage_error(row.error().message);
           break;
         }
-        solver->run(&interrupt_flag());
-        if (solver->stop_reason() == StopReason::Cancelled) {
-          failure = interrupted();
-          break;
-        }
-        Result<Comparison> comparison =
-            compare_results(result_to_json(*solver, o.samples), reference, measured.measure);
-        if (!comparison) {
-          failure = usage_error("--reference: " + comparison.error().message);
-          break;
-        }
-        const EnergyBooks books = solver->books();
-        done[run] = Row{m, b, settings.seed, solver->photons_shot(), solver->rounds(),
-                        books.emitted > 0.0 ? books.unshot / books.emitted : 0.0, solver->seconds(),
-                        o.curve.empty() ? comparison->scene : comparison->curves[curve_index].norms,
-                        solver->rays_traced()};
+        row->method = m;
+        row->budget = b;
+        done[run] = *row;
         ++own_done;
         if (tty && speaks_for_the_run())
           std::fprintf(stderr, "\r\033[K  converge: %zu / %zu runs%s (%s, %s photons, seed %d)", own_done,

@@ -110,25 +110,10 @@ void add_solver_options(CLI::App* cmd, SolveOptions& o) {
       ->capture_default_str();
 }
 
-std::optional<int> whole_number(const std::string& text) {
-  char* end = nullptr;
-  errno = 0;
-  const long value = std::strtol(text.c_str(), &end, 10);
-  if (end == text.c_str() || *end != '\0' || errno == ERANGE || value < INT_MIN || value > INT_MAX) return std::nullopt;
-  return static_cast<int>(value);
-}
-
-std::optional<int> parse_elements(const std::string& text, int max) {
-  if (text == "auto") return kAutoElements;
-  const std::optional<int> value = whole_number(text);
-  if (!value || *value < 1 || *value > max) return std::nullopt;
-  return value;
-}
-
 CLI::Validator elements_check(int max) {
   return CLI::Validator(
       [max](std::string& text) -> std::string {
-        if (parse_elements(text, max)) return {};
+        if (elements_from_string(text, max)) return {};
         return "must be auto or a whole number from 1 to " + std::to_string(max) + ", not '" + text + "'";
       },
       "auto|1.." + std::to_string(max));
@@ -265,7 +250,7 @@ Status finish_solver_settings(SolveOptions& o) {
   o.settings.ray_profile = *parse_ray_profile(o.ray_profile);
   o.settings.ray_mode = *ray_mode_from_string(o.ray_mode);
   o.settings.estimator = *estimator_from_string(o.estimator);
-  o.settings.elements = *parse_elements(o.elements, 1 << 16);
+  o.settings.elements = *elements_from_string(o.elements, 1 << 16);
   o.settings.sampler = *sampler_from_string(o.sampler);
   o.settings.transport = *transport_from_string(o.transport);
   o.settings.sampling = *sampling_from_string(o.sampling);

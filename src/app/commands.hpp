@@ -43,11 +43,7 @@ inline CLI::Validator finite_range(double low, double high) {
 // Set by SIGINT / SIGTERM; long work checks it between batches.
 std::atomic<bool>& interrupt_flag();
 
-// A whole number that fits an int ("16"), or nullopt ("16x", "1e3", "99999999999").
-std::optional<int> whole_number(const std::string& text);
-// --elements: "auto" (kAutoElements) or a whole number in [1, max]; nullopt for anything else.
-std::optional<int> parse_elements(const std::string& text, int max);
-// The matching CLI11 check, with a message naming what is accepted.
+// --elements's CLI11 check (elements_from_string), with a message naming what is accepted.
 CLI::Validator elements_check(int max);
 
 struct SolveOptions {

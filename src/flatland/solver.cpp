@@ -11,6 +11,7 @@
 
 #include "flatland/qmc.hpp"
 #include "flatland/resources.hpp"
+#include "flatland/text.hpp"
 
 namespace flatland {
 
@@ -84,6 +85,13 @@ const char* to_string(Transport transport) {
 
 std::optional<Transport> transport_from_string(std::string_view name) {
   return one_of(name, Transport::Shooting, Transport::Walk);
+}
+
+std::optional<int> elements_from_string(const std::string& text, int max) {
+  if (text == "auto") return kAutoElements;
+  const std::optional<int> value = whole_number(text);
+  if (!value || *value < 1 || *value > max) return std::nullopt;
+  return value;
 }
 
 const char* to_string(PositionSampling sampling) {

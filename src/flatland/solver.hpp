@@ -80,6 +80,9 @@ enum class Transport { Shooting, Walk };
 const char* to_string(Transport transport);
 // "shooting" or "walk"; nullopt for anything else.
 std::optional<Transport> transport_from_string(std::string_view name);
+// Storage elements as named on the command line: "auto" (kAutoElements) or a whole number in
+// [1, max]; nullopt for anything else.
+std::optional<int> elements_from_string(const std::string& text, int max);
 // Walks are refused where a side reflects more than this: a walk would average over 1000 rays,
 // and a batch of 4096 walks (the unit between checks for a cancel) several seconds.
 inline constexpr double kWalkMaxReflectivity = 0.999;

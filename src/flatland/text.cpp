@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cerrno>
+#include <climits>
 #include <cmath>
 #include <cstdlib>
 #include <limits>
@@ -90,6 +92,14 @@ std::optional<std::size_t> find_overflowing_number(std::string_view text) {
     ++i;
   }
   return std::nullopt;
+}
+
+std::optional<int> whole_number(const std::string& text) {
+  char* end = nullptr;
+  errno = 0;
+  const long value = std::strtol(text.c_str(), &end, 10);
+  if (end == text.c_str() || *end != '\0' || errno == ERANGE || value < INT_MIN || value > INT_MAX) return std::nullopt;
+  return static_cast<int>(value);
 }
 
 }  // namespace flatland

@@ -33,4 +33,7 @@ TextPosition position_of(std::string_view text, std::size_t offset);
 // without saying where.
 std::optional<std::size_t> find_overflowing_number(std::string_view text);
 
+// A whole number that fits an int ("16", "-3"), or nullopt ("16x", "1e3", "99999999999", "").
+std::optional<int> whole_number(const std::string& text);
+
 }  // namespace flatland

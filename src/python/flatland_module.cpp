@@ -18,6 +18,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "flatland/converge.hpp"
 #include "flatland/discontinuity.hpp"
 #include "flatland/footprint.hpp"
 #include "flatland/metrics.hpp"
@@ -192,6 +193,7 @@ class PySolver {
     d["escaped_power"] = books.escaped;
     d["unshot_power"] = books.unshot;
     d["stopped"] = solver_->stopped();
+    d["coefficients"] = solver_->coefficient_count();
     return d;
   }
   std::string to_json(int samples) const {
@@ -326,6 +328,123 @@ py::dict compare(const py::object& result, const py::object& reference, const st
   return d;
 }
 
+// flatland.converge: every method at every budget and seed against one reference, as `flatland
+// converge` runs them; one dict per run with the keys of its CSV's columns.
+py::list converge(const PyScene& scene, const std::vector<std::string>& methods, const std::vector<double>& budgets,
+                  int seeds, const py::object& reference, const std::string& measure, const py::object& curve,
+                  int samples, unsigned threads, const py::object& elements, double tolerance,
+                  const py::object& progress) {
+  if (measure != "reflected" && measure != "total") fail("measure: expected reflected or total, got '" + measure + "'");
+  if (samples < 1 || samples > 1'000'000) fail("samples: must be between 1 and 1000000");
+  if (seeds < 1 || seeds > 1'000'000) fail("seeds: must be between 1 and 1000000");
+  if (methods.empty()) fail("methods: give at least one method");
+  if (budgets.empty()) fail("budgets: give at least one budget");
+  for (const double budget : budgets)
+    if (!(budget >= 1.0 && budget <= 0x1.0p53)) fail("budgets: each must be a photon count from 1 to 2^53, got " + std::to_string(budget));
+  SolverSettings defaults;
+  defaults.threads = threads;
+  defaults.tolerance = tolerance;
+  const std::string elements_text = py::isinstance<py::str>(elements) ? elements.cast<std::string>()
+                                    : py::isinstance<py::int_>(elements) && !py::isinstance<py::bool_>(elements)
+                                        ? std::to_string(elements.cast<long long>())
+                                        : std::string("?");
+  const std::optional<int> element_count = elements_from_string(elements_text, 1 << 20);
+  if (!element_count) fail("elements: must be auto or a whole number from 1 to 1048576, got " + py::repr(elements).cast<std::string>());
+  defaults.elements = *element_count;
+  std::vector<ConvergeMethod> parsed;
+  for (const std::string& text : methods) parsed.push_back(value_or_fail(parse_converge_method(text, defaults)));
+  std::optional<std::size_t> curve_index;
+  if (!curve.is_none()) curve_index = scene.curve_index(curve.cast<std::string>());
+  const Measure measured = measure == "total" ? Measure::Total : Measure::Reflected;
+
+  // The reference: given (a Solver or a result's JSON text), or computed as converge computes it.
+  nlohmann::json document;
+  if (!reference.is_none()) {
+    document = document_of(reference, "reference");
+  } else {
+    std::optional<Result<ReferenceSolution>> solved;
+    {
+      py::gil_scoped_release release;
+      solved.emplace(solve_reference(*scene.scene, ReferenceSettings{}));
+    }
+    const ReferenceSolution& r = value_or_fail(std::move(*solved));
+    document = {{"flatland_result", 1},
+                {"curves", sampled_curves_to_json(*scene.scene, samples, [&r](std::uint32_t c, Side side, double u) {
+                   return r.radiosity(c, side, u);
+                 })}};
+  }
+  {
+    const Comparison self = value_or_fail(compare_results(document, document, measured));
+    if (curve_index && !self.curves.at(*curve_index).measured)
+      fail("curve: '" + curve.cast<std::string>() + "' has no " + (measured == Measure::Reflected ? "B - E" : "B") +
+           " in the reference, so no relative error" + (measured == Measure::Reflected ? "; use measure=\"total\"" : ""));
+  }
+
+  py::list rows;
+  const std::size_t total = parsed.size() * budgets.size() * static_cast<std::size_t>(seeds);
+  for (std::size_t m = 0; m < parsed.size(); ++m) {
+    for (std::size_t b = 0; b < budgets.size(); ++b) {
+      for (int seed = 1; seed <= seeds; ++seed) {
+        SolverSettings settings = parsed[m].settings;
+        settings.photons = static_cast<std::uint64_t>(budgets[b]);
+        settings.seed = static_cast<std::uint64_t>(seed);
+        std::atomic<bool> cancel{false};
+        std::optional<py::error_already_set> raised;
+        // Ctrl-C (checked about every 0.1 s) stops the run; KeyboardInterrupt once it has.
+        const ProgressCallback poll = [&](const SolverProgress&) {
+          py::gil_scoped_acquire gil;
+          if (!raised && PyErr_CheckSignals() != 0) {
+            raised.emplace();
+            cancel.store(true);
+          }
+        };
+        std::optional<Result<ConvergeRow>> run;
+        {
+          py::gil_scoped_release release;
+          run.emplace(converge_run(*scene.scene, settings, document, measured, curve_index, samples, &cancel, poll));
+        }
+        if (raised) throw *raised;
+        ConvergeRow row = value_or_fail(std::move(*run));
+        const SolverSettings& s = settings;
+        py::dict d;
+        d["method"] = parsed[m].name;
+        d["basis"] = to_string(s.basis);
+        d["sampling"] = to_string(s.sampling);
+        d["discontinuities"] = to_string(s.discontinuities);
+        d["estimator"] = to_string(s.estimator);
+        d["elements"] = s.elements == kAutoElements ? py::object(py::str("auto")) : py::object(py::int_(s.elements));
+        d["ray_width"] = s.ray_width;
+        d["ray_mode"] = to_string(s.ray_mode);
+        d["ray_profile"] = to_string(s.ray_profile);
+        d["band_rays"] = s.band_rays;
+        d["tolerance"] = s.tolerance;
+        d["seed"] = row.seed;
+        d["photons"] = row.photons;
+        d["rounds"] = row.rounds;
+        d["unshot"] = row.unshot;
+        d["seconds"] = row.seconds;
+        d["rel_l1"] = row.error.l1;
+        d["rel_l2"] = row.error.l2;
+        d["rel_linf"] = row.error.linf;
+        d["measure"] = measure;
+        d["curve"] = curve.is_none() ? std::string() : curve.cast<std::string>();
+        d["sampler"] = to_string(s.sampler);
+        d["transport"] = to_string(s.transport);
+        d["rays"] = row.rays;
+        rows.append(d);
+        if (!progress.is_none()) {
+          py::dict p;
+          p["runs"] = rows.size();
+          p["total"] = total;
+          p["row"] = d;
+          progress(p);
+        }
+      }
+    }
+  }
+  return rows;
+}
+
 }  // namespace
 }  // namespace flatland::python
 
@@ -404,6 +523,14 @@ PYBIND11_MODULE(flatland, m) {
   m.def("reference", &reference, py::arg("scene"), py::kw_only(), py::arg("samples") = 100,
         py::arg("max_element_length") = 0.0, py::arg("estimate_error") = false,
         "The reference solution's JSON document (as `flatland reference --out`)");
+  m.def("converge", &converge, py::arg("scene"), py::kw_only(),
+        py::arg("methods") = std::vector<std::string>{"constant", "linear", "cubic"},
+        py::arg("budgets") = std::vector<double>{1e4, 1e5, 1e6}, py::arg("seeds") = 3,
+        py::arg("reference") = py::none(), py::arg("measure") = "reflected", py::arg("curve") = py::none(),
+        py::arg("samples") = 100, py::arg("threads") = 0, py::arg("elements") = py::str("auto"),
+        py::arg("tolerance") = 1e-6, py::arg("progress") = py::none(),
+        "Every method at every budget and seed against a reference (computed when not given), as "
+        "`flatland converge` runs them; a list of dicts, one per run, keyed as its CSV's columns");
   m.def("compare", &compare, py::arg("result"), py::arg("reference"), py::arg("measure") = "reflected",
         "Relative errors (l1, l2, linf) of a result against a reference, over the scene and per curve");
 }

@@ -1,6 +1,7 @@
 """The Python module `flatland` (src/python/flatland_module.cpp, docs/python.md), run by ctest with
 PYTHONPATH=build/python and FLATLAND_BINARY set to the command-line program, from the repository's
 top directory. Statistical tolerances are derived from the estimator's variance, as in the C++ tests."""
+import csv
 import json
 import math
 import os
@@ -146,6 +147,39 @@ def test_compare_against_a_reference():
     assert errors["measure"] == "reflected"
     assert 0.0 < errors["scene"]["l2"] < 0.05
     assert set(errors["curves"]) == set(scene.curves)
+
+
+def test_converge_gives_the_rows_of_the_command_line(tmp_path):
+    # The same runs as `flatland converge`, against the same reference file: the same rows, bit
+    # for bit in the errors (the CSV has 9 significant digits), but for the wall times.
+    reference = tmp_path / "reference.json"
+    made = run_cli("reference", "scenes2d/penumbra.json", "--out", str(reference), "--quiet")
+    assert made.returncode == 0, made.stderr
+    methods = ["linear", "basis=cubic+sampler=random"]
+    cli = run_cli("converge", "scenes2d/penumbra.json", "--reference", str(reference), "--methods", ",".join(methods),
+                  "--budgets", "1e4,3e4", "--seeds", "2", "--threads", "1", "--out", str(tmp_path / "c"))
+    assert cli.returncode == 0, cli.stderr
+    table = list(csv.DictReader(open(tmp_path / "c" / "convergence.csv")))
+    seen = []
+    rows = flatland.converge(flatland.Scene.load("scenes2d/penumbra.json"), methods=methods, budgets=[1e4, 3e4],
+                             seeds=2, threads=1, reference=reference.read_text(), progress=seen.append)
+    assert len(rows) == len(table) == 8
+    assert [p["runs"] for p in seen] == list(range(1, 9)) and seen[-1]["total"] == 8
+    for row, line in zip(rows, table):
+        assert list(row) == list(line)  # the CSV's columns, in order
+        for key, text in line.items():
+            if key == "seconds":
+                continue
+            value = row[key]
+            if isinstance(value, float):
+                assert f"{value:.9g}" == text or float(text) == value, key
+            else:
+                assert str(value) == text, key
+    with pytest.raises(ValueError, match="--methods: 'cubic:x'"):
+        flatland.converge(flatland.Scene.load("scenes2d/penumbra.json"), methods=["cubic:x"], budgets=[1e4])
+    with pytest.raises(ValueError, match="no curve 'nowhere'"):
+        flatland.converge(flatland.Scene.load("scenes2d/penumbra.json"), budgets=[1e4], curve="nowhere",
+                          reference=reference.read_text())
 
 
 def test_progress_callback_and_its_errors():
