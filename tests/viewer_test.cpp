@@ -17,7 +17,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "app/png_io.hpp"
+#include "png/png_io.hpp"
 #include "test_support.hpp"
 
 namespace fs = std::filesystem;
@@ -53,7 +53,7 @@ class Viewer : public testing::ScratchDirectoryTest {
 struct Rgb {
   int r = 0, g = 0, b = 0;
 };
-Rgb pixel(const app::PngImage& image, int x, int y) {
+Rgb pixel(const png::PngImage& image, int x, int y) {
   const std::size_t i = (static_cast<std::size_t>(y) * static_cast<std::size_t>(image.width) + static_cast<std::size_t>(x)) * 4;
   return {image.pixels[i], image.pixels[i + 1], image.pixels[i + 2]};
 }
@@ -63,7 +63,7 @@ bool is_background(Rgb c) {
 }
 // Whether any pixel within `radius` of (x, y) satisfies `test`.
 template <typename Test>
-bool near(const app::PngImage& image, Vec2 p, int radius, Test test) {
+bool near(const png::PngImage& image, Vec2 p, int radius, Test test) {
   for (int dy = -radius; dy <= radius; ++dy)
     for (int dx = -radius; dx <= radius; ++dx) {
       const int x = static_cast<int>(std::lround(p.x)) + dx;
@@ -75,7 +75,7 @@ bool near(const app::PngImage& image, Vec2 p, int radius, Test test) {
 
 // Checks a picture of the penumbra scene: curve pixels along every curve, a lit band on the lit
 // part of the receiver and a dark one in the umbra, paths only inside the scene.
-void check_penumbra_picture(const app::PngImage& image) {
+void check_penumbra_picture(const png::PngImage& image) {
   const Scene scene = testing::scene_from_file("scenes2d/penumbra.json");
   const ViewTransform view = fit_view(scene.bounds, image.width, image.height);
   const std::vector<CurveTrace> traces = trace_curves(scene, 8);
@@ -115,13 +115,13 @@ TEST_F(Viewer, HeadlessViewWritesTheSceneWithCurvesLightAndPaths) {
                                 " --frames 4 --step rounds=1 --width 640 --height 640 --photons 2e5 "
                                 "--screenshot " + shot.string() + " --screenshot-ui " + whole.string());
   ASSERT_EQ(result.exit_code, 0) << result.err;
-  Result<app::PngImage> image = app::read_png(shot.string());
+  Result<png::PngImage> image = png::read_png(shot.string());
   ASSERT_TRUE(image) << image.error().message;
   EXPECT_EQ(image->width, 640);
   EXPECT_EQ(image->height, 640);
   check_penumbra_picture(*image);
   // The window's own picture has the panels over the scene: ImGui's window title bars.
-  Result<app::PngImage> window = app::read_png(whole.string());
+  Result<png::PngImage> window = png::read_png(whole.string());
   ASSERT_TRUE(window) << window.error().message;
   EXPECT_NE(image->pixels, window->pixels);
 }
@@ -133,7 +133,7 @@ TEST_F(Viewer, RenderNeedsNoDisplayAndDrawsTheSamePicture) {
                                     out.string() + " --result " + json.string(),
                                 "env -u DISPLAY -u WAYLAND_DISPLAY");
   ASSERT_EQ(result.exit_code, 0) << result.err;
-  Result<app::PngImage> image = app::read_png(out.string());
+  Result<png::PngImage> image = png::read_png(out.string());
   ASSERT_TRUE(image) << image.error().message;
   check_penumbra_picture(*image);
   // Its result is the solve's, bit for bit (render steps the solver in pieces to keep paths).
@@ -385,7 +385,7 @@ TEST_F(Viewer, SteppedWalksDrawTheNewestJourney) {
   ASSERT_GE(journey.second - journey.first, 2u);
   const fs::path shot = directory_ / "journey.png";
   ASSERT_TRUE(viewer.save_screenshot(shot.string()));
-  Result<app::PngImage> image = app::read_png(shot.string());
+  Result<png::PngImage> image = png::read_png(shot.string());
   ASSERT_TRUE(image) << image.error().message;
   const ViewTransform view = fit_view(viewer.scene().bounds, image->width, image->height);
   const std::vector<PathRecord>& paths = viewer.session().snapshot()->paths;
@@ -498,7 +498,7 @@ TEST_F(Viewer, ReloadsTheSceneWhenItsFileChangesAndSavesResults) {
   EXPECT_NE(result.find("\"flatland_result\""), std::string::npos);
   int pictures = 0;
   for (const auto& entry : fs::directory_iterator(directory_))
-    pictures += entry.path().extension() == ".png" && app::read_png(entry.path().string()).ok();
+    pictures += entry.path().extension() == ".png" && png::read_png(entry.path().string()).ok();
   EXPECT_EQ(pictures, 1);
 }
 
@@ -511,7 +511,7 @@ TEST_F(Viewer, HeadlessViewShowsTheErrorAgainstAReference) {
                                 " --frames 3 --step rounds=1 --select receiver --report --screenshot-ui " +
                                 whole.string());
   ASSERT_EQ(result.exit_code, 0) << result.err;
-  EXPECT_TRUE(app::read_png(whole.string()).ok());
+  EXPECT_TRUE(png::read_png(whole.string()).ok());
   // --report prints the error against the reference: a few per cent after three rounds of 1e6.
   const std::size_t at = result.out.find("error     ");
   ASSERT_NE(at, std::string::npos) << result.out;

@@ -6,9 +6,9 @@
 
 #include "app/commands.hpp"
 #include "app/output.hpp"
-#include "app/png_io.hpp"
 #include "app/progress.hpp"
 #include "flatland/result_io.hpp"
+#include "png/png_io.hpp"
 #include "viewer/offscreen.hpp"
 #include "viewer/renderer.hpp"
 #include "viewer/session.hpp"
@@ -115,14 +115,14 @@ int run_render(RenderOptions& o) {
     std::fprintf(stderr, "flatland: error: %s\n", drawn.error().message.c_str());
     return kExitUsage;
   }
-  PngImage image{o.width, o.height, 4, viewer::Renderer::read_pixels(o.width, o.height)};
+  png::PngImage image{o.width, o.height, 4, viewer::Renderer::read_pixels(o.width, o.height)};
   for (std::size_t i = 3; i < image.pixels.size(); i += 4) image.pixels[i] = 255;
 
   OutputFiles files;
   if (!o.result.empty())
     if (Status status = files.stage(o.result, json_text(result_to_json(solver, o.solve.samples))); !status)
       return usage_error(status.error().message);
-  Result<std::string> png = encode_png(image);
+  Result<std::string> png = png::encode_png(image);
   if (!png) return usage_error(o.out + ": " + png.error().message);
   if (Status status = files.stage(o.out, *png); !status) return usage_error(status.error().message);
   if (const std::optional<int> code = commit_outputs(files)) return *code;

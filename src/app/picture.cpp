@@ -4,7 +4,7 @@
 #include <cmath>
 #include <vector>
 
-#include "app/png_io.hpp"
+#include "png/png_io.hpp"
 #include "flatland/result_io.hpp"
 
 namespace flatland::app {

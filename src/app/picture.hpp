@@ -4,10 +4,13 @@
 
 #include <string>
 
-#include "app/png_io.hpp"
 #include "flatland/solver.hpp"
+#include "png/png_io.hpp"
 
 namespace flatland::app {
+
+using png::encode_png;
+using png::PngImage;
 
 PngImage draw_picture(const Solver& solver, int width = 1024, int height = 768);
 

@@ -17,14 +17,14 @@
 #include <limits>
 #include <thread>
 
-#include "app/png_io.hpp"
+#include "png/png_io.hpp"
 #include "flatland/result_io.hpp"
 #include "viewer/renderer.hpp"
 
 namespace flatland::viewer {
 
-using app::PngImage;
-using app::write_png;
+using png::PngImage;
+using png::write_png;
 
 namespace {
 

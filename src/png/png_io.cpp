@@ -1,4 +1,4 @@
-#include "app/png_io.hpp"
+#include "png/png_io.hpp"
 
 #include <png.h>
 
@@ -6,7 +6,7 @@
 
 #include "flatland/result_io.hpp"
 
-namespace flatland::app {
+namespace flatland::png {
 
 namespace {
 
@@ -97,4 +97,4 @@ Result<PngImage> read_png(const std::string& path) {
   return image;
 }
 
-}  // namespace flatland::app
+}  // namespace flatland::png

@@ -8,7 +8,7 @@
 
 #include "flatland/result.hpp"
 
-namespace flatland::app {
+namespace flatland::png {
 
 struct PngImage {
   int width = 0;
@@ -22,4 +22,4 @@ Status write_png(const std::string& path, const PngImage& image);
 // Any PNG, converted to 8-bit RGBA.
 Result<PngImage> read_png(const std::string& path);
 
-}  // namespace flatland::app
+}  // namespace flatland::png
