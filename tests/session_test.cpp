@@ -182,7 +182,7 @@ TEST(Session, ReportsTheErrorAgainstAReference) {
   settings.seed = 11;
   Solver reference_solver = *Solver::create(*scene, settings);
   reference_solver.run();
-  auto reference = std::make_shared<const nlohmann::json>(result_to_json(reference_solver, 50));
+  auto reference = std::make_shared<const SampledResult>(sample_solver(reference_solver, 50));
   settings.seed = 12;
   Session session;
   session.set_reference(reference);

@@ -661,6 +661,10 @@ int run_converge(ConvergeOptions& o) {
     share_text(text);
     if (!speaks_for_the_run()) reference = nlohmann::json::parse(text);
   }
+  // The runs compare with the reference as data (rank 0 has already compared it with itself, so it
+  // reads).
+  Result<SampledResult> sampled_reference = sampled_from_json(reference, "the reference");
+  if (!sampled_reference) return usage_error("--reference: " + sampled_reference.error().message);
 
   // Every run: one CSV row. Run i (methods, then budgets, then seeds) is done by process i mod K.
   const std::size_t total = methods.size() * budgets.size() * static_cast<std::size_t>(o.seeds);
@@ -690,7 +694,7 @@ int run_converge(ConvergeOptions& o) {
         SolverSettings settings = methods[m].settings;
         settings.photons = static_cast<std::uint64_t>(std::max(1.0, by_time ? budgets[b] * rate : budgets[b]));
         settings.seed = static_cast<std::uint64_t>(seed);
-        Result<Row> row = converge_run(*scene, settings, reference, measured.measure,
+        Result<Row> row = converge_run(*scene, settings, *sampled_reference, measured.measure,
                                        o.curve.empty() ? std::nullopt : std::optional<std::size_t>(curve_index),
                                        o.samples, &interrupt_flag());
         if (!row) {

@@ -4,7 +4,6 @@
 #include <sstream>
 
 #include "flatland/footprint.hpp"
-#include "flatland/result_io.hpp"
 #include "flatland/text.hpp"
 
 namespace flatland {
@@ -77,14 +76,16 @@ Result<ConvergeMethod> parse_converge_method(const std::string& text, const Solv
   return method;
 }
 
-Result<ConvergeRow> converge_run(const Scene& scene, const SolverSettings& settings, const nlohmann::json& reference,
+Result<ConvergeRow> converge_run(const Scene& scene, const SolverSettings& settings, const SampledResult& reference,
                                  Measure measure, std::optional<std::size_t> curve, int samples,
                                  const std::atomic<bool>* cancel, const ProgressCallback& progress) {
   Result<Solver> solver = Solver::create(scene, settings, cancel);
   if (!solver) return solver.error();
   solver->run(cancel, progress);
   if (solver->stop_reason() == StopReason::Cancelled) return Error{kConvergeCancelled};
-  Result<Comparison> comparison = compare_results(result_to_json(*solver, samples), reference, measure);
+  Result<Comparison> comparison = compare_sampled(
+      sample_radiosity(scene, samples, [&](std::uint32_t c, Side side, double u) { return solver->radiosity(c, side, u); }),
+      reference, measure);
   if (!comparison) return Error{"--reference: " + comparison.error().message};
   if (curve && *curve >= comparison->curves.size()) return Error{"--curve: no such curve in the reference"};
   const EnergyBooks books = solver->books();

@@ -7,10 +7,9 @@
 #include <optional>
 #include <string>
 
-#include <nlohmann/json.hpp>
-
 #include "flatland/metrics.hpp"
 #include "flatland/result.hpp"
+#include "flatland/sampled_result.hpp"
 #include "flatland/scene.hpp"
 #include "flatland/solver.hpp"
 
@@ -38,10 +37,10 @@ struct ConvergeRow {
 };
 
 // Solves `scene` with `settings` and compares the result, sampled `samples` times per curve, with
-// `reference` (a result document) by `measure`, over the scene or the curve with index `curve`.
+// `reference` by `measure`, over the scene or the curve with index `curve`.
 // The error kConvergeCancelled when `cancel` stopped the solve; `progress` as Solver::run calls it.
 inline constexpr const char* kConvergeCancelled = "the run was cancelled";
-Result<ConvergeRow> converge_run(const Scene& scene, const SolverSettings& settings, const nlohmann::json& reference,
+Result<ConvergeRow> converge_run(const Scene& scene, const SolverSettings& settings, const SampledResult& reference,
                                  Measure measure, std::optional<std::size_t> curve, int samples,
                                  const std::atomic<bool>* cancel = nullptr, const ProgressCallback& progress = {});
 

@@ -7,6 +7,8 @@
 #include <utility>
 #include <vector>
 
+#include "flatland/sampled_result.hpp"
+
 namespace flatland {
 
 namespace {
@@ -43,40 +45,24 @@ struct Sums {
   }
 };
 
-bool is_number(const nlohmann::json& v) { return v.is_number(); }
-
-// The channels of a B value: a number, or [r, g, b].
-Result<std::vector<double>> channels_of(const nlohmann::json& v, const std::string& where) {
-  if (is_number(v)) return std::vector<double>{v.get<double>()};
-  if (v.is_array() && v.size() == 3 && std::all_of(v.begin(), v.end(), is_number))
-    return std::vector<double>{v[0].get<double>(), v[1].get<double>(), v[2].get<double>()};
-  return Error{where + ": expected a number or [r, g, b]"};
-}
-
-// The emitted radiosity E at one sample, `channels` values: the reference sample's "E", else the
-// result sample's, else zero on a curve that emits nothing (its "emittance" zero or absent in
-// both documents). A curve that emits but whose samples carry no "E" (a result written before
-// flatland wrote it) is an error: E cannot be rebuilt from the document alone, since an emittance
-// profile varies it along the curve.
-Result<std::vector<double>> emitted_at(const nlohmann::json& result_sample, const nlohmann::json& reference_sample,
-                                       const nlohmann::json& result_curve, const nlohmann::json& reference_curve,
-                                       std::size_t channels, const std::string& where) {
-  for (const nlohmann::json* sample : {&reference_sample, &result_sample}) {
-    if (!sample->contains("E")) continue;
-    Result<std::vector<double>> e = channels_of((*sample)["E"], where + ".E");
-    if (e && e->size() != channels) return Error{where + ".E: grey against colour B"};
-    return e;
-  }
-  for (const nlohmann::json* curve : {&reference_curve, &result_curve}) {
-    if (!curve->contains("emittance")) continue;
-    Result<std::vector<double>> e = channels_of((*curve)["emittance"], where + " emittance");
-    if (!e) return e.error();
-    for (const double value : *e)
+// The emitted radiosity E at one sample: the reference sample's "E", else the result sample's,
+// else zero on a curve that emits nothing (its "emittance" zero or absent in both documents). A
+// curve that emits but whose samples carry no "E" (a result written before flatland wrote it) is
+// an error: E cannot be rebuilt from the document alone, since an emittance profile varies it
+// along the curve.
+Result<Spectrum> emitted_at(const ResultSample& result_sample, const ResultSample& reference_sample,
+                            const ResultCurve& result_curve, const ResultCurve& reference_curve,
+                            const std::string& where) {
+  if (reference_sample.E) return *reference_sample.E;
+  if (result_sample.E) return *result_sample.E;
+  for (const ResultCurve* curve : {&reference_curve, &result_curve}) {
+    if (!curve->emittance) continue;
+    for (const double value : *curve->emittance)
       if (value != 0.0)
         return Error{where + ": the curve emits but its samples carry no \"E\" (a result written by an "
                      "older flatland); solve it again, or measure the total B"};
   }
-  return std::vector<double>(channels, 0.0);
+  return Spectrum{};
 }
 
 // B - E, with a difference below 1e-12 of |B| counted as zero: E is computed twice (by the solver
@@ -118,19 +104,18 @@ std::optional<double> power_law_exponent(const std::vector<double>& x, const std
 }
 
 Result<Comparison> compare_results(const nlohmann::json& result, const nlohmann::json& reference, Measure measure) {
-  const auto curves_of = [](const nlohmann::json& doc) -> const nlohmann::json* {
-    if (!doc.is_object() || !doc.contains("flatland_result") || !doc.contains("curves") ||
-        !doc["curves"].is_array())
-      return nullptr;
-    return &doc["curves"];
-  };
-  const nlohmann::json* mine = curves_of(result);
-  const nlohmann::json* theirs = curves_of(reference);
-  if (mine == nullptr) return Error{"the result is not a flatland result (no \"flatland_result\" and \"curves\")"};
-  if (theirs == nullptr) return Error{"the reference is not a flatland result (no \"flatland_result\" and \"curves\")"};
-  if (mine->size() != theirs->size())
-    return Error{"the results do not describe the same scene: " + std::to_string(mine->size()) +
-                 " curves against " + std::to_string(theirs->size())};
+  Result<SampledResult> mine = sampled_from_json(result, "the result");
+  if (!mine) return mine.error();
+  Result<SampledResult> theirs = sampled_from_json(reference, "the reference", " (reference)");
+  if (!theirs) return theirs.error();
+  return compare_sampled(*mine, *theirs, measure);
+}
+
+Result<Comparison> compare_sampled(const SampledResult& result, const SampledResult& reference, Measure measure) {
+  if (result.curves.size() != reference.curves.size())
+    return Error{"the results do not describe the same scene: " + std::to_string(result.curves.size()) +
+                 " curves against " + std::to_string(reference.curves.size())};
+  const auto channels = static_cast<std::size_t>(result.channels);
 
   // Every (measured value of the result, of the reference, cell length) triple, per curve: B, or
   // B - E under Measure::Reflected; the sums are formed afterwards on values
@@ -142,55 +127,47 @@ Result<Comparison> compare_results(const nlohmann::json& result, const nlohmann:
   std::vector<std::pair<std::string, std::vector<Term>>> terms;
   double value_scale = 0.0;
   double length_scale = 0.0;
-  try {
-    for (std::size_t c = 0; c < mine->size(); ++c) {
-      const nlohmann::json& a = (*mine)[c];
-      const nlohmann::json& b = (*theirs)[c];
-      const std::string id = a.value("id", "");
-      const std::string where = "curves[" + std::to_string(c) + "] (\"" + id + "\")";
-      if (id != b.value("id", ""))
-        return Error{"the results do not describe the same scene: " + where + " is \"" +
-                     b.value("id", "") + "\" in the reference"};
-      const double length = a.at("length").get<double>();
-      if (std::fabs(length - b.at("length").get<double>()) > 1e-9 * std::max(length, 1e-300))
-        return Error{"the results do not describe the same scene: " + where + " has another length in the reference"};
-      const nlohmann::json& sa = a.at("samples");
-      const nlohmann::json& sb = b.at("samples");
-      if (sa.size() != sb.size() || sa.empty())
-        return Error{where + ": " + std::to_string(sa.size()) + " samples against " +
-                     std::to_string(sb.size()) + " in the reference; solve both with the same --samples"};
-      const double ds = length / static_cast<double>(sa.size());
-      length_scale = std::max(length_scale, ds);
-      std::vector<Term>& curve = terms.emplace_back(id, std::vector<Term>{}).second;
-      for (std::size_t j = 0; j < sa.size(); ++j) {
-        const double s = sa[j].at("s").get<double>();
-        if (std::fabs(s - sb[j].at("s").get<double>()) > 1e-9 * length)
-          return Error{where + ": sample " + std::to_string(j) + " sits elsewhere in the reference"};
-        for (const char* key : {"B", "B_back"}) {
-          if (!sa[j].contains(key) || !sb[j].contains(key)) continue;
-          Result<std::vector<double>> va = channels_of(sa[j][key], where + ".samples[" + std::to_string(j) + "]." + key);
-          Result<std::vector<double>> vb = channels_of(sb[j][key], where + ".samples[" + std::to_string(j) + "]." + key + " (reference)");
-          if (!va) return va.error();
-          if (!vb) return vb.error();
-          if (va->size() != vb->size())
-            return Error{"the results do not describe the same scene: grey against colour at " + where};
-          std::vector<double> emitted(va->size(), 0.0);
-          if (measure == Measure::Reflected) {
-            Result<std::vector<double>> e = emitted_at(sa[j], sb[j], a, b, va->size(), where + ".samples[" + std::to_string(j) + "]");
-            if (!e) return e.error();
-            emitted = std::move(*e);
-          }
-          for (std::size_t ch = 0; ch < va->size(); ++ch) {
-            const double mine_value = measure == Measure::Reflected ? reflected_part((*va)[ch], emitted[ch]) : (*va)[ch];
-            const double their_value = measure == Measure::Reflected ? reflected_part((*vb)[ch], emitted[ch]) : (*vb)[ch];
-            curve.push_back({mine_value, their_value, ds});
-            value_scale = std::max({value_scale, std::fabs(mine_value), std::fabs(their_value)});
-          }
+  for (std::size_t c = 0; c < result.curves.size(); ++c) {
+    const ResultCurve& a = result.curves[c];
+    const ResultCurve& b = reference.curves[c];
+    const std::string where = "curves[" + std::to_string(c) + "] (\"" + a.id + "\")";
+    if (a.id != b.id)
+      return Error{"the results do not describe the same scene: " + where + " is \"" + b.id + "\" in the reference"};
+    const double length = a.length;
+    if (std::fabs(length - b.length) > 1e-9 * std::max(length, 1e-300))
+      return Error{"the results do not describe the same scene: " + where + " has another length in the reference"};
+    if (a.samples.size() != b.samples.size() || a.samples.empty())
+      return Error{where + ": " + std::to_string(a.samples.size()) + " samples against " +
+                   std::to_string(b.samples.size()) + " in the reference; solve both with the same --samples"};
+    if (result.channels != reference.channels)
+      return Error{"the results do not describe the same scene: grey against colour at " + where};
+    const double ds = length / static_cast<double>(a.samples.size());
+    length_scale = std::max(length_scale, ds);
+    std::vector<Term>& curve = terms.emplace_back(a.id, std::vector<Term>{}).second;
+    for (std::size_t j = 0; j < a.samples.size(); ++j) {
+      const ResultSample& sa = a.samples[j];
+      const ResultSample& sb = b.samples[j];
+      if (std::fabs(sa.s - sb.s) > 1e-9 * length)
+        return Error{where + ": sample " + std::to_string(j) + " sits elsewhere in the reference"};
+      Spectrum emitted{};
+      if (measure == Measure::Reflected) {
+        Result<Spectrum> e = emitted_at(sa, sb, a, b, where + ".samples[" + std::to_string(j) + "]");
+        if (!e) return e.error();
+        emitted = *e;
+      }
+      // B on both, and B_back where both have it.
+      const Spectrum* pairs[2][2] = {{&sa.B, &sb.B},
+                                     {sa.B_back ? &*sa.B_back : nullptr, sb.B_back ? &*sb.B_back : nullptr}};
+      for (const auto& pair : pairs) {
+        if (pair[0] == nullptr || pair[1] == nullptr) continue;
+        for (std::size_t ch = 0; ch < channels; ++ch) {
+          const double mine_value = measure == Measure::Reflected ? reflected_part((*pair[0])[ch], emitted[ch]) : (*pair[0])[ch];
+          const double their_value = measure == Measure::Reflected ? reflected_part((*pair[1])[ch], emitted[ch]) : (*pair[1])[ch];
+          curve.push_back({mine_value, their_value, ds});
+          value_scale = std::max({value_scale, std::fabs(mine_value), std::fabs(their_value)});
         }
       }
     }
-  } catch (const nlohmann::json::exception& e) {
-    return Error{std::string("malformed result: ") + e.what()};
   }
   Comparison comparison;
   comparison.measure = measure;

@@ -13,6 +13,8 @@
 
 namespace flatland {
 
+struct SampledResult;  // sampled_result.hpp
+
 struct ErrorNorms {
   double l1 = 0.0;    // integral |B - R| ds / integral |R| ds
   double l2 = 0.0;    // sqrt(integral (B - R)^2 ds / integral R^2 ds)
@@ -44,7 +46,7 @@ struct Comparison {
   double reference_l2 = 0.0;
 };
 
-// Both documents must describe the same scene: the same curves (ids, in order, lengths equal to
+// Both results must describe the same scene: the same curves (ids, in order, lengths equal to
 // 1e-9 relative) sampled at the same arc lengths, with the same channels; otherwise the error says
 // what differs. Samples sit at the midpoints of equal arc-length cells, so sums weighted by the
 // cell length are midpoint-rule integrals. Every side present in both (B, B_back) and every
@@ -56,6 +58,10 @@ struct Comparison {
 // needs none), a reflected part below 1e-12 of B counts as zero (the round-off of B - E), a curve
 // whose reference reflects nothing is marked unmeasured, and a reference that reflects nothing
 // anywhere is an error: its relative error is undefined.
+Result<Comparison> compare_sampled(const SampledResult& result, const SampledResult& reference,
+                                   Measure measure = Measure::Total);
+// The same for two result documents (sampled_from_json reads them; "the result" and "the
+// reference" name them in errors).
 Result<Comparison> compare_results(const nlohmann::json& result, const nlohmann::json& reference,
                                    Measure measure = Measure::Total);
 

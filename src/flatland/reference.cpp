@@ -12,6 +12,7 @@
 #include "flatland/discontinuity.hpp"
 #include "flatland/resources.hpp"
 #include "flatland/result_io.hpp"
+#include "flatland/sampled_result.hpp"
 
 namespace flatland {
 
@@ -1109,9 +1110,18 @@ Result<ReferenceErrorEstimate> estimate_discretisation_error(const Scene& scene,
                                                               const ReferenceSettings& settings,
                                                               int samples, const nlohmann::json& curves,
                                                               const std::function<void(int level)>& starting) {
+  Result<SampledResult> sampled = sampled_from_json({{"flatland_result", 1}, {"curves", curves}}, "the reference");
+  if (!sampled) return sampled.error();
+  return estimate_discretisation_error(scene, settings, samples, *sampled, starting);
+}
+
+Result<ReferenceErrorEstimate> estimate_discretisation_error(const Scene& scene,
+                                                              const ReferenceSettings& settings,
+                                                              int samples, const SampledResult& fine,
+                                                              const std::function<void(int level)>& starting) {
   const double length =
       settings.max_element_length > 0.0 ? settings.max_element_length : scene.scale / 400.0;
-  nlohmann::json previous = {{"flatland_result", 1}, {"curves", curves}};
+  SampledResult previous = fine;
   std::array<ErrorNorms, 2> differences;
   double largest_bound = 0.0;
   for (int level = 1; level <= 2; ++level) {
@@ -1122,12 +1132,10 @@ Result<ReferenceErrorEstimate> estimate_discretisation_error(const Scene& scene,
     if (!solved) return solved.error();
     const ReferenceSolution& solution = *solved;
     largest_bound = std::max(largest_bound, solution.error_bound());
-    nlohmann::json sampled = {
-        {"flatland_result", 1},
-        {"curves", sampled_curves_to_json(scene, samples, [&solution](std::uint32_t c, Side side, double u) {
-           return solution.radiosity(c, side, u);
-         })}};
-    Result<Comparison> difference = compare_results(sampled, previous);
+    SampledResult sampled = sample_radiosity(scene, samples, [&solution](std::uint32_t c, Side side, double u) {
+      return solution.radiosity(c, side, u);
+    });
+    Result<Comparison> difference = compare_sampled(sampled, previous);
     if (!difference) return difference.error();
     differences[static_cast<std::size_t>(level - 1)] = difference->scene;
     previous = std::move(sampled);

@@ -223,5 +223,9 @@ ReferenceErrorEstimate estimate_from_differences(const ErrorNorms& fine, const E
 Result<ReferenceErrorEstimate> estimate_discretisation_error(
     const Scene& scene, const ReferenceSettings& settings, int samples, const nlohmann::json& curves,
     const std::function<void(int level)>& starting = {});
+// The same from R_h's samples as data (sample_radiosity).
+Result<ReferenceErrorEstimate> estimate_discretisation_error(
+    const Scene& scene, const ReferenceSettings& settings, int samples, const SampledResult& fine,
+    const std::function<void(int level)>& starting = {});
 
 }  // namespace flatland

@@ -20,19 +20,6 @@
 
 namespace flatland {
 
-nlohmann::json spectrum_to_json(const Spectrum& value, int channels) {
-  if (channels == 1) return value[0];
-  return nlohmann::json::array({value[0], value[1], value[2]});
-}
-
-namespace {
-
-const char* sides_name(Sides sides) {
-  return sides == Sides::Both ? "both" : sides == Sides::Back ? "back" : "front";
-}
-
-}  // namespace
-
 nlohmann::json scene_to_json(const Scene& scene) {
   return {{"name", scene.name}, {"file", scene.source}, {"sha256", scene.source_sha256},
           {"channels", scene.channels}};
@@ -44,45 +31,12 @@ nlohmann::json program_to_json() {
 
 nlohmann::json sampled_curves_to_json(const Scene& scene, int samples_per_curve,
                                       const RadiosityFunction& radiosity) {
-  nlohmann::json curves = nlohmann::json::array();
-  for (std::uint32_t c = 0; c < scene.curves.size(); ++c) {
-    const Curve& curve = scene.curves[c];
-    const bool two_sided = curve.sides == Sides::Both;
-    const Side main_side = curve.sides == Sides::Back ? Side::Back : Side::Front;
-    const bool emits = scene.is_emitter(curve);
-    nlohmann::json samples = nlohmann::json::array();
-    for (int j = 0; j < samples_per_curve; ++j) {
-      const double s = (j + 0.5) * curve.length / samples_per_curve;
-      const CurvePoint point = point_at_arc_length(scene, curve, s);
-      nlohmann::json sample = {{"s", s},
-                               {"x", point.position.x},
-                               {"y", point.position.y},
-                               {"B", spectrum_to_json(radiosity(c, main_side, point.u), scene.channels)}};
-      if (two_sided)
-        sample["B_back"] = spectrum_to_json(radiosity(c, Side::Back, point.u), scene.channels);
-      // The emitted part of B (and of B_back: both sides of a two-sided emitter emit alike), so
-      // that compare can measure the reflected part B - E from the documents alone.
-      if (emits) {
-        const double factor = emittance_factor(curve, point.u);
-        sample["E"] = spectrum_to_json(
-            {curve.emittance[0] * factor, curve.emittance[1] * factor, curve.emittance[2] * factor}, scene.channels);
-      }
-      samples.push_back(std::move(sample));
-    }
-    curves.push_back({{"id", curve.id},
-                      {"length", curve.length},
-                      {"sides", sides_name(curve.sides)},
-                      {"segments", curve.segment_count},
-                      {"emittance", spectrum_to_json(curve.emittance, scene.channels)},
-                      {"samples", std::move(samples)}});
-  }
-  return curves;
+  return curves_to_json(sample_radiosity(scene, samples_per_curve, radiosity));
 }
 
 nlohmann::json result_to_json(const Solver& solver, int samples_per_curve) {
   const Scene& scene = solver.scene();
   const SolverSettings& settings = solver.settings();
-  const EnergyBooks books = solver.books();
   nlohmann::json result;
   result["flatland_result"] = 1;
   result["program"] = program_to_json();
@@ -107,54 +61,24 @@ nlohmann::json result_to_json(const Solver& solver, int samples_per_curve) {
       {"band_rays", settings.band_rays},
       {"samples", samples_per_curve},
   };
-  result["stats"] = {
-      {"photons", solver.photons_shot()},
-      {"rounds", solver.rounds()},
-      {"rays", solver.rays_traced()},
-      {"seconds", solver.seconds()},
-      {"stop_reason", to_string(solver.stop_reason())},
-      {"emitted_power", books.emitted},
-      {"absorbed_power", books.absorbed},
-      {"escaped_power", books.escaped},
-      {"unshot_power", books.unshot},
-  };
-  nlohmann::json curves = sampled_curves_to_json(
-      scene, samples_per_curve,
-      [&solver](std::uint32_t c, Side side, double u) { return solver.radiosity(c, side, u); });
-  // The stored spline, so a result can be re-plotted exactly: B(u) = E + sum_k b_k phi_k(u)
-  // with phi_k the B-splines of `degree` on `knots`, u = segment index + t.
-  for (std::uint32_t c = 0; c < scene.curves.size(); ++c) {
-    const Curve& curve = scene.curves[c];
-    const Side main_side = curve.sides == Sides::Back ? Side::Back : Side::Front;
-    const CurveStorage& storage = solver.storage(c);
-    nlohmann::json nodes = nlohmann::json::array();
-    for (const MeshNode& node : storage.nodes) {
-      const char* flag = node.continuity == Continuity::C1   ? "C1"
-                         : node.continuity == Continuity::C0 ? "C0"
-                                                             : "C-1";
-      nodes.push_back({{"u", node.u}, {"continuity", flag}});
-    }
-    nlohmann::json& entry = curves[c];
-    entry["degree"] = storage.basis.degree();
-    // The mesh in use: with auto storage the chosen level, held exactly by the finest basis whose
-    // knots and coefficients follow (docs/result-format.md).
-    entry["elements"] = solver.storage_elements(c);
-    // A periodic basis (a closed curve smooth at its closing point) lists one period of knots
-    // extended by `degree` on each side; its functions wrap round (docs/result-format.md).
-    entry["periodic"] = storage.basis.is_periodic();
-    if (curve.closed)
-      entry["closing"] = storage.closing == Continuity::C1   ? "C1"
-                         : storage.closing == Continuity::C0 ? "C0"
-                                                             : "C-1";
-    entry["knots"] = storage.basis.knots();
-    entry["continuity"] = std::move(nodes);
-    const std::vector<double> main = solver.radiosity_coefficients(c, main_side);
-    if (!main.empty()) entry["coefficients"] = main;
-    if (curve.sides == Sides::Both)
-      entry["coefficients_back"] = solver.radiosity_coefficients(c, Side::Back);
-  }
-  result["curves"] = std::move(curves);
+  const SampledResult sampled = sample_solver(solver, samples_per_curve);
+  result["stats"] = stats_to_json(*sampled.stats);
+  result["curves"] = curves_to_json(sampled);
   return result;
+}
+
+nlohmann::json stats_to_json(const ResultStats& stats) {
+  return {
+      {"photons", stats.photons},
+      {"rounds", stats.rounds},
+      {"rays", stats.rays},
+      {"seconds", stats.seconds},
+      {"stop_reason", to_string(stats.stop_reason)},
+      {"emitted_power", stats.books.emitted},
+      {"absorbed_power", stats.books.absorbed},
+      {"escaped_power", stats.books.escaped},
+      {"unshot_power", stats.books.unshot},
+  };
 }
 
 nlohmann::json reference_result_to_json(const Scene& scene, const ReferenceSettings& settings,

@@ -14,11 +14,10 @@
 #include "flatland/scene.hpp"
 #include "flatland/solver.hpp"
 #include "flatland/reference.hpp"
+#include "flatland/sampled_result.hpp"
 
 namespace flatland {
 
-// Radiosity as JSON: a number for grey scenes, [r,g,b] for colour ones.
-nlohmann::json spectrum_to_json(const Spectrum& value, int channels);
 
 // The whole result document: scene, settings, stats and K samples per curve at s_j = (j+0.5) L/K.
 nlohmann::json result_to_json(const Solver& solver, int samples_per_curve);
@@ -33,9 +32,10 @@ nlohmann::json reference_result_to_json(const Scene& scene, const ReferenceSetti
 // The "curves" array of a result for any method: per curve id, length, sides and K samples of
 // the radiosity given by `radiosity(curve, side, u)` (B of the main side, B_back on two-sided
 // curves).
-using RadiosityFunction = std::function<Spectrum(std::uint32_t curve, Side side, double u)>;
 nlohmann::json sampled_curves_to_json(const Scene& scene, int samples_per_curve,
                                       const RadiosityFunction& radiosity);
+// The "stats" entry of a solver's result.
+nlohmann::json stats_to_json(const ResultStats& stats);
 // The "scene" entry of a result.
 nlohmann::json scene_to_json(const Scene& scene);
 // The program that wrote a result: {"name": "flatland", "version", "commit"} (version.hpp).

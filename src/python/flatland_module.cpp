@@ -24,6 +24,7 @@
 #include "flatland/metrics.hpp"
 #include "flatland/reference.hpp"
 #include "flatland/result_io.hpp"
+#include "flatland/sampled_result.hpp"
 #include "flatland/scene.hpp"
 #include "flatland/solver.hpp"
 #include "flatland/version.hpp"
@@ -196,6 +197,10 @@ class PySolver {
     d["coefficients"] = solver_->coefficient_count();
     return d;
   }
+  SampledResult sampled(int samples) const {
+    check_idle();
+    return sample_solver(*solver_, samples);
+  }
   std::string to_json(int samples) const {
     check_idle();
     if (samples < 1 || samples > 1'000'000) fail("samples: must be between 1 and 1000000");
@@ -297,12 +302,14 @@ std::string reference(const PyScene& scene, int samples, double max_element_leng
                                             estimate ? &*estimate : nullptr, curves));
 }
 
-nlohmann::json document_of(const py::object& value, const char* what) {
-  std::string text;
-  if (py::isinstance<PySolver>(value)) text = value.cast<const PySolver&>().to_json(100);
-  else if (py::isinstance<py::str>(value)) text = value.cast<std::string>();
-  else fail(std::string(what) + ": expected a Solver (a solve) or a result's JSON text");
-  return value_or_fail(parse_result(text, what));
+// A result as data: a Solver's (sampled 100 times per curve, as to_json() writes it), or a result
+// document's text (JSON only here, at the edge).
+SampledResult sampled_of(const py::object& value, const char* what) {
+  if (py::isinstance<PySolver>(value)) return value.cast<const PySolver&>().sampled(100);
+  if (!py::isinstance<py::str>(value)) fail(std::string(what) + ": expected a Solver (a solve) or a result's JSON text");
+  const nlohmann::json document = value_or_fail(parse_result(value.cast<std::string>(), what));
+  return value_or_fail(sampled_from_json(document, std::string("the ") + what,
+                                         std::string(what) == "reference" ? " (reference)" : ""));
 }
 
 py::dict norms(const ErrorNorms& e) {
@@ -316,8 +323,8 @@ py::dict norms(const ErrorNorms& e) {
 // flatland.compare: the errors of a result against a reference, as `compare --json` prints them.
 py::dict compare(const py::object& result, const py::object& reference, const std::string& measure) {
   if (measure != "reflected" && measure != "total") fail("measure: expected reflected or total, got '" + measure + "'");
-  const Comparison comparison = value_or_fail(compare_results(
-      document_of(result, "result"), document_of(reference, "reference"),
+  const Comparison comparison = value_or_fail(compare_sampled(
+      sampled_of(result, "result"), sampled_of(reference, "reference"),
       measure == "total" ? Measure::Total : Measure::Reflected));
   py::dict d;
   d["measure"] = measure;
@@ -358,9 +365,9 @@ py::list converge(const PyScene& scene, const std::vector<std::string>& methods,
   const Measure measured = measure == "total" ? Measure::Total : Measure::Reflected;
 
   // The reference: given (a Solver or a result's JSON text), or computed as converge computes it.
-  nlohmann::json document;
+  SampledResult document;
   if (!reference.is_none()) {
-    document = document_of(reference, "reference");
+    document = sampled_of(reference, "reference");
   } else {
     std::optional<Result<ReferenceSolution>> solved;
     {
@@ -368,13 +375,11 @@ py::list converge(const PyScene& scene, const std::vector<std::string>& methods,
       solved.emplace(solve_reference(*scene.scene, ReferenceSettings{}));
     }
     const ReferenceSolution& r = value_or_fail(std::move(*solved));
-    document = {{"flatland_result", 1},
-                {"curves", sampled_curves_to_json(*scene.scene, samples, [&r](std::uint32_t c, Side side, double u) {
-                   return r.radiosity(c, side, u);
-                 })}};
+    document = sample_radiosity(*scene.scene, samples,
+                                [&r](std::uint32_t c, Side side, double u) { return r.radiosity(c, side, u); });
   }
   {
-    const Comparison self = value_or_fail(compare_results(document, document, measured));
+    const Comparison self = value_or_fail(compare_sampled(document, document, measured));
     if (curve_index && !self.curves.at(*curve_index).measured)
       fail("curve: '" + curve.cast<std::string>() + "' has no " + (measured == Measure::Reflected ? "B - E" : "B") +
            " in the reference, so no relative error" + (measured == Measure::Reflected ? "; use measure=\"total\"" : ""));

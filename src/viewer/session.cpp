@@ -14,36 +14,22 @@ namespace {
 using Clock = std::chrono::steady_clock;
 
 // The reference's B along each curve (its main side, channels averaged), for the side panel.
-std::vector<std::vector<std::array<double, 2>>> reference_curves(const nlohmann::json& reference) {
+std::vector<std::vector<std::array<double, 2>>> reference_curves(const SampledResult& reference) {
   std::vector<std::vector<std::array<double, 2>>> curves;
-  const auto found = reference.find("curves");
-  if (found == reference.end() || !found->is_array()) return curves;
-  for (const nlohmann::json& curve : *found) {
+  const int channels = reference.channels;
+  for (const ResultCurve& curve : reference.curves) {
     std::vector<std::array<double, 2>>& out = curves.emplace_back();
-    const auto samples = curve.find("samples");
-    if (samples == curve.end() || !samples->is_array()) continue;
-    for (const nlohmann::json& sample : *samples) {
-      const auto s = sample.find("s");
-      const auto b = sample.find("B");
-      if (s == sample.end() || b == sample.end() || !s->is_number()) continue;
+    for (const ResultSample& sample : curve.samples) {
       double value = 0.0;
-      if (b->is_number()) {
-        value = b->get<double>();
-      } else if (b->is_array() && !b->empty()) {
-        for (const nlohmann::json& channel : *b) value += channel.is_number() ? channel.get<double>() : 0.0;
-        value /= static_cast<double>(b->size());
-      }
-      out.push_back({s->get<double>(), value});
+      for (int ch = 0; ch < channels; ++ch) value += sample.B[static_cast<std::size_t>(ch)];
+      out.push_back({sample.s, value / channels});
     }
   }
   return curves;
 }
 
-int reference_samples(const nlohmann::json& reference) {
-  const auto curves = reference.find("curves");
-  if (curves == reference.end() || !curves->is_array() || curves->empty()) return 0;
-  const auto samples = (*curves)[0].find("samples");
-  return samples != (*curves)[0].end() && samples->is_array() ? static_cast<int>(samples->size()) : 0;
+int reference_samples(const SampledResult& reference) {
+  return reference.curves.empty() ? 0 : static_cast<int>(reference.curves[0].samples.size());
 }
 
 }  // namespace
@@ -153,7 +139,7 @@ void Session::set_path_limit(std::size_t count) {
   path_limit_ = count;
 }
 
-void Session::set_reference(std::shared_ptr<const nlohmann::json> reference) {
+void Session::set_reference(std::shared_ptr<const SampledResult> reference) {
   {
     std::lock_guard lock(mutex_);
     reference_ = std::move(reference);
@@ -183,7 +169,7 @@ Result<nlohmann::json> Session::result_json(int samples_per_curve) {
 
 void Session::publish(const Solver* solver, const std::vector<PathRecord>& new_paths, bool force_error) {
   auto snapshot = std::make_shared<Snapshot>();
-  std::shared_ptr<const nlohmann::json> reference;
+  std::shared_ptr<const SampledResult> reference;
   std::size_t limit = 0;
   {
     std::lock_guard lock(mutex_);
@@ -208,7 +194,12 @@ void Session::publish(const Solver* solver, const std::vector<PathRecord>& new_p
         last_error_time_ = now;
         const int samples = reference_samples(*reference);
         if (samples > 0) {
-          Result<Comparison> comparison = compare_results(result_to_json(*solver, samples), *reference);
+          Result<Comparison> comparison =
+              compare_sampled(sample_radiosity(solver->scene(), samples,
+                                               [solver](std::uint32_t c, Side side, double u) {
+                                                 return solver->radiosity(c, side, u);
+                                               }),
+                              *reference);
           if (comparison) {
             reference_error_ = comparison->scene.l2;
             if (error_history_.empty() || error_history_.back()[0] != now)

@@ -15,6 +15,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "flatland/sampled_result.hpp"
 #include "flatland/scene.hpp"
 #include "flatland/solver.hpp"
 #include "viewer/frame.hpp"
@@ -52,7 +53,7 @@ class Session {
   void set_path_limit(std::size_t count);
   // A reference result (flatland reference --out, or solve --out) of the same scene: snapshots then
   // carry the error so far and its history. nullptr removes it.
-  void set_reference(std::shared_ptr<const nlohmann::json> reference);
+  void set_reference(std::shared_ptr<const SampledResult> reference);
 
   // The latest published snapshot (never null after construction).
   std::shared_ptr<const Snapshot> snapshot() const;
@@ -86,7 +87,7 @@ class Session {
   bool refresh_pending_ = false;  // publish again (the reference changed)
   bool can_run_ = false;          // a solver exists and has not stopped
   std::size_t path_limit_ = 20'000;
-  std::shared_ptr<const nlohmann::json> reference_;
+  std::shared_ptr<const SampledResult> reference_;
   std::shared_ptr<const Snapshot> snapshot_;
 
   // The worker's own state; solver_mutex_ guards the solver for result_json.

@@ -138,24 +138,23 @@ Result<std::unique_ptr<Viewer>> Viewer::create(const ViewOptions& options) {
                                                               : PathColour::Power;
   viewer->draw_.path_exposure = options.path_exposure;
   viewer->draw_.fade = options.path_fade;
-  std::shared_ptr<const nlohmann::json> reference;
+  std::shared_ptr<const SampledResult> reference;
   if (!options.reference.empty()) {
     Result<nlohmann::json> read = read_result_file(options.reference);
     if (!read) return Error{"--reference: " + read.error().message};
     nlohmann::json document = std::move(*read);
     if (!document.contains("curves") || !document["curves"].is_array())
       return Error{options.reference + ": not a flatland result (no \"curves\"; write one with 'flatland reference SCENE --out FILE')"};
+    Result<SampledResult> sampled = sampled_from_json(document, options.reference);
+    if (!sampled) return Error{"--reference: " + options.reference + ": " + sampled.error().message};
     // The same scene: its curves, by id, in order (compare checks the rest as the solve goes).
-    const nlohmann::json& curves = document["curves"];
     const Scene& loaded = *viewer->scene_;
-    bool same = curves.size() == loaded.curves.size();
-    for (std::size_t c = 0; same && c < loaded.curves.size(); ++c)
-      same = curves[c].is_object() && curves[c].contains("id") && curves[c]["id"].is_string() &&
-             curves[c]["id"].get<std::string>() == loaded.curves[c].id;
+    bool same = sampled->curves.size() == loaded.curves.size();
+    for (std::size_t c = 0; same && c < loaded.curves.size(); ++c) same = sampled->curves[c].id == loaded.curves[c].id;
     if (!same)
       return Error{options.reference + ": the reference describes another scene than " + viewer->scene_path_ +
                    " (its curves differ); solve the reference from the same scene file"};
-    reference = std::make_shared<const nlohmann::json>(std::move(document));
+    reference = std::make_shared<const SampledResult>(std::move(*sampled));
     viewer->reference_path_ = options.reference;
   }
 

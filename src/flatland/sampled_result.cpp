@@ -1,0 +1,203 @@
+#include "flatland/sampled_result.hpp"
+
+#include <algorithm>
+#include <string>
+
+#include "flatland/result_io.hpp"
+
+namespace flatland {
+
+namespace {
+
+const char* sides_name(Sides sides) {
+  return sides == Sides::Both ? "both" : sides == Sides::Back ? "back" : "front";
+}
+
+const char* continuity_name(Continuity continuity) {
+  return continuity == Continuity::C1 ? "C1" : continuity == Continuity::C0 ? "C0" : "C-1";
+}
+
+// A B, B_back, E or emittance value of a document: a number (grey) or [r, g, b].
+Result<Spectrum> spectrum_of(const nlohmann::json& value, int channels, const std::string& where) {
+  if (channels == 1 && value.is_number()) return Spectrum{value.get<double>(), 0.0, 0.0};
+  if (channels == 3 && value.is_array() && value.size() == 3 &&
+      std::all_of(value.begin(), value.end(), [](const nlohmann::json& v) { return v.is_number(); }))
+    return Spectrum{value[0].get<double>(), value[1].get<double>(), value[2].get<double>()};
+  if (value.is_number() || (value.is_array() && value.size() == 3)) return Error{where + ": grey against colour B"};
+  return Error{where + ": expected a number or [r, g, b]"};
+}
+
+// The document's channels: those of its first B (1 when it has none).
+int channels_of_document(const nlohmann::json& curves) {
+  for (const nlohmann::json& curve : curves) {
+    if (!curve.is_object() || !curve.contains("samples") || !curve["samples"].is_array()) continue;
+    for (const nlohmann::json& sample : curve["samples"])
+      if (sample.is_object() && sample.contains("B")) return sample["B"].is_array() ? 3 : 1;
+  }
+  return 1;
+}
+
+}  // namespace
+
+nlohmann::json spectrum_to_json(const Spectrum& value, int channels) {
+  if (channels == 1) return value[0];
+  return nlohmann::json::array({value[0], value[1], value[2]});
+}
+
+SampledResult sample_radiosity(const Scene& scene, int samples_per_curve, const RadiosityFunction& radiosity) {
+  SampledResult result;
+  result.channels = scene.channels;
+  for (std::uint32_t c = 0; c < scene.curves.size(); ++c) {
+    const Curve& curve = scene.curves[c];
+    const Side main_side = curve.sides == Sides::Back ? Side::Back : Side::Front;
+    const bool emits = scene.is_emitter(curve);
+    ResultCurve& out = result.curves.emplace_back();
+    out.id = curve.id;
+    out.length = curve.length;
+    out.sides = curve.sides;
+    out.segments = static_cast<int>(curve.segment_count);
+    out.emittance = curve.emittance;
+    out.samples.reserve(static_cast<std::size_t>(samples_per_curve));
+    for (int j = 0; j < samples_per_curve; ++j) {
+      ResultSample& sample = out.samples.emplace_back();
+      sample.s = (j + 0.5) * curve.length / samples_per_curve;
+      const CurvePoint point = point_at_arc_length(scene, curve, sample.s);
+      sample.x = point.position.x;
+      sample.y = point.position.y;
+      sample.B = radiosity(c, main_side, point.u);
+      if (curve.sides == Sides::Both) sample.B_back = radiosity(c, Side::Back, point.u);
+      // The emitted part of B (and of B_back: both sides of a two-sided emitter emit alike), so
+      // that a comparison can measure the reflected part B - E from a document alone.
+      if (emits) {
+        const double factor = emittance_factor(curve, point.u);
+        sample.E = Spectrum{curve.emittance[0] * factor, curve.emittance[1] * factor, curve.emittance[2] * factor};
+      }
+    }
+  }
+  return result;
+}
+
+SampledResult sample_solver(const Solver& solver, int samples_per_curve) {
+  const Scene& scene = solver.scene();
+  SampledResult result = sample_radiosity(
+      scene, samples_per_curve, [&solver](std::uint32_t c, Side side, double u) { return solver.radiosity(c, side, u); });
+  for (std::uint32_t c = 0; c < scene.curves.size(); ++c) {
+    const Curve& curve = scene.curves[c];
+    const CurveStorage& storage = solver.storage(c);
+    StoredSpline spline;
+    spline.degree = storage.basis.degree();
+    spline.elements = solver.storage_elements(c);
+    spline.periodic = storage.basis.is_periodic();
+    if (curve.closed) spline.closing = storage.closing;
+    spline.knots = storage.basis.knots();
+    spline.continuity = storage.nodes;
+    spline.coefficients = solver.radiosity_coefficients(c, curve.sides == Sides::Back ? Side::Back : Side::Front);
+    if (curve.sides == Sides::Both) spline.coefficients_back = solver.radiosity_coefficients(c, Side::Back);
+    result.curves[c].spline = std::move(spline);
+  }
+  ResultStats stats;
+  stats.photons = solver.photons_shot();
+  stats.rounds = solver.rounds();
+  stats.rays = solver.rays_traced();
+  stats.seconds = solver.seconds();
+  stats.stop_reason = solver.stop_reason();
+  stats.books = solver.books();
+  result.stats = stats;
+  return result;
+}
+
+nlohmann::json curves_to_json(const SampledResult& result) {
+  const int channels = result.channels;
+  nlohmann::json curves = nlohmann::json::array();
+  for (const ResultCurve& curve : result.curves) {
+    nlohmann::json samples = nlohmann::json::array();
+    for (const ResultSample& sample : curve.samples) {
+      nlohmann::json entry = {{"s", sample.s}, {"x", sample.x}, {"y", sample.y}, {"B", spectrum_to_json(sample.B, channels)}};
+      if (sample.B_back) entry["B_back"] = spectrum_to_json(*sample.B_back, channels);
+      if (sample.E) entry["E"] = spectrum_to_json(*sample.E, channels);
+      samples.push_back(std::move(entry));
+    }
+    nlohmann::json entry = {{"id", curve.id},
+                            {"length", curve.length},
+                            {"sides", sides_name(curve.sides)},
+                            {"segments", curve.segments},
+                            {"samples", std::move(samples)}};
+    if (curve.emittance) entry["emittance"] = spectrum_to_json(*curve.emittance, channels);
+    // The stored spline, so a result can be re-plotted exactly: B(u) = E + sum_k b_k phi_k(u)
+    // with phi_k the B-splines of `degree` on `knots`, u = segment index + t.
+    if (const std::optional<StoredSpline>& spline = curve.spline) {
+      entry["degree"] = spline->degree;
+      // The mesh in use: with auto storage the chosen level, held exactly by the finest basis whose
+      // knots and coefficients follow (docs/result-format.md).
+      entry["elements"] = spline->elements;
+      // A periodic basis (a closed curve smooth at its closing point) lists one period of knots
+      // extended by `degree` on each side; its functions wrap round (docs/result-format.md).
+      entry["periodic"] = spline->periodic;
+      if (spline->closing) entry["closing"] = continuity_name(*spline->closing);
+      entry["knots"] = spline->knots;
+      nlohmann::json nodes = nlohmann::json::array();
+      for (const MeshNode& node : spline->continuity)
+        nodes.push_back({{"u", node.u}, {"continuity", continuity_name(node.continuity)}});
+      entry["continuity"] = std::move(nodes);
+      if (!spline->coefficients.empty()) entry["coefficients"] = spline->coefficients;
+      if (curve.sides == Sides::Both) entry["coefficients_back"] = spline->coefficients_back;
+    }
+    curves.push_back(std::move(entry));
+  }
+  return curves;
+}
+
+Result<SampledResult> sampled_from_json(const nlohmann::json& document, const std::string& what,
+                                        const std::string& suffix) {
+  if (!document.is_object() || !document.contains("flatland_result") || !document.contains("curves") ||
+      !document["curves"].is_array())
+    return Error{what + " is not a flatland result (no \"flatland_result\" and \"curves\")"};
+  const nlohmann::json& curves = document["curves"];
+  SampledResult result;
+  result.channels = channels_of_document(curves);
+  try {
+    for (std::size_t c = 0; c < curves.size(); ++c) {
+      const nlohmann::json& in = curves[c];
+      ResultCurve& curve = result.curves.emplace_back();
+      curve.id = in.value("id", "");
+      const std::string where = "curves[" + std::to_string(c) + "] (\"" + curve.id + "\")";
+      curve.length = in.at("length").get<double>();
+      const std::string sides = in.value("sides", "front");
+      curve.sides = sides == "both" ? Sides::Both : sides == "back" ? Sides::Back : Sides::Front;
+      curve.segments = in.value("segments", 0);
+      if (in.contains("emittance")) {
+        Result<Spectrum> e = spectrum_of(in["emittance"], result.channels, where + " emittance");
+        if (!e) return e.error();
+        curve.emittance = *e;
+      }
+      const nlohmann::json& samples = in.at("samples");
+      if (!samples.is_array()) return Error{"malformed result: " + where + ".samples is not an array"};
+      for (std::size_t j = 0; j < samples.size(); ++j) {
+        const nlohmann::json& s = samples[j];
+        const std::string place = where + ".samples[" + std::to_string(j) + "]";
+        ResultSample& sample = curve.samples.emplace_back();
+        sample.s = s.at("s").get<double>();
+        sample.x = s.value("x", 0.0);
+        sample.y = s.value("y", 0.0);
+        Result<Spectrum> b = spectrum_of(s.at("B"), result.channels, place + ".B" + suffix);
+        if (!b) return b.error();
+        sample.B = *b;
+        if (s.contains("B_back")) {
+          Result<Spectrum> back = spectrum_of(s["B_back"], result.channels, place + ".B_back" + suffix);
+          if (!back) return back.error();
+          sample.B_back = *back;
+        }
+        if (s.contains("E")) {
+          Result<Spectrum> e = spectrum_of(s["E"], result.channels, place + ".E");
+          if (!e) return e.error();
+          sample.E = *e;
+        }
+      }
+    }
+  } catch (const nlohmann::json::exception& e) {
+    return Error{std::string("malformed result: ") + e.what()};
+  }
+  return result;
+}
+
+}  // namespace flatland
