@@ -560,6 +560,22 @@ TEST_F(Cli, ConvergeNeverRunsCommandsFromScenesOrPaths) {
   EXPECT_FALSE(fs::exists(marker)) << "a planted method name ran";
 }
 
+// converge checks a given reference against the scene and --samples before any run (a budget of
+// 1e15 photons would take months).
+TEST_F(Cli, ConvergeChecksItsReferenceBeforeAnyRun) {
+  const fs::path reference = directory_ / "reference.json";
+  ASSERT_EQ(run("solve " + scene("penumbra.json") + " --photons 20000 --samples 40 --quiet --out " + reference.string()).exit_code, 0);
+  const std::string out = " --out " + (directory_ / "c").string();
+  const CommandRun samples = run("converge " + scene("penumbra.json") + " --budgets 1e15 --reference " + reference.string() + out);
+  EXPECT_EQ(samples.exit_code, 2);
+  EXPECT_EQ(lines(samples.err), 1) << samples.err;
+  EXPECT_NE(samples.err.find("pass --samples 40"), std::string::npos) << samples.err;
+  const CommandRun other = run("converge " + scene("default.json") + " --budgets 1e15 --samples 40 --reference " +
+                               reference.string() + out);
+  EXPECT_EQ(other.exit_code, 2);
+  EXPECT_NE(other.err.find("another scene"), std::string::npos) << other.err;
+}
+
 TEST_F(Cli, NumbersBeyondADoubleInAResultAreOneLineErrors) {
   const fs::path a = directory_ / "a.json";
   ASSERT_EQ(run("solve " + scene("penumbra.json") + " --photons 20000 --samples 5 --quiet --out " + a.string()).exit_code, 0);

@@ -145,7 +145,7 @@ TEST(SampledResult, MalformedDocumentsAreErrors) {
   EXPECT_NE(error_of(no_length).find("malformed result"), std::string::npos);
   nlohmann::json mixed = good;
   mixed["curves"][0]["samples"].push_back({{"s", 0.7}, {"B", {1.0, 2.0, 3.0}}});
-  EXPECT_NE(error_of(mixed).find("curves[0] (\"floor\").samples[1].B (reference): grey against colour"), std::string::npos)
+  EXPECT_NE(error_of(mixed).find("curves[0] (\"floor\").samples[1].B (reference): a colour value in a grey result"), std::string::npos)
       << error_of(mixed);
   nlohmann::json text = good;
   text["curves"][0]["samples"][0]["B"] = "bright";

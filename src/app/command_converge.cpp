@@ -626,6 +626,18 @@ int run_converge(ConvergeOptions& o) {
       if (!read) return usage_error(read.error().message);
       reference = std::move(*read);
       floor = estimated_error_of(reference);
+      // Of this scene, sampled as the runs will be: said now, not after the first solve.
+      Result<SampledResult> given = sampled_from_json(reference, "the reference");
+      if (!given) return usage_error(o.reference + ": " + given.error().message);
+      bool same = given->curves.size() == scene->curves.size();
+      for (std::size_t c = 0; same && c < scene->curves.size(); ++c) same = given->curves[c].id == scene->curves[c].id;
+      if (!same)
+        return usage_error(o.reference + ": the reference describes another scene than " + o.scene +
+                           " (its curves differ); solve the reference from the same scene file");
+      if (!given->curves.empty() && given->curves[0].samples.size() != static_cast<std::size_t>(o.samples))
+        return usage_error(o.reference + ": the reference has " + std::to_string(given->curves[0].samples.size()) +
+                           " samples per curve, the runs " + std::to_string(o.samples) + "; pass --samples " +
+                           std::to_string(given->curves[0].samples.size()));
     } else {
       std::fprintf(stderr, "converge: computing the reference of %s\n", o.scene.c_str());
       ReferenceSettings settings;
@@ -663,8 +675,12 @@ int run_converge(ConvergeOptions& o) {
   }
   // The runs compare with the reference as data (rank 0 has already compared it with itself, so it
   // reads).
+  // (Collective: a reference that another process cannot read stops them all.)
   Result<SampledResult> sampled_reference = sampled_from_json(reference, "the reference");
-  if (!sampled_reference) return usage_error("--reference: " + sampled_reference.error().message);
+  if (const std::optional<int> code = agree(
+          sampled_reference ? std::nullopt
+                            : std::optional<int>(usage_error("--reference: " + sampled_reference.error().message))))
+    return *code;
 
   // Every run: one CSV row. Run i (methods, then budgets, then seeds) is done by process i mod K.
   const std::size_t total = methods.size() * budgets.size() * static_cast<std::size_t>(o.seeds);

@@ -2,6 +2,7 @@
 
 #include <cstdio>
 #include <cstring>
+#include <string>
 #include <vector>
 
 namespace flatland::app {
@@ -37,9 +38,18 @@ std::optional<int> agree(std::optional<int> code) {
       first_rank = r;
     }
   }
-  if (processes->rank() != 0 && code && codes[0] == 0 && !deferred_messages().empty())
-    std::fprintf(stderr, "flatland (process %u of %u): %s", processes->rank(), processes->size(),
-                 deferred_messages().c_str());
+  // Its own lines, "flatland: ..." each, as "flatland (process R of K): ...".
+  if (processes->rank() != 0 && code && codes[0] == 0) {
+    const std::string prefix = "flatland (process " + std::to_string(processes->rank()) + " of " +
+                               std::to_string(processes->size()) + "): ";
+    std::string line;
+    for (const char c : deferred_messages()) {
+      line += c;
+      if (c != '\n') continue;
+      std::fputs((prefix + (line.rfind("flatland: ", 0) == 0 ? line.substr(10) : line)).c_str(), stderr);
+      line.clear();
+    }
+  }
   deferred_messages().clear();
   if (first && processes->rank() == 0 && first_rank != 0)
     std::fprintf(stderr, "flatland: error: process %u of %u stopped (its message is above); nothing done\n",
@@ -55,7 +65,7 @@ void share_text(std::string& text) {
   processes->sum(length);
   // Eight bytes to an integer; only rank 0's are nonzero, so the sum is rank 0's text.
   std::vector<std::int64_t> words((static_cast<std::size_t>(length[0]) + 7) / 8, 0);
-  if (speaker) std::memcpy(words.data(), text.data(), text.size());
+  if (speaker && !text.empty()) std::memcpy(words.data(), text.data(), text.size());
   processes->sum(words);
   if (!speaker) text.assign(reinterpret_cast<const char*>(words.data()), static_cast<std::size_t>(length[0]));
 }

@@ -23,7 +23,8 @@ Result<Spectrum> spectrum_of(const nlohmann::json& value, int channels, const st
   if (channels == 3 && value.is_array() && value.size() == 3 &&
       std::all_of(value.begin(), value.end(), [](const nlohmann::json& v) { return v.is_number(); }))
     return Spectrum{value[0].get<double>(), value[1].get<double>(), value[2].get<double>()};
-  if (value.is_number() || (value.is_array() && value.size() == 3)) return Error{where + ": grey against colour B"};
+  if (value.is_number()) return Error{where + ": a grey value in a colour result (expected [r, g, b])"};
+  if (value.is_array() && value.size() == 3) return Error{where + ": a colour value in a grey result (expected a number)"};
   return Error{where + ": expected a number or [r, g, b]"};
 }
 

@@ -8,7 +8,8 @@
 namespace flatland::mpi {
 
 bool started_by_launcher() {
-  for (const char* name : {"OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMIX_RANK", "SLURM_NTASKS"})
+  // (Per-process variables only: Slurm's SLURM_NTASKS is also set in a job script's own shell.)
+  for (const char* name : {"OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMI_RANK", "PMIX_RANK"})
     if (std::getenv(name) != nullptr) return true;
   return false;
 }
@@ -33,11 +34,6 @@ void World::sum(std::span<std::int64_t> values) {
     MPI_Allreduce(MPI_IN_PLACE, values.data() + at, static_cast<int>(count), MPI_INT64_T, MPI_SUM, MPI_COMM_WORLD);
   }
   bytes_summed_ += values.size() * sizeof(std::int64_t);
-}
-
-void World::abort(int code) {
-  MPI_Abort(MPI_COMM_WORLD, code);
-  std::_Exit(code);
 }
 
 }  // namespace flatland::mpi

@@ -10,8 +10,8 @@
 
 namespace flatland::mpi {
 
-// Whether a process launcher started this process as one of several (OpenMPI's mpirun, MPICH's
-// Hydra or Slurm's srun set these variables). A program started alone never initialises MPI.
+// Whether a process launcher started this process (OpenMPI's mpirun, MPICH's Hydra and Slurm's
+// srun set per-process variables for it). A program started alone never initialises MPI.
 bool started_by_launcher();
 
 // MPI initialised for the life of the object (only the thread that made it calls MPI), finalised
@@ -27,9 +27,6 @@ class World final : public RoundSharing {
   unsigned size() const override { return size_; }
   // MPI_Allreduce (sum) in place, in pieces of at most 2^28 integers.
   void sum(std::span<std::int64_t> values) override;
-  // Ends every process of the run at once with `code` (a process that stops alone would leave the
-  // others waiting in a sum).
-  [[noreturn]] void abort(int code);
 
  private:
   unsigned rank_ = 0;

@@ -302,10 +302,10 @@ std::string reference(const PyScene& scene, int samples, double max_element_leng
                                             estimate ? &*estimate : nullptr, curves));
 }
 
-// A result as data: a Solver's (sampled 100 times per curve, as to_json() writes it), or a result
+// A result as data: a Solver's (sampled `samples` times per curve; to_json() writes 100), or a result
 // document's text (JSON only here, at the edge).
-SampledResult sampled_of(const py::object& value, const char* what) {
-  if (py::isinstance<PySolver>(value)) return value.cast<const PySolver&>().sampled(100);
+SampledResult sampled_of(const py::object& value, const char* what, int samples = 100) {
+  if (py::isinstance<PySolver>(value)) return value.cast<const PySolver&>().sampled(samples);
   if (!py::isinstance<py::str>(value)) fail(std::string(what) + ": expected a Solver (a solve) or a result's JSON text");
   const nlohmann::json document = value_or_fail(parse_result(value.cast<std::string>(), what));
   return value_or_fail(sampled_from_json(document, std::string("the ") + what,
@@ -367,17 +367,38 @@ py::list converge(const PyScene& scene, const std::vector<std::string>& methods,
   // The reference: given (a Solver or a result's JSON text), or computed as converge computes it.
   SampledResult document;
   if (!reference.is_none()) {
-    document = sampled_of(reference, "reference");
+    document = sampled_of(reference, "reference", samples);
   } else {
+    // On `threads` threads; Ctrl-C (checked about every quarter second) stops it.
+    ReferenceSettings settings;
+    settings.threads = threads;
+    std::atomic<bool> cancel{false};
+    std::optional<py::error_already_set> raised;
+    settings.cancel = &cancel;
+    settings.progress = [&](std::size_t, std::size_t) {
+      py::gil_scoped_acquire gil;
+      if (!raised && PyErr_CheckSignals() != 0) {
+        raised.emplace();
+        cancel.store(true);
+      }
+    };
     std::optional<Result<ReferenceSolution>> solved;
     {
       py::gil_scoped_release release;
-      solved.emplace(solve_reference(*scene.scene, ReferenceSettings{}));
+      solved.emplace(solve_reference(*scene.scene, settings));
     }
+    if (raised) throw *raised;
     const ReferenceSolution& r = value_or_fail(std::move(*solved));
     document = sample_radiosity(*scene.scene, samples,
                                 [&r](std::uint32_t c, Side side, double u) { return r.radiosity(c, side, u); });
   }
+  // The reference must be of this scene, sampled as the runs will be: said before any run.
+  bool same = document.curves.size() == scene.scene->curves.size();
+  for (std::size_t c = 0; same && c < document.curves.size(); ++c) same = document.curves[c].id == scene.scene->curves[c].id;
+  if (!same) fail("reference: it describes another scene than " + scene.scene->source + " (its curves differ)");
+  if (!document.curves.empty() && document.curves[0].samples.size() != static_cast<std::size_t>(samples))
+    fail("reference: it has " + std::to_string(document.curves[0].samples.size()) + " samples per curve, the runs " +
+         std::to_string(samples) + "; pass samples=" + std::to_string(document.curves[0].samples.size()));
   {
     const Comparison self = value_or_fail(compare_sampled(document, document, measured));
     if (curve_index && !self.curves.at(*curve_index).measured)

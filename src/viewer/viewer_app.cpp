@@ -145,7 +145,7 @@ Result<std::unique_ptr<Viewer>> Viewer::create(const ViewOptions& options) {
     nlohmann::json document = std::move(*read);
     if (!document.contains("curves") || !document["curves"].is_array())
       return Error{options.reference + ": not a flatland result (no \"curves\"; write one with 'flatland reference SCENE --out FILE')"};
-    Result<SampledResult> sampled = sampled_from_json(document, options.reference);
+    Result<SampledResult> sampled = sampled_from_json(document, "the reference");
     if (!sampled) return Error{"--reference: " + options.reference + ": " + sampled.error().message};
     // The same scene: its curves, by id, in order (compare checks the rest as the solve goes).
     const Scene& loaded = *viewer->scene_;

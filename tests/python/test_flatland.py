@@ -177,6 +177,14 @@ def test_converge_gives_the_rows_of_the_command_line(tmp_path):
                 assert str(value) == text, key
     with pytest.raises(ValueError, match="--methods: 'cubic:x'"):
         flatland.converge(flatland.Scene.load("scenes2d/penumbra.json"), methods=["cubic:x"], budgets=[1e4])
+    # A solve as the reference, at the runs' own samples; a reference sampled otherwise is refused
+    # before any run.
+    penumbra = flatland.Scene.load("scenes2d/penumbra.json")
+    rows = flatland.converge(penumbra, methods=["linear"], budgets=[1e4], seeds=1, samples=40,
+                             reference=flatland.solve(penumbra, photons=100_000))
+    assert len(rows) == 1 and 0.0 < rows[0]["rel_l2"] < 1.0
+    with pytest.raises(ValueError, match="100 samples per curve, the runs 40"):
+        flatland.converge(penumbra, budgets=[1e4], samples=40, reference=reference.read_text())
     with pytest.raises(ValueError, match="no curve 'nowhere'"):
         flatland.converge(flatland.Scene.load("scenes2d/penumbra.json"), budgets=[1e4], curve="nowhere",
                           reference=reference.read_text())
