@@ -584,6 +584,32 @@ TEST(Solver, SourcesAndPositionsFollowPowerAndArcLength) {
   EXPECT_LT(testing::chi_square(positions, uniform), testing::chi_square_critical(bins - 1));
 }
 
+// A recorded path's hit_s is the arc length of its hit point along the curve it hit: the point at
+// that arc length (an independent inversion, point_at_arc_length) is the path's end. The curved room
+// has curves of several cubic segments, and walks record every hop.
+TEST(Solver, PathsRecordTheArcLengthOfTheirHit) {
+  const Scene scene = testing::scene_from_file("scenes2d/curved_room.json");
+  for (const Transport transport : {Transport::Shooting, Transport::Walk}) {
+    SolverSettings settings;
+    settings.photons = 20'000;
+    settings.transport = transport;
+    Solver solver = make_solver(scene, settings);
+    solver.record_paths(2000);
+    ASSERT_TRUE(solver.step_round());
+    std::size_t checked = 0;
+    for (const PhotonPath& path : solver.paths()) {
+      if (path.escaped) continue;
+      const Curve& curve = scene.curves[path.hit_curve];
+      ASSERT_GE(path.hit_s, 0.0);
+      ASSERT_LE(path.hit_s, curve.length * (1.0 + 1e-12));
+      const Vec2 at = point_at_arc_length(scene, curve, path.hit_s).position;
+      EXPECT_LT(length(at - path.end), 1e-7 * scene.scale) << path.hit_curve << " s " << path.hit_s;
+      ++checked;
+    }
+    EXPECT_GT(checked, 1000u);
+  }
+}
+
 // Reconstruction-driven sampling: photon origins on a reflector whose unshot radiosity varies
 // along it, on a cubic of strongly varying speed, must follow the reconstructed unshot radiosity
 // per unit arc length. The expected bin counts integrate the reconstruction (the unshot

@@ -19,4 +19,4 @@ run view scenes2d/room_reflector.json --frames 3 --step rounds=1 --width 960 --h
 "$flatland" render scenes2d/mixed.json --photons 1e6 --width 960 --height 640 --out docs/figures/render_mixed.png --quiet
 # Random walks stepped one photon a frame, coloured by bounce, the newest journey on top.
 run view scenes2d/room_reflector.json --transport walk --frames 6 --step photons=1 --width 1280 --height 800 \
-  --colour-by bounce --keep-paths 60 --exposure 0.3 --screenshot-ui docs/figures/viewer_journey.png
+  --colour-by bounce --keep-paths 60 --exposure 0.3 --select walls --screenshot-ui docs/figures/viewer_journey.png

@@ -1077,6 +1077,7 @@ void Solver::receive(const SceneHit& hit, const Ray& ray, const std::array<std::
     path->end = ray.origin + hit.distance * ray.direction;
     path->hit_curve = info.curve;
     path->hit_side = side;
+    path->hit_s = arc_length_at(info.curve, info.index_in_curve + hit.t);
   }
   const std::uint32_t offset = block_offset(info.curve, side);
   // A side that reflects nothing (rho = 0 in every channel) turns all it receives into absorbed

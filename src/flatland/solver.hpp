@@ -169,6 +169,7 @@ struct PhotonPath {
   double source_t = 0.0;
   std::uint32_t hit_curve = 0;       // meaningless when escaped
   Side hit_side = Side::Front;
+  double hit_s = 0.0;                // arc length along the hit curve from its start
   Spectrum power{};                  // power carried (channels as in the scene)
   // Times the light carried has been reflected before this flight: shooting's round number, or
   // the hop's number in its walk (0: straight from an emitter). A walk's hops are consecutive
@@ -192,7 +193,8 @@ class RoundSharing {
   virtual ~RoundSharing() = default;
   virtual unsigned rank() const = 0;
   virtual unsigned size() const = 0;
-  // Collective: every process calls it with a vector of the same length. Wrapping addition.
+  // Collective: every process calls it with a vector of the same length. The sums never exceed
+  // 2^63 in magnitude (the fixed point's budget is one process's), so no addition overflows.
   virtual void sum(std::span<std::int64_t> values) = 0;
   // Bytes this process handed to `sum` so far (what a round moves, for the performance notes).
   std::uint64_t bytes_summed() const { return bytes_summed_; }

@@ -94,7 +94,8 @@ std::vector<CurveTrace> trace_curves(const Scene& scene, int samples_per_segment
 }
 
 PathRecord path_record(const PhotonPath& path, const Scene& scene, std::uint64_t serial, std::uint32_t round) {
-  PathRecord record{serial, path.origin, path.end, path.power, round, path.bounce, path.escaped, path.absorbed, path.cut};
+  PathRecord record{serial,      path.origin,    path.end,      path.power,     round,     path.bounce,
+                    path.escaped, path.absorbed,  path.cut,      path.hit_curve, path.hit_side, path.hit_s};
   if (path.escaped) {
     // Exit from the box: the smallest positive slab distance along the direction.
     const Vec2 d = path.end - path.origin;

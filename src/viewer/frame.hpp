@@ -88,6 +88,10 @@ struct PathRecord {
   bool escaped = false;
   bool absorbed = false;     // a walk ended where this flight landed
   bool cut = false;          // the walk went on, unrecorded (the record was full)
+  // Where it landed (not escaped): the curve, the side and the arc length along the curve.
+  std::uint32_t hit_curve = 0;
+  Side hit_side = Side::Front;
+  double hit_s = 0.0;
 };
 
 // A photon path for drawing: from its origin to its hit, or, for a photon that escaped (`end` is

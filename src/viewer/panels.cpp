@@ -590,11 +590,20 @@ void Viewer::draw_curve_panel(const Snapshot& snapshot) {
     ImGui::TextColored(ImVec4(0.8f, 0.35f, 0.35f, 1.0f), "| C-1");
     ImGui::SameLine();
     ImGui::TextColored(ImVec4(0.6f, 0.6f, 0.6f, 1.0f), "| C0");
+    // Where the newest journey's hops landed on this curve (its deposits): hop number and record.
+    std::vector<std::pair<std::size_t, const PathRecord*>> landings;
+    if (draw_.paths && draw_.journey) {
+      const auto [first, end] = newest_journey(snapshot.paths);
+      for (std::size_t i = first; i < end; ++i)
+        if (!snapshot.paths[i].escaped && snapshot.paths[i].hit_curve == c)
+          landings.emplace_back(i - first + 1, &snapshot.paths[i]);
+    }
     ImDrawList* draw = ImGui::GetWindowDrawList();
     const float text = ImGui::GetTextLineHeight();
     const ImVec2 corner = ImGui::GetCursorScreenPos();
     const ImVec2 avail = ImGui::GetContentRegionAvail();
-    const ImVec2 size(avail.x, std::max(avail.y - 2.0f * text - 8.0f, 80.0f));
+    const float captions = landings.empty() ? 2.5f : 5.5f;  // lines of text under the plot
+    const ImVec2 size(avail.x, std::max(avail.y - captions * text - 8.0f, 80.0f));
     ImGui::InvisibleButton("##bplot", size);
     track("B plot");
     // The plot area, leaving room for the value labels on the left and the arc lengths below.
@@ -642,7 +651,22 @@ void Viewer::draw_curve_panel(const Snapshot& snapshot) {
       for (std::size_t i = 1; i < line.samples->size(); ++i)
         draw->AddLine(point(trace->s[i - 1], luminance((*line.samples)[i - 1], scene_->channels)),
                       point(trace->s[i], luminance((*line.samples)[i], scene_->channels)), line.colour, 1.5f);
+    // The newest journey's deposits: numbered as on the stage and coloured by bounce, a triangle
+    // on the axis and a dotted line up the plot.
+    for (const auto& [number, hop] : landings) {
+      const ImU32 colour = to_u32(path_palette(hop->bounce));
+      const float x = point(hop->hit_s, 0.0).x;
+      for (float y = hi_corner.y - 10.0f; y > lo.y; y -= 6.0f) draw->AddLine(ImVec2(x, y), ImVec2(x, y - 3.0f), colour);
+      draw->AddTriangleFilled(ImVec2(x, hi_corner.y - 10.0f), ImVec2(x - 5.0f, hi_corner.y), ImVec2(x + 5.0f, hi_corner.y),
+                              colour);
+      char label[16];
+      std::snprintf(label, sizeof label, "%zu", number);
+      draw->AddText(ImVec2(x + 4.0f, hi_corner.y - 10.0f - text), colour, label);
+    }
     draw->PopClipRect();
+    if (!landings.empty())
+      ImGui::TextWrapped("Triangles: where the newest journey's hops (numbered as on the stage) landed on this "
+                         "curve and left their deposits.");
     ImGui::TextWrapped("B (power per unit length) against s (arc length from the first point)%s",
                        scene_->channels == 3 ? "; mean of r, g, b" : "");
   }

@@ -227,10 +227,8 @@ Status Renderer::draw(const std::vector<LineVertex>& overlay, const PathDraw& pa
     glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(paths.instances.size() * sizeof(PathInstance)),
                  paths.instances.data(), GL_STREAM_DRAW);
     const auto count = static_cast<GLsizei>(paths.instances.size());
-    if (paths.lines)
-      glDrawArraysInstanced(GL_LINES, 0, 2, count);
-    else
-      glDrawArraysInstanced(GL_TRIANGLE_STRIP, 0, 4, count);
+    // A quad per path: as wide as an extended ray, or 2 pixels for a point ray's antialiased line.
+    glDrawArraysInstanced(GL_TRIANGLE_STRIP, 0, 4, count);
   }
 
   glBindFramebuffer(GL_FRAMEBUFFER, static_cast<GLuint>(target));
