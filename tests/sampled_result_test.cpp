@@ -150,6 +150,13 @@ TEST(SampledResult, MalformedDocumentsAreErrors) {
   nlohmann::json text = good;
   text["curves"][0]["samples"][0]["B"] = "bright";
   EXPECT_NE(error_of(text).find("expected a number or [r, g, b]"), std::string::npos);
+  // Found by fuzz_result (fuzz/corpus/result/regression-segments-beyond-int.json): a segment count
+  // beyond an int was converted anyway (undefined behaviour).
+  for (const nlohmann::json& count : {nlohmann::json(11e100), nlohmann::json(-1), nlohmann::json(2.5), nlohmann::json("4")}) {
+    nlohmann::json segments = good;
+    segments["curves"][0]["segments"] = count;
+    EXPECT_NE(error_of(segments).find(".segments: expected a whole number"), std::string::npos) << error_of(segments);
+  }
   nlohmann::json no_b = good;
   no_b["curves"][0]["samples"][0].erase("B");
   EXPECT_NE(error_of(no_b).find("malformed result"), std::string::npos);

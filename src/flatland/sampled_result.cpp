@@ -1,6 +1,7 @@
 #include "flatland/sampled_result.hpp"
 
 #include <algorithm>
+#include <limits>
 #include <string>
 
 #include "flatland/result_io.hpp"
@@ -165,7 +166,12 @@ Result<SampledResult> sampled_from_json(const nlohmann::json& document, const st
       curve.length = in.at("length").get<double>();
       const std::string sides = in.value("sides", "front");
       curve.sides = sides == "both" ? Sides::Both : sides == "back" ? Sides::Back : Sides::Front;
-      curve.segments = in.value("segments", 0);
+      // (A whole number that fits: a JSON number such as 1e100 would not convert to an int.)
+      const nlohmann::json segments = in.value("segments", nlohmann::json(0));
+      if (!segments.is_number_integer() || segments.get<std::int64_t>() < 0 ||
+          segments.get<std::int64_t>() > std::numeric_limits<int>::max())
+        return Error{"malformed result: " + where + ".segments: expected a whole number, got " + segments.dump()};
+      curve.segments = static_cast<int>(segments.get<std::int64_t>());
       if (in.contains("emittance")) {
         Result<Spectrum> e = spectrum_of(in["emittance"], result.channels, where + " emittance");
         if (!e) return e.error();
