@@ -36,39 +36,19 @@ TEST(Mpi, SumAddsEveryProcessesIntegersExactly) {
   EXPECT_EQ(large.back(), k * (k + 1) / 2);
 }
 
-// A solve's result without what may differ between runs of the same solve.
-std::string dump(const Solver& solver) {
-  nlohmann::json result = result_to_json(solver, 50);
-  result["stats"].erase("seconds");
-  result["settings"].erase("threads");
-  result["settings"].erase("processes");
-  return result.dump();
-}
+std::string dump(const Solver& solver) { return testing::solution_dump(solver); }
 
 // Every process solves alone and then with the others sharing the rounds: the shared solve has the
 // bits of the lone one, for shooting (points, footprints, colour) and walks, on any thread count.
 TEST(Mpi, SharedSolveHasTheBitsOfOneProcess) {
-  struct Case {
-    const char* scene;
-    Transport transport;
-    double ray_width;
-    unsigned threads;
-  };
-  for (const Case& c : {Case{"scenes2d/mixed.json", Transport::Shooting, 0.0, 1},
-                        Case{"scenes2d/syndrome.json", Transport::Shooting, 0.02, 2},
-                        Case{"scenes2d/curved_room.json", Transport::Walk, 0.0, 1}}) {
+  for (const testing::SharingCase& c : testing::kSharingCases) {
     SCOPED_TRACE(c.scene);
     const Scene scene = testing::scene_from_file(c.scene);
-    SolverSettings settings;
-    settings.photons = 200'000;
-    settings.seed = 11;
-    settings.threads = 1;
-    settings.transport = c.transport;
-    settings.ray_width = c.ray_width;
+    SolverSettings settings = testing::sharing_settings(c, 200'000, 11);
     Result<Solver> alone = Solver::create(scene, settings);
     ASSERT_TRUE(alone.ok());
     alone->run();
-    settings.threads = c.threads;
+    settings.threads = c.ray_width > 0.0 ? 2 : 1;  // threads within processes too
     Result<Solver> shared = Solver::create(scene, settings);
     ASSERT_TRUE(shared.ok());
     shared->share_rounds(world);

@@ -1231,13 +1231,7 @@ TEST(Solver, AutoStorageKeepsConvergingWithoutAFloor) {
 // how the round is cut into steps (the viewer's partial batches take the same points).
 // A solve's result document without what may differ between runs of the same solve: its wall
 // time and its thread count.
-std::string dump(const Solver& solver) {
-  nlohmann::json result = result_to_json(solver, 50);
-  result["stats"].erase("seconds");
-  result["settings"].erase("threads");
-  result["settings"].erase("processes");
-  return result.dump();
-}
+std::string dump(const Solver& solver) { return testing::solution_dump(solver); }
 
 // K solvers in K threads of this process, standing in for K MPI processes: `sum` adds every
 // participant's vector through a shared buffer, between barriers, as MPI_Allreduce would.
@@ -1307,22 +1301,10 @@ std::vector<std::string> shared_dumps(const Scene& scene, const SolverSettings& 
 // and the integer deposits are summed) give the bits of one process, for any K, for shooting and
 // walks, with footprints and in colour.
 TEST(Solver, SharedRoundsGiveTheBitsOfOneProcess) {
-  struct Case {
-    const char* scene;
-    Transport transport;
-    double ray_width;
-  };
-  for (const Case& c : {Case{"scenes2d/mixed.json", Transport::Shooting, 0.0},
-                        Case{"scenes2d/syndrome.json", Transport::Shooting, 0.02},
-                        Case{"scenes2d/curved_room.json", Transport::Walk, 0.0}}) {
+  for (const testing::SharingCase& c : testing::kSharingCases) {
     SCOPED_TRACE(c.scene);
     const Scene scene = testing::scene_from_file(c.scene);
-    SolverSettings settings;
-    settings.photons = 150'000;
-    settings.seed = 5;
-    settings.threads = 1;
-    settings.transport = c.transport;
-    settings.ray_width = c.ray_width;
+    SolverSettings settings = testing::sharing_settings(c, 150'000, 5);
     Solver alone = make_solver(scene, settings);
     alone.run();
     ASSERT_GT(alone.rounds(), 1u);

@@ -15,12 +15,45 @@
 #include <gtest/gtest.h>
 
 #include "flatland/bezier.hpp"
+#include "flatland/result_io.hpp"
 #include "flatland/scene.hpp"
+#include "flatland/solver.hpp"
 
 namespace flatland::testing {
 
 inline std::string source_path(const std::string& relative) {
   return std::string(FLATLAND_SOURCE_DIR) + "/" + relative;
+}
+
+// A solve's result document without what may differ between runs of the same solve: its wall
+// time, its thread count and its process count.
+inline std::string solution_dump(const Solver& solver) {
+  nlohmann::json result = result_to_json(solver, 50);
+  result["stats"].erase("seconds");
+  result["settings"].erase("threads");
+  result["settings"].erase("processes");
+  return result.dump();
+}
+
+// The solves on which rounds shared among processes are checked against one process (solver_test,
+// threads standing in for processes; mpi_test, under mpirun): shooting with point rays, with
+// footprints in colour, and random walks.
+struct SharingCase {
+  const char* scene;
+  Transport transport;
+  double ray_width;
+};
+inline constexpr SharingCase kSharingCases[] = {{"scenes2d/mixed.json", Transport::Shooting, 0.0},
+                                                {"scenes2d/syndrome.json", Transport::Shooting, 0.02},
+                                                {"scenes2d/curved_room.json", Transport::Walk, 0.0}};
+inline SolverSettings sharing_settings(const SharingCase& c, std::uint64_t photons, std::uint64_t seed) {
+  SolverSettings settings;
+  settings.photons = photons;
+  settings.seed = seed;
+  settings.threads = 1;
+  settings.transport = c.transport;
+  settings.ray_width = c.ray_width;
+  return settings;
 }
 
 // A test fixture with a fresh scratch directory of its own, named after the running test
