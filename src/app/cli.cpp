@@ -75,6 +75,9 @@ CommandLine::CommandLine()
                                         program_commit() + ")");
   app.require_subcommand(1);
   app.fallthrough(false);
+  app.footer(
+      "Under mpirun (docs/mpi.md), solve shares every round among the processes with the bits of one\n"
+      "process, and converge deals its runs out; give each process its cores with --threads.");
   add_solve_command(app, solve);
   add_reference_command(app, reference);
   add_converge_command(app, converge);
