@@ -149,16 +149,13 @@ class RingClosedForm {
 };
 
 // The relative error norms of a reference against a closed form at the result format's samples
-// (sampled_curves_to_json, compare_results: the norms `flatland compare` reports).
+// (sample_radiosity, compare_sampled: the norms `flatland compare` reports).
 ErrorNorms true_error(const Scene& scene, const ReferenceSolution& solution, int samples,
                       const RadiosityFunction& exact) {
-  const nlohmann::json computed = {
-      {"flatland_result", 1},
-      {"curves", sampled_curves_to_json(scene, samples, [&solution](std::uint32_t c, Side side, double u) {
-         return solution.radiosity(c, side, u);
-       })}};
-  const nlohmann::json expected = {{"flatland_result", 1}, {"curves", sampled_curves_to_json(scene, samples, exact)}};
-  Result<Comparison> comparison = compare_results(computed, expected);
+  const SampledResult computed = sample_radiosity(scene, samples, [&solution](std::uint32_t c, Side side, double u) {
+    return solution.radiosity(c, side, u);
+  });
+  Result<Comparison> comparison = compare_sampled(computed, sample_radiosity(scene, samples, exact));
   EXPECT_TRUE(comparison.ok());
   return comparison->scene;
 }
@@ -665,11 +662,11 @@ TEST(Reference, EstimateIsWithinAFactorTwoOfTheTrueError) {
     settings.max_element_length = scene.scale / c.divisor;
     const ReferenceSolution solution = solve(scene, settings);
     std::vector<int> levels;
-    const nlohmann::json curves = sampled_curves_to_json(scene, samples, [&solution](std::uint32_t k, Side side, double u) {
+    const SampledResult fine = sample_radiosity(scene, samples, [&solution](std::uint32_t k, Side side, double u) {
       return solution.radiosity(k, side, u);
     });
     Result<ReferenceErrorEstimate> estimate =
-        estimate_discretisation_error(scene, settings, samples, curves, [&levels](int level) { levels.push_back(level); });
+        estimate_discretisation_error(scene, settings, samples, fine, [&levels](int level) { levels.push_back(level); });
     ASSERT_TRUE(estimate.ok()) << estimate.error().message;
     EXPECT_EQ(levels, (std::vector<int>{1, 2}));
     const ErrorNorms truth = closed_form_error(scene, solution, samples);
@@ -698,10 +695,10 @@ TEST(Reference, DISABLED_EstimatedAgainstTrueErrorTable) {
       ReferenceSettings settings;
       settings.max_element_length = scene.scale / divisor;
       const ReferenceSolution solution = solve(scene, settings);
-      const nlohmann::json curves = sampled_curves_to_json(scene, 100, [&solution](std::uint32_t k, Side side, double u) {
+      const SampledResult fine = sample_radiosity(scene, 100, [&solution](std::uint32_t k, Side side, double u) {
         return solution.radiosity(k, side, u);
       });
-      Result<ReferenceErrorEstimate> estimate = estimate_discretisation_error(scene, settings, 100, curves);
+      Result<ReferenceErrorEstimate> estimate = estimate_discretisation_error(scene, settings, 100, fine);
       ASSERT_TRUE(estimate.ok());
       const ErrorNorms truth = closed_form_error(scene, solution, 100);
       char order[64] = "- (round-off)";

@@ -629,15 +629,10 @@ int run_converge(ConvergeOptions& o) {
       // Of this scene, sampled as the runs will be: said now, not after the first solve.
       Result<SampledResult> given = sampled_from_json(reference, "the reference");
       if (!given) return usage_error(o.reference + ": " + given.error().message);
-      bool same = given->curves.size() == scene->curves.size();
-      for (std::size_t c = 0; same && c < scene->curves.size(); ++c) same = given->curves[c].id == scene->curves[c].id;
-      if (!same)
-        return usage_error(o.reference + ": the reference describes another scene than " + o.scene +
-                           " (its curves differ); solve the reference from the same scene file");
-      if (!given->curves.empty() && given->curves[0].samples.size() != static_cast<std::size_t>(o.samples))
-        return usage_error(o.reference + ": the reference has " + std::to_string(given->curves[0].samples.size()) +
-                           " samples per curve, the runs " + std::to_string(o.samples) + "; pass --samples " +
-                           std::to_string(given->curves[0].samples.size()));
+      if (Status status = check_reference_of(*given, *scene, o.samples); !status)
+        return usage_error(o.reference + ": " + status.error().message +
+                           (check_reference_of(*given, *scene) ? "; pass --samples " + std::to_string(given->curves[0].samples.size())
+                                                               : std::string()));
     } else {
       std::fprintf(stderr, "converge: computing the reference of %s\n", o.scene.c_str());
       ReferenceSettings settings;
@@ -646,12 +641,10 @@ int run_converge(ConvergeOptions& o) {
       Result<ReferenceSolution> fine = solve_reference(*scene, settings);
       if (!fine) return interrupt_flag().load() ? interrupted() : usage_error(fine.error().message);
       const ReferenceSolution& solution = *fine;
-      reference = {{"flatland_result", 1},
-                   {"curves", sampled_curves_to_json(*scene, o.samples,
-                                                     [&solution](std::uint32_t c, Side side, double u) {
-                                                       return solution.radiosity(c, side, u);
-                                                     })}};
-      Result<ErrorNorms> estimate = estimate_reference_error(*scene, settings, o.samples, reference["curves"]);
+      const SampledResult sampled = sample_radiosity(
+          *scene, o.samples, [&solution](std::uint32_t c, Side side, double u) { return solution.radiosity(c, side, u); });
+      reference = {{"flatland_result", 1}, {"curves", curves_to_json(sampled)}};
+      Result<ErrorNorms> estimate = estimate_reference_error(*scene, settings, o.samples, sampled);
       if (interrupt_flag().load()) return interrupted();
       if (estimate) floor = estimate->l2;
     }

@@ -74,9 +74,9 @@ void warn_about_reference_size(const Scene& scene, const ReferenceSettings& sett
 }  // namespace
 
 Result<ErrorNorms> estimate_reference_error(const Scene& scene, ReferenceSettings settings,
-                                            int samples, const nlohmann::json& curves) {
+                                            int samples, const SampledResult& fine) {
   // Solves at 2h and 4h and extrapolates with the observed order (docs/reference.md).
-  Result<ReferenceErrorEstimate> estimate = estimate_discretisation_error(scene, settings, samples, curves);
+  Result<ReferenceErrorEstimate> estimate = estimate_discretisation_error(scene, settings, samples, fine);
   if (!estimate) return estimate.error();
   return estimate->error;
 }
@@ -116,9 +116,10 @@ int run_reference(ReferenceOptions& o) {
   if (!solution) return reference_failure(solution.error());
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   const ReferenceSolution& reference = *solution;
-  const nlohmann::json curves = sampled_curves_to_json(
+  const SampledResult sampled = sample_radiosity(
       *scene, o.samples,
       [&reference](std::uint32_t c, Side side, double u) { return reference.radiosity(c, side, u); });
+  const nlohmann::json curves = curves_to_json(sampled);
   std::optional<ReferenceErrorEstimate> estimated;
   if (o.estimate_error) {
     const auto starting = [&](int level) {
@@ -128,7 +129,7 @@ int run_reference(ReferenceOptions& o) {
       phase_start = std::chrono::steady_clock::now();
     };
     Result<ReferenceErrorEstimate> estimate =
-        estimate_discretisation_error(*scene, o.settings, o.samples, curves, starting);
+        estimate_discretisation_error(*scene, o.settings, o.samples, sampled, starting);
     line.finish();
     if (!estimate) return reference_failure(estimate.error());
     estimated = *estimate;

@@ -78,9 +78,9 @@ struct ReferenceOptions {
 };
 // The reference's own error, estimated from two more solves with elements twice and four times as
 // long: |R_2h - R_h| / (2^p - 1) with the order p observed from the three (docs/reference.md);
-// `curves` are the samples of R_h (sampled_curves_to_json).
+// `fine` is the samples of R_h (sample_radiosity).
 Result<ErrorNorms> estimate_reference_error(const Scene& scene, ReferenceSettings settings,
-                                            int samples, const nlohmann::json& curves);
+                                            int samples, const SampledResult& fine);
 CLI::App* add_reference_command(CLI::App& parent, ReferenceOptions& options);
 int run_reference(ReferenceOptions& options);
 

@@ -1108,15 +1108,6 @@ ReferenceErrorEstimate estimate_from_differences(const ErrorNorms& fine, const E
 
 Result<ReferenceErrorEstimate> estimate_discretisation_error(const Scene& scene,
                                                               const ReferenceSettings& settings,
-                                                              int samples, const nlohmann::json& curves,
-                                                              const std::function<void(int level)>& starting) {
-  Result<SampledResult> sampled = sampled_from_json({{"flatland_result", 1}, {"curves", curves}}, "the reference");
-  if (!sampled) return sampled.error();
-  return estimate_discretisation_error(scene, settings, samples, *sampled, starting);
-}
-
-Result<ReferenceErrorEstimate> estimate_discretisation_error(const Scene& scene,
-                                                              const ReferenceSettings& settings,
                                                               int samples, const SampledResult& fine,
                                                               const std::function<void(int level)>& starting) {
   const double length =

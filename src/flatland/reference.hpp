@@ -217,13 +217,9 @@ ReferenceErrorEstimate estimate_from_differences(const ErrorNorms& fine, const E
                                                  double round_off);
 
 // Solves at 2h and 4h (h = settings' element length; the settings' progress and cancel apply to
-// both), samples them like `curves` (the samples of R_h, from sampled_curves_to_json with
-// `samples` per curve) and estimates R_h's error. `starting(level)` is called before the solve
-// at 2^level h (level 1, 2). Returns kReferenceCancelled when cancelled.
-Result<ReferenceErrorEstimate> estimate_discretisation_error(
-    const Scene& scene, const ReferenceSettings& settings, int samples, const nlohmann::json& curves,
-    const std::function<void(int level)>& starting = {});
-// The same from R_h's samples as data (sample_radiosity).
+// both), samples them like `fine` (the samples of R_h, sample_radiosity with `samples` per curve)
+// and estimates R_h's error. `starting(level)` is called before the solve at 2^level h (level 1,
+// 2). Returns kReferenceCancelled when cancelled.
 Result<ReferenceErrorEstimate> estimate_discretisation_error(
     const Scene& scene, const ReferenceSettings& settings, int samples, const SampledResult& fine,
     const std::function<void(int level)>& starting = {});

@@ -29,11 +29,6 @@ nlohmann::json program_to_json() {
   return {{"name", "flatland"}, {"version", program_version()}, {"commit", program_commit()}};
 }
 
-nlohmann::json sampled_curves_to_json(const Scene& scene, int samples_per_curve,
-                                      const RadiosityFunction& radiosity) {
-  return curves_to_json(sample_radiosity(scene, samples_per_curve, radiosity));
-}
-
 nlohmann::json result_to_json(const Solver& solver, int samples_per_curve) {
   const Scene& scene = solver.scene();
   const SolverSettings& settings = solver.settings();

@@ -23,17 +23,12 @@ namespace flatland {
 nlohmann::json result_to_json(const Solver& solver, int samples_per_curve);
 
 // The document `flatland reference --out` writes: the reference's settings and statistics, its
-// estimated error when `estimate` is given, and `curves` (sampled_curves_to_json of its radiosity).
+// estimated error when `estimate` is given, and `curves` (curves_to_json of its samples).
 nlohmann::json reference_result_to_json(const Scene& scene, const ReferenceSettings& settings,
                                         const ReferenceSolution& solution, int samples_per_curve,
                                         double seconds, const ReferenceErrorEstimate* estimate,
                                         const nlohmann::json& curves);
 
-// The "curves" array of a result for any method: per curve id, length, sides and K samples of
-// the radiosity given by `radiosity(curve, side, u)` (B of the main side, B_back on two-sided
-// curves).
-nlohmann::json sampled_curves_to_json(const Scene& scene, int samples_per_curve,
-                                      const RadiosityFunction& radiosity);
 // The "stats" entry of a solver's result.
 nlohmann::json stats_to_json(const ResultStats& stats);
 // The "scene" entry of a result.

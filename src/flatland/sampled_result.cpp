@@ -149,6 +149,18 @@ nlohmann::json curves_to_json(const SampledResult& result) {
   return curves;
 }
 
+Status check_reference_of(const SampledResult& reference, const Scene& scene, int samples) {
+  bool same = reference.curves.size() == scene.curves.size();
+  for (std::size_t c = 0; same && c < scene.curves.size(); ++c) same = reference.curves[c].id == scene.curves[c].id;
+  if (!same)
+    return Error{"the reference describes another scene than " + scene.source +
+                 " (its curves differ); solve the reference from the same scene file"};
+  if (samples > 0 && !reference.curves.empty() && reference.curves[0].samples.size() != static_cast<std::size_t>(samples))
+    return Error{"the reference has " + std::to_string(reference.curves[0].samples.size()) + " samples per curve, the runs " +
+                 std::to_string(samples)};
+  return ok_status();
+}
+
 Result<SampledResult> sampled_from_json(const nlohmann::json& document, const std::string& what,
                                         const std::string& suffix) {
   if (!document.is_object() || !document.contains("flatland_result") || !document.contains("curves") ||

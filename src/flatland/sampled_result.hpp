@@ -84,4 +84,9 @@ nlohmann::json curves_to_json(const SampledResult& result);
 Result<SampledResult> sampled_from_json(const nlohmann::json& document, const std::string& what,
                                         const std::string& suffix = "");
 
+// Whether `reference` is of `scene` (its curves' ids, in order) and, when `samples` > 0, sampled
+// `samples` times per curve; the error says what differs ("the reference describes another scene
+// than FILE ..." or "the reference has N samples per curve, the runs M").
+Status check_reference_of(const SampledResult& reference, const Scene& scene, int samples = 0);
+
 }  // namespace flatland

@@ -294,10 +294,11 @@ std::string reference(const PyScene& scene, int samples, double max_element_leng
   }
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   const ReferenceSolution& r = *solution;
-  const nlohmann::json curves = sampled_curves_to_json(
+  const SampledResult sampled = sample_radiosity(
       *scene.scene, samples, [&r](std::uint32_t c, Side side, double u) { return r.radiosity(c, side, u); });
+  const nlohmann::json curves = curves_to_json(sampled);
   std::optional<ReferenceErrorEstimate> estimate;
-  if (estimate_error) estimate = value_or_fail(estimate_discretisation_error(*scene.scene, settings, samples, curves));
+  if (estimate_error) estimate = value_or_fail(estimate_discretisation_error(*scene.scene, settings, samples, sampled));
   return json_text(reference_result_to_json(*scene.scene, settings, r, samples, seconds,
                                             estimate ? &*estimate : nullptr, curves));
 }
@@ -393,12 +394,10 @@ py::list converge(const PyScene& scene, const std::vector<std::string>& methods,
                                 [&r](std::uint32_t c, Side side, double u) { return r.radiosity(c, side, u); });
   }
   // The reference must be of this scene, sampled as the runs will be: said before any run.
-  bool same = document.curves.size() == scene.scene->curves.size();
-  for (std::size_t c = 0; same && c < document.curves.size(); ++c) same = document.curves[c].id == scene.scene->curves[c].id;
-  if (!same) fail("reference: it describes another scene than " + scene.scene->source + " (its curves differ)");
-  if (!document.curves.empty() && document.curves[0].samples.size() != static_cast<std::size_t>(samples))
-    fail("reference: it has " + std::to_string(document.curves[0].samples.size()) + " samples per curve, the runs " +
-         std::to_string(samples) + "; pass samples=" + std::to_string(document.curves[0].samples.size()));
+  if (Status status = check_reference_of(document, *scene.scene, samples); !status)
+    fail("reference: " + status.error().message +
+         (check_reference_of(document, *scene.scene) ? "; pass samples=" + std::to_string(document.curves[0].samples.size())
+                                                     : std::string()));
   {
     const Comparison self = value_or_fail(compare_sampled(document, document, measured));
     if (curve_index && !self.curves.at(*curve_index).measured)

@@ -148,12 +148,8 @@ Result<std::unique_ptr<Viewer>> Viewer::create(const ViewOptions& options) {
     Result<SampledResult> sampled = sampled_from_json(document, "the reference");
     if (!sampled) return Error{"--reference: " + options.reference + ": " + sampled.error().message};
     // The same scene: its curves, by id, in order (compare checks the rest as the solve goes).
-    const Scene& loaded = *viewer->scene_;
-    bool same = sampled->curves.size() == loaded.curves.size();
-    for (std::size_t c = 0; same && c < loaded.curves.size(); ++c) same = sampled->curves[c].id == loaded.curves[c].id;
-    if (!same)
-      return Error{options.reference + ": the reference describes another scene than " + viewer->scene_path_ +
-                   " (its curves differ); solve the reference from the same scene file"};
+    if (Status status = check_reference_of(*sampled, *viewer->scene_); !status)
+      return Error{options.reference + ": " + status.error().message};
     reference = std::make_shared<const SampledResult>(std::move(*sampled));
     viewer->reference_path_ = options.reference;
   }
