@@ -88,12 +88,18 @@ double distance_to_segment(const SceneSegment& segment, Vec2 p) {
 // Where segment a runs along segment b: three consecutive of 16 sample points of a (a stretch of
 // at least an eighth of a) within `tolerance` of b. Crossings and tangential contacts touch b at
 // isolated points only, so they never give three in a row.
-std::optional<Vec2> runs_along(const SceneSegment& a, const SceneSegment& b, double tolerance) {
+// A point outside b's control-point box grown by the tolerance is farther than that from b; the
+// box test spares the closest-point search for most samples of neighbouring segments.
+std::optional<Vec2> runs_along(const SceneSegment& a, const SceneSegment& b, const Box& b_box,
+                               double tolerance) {
   constexpr int kSamples = 16;
   int run = 0;
   for (int k = 0; k < kSamples; ++k) {
     const Vec2 p = evaluate(a.geometry.shape, (k + 0.5) / kSamples);
-    run = distance_to_segment(b, p) <= tolerance ? run + 1 : 0;
+    const bool near = p.x >= b_box.lower.x - tolerance && p.x <= b_box.upper.x + tolerance &&
+                      p.y >= b_box.lower.y - tolerance && p.y <= b_box.upper.y + tolerance &&
+                      distance_to_segment(b, p) <= tolerance;
+    run = near ? run + 1 : 0;
     if (run == 3) return evaluate(a.geometry.shape, (k - 0.5) / kSamples);
   }
   return std::nullopt;
@@ -123,11 +129,13 @@ Status check_overlaps(const Scene& scene) {
     for (const std::uint32_t j : active) {
       const Box& other = boxes[j];
       if (other.upper.y + rounding < box.lower.y || box.upper.y + rounding < other.lower.y) continue;
-      const SceneSegment& a = segments[std::min(i, j)];
-      const SceneSegment& b = segments[std::max(i, j)];
+      const std::uint32_t ia = std::min(i, j);
+      const std::uint32_t ib = std::max(i, j);
+      const SceneSegment& a = segments[ia];
+      const SceneSegment& b = segments[ib];
       const double tolerance = 1e-9 * std::min(a.length, b.length) + rounding;
-      std::optional<Vec2> where = runs_along(a, b, tolerance);
-      if (!where) where = runs_along(b, a, tolerance);
+      std::optional<Vec2> where = runs_along(a, b, boxes[ib], tolerance);
+      if (!where) where = runs_along(b, a, boxes[ia], tolerance);
       if (!where) continue;
       const Curve& ca = scene.curves[a.curve];
       const Curve& cb = scene.curves[b.curve];

@@ -111,6 +111,10 @@ std::string quoted_list(const std::vector<std::string>& names) {
 // The position scanner: a walk over JSON text that records, per field path, where each value and
 // each object key begins. It runs on text nlohmann has accepted (or accepted up to an overflowing
 // number), keeps an explicit stack instead of recursing, and stops quietly on anything unexpected.
+// Without `record` it only looks for what nlohmann lets through (duplicate keys, nesting too deep)
+// and builds no paths: a scene file is scanned that way first, and positions are recorded only
+// when a message needs one (a path string and two map entries per number would be most of the
+// time a large scene takes to load).
 
 struct DuplicateKey {
   std::string object_path;
@@ -197,7 +201,7 @@ void append_utf8(std::string& out, std::uint32_t code) {
 
 class TextScanner {
  public:
-  explicit TextScanner(std::string_view text) : text_(text) {}
+  TextScanner(std::string_view text, bool record) : text_(text), record_(record) {}
 
   TextMap scan() {
     if (text_.substr(0, 3) == "\xEF\xBB\xBF") pos_ = 3;  // a UTF-8 byte order mark
@@ -207,7 +211,7 @@ class TextScanner {
       skip_space();
       if (pos_ >= text_.size()) return std::move(map_);
       if (expect_value) {
-        map_.values.emplace(path, pos_);
+        if (record_) map_.values.emplace(path, pos_);
         const char ch = text_[pos_];
         if (ch == '{' || ch == '[') {
           if (stack_.size() >= kMaxDepth) {
@@ -223,7 +227,7 @@ class TextScanner {
             expect_value = false;
           } else if (ch == '{') {
             if (!read_member_key(path)) return std::move(map_);
-          } else {
+          } else if (record_) {
             path = append_index(stack_.back().path, 0);
           }
           continue;
@@ -237,7 +241,7 @@ class TextScanner {
             ++pos_;
           }
           const std::string_view token = text_.substr(start, pos_ - start);
-          if (!map_.overflow && overflows(token)) {
+          if (record_ && !map_.overflow && overflows(token)) {
             map_.overflow = NumberOverflow{path, std::string(token), start};
           }
         }
@@ -251,7 +255,7 @@ class TextScanner {
         Frame& frame = stack_.back();
         if (frame.object) {
           if (!read_member_key(path)) return std::move(map_);
-        } else {
+        } else if (record_) {
           path = append_index(frame.path, ++frame.count);
         }
         expect_value = true;
@@ -288,8 +292,10 @@ class TextScanner {
     if (pos_ >= text_.size() || text_[pos_] != ':') return false;
     ++pos_;
     Frame& frame = stack_.back();
-    path = append_key(frame.path, key);
-    map_.keys.emplace(path, key_offset);
+    if (record_) {
+      path = append_key(frame.path, key);
+      map_.keys.emplace(path, key_offset);
+    }
     const auto [where, inserted] = frame.seen.emplace(key, key_offset);
     if (!inserted && !map_.duplicate) {
       map_.duplicate = DuplicateKey{frame.path, key, key_offset, where->second};
@@ -346,6 +352,7 @@ class TextScanner {
   }
 
   std::string_view text_;
+  bool record_ = true;
   std::size_t pos_ = 0;
   std::vector<Frame> stack_;
   TextMap map_;
@@ -377,21 +384,24 @@ class SceneReader {
                          strip_library_prefix(e.what())};
     } catch (const Json::out_of_range&) {
       // nlohmann refuses numbers beyond double's range (id 406) without a position: find it.
-      map_ = TextScanner(text_).scan();
-      if (map_.overflow) {
-        fail(map_.overflow->path, "the number " + map_.overflow->token +
+      map_ = TextScanner(text_, true).scan();
+      if (map_->overflow) {
+        fail(map_->overflow->path, "the number " + map_->overflow->token +
                                       " is too large for a double (it overflows to infinity); "
                                       "use a finite value");
       }
       throw ParseFailure{source_ + ": a number is too large for a double; use finite values"};
     }
-    map_ = TextScanner(text_).scan();
-    if (map_.too_deep) {
-      throw ParseFailure{at_offset(*map_.too_deep) + "values nested more than " +
+    {
+      const TextMap check = TextScanner(text_, false).scan();
+      if (check.too_deep || check.duplicate) map_ = TextScanner(text_, true).scan();
+    }
+    if (map_ && map_->too_deep) {
+      throw ParseFailure{at_offset(*map_->too_deep) + "values nested more than " +
                          std::to_string(kMaxDepth) + " deep; a scene file needs four levels"};
     }
-    if (map_.duplicate) {
-      const DuplicateKey& d = *map_.duplicate;
+    if (map_ && map_->duplicate) {
+      const DuplicateKey& d = *map_->duplicate;
       const TextPosition first = position_of(text_, d.first_offset);
       throw ParseFailure{at_offset(d.offset) + (d.object_path.empty() ? "" : d.object_path + ": ") +
                          "duplicate key " + quote(d.key) + " (first at line " +
@@ -418,11 +428,13 @@ class SceneReader {
   }
 
   // "SOURCE:LINE:COLUMN: " for the value (or with at_key, the key) at path; "SOURCE: " if unknown.
+  // Positions are recorded on the first message that needs one.
   std::string prefix(const std::string& path, bool at_key) const {
+    if (!map_) map_ = TextScanner(text_, true).scan();
     if (at_key) {
-      if (const auto it = map_.keys.find(path); it != map_.keys.end()) return at_offset(it->second);
+      if (const auto it = map_->keys.find(path); it != map_->keys.end()) return at_offset(it->second);
     }
-    if (const auto it = map_.values.find(path); it != map_.values.end()) return at_offset(it->second);
+    if (const auto it = map_->values.find(path); it != map_->values.end()) return at_offset(it->second);
     return source_ + ": ";
   }
 
@@ -547,6 +559,16 @@ class SceneReader {
       fail(path, "must be 0 or between 1e-100 and 1e100 (power per unit length), got " +
                      format_number(x) + "; choose the unit of power so that it is");
     }
+  }
+
+  // A point of a curve; its path is spelled out only for a message (most of a large scene's
+  // values are points).
+  Vec2 point(const Json& v, const std::string& points_path, std::size_t k) const {
+    if (v.is_array() && v.size() == 2 && v[0].is_number() && v[1].is_number()) {
+      const Vec2 p{v[0].get<double>(), v[1].get<double>()};
+      if (std::isfinite(p.x) && std::isfinite(p.y)) return p;
+    }
+    return point(v, append_index(points_path, k));
   }
 
   Vec2 point(const Json& v, const std::string& path) const {
@@ -711,7 +733,7 @@ class SceneReader {
     }
     curve.kind = has_line ? SegmentKind::Line : SegmentKind::Cubic;
     for (std::size_t k = 0; k < points.size(); ++k) {
-      curve.points.push_back(point(points[k], append_index(points_path, k)));
+      curve.points.push_back(point(points[k], points_path, k));
     }
     std::size_t segments = 0;
     if (has_line) {
@@ -826,7 +848,7 @@ class SceneReader {
   std::string_view text_;
   std::string source_;
   int version_ = kSceneFormatVersion;  // of the file being read
-  TextMap map_;
+  mutable std::optional<TextMap> map_;  // positions, recorded when a message needs one
   std::unordered_map<std::string, std::uint32_t> material_index_;
   std::vector<std::string> material_names_;
 };
