@@ -235,14 +235,14 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
   solver.block_offset_.assign(scene.curves.size() * 2, kNoBlock);
   solver.block_reflectivity_.assign(scene.curves.size() * 2, Spectrum{});
   solver.block_black_.assign(scene.curves.size() * 2, 0);
-  for (std::uint32_t c = 0; c < scene.curves.size(); ++c) {
-    if (cancelled()) return Error{kSolverCancelled};
+  // Every curve's storage and its coarser levels, built on the solver's workers (each curve's
+  // own, so the result does not depend on the thread count).
+  const bool smooth = settings.discontinuities == DiscontinuityMode::None;
+  std::vector<std::vector<Level>> built_levels(scene.curves.size());
+  std::vector<CurveStorage> built(scene.curves.size());
+  solver.worker_pool().for_each(scene.curves.size(), [&](std::size_t c) {
+    if (cancelled()) return;
     const Curve& curve = scene.curves[c];
-    std::vector<double> lengths;
-    for (std::uint32_t i = 0; i < curve.segment_count; ++i)
-      lengths.push_back(scene.segments[curve.first_segment + i].length);
-    solver.segment_choice_.emplace_back(lengths);
-    const bool smooth = settings.discontinuities == DiscontinuityMode::None;
     // Footprints spread every deposit over the ray's width, so the deposited density is smooth on
     // that scale: elements shorter than kFootprintFinestElement x the width resolve only the
     // spread, while each hit pays for every span it covers. Auto storage stops refining where the
@@ -259,20 +259,28 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
                                      kFootprintFinestElement * settings.ray_width)
         --curve_finest;
     }
-    solver.storage_.push_back(
-        build_curve_storage(scene, curve, settings.basis, elements, smooth, events[c], curve_finest));
-    if (settings.estimator == Estimator::Local)
-      build_local_estimator(scene, curve, solver.storage_.back(), hermite);
+    built[c] = build_curve_storage(scene, curve, settings.basis, elements, smooth, events[c], curve_finest);
+    if (settings.estimator == Estimator::Local) build_local_estimator(scene, curve, built[c], hermite);
     // The coarser levels, each with its restriction from the finest.
-    std::vector<Level>& levels = solver.levels_.emplace_back();
+    std::vector<Level>& levels = built_levels[c];
     for (int level = 0; level < curve_finest; ++level) {
-      if (cancelled()) return Error{kSolverCancelled};
+      if (cancelled()) return;
       Level& coarse = levels.emplace_back();
       coarse.storage = build_curve_storage(scene, curve, settings.basis, elements, smooth, events[c], level);
       if (settings.estimator == Estimator::Local) build_local_estimator(scene, curve, coarse.storage, hermite);
-      coarse.restriction = restriction_between(coarse.storage.basis, solver.storage_.back().basis);
+      coarse.restriction = restriction_between(coarse.storage.basis, built[c].basis);
     }
-    solver.chosen_level_.push_back(static_cast<int>(levels.size()));
+  });
+  if (cancelled()) return Error{kSolverCancelled};
+  solver.storage_ = std::move(built);
+  solver.levels_ = std::move(built_levels);
+  for (std::uint32_t c = 0; c < scene.curves.size(); ++c) {
+    const Curve& curve = scene.curves[c];
+    std::vector<double> lengths;
+    for (std::uint32_t i = 0; i < curve.segment_count; ++i)
+      lengths.push_back(scene.segments[curve.first_segment + i].length);
+    solver.segment_choice_.emplace_back(lengths);
+    solver.chosen_level_.push_back(static_cast<int>(solver.levels_[c].size()));
     const Material& material = scene.material_of(curve);
     for (Side side : {Side::Front, Side::Back}) {
       if (!curve.has_side(side)) continue;
@@ -420,6 +428,11 @@ void Solver::estimate(const std::vector<double>& power, std::vector<double>& coe
     for (Side side : {Side::Front, Side::Back}) {
       const std::uint32_t offset = block_offset(c, side);
       if (offset == kNoBlock) continue;
+      // Every estimator is linear: a side that holds no power (most sides of a large scene in a
+      // round of a few photons) keeps its zero coefficients without a solve.
+      const std::size_t n = storage_[c].basis.size();
+      const double* block = &power[offset * channels];
+      if (std::all_of(block, block + n * channels, [](double x) { return x == 0.0; })) continue;
       for (std::size_t ch = 0; ch < channels; ++ch) {
         const std::size_t first = offset * channels + ch;
         estimate_at_level(c, chosen_level_[c], &power[first], &coefficients[first], channels);
@@ -448,6 +461,15 @@ void Solver::choose_levels(const std::vector<double>& received, const std::vecto
     const CurveStorage& fine = storage_[c];
     const std::size_t n = fine.basis.size();
     const auto count = static_cast<std::size_t>(finest) + 1;
+    // A curve that received nothing keeps its level (as one whose reflected power is zero does).
+    bool received_any = false;
+    for (Side side : {Side::Front, Side::Back}) {
+      const std::uint32_t offset = block_offset(c, side);
+      if (offset == kNoBlock) continue;
+      const double* block = &received[offset * channels];
+      received_any = received_any || std::any_of(block, block + n * channels, [](double x) { return x != 0.0; });
+    }
+    if (!received_any) continue;
     // [level][side][k]: full, A and B estimates, prolonged into the fine basis.
     std::vector<std::vector<double>> full(count), part_a(count), part_b(count);
     std::size_t sides = 0;
@@ -1348,11 +1370,7 @@ std::uint64_t Solver::step_photons(std::uint64_t max_photons, const std::atomic<
         }
       }
     };
-    {
-      std::vector<std::jthread> pool;
-      for (unsigned w = 1; w < workers; ++w) pool.emplace_back(work, std::ref(round_deposits_[w]), false);
-      work(round_deposits_[0], true);
-    }
+    worker_pool().run(workers, [&](unsigned w) { work(round_deposits_[w], w == 0); });
     if (sharing_ != nullptr) {
       const auto [all_done, any_aborted] = share_round(photons_done.load(), aborted.load());
       photons_done.store(all_done);

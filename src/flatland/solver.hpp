@@ -34,6 +34,7 @@
 #include "flatland/sampling.hpp"
 #include "flatland/scene.hpp"
 #include "flatland/summation.hpp"
+#include "flatland/workers.hpp"
 
 namespace flatland {
 
@@ -482,6 +483,10 @@ class Solver {
   bool round_open_ = false;
   std::uint64_t round_done_ = 0;            // photons of the open round shot so far
   std::vector<Accumulator> round_deposits_;  // per worker thread, for the open round
+  // The threads that shoot (and build the storage), started on first use and kept for the
+  // solver's life (a copy of the solver starts its own).
+  LazyWorkerPool pool_;
+  WorkerPool& worker_pool() { return pool_.get(threads_); }
   std::optional<Rng> partial_batch_rng_;     // stream of a batch left half done by a step
   RoundSharing* sharing_ = nullptr;
   std::uint64_t bytes_shared_ = 0;
