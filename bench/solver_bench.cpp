@@ -134,6 +134,66 @@ void CubicsStorage(benchmark::State& state) {
   solve(state, Layout::Cubics, settings);
 }
 
+// Scene set-up at scale: a square room with a lamp under its ceiling and a grid of wavy
+// two-sided cubic curves, `segments` cubic segments in all, `per_curve` to a curve (1: as many
+// curves as segments, the worst case for per-curve work; 256: long curves).
+std::string make_large_scene(int segments, int per_curve) {
+  const int curves = segments / per_curve;
+  const int side = static_cast<int>(std::ceil(std::sqrt(static_cast<double>(curves))));
+  std::string text = R"({"flatland": 2, "materials": {"wall": {"reflectivity": 0.6},
+    "lamp": {"reflectivity": 0, "emittance": 1}}, "curves": [
+    {"id": "walls", "material": "wall", "line": [[0,0],[10,0],[10,10],[0,10],[0,0]]},
+    {"id": "lamp", "material": "lamp", "line": [[5.5,9.5],[4.5,9.5]]})";
+  for (int k = 0; k < curves; ++k) {
+    const double cx = 0.5 + 9.0 * ((k % side) + 0.5) / side;
+    const double cy = 0.5 + 8.5 * ((k / side) + 0.5) / side;
+    const double width = 9.0 / side * 0.7;
+    std::vector<Point> corners;
+    for (int i = 0; i <= per_curve; ++i) {
+      const double t = static_cast<double>(i) / per_curve;
+      corners.emplace_back(cx - width / 2 + width * t, cy + 0.1 * width * std::sin(6 * std::numbers::pi * t));
+    }
+    text += ",{\"id\": \"c" + std::to_string(k) + "\", \"material\": \"wall\", \"sides\": \"both\", " +
+            "\"bezier\": [" + chain(Layout::Cubics, corners, 0.1) + "]}";
+  }
+  return text + "]}";
+}
+
+// Reading the scene: parse, check (overlaps included) and precompute its segments.
+void SetupLoad(benchmark::State& state) {
+  const std::string text = make_large_scene(static_cast<int>(state.range(0)), static_cast<int>(state.range(1)));
+  for (auto _ : state) {
+    Result<Scene> scene = parse_scene(text, "benchmark");
+    if (!scene) {
+      state.SkipWithError(scene.error().message.c_str());
+      return;
+    }
+    benchmark::DoNotOptimize(scene->segments.data());
+  }
+}
+
+// Solver::create at default settings on 2 threads (1e6 photons): the tree, contacts and
+// discontinuity events, every curve's storage levels and samplers.
+void SetupSolver(benchmark::State& state) {
+  Result<Scene> scene =
+      parse_scene(make_large_scene(static_cast<int>(state.range(0)), static_cast<int>(state.range(1))), "benchmark");
+  if (!scene) {
+    state.SkipWithError(scene.error().message.c_str());
+    return;
+  }
+  SolverSettings settings;
+  settings.photons = 1'000'000;
+  settings.threads = 2;
+  for (auto _ : state) {
+    Result<Solver> solver = Solver::create(*scene, settings);
+    if (!solver) {
+      state.SkipWithError(solver.error().message.c_str());
+      return;
+    }
+    benchmark::DoNotOptimize(solver->coefficient_count());
+  }
+}
+
 // Arguments: threads, then positions (0 uniform in arc length, 1 reconstructed).
 BENCHMARK(Cubics)->ArgsProduct({{1, 2}, {0, 1}})->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(Lines)->ArgsProduct({{1, 2}, {0, 1}})->Unit(benchmark::kMillisecond)->UseRealTime();
@@ -144,5 +204,8 @@ BENCHMARK(CubicsRays)->ArgsProduct({{1, 2}, {0, 1, 2}, {0, 1}})->Unit(benchmark:
 BENCHMARK(CubicsStorage)->ArgsProduct({{1}, {4, 64, 1024, 4096}})->Unit(benchmark::kMillisecond)->UseRealTime();
 
 }  // namespace
+
+BENCHMARK(SetupLoad)->ArgsProduct({{65536}, {1, 256}})->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(SetupSolver)->ArgsProduct({{65536}, {1, 256}})->Unit(benchmark::kMillisecond)->UseRealTime();
 
 BENCHMARK_MAIN();
