@@ -182,7 +182,6 @@ BasisSampler::BasisSampler(const SplineBasis& basis) {
   periodic_ = basis.is_periodic();
   u_begin_ = basis.u_begin();
   u_end_ = basis.u_end();
-  pieces_.reserve(basis.size() * static_cast<std::size_t>(p + 1));
   for (std::size_t k = 0; k < basis.size(); ++k) {
     first_piece_[k] = static_cast<std::uint32_t>(pieces_.size());
     double cumulative = 0.0;
