@@ -34,7 +34,8 @@ struct RayOrigin {
   double t = 0.0;
 };
 
-// The segment's bounding box: its two ends for a line, the control points' hull box for a cubic.
+// The segment's bounding box: its two ends for a line, the curve's tight box (end points and the
+// extrema of x(t) and y(t)) for a cubic.
 Box segment_box(const SegmentGeometry& g);
 
 class SegmentAccelerator {
