@@ -1,5 +1,7 @@
 #include "flatland/solver.hpp"
 
+#include "flatland/origins.hpp"
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -9,6 +11,7 @@
 #include <numeric>
 #include <thread>
 
+#include "flatland/origins.hpp"
 #include "flatland/qmc.hpp"
 #include "flatland/resources.hpp"
 #include "flatland/text.hpp"
@@ -201,8 +204,9 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
     info.curve = segment.curve;
     info.index_in_curve = segment.index_in_curve;
     info.kind = segment.geometry.kind;
-    if (info.kind == SegmentKind::Line)
-      info.line_tangent = normalized(segment.geometry.shape.p[3] - segment.geometry.shape.p[0]);
+    solver.line_tangents_.push_back(
+        info.kind == SegmentKind::Line ? normalized(segment.geometry.shape.p[3] - segment.geometry.shape.p[0])
+                                       : Vec2{});
     solver.segment_info_.push_back(info);
   }
   solver.accelerator_ = SegmentAccelerator(std::move(geometry));
@@ -770,12 +774,6 @@ void Solver::shoot(Rng& rng, std::uint64_t first, std::uint64_t count, Accumulat
   // proposal from the point and any further ones from the batch's stream: each photon's uniforms
   // are still independent and uniform, so the estimate stays unbiased, and the nets stratify the
   // proposals that are accepted first (all of them on a straight segment of uniform emittance).
-  constexpr int kPlace = 0;
-  constexpr int kDirection = 1;
-  constexpr int kPiece = 2;
-  constexpr int kAcceptSpeed = 3;
-  constexpr int kAcceptProfile = 4;
-  constexpr int kAcceptLobe = 5;
   static_assert(kAcceptLobe < kSobolDimensions);
   const bool qmc = settings_.sampler == SamplerKind::Sobol;
   // With auto storage the round's photons form two halves, even and odd numbers, whose spread
@@ -790,8 +788,6 @@ void Solver::shoot(Rng& rng, std::uint64_t first, std::uint64_t count, Accumulat
   // Consecutive photons of a half take consecutive points: one XOR per dimension each.
   SobolCursor cursor(sobol);
   SobolCursor cursor_odd(sobol_odd);
-  // A parameter from what is left of kPlace, inside (0, 1) as Rng::uniform_open's.
-  auto open = [](double rest) { return std::max(rest, 0x1.0p-54); };
   for (std::uint64_t i = 0; i < count; ++i) {
     const auto index = static_cast<std::uint32_t>(first + i);  // < kMaxPhotonsPerRound
     // Auto storage: odd-numbered photons deposit into the accumulator's second half.
@@ -814,104 +810,25 @@ void Solver::shoot(Rng& rng, std::uint64_t first, std::uint64_t count, Accumulat
     const std::array<std::int64_t, 3>& units = round_.photon_units[source];
     for (std::size_t ch = 0; ch < channels; ++ch) acc.shot[ch] += units[ch];
 
-    std::uint32_t segment_index = 0;
-    double t = 0.0;
-    Vec2 origin;
-    Vec2 tangent;
-    // Emitted light of a curve with an emittance profile (first round only) starts exactly where
-    // the profile says: uniform in arc length, accepted with probability E(u) / max E.
-    // (Every walk starts as emitted light.)
+    // Where the photon leaves (origins.hpp): emitted light of a curve with an emittance profile
+    // (first round only, and every walk) where the profile says, reflected light where the
+    // unshot density is (a coefficient's basis function or the Hermite reconstruction), or
+    // uniformly in arc length.
     const bool emitted_light = rounds_ == 0 || walk_;
-    const bool profiled = emitted_light && !curve.emittance_profile.empty();
-    if (profiled) {
-      for (int attempt = 0;; ++attempt) {
-        const bool from_point = qmc && attempt == 0;
-        double along = 0.0;
-        segment_index = curve.first_segment +
-                        static_cast<std::uint32_t>(
-                            from_point ? segment_choice_[curve_index].sample(place, along)
-                                       : segment_choice_[curve_index].sample(rng.uniform()));
-        const Cubic& shape = scene_->segments[segment_index].geometry.shape;
-        t = from_point ? open(along) : rng.uniform_open();
-        const Vec2 velocity = derivative(shape, t);
-        const double speed = length(velocity);
-        if (!((from_point ? quasi(kAcceptSpeed) : rng.uniform()) *
-                  scene_->segments[segment_index].speed_bound < speed))
-          continue;
-        const double u = (segment_index - curve.first_segment) + t;
-        if (!((from_point ? quasi(kAcceptProfile) : rng.uniform()) * curve.profile_max <
-              emittance_factor(curve, u)))
-          continue;
-        tangent = (1.0 / speed) * velocity;
-        origin = evaluate(shape, t);
-        break;
-      }
-    } else if (by_coefficient) {
-      // Density proportional to the unshot radiosity per unit arc length: coefficient k was
-      // chosen by its power U_k = b_k integral(phi_k ds), so the position must follow
-      // phi_k(u) |C'(u)|: u from phi_k in the curve parameter, accepted with |C'(u)| / max|C'|.
-      const std::size_t k = source - block_offset_[block];
-      const CurveStorage& storage = storage_[curve_index];
-      for (int attempt = 0;; ++attempt) {
-        // Sobol': the place inside the piece from kPlace (for constant storage, whose basis
-        // functions have one piece, the whole origin is then one stratified coordinate).
-        const bool from_point = qmc && attempt == 0;
-        const double u = from_point ? storage.sampler.sample(k, quasi(kPiece), place)
-                                    : storage.sampler.sample(k, rng.uniform(), rng.uniform());
-        const auto local = static_cast<std::uint32_t>(
-            std::min<double>(std::floor(u), curve.segment_count - 1.0));
-        segment_index = curve.first_segment + local;
-        t = u - local;
-        const Vec2 velocity = derivative(scene_->segments[segment_index].geometry.shape, t);
-        const double speed = length(velocity);
-        if ((from_point ? quasi(kAcceptSpeed) : rng.uniform()) * storage.speed_bound[k] < speed) {
-          tangent = (1.0 / speed) * velocity;
-          break;
-        }
-      }
-      origin = evaluate(scene_->segments[segment_index].geometry.shape, t);
-      if (segment_info_[segment_index].kind == SegmentKind::Line)
-        tangent = segment_info_[segment_index].line_tangent;
-    } else if (sample_hermite_) {
-      // Density proportional to the Hermite reconstruction of the unshot radiosity, which lives
-      // in arc length already: no Jacobian, the inverse of s(t) places the point.
-      const double s = qmc ? hermite_unshot_[block].sample(quasi(kPiece), place)
-                           : hermite_unshot_[block].sample(rng.uniform(), rng.uniform());
-      const CurvePoint point = point_at_arc_length(*scene_, curve, s);
-      segment_index = curve.first_segment + point.segment_in_curve;
-      t = point.t;
-      origin = point.position;
-      tangent = unit_tangent(scene_->segments[segment_index].geometry.shape, t, scale);
-    } else {
-      // Uniform in arc length: a segment by length, then t with density |C'(t)| / L by
-      // rejection against the speed bound (exact; a line's speed is constant).
-      // Sobol': the segment and then t from what is left of kPlace, so the origin is one
-      // stratified coordinate along the whole source.
-      double along = 0.0;
-      segment_index = curve.first_segment +
-                      static_cast<std::uint32_t>(
-                          qmc ? segment_choice_[curve_index].sample(place, along)
-                              : segment_choice_[curve_index].sample(rng.uniform()));
-      const SceneSegment& segment = scene_->segments[segment_index];
-      const Cubic& shape = segment.geometry.shape;
-      if (segment.geometry.kind == SegmentKind::Line) {
-        t = qmc ? open(along) : rng.uniform_open();
-        origin = lerp(shape.p[0], shape.p[3], t);
-        tangent = segment_info_[segment_index].line_tangent;
-      } else {
-        for (int attempt = 0;; ++attempt) {
-          const bool from_point = qmc && attempt == 0;
-          t = from_point ? open(along) : rng.uniform_open();
-          const Vec2 velocity = derivative(shape, t);
-          const double speed = length(velocity);
-          if ((from_point ? quasi(kAcceptSpeed) : rng.uniform()) * segment.speed_bound < speed) {
-            tangent = (1.0 / speed) * velocity;
-            break;
-          }
-        }
-        origin = evaluate(shape, t);
-      }
-    }
+    OriginDraws draws{rng, qmc ? &net_point : nullptr, place};
+    const Origin leaves =
+        emitted_light && !curve.emittance_profile.empty()
+            ? sample_profiled_origin(*scene_, curve, segment_choice_[curve_index], draws)
+        : by_coefficient
+            ? sample_coefficient_origin(*scene_, curve, storage_[curve_index],
+                                        source - block_offset_[block], line_tangents_, draws)
+        : sample_hermite_
+            ? sample_hermite_origin(*scene_, curve, hermite_unshot_[block], draws)
+            : sample_uniform_origin(*scene_, curve, segment_choice_[curve_index], line_tangents_, draws);
+    const std::uint32_t segment_index = leaves.segment;
+    const double t = leaves.t;
+    const Vec2 origin = leaves.position;
+    const Vec2 tangent = leaves.tangent;
     // Directions: diffuse, except an emitter's own light in the first round (every later round
     // shoots reflected light only) when its material says otherwise.
     const Vec2 normal = back ? -perp(tangent) : perp(tangent);
@@ -1002,7 +919,7 @@ Side Solver::side_hit(const SceneHit& hit, const Ray& ray, Vec2& tangent) const 
   // vanishes (an end point with coincident control points) the tangent comes from the first
   // non-vanishing derivative.
   const SegmentInfo& info = segment_info_[hit.segment];
-  tangent = info.line_tangent;
+  tangent = line_tangents_[hit.segment];
   if (info.kind == SegmentKind::Cubic) {
     const Cubic& shape = scene_->segments[hit.segment].geometry.shape;
     tangent = derivative(shape, hit.t);

@@ -318,7 +318,6 @@ class Solver {
     std::uint32_t curve = 0;
     std::uint32_t index_in_curve = 0;
     SegmentKind kind = SegmentKind::Line;
-    Vec2 line_tangent;  // unit tangent of a straight segment
   };
   // Integer deposits of one thread during one round. Its counters are written by every photon:
   // each thread's accumulator starts a cache line of its own (the threads' accumulators lie side
@@ -416,6 +415,7 @@ class Solver {
   int channels_ = 1;
   SegmentAccelerator accelerator_;
   std::vector<SegmentInfo> segment_info_;
+  std::vector<Vec2> line_tangents_;  // per segment: its unit tangent if it is a line, else zero
   std::vector<DiscreteDistribution> segment_choice_;  // per curve, by segment length
   std::vector<CurveStorage> storage_;  // the finest level of each curve
   // Auto storage: each curve's coarser levels (coarse to fine) with their restrictions from the
