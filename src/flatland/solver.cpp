@@ -1175,8 +1175,15 @@ void Solver::update_reflected(const std::vector<double>& received,
   if (auto_storage_) {
     const bool due = scheduled_level_.empty() ||
                      static_cast<double>(photons_shot_) >= kLevelChoiceGrowth * static_cast<double>(photons_at_choice_);
-    if (choice == LevelChoice::Now) {
-      choose_levels(received, received_half);
+    if (choice == LevelChoice::View) {
+      // A viewer asks after every piece of about 25 ms; choosing every level of every curve each
+      // time cost a fifth of its solving thread's time.
+      // Between choices the levels stay as the last choice left them (the solve's or the view's).
+      const auto last = static_cast<double>(std::max(photons_at_view_choice_, photons_at_choice_));
+      if (static_cast<double>(photons_shot_) >= kLevelChoiceGrowth * last) {
+        choose_levels(received, received_half);
+        photons_at_view_choice_ = photons_shot_;
+      }
     } else if (choice == LevelChoice::Final || due) {
       choose_levels(received, received_half);
       scheduled_level_ = chosen_level_;
@@ -1382,7 +1389,7 @@ void Solver::include_open_round() {
     received[index] += power;
     if (auto_storage_) received_half[index] += power_odd;
   }
-  update_reflected(received, received_half, LevelChoice::Now);
+  update_reflected(received, received_half, LevelChoice::View);
 }
 
 bool Solver::step_round(const std::atomic<bool>* cancel, const ProgressCallback& progress,

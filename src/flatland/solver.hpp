@@ -370,9 +370,11 @@ class Solver {
   void check_books();
   // reflected_ (and the Hermite reconstructions) from the power received in all rounds.
   // `choice`: with auto storage, whether the levels are chosen again (Scheduled: when the photons
-  // shot have grown by kLevelChoiceGrowth since the last choice; Now: always, without moving the
-  // schedule, for a reader's view of an open round; Final: always, at the end of the solve).
-  enum class LevelChoice { Scheduled, Now, Final };
+  // shot have grown by kLevelChoiceGrowth since the last choice; View: for a reader's view of an
+  // open round, on a schedule of its own (the view's levels are chosen again when the photons
+  // have grown by kLevelChoiceGrowth since the view's last choice), never moving the solve's;
+  // Final: always, at the end of the solve).
+  enum class LevelChoice { Scheduled, View, Final };
   // With auto storage, the levels chosen from all the photons when the solve stops.
   void choose_final_levels();
   void update_reflected(const std::vector<double>& received, const std::vector<double>& received_half,
@@ -432,6 +434,8 @@ class Solver {
   // once more when the solve stops), which is deterministic and independent of how rounds are
   // stepped; in between, the last scheduled choice is kept.
   static constexpr double kLevelChoiceGrowth = 1.25;
+  // The photons shot when a view of an open round last chose the levels (LevelChoice::View).
+  std::uint64_t photons_at_view_choice_ = 0;
   std::vector<int> scheduled_level_;
   std::uint64_t photons_at_choice_ = 0;
   bool auto_storage_ = false;
