@@ -149,6 +149,31 @@ TEST(Bvh, ClosestHitEqualsBruteForceOnRandomScenes) {
   }
 }
 
+// Rays from far outside the scene (beyond the wide tree's float reach, 4 extents from its centre,
+// and just inside it) and grazing rays along the axes: the same answers as the brute force.
+TEST(Bvh, FarAndAxisParallelRaysEqualBruteForce) {
+  std::mt19937_64 rng(17);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  const std::vector<SegmentGeometry> scene = random_scene(rng, 200, 1.0, {0, 0});
+  const SegmentAccelerator accelerator(scene);
+  ASSERT_TRUE(accelerator.uses_hierarchy());
+  int hits = 0;
+  for (int i = 0; i < 20000; ++i) {
+    const double distance = i % 3 == 0 ? 3.9 : i % 3 == 1 ? 4.1 : 1e3;  // in scene sizes
+    const double angle = 2.0 * std::numbers::pi * unit(rng);
+    const Vec2 target{unit(rng), unit(rng)};
+    const Vec2 origin = target + distance * Vec2{std::cos(angle), std::sin(angle)};
+    Vec2 direction = normalized(target - origin);
+    if (i % 7 == 0) direction = std::fabs(direction.x) > std::fabs(direction.y) ? Vec2{direction.x > 0 ? 1.0 : -1.0, 0.0}
+                                                                                : Vec2{0.0, direction.y > 0 ? 1.0 : -1.0};
+    const Ray ray{origin, direction};
+    const SceneHit fast = accelerator.closest_hit(ray, RayOrigin{});
+    expect_same(fast, accelerator.closest_hit_brute_force(ray, RayOrigin{}), i);
+    hits += fast.segment != kNoSegment;
+  }
+  EXPECT_GT(hits, 5000);
+}
+
 TEST(Bvh, BruteForceIsTheNearestOfAllSegmentTests) {
   // The reference itself, against the segment tests one by one.
   std::mt19937_64 rng(300);

@@ -1,10 +1,15 @@
-// Nearest-hit queries: a binary BVH over the segments' control-point boxes, or a linear scan.
+// Nearest-hit queries: a BVH over the segments' boxes (binary, collapsed into nodes of four), or a
+// linear scan.
 #include "flatland/bvh.hpp"
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <utility>
+
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 namespace flatland {
 namespace {
@@ -135,6 +140,81 @@ SegmentAccelerator::SegmentAccelerator(std::vector<SegmentGeometry> segments)
   }
   ordered_.reserve(n);
   for (std::uint32_t i = 0; i < n; ++i) ordered_.push_back(segments_[order_[i]]);
+
+  // The wide tree, relative to the scene's centre. Float rounding of a relative coordinate is
+  // 6e-8 of its size: the boxes get 1e-6 of the scene's extent more, and are rounded outwards.
+  // Rays whose origin lies farther than 4 extents from the centre (whose own rounding would be
+  // larger) take the binary tree, in doubles.
+  wide_centre_ = scene.center();
+  const double extent = std::max({scene.extent().x, scene.extent().y, margin});
+  wide_reach_ = 4.0 * extent;
+  wide_.reserve(nodes_.size() / 2 + 1);
+  collapse(0, 1e-6 * extent);
+}
+
+// The wide node for binary node `binary` (interior): its children, and while there are fewer
+// than four, the interior child with the largest box replaced by its two children.
+std::uint32_t SegmentAccelerator::collapse(std::uint32_t binary, double pad) {
+  const auto index = static_cast<std::uint32_t>(wide_.size());
+  wide_.emplace_back();
+  std::uint32_t slots[4];
+  int used = 0;
+  if (nodes_[binary].count > 0) {
+    slots[used++] = binary;  // a root that is a leaf
+  } else {
+    slots[used++] = binary + 1;
+    slots[used++] = nodes_[binary].second_child_or_first;
+    while (used < 4) {
+      int widest = -1;
+      double widest_size = -1.0;
+      for (int k = 0; k < used; ++k) {
+        const Node& node = nodes_[slots[k]];
+        if (node.count > 0) continue;
+        const double size = node.bounds.extent().x + node.bounds.extent().y;
+        if (size > widest_size) {
+          widest_size = size;
+          widest = k;
+        }
+      }
+      if (widest < 0) break;
+      const std::uint32_t opened = slots[widest];
+      slots[widest] = opened + 1;
+      slots[used++] = nodes_[opened].second_child_or_first;
+    }
+  }
+  auto down = [](double x) {
+    const auto f = static_cast<float>(x);
+    return static_cast<double>(f) > x ? std::nextafter(f, -INFINITY) : f;
+  };
+  auto up = [](double x) {
+    const auto f = static_cast<float>(x);
+    return static_cast<double>(f) < x ? std::nextafter(f, INFINITY) : f;
+  };
+  wide_[index].used = static_cast<std::uint32_t>(used);
+  for (int k = 0; k < 4; ++k) {
+    WideNode& node = wide_[index];
+    if (k >= used) {
+      node.lower_x[k] = node.lower_y[k] = INFINITY;
+      node.upper_x[k] = node.upper_y[k] = -INFINITY;
+      node.child[k] = 0;
+      node.count[k] = 0;
+      continue;
+    }
+    const Node& child = nodes_[slots[k]];
+    node.lower_x[k] = down(child.bounds.lower.x - wide_centre_.x - pad);
+    node.lower_y[k] = down(child.bounds.lower.y - wide_centre_.y - pad);
+    node.upper_x[k] = up(child.bounds.upper.x - wide_centre_.x + pad);
+    node.upper_y[k] = up(child.bounds.upper.y - wide_centre_.y + pad);
+    if (child.count > 0) {
+      node.child[k] = child.second_child_or_first;
+      node.count[k] = child.count;
+    } else {
+      const std::uint32_t wide_child = collapse(slots[k], pad);
+      wide_[index].child[k] = wide_child;  // collapse may have moved wide_
+      wide_[index].count[k] = 0;
+    }
+  }
+  return index;
 }
 
 // Surface area heuristic, in 2D: a random line meets a convex region with probability
@@ -204,11 +284,112 @@ SceneHit SegmentAccelerator::closest_hit_brute_force(const Ray& ray, const RayOr
   return nearest.hit;
 }
 
+// Depth-first over the wide tree: a node slab-tests its four boxes at once (floats, relative to
+// the centre; an axis the ray does not move along gets a large finite inverse, so a box either
+// contains the origin's coordinate or lies at an enormous distance, never 0 x infinity), visits
+// the boxes it meets nearest first and stacks the others with their entry distances, which are
+// checked again when popped. A box is entered when its entry is at most the best distance so far
+// (plus its rounding): the same segments as the binary walk may skip are skipped, no others.
+SceneHit SegmentAccelerator::closest_hit(const Ray& ray, const RayOrigin& from) const {
+  if (nodes_.empty()) return closest_hit_brute_force(ray, from);
+  const Vec2 relative = ray.origin - wide_centre_;
+  if (!(std::fabs(relative.x) <= wide_reach_ && std::fabs(relative.y) <= wide_reach_))
+    return closest_hit_binary(ray, from);
+  Nearest nearest;
+  nearest.hit.distance = kInfinity;
+  const float ox = static_cast<float>(relative.x);
+  const float oy = static_cast<float>(relative.y);
+  auto inverse = [](double d) {
+    const double i = 1.0 / d;
+    return std::isfinite(i) && std::fabs(i) < 1e30 ? static_cast<float>(i) : (d < 0.0 ? -1e30f : 1e30f);
+  };
+  const float ix = inverse(ray.direction.x);
+  const float iy = inverse(ray.direction.y);
+  struct Pending {
+    std::uint32_t node;
+    float near;
+  };
+  // A wide level stacks at most 3 more nodes than it pops, over at most 32 + log2(n) + 1 levels.
+  Pending stack[3 * (kMaxSahDepth + 33) + 4];
+  int top = 0;
+  std::uint32_t current = 0;
+  for (;;) {
+    const WideNode& node = wide_[current];
+    // The best distance as a float bound, rounded up (and slightly more, for the float slab test).
+    const float best = nearest.hit.distance == kInfinity ? INFINITY
+                                                         : static_cast<float>(nearest.hit.distance) * 1.000001f;
+    alignas(16) float near[4];
+    bool hit[4];
+#if defined(__SSE2__)
+    {
+      const __m128 a_x = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(node.lower_x), _mm_set1_ps(ox)), _mm_set1_ps(ix));
+      const __m128 b_x = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(node.upper_x), _mm_set1_ps(ox)), _mm_set1_ps(ix));
+      const __m128 a_y = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(node.lower_y), _mm_set1_ps(oy)), _mm_set1_ps(iy));
+      const __m128 b_y = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(node.upper_y), _mm_set1_ps(oy)), _mm_set1_ps(iy));
+      const __m128 lo = _mm_max_ps(_mm_max_ps(_mm_min_ps(a_x, b_x), _mm_min_ps(a_y, b_y)), _mm_setzero_ps());
+      const __m128 hi = _mm_min_ps(_mm_max_ps(a_x, b_x), _mm_max_ps(a_y, b_y));
+      const int mask = _mm_movemask_ps(_mm_and_ps(_mm_cmple_ps(lo, hi), _mm_cmple_ps(lo, _mm_set1_ps(best)))) &
+                       ((1 << node.used) - 1);
+      _mm_store_ps(near, lo);
+      for (int k = 0; k < 4; ++k) hit[k] = (mask >> k) & 1;
+    }
+#else
+    for (int k = 0; k < 4; ++k) {
+      const float ax = (node.lower_x[k] - ox) * ix;
+      const float bx = (node.upper_x[k] - ox) * ix;
+      const float ay = (node.lower_y[k] - oy) * iy;
+      const float by = (node.upper_y[k] - oy) * iy;
+      const float lo = std::max(std::max(std::min(ax, bx), std::min(ay, by)), 0.0f);
+      const float hi = std::min(std::max(ax, bx), std::max(ay, by));
+      near[k] = lo;
+      hit[k] = static_cast<std::uint32_t>(k) < node.used && lo <= hi && lo <= best;
+    }
+#endif
+    // The boxes met, nearest first (at most four: insertion).
+    int order[4];
+    int met = 0;
+    for (int k = 0; k < 4; ++k) {
+      if (!hit[k]) continue;
+      int at = met++;
+      while (at > 0 && near[order[at - 1]] > near[k]) {
+        order[at] = order[at - 1];
+        --at;
+      }
+      order[at] = k;
+    }
+    // Leaves now, nearest first; wide children onto the stack, farthest deepest.
+    for (int m = met; m-- > 0;) {
+      const int k = order[m];
+      if (node.count[k] == 0) stack[top++] = {node.child[k], near[k]};
+    }
+    for (int m = 0; m < met; ++m) {
+      const int k = order[m];
+      if (node.count[k] == 0) continue;
+      const std::uint32_t end = node.child[k] + node.count[k];
+      for (std::uint32_t i = node.child[k]; i < end; ++i) nearest.consider(order_[i], ordered_[i], ray, from);
+    }
+    bool resumed = false;
+    while (top > 0) {
+      const Pending pending = stack[--top];
+      const float bound = nearest.hit.distance == kInfinity
+                              ? INFINITY
+                              : static_cast<float>(nearest.hit.distance) * 1.000001f;
+      if (pending.near <= bound) {
+        current = pending.node;
+        resumed = true;
+        break;
+      }
+    }
+    if (!resumed) break;
+  }
+  if (nearest.hit.segment == kNoSegment) return SceneHit{};
+  return nearest.hit;
+}
+
 // Depth-first traversal with an explicit stack: at an interior node both children are slab-tested
 // against [0, best], the nearer is visited first and the farther pushed with its entry distance,
 // which is checked again when it is popped (the best distance may have shrunk meanwhile).
-SceneHit SegmentAccelerator::closest_hit(const Ray& ray, const RayOrigin& from) const {
-  if (nodes_.empty()) return closest_hit_brute_force(ray, from);
+SceneHit SegmentAccelerator::closest_hit_binary(const Ray& ray, const RayOrigin& from) const {
   Nearest nearest;
   nearest.hit.distance = kInfinity;
   const SlabRay slab(ray);

@@ -1,5 +1,6 @@
 // Nearest-hit queries against all segments of a scene: a bounding volume hierarchy over the
-// segments' control-point boxes, with a linear scan for scenes too small to profit.
+// segments' boxes (built binary, walked as nodes of four with one SIMD slab test each), with a
+// linear scan for scenes too small to profit.
 #pragma once
 
 #include <cstdint>
@@ -64,6 +65,25 @@ class SegmentAccelerator {
 
   std::uint32_t build_node(std::uint32_t first, std::uint32_t count, int depth,
                            std::vector<Box>& boxes, std::vector<Vec2>& centers);
+
+  // The tree the queries walk: the binary tree collapsed into nodes of up to four children, whose
+  // boxes are floats relative to `wide_centre_` (padded by far more than float rounding) in
+  // structure-of-arrays form, so that one node tests its four boxes together. A child is another
+  // wide node or a leaf, a range of ordered_; an unused slot has an empty box.
+  struct WideNode {
+    alignas(16) float lower_x[4];
+    float lower_y[4];
+    float upper_x[4];
+    float upper_y[4];
+    std::uint32_t child[4];  // wide node index, or first index into ordered_ for a leaf
+    std::uint32_t count[4];  // segments of a leaf; 0 for a wide node or an unused slot
+    std::uint32_t used = 0;  // slots 0 .. used - 1 hold children
+  };
+  std::uint32_t collapse(std::uint32_t binary, double pad);
+  SceneHit closest_hit_binary(const Ray& ray, const RayOrigin& from) const;
+  std::vector<WideNode> wide_;
+  Vec2 wide_centre_;
+  double wide_reach_ = 0.0;  // rays from farther than this from the centre use the binary tree
 
   std::vector<SegmentGeometry> segments_;  // in the caller's order (indices of SceneHit)
   std::vector<std::uint32_t> order_;       // leaf order -> index into segments_
