@@ -93,6 +93,20 @@ struct SlabRay {
   }
 };
 
+// Pops stacked nodes until one whose entry distance is within `bound`, which becomes `node`;
+// false when none is left.
+template <typename Pending, typename Distance>
+bool resume(const Pending* stack, int& top, Distance bound, std::uint32_t& node) {
+  while (top > 0) {
+    const Pending& pending = stack[--top];
+    if (pending.near <= bound) {
+      node = pending.node;
+      return true;
+    }
+  }
+  return false;
+}
+
 }  // namespace
 
 Box segment_box(const SegmentGeometry& g) {
@@ -305,6 +319,10 @@ SceneHit SegmentAccelerator::closest_hit(const Ray& ray, const RayOrigin& from) 
   };
   const float ix = inverse(ray.direction.x);
   const float iy = inverse(ray.direction.y);
+  // The best distance as a float bound, rounded up (and slightly more, for the float slab test).
+  auto float_bound = [&nearest] {
+    return nearest.hit.distance == kInfinity ? INFINITY : static_cast<float>(nearest.hit.distance) * 1.000001f;
+  };
   struct Pending {
     std::uint32_t node;
     float near;
@@ -315,9 +333,7 @@ SceneHit SegmentAccelerator::closest_hit(const Ray& ray, const RayOrigin& from) 
   std::uint32_t current = 0;
   for (;;) {
     const WideNode& node = wide_[current];
-    // The best distance as a float bound, rounded up (and slightly more, for the float slab test).
-    const float best = nearest.hit.distance == kInfinity ? INFINITY
-                                                         : static_cast<float>(nearest.hit.distance) * 1.000001f;
+    const float best = float_bound();
     alignas(16) float near[4];
     bool hit[4];
 #if defined(__SSE2__)
@@ -368,19 +384,7 @@ SceneHit SegmentAccelerator::closest_hit(const Ray& ray, const RayOrigin& from) 
       const std::uint32_t end = node.child[k] + node.count[k];
       for (std::uint32_t i = node.child[k]; i < end; ++i) nearest.consider(order_[i], ordered_[i], ray, from);
     }
-    bool resumed = false;
-    while (top > 0) {
-      const Pending pending = stack[--top];
-      const float bound = nearest.hit.distance == kInfinity
-                              ? INFINITY
-                              : static_cast<float>(nearest.hit.distance) * 1.000001f;
-      if (pending.near <= bound) {
-        current = pending.node;
-        resumed = true;
-        break;
-      }
-    }
-    if (!resumed) break;
+    if (!resume(stack, top, float_bound(), current)) break;
   }
   if (nearest.hit.segment == kNoSegment) return SceneHit{};
   return nearest.hit;
@@ -430,16 +434,7 @@ SceneHit SegmentAccelerator::closest_hit_binary(const Ray& ray, const RayOrigin&
         continue;
       }
     }
-    bool resumed = false;
-    while (top > 0) {
-      const Pending pending = stack[--top];
-      if (pending.near <= nearest.hit.distance) {
-        current = pending.node;
-        resumed = true;
-        break;
-      }
-    }
-    if (!resumed) break;
+    if (!resume(stack, top, nearest.hit.distance, current)) break;
   }
   if (nearest.hit.segment == kNoSegment) return SceneHit{};
   return nearest.hit;
