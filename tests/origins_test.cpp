@@ -39,17 +39,8 @@ struct Fixture {
     Result<Scene> parsed = parse_scene(kScene, "origins_test");
     EXPECT_TRUE(parsed) << parsed.error().message;
     scene = std::move(*parsed);
-    for (const SceneSegment& segment : scene.segments) {
-      const Cubic& c = segment.geometry.shape;
-      line_tangents.push_back(segment.geometry.kind == SegmentKind::Line ? normalized(c.p[3] - c.p[0])
-                                                                           : Vec2{});
-    }
-    for (const Curve& curve : scene.curves) {
-      std::vector<double> lengths;
-      for (std::uint32_t i = 0; i < curve.segment_count; ++i)
-        lengths.push_back(scene.segments[curve.first_segment + i].length);
-      segment_choice.emplace_back(lengths);
-    }
+    line_tangents = flatland::line_tangents(scene);
+    for (const Curve& curve : scene.curves) segment_choice.push_back(flatland::segment_choice(scene, curve));
   }
 };
 

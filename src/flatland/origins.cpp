@@ -13,6 +13,23 @@ double open(double rest) { return std::max(rest, 0x1.0p-54); }
 
 }  // namespace
 
+DiscreteDistribution segment_choice(const Scene& scene, const Curve& curve) {
+  std::vector<double> lengths;
+  for (std::uint32_t i = 0; i < curve.segment_count; ++i)
+    lengths.push_back(scene.segments[curve.first_segment + i].length);
+  return DiscreteDistribution(lengths);
+}
+
+std::vector<Vec2> line_tangents(const Scene& scene) {
+  std::vector<Vec2> tangents;
+  tangents.reserve(scene.segments.size());
+  for (const SceneSegment& segment : scene.segments) {
+    const Cubic& c = segment.geometry.shape;
+    tangents.push_back(segment.geometry.kind == SegmentKind::Line ? normalized(c.p[3] - c.p[0]) : Vec2{});
+  }
+  return tangents;
+}
+
 Origin sample_uniform_origin(const Scene& scene, const Curve& curve,
                              const DiscreteDistribution& segment_choice,
                              std::span<const Vec2> line_tangents, OriginDraws& draws) {

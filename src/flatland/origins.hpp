@@ -9,6 +9,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <span>
+#include <vector>
 
 #include "flatland/basis.hpp"
 #include "flatland/hermite.hpp"
@@ -50,6 +51,11 @@ struct Origin {
   Vec2 position;
   Vec2 tangent;  // unit, in the direction of increasing t
 };
+
+// What the samplers read of a scene: a curve's segments by length, and every segment's unit
+// tangent if it is a line (zero for a cubic).
+DiscreteDistribution segment_choice(const Scene& scene, const Curve& curve);
+std::vector<Vec2> line_tangents(const Scene& scene);
 
 // Uniform in arc length: a segment by its length (segment_choice over the curve's segments),
 // then t with density |C'(t)| / length by rejection against the segment's speed bound (a line's

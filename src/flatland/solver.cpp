@@ -1,7 +1,5 @@
 #include "flatland/solver.hpp"
 
-#include "flatland/origins.hpp"
-
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -204,11 +202,9 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
     info.curve = segment.curve;
     info.index_in_curve = segment.index_in_curve;
     info.kind = segment.geometry.kind;
-    solver.line_tangents_.push_back(
-        info.kind == SegmentKind::Line ? normalized(segment.geometry.shape.p[3] - segment.geometry.shape.p[0])
-                                       : Vec2{});
     solver.segment_info_.push_back(info);
   }
+  solver.line_tangents_ = line_tangents(scene);
   solver.accelerator_ = SegmentAccelerator(std::move(geometry));
   std::vector<std::vector<MeshNode>> events(scene.curves.size());
   solver.walls_.resize(scene.curves.size());
@@ -242,8 +238,8 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
   // Every curve's storage and its coarser levels, built on the solver's workers (each curve's
   // own, so the result does not depend on the thread count).
   const bool smooth = settings.discontinuities == DiscontinuityMode::None;
-  std::vector<std::vector<Level>> built_levels(scene.curves.size());
-  std::vector<CurveStorage> built(scene.curves.size());
+  solver.storage_.resize(scene.curves.size());
+  solver.levels_.resize(scene.curves.size());
   solver.worker_pool().for_each(scene.curves.size(), [&](std::size_t c) {
     if (cancelled()) return;
     const Curve& curve = scene.curves[c];
@@ -263,27 +259,23 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
                                      kFootprintFinestElement * settings.ray_width)
         --curve_finest;
     }
-    built[c] = build_curve_storage(scene, curve, settings.basis, elements, smooth, events[c], curve_finest);
-    if (settings.estimator == Estimator::Local) build_local_estimator(scene, curve, built[c], hermite);
+    CurveStorage& finest = solver.storage_[c];
+    finest = build_curve_storage(scene, curve, settings.basis, elements, smooth, events[c], curve_finest);
+    if (settings.estimator == Estimator::Local) build_local_estimator(scene, curve, finest, hermite);
     // The coarser levels, each with its restriction from the finest.
-    std::vector<Level>& levels = built_levels[c];
+    std::vector<Level>& levels = solver.levels_[c];
     for (int level = 0; level < curve_finest; ++level) {
       if (cancelled()) return;
       Level& coarse = levels.emplace_back();
       coarse.storage = build_curve_storage(scene, curve, settings.basis, elements, smooth, events[c], level);
       if (settings.estimator == Estimator::Local) build_local_estimator(scene, curve, coarse.storage, hermite);
-      coarse.restriction = restriction_between(coarse.storage.basis, built[c].basis);
+      coarse.restriction = restriction_between(coarse.storage.basis, finest.basis);
     }
   });
   if (cancelled()) return Error{kSolverCancelled};
-  solver.storage_ = std::move(built);
-  solver.levels_ = std::move(built_levels);
   for (std::uint32_t c = 0; c < scene.curves.size(); ++c) {
     const Curve& curve = scene.curves[c];
-    std::vector<double> lengths;
-    for (std::uint32_t i = 0; i < curve.segment_count; ++i)
-      lengths.push_back(scene.segments[curve.first_segment + i].length);
-    solver.segment_choice_.emplace_back(lengths);
+    solver.segment_choice_.push_back(segment_choice(scene, curve));
     solver.chosen_level_.push_back(static_cast<int>(solver.levels_[c].size()));
     const Material& material = scene.material_of(curve);
     for (Side side : {Side::Front, Side::Back}) {
@@ -425,6 +417,12 @@ void Solver::estimate_at_level(std::uint32_t curve, int level, const double* pow
   prolong_coefficients(coarse.restriction, estimate.data(), coefficients, stride);
 }
 
+bool Solver::holds_power(const std::vector<double>& values, std::uint32_t curve, std::uint32_t offset) const {
+  const auto channels = static_cast<std::size_t>(channels_);
+  const double* block = &values[offset * channels];
+  return std::any_of(block, block + storage_[curve].basis.size() * channels, [](double x) { return x != 0.0; });
+}
+
 void Solver::estimate(const std::vector<double>& power, std::vector<double>& coefficients) const {
   const auto channels = static_cast<std::size_t>(channels_);
   coefficients.assign(power.size(), 0.0);
@@ -434,9 +432,7 @@ void Solver::estimate(const std::vector<double>& power, std::vector<double>& coe
       if (offset == kNoBlock) continue;
       // Every estimator is linear: a side that holds no power (most sides of a large scene in a
       // round of a few photons) keeps its zero coefficients without a solve.
-      const std::size_t n = storage_[c].basis.size();
-      const double* block = &power[offset * channels];
-      if (std::all_of(block, block + n * channels, [](double x) { return x == 0.0; })) continue;
+      if (!holds_power(power, c, offset)) continue;
       for (std::size_t ch = 0; ch < channels; ++ch) {
         const std::size_t first = offset * channels + ch;
         estimate_at_level(c, chosen_level_[c], &power[first], &coefficients[first], channels);
@@ -469,9 +465,7 @@ void Solver::choose_levels(const std::vector<double>& received, const std::vecto
     bool received_any = false;
     for (Side side : {Side::Front, Side::Back}) {
       const std::uint32_t offset = block_offset(c, side);
-      if (offset == kNoBlock) continue;
-      const double* block = &received[offset * channels];
-      received_any = received_any || std::any_of(block, block + n * channels, [](double x) { return x != 0.0; });
+      received_any = received_any || (offset != kNoBlock && holds_power(received, c, offset));
     }
     if (!received_any) continue;
     // [level][side][k]: full, A and B estimates, prolonged into the fine basis.
@@ -766,14 +760,8 @@ void Solver::shoot(Rng& rng, std::uint64_t first, std::uint64_t count, Accumulat
   const auto channels = static_cast<std::size_t>(channels_);
   const double scale = scene_->scale;
   // Randomised quasi-Monte Carlo: photon j of the round takes point j of the round's scrambled
-  // Sobol' sequence (named by seed and round), whichever batch, step or thread shoots it. Its
-  // dimensions: kPlace the source and, with what that choice leaves of it, the segment and the
-  // place on it (uniform origins) or inside the basis function's piece (reconstructed origins);
-  // kDirection the direction; kPiece the piece of the origin density; the first proposal's
-  // acceptance tests (speed bound, emittance profile, lobe). A rejection loop takes its first
-  // proposal from the point and any further ones from the batch's stream: each photon's uniforms
-  // are still independent and uniform, so the estimate stays unbiased, and the nets stratify the
-  // proposals that are accepted first (all of them on a straight segment of uniform emittance).
+  // Sobol' sequence (named by seed and round), whichever batch, step or thread shoots it; its
+  // coordinates (PhotonDimension) and how rejection loops use them are in origins.hpp.
   static_assert(kAcceptLobe < kSobolDimensions);
   const bool qmc = settings_.sampler == SamplerKind::Sobol;
   // With auto storage the round's photons form two halves, even and odd numbers, whose spread

@@ -371,9 +371,9 @@ class Solver {
   // reflected_ (and the Hermite reconstructions) from the power received in all rounds.
   // `choice`: with auto storage, whether the levels are chosen again (Scheduled: when the photons
   // shot have grown by kLevelChoiceGrowth since the last choice; View: for a reader's view of an
-  // open round, on a schedule of its own (the view's levels are chosen again when the photons
-  // have grown by kLevelChoiceGrowth since the view's last choice), never moving the solve's;
-  // Final: always, at the end of the solve).
+  // open round, chosen again when the photons have grown by kLevelChoiceGrowth since the last
+  // choice of either kind, never moving the solve's schedule; Final: always, at the end of the
+  // solve).
   enum class LevelChoice { Scheduled, View, Final };
   // With auto storage, the levels chosen from all the photons when the solve stops.
   void choose_final_levels();
@@ -405,6 +405,8 @@ class Solver {
   // Per-unit-length coefficients of `power` (same layout) by the chosen estimator, at each curve's
   // chosen level (prolonged into the finest basis).
   void estimate(const std::vector<double>& power, std::vector<double>& coefficients) const;
+  // Whether the given side (block at `offset` of `curve`) holds a nonzero value in `values`.
+  bool holds_power(const std::vector<double>& values, std::uint32_t curve, std::uint32_t offset) const;
   void estimate_on(const CurveStorage& storage, const double* power, double* coefficients,
                    std::size_t stride) const;
   // One curve side's channel at a level (levels_[curve].size() is the finest: storage_[curve]).
