@@ -1,6 +1,7 @@
 // Exposure and tone mapping of the accumulated path light: 1 - exp(-exposure * L) keeps bright
-// regions from clipping; the result is encoded for an sRGB display and blended over the background
-// by its own brightness (alpha), so dark parts of the buffer leave the background visible.
+// regions from clipping; the result is encoded for an sRGB display, with its own brightness as its
+// coverage (alpha) so that dark parts of the buffer leave the background visible, and written
+// premultiplied by that coverage for composite.frag to lay over the background.
 // Removing paths by subtraction can leave tiny negative round-off: clamped.
 #version 330 core
 
@@ -15,5 +16,5 @@ void main() {
   vec3 mapped = vec3(1.0) - exp(-u_exposure * light);
   vec3 encoded = pow(mapped, vec3(1.0 / 2.2));
   float coverage = max(max(encoded.r, encoded.g), encoded.b);
-  o_colour = vec4(encoded, coverage);
+  o_colour = vec4(encoded * coverage, coverage);
 }

@@ -107,6 +107,9 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const std::string& shader_dir
   Result<unsigned> tonemap = link("tonemap.vert", "tonemap.frag", shader_directory);
   if (!tonemap) return tonemap.error();
   renderer->tonemap_program_ = *tonemap;
+  Result<unsigned> composite = link("tonemap.vert", "composite.frag", shader_directory);
+  if (!composite) return composite.error();
+  renderer->composite_program_ = *composite;
   Result<unsigned> decay = link("tonemap.vert", "decay.frag", shader_directory);
   if (!decay) return decay.error();
   renderer->decay_program_ = *decay;
@@ -147,6 +150,7 @@ Renderer::~Renderer() {
   glDeleteProgram(lines_program_);
   glDeleteProgram(paths_program_);
   glDeleteProgram(tonemap_program_);
+  glDeleteProgram(composite_program_);
   glDeleteProgram(decay_program_);
   glDeleteVertexArrays(1, &lines_vao_);
   glDeleteVertexArrays(1, &paths_vao_);
@@ -155,28 +159,43 @@ Renderer::~Renderer() {
   glDeleteBuffers(1, &paths_vbo_);
   if (hdr_framebuffer_ != 0) glDeleteFramebuffers(1, &hdr_framebuffer_);
   if (hdr_texture_ != 0) glDeleteTextures(1, &hdr_texture_);
+  if (mapped_framebuffer_ != 0) glDeleteFramebuffers(1, &mapped_framebuffer_);
+  if (mapped_texture_ != 0) glDeleteTextures(1, &mapped_texture_);
 }
 
-Status Renderer::ensure_hdr_target(int width, int height) {
-  if (hdr_framebuffer_ != 0 && width == hdr_width_ && height == hdr_height_) return ok_status();
-  if (hdr_framebuffer_ == 0) {
-    glGenFramebuffers(1, &hdr_framebuffer_);
-    glGenTextures(1, &hdr_texture_);
+namespace {
+
+// (Re)allocates a texture of this size and format, attached to the framebuffer (generating both
+// when they are 0), and leaves the framebuffer bound; whether it is complete.
+bool attach_texture(int width, int height, GLint format, GLenum type, unsigned& framebuffer, unsigned& texture) {
+  if (framebuffer == 0) {
+    glGenFramebuffers(1, &framebuffer);
+    glGenTextures(1, &texture);
   }
-  glBindTexture(GL_TEXTURE_2D, hdr_texture_);
-  glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA32F, width, height, 0, GL_RGBA, GL_FLOAT, nullptr);
+  glBindTexture(GL_TEXTURE_2D, texture);
+  glTexImage2D(GL_TEXTURE_2D, 0, format, width, height, 0, GL_RGBA, type, nullptr);
   glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
   glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
   glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
   glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
-  glBindFramebuffer(GL_FRAMEBUFFER, hdr_framebuffer_);
-  glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, hdr_texture_, 0);
-  if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) {
+  glBindFramebuffer(GL_FRAMEBUFFER, framebuffer);
+  glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, texture, 0);
+  return glCheckFramebufferStatus(GL_FRAMEBUFFER) == GL_FRAMEBUFFER_COMPLETE;
+}
+
+}  // namespace
+
+Status Renderer::ensure_hdr_target(int width, int height) {
+  if (hdr_framebuffer_ != 0 && width == hdr_width_ && height == hdr_height_) return ok_status();
+  mapped_valid_ = false;
+  if (!attach_texture(width, height, GL_RGBA32F, GL_FLOAT, hdr_framebuffer_, hdr_texture_) ||
+      !attach_texture(width, height, GL_RGBA8, GL_UNSIGNED_BYTE, mapped_framebuffer_, mapped_texture_)) {
     hdr_width_ = 0;
     hdr_height_ = 0;
     return Error{"cannot make a " + std::to_string(width) + "x" + std::to_string(height) +
                  " floating-point path buffer (out of graphics memory?); use a smaller picture"};
   }
+  glBindFramebuffer(GL_FRAMEBUFFER, hdr_framebuffer_);
   glClearColor(0.0f, 0.0f, 0.0f, 0.0f);
   glClear(GL_COLOR_BUFFER_BIT);
   hdr_width_ = width;
@@ -185,7 +204,7 @@ Status Renderer::ensure_hdr_target(int width, int height) {
 }
 
 Status Renderer::draw(const std::vector<LineVertex>& overlay, const PathDraw& paths, const ViewTransform& view,
-                      float path_exposure) {
+                      float path_exposure, const PixelRect* stage) {
   if (view.width <= 0 || view.height <= 0) return ok_status();  // a minimised window
   GLint target = 0;
   glGetIntegerv(GL_DRAW_FRAMEBUFFER_BINDING, &target);
@@ -231,21 +250,47 @@ Status Renderer::draw(const std::vector<LineVertex>& overlay, const PathDraw& pa
     glDrawArraysInstanced(GL_TRIANGLE_STRIP, 0, 4, count);
   }
 
+  // The tone map, into the 8-bit buffer of the same size, when the paths or the exposure changed.
+  // The normalisation is for full-resolution pixels; a coarser buffer holds lines that are as many
+  // times shorter in its pixels, over an area smaller by the square.
+  const float resolution = static_cast<float>(path_view.width) / static_cast<float>(view.width);
+  const float exposure = path_exposure * paths.normalisation * resolution;
+  if (paths.clear || paths.decay != 1.0f || !paths.instances.empty() || !mapped_valid_ || exposure != mapped_exposure_) {
+    glDisable(GL_BLEND);
+    glBindFramebuffer(GL_FRAMEBUFFER, mapped_framebuffer_);
+    glUseProgram(tonemap_program_);
+    glActiveTexture(GL_TEXTURE0);
+    glBindTexture(GL_TEXTURE_2D, hdr_texture_);
+    glUniform1i(glGetUniformLocation(tonemap_program_, "u_hdr"), 0);
+    glUniform1f(glGetUniformLocation(tonemap_program_, "u_exposure"), exposure);
+    glBindVertexArray(empty_vao_);
+    glDrawArrays(GL_TRIANGLES, 0, 3);
+    glEnable(GL_BLEND);
+    mapped_valid_ = true;
+    mapped_exposure_ = exposure;
+  }
+
   glBindFramebuffer(GL_FRAMEBUFFER, static_cast<GLuint>(target));
   glViewport(0, 0, view.width, view.height);
   glClearColor(kBackground[0], kBackground[1], kBackground[2], 1.0f);
   glClear(GL_COLOR_BUFFER_BIT);
-  glBlendFuncSeparate(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA, GL_ONE, GL_ONE_MINUS_SRC_ALPHA);
-  glUseProgram(tonemap_program_);
+  if (stage != nullptr) {
+    // Whole pixels that the stage touches; GL counts rows from the bottom.
+    const int x0 = std::clamp(static_cast<int>(std::floor(stage->x0)), 0, view.width);
+    const int x1 = std::clamp(static_cast<int>(std::ceil(stage->x1)), x0, view.width);
+    const int y0 = std::clamp(static_cast<int>(std::floor(stage->y0)), 0, view.height);
+    const int y1 = std::clamp(static_cast<int>(std::ceil(stage->y1)), y0, view.height);
+    glEnable(GL_SCISSOR_TEST);
+    glScissor(x0, view.height - y1, x1 - x0, y1 - y0);
+  }
+  glBlendFuncSeparate(GL_ONE, GL_ONE_MINUS_SRC_ALPHA, GL_ONE, GL_ONE_MINUS_SRC_ALPHA);
+  glUseProgram(composite_program_);
   glActiveTexture(GL_TEXTURE0);
-  glBindTexture(GL_TEXTURE_2D, hdr_texture_);
-  glUniform1i(glGetUniformLocation(tonemap_program_, "u_hdr"), 0);
-  // The normalisation is for full-resolution pixels; a coarser buffer holds lines that are as many
-  // times shorter in its pixels, over an area smaller by the square.
-  const float resolution = static_cast<float>(path_view.width) / static_cast<float>(view.width);
-  glUniform1f(glGetUniformLocation(tonemap_program_, "u_exposure"), path_exposure * paths.normalisation * resolution);
+  glBindTexture(GL_TEXTURE_2D, mapped_texture_);
+  glUniform1i(glGetUniformLocation(composite_program_, "u_mapped"), 0);
   glBindVertexArray(empty_vao_);
   glDrawArrays(GL_TRIANGLES, 0, 3);
+  glBlendFuncSeparate(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA, GL_ONE, GL_ONE_MINUS_SRC_ALPHA);
   if (!overlay.empty()) {
     glUseProgram(lines_program_);
     set_view_uniforms(lines_program_, view);
@@ -257,6 +302,7 @@ Status Renderer::draw(const std::vector<LineVertex>& overlay, const PathDraw& pa
   }
   glBindVertexArray(0);
   glUseProgram(0);
+  glDisable(GL_SCISSOR_TEST);
   glDisable(GL_BLEND);
   return ok_status();
 }

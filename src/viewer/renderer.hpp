@@ -1,6 +1,7 @@
 // The viewer's OpenGL 3.3 core renderer, shared by the window (`flatland view`) and the offscreen
 // picture (`flatland render`): photon paths accumulated additively into a floating-point buffer and
-// tone mapped, then the overlay (curves, radiosity bands and graphs, markers) on top. It draws into
+// tone mapped (into an 8-bit buffer of the same size, again only when the paths or the exposure
+// changed), then laid over the background, then the overlay (curves, radiosity bands and graphs, markers) on top. It draws into
 // whatever framebuffer is bound; the caller owns the GL context, which must be current.
 #pragma once
 
@@ -33,10 +34,12 @@ class Renderer {
   Renderer& operator=(const Renderer&) = delete;
 
   // Updates the path buffer as `paths` says, then draws the tone-mapped paths and the overlay into
-  // the bound framebuffer, whose size is the view's.
+  // the bound framebuffer, whose size is the view's: inside `stage` (pixels, y down) when given,
+  // the rest filled with the background (the viewer's docked panels cover it; a software
+  // rasteriser's fill rate is the viewer's largest cost).
   // Fails only when the path buffer cannot be made (too large a picture); nothing is drawn then.
   Status draw(const std::vector<LineVertex>& overlay, const PathDraw& paths, const ViewTransform& view,
-              float path_exposure);
+              float path_exposure, const PixelRect* stage = nullptr);
 
   // (Re)allocates an RGBA8 colour framebuffer of this size (generating the objects when they are
   // 0) and leaves it bound; an error when it is incomplete (too large).
@@ -54,6 +57,7 @@ class Renderer {
   unsigned lines_program_ = 0;
   unsigned paths_program_ = 0;
   unsigned tonemap_program_ = 0;
+  unsigned composite_program_ = 0;
   unsigned decay_program_ = 0;
   unsigned lines_vao_ = 0;
   unsigned lines_vbo_ = 0;
@@ -62,6 +66,13 @@ class Renderer {
   unsigned empty_vao_ = 0;
   unsigned hdr_framebuffer_ = 0;
   unsigned hdr_texture_ = 0;
+  // The tone-mapped paths, premultiplied, at the path buffer's size: the exponentials and powers
+  // of the tone map run on a quarter of the viewer's pixels, and not at all in a frame where
+  // neither the paths nor the exposure changed.
+  unsigned mapped_framebuffer_ = 0;
+  unsigned mapped_texture_ = 0;
+  bool mapped_valid_ = false;
+  float mapped_exposure_ = 0.0f;
   int hdr_width_ = 0;
   int hdr_height_ = 0;
   float path_resolution_ = 1.0f;

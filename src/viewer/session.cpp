@@ -276,7 +276,7 @@ void Session::worker() {
       publish(solver_ ? &*solver_ : nullptr, {}, true);
       continue;
     }
-    // This piece: a part of the first queued step (manual steps are shot in pieces of about 25 ms,
+    // This piece: a part of the first queued step (manual steps are shot in pieces of about 50 ms,
     // so they publish as they go and a restart or Ctrl+E never waits long), or a running piece.
     std::uint64_t count = 0;
     bool stepping = false;
@@ -319,10 +319,10 @@ void Session::worker() {
         solver.step_photons(count, &cancel_, recorded > 0 ? &shot_paths : nullptr, recorded);
     const double seconds = std::chrono::duration<double>(Clock::now() - start).count();
     if (shot >= Solver::kBatchSize) {
-      // About 25 ms a piece: long enough to amortise the per-piece work (the view's estimate),
-      // short enough for live paths and a prompt pause; whole batches, at least one per thread.
+      // About kPieceSeconds a piece, in whole batches, at least one per thread.
       const double rate = static_cast<double>(shot) / std::max(seconds, 1e-6);
-      const auto batches = static_cast<std::uint64_t>(std::clamp(rate * 0.025 / Solver::kBatchSize, 1.0, 1024.0));
+      const auto batches =
+          static_cast<std::uint64_t>(std::clamp(rate * kPieceSeconds / Solver::kBatchSize, 1.0, 1024.0));
       chunk_ = std::max<std::uint64_t>(batches, solver.thread_count()) * Solver::kBatchSize;
     }
     solver.include_open_round();

@@ -42,7 +42,7 @@ class Session {
   // Start over on this scene with these settings: the running solve is cancelled, paths cleared.
   // Invalid settings or a scene the solver rejects leave a snapshot whose `error` says why.
   void restart(std::shared_ptr<const Scene> scene, const SolverSettings& settings);
-  // Run freely (in steps of about 25 ms) until the solve stops, or pause.
+  // Run freely (in pieces of about kPieceSeconds) until the solve stops, or pause.
   void set_running(bool running);
   // Asked to run and not stopped (converged, budget spent, no solver). A run ends when the solve
   // stops: running() is then false, and a Reset starts the new solve paused.
@@ -99,13 +99,18 @@ class Session {
   std::uint64_t generation_ = 0;
   std::deque<PathRecord> paths_;
   std::uint64_t next_serial_ = 0;
-  // Paths recorded per running piece (about 25 ms; frames take 25-30 ms and draw at most about
-  // 600 new paths): the display keeps up with what is recorded.
-  static constexpr std::size_t kPathsPerStep = 384;
+  // Seconds of shooting a piece: long enough to amortise the per-piece work (the view's estimate
+  // and the snapshot, serial while the other threads wait: with 25 ms the viewer shot 10 M photons
+  // in 300 frames, with 50 ms 13.6 M; docs/performance.md), short enough for a prompt pause and
+  // paths that arrive every other frame.
+  static constexpr double kPieceSeconds = 0.05;
+  // Paths recorded per running piece (frames are paced to 25 ms and draw at most 600 new paths):
+  // the display keeps up with what is recorded.
+  static constexpr std::size_t kPathsPerStep = 768;
   std::vector<std::array<double, 2>> error_history_;
   std::optional<double> reference_error_;
   double last_error_time_ = -1.0;
-  std::uint64_t chunk_ = Solver::kBatchSize;  // photons per piece, adapted to about 25 ms
+  std::uint64_t chunk_ = Solver::kBatchSize;  // photons per piece, adapted to about kPieceSeconds
   std::atomic<bool> cancel_{false};
   std::thread thread_;
 };

@@ -416,7 +416,7 @@ bool Viewer::panel_scrolls(const std::string& name) const {
   return it != panel_scrolls_.end() && it->second;
 }
 
-void Viewer::render_scene(const Snapshot& snapshot, const ViewTransform& view) {
+void Viewer::render_scene(const Snapshot& snapshot, const ViewTransform& view, const PixelRect* stage) {
   if (snapshot.generation != overlay_generation_ || overlay_snapshot_.get() != &snapshot) {
     overlay_ = build_overlay(snapshot, draw_);
     overlay_generation_ = snapshot.generation;
@@ -428,7 +428,7 @@ void Viewer::render_scene(const Snapshot& snapshot, const ViewTransform& view) {
                                  : std::numeric_limits<std::size_t>::max();
   const PathDraw paths =
       path_layer_.update(snapshot, draw_, view, static_cast<std::size_t>(keep_slider_), budget);
-  if (Status drawn = impl_->renderer->draw(overlay_, paths, view, draw_.path_exposure); !drawn)
+  if (Status drawn = impl_->renderer->draw(overlay_, paths, view, draw_.path_exposure, stage); !drawn)
     set_message(drawn.error().message);
 }
 
@@ -602,7 +602,8 @@ void Viewer::draw(const std::shared_ptr<const Snapshot>& snapshot) {
   if (snapshot.get() != overlay_snapshot_.get()) overlay_generation_ = ~0ull;
   overlay_snapshot_ = snapshot;
   glBindFramebuffer(GL_FRAMEBUFFER, 0);
-  if (view_.width > 0 && view_.height > 0) render_scene(*snapshot, view_);
+  // The window: the scene drawn on the stage only (the docked panels cover the rest).
+  if (view_.width > 0 && view_.height > 0) render_scene(*snapshot, view_, &layout_.stage);
   ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
 }
 

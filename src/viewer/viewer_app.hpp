@@ -138,7 +138,8 @@ class Viewer {
   void track(const char* label);
   // ImGui::Combo with every item tracked as "label:item" for the UI tests.
   bool combo(const char* label, int* index, const char* const* names, int count);
-  void render_scene(const Snapshot& snapshot, const ViewTransform& view);
+  // `stage`: the part of the window the scene is drawn on (none: all of it).
+  void render_scene(const Snapshot& snapshot, const ViewTransform& view, const PixelRect* stage = nullptr);
   // Records the current ImGui window's rectangle as panel `name` (call between Begin and End).
   void record_panel(const char* name);
   void apply_edit();
