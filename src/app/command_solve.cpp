@@ -101,8 +101,7 @@ void add_solver_options(CLI::App* cmd, SolveOptions& o) {
   cmd->add_option("--elements", o.elements,
                   "Storage elements per curve (shared among its segments by arc length, at least "
                   "one each), or auto: each curve's mesh follows the photons that land on it, "
-                  "chosen after every round among nested halvings by least estimated error "
-                  "(Hermite: 16 elements)")
+                  "chosen after every round among nested halvings by least estimated error")
       ->capture_default_str()
       ->check(elements_check(1 << 16));
   cmd->add_option("--tolerance", o.settings.tolerance,
@@ -176,9 +175,7 @@ void print_summary(const Solver& solver) {
     std::snprintf(storage_text, sizeof storage_text, "auto elements (%d .. %d per reflecting curve chosen)",
                   most == 0 ? 0 : fewest, most);
   } else {
-    std::snprintf(storage_text, sizeof storage_text, "%d elements per curve%s",
-                  settings.elements == kAutoElements ? kHermiteAutoElements : settings.elements,
-                  settings.elements == kAutoElements ? " (auto: Hermite storage does not nest)" : "");
+    std::snprintf(storage_text, sizeof storage_text, "%d elements per curve", settings.elements);
   }
   std::printf("method    %s%s basis (%s), %s, %s positions, discontinuities %s, "
               "%s, %s sampler\n",

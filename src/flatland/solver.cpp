@@ -173,10 +173,8 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
   // with kAutoPhotonsPerElement photons per element (DESIGN: the best element length shrinks
   // with the photon count, so a bigger budget reaches finer levels).
   const bool hermite = settings.basis == BasisKind::Hermite;
-  solver.auto_storage_ = settings.elements == kAutoElements && !hermite;
-  const int elements = settings.elements != kAutoElements ? settings.elements
-                       : hermite                          ? kHermiteAutoElements
-                                                          : kAutoBaseElements;
+  solver.auto_storage_ = settings.elements == kAutoElements;
+  const int elements = settings.elements != kAutoElements ? settings.elements : kAutoBaseElements;
   int finest_level = 0;
   if (solver.auto_storage_) {
     std::size_t reflecting = 0;
@@ -399,22 +397,39 @@ void Solver::estimate_on(const CurveStorage& storage, const double* power, doubl
   }
 }
 
+const CurveStorage& Solver::level_storage(std::uint32_t curve, int level) const {
+  const std::vector<Level>& levels = levels_[curve];
+  return level < static_cast<int>(levels.size()) ? levels[static_cast<std::size_t>(level)].storage : storage_[curve];
+}
+
+std::vector<double> Solver::estimate_in_level(std::uint32_t curve, int level, const double* power,
+                                              std::size_t stride) const {
+  const std::vector<Level>& levels = levels_[curve];
+  const std::size_t n = level_storage(curve, level).basis.size();
+  std::vector<double> deposits(n);
+  std::vector<double> estimate(n);
+  if (level >= static_cast<int>(levels.size())) {
+    for (std::size_t k = 0; k < n; ++k) deposits[k] = power[k * stride];
+    estimate_on(storage_[curve], deposits.data(), estimate.data(), 1);
+    return estimate;
+  }
+  // Deposits of the coarse level follow from the fine ones.
+  const Level& coarse = levels[static_cast<std::size_t>(level)];
+  restrict_deposits(coarse.restriction, power, stride, deposits.data());
+  estimate_on(coarse.storage, deposits.data(), estimate.data(), 1);
+  return estimate;
+}
+
 void Solver::estimate_at_level(std::uint32_t curve, int level, const double* power,
                                double* coefficients, std::size_t stride) const {
-  const std::vector<Level>& levels = levels_[curve];
-  if (level >= static_cast<int>(levels.size())) {
+  if (level >= static_cast<int>(levels_[curve].size())) {
     estimate_on(storage_[curve], power, coefficients, stride);
     return;
   }
-  // Deposits of the coarse level follow from the fine ones; its estimate, prolonged, is the same
-  // function in the fine basis.
-  const Level& coarse = levels[static_cast<std::size_t>(level)];
-  const std::size_t n = coarse.storage.basis.size();
-  std::vector<double> deposits(n);
-  std::vector<double> estimate(n);
-  restrict_deposits(coarse.restriction, power, stride, deposits.data());
-  estimate_on(coarse.storage, deposits.data(), estimate.data(), 1);
-  prolong_coefficients(coarse.restriction, estimate.data(), coefficients, stride);
+  // A coarse level's estimate, prolonged, is the same function in the fine basis.
+  const std::vector<double> estimate = estimate_in_level(curve, level, power, stride);
+  prolong_coefficients(levels_[curve][static_cast<std::size_t>(level)].restriction, estimate.data(), coefficients,
+                       stride);
 }
 
 bool Solver::holds_power(const std::vector<double>& values, std::uint32_t curve, std::uint32_t offset) const {
@@ -562,17 +577,16 @@ double Solver::arc_length_at(std::uint32_t curve, double u) const {
   return c.segment_start[local] + segment.arc_length.length_at(segment.geometry.shape, u - local);
 }
 
-HermiteReconstruction Solver::hermite_of(std::uint32_t curve, const double* values,
-                                         std::size_t stride) const {
+HermiteReconstruction Solver::hermite_of(std::uint32_t curve, const double* values) const {
   // Hat k of a linear B-spline peaks at knots[k + 1] (its Greville point); two hats peaking at the
   // same place are the two sides of a C-1 node.
-  const CurveStorage& storage = storage_[curve];
+  const CurveStorage& storage = level_storage(curve, chosen_level_[curve]);
   const std::vector<double>& knots = storage.basis.knots();
   HermiteInput input;
   std::size_t next_node = 0;  // storage.nodes is sorted by u, as the Greville points are
   for (std::size_t k = 0; k < storage.basis.size(); ++k) {
     const double u = knots[k + 1];
-    const double value = values[k * stride];
+    const double value = values[k];
     if (k > 0 && u == knots[k]) {  // the right side of a jump
       input.right.back() = value;
       continue;
@@ -681,21 +695,9 @@ bool Solver::begin_round() {
   // Sources are the sides of curves (uniform sampling) or single coefficients (reconstructed
   // sampling, so a photon also takes the colour of the unshot light where it starts).
   const bool by_coefficient = sample_by_coefficient_;
-  if (sample_hermite_) {
-    // The unshot density of every block, channels summed, for the positions; each photon carries
-    // its block's colour (its power comes from the deposits, so the books stay exact).
-    std::vector<double> density;
-    estimate(pool, density);
-    std::vector<double> summed(coefficient_count_, 0.0);
-    for (std::size_t k = 0; k < coefficient_count_; ++k)
-      for (std::size_t ch = 0; ch < channels; ++ch) summed[k] += density[k * channels + ch];
-    for (std::uint32_t c = 0; c < scene_->curves.size(); ++c)
-      for (Side side : {Side::Front, Side::Back}) {
-        const std::uint32_t offset = block_offset(c, side);
-        if (offset != kNoBlock)
-          hermite_unshot_[c * 2 + static_cast<std::uint32_t>(side)] = hermite_of(c, &summed[offset], 1);
-      }
-  }
+  // The unshot density of every block, channels summed, for the positions; each photon carries
+  // its block's colour (its power comes from the deposits, so the books stay exact).
+  if (sample_hermite_) update_hermite(pool, false);
   const std::size_t sources = by_coefficient ? coefficient_count_ : block_offset_.size();
   std::vector<double> source_weights(sources, 0.0);
   round_.photon_units.assign(sources, {});
@@ -1190,17 +1192,34 @@ void Solver::update_reflected(const std::vector<double>& received,
       for (std::size_t k = 0; k < storage_[c].basis.size(); ++k)
         for (std::size_t ch = 0; ch < channels; ++ch) reflected_[(offset + k) * channels + ch] *= rho[ch];
     }
-  if (settings_.basis == BasisKind::Hermite) {
-    for (std::uint32_t c = 0; c < scene_->curves.size(); ++c)
-      for (Side side : {Side::Front, Side::Back}) {
-        const std::uint32_t offset = block_offset(c, side);
-        if (offset == kNoBlock) continue;
-        auto& per_channel = hermite_reflected_[c * 2 + static_cast<std::uint32_t>(side)];
-        per_channel.clear();
-        for (std::size_t ch = 0; ch < channels; ++ch)
-          per_channel.push_back(hermite_of(c, &reflected_[offset * channels + ch], channels));
+  if (settings_.basis == BasisKind::Hermite) update_hermite(received, true);
+}
+
+void Solver::update_hermite(const std::vector<double>& power, bool reflected) {
+  const auto channels = static_cast<std::size_t>(channels_);
+  for (std::uint32_t c = 0; c < scene_->curves.size(); ++c)
+    for (Side side : {Side::Front, Side::Back}) {
+      const std::uint32_t offset = block_offset(c, side);
+      if (offset == kNoBlock) continue;
+      const std::uint32_t block = c * 2 + static_cast<std::uint32_t>(side);
+      // Each channel's estimate at the chosen level, in that level's hats.
+      std::vector<std::vector<double>> values;
+      for (std::size_t ch = 0; ch < channels; ++ch)
+        values.push_back(estimate_in_level(c, chosen_level_[c], &power[offset * channels + ch], channels));
+      if (reflected) {
+        const Spectrum& rho = block_reflectivity_[block];
+        hermite_reflected_[block].clear();
+        for (std::size_t ch = 0; ch < channels; ++ch) {
+          for (double& v : values[ch]) v *= rho[ch];
+          hermite_reflected_[block].push_back(hermite_of(c, values[ch].data()));
+        }
+      } else {
+        std::vector<double> summed(values[0].size(), 0.0);
+        for (std::size_t k = 0; k < summed.size(); ++k)
+          for (std::size_t ch = 0; ch < channels; ++ch) summed[k] += values[ch][k];
+        hermite_unshot_[block] = hermite_of(c, summed.data());
       }
-  }
+    }
 }
 
 std::uint64_t Solver::step_photons(std::uint64_t max_photons, const std::atomic<bool>* cancel,

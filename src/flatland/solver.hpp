@@ -92,9 +92,9 @@ inline constexpr double kWalkMaxReflectivity = 0.999;
 // land on a fine dyadic mesh, every coarser level's deposits follow exactly (the meshes nest), and
 // after every round each curve takes the level with the least estimated error, bias (from the
 // differences between levels) squared plus variance (from two independent halves of the photons).
-// Hermite storage is not a spline space that nests: it uses kHermiteAutoElements fixed elements.
+// Hermite storage deposits on hats, which nest like any spline space: the level is chosen by its
+// hats' estimate, and the Hermite interpolant is built on the chosen level's nodes.
 inline constexpr int kAutoElements = 0;
-inline constexpr int kHermiteAutoElements = 16;
 // Auto storage's levels: the coarsest has about kAutoBaseElements elements per curve (and at
 // least one per segment), each next level halves every element, and the finest stops where a
 // reflecting curve's equal share of the photon budget would put fewer than kAutoPhotonsPerElement
@@ -397,9 +397,19 @@ class Solver {
   void walk_on(Rng& rng, SceneHit hit, Ray ray, std::array<std::int64_t, 3> units,
                Accumulator& accumulator, std::vector<PhotonPath>* paths, std::size_t path_limit,
                PhotonPath* first_path, std::vector<FootprintWeight>& footprint) const;
-  // The Hermite interpolant, in arc length, of the nodal values of a curve's hat basis
-  // (`values[k * stride]`); C-1 nodes (double knots) keep their two values.
-  HermiteReconstruction hermite_of(std::uint32_t curve, const double* values, std::size_t stride) const;
+  // The Hermite interpolant, in arc length, of the nodal values of a curve's hat basis at its
+  // chosen level (`values[k]`, that level's coefficients); C-1 nodes (double knots) keep their two
+  // values.
+  HermiteReconstruction hermite_of(std::uint32_t curve, const double* values) const;
+  // A curve's storage at a level (levels_[curve].size(), or more: the finest, storage_[curve]).
+  const CurveStorage& level_storage(std::uint32_t curve, int level) const;
+  // One curve side's channel (`power[k * stride]`, finest layout) estimated at a level, in that
+  // level's own basis (not prolonged).
+  std::vector<double> estimate_in_level(std::uint32_t curve, int level, const double* power, std::size_t stride) const;
+  // The Hermite reconstructions of every block side (channels summed, for the photon origins) or
+  // of every channel times the side's reflectivity (the reflected radiosity), from the power
+  // `power` (finest layout), at each curve's chosen level.
+  void update_hermite(const std::vector<double>& power, bool reflected);
   // Arc length from the start of the curve to curve parameter u.
   double arc_length_at(std::uint32_t curve, double u) const;
   // Per-unit-length coefficients of `power` (same layout) by the chosen estimator, at each curve's
