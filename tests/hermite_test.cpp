@@ -172,6 +172,31 @@ TEST(Hermite, QuadraticIsReproducedWhereSlopesUseThreeNodes) {
   }
 }
 
+// Evaluating an increasing sequence by walking the pieces gives evaluate's bits everywhere:
+// before the first node, at nodes (the right piece's value), inside pieces and past the end.
+TEST(Hermite, EvaluateIncreasingEqualsEvaluate) {
+  Rng rng(7, 0, 0);
+  for (int trial = 0; trial < 20; ++trial) {
+    const auto u = random_nodes(rng, 9, 0.2);
+    HermiteInput input;
+    input.u = u;
+    input.continuity = random_continuity(rng, u.size());
+    for (std::size_t i = 0; i < u.size(); ++i) {
+      input.left.push_back(rng.uniform());
+      input.right.push_back(input.continuity[i] == Continuity::Jump ? rng.uniform() : input.left.back());
+    }
+    const HermiteReconstruction r(input);
+    std::vector<double> at = {u.front() - 1.0};
+    for (std::size_t i = 0; i + 1 < u.size(); ++i)
+      for (int k = 0; k < 7; ++k) at.push_back(u[i] + (u[i + 1] - u[i]) * k / 7.0);
+    at.push_back(u.back());
+    at.push_back(u.back() + 1.0);
+    std::vector<double> out(at.size());
+    r.evaluate_increasing(at, out.data());
+    for (std::size_t i = 0; i < at.size(); ++i) EXPECT_EQ(out[i], r.evaluate(at[i])) << at[i];
+  }
+}
+
 TEST(Hermite, ContinuityAtNodesIsAsSelected) {
   Rng rng(4, 0, 0);
   int c0_nodes_with_a_kink = 0;

@@ -1226,12 +1226,14 @@ TEST(Solver, AutoStorageKeepsConvergingWithoutAFloor) {
                                     10'000'000, kAutoElements, SamplerKind::Sobol, 1);
   std::printf("auto storage with sobol: penumbra %.4g -> %.4g\n", sobol6, sobol7);
   EXPECT_LT(sobol7, 0.5 * sobol6);
-  // Hermite storage chooses its level by its hats' estimate and interpolates the chosen level's
-  // nodes: no floor either. Its nodal values have the hats' order (2: about N^-2/5, a factor 0.40
-  // a decade, where a floor gives about 1). Measured, seeds 1 and 2: round occluder 0.0284 ->
-  // 0.0116 (0.41), penumbra 0.0289 -> 0.0156 (0.54: its penumbra boundaries want finer levels
-  // than the hats' error asks for); the paper's 16 fixed elements (lumped): 0.0646 -> 0.0623 and
-  // 0.196 -> 0.195. The penumbra's bound sits between its measured ratio and a floor's.
+  // Hermite storage interpolates the nodal values of a level's hats on that level's nodes, the
+  // level chosen by the Hermite curves' own error: no floor either. Its nodal values have the
+  // hats' order (2: about N^-2/5, a factor 0.40 a decade, where a floor gives about 1). Measured,
+  // seeds 1 and 2: round occluder 0.0249 -> 0.0118 (0.48), penumbra 0.0289 -> 0.0103 (0.36); the
+  // paper's 16 fixed elements (lumped): 0.0646 -> 0.0623 and 0.196 -> 0.195 (0.96, 0.99). The
+  // bound, 0.7, sits between the order's 0.40 and a floor's 1: the level choice adds a spread that
+  // the photons' variance alone does not predict (choosing by the hats' error instead gave 0.41
+  // and 0.54).
   const double hermite_round6 = floor_error(round, 2, round_occluder_floor, -2.0, 2.0, 1'000'000, kAutoElements,
                                             SamplerKind::Random, 2, BasisKind::Hermite);
   const double hermite_round7 = floor_error(round, 2, round_occluder_floor, -2.0, 2.0, 10'000'000, kAutoElements,
@@ -1242,7 +1244,7 @@ TEST(Solver, AutoStorageKeepsConvergingWithoutAFloor) {
                                       kAutoElements, SamplerKind::Random, 2, BasisKind::Hermite);
   std::printf("auto storage, hermite: round occluder %.4g -> %.4g, penumbra %.4g -> %.4g\n", hermite_round6,
               hermite_round7, hermite6, hermite7);
-  EXPECT_LT(hermite_round7, 0.5 * hermite_round6);
+  EXPECT_LT(hermite_round7, 0.7 * hermite_round6);
   EXPECT_LT(hermite7, 0.7 * hermite6);
 }
 

@@ -221,6 +221,15 @@ double HermiteReconstruction::evaluate(double u) const {
   return de_casteljau(bernstein_[i], x);
 }
 
+void HermiteReconstruction::evaluate_increasing(std::span<const double> u, double* out) const {
+  std::size_t i = 0;  // the last piece starting at or before u, as find_piece
+  for (std::size_t k = 0; k < u.size(); ++k) {
+    while (i + 1 < pieces_.size() && pieces_[i + 1].u0 <= u[k]) ++i;
+    const double x = std::clamp((u[k] - pieces_[i].u0) / pieces_[i].width, 0.0, 1.0);
+    out[k] = de_casteljau(bernstein_[i], x);
+  }
+}
+
 double HermiteReconstruction::derivative(double u) const {
   const std::size_t i = find_piece(u);
   const double x = std::clamp((u - pieces_[i].u0) / pieces_[i].width, 0.0, 1.0);

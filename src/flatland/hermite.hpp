@@ -14,6 +14,7 @@
 
 #include <array>
 #include <cstddef>
+#include <span>
 #include <vector>
 
 #include "flatland/result.hpp"
@@ -73,6 +74,8 @@ class HermiteReconstruction {
   // value, at the last node the last piece's. Never negative, also under rounding (evaluated from
   // nonnegative Bernstein coefficients), and exactly constant on constant data.
   double evaluate(double u) const;
+  // evaluate at every u of an increasing sequence (out[i] at u[i]), walking the pieces in order.
+  void evaluate_increasing(std::span<const double> u, double* out) const;
   // d/du of the reconstruction, with the same choice of piece as evaluate.
   double derivative(double u) const;
 

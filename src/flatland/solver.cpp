@@ -483,7 +483,27 @@ void Solver::choose_levels(const std::vector<double>& received, const std::vecto
       received_any = received_any || (offset != kNoBlock && holds_power(received, c, offset));
     }
     if (!received_any) continue;
-    // [level][side][k]: full, A and B estimates, prolonged into the fine basis.
+    // Each level's function as a vector whose squared norm is its squared L2 norm along the curve:
+    // a spline's coefficients prolonged into the fine basis (the norm through the fine mass
+    // matrix), or a Hermite curve's values at `points` midpoints of equal arc-length steps (each
+    // weighing length / points): the level is chosen by the error of what is reconstructed.
+    const bool hermite = settings_.basis == BasisKind::Hermite;
+    const double length = scene_->curves[c].length;
+    const std::size_t points = 2 * n;
+    const std::size_t width = hermite ? points : n;
+    std::vector<double> at;
+    if (hermite)
+      for (std::size_t j = 0; j < points; ++j)
+        at.push_back(length * (static_cast<double>(j) + 0.5) / static_cast<double>(points));
+    auto represent = [&](std::size_t level, const std::vector<double>& source, double* out) {
+      if (!hermite) {
+        estimate_at_level(c, static_cast<int>(level), source.data(), out, 1);
+        return;
+      }
+      const std::vector<double> nodal = estimate_in_level(c, static_cast<int>(level), source.data(), 1);
+      hermite_of(c, static_cast<int>(level), nodal.data()).evaluate_increasing(at, out);
+    };
+    // [level][side][i]: full, A and B estimates.
     std::vector<std::vector<double>> full(count), part_a(count), part_b(count);
     std::size_t sides = 0;
     double total = 0.0;
@@ -507,16 +527,21 @@ void Solver::choose_levels(const std::vector<double>& received, const std::vecto
             sets = {{{&full, &all}, {&part_a, &a}, {&part_b, &b}}};
         for (const auto& [target, source] : sets) {
           std::vector<double>& out = (*target)[level];
-          out.resize((sides + 1) * n);
-          estimate_at_level(c, static_cast<int>(level), source->data(), out.data() + sides * n, 1);
+          out.resize((sides + 1) * width);
+          represent(level, *source, out.data() + sides * width);
         }
       }
       ++sides;
     }
     if (sides == 0 || !(total > 0.0)) continue;
-    // |x|^2 = x^T M x = |L^T x|^2 per side, with M's Cholesky factor L in envelope storage.
+    // |x|^2 = x^T M x = |L^T x|^2 per side, with M's Cholesky factor L in envelope storage (a
+    // Hermite curve: the midpoint rule on its values).
     auto norm2 = [&](auto value) {
       double sum = 0.0;
+      if (hermite) {
+        for (std::size_t i = 0; i < sides * points; ++i) sum += value(i) * value(i);
+        return sum * length / static_cast<double>(points);
+      }
       std::vector<double> y(n);
       for (std::size_t s = 0; s < sides; ++s) {
         std::fill(y.begin(), y.end(), 0.0);
@@ -577,10 +602,10 @@ double Solver::arc_length_at(std::uint32_t curve, double u) const {
   return c.segment_start[local] + segment.arc_length.length_at(segment.geometry.shape, u - local);
 }
 
-HermiteReconstruction Solver::hermite_of(std::uint32_t curve, const double* values) const {
+HermiteReconstruction Solver::hermite_of(std::uint32_t curve, int level, const double* values) const {
   // Hat k of a linear B-spline peaks at knots[k + 1] (its Greville point); two hats peaking at the
   // same place are the two sides of a C-1 node.
-  const CurveStorage& storage = level_storage(curve, chosen_level_[curve]);
+  const CurveStorage& storage = level_storage(curve, level);
   const std::vector<double>& knots = storage.basis.knots();
   HermiteInput input;
   std::size_t next_node = 0;  // storage.nodes is sorted by u, as the Greville points are
@@ -1211,13 +1236,13 @@ void Solver::update_hermite(const std::vector<double>& power, bool reflected) {
         hermite_reflected_[block].clear();
         for (std::size_t ch = 0; ch < channels; ++ch) {
           for (double& v : values[ch]) v *= rho[ch];
-          hermite_reflected_[block].push_back(hermite_of(c, values[ch].data()));
+          hermite_reflected_[block].push_back(hermite_of(c, chosen_level_[c], values[ch].data()));
         }
       } else {
         std::vector<double> summed(values[0].size(), 0.0);
         for (std::size_t k = 0; k < summed.size(); ++k)
           for (std::size_t ch = 0; ch < channels; ++ch) summed[k] += values[ch][k];
-        hermite_unshot_[block] = hermite_of(c, summed.data());
+        hermite_unshot_[block] = hermite_of(c, chosen_level_[c], summed.data());
       }
     }
 }

@@ -397,10 +397,9 @@ class Solver {
   void walk_on(Rng& rng, SceneHit hit, Ray ray, std::array<std::int64_t, 3> units,
                Accumulator& accumulator, std::vector<PhotonPath>* paths, std::size_t path_limit,
                PhotonPath* first_path, std::vector<FootprintWeight>& footprint) const;
-  // The Hermite interpolant, in arc length, of the nodal values of a curve's hat basis at its
-  // chosen level (`values[k]`, that level's coefficients); C-1 nodes (double knots) keep their two
-  // values.
-  HermiteReconstruction hermite_of(std::uint32_t curve, const double* values) const;
+  // The Hermite interpolant, in arc length, of the nodal values of a curve's hat basis at a level
+  // (`values[k]`, that level's coefficients); C-1 nodes (double knots) keep their two values.
+  HermiteReconstruction hermite_of(std::uint32_t curve, int level, const double* values) const;
   // A curve's storage at a level (levels_[curve].size(), or more: the finest, storage_[curve]).
   const CurveStorage& level_storage(std::uint32_t curve, int level) const;
   // One curve side's channel (`power[k * stride]`, finest layout) estimated at a level, in that
