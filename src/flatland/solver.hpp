@@ -92,8 +92,8 @@ inline constexpr double kWalkMaxReflectivity = 0.999;
 // land on a fine dyadic mesh, every coarser level's deposits follow exactly (the meshes nest), and
 // after every round each curve takes the level with the least estimated error, bias (from the
 // differences between levels) squared plus variance (from two independent halves of the photons).
-// Hermite storage deposits on hats, which nest like any spline space: the level is chosen by its
-// hats' estimate, and the Hermite interpolant is built on the chosen level's nodes.
+// Hermite storage deposits on hats, which nest like any spline space: each level's Hermite curve
+// is built on that level's nodes, and the level is chosen by those curves' error.
 inline constexpr int kAutoElements = 0;
 // Auto storage's levels: the coarsest has about kAutoBaseElements elements per curve (and at
 // least one per segment), each next level halves every element, and the finest stops where a

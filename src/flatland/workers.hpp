@@ -1,5 +1,5 @@
 // A fixed set of worker threads that live as long as their owner, so that work handed out many
-// times (every round of a solve, every 25 ms piece of the viewer's) does not start and join
+// times (every round of a solve, every 50 ms piece of the viewer's) does not start and join
 // threads each time. The pool decides nothing about results: callers split work into pieces whose
 // outcome does not depend on which thread runs them (flatland's integer accumulators), so a solve
 // is bit-identical on any thread count.

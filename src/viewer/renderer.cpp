@@ -192,9 +192,10 @@ Status Renderer::ensure_hdr_target(int width, int height) {
       !attach_texture(width, height, GL_RGBA8, GL_UNSIGNED_BYTE, mapped_framebuffer_, mapped_texture_)) {
     hdr_width_ = 0;
     hdr_height_ = 0;
-    return Error{"cannot make a " + std::to_string(width) + "x" + std::to_string(height) +
-                 " floating-point path buffer (out of graphics memory?); use a smaller picture"};
+    return Error{"cannot make the " + std::to_string(width) + "x" + std::to_string(height) +
+                 " path buffers (out of graphics memory?); use a smaller picture"};
   }
+  hdr_empty_ = true;
   glBindFramebuffer(GL_FRAMEBUFFER, hdr_framebuffer_);
   glClearColor(0.0f, 0.0f, 0.0f, 0.0f);
   glClear(GL_COLOR_BUFFER_BIT);
@@ -255,7 +256,12 @@ Status Renderer::draw(const std::vector<LineVertex>& overlay, const PathDraw& pa
   // times shorter in its pixels, over an area smaller by the square.
   const float resolution = static_cast<float>(path_view.width) / static_cast<float>(view.width);
   const float exposure = path_exposure * paths.normalisation * resolution;
-  if (paths.clear || paths.decay != 1.0f || !paths.instances.empty() || !mapped_valid_ || exposure != mapped_exposure_) {
+  // (With the paths hidden every frame clears an empty buffer: nothing changes.)
+  const bool was_empty = hdr_empty_;
+  if (paths.clear) hdr_empty_ = true;
+  if (!paths.instances.empty()) hdr_empty_ = false;
+  const bool changed = !paths.instances.empty() || (paths.clear && !was_empty) || (paths.decay != 1.0f && !hdr_empty_);
+  if (changed || !mapped_valid_ || exposure != mapped_exposure_) {
     glDisable(GL_BLEND);
     glBindFramebuffer(GL_FRAMEBUFFER, mapped_framebuffer_);
     glUseProgram(tonemap_program_);

@@ -72,6 +72,7 @@ class Renderer {
   unsigned mapped_framebuffer_ = 0;
   unsigned mapped_texture_ = 0;
   bool mapped_valid_ = false;
+  bool hdr_empty_ = true;  // the float path buffer holds nothing (cleared, nothing added since)
   float mapped_exposure_ = 0.0f;
   int hdr_width_ = 0;
   int hdr_height_ = 0;
