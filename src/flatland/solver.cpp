@@ -541,18 +541,17 @@ void Solver::choose_levels(const std::vector<double>& received, const std::vecto
       hermite_of(c, static_cast<int>(level), nodal.data()).evaluate_increasing(at, out);
     };
     // [level][side][i]: full, A and B estimates.
-    std::vector<std::vector<double>> full(count), part_a(count), part_b(count);
+    using PerLevel = std::vector<std::vector<double>>;
+    PerLevel full(count, std::vector<double>(sides * width));
+    PerLevel part_a = full;
+    PerLevel part_b = full;
+    const std::array<PerLevel*, 3> targets = {&full, &part_a, &part_b};
     for (std::size_t level = 0; level < count; ++level)
-      for (std::size_t side = 0; side < sides; ++side) {
-        const std::array<std::vector<std::vector<double>>*, 3> targets = {&full, &part_a, &part_b};
-        for (std::size_t set = 0; set < 3; ++set) {
-          std::vector<double>& out = (*targets[set])[level];
-          out.resize(sides * width);
-          represent(level, reflected[side][set], out.data() + side * width);
-        }
-      }
+      for (std::size_t side = 0; side < sides; ++side)
+        for (std::size_t set = 0; set < 3; ++set)
+          represent(level, reflected[side][set], (*targets[set])[level].data() + side * width);
     // |x|^2 = x^T M x = |L^T x|^2 per side, with M's Cholesky factor L in envelope storage (a
-    // Hermite curve: the midpoint rule on its values).
+    // Hermite curve: the Gauss rule above on its values).
     auto norm2 = [&](auto value) {
       double sum = 0.0;
       if (hermite) {

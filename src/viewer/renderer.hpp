@@ -1,8 +1,9 @@
 // The viewer's OpenGL 3.3 core renderer, shared by the window (`flatland view`) and the offscreen
 // picture (`flatland render`): photon paths accumulated additively into a floating-point buffer and
 // tone mapped (into an 8-bit buffer of the same size, again only when the paths or the exposure
-// changed), then laid over the background, then the overlay (curves, radiosity bands and graphs, markers) on top. It draws into
-// whatever framebuffer is bound; the caller owns the GL context, which must be current.
+// changed), that laid over the background, then the overlay (curves, radiosity bands and graphs,
+// markers) on top. It draws into whatever framebuffer is bound; the caller owns the GL context,
+// which must be current.
 #pragma once
 
 #include <cstdint>
