@@ -46,12 +46,15 @@ const char* kScene = R"({
     {"id": "collinear", "material": "wall", "line": [[0,2],[4,2],[10,2]]},
     {"id": "corner", "material": "wall", "line": [[0,4],[4,4],[4,10]]},
     {"id": "arch", "material": "wall", "bezier": [[0,1],[0,3],[4,3],[4,1],[4,0],[6,0],[6,2]]},
-    {"id": "kink", "material": "wall", "bezier": [[0,-3],[1,-2],[2,-2],[3,-3],[4,-2],[5,-2],[6,-3]]}
+    {"id": "kink", "material": "wall", "bezier": [[0,-3],[1,-2],[2,-2],[3,-3],[4,-2],[5,-2],[6,-3]]},
+    {"id": "cusp", "material": "wall", "bezier": [[0,-6],[2,-4],[0.05,-4],[2,-6]]}
   ]})";
 
 constexpr double kInfinity = std::numeric_limits<double>::infinity();
 
-enum CurveIndex { kLine = 0, kCollinear = 1, kCorner = 2, kArch = 3, kKink = 4 };
+// Nearly a cusp (the loader refuses a true one): the speed falls to |C'(1/2)| = 0.0375 at t = 1/2,
+// a hundredth of its value elsewhere (C'(1/2) = 3 ((2,2) + 2 (-1.95,0) + (1.95,-2)) / 4).
+enum CurveIndex { kLine = 0, kCollinear = 1, kCorner = 2, kArch = 3, kKink = 4, kCusp = 5 };
 
 const Scene& scene() {
   static const Scene s = testing::scene_from_text(kScene);
@@ -596,6 +599,29 @@ TEST(Footprint, SpanTableHoldsTheBasisIntegralsAndLengths) {
         }
       }
       EXPECT_NEAR(total, curve.length, 1e-12 * curve.length) << what;
+      // The running moments at y = 1 (T_k(1) = 1: the sum of the coefficients) are the whole
+      // span's moments, and the span starts step by the spans' lengths.
+      EXPECT_EQ(table.start(basis.end_span()), curve.length) << what;
+      for (std::size_t span = basis.first_span(); span < basis.end_span(); ++span) {
+        EXPECT_NEAR(table.start(span + 1) - table.start(span), table.length(span),
+                    1e-13 * curve.length) << what << " span " << span;
+        std::size_t terms = 0;
+        const double* running = table.running(span, terms);
+        if (table.length(span) == 0.0) {
+          EXPECT_EQ(running, nullptr) << what << " span " << span;
+          continue;
+        }
+        ASSERT_NE(running, nullptr) << what << " span " << span;
+        const std::size_t powers = static_cast<std::size_t>(table.powers());
+        for (std::size_t j = 0; j < powers; ++j) {
+          for (std::size_t r = 0; r <= p; ++r) {
+            double at_one = 0.0;
+            for (std::size_t k = 0; k < terms; ++k) at_one += running[(k * powers + j) * (p + 1) + r];
+            EXPECT_NEAR(at_one, table.moments(span)[j * (p + 1) + r], 1e-12 * curve.length)
+                << what << " span " << span << " j " << j << " r " << r;
+          }
+        }
+      }
       for (std::size_t k = 0; k < basis.size(); ++k)
         EXPECT_NEAR(integral[k], storage.basis_length[k], 1e-12 * curve.length) << what << " k " << k;
     }
@@ -630,6 +656,40 @@ TEST(Footprint, SpanTableGivesTheQuadraturesWeightsEverywhere) {
         expect_close(checked_dense(tabled, storage.basis.size()), want, 1e-12,
                      curve.id + " " + to_string(kind) + " " + to_string(profile) + " trial " +
                          std::to_string(trial));
+      }
+    }
+  }
+}
+
+TEST(Footprint, SpanTableFallsBackToQuadratureNearACusp) {
+  // Where the speed nearly vanishes, u(s) is nearly a square root (a singularity just off the real
+  // axis) and no Chebyshev series of 33 points fits phi_r(u(s)): that span keeps none, and parts of it take the footprint's own
+  // quadrature in u between the inverted ends. So the tabled weights equal the plain ones there,
+  // and elsewhere on the curve the series serve.
+  const Curve& cusp = scene().curves[kCusp];
+  for (BasisKind kind : {BasisKind::Constant, BasisKind::Linear, BasisKind::Cubic}) {
+    const CurveStorage storage = build_curve_storage(scene(), cusp, kind, 3);
+    const SplineBasis& basis = storage.basis;
+    const FootprintTable table(scene(), cusp, basis);
+    std::size_t with = 0;
+    std::size_t without = 0;
+    for (std::size_t span = basis.first_span(); span < basis.end_span(); ++span) {
+      if (!(basis.knots()[span + 1] > basis.knots()[span])) continue;
+      std::size_t terms = 0;
+      (table.running(span, terms) != nullptr ? with : without) += 1;
+      const bool holds_cusp = basis.knots()[span] < 0.5 && basis.knots()[span + 1] > 0.5;
+      EXPECT_EQ(table.running(span, terms) == nullptr, holds_cusp) << to_string(kind) << " span " << span;
+    }
+    EXPECT_GT(with, 0u) << to_string(kind);
+    EXPECT_GT(without, 0u) << to_string(kind);
+    for (RayProfile profile : {RayProfile::Box, RayProfile::Tent, RayProfile::Epanechnikov}) {
+      for (double u_hit : {0.45, 0.5, 0.55, 0.2, 0.9}) {
+        for (double a : {0.01, 0.1, 0.5}) {
+          const std::string what = std::string(to_string(kind)) + " " + to_string(profile) +
+                                   " u " + std::to_string(u_hit) + " a " + std::to_string(a);
+          expect_close(footprint_dense(cusp, basis, u_hit, a, profile, &table),
+                       footprint_dense(cusp, basis, u_hit, a, profile), 1e-12, what);
+        }
       }
     }
   }

@@ -100,6 +100,101 @@ constexpr Matrix8 kIntegrate8 = make_integration_matrix();
 // four panels per segment at most, so the speed |C'| is resolved whatever the footprint's size.
 constexpr double kMaxCubicPanel = 0.25;
 
+// Chebyshev series on [-1, 1], f(y) = sum_k c_k T_k(y), for the span table's partial spans.
+//
+// Point i of the n Chebyshev-Lobatto points (n >= 2), cos(pi i / (n - 1)): from 1 down to -1.
+double lobatto_point(std::size_t i, std::size_t n) {
+  return std::cos(kPi * static_cast<double>(i) / static_cast<double>(n - 1));
+}
+
+// The coefficients of the polynomial of degree n - 1 through values f[i] at the n Lobatto points
+// (the discrete cosine transform of type I).
+void chebyshev_fit(const double* f, std::size_t n, double* c) {
+  const std::size_t m = n - 1;
+  for (std::size_t k = 0; k < n; ++k) {
+    double sum = 0.5 * (f[0] + (k % 2 == 0 ? f[m] : -f[m]));
+    for (std::size_t i = 1; i < m; ++i) {
+      const std::size_t angle = (k * i) % (2 * m);  // cos(pi k i / m), reduced exactly
+      sum += f[i] * std::cos(kPi * static_cast<double>(angle) / static_cast<double>(m));
+    }
+    c[k] = (k == 0 || k == m ? 1.0 : 2.0) * sum / static_cast<double>(m);
+  }
+}
+
+// f(y) by Clenshaw's recurrence.
+double chebyshev_value(const double* c, std::size_t n, double y) {
+  double b1 = 0.0;
+  double b2 = 0.0;
+  for (std::size_t k = n; k-- > 1;) {
+    const double b = 2.0 * y * b1 - b2 + c[k];
+    b2 = b1;
+    b1 = b;
+  }
+  return y * b1 - b2 + c[0];
+}
+
+// y f(y): y T_0 = T_1 and y T_k = (T_(k+1) + T_(k-1)) / 2; `c` grows by one term.
+void chebyshev_times_y(std::vector<double>& c) {
+  std::vector<double> d(c.size() + 1, 0.0);
+  for (std::size_t k = 0; k < c.size(); ++k) {
+    if (k == 0) {
+      d[1] += c[0];
+    } else {
+      d[k + 1] += 0.5 * c[k];
+      d[k - 1] += 0.5 * c[k];
+    }
+  }
+  c = std::move(d);
+}
+
+// The antiderivative that vanishes at -1: C_1 = c_0 - c_2 / 2, C_k = (c_(k-1) - c_(k+1)) / (2k),
+// and C_0 such that sum C_k (-1)^k = 0; one term more than `c`.
+std::vector<double> chebyshev_integral(const std::vector<double>& c) {
+  const std::size_t n = c.size();
+  auto at = [&](std::size_t k) { return k < n ? c[k] : 0.0; };
+  std::vector<double> integral(n + 1, 0.0);
+  for (std::size_t k = 1; k <= n; ++k)
+    integral[k] = k == 1 ? at(0) - 0.5 * at(2) : (at(k - 1) - at(k + 1)) / (2.0 * static_cast<double>(k));
+  double at_minus_one = 0.0;
+  for (std::size_t k = n + 1; k-- > 1;) at_minus_one += k % 2 == 0 ? integral[k] : -integral[k];
+  integral[0] = -at_minus_one;
+  return integral;
+}
+
+// Fits g(y) on [-1, 1] (`count` functions at once: g(y, values) writes them) with 9, 17 or 33
+// Lobatto points, the fewest for which every function's last two coefficients are at most
+// `tolerance` and its interpolant matches it within 4 tolerance half-way between the points
+// (the nodes of the 9 are among the 17's, but the fits are simply redone). Returns the number of
+// points, 0 when even 33 do not do; `coefficients` holds count x n values, function-major.
+template <class Function>
+std::size_t chebyshev_fit_checked(Function&& g, std::size_t count, double tolerance,
+                                  std::vector<double>& coefficients) {
+  std::vector<double> values;
+  std::vector<double> at(count);
+  for (const std::size_t n : {std::size_t{7}, std::size_t{9}, std::size_t{11}, std::size_t{13}, std::size_t{17}, std::size_t{25}, std::size_t{33}}) {
+    values.assign(count * n, 0.0);
+    for (std::size_t i = 0; i < n; ++i) {
+      g(lobatto_point(i, n), at.data());
+      for (std::size_t f = 0; f < count; ++f) values[f * n + i] = at[f];
+    }
+    coefficients.assign(count * n, 0.0);
+    bool good = true;
+    for (std::size_t f = 0; f < count && good; ++f) {
+      double* c = coefficients.data() + f * n;
+      chebyshev_fit(values.data() + f * n, n, c);
+      good = std::fabs(c[n - 1]) <= tolerance && std::fabs(c[n - 2]) <= tolerance;
+    }
+    for (std::size_t i = 0; i + 1 < n && good; ++i) {
+      const double y = std::cos(kPi * (static_cast<double>(i) + 0.5) / static_cast<double>(n - 1));
+      g(y, at.data());
+      for (std::size_t f = 0; f < count && good; ++f)
+        good = std::fabs(chebyshev_value(coefficients.data() + f * n, n, y) - at[f]) <= 4.0 * tolerance;
+    }
+    if (good) return n;
+  }
+  return 0;
+}
+
 
 // Divides the weights appended after `begin` by their sum, drops zeros, and hands the rounding
 // residual 1 - sum to the largest weight, so the sum is 1 to the last bit or two. False when
@@ -111,12 +206,17 @@ bool normalise_appended(std::vector<FootprintWeight>& out, std::size_t begin) {
   const double inverse = 1.0 / total;
   std::size_t kept = begin;
   std::size_t largest = begin;
+  double largest_weight = 0.0;  // kept in a register, not reloaded through `largest`
   double sum = 0.0;
   for (std::size_t i = begin; i < out.size(); ++i) {
     if (!(out[i].weight > 0.0)) continue;
-    out[kept] = {out[i].coefficient, out[i].weight * inverse};
-    sum += out[kept].weight;
-    if (out[kept].weight > out[largest].weight) largest = kept;
+    const double weight = out[i].weight * inverse;
+    out[kept] = {out[i].coefficient, weight};
+    sum += weight;
+    if (weight > largest_weight) {
+      largest_weight = weight;
+      largest = kept;
+    }
     ++kept;
   }
   out.resize(kept);
@@ -173,6 +273,23 @@ class Accumulator {
       run[r].weight += c0 * moments[r] + c1 * moments[stride + r] + c2 * moments[2 * stride + r];
   }
 
+  // The current span's part [ya, yb] in its arc-length coordinate, with the profile
+  // c[0] + c[1] y + c[2] y^2 (c[j] for j < powers), from FootprintTable's running moments
+  // (`terms` per (j, r), laid out [term][j][r]): w_r += sum_j c_j (K_j,r(yb) - K_j,r(ya)).
+  // The differences D_k = T_k(yb) - T_k(ya) come from their own recurrence,
+  // D_(k+1) = 2 yb D_k + 2 (yb - ya) T_k(ya) - D_(k-1), so they keep their relative accuracy
+  // however short the part is (subtracting the two values would leave only rounding).
+  void add_running(const double* series, std::size_t terms, std::size_t powers, double ya,
+                   double yb, const std::array<double, 3>& c) {
+    static_assert(SplineBasis::kMaxDegree == 3);
+    switch (degree_) {
+      case 0: return add_running<1>(series, terms, powers, ya, yb, c);
+      case 1: return add_running<2>(series, terms, powers, ya, yb, c);
+      case 2: return add_running<3>(series, terms, powers, ya, yb, c);
+      default: return add_running<4>(series, terms, powers, ya, yb, c);
+    }
+  }
+
   // u inside the current span.
   void add(double u, double weight) {
     if (!inverses_ready_) {
@@ -203,6 +320,34 @@ class Accumulator {
   std::size_t begin() const { return begin_; }
 
  private:
+  // add_running for a basis of Stride = degree + 1 functions per span: the sums stay in registers.
+  template <std::size_t Stride>
+  void add_running(const double* series, std::size_t terms, std::size_t powers, double ya,
+                   double yb, const std::array<double, 3>& c) {
+    const double delta = yb - ya;
+    double d_previous = 0.0;  // D_0
+    double d = delta;         // D_1
+    double t_previous = 1.0;  // T_0(ya)
+    double t = ya;            // T_1(ya)
+    std::array<double, Stride> sum{};
+    const std::size_t block = powers * Stride;
+    for (std::size_t k = 1; k < terms; ++k) {  // D_0 = 0: the constant terms cancel
+      const double* row = series + k * block;
+      for (std::size_t j = 0; j < powers; ++j) {
+        const double factor = c[j] * d;
+        for (std::size_t r = 0; r < Stride; ++r) sum[r] += factor * row[j * Stride + r];
+      }
+      const double d_next = 2.0 * yb * d + 2.0 * delta * t - d_previous;
+      const double t_next = 2.0 * ya * t - t_previous;
+      d_previous = d;
+      d = d_next;
+      t_previous = t;
+      t = t_next;
+    }
+    FootprintWeight* run = out_.data() + offset_;
+    for (std::size_t r = 0; r < Stride; ++r) run[r].weight += sum[r];
+  }
+
   const double* knots_;
   std::size_t degree_;
   std::vector<FootprintWeight>& out_;
@@ -338,8 +483,20 @@ double footprint_half_length(double width, double cos_incidence) {
   return width / (2.0 * std::fmax(std::fabs(cos_incidence), kGrazingCosine));
 }
 
-FootprintTable::FootprintTable(const Scene& scene, const Curve& curve, const SplineBasis& basis)
-    : first_(basis.first_span()), stride_(static_cast<std::size_t>(basis.degree()) + 1) {
+int profile_powers(RayProfile profile) {
+  switch (profile) {
+    case RayProfile::Box: return 1;
+    case RayProfile::Tent: return 2;
+    case RayProfile::Epanechnikov: return 3;
+    default: return 0;
+  }
+}
+
+FootprintTable::FootprintTable(const Scene& scene, const Curve& curve, const SplineBasis& basis,
+                               int powers)
+    : first_(basis.first_span()),
+      stride_(static_cast<std::size_t>(basis.degree()) + 1),
+      powers_(std::clamp(powers, 1, 3)) {
   // Raw moments A_j = integral z^j phi_r ds with z the arc length from the span's start, then
   // shifted to y = z / h - 1: M_0 = A_0, M_1 = A_1 / h - A_0, M_2 = A_2 / h^2 - 2 A_1 / h + A_0.
   // A span lies within one segment (joints are knots). On a cubic, z at the Gauss nodes comes from
@@ -397,6 +554,120 @@ FootprintTable::FootprintTable(const Scene& scene, const Curve& curve, const Spl
           (raw[2][r] * inverse_h - 2.0 * raw[1][r]) * inverse_h + raw[0][r];
     }
   }
+  build_series(scene, curve, basis);
+}
+
+void FootprintTable::build_series(const Scene& scene, const Curve& curve, const SplineBasis& basis) {
+  // Span starts in arc length, from each segment's start (joints are knots: a span lies within
+  // one segment), and per non-empty span the running moments' series (see the header).
+  const std::vector<double>& knots = basis.knots();
+  const std::size_t spans = basis.end_span() - first_;
+  const std::size_t powers = static_cast<std::size_t>(powers_);
+  const std::size_t block = powers * stride_;
+  start_.assign(spans + 1, curve.length);
+  series_.assign(spans, Series{});
+  std::vector<double> g;         // phi_r(u(y)) fits, function-major
+  std::vector<double> sigma;     // s(v) - s0 fit
+  std::vector<double> running;   // one (j, r) series while it is built
+  smooth_joints_.assign(curve.segment_count, false);
+  for (std::uint32_t joint = 0; joint < curve.joint_count(); ++joint)
+    smooth_joints_[joint] = is_tangent_continuous(scene, curve, joint);
+  std::array<double, SplineBasis::kMaxDegree + 1> phi{};
+  for (std::size_t k = first_; k < basis.end_span(); ++k) {
+    const double ua = knots[k];
+    const double ub = knots[k + 1];
+    const auto j = static_cast<std::uint32_t>(std::min<double>(
+        std::floor(ub > ua ? 0.5 * (ua + ub) : ua), curve.segment_count - 1));
+    const SceneSegment& segment = scene.segments[curve.first_segment + j];
+    const bool line = segment.geometry.kind == SegmentKind::Line;
+    // Arc lengths within the segment (exact), so that rounding is relative to the segment's
+    // length, not the curve's.
+    auto arc = [&](double u) {
+      const double t = std::clamp(u - j, 0.0, 1.0);
+      if (t == 0.0) return 0.0;
+      return line ? t * segment.length : segment.arc_length.length_at(segment.geometry.shape, t);
+    };
+    const double z0 = arc(ua);
+    start_[k - first_] = curve.segment_start[j] + z0;
+    if (!(ub > ua)) continue;
+    const double z1 = arc(ub);
+    const double mid = 0.5 * (z0 + z1);
+    const double h = 0.5 * (z1 - z0);
+    if (!(h > 0.0)) continue;
+    // u at y in [-1, 1] (s = mid + h y within the segment), within the span.
+    auto u_at = [&](double y) {
+      if (line) return std::clamp(ua + 0.5 * (y + 1.0) * (ub - ua), ua, ub);
+      return std::clamp(j + segment.arc_length.parameter_at(segment.geometry.shape, mid + h * y),
+                        ua, ub);
+    };
+    auto basis_at = [&](double y, double* values) {
+      basis.evaluate_in_span(k, u_at(y), phi.data());
+      for (std::size_t r = 0; r < stride_; ++r) values[r] = phi[r];
+    };
+    std::size_t n = 0;
+    std::size_t n_length = 0;
+    if (line) {
+      // phi_r(u(y)) is a polynomial of degree <= 3: four Lobatto points fit it exactly.
+      n = 4;
+      g.assign(stride_ * n, 0.0);
+      std::vector<double> values(stride_ * n);
+      for (std::size_t i = 0; i < n; ++i) {
+        basis.evaluate_in_span(k, u_at(lobatto_point(i, n)), phi.data());
+        for (std::size_t r = 0; r < stride_; ++r) values[r * n + i] = phi[r];
+      }
+      for (std::size_t r = 0; r < stride_; ++r) chebyshev_fit(values.data() + r * n, n, g.data() + r * n);
+    } else {
+      // The inversion s -> u is accurate to about 1e-15 of the segment's length, which is
+      // 1e-15 L / h in y: the tolerance follows it on short spans.
+      n = chebyshev_fit_checked(basis_at, stride_, 1e-14 * std::fmax(1.0, segment.length / (2.0 * h)), g);
+      if (n == 0) continue;  // no series: quadrature on this span
+      const double u_mid = 0.5 * (ua + ub);
+      const double half_u = 0.5 * (ub - ua);
+      n_length = chebyshev_fit_checked(
+          [&](double v, double* value) { value[0] = arc(u_mid + half_u * v) - z0; }, 1,
+          1e-14 * segment.length, sigma);
+      if (n_length == 0) continue;
+    }
+    // K_j,r = h * integral of y^j g_r from -1: terms n + powers for every j (zeros beyond).
+    const std::size_t terms = n + powers;
+    Series& series = series_[k - first_];
+    series.offset = coefficients_.size();
+    series.terms = static_cast<std::uint32_t>(terms);
+    series.length_terms = static_cast<std::uint32_t>(n_length);
+    series.u_mid = 0.5 * (ua + ub);
+    series.inverse_half_u = 2.0 / (ub - ua);
+    coefficients_.resize(series.offset + terms * block + n_length, 0.0);
+    double* out = coefficients_.data() + series.offset;
+    for (std::size_t r = 0; r < stride_; ++r) {
+      running.assign(g.begin() + static_cast<std::ptrdiff_t>(r * n),
+                     g.begin() + static_cast<std::ptrdiff_t>((r + 1) * n));
+      for (std::size_t p = 0; p < powers; ++p) {
+        if (p > 0) chebyshev_times_y(running);
+        const std::vector<double> integral = chebyshev_integral(running);
+        for (std::size_t t = 0; t < integral.size() && t < terms; ++t)
+          out[t * block + p * stride_ + r] = h * integral[t];
+      }
+    }
+    std::copy(sigma.begin(), sigma.begin() + static_cast<std::ptrdiff_t>(n_length), out + terms * block);
+  }
+  // An empty span starts where the next one does; the last entry stays the curve's length.
+  for (std::size_t k = spans; k-- > 0;)
+    if (!(knots[first_ + k + 1] > knots[first_ + k])) start_[k] = start_[k + 1];
+}
+
+std::size_t FootprintTable::span_at(double s) const {
+  // The last span whose start is <= s; among equal starts the last, the non-empty one.
+  const auto it = std::upper_bound(start_.begin(), start_.end() - 1, s);
+  const std::size_t k = it == start_.begin() ? 0 : static_cast<std::size_t>(it - start_.begin()) - 1;
+  return first_ + k;
+}
+
+double FootprintTable::arc_length_in_span(std::size_t span, double u) const {
+  const Series& series = series_[span - first_];
+  if (series.length_terms == 0) return std::numeric_limits<double>::quiet_NaN();
+  const double v = std::clamp((u - series.u_mid) * series.inverse_half_u, -1.0, 1.0);
+  const double* sigma = coefficients_.data() + series.offset + series.terms * powers_ * stride_;
+  return start_[span - first_] + chebyshev_value(sigma, series.length_terms, v);
 }
 
 void footprint_weights(const Scene& scene, const Curve& curve, const SplineBasis& basis,
@@ -449,14 +720,37 @@ void footprint_weights(const Scene& scene, const Curve& curve, const SplineBasis
                : segment.arc_length.parameter_at(segment.geometry.shape, s);
   };
 
+  const bool polynomial_profile = is_polynomial(profile);
+  const bool use_table = polynomial_profile && table != nullptr && !table->empty();
+  assert(table == nullptr || table->empty() || table->matches(basis));
+  // The table's running moments serve partial spans (the walk below goes by arc length).
+  const bool by_arc = use_table && table->powers() >= profile_powers(profile);
+  const std::vector<double>& knots = basis.knots();
+
   const double t_hit = u_hit - hit;
-  const double into_hit = length_in(hit, t_hit);  // from the hit segment's start
+  double into_hit = std::numeric_limits<double>::quiet_NaN();  // from the hit segment's start
+  std::size_t hit_span = 0;  // by_arc: the knot span holding u_hit (the one that starts there)
+  if (by_arc) {
+    const auto first = knots.begin() + static_cast<std::ptrdiff_t>(basis.first_span());
+    const auto last = knots.begin() + static_cast<std::ptrdiff_t>(basis.end_span());
+    hit_span = static_cast<std::size_t>(
+        std::clamp(std::upper_bound(first, last, u_hit) - knots.begin() - 1,
+                   static_cast<std::ptrdiff_t>(basis.first_span()),
+                   static_cast<std::ptrdiff_t>(basis.end_span()) - 1));
+    // On a cubic the span's s(u) series gives the hit's arc length without quadrature.
+    if (segments[hit].geometry.kind != SegmentKind::Line)
+      into_hit = std::clamp(table->arc_length_in_span(hit_span, u_hit) - start[hit], 0.0,
+                            segments[hit].length);
+  }
+  if (std::isnan(into_hit)) into_hit = length_in(hit, t_hit);
   const double s_hit = start[hit] + into_hit;
 
   // The run, walking over smooth joints (the closing one too, on a closed curve) while the
   // footprint reaches past them. `before` and `after` are the run's lengths on each side of the
   // hit; infinite when the walk comes all the way round.
-  auto smooth = [&](std::uint32_t joint) { return is_tangent_continuous(scene, curve, joint); };
+  auto smooth = [&](std::uint32_t joint) {
+    return use_table ? table->smooth_joint(joint) : is_tangent_continuous(scene, curve, joint);
+  };
   double before = into_hit;
   double after = segments[hit].length - into_hit;
   bool endless = false;
@@ -526,9 +820,6 @@ void footprint_weights(const Scene& scene, const Curve& curve, const SplineBasis
     return j + parameter_in(j, s - start[j]);
   };
 
-  const bool polynomial_profile = is_polynomial(profile);
-  const bool use_table = polynomial_profile && table != nullptr && !table->empty();
-  assert(table == nullptr || table->empty() || table->matches(basis));
   // 0 for an infinite footprint, or a flat one: a flat spread.
   const double inverse_a = flat ? 0.0 : 1.0 / a;
   // The Gaussian changes fastest: its panels span at most half the footprint (x-width 1/2), where
@@ -537,9 +828,77 @@ void footprint_weights(const Scene& scene, const Curve& curve, const SplineBasis
     return profile == RayProfile::Gauss ? std::max(1, static_cast<int>(std::ceil(2.0 * x_width)))
                                         : 1;
   };
-  const std::vector<double>& knots = basis.knots();
   const std::size_t begin = out.size();
   bool several = false;  // more than one piece appended: merge before normalising
+
+  // The polynomial profile in a span's arc-length coordinate y, where the offset from the image's
+  // centre over a is x_mid + beta y, on the side of the centre `below` says: c0 + c1 y + c2 y^2.
+  auto profile_in_y = [&](double x_mid, double beta, bool below) -> std::array<double, 3> {
+    if (profile == RayProfile::Tent) {  // 1 - |x|
+      const double sign = below ? -1.0 : 1.0;
+      return {1.0 - sign * x_mid, -sign * beta, 0.0};
+    }
+    if (profile == RayProfile::Epanechnikov)  // 3/4 (1 - x^2)
+      return {0.75 * (1.0 - x_mid * x_mid), -1.5 * x_mid * beta, -0.75 * beta * beta};
+    return {0.5, 0.0, 0.0};
+  };
+
+  // Integrates the part [ua, ub] of segment j (within one knot span, which the accumulator has
+  // entered, on one side of the centre) by Gauss-Legendre panels; delta_a, the part's start's
+  // offset from the image's centre, advances to its end.
+  auto integrate_part = [&](Accumulator& accumulate, std::uint32_t j, double ua, double ub,
+                            double& delta_a) {
+    const SceneSegment& segment = segments[j];
+    const double jd = j;
+    if (segment.geometry.kind == SegmentKind::Line) {
+      // Constant speed L: delta(u) = delta_a + (u - ua) L exactly.
+      const double speed = segment.length;
+      const int panels = polynomial_profile ? 1 : profile_panels((ub - ua) * speed * inverse_a);
+      const double width = (ub - ua) / panels;
+      const double half = 0.5 * width;
+      for (int panel = 0; panel < panels; ++panel) {
+        const double pa = ua + panel * width;
+        const double mid = pa + half;
+        const double delta_pa = delta_a + panel * width * speed;
+        auto node = [&](double x, double w) {
+          const double delta = delta_pa + half * (1.0 + x) * speed;
+          const double offset = std::clamp(delta * inverse_a, -1.0, 1.0);
+          accumulate.add(mid + half * x, w * half * speed * density_inside(profile, offset));
+        };
+        if (polynomial_profile) {
+          for (std::size_t g = 0; g < 3; ++g) node(kNodes3[g], kWeights3[g]);
+        } else {
+          for (std::size_t g = 0; g < 8; ++g) node(kNodes8[g], kWeights8[g]);
+        }
+      }
+      delta_a += (ub - ua) * speed;
+    } else {
+      const Cubic& shape = segment.geometry.shape;
+      // speed_bound >= |C'|, so the Gaussian's panels are at most half a footprint wide.
+      const int panels =
+          std::max(profile_panels((ub - ua) * segment.speed_bound * inverse_a),
+                   static_cast<int>(std::ceil((ub - ua) / kMaxCubicPanel)));
+      const double width = (ub - ua) / panels;
+      const double half = 0.5 * width;
+      for (int panel = 0; panel < panels; ++panel) {
+        const double mid = ua + (panel + 0.5) * width;
+        std::array<double, 8> speed{};
+        for (std::size_t g = 0; g < 8; ++g)
+          speed[g] = length(derivative(shape, mid + half * kNodes8[g] - jd));
+        double panel_length = 0.0;
+        for (std::size_t g = 0; g < 8; ++g) {
+          double partial = 0.0;
+          for (std::size_t m = 0; m < 8; ++m) partial += kIntegrate8[g][m] * speed[m];
+          const double delta = delta_a + half * partial;
+          const double offset = std::clamp(delta * inverse_a, -1.0, 1.0);
+          accumulate.add(mid + half * kNodes8[g],
+                         kWeights8[g] * half * speed[g] * density_inside(profile, offset));
+          panel_length += kWeights8[g] * speed[g];
+        }
+        delta_a += half * panel_length;
+      }
+    }
+  };
 
   // Integrates the image centred at c over the piece of offsets [xa, xb] that lies within lap n
   // of the curve, from u0 to u1.
@@ -565,8 +924,6 @@ void footprint_weights(const Scene& scene, const Curve& curve, const SplineBasis
       ub = std::min(ub, std::floor(ua) + 1.0);
       if (has_centre && ua < u_centre) ub = std::min(ub, u_centre);
       const std::uint32_t j = std::min(static_cast<std::uint32_t>(ua), count - 1);
-      const SceneSegment& segment = segments[j];
-      const double jd = j;
       // The knot span holding the part: knots[span] <= ua < ub <= knots[span + 1] = *next_knot
       // (clamped to the spans that cover [u_begin, u_end)).
       const std::size_t span = std::clamp(static_cast<std::size_t>(next_knot - knots.begin()),
@@ -579,78 +936,96 @@ void footprint_weights(const Scene& scene, const Curve& curve, const SplineBasis
         const double span_length = table->length(span);
         const double beta = 0.5 * span_length * inverse_a;
         const double x_mid = (delta_a + 0.5 * span_length) * inverse_a;
-        double c0 = 0.5;
-        double c1 = 0.0;
-        double c2 = 0.0;
-        if (profile == RayProfile::Tent) {
-          const double sign = x_mid < 0.0 ? -1.0 : 1.0;  // 1 - |x|
-          c0 = 1.0 - sign * x_mid;
-          c1 = -sign * beta;
-        } else if (profile == RayProfile::Epanechnikov) {  // 3/4 (1 - x^2)
-          c0 = 0.75 * (1.0 - x_mid * x_mid);
-          c1 = -1.5 * x_mid * beta;
-          c2 = -0.75 * beta * beta;
-        }
-        accumulate.add_moments(table->moments(span), table->stride(), c0, c1, c2);
+        const std::array<double, 3> polynomial = profile_in_y(x_mid, beta, x_mid < 0.0);
+        accumulate.add_moments(table->moments(span), table->stride(), polynomial[0],
+                               polynomial[1], polynomial[2]);
         delta_a += span_length;
-      } else if (segment.geometry.kind == SegmentKind::Line) {
-        // Constant speed L: delta(u) = delta_a + (u - ua) L exactly.
-        const double speed = segment.length;
-        const int panels = polynomial_profile ? 1 : profile_panels((ub - ua) * speed * inverse_a);
-        const double width = (ub - ua) / panels;
-        const double half = 0.5 * width;
-        for (int panel = 0; panel < panels; ++panel) {
-          const double pa = ua + panel * width;
-          const double mid = pa + half;
-          const double delta_pa = delta_a + panel * width * speed;
-          auto node = [&](double x, double w) {
-            const double delta = delta_pa + half * (1.0 + x) * speed;
-            const double offset = std::clamp(delta * inverse_a, -1.0, 1.0);
-            accumulate.add(mid + half * x, w * half * speed * density_inside(profile, offset));
-          };
-          if (polynomial_profile) {
-            for (std::size_t g = 0; g < 3; ++g) node(kNodes3[g], kWeights3[g]);
-          } else {
-            for (std::size_t g = 0; g < 8; ++g) node(kNodes8[g], kWeights8[g]);
-          }
-        }
-        delta_a += (ub - ua) * speed;
       } else {
-        const Cubic& shape = segment.geometry.shape;
-        // speed_bound >= |C'|, so the Gaussian's panels are at most half a footprint wide.
-        const int panels =
-            std::max(profile_panels((ub - ua) * segment.speed_bound * inverse_a),
-                     static_cast<int>(std::ceil((ub - ua) / kMaxCubicPanel)));
-        const double width = (ub - ua) / panels;
-        const double half = 0.5 * width;
-        for (int panel = 0; panel < panels; ++panel) {
-          const double mid = ua + (panel + 0.5) * width;
-          std::array<double, 8> speed{};
-          for (std::size_t g = 0; g < 8; ++g)
-            speed[g] = length(derivative(shape, mid + half * kNodes8[g] - jd));
-          double panel_length = 0.0;
-          for (std::size_t g = 0; g < 8; ++g) {
-            double partial = 0.0;
-            for (std::size_t m = 0; m < 8; ++m) partial += kIntegrate8[g][m] * speed[m];
-            const double delta = delta_a + half * partial;
-            const double offset = std::clamp(delta * inverse_a, -1.0, 1.0);
-            accumulate.add(mid + half * kNodes8[g],
-                           kWeights8[g] * half * speed[g] * density_inside(profile, offset));
-            panel_length += kWeights8[g] * speed[g];
-          }
-          delta_a += half * panel_length;
-        }
+        integrate_part(accumulate, j, ua, ub, delta_a);
       }
       if (has_centre && ub == u_centre) delta_a = 0.0;
       ua = ub;
       while (next_knot != knots.end() && *next_knot <= ua) ++next_knot;
     }
   };
+  // The same by arc length, with the table's running moments (by_arc): the piece is
+  // [sa, sb] = s_hit - n length + [xa, xb], walked span by span from the span holding sa. Whole
+  // spans take the moments, parts of spans the running moments' differences; a span with no
+  // series (near a cusp) takes quadrature in u between the inverted ends of its part.
+  auto integrate_piece_by_arc = [&](double xa, double xb, double c, double n) {
+    const double lap = s_hit - n * total;
+    const double sa = std::clamp(lap + xa, 0.0, total);
+    const double sb = std::clamp(lap + xb, 0.0, total);
+    if (!(sb > sa)) return;
+    if (out.size() > begin) several = true;
+    Accumulator accumulate(basis, out);
+    const double s_centre = lap + c;
+    const std::size_t powers = static_cast<std::size_t>(table->powers());
+    auto part = [&](std::size_t span, double pa, double pb, double s0, double s1) {
+      std::size_t terms = 0;
+      const double* series = table->running(span, terms);
+      if (series != nullptr) {
+        const double mid = 0.5 * (s0 + s1);
+        const double inverse_h = 2.0 / (s1 - s0);
+        const double ya = std::clamp((pa - mid) * inverse_h, -1.0, 1.0);
+        const double yb = std::clamp((pb - mid) * inverse_h, -1.0, 1.0);
+        const std::array<double, 3> coefficients = profile_in_y(
+            (mid - s_centre) * inverse_a, 0.5 * (s1 - s0) * inverse_a, 0.5 * (pa + pb) < s_centre);
+        accumulate.add_running(series, terms, powers, ya, yb, coefficients);
+        return;
+      }
+      const double u_begin = knots[span];
+      const double u_end = knots[span + 1];
+      const auto j = static_cast<std::uint32_t>(
+          std::min<double>(std::floor(0.5 * (u_begin + u_end)), count - 1));
+      const double ua = std::clamp(j + parameter_in(j, pa - start[j]), u_begin, u_end);
+      const double ub = std::clamp(j + parameter_in(j, pb - start[j]), u_begin, u_end);
+      double delta_a = pa - s_centre;
+      if (ub > ua) integrate_part(accumulate, j, ua, ub, delta_a);
+    };
+    // The span holding sa: near the hit's for the hit's own lap, else by bisection.
+    std::size_t first_span = hit_span;
+    if (n == 0.0 && std::fabs(sa - s_hit) <= 4.0 * table->length(hit_span)) {
+      while (first_span > basis.first_span() && table->start(first_span) > sa) --first_span;
+      while (first_span + 1 < basis.end_span() && table->start(first_span + 1) <= sa) ++first_span;
+    } else {
+      first_span = table->span_at(sa);
+    }
+    for (std::size_t span = first_span; span < basis.end_span(); ++span) {
+      const double s0 = table->start(span);
+      if (!(s0 < sb)) break;
+      const double s1 = table->start(span + 1);
+      const double pa = std::fmax(sa, s0);
+      const double pb = std::fmin(sb, s1);
+      if (!(pb > pa)) continue;
+      accumulate.enter_span(span);
+      if (s_centre > pa && s_centre < pb) {
+        part(span, pa, s_centre, s0, s1);
+        part(span, s_centre, pb, s0, s1);
+      } else if (pa == s0 && pb == s1) {
+        const double span_length = table->length(span);
+        const double x_mid = (s0 + 0.5 * span_length - s_centre) * inverse_a;
+        const std::array<double, 3> coefficients =
+            profile_in_y(x_mid, 0.5 * span_length * inverse_a, x_mid < 0.0);
+        accumulate.add_moments(table->moments(span), table->stride(), coefficients[0],
+                               coefficients[1], coefficients[2]);
+      } else {
+        part(span, pa, pb, s0, s1);
+      }
+    }
+  };
   // An image interval [xa, xb] cut into laps of the curve: pieces end where s_hit + x crosses a
   // multiple of the length (only on a closed run).
   auto integrate_image = [&](double xa, double xb, double c) {
     if (!(xb > xa)) return;
-    if (!curve.closed) return integrate_piece(xa, xb, c, 0.0);
+    auto piece = [&](double a0, double a1, double n) {
+      if (by_arc) {
+        integrate_piece_by_arc(a0, a1, c, n);
+      } else {
+        integrate_piece(a0, a1, c, n);
+      }
+    };
+    if (!curve.closed) return piece(xa, xb, 0.0);
     while (xa < xb) {
       double n = std::floor((s_hit + xa) / total);
       double lap_end = (n + 1.0) * total - s_hit;
@@ -659,7 +1034,7 @@ void footprint_weights(const Scene& scene, const Curve& curve, const SplineBasis
         lap_end += total;
       }
       const double xe = std::fmin(xb, lap_end);
-      integrate_piece(xa, xe, c, n);
+      piece(xa, xe, n);
       xa = xe;
     }
   };
@@ -668,7 +1043,9 @@ void footprint_weights(const Scene& scene, const Curve& curve, const SplineBasis
   if (cut_high) integrate_image(std::fmax(2.0 * x1 - a, x0), x1, 2.0 * x1);
 
   // Wrapped indices on a periodic basis, and pieces naming the same coefficient, are merged.
-  if (basis.is_periodic() || several) {
+  // (One piece on a periodic basis is an increasing run: only one that passes the last index
+  // wraps.)
+  if (several || (basis.is_periodic() && out.size() > begin && out.back().coefficient >= basis.size())) {
     for (std::size_t i = begin; i < out.size(); ++i) out[i].coefficient = basis.index(out[i].coefficient);
     std::sort(out.begin() + static_cast<std::ptrdiff_t>(begin), out.end(),
               [](const FootprintWeight& p, const FootprintWeight& q) { return p.coefficient < q.coefficient; });

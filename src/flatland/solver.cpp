@@ -333,7 +333,8 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
       solver.footprint_tables_.reserve(scene.curves.size());
       for (std::uint32_t c = 0; c < scene.curves.size(); ++c) {
         if (cancelled()) return Error{kSolverCancelled};
-        solver.footprint_tables_.emplace_back(scene, scene.curves[c], solver.storage_[c].basis);
+        solver.footprint_tables_.emplace_back(scene, scene.curves[c], solver.storage_[c].basis,
+                                              profile_powers(settings.ray_profile));
       }
     }
   }
