@@ -300,6 +300,55 @@ TEST(Basis, PeriodicSamplerWrapsAndFollowsTheFunction) {
   EXPECT_EQ(sampler.pdf(k, 1.5), 0.0);
 }
 
+TEST(Basis, EvaluateFindsTheSpanHoldingU) {
+  // evaluate() finds the span through a grid of cells per unit of u; the answer must be the span
+  // a plain search gives: the last i in [first_span, end_span) with knots[i] <= u (the non-empty
+  // span starting at u when u is a knot of any multiplicity). Meshes: crowded and sparse unit
+  // intervals (32 nodes in [1, 2), one in [3, 4)), repeated nodes (C0, C-1), an extent below one
+  // unit, a start off the integers, and periodic bases; u random, on every knot and one step
+  // either side of it.
+  std::vector<MeshNode> crowded;
+  for (int i = 1; i < 33; ++i) crowded.push_back({1.0 + i / 33.0, i % 5 == 0 ? Continuity::C0 : Continuity::C1});
+  crowded.push_back({2.0, Continuity::Jump});
+  crowded.push_back({3.5, Continuity::C1});
+  const std::vector<MeshNode> short_nodes = {{0.1, Continuity::C1}, {0.25, Continuity::C0}};
+  const std::vector<MeshNode> offset = {{2.7, Continuity::C1}, {3.0, Continuity::C1}, {4.9, Continuity::C0}};
+  std::vector<SplineBasis> bases;
+  for (int degree = 0; degree <= 3; ++degree) {
+    bases.emplace_back(degree, 0.0, 4.0, crowded);
+    bases.emplace_back(degree, 0.0, 0.4, short_nodes);
+    bases.emplace_back(degree, 2.3, 5.6, offset);
+    if (degree > 0) {
+      std::vector<MeshNode> ring;
+      for (int i = 1; i < 12; ++i) ring.push_back({i * 0.25, Continuity::C1});
+      bases.push_back(SplineBasis::periodic(degree, 0.0, 3.0, ring, Continuity::C1));
+      bases.push_back(SplineBasis::periodic(degree, 0.0, 4.0, crowded, Continuity::C0));
+    }
+  }
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  for (const SplineBasis& basis : bases) {
+    const std::vector<double>& knots = basis.knots();
+    std::vector<double> probes;
+    for (int i = 0; i < 400; ++i) probes.push_back(basis.u_begin() + (basis.u_end() - basis.u_begin()) * unit(rng));
+    for (std::size_t i = basis.first_span(); i < basis.end_span(); ++i) {
+      probes.push_back(knots[i]);
+      probes.push_back(std::nextafter(knots[i], -1e300));
+      probes.push_back(std::nextafter(knots[i], 1e300));
+    }
+    std::array<double, SplineBasis::kMaxDegree + 1> values{};
+    for (double u : probes) {
+      if (!(u >= basis.u_begin() && u < basis.u_end())) continue;
+      std::size_t want = basis.first_span();
+      for (std::size_t i = basis.first_span(); i < basis.end_span(); ++i)
+        if (knots[i] <= u) want = i;
+      const std::size_t first = basis.evaluate(u, values.data());
+      EXPECT_EQ(first + static_cast<std::size_t>(basis.degree()), want)
+          << "degree " << basis.degree() << " periodic " << basis.is_periodic() << " u " << u;
+    }
+  }
+}
+
 TEST(Basis, CountsOfCoefficients) {
   // n cubic elements with C1 interior nodes: 4 + 2 (n - 1) coefficients; C0: 4 + 3 (n - 1).
   std::vector<MeshNode> c1;

@@ -43,6 +43,7 @@ SplineBasis::SplineBasis(int degree, double u_begin, double u_end, std::span<con
   }
   knots_.insert(knots_.end(), static_cast<std::size_t>(degree + 1), u_end);
   size_ = knots_.size() - static_cast<std::size_t>(degree) - 1;
+  build_span_grid();
 }
 
 SplineBasis SplineBasis::periodic(int degree, double u_begin, double u_end,
@@ -71,6 +72,7 @@ SplineBasis SplineBasis::periodic(int degree, double u_begin, double u_end,
   }
   for (std::size_t e = static_cast<std::size_t>(count + degree); e < basis.knots_.size(); ++e)
     if (basis.knots_[e] <= u_end) basis.knots_[e] = u_end;  // the closing knot's copies
+  basis.build_span_grid();
   return basis;
 }
 
@@ -85,6 +87,35 @@ double SplineBasis::wrap(double u) const {
   return periodic_ ? wrap_into_period(u, u_begin(), u_end()) : std::clamp(u, u_begin(), u_end());
 }
 
+void SplineBasis::build_span_grid() {
+  // The span holding x by bisection, as find_span did before the grid.
+  const std::size_t p = static_cast<std::size_t>(degree_);
+  const std::size_t last = end_span();
+  auto bisect = [&](double x) {
+    if (x >= knots_[last]) return last - 1;
+    if (x <= knots_[p] && !periodic_) return p;
+    const auto it = std::upper_bound(knots_.begin() + static_cast<std::ptrdiff_t>(p),
+                                     knots_.begin() + static_cast<std::ptrdiff_t>(last) + 1, x);
+    return static_cast<std::size_t>(it - knots_.begin()) - 1;
+  };
+  const double begin = u_begin();
+  const double extent = u_end() - begin;
+  const auto units = static_cast<std::size_t>(std::max(1.0, std::ceil(extent)));
+  unit_cells_.assign(units + 1, 0);
+  cell_spans_.clear();
+  for (std::size_t m = 0; m < units; ++m) {
+    const double lo = begin + static_cast<double>(m);
+    const double hi = std::min(lo + 1.0, u_end());
+    const std::size_t spans = bisect(std::nextafter(hi, lo)) - bisect(lo) + 1;
+    const std::size_t cells = 2 * spans;
+    unit_cells_[m] = static_cast<std::uint32_t>(cell_spans_.size());
+    for (std::size_t c = 0; c < cells; ++c)
+      cell_spans_.push_back(static_cast<std::uint32_t>(
+          bisect(lo + static_cast<double>(c) / static_cast<double>(cells))));
+  }
+  unit_cells_[units] = static_cast<std::uint32_t>(cell_spans_.size());
+}
+
 std::size_t SplineBasis::find_span(double u) const {
   // The span i with knots[i] <= u < knots[i+1], among i in [first_span, end_span); u at the very
   // end of a clamped basis belongs to the last non-empty span.
@@ -93,10 +124,19 @@ std::size_t SplineBasis::find_span(double u) const {
   if (u >= knots_[last]) return last - 1;
   // Clamped, the first span is never empty; periodic, the closing knot's copies may follow it.
   if (u <= knots_[p] && !periodic_) return p;
-  // upper_bound gives the first knot > u; the span starts one before it.
-  const auto it = std::upper_bound(knots_.begin() + static_cast<std::ptrdiff_t>(p),
-                                   knots_.begin() + static_cast<std::ptrdiff_t>(last) + 1, u);
-  return static_cast<std::size_t>(it - knots_.begin()) - 1;
+  // The grid's cell holding u gives the span at the cell's lower edge (<= u); the span holding u
+  // is the last one from there whose start is <= u (a NaN stays at the first cell).
+  const double x = u - u_begin();
+  const std::size_t units = unit_cells_.size() - 1;
+  const std::size_t m = x >= 1.0 ? std::min(static_cast<std::size_t>(x), units - 1) : 0;
+  const std::size_t first_cell = unit_cells_[m];
+  const std::size_t cells = unit_cells_[m + 1] - first_cell;
+  const double f = (x - static_cast<double>(m)) * static_cast<double>(cells);
+  const std::size_t cell = f > 0.0 ? std::min(static_cast<std::size_t>(f), cells - 1) : 0;
+  std::size_t span = cell_spans_[first_cell + cell];
+  while (span > p && knots_[span] > u) --span;  // u rounded into the cell below its edge
+  while (span + 1 < last && knots_[span + 1] <= u) ++span;
+  return span;
 }
 
 std::size_t SplineBasis::evaluate(double u, double* values) const {

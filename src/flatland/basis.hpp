@@ -88,11 +88,16 @@ class SplineBasis {
 
  private:
   std::size_t find_span(double u) const;
+  // find_span's index: per unit interval of u from u_begin, 2 cells per span in it, each holding
+  // the span at the cell's lower edge, so a lookup scans a span or two instead of bisecting.
+  void build_span_grid();
 
   int degree_ = 0;
   std::size_t size_ = 0;
   bool periodic_ = false;
   std::vector<double> knots_;
+  std::vector<std::uint32_t> unit_cells_;  // per unit interval, its first cell (+ the end)
+  std::vector<std::uint32_t> cell_spans_;  // per cell, the span holding its lower edge
 };
 
 // Samples u with density phi_k(u) / integral(phi_k du) for any basis function k: a piece (a

@@ -123,16 +123,17 @@ Origin sample_coefficient_origin(const Scene& scene, const Curve& curve, const C
         static_cast<std::uint32_t>(std::min<double>(std::floor(u), curve.segment_count - 1.0));
     origin.segment = curve.first_segment + local;
     origin.t = u - local;
-    const Vec2 velocity = derivative(scene.segments[origin.segment].geometry.shape, origin.t);
-    const double speed = length(velocity);
+    // A line's speed |C'| is its length (no derivative to evaluate; its tangent is tabled).
+    const SceneSegment& segment = scene.segments[origin.segment];
+    const bool line = segment.geometry.kind == SegmentKind::Line;
+    const Vec2 velocity = line ? Vec2{} : derivative(segment.geometry.shape, origin.t);
+    const double speed = line ? segment.length : length(velocity);
     if ((from_point ? draws.coordinate(kAcceptSpeed) : draws.rng.uniform()) * storage.speed_bound[k] < speed) {
-      origin.tangent = (1.0 / speed) * velocity;
+      origin.tangent = line ? line_tangents[origin.segment] : (1.0 / speed) * velocity;
       break;
     }
   }
   origin.position = evaluate(scene.segments[origin.segment].geometry.shape, origin.t);
-  if (scene.segments[origin.segment].geometry.kind == SegmentKind::Line)
-    origin.tangent = line_tangents[origin.segment];
   return origin;
 }
 
