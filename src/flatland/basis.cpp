@@ -146,25 +146,43 @@ std::size_t SplineBasis::evaluate(double u, double* values) const {
   return span - static_cast<std::size_t>(degree_);
 }
 
+namespace {
+
+// The recursion for a known degree: unrolled, on locals (kept in registers rather than behind
+// the caller's pointer); the same operations in the same order as a loop over the degree.
+template <int P>
+void cox_de_boor(const double* knots, std::size_t span, double u, double* values) {
+  std::array<double, P + 1> phi{};
+  std::array<double, P + 1> left{};
+  std::array<double, P + 1> right{};
+  phi[0] = 1.0;
+  for (int j = 1; j <= P; ++j) {
+    left[j] = u - knots[span + 1 - static_cast<std::size_t>(j)];
+    right[j] = knots[span + static_cast<std::size_t>(j)] - u;
+    double saved = 0.0;
+    for (int r = 0; r < j; ++r) {
+      const double temp = phi[r] / (right[r + 1] + left[j - r]);
+      phi[r] = saved + right[r + 1] * temp;
+      saved = left[j - r] * temp;
+    }
+    phi[j] = saved;
+  }
+  for (int r = 0; r <= P; ++r) values[r] = phi[r];
+}
+
+}  // namespace
+
 void SplineBasis::evaluate_in_span(std::size_t span, double u, double* values) const {
   assert(span >= static_cast<std::size_t>(degree_) && span + static_cast<std::size_t>(degree_) < knots_.size());
   // Cox-de Boor recursion in the triangular form of Piegl and Tiller (The NURBS Book, A2.2):
   // builds the nonzero functions of degree j from those of degree j-1 without division by zero,
   // since only non-empty spans are visited.
-  const int p = degree_;
-  std::array<double, kMaxDegree + 1> left{};
-  std::array<double, kMaxDegree + 1> right{};
-  values[0] = 1.0;
-  for (int j = 1; j <= p; ++j) {
-    left[j] = u - knots_[span + 1 - static_cast<std::size_t>(j)];
-    right[j] = knots_[span + static_cast<std::size_t>(j)] - u;
-    double saved = 0.0;
-    for (int r = 0; r < j; ++r) {
-      const double temp = values[r] / (right[r + 1] + left[j - r]);
-      values[r] = saved + right[r + 1] * temp;
-      saved = left[j - r] * temp;
-    }
-    values[j] = saved;
+  static_assert(kMaxDegree == 3);
+  switch (degree_) {
+    case 0: values[0] = 1.0; return;
+    case 1: return cox_de_boor<1>(knots_.data(), span, u, values);
+    case 2: return cox_de_boor<2>(knots_.data(), span, u, values);
+    default: return cox_de_boor<3>(knots_.data(), span, u, values);
   }
 }
 
