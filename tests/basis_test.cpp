@@ -311,12 +311,15 @@ TEST(Basis, EvaluateFindsTheSpanHoldingU) {
   for (int i = 1; i < 33; ++i) crowded.push_back({1.0 + i / 33.0, i % 5 == 0 ? Continuity::C0 : Continuity::C1});
   crowded.push_back({2.0, Continuity::Jump});
   crowded.push_back({3.5, Continuity::C1});
+  std::vector<MeshNode> graded;  // 30 nodes crowding towards u = 1: most in one grid cell
+  for (int i = 30; i >= 1; --i) graded.push_back({1.0 + std::ldexp(1.0, -i), Continuity::C1});
   const std::vector<MeshNode> short_nodes = {{0.1, Continuity::C1}, {0.25, Continuity::C0}};
   const std::vector<MeshNode> offset = {{2.7, Continuity::C1}, {3.0, Continuity::C1}, {4.9, Continuity::C0}};
   std::vector<SplineBasis> bases;
   for (int degree = 0; degree <= 3; ++degree) {
     bases.emplace_back(degree, 0.0, 4.0, crowded);
     bases.emplace_back(degree, 0.0, 0.4, short_nodes);
+    bases.emplace_back(degree, 0.0, 3.0, graded);
     bases.emplace_back(degree, 2.3, 5.6, offset);
     if (degree > 0) {
       std::vector<MeshNode> ring;

@@ -537,13 +537,19 @@ TEST(Footprint, WrapsRoundTheClosingPointOfASmoothLoop) {
 }
 
 TEST(Footprint, TinyFootprintApproachesThePointDeposit) {
-  // As a -> 0 the weights tend to phi_k(u_hit), with an error of order a |phi_k'| / speed.
+  // As a -> 0 the weights tend to phi_k(u_hit), with an error of order a |phi_k'| / speed; with
+  // the span table too, and on a corner (u = 1 on the corner and the kink: fraction 0.5) nothing
+  // leaks across it, not even a sliver made by rounding s_hit + x.
   std::array<double, SplineBasis::kMaxDegree + 1> phi{};
-  for (int index : {kLine, kCollinear, kArch, kKink}) {
+  for (int index : {kLine, kCollinear, kCorner, kArch, kKink}) {
     const Curve& curve = scene().curves[index];
     for (BasisKind kind : {BasisKind::Constant, BasisKind::Linear, BasisKind::Cubic}) {
       const CurveStorage storage = build_curve_storage(scene(), curve, kind, 7);
-      for (double fraction : {0.0065, 0.21605, 0.6234, 0.9995}) {
+      const FootprintTable table(scene(), curve, storage.basis);
+      const bool corner = index == kCorner || index == kKink;
+      for (double fraction : {0.0065, 0.21605, 0.5, 0.6234, 0.9995}) {
+        // (At a smooth joint the knot at 0.5 splits a tiny footprint between its two sides.)
+        if (fraction == 0.5 && !corner) continue;
         const double u_hit = fraction * curve.segment_count;
         std::vector<double> point(storage.basis.size(), 0.0);
         const std::size_t first = storage.basis.evaluate(u_hit, phi.data());
@@ -553,6 +559,9 @@ TEST(Footprint, TinyFootprintApproachesThePointDeposit) {
           for (double a : {1e-7, 1e-10}) {
             expect_close(footprint_dense(curve, storage.basis, u_hit, a * curve.length, profile),
                          point, 1e4 * a, what + " a " + std::to_string(a));
+            if (is_polynomial(profile))
+              expect_close(footprint_dense(curve, storage.basis, u_hit, a * curve.length, profile, &table),
+                           point, 1e4 * a, what + " table, a " + std::to_string(a));
           }
         }
         // No footprint at all (or a NaN one): exactly the point deposit.

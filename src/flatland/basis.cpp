@@ -135,7 +135,13 @@ std::size_t SplineBasis::find_span(double u) const {
   const std::size_t cell = f > 0.0 ? std::min(static_cast<std::size_t>(f), cells - 1) : 0;
   std::size_t span = cell_spans_[first_cell + cell];
   while (span > p && knots_[span] > u) --span;  // u rounded into the cell below its edge
-  while (span + 1 < last && knots_[span + 1] <= u) ++span;
+  // A few steps forward; a cell crowded with knots (nodes graded towards a point) bisects the rest.
+  for (int step = 0; step < 8 && span + 1 < last && knots_[span + 1] <= u; ++step) ++span;
+  if (span + 1 < last && knots_[span + 1] <= u) {
+    const auto it = std::upper_bound(knots_.begin() + static_cast<std::ptrdiff_t>(span) + 1,
+                                     knots_.begin() + static_cast<std::ptrdiff_t>(last), u);
+    span = static_cast<std::size_t>(it - knots_.begin()) - 1;
+  }
   return span;
 }
 

@@ -161,10 +161,10 @@ std::vector<double> chebyshev_integral(const std::vector<double>& c) {
   return integral;
 }
 
-// Fits g(y) on [-1, 1] (`count` functions at once: g(y, values) writes them) with 9, 17 or 33
-// Lobatto points, the fewest for which every function's last two coefficients are at most
+// Fits g(y) on [-1, 1] (`count` functions at once: g(y, values) writes them) with 7, 9, 11, 13,
+// 17, 25 or 33 Lobatto points, the fewest for which every function's last two coefficients are at most
 // `tolerance` and its interpolant matches it within 4 tolerance half-way between the points
-// (the nodes of the 9 are among the 17's, but the fits are simply redone). Returns the number of
+// (each size's fit is simply computed afresh). Returns the number of
 // points, 0 when even 33 do not do; `coefficients` holds count x n values, function-major.
 template <class Function>
 std::size_t chebyshev_fit_checked(Function&& g, std::size_t count, double tolerance,
@@ -650,9 +650,13 @@ void FootprintTable::build_series(const Scene& scene, const Curve& curve, const 
     }
     std::copy(sigma.begin(), sigma.begin() + static_cast<std::ptrdiff_t>(n_length), out + terms * block);
   }
-  // An empty span starts where the next one does; the last entry stays the curve's length.
-  for (std::size_t k = spans; k-- > 0;)
+  // An empty span starts where the next one does; the last entry stays the curve's length; and
+  // no start lies past the next (an arc length within a segment can exceed the segment's length
+  // by a rounding), so the starts are sorted for span_at.
+  for (std::size_t k = spans; k-- > 0;) {
     if (!(knots[first_ + k + 1] > knots[first_ + k])) start_[k] = start_[k + 1];
+    start_[k] = std::fmin(start_[k], start_[k + 1]);
+  }
 }
 
 std::size_t FootprintTable::span_at(double s) const {
@@ -961,10 +965,21 @@ void footprint_weights(const Scene& scene, const Curve& curve, const SplineBasis
     Accumulator accumulate(basis, out);
     const double s_centre = lap + c;
     const std::size_t powers = static_cast<std::size_t>(table->powers());
+    // Parts no longer than a few roundings of the curve's arc length are slivers made by
+    // rounding s_hit + x (one just across a corner, say), not footprint: they are left out, and
+    // a footprint made of nothing else deposits at the point.
+    const double resolution = 4.0 * std::numeric_limits<double>::epsilon() * total;
     auto part = [&](std::size_t span, double pa, double pb, double s0, double s1) {
       std::size_t terms = 0;
       const double* series = table->running(span, terms);
-      if (series != nullptr) {
+      // In the span's coordinate the tent and Epanechnikov pieces have coefficients up to
+      // (1 + beta)^2 with beta = h / a, which cancel to the profile's O(1) values: with a
+      // footprint far shorter than the span that cancellation would eat the digits, so beyond
+      // beta = 16 (errors then below 300 roundings) such parts take the quadrature. The box is
+      // a constant and needs no such care.
+      const bool conditioned =
+          profile == RayProfile::Box || 0.5 * (s1 - s0) * inverse_a <= 16.0;
+      if (series != nullptr && conditioned) {
         const double mid = 0.5 * (s0 + s1);
         const double inverse_h = 2.0 / (s1 - s0);
         const double ya = std::clamp((pa - mid) * inverse_h, -1.0, 1.0);
@@ -997,7 +1012,7 @@ void footprint_weights(const Scene& scene, const Curve& curve, const SplineBasis
       const double s1 = table->start(span + 1);
       const double pa = std::fmax(sa, s0);
       const double pb = std::fmin(sb, s1);
-      if (!(pb > pa)) continue;
+      if (!(pb - pa > resolution)) continue;
       accumulate.enter_span(span);
       if (s_centre > pa && s_centre < pb) {
         part(span, pa, s_centre, s0, s1);

@@ -97,8 +97,8 @@ int profile_powers(RayProfile profile);
 //   K_j,r(y) = h * integral from -1 to y of t^j phi_r(u(t)) dt,   j < powers,
 // the running moments in the arc-length coordinate, so a part [ya, yb] of a span weighs
 // sum_j c_j (K_j,r(yb) - K_j,r(ya)): no square roots, no Newton steps. On a cubic the series come
-// from interpolating phi_r(u(y)) at Chebyshev-Lobatto points (9, 17 or 33, the fewest whose
-// coefficients have decayed below 1e-14, checked again between the points), on a line they are
+// from interpolating phi_r(u(y)) at Chebyshev-Lobatto points (7 to 33, the fewest whose
+// coefficients have decayed below 1e-14 of the span, checked again between the points), on a line they are
 // exact. A span where 33 points do not suffice (a near-cusp) keeps no series, and footprints fall
 // back to quadrature there. A further series gives s(u) on the span, for the hit's own arc length.
 class FootprintTable {
