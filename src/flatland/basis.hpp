@@ -86,8 +86,11 @@ class SplineBasis {
   // The multiplicity a node of the given continuity gets in a spline of this degree.
   static int multiplicity(int degree, Continuity continuity);
 
- private:
+  // The span holding u (u in [u_begin, u_end], not wrapped): the last non-empty span with
+  // knots[span] <= u, the last span for u = u_end.
   std::size_t find_span(double u) const;
+
+ private:
   // find_span's index: per unit interval of u from u_begin, 2 cells per span in it, each holding
   // the span at the cell's lower edge, so a lookup scans a span or two instead of bisecting.
   void build_span_grid();

@@ -100,6 +100,13 @@ constexpr Matrix8 kIntegrate8 = make_integration_matrix();
 // four panels per segment at most, so the speed |C'| is resolved whatever the footprint's size.
 constexpr double kMaxCubicPanel = 0.25;
 
+// The segment (of `count`) holding the knot span [ua, ub]; joints are knots, so a non-empty span
+// lies within one segment (an empty one is given the segment starting at ua).
+std::uint32_t segment_of_span(double ua, double ub, std::uint32_t count) {
+  return static_cast<std::uint32_t>(
+      std::min<double>(std::floor(ub > ua ? 0.5 * (ua + ub) : ua), count - 1));
+}
+
 // Chebyshev series on [-1, 1], f(y) = sum_k c_k T_k(y), for the span table's partial spans.
 //
 // Point i of the n Chebyshev-Lobatto points (n >= 2), cos(pi i / (n - 1)): from 1 down to -1.
@@ -510,8 +517,7 @@ FootprintTable::FootprintTable(const Scene& scene, const Curve& curve, const Spl
     const double ua = knots[k];
     const double ub = knots[k + 1];
     if (!(ub > ua)) continue;
-    const auto j = static_cast<std::uint32_t>(
-        std::min<double>(std::floor(0.5 * (ua + ub)), curve.segment_count - 1));
+    const std::uint32_t j = segment_of_span(ua, ub, curve.segment_count);
     const SceneSegment& segment = scene.segments[curve.first_segment + j];
     const bool line = segment.geometry.kind == SegmentKind::Line;
     const int panels = line ? 1 : std::max(4, static_cast<int>(std::ceil((ub - ua) * 16.0)));
@@ -576,8 +582,7 @@ void FootprintTable::build_series(const Scene& scene, const Curve& curve, const 
   for (std::size_t k = first_; k < basis.end_span(); ++k) {
     const double ua = knots[k];
     const double ub = knots[k + 1];
-    const auto j = static_cast<std::uint32_t>(std::min<double>(
-        std::floor(ub > ua ? 0.5 * (ua + ub) : ua), curve.segment_count - 1));
+    const std::uint32_t j = segment_of_span(ua, ub, curve.segment_count);
     const SceneSegment& segment = scene.segments[curve.first_segment + j];
     const bool line = segment.geometry.kind == SegmentKind::Line;
     // Arc lengths within the segment (exact), so that rounding is relative to the segment's
@@ -725,22 +730,18 @@ void footprint_weights(const Scene& scene, const Curve& curve, const SplineBasis
   };
 
   const bool polynomial_profile = is_polynomial(profile);
-  const bool use_table = polynomial_profile && table != nullptr && !table->empty();
+  // A table serves the polynomial profiles whose powers of y it keeps: the walk then goes by arc
+  // length (integrate_piece_by_arc); any other footprint walks in u with quadrature.
+  const bool use_table = polynomial_profile && table != nullptr && !table->empty() &&
+                         table->powers() >= profile_powers(profile);
   assert(table == nullptr || table->empty() || table->matches(basis));
-  // The table's running moments serve partial spans (the walk below goes by arc length).
-  const bool by_arc = use_table && table->powers() >= profile_powers(profile);
   const std::vector<double>& knots = basis.knots();
 
   const double t_hit = u_hit - hit;
   double into_hit = std::numeric_limits<double>::quiet_NaN();  // from the hit segment's start
-  std::size_t hit_span = 0;  // by_arc: the knot span holding u_hit (the one that starts there)
-  if (by_arc) {
-    const auto first = knots.begin() + static_cast<std::ptrdiff_t>(basis.first_span());
-    const auto last = knots.begin() + static_cast<std::ptrdiff_t>(basis.end_span());
-    hit_span = static_cast<std::size_t>(
-        std::clamp(std::upper_bound(first, last, u_hit) - knots.begin() - 1,
-                   static_cast<std::ptrdiff_t>(basis.first_span()),
-                   static_cast<std::ptrdiff_t>(basis.end_span()) - 1));
+  std::size_t hit_span = 0;  // with a table: the knot span holding u_hit (the one that starts there)
+  if (use_table) {
+    hit_span = basis.find_span(u_hit);
     // On a cubic the span's s(u) series gives the hit's arc length without quadrature.
     if (segments[hit].geometry.kind != SegmentKind::Line)
       into_hit = std::clamp(table->arc_length_in_span(hit_span, u_hit) - start[hit], 0.0,
@@ -934,25 +935,13 @@ void footprint_weights(const Scene& scene, const Curve& curve, const SplineBasis
                                           basis.first_span() + 1, basis.end_span()) - 1;
       accumulate.enter_span(span);
 
-      if (use_table && ua == knots[span] && ub == knots[span + 1]) {
-        // A whole span, on one side of the centre: the profile in y = (s - s_mid) / h is a
-        // polynomial of degree <= 2 with x = x_mid + beta y.
-        const double span_length = table->length(span);
-        const double beta = 0.5 * span_length * inverse_a;
-        const double x_mid = (delta_a + 0.5 * span_length) * inverse_a;
-        const std::array<double, 3> polynomial = profile_in_y(x_mid, beta, x_mid < 0.0);
-        accumulate.add_moments(table->moments(span), table->stride(), polynomial[0],
-                               polynomial[1], polynomial[2]);
-        delta_a += span_length;
-      } else {
-        integrate_part(accumulate, j, ua, ub, delta_a);
-      }
+      integrate_part(accumulate, j, ua, ub, delta_a);
       if (has_centre && ub == u_centre) delta_a = 0.0;
       ua = ub;
       while (next_knot != knots.end() && *next_knot <= ua) ++next_knot;
     }
   };
-  // The same by arc length, with the table's running moments (by_arc): the piece is
+  // The same by arc length, with the table (use_table): the piece is
   // [sa, sb] = s_hit - n length + [xa, xb], walked span by span from the span holding sa. Whole
   // spans take the moments, parts of spans the running moments' differences; a span with no
   // series (near a cusp) takes quadrature in u between the inverted ends of its part.
@@ -991,8 +980,7 @@ void footprint_weights(const Scene& scene, const Curve& curve, const SplineBasis
       }
       const double u_begin = knots[span];
       const double u_end = knots[span + 1];
-      const auto j = static_cast<std::uint32_t>(
-          std::min<double>(std::floor(0.5 * (u_begin + u_end)), count - 1));
+      const std::uint32_t j = segment_of_span(u_begin, u_end, count);
       const double ua = std::clamp(j + parameter_in(j, pa - start[j]), u_begin, u_end);
       const double ub = std::clamp(j + parameter_in(j, pb - start[j]), u_begin, u_end);
       double delta_a = pa - s_centre;
@@ -1034,7 +1022,7 @@ void footprint_weights(const Scene& scene, const Curve& curve, const SplineBasis
   auto integrate_image = [&](double xa, double xb, double c) {
     if (!(xb > xa)) return;
     auto piece = [&](double a0, double a1, double n) {
-      if (by_arc) {
+      if (use_table) {
         integrate_piece_by_arc(a0, a1, c, n);
       } else {
         integrate_piece(a0, a1, c, n);

@@ -185,7 +185,9 @@ class FootprintTable {
 // solver passes the contacts, where another curve stands on this one and the light on the two
 // sides is unrelated.
 //
-// `table` (optional; built for `basis`) makes whole knot spans cheap for the polynomial profiles.
+// `table` (optional; built for `basis`) serves the polynomial profiles whose powers it keeps
+// (profile_powers): whole and partial knot spans then cost no quadrature. Other profiles, or a
+// table with too few powers, take the quadrature everywhere.
 void footprint_weights(const Scene& scene, const Curve& curve, const SplineBasis& basis,
                        double u_hit, double half_length, RayProfile profile,
                        std::vector<FootprintWeight>& out, std::span<const double> walls = {},

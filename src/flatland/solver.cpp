@@ -522,10 +522,12 @@ void Solver::choose_levels(const std::vector<double>& received, const std::vecto
     if (hermite) {
       const double gauss = 1.0 / std::sqrt(3.0);
       const std::vector<double>& knots = fine.basis.knots();
+      double s1 = arc_length_at(c, knots[fine.basis.first_span()]);  // each knot's arc length once
       for (std::size_t span = fine.basis.first_span(); span < fine.basis.end_span(); ++span) {
         if (!(knots[span + 1] > knots[span])) continue;
-        const double s0 = arc_length_at(c, knots[span]);
-        const double half_width = 0.5 * (arc_length_at(c, knots[span + 1]) - s0);
+        const double s0 = s1;
+        s1 = arc_length_at(c, knots[span + 1]);
+        const double half_width = 0.5 * (s1 - s0);
         for (const double x : {-gauss, gauss}) {
           at.push_back(s0 + half_width * (1.0 + x));
           weights.push_back(half_width);
