@@ -30,6 +30,19 @@ std::vector<Continuity> random_continuity(Rng& rng, std::size_t nodes) {
   return continuity;
 }
 
+// Random data at the nodes u: the continuity drawn first, then per node a value in
+// [low, low + 1) and, at a jump, a second one for its right side.
+HermiteInput random_input(Rng& rng, const std::vector<double>& u, double low = 0.0) {
+  HermiteInput input;
+  input.u = u;
+  input.continuity = random_continuity(rng, u.size());
+  for (std::size_t i = 0; i < u.size(); ++i) {
+    input.left.push_back(low + rng.uniform());
+    input.right.push_back(input.continuity[i] == Continuity::Jump ? low + rng.uniform() : input.left.back());
+  }
+  return input;
+}
+
 // Samples f at the nodes: left == right everywhere (a jump node then has equal sides).
 HermiteInput sampled(const std::vector<double>& u, const Function& f,
                      std::vector<Continuity> continuity) {
@@ -178,14 +191,7 @@ TEST(Hermite, EvaluateIncreasingEqualsEvaluate) {
   Rng rng(7, 0, 0);
   for (int trial = 0; trial < 20; ++trial) {
     const auto u = random_nodes(rng, 9, 0.2);
-    HermiteInput input;
-    input.u = u;
-    input.continuity = random_continuity(rng, u.size());
-    for (std::size_t i = 0; i < u.size(); ++i) {
-      input.left.push_back(rng.uniform());
-      input.right.push_back(input.continuity[i] == Continuity::Jump ? rng.uniform() : input.left.back());
-    }
-    const HermiteReconstruction r(input);
+    const HermiteReconstruction r(random_input(rng, u));
     std::vector<double> at = {u.front() - 1.0};
     for (std::size_t i = 0; i + 1 < u.size(); ++i)
       for (int k = 0; k < 7; ++k) at.push_back(u[i] + (u[i + 1] - u[i]) * k / 7.0);
@@ -203,14 +209,7 @@ TEST(Hermite, ContinuityAtNodesIsAsSelected) {
   int c0_nodes = 0;
   for (int trial = 0; trial < 40; ++trial) {
     const auto u = random_nodes(rng, 8, 0.2);
-    HermiteInput input;
-    input.u = u;
-    input.continuity = random_continuity(rng, u.size());
-    for (std::size_t i = 0; i < u.size(); ++i) {
-      const double value = 0.2 + rng.uniform();
-      input.left.push_back(value);
-      input.right.push_back(input.continuity[i] == Continuity::Jump ? 0.2 + rng.uniform() : value);
-    }
+    HermiteInput input = random_input(rng, u, 0.2);
     input.monotone = trial % 4 == 3;
     const HermiteReconstruction r(input);
     for (std::size_t i = 0; i < u.size(); ++i) {
