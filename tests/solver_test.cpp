@@ -540,6 +540,41 @@ TEST(Solver, StepsOfAnySizeGiveTheSameResultAsWholeRounds) {
   EXPECT_EQ(a.dump(), b.dump());
 }
 
+TEST(Solver, RunRefreshesTheReadersOnceWithTheSameResult) {
+  // run() leaves the reflected estimate (and Hermite's reconstruction) to its end instead of
+  // refreshing it after every round; readers must see exactly what round-by-round stepping shows,
+  // for every storage kind the refresh covers, also when run is cancelled part-way.
+  const Scene scene = testing::scene_from_file("scenes2d/curved_room.json");
+  for (BasisKind basis : {BasisKind::Cubic, BasisKind::Hermite}) {
+    SolverSettings settings;
+    settings.photons = 40'000;
+    settings.threads = 2;
+    settings.basis = basis;
+    Solver whole = make_solver(scene, settings);
+    whole.run();
+    Solver stepped = make_solver(scene, settings);
+    while (stepped.step_round()) {
+    }
+    nlohmann::json a = result_to_json(whole, 40);
+    nlohmann::json b = result_to_json(stepped, 40);
+    a["stats"].erase("seconds");
+    b["stats"].erase("seconds");
+    EXPECT_EQ(a.dump(), b.dump()) << to_string(basis);
+    const double u = 0.3 * scene.curves[0].segment_count;
+    EXPECT_EQ(whole.radiosity(0, Side::Front, u)[0], stepped.radiosity(0, Side::Front, u)[0]);
+    EXPECT_GT(whole.radiosity(0, Side::Front, u)[0], 0.0);
+  }
+  // Cancelled before the first round ends: the readers hold the rounds finished (none), not stale
+  // or half-made values.
+  SolverSettings settings;
+  settings.photons = 40'000;
+  std::atomic<bool> cancel{true};
+  Solver cancelled = make_solver(scene, settings);
+  cancelled.run(&cancel);
+  EXPECT_EQ(cancelled.stop_reason(), StopReason::Cancelled);
+  for (double b : cancelled.radiosity_coefficients(0, Side::Front)) EXPECT_EQ(b, 0.0);
+}
+
 TEST(Solver, SourcesAndPositionsFollowPowerAndArcLength) {
   // A straight emitter and a two-sided cubic emitter of strongly varying speed; all black, so the
   // first round holds every photon. Sources must follow E * L per side, positions on the cubic

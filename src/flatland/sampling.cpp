@@ -15,9 +15,12 @@ void DiscreteDistribution::assign(std::span<const double> weights) {
   if (n == 0 || !(total_ > 0.0)) return;
   // Scaled weights w_i n / total average 1. Columns below 1 ("small") are topped up from one above
   // ("large"), which becomes their alias and loses what it gave.
-  std::vector<double> scaled(n);
-  std::vector<std::uint32_t> small;
-  std::vector<std::uint32_t> large;
+  std::vector<double>& scaled = scaled_;
+  std::vector<std::uint32_t>& small = small_;
+  std::vector<std::uint32_t>& large = large_;
+  scaled.resize(n);
+  small.clear();
+  large.clear();
   std::uint32_t any_positive = 0;
   for (std::size_t i = 0; i < n; ++i) {
     scaled[i] = weights[i] * static_cast<double>(n) / total_;

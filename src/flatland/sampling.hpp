@@ -112,7 +112,12 @@ inline double square_to_beam_pdf(double half_angle, Vec2 normal, Vec2 direction)
 class DiscreteDistribution {
  public:
   DiscreteDistribution() = default;
-  explicit DiscreteDistribution(std::span<const double> weights) { assign(weights); }
+  explicit DiscreteDistribution(std::span<const double> weights) {
+    assign(weights);
+    scaled_ = {};
+    small_ = {};
+    large_ = {};
+  }
   void assign(std::span<const double> weights);
 
   double total() const { return total_; }
@@ -149,6 +154,11 @@ class DiscreteDistribution {
   std::vector<std::uint32_t> alias_;
   std::vector<double> weights_;
   double total_ = 0.0;
+  // assign's scratch, kept so that a distribution assigned every round (the solver's sources)
+  // reuses its memory; the constructor, assigning once, lets it go.
+  std::vector<double> scaled_;
+  std::vector<std::uint32_t> small_;
+  std::vector<std::uint32_t> large_;
 };
 
 }  // namespace flatland

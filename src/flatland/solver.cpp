@@ -743,14 +743,18 @@ bool Solver::begin_round() {
   // its block's colour (its power comes from the deposits, so the books stay exact).
   if (sample_hermite_) update_hermite(pool, false);
   const std::size_t sources = by_coefficient ? coefficient_count_ : block_offset_.size();
-  std::vector<double> source_weights(sources, 0.0);
+  // Scratch kept between rounds (a fresh allocation of the storage's size faulted its pages in
+  // every round).
+  std::vector<double>& source_weights = source_weights_;
+  source_weights.assign(sources, 0.0);
   round_.photon_units.assign(sources, {});
   const double per_photon = unshot / static_cast<double>(round_.photons);
   // With the Galerkin or local estimator the reconstructed unshot density has coefficients g
   // (M^-1 U, or the local weights times U) rather than U / L, and with auto storage it is the
   // chosen level's estimate: clamped at zero, keeping each curve side's power, coefficient k of the
   // finest basis carries the power g_k integral(phi_k ds).
-  std::vector<double> density_power;
+  std::vector<double>& density_power = density_power_;
+  density_power.clear();
   if (by_coefficient && (settings_.estimator != Estimator::Lumped || auto_storage_)) {
     estimate(pool, density_power);
     for (std::uint32_t c = 0; c < scene_->curves.size(); ++c)
@@ -1205,7 +1209,6 @@ void Solver::choose_final_levels() {
 
 void Solver::update_reflected(const std::vector<double>& received,
                               const std::vector<double>& received_half, LevelChoice choice) {
-  const auto channels = static_cast<std::size_t>(channels_);
   if (auto_storage_) {
     const bool due = scheduled_level_.empty() ||
                      static_cast<double>(photons_shot_) >= kLevelChoiceGrowth * static_cast<double>(photons_at_choice_);
@@ -1226,7 +1229,18 @@ void Solver::update_reflected(const std::vector<double>& received,
       chosen_level_ = scheduled_level_;
     }
   }
-  // Reflected radiosity coefficients, kept current for readers between rounds.
+  // Reflected radiosity coefficients, kept current for readers between rounds; run() has no
+  // readers between its rounds and refreshes them once, when it returns.
+  if (defer_readers_) {
+    readers_stale_ = true;
+    return;
+  }
+  refresh_readers(received);
+}
+
+void Solver::refresh_readers(const std::vector<double>& received) {
+  const auto channels = static_cast<std::size_t>(channels_);
+  readers_stale_ = false;
   estimate(received, reflected_);
   for (std::uint32_t c = 0; c < scene_->curves.size(); ++c)
     for (Side side : {Side::Front, Side::Back}) {
@@ -1457,8 +1471,14 @@ bool Solver::step_round(const std::atomic<bool>* cancel, const ProgressCallback&
 
 void Solver::run(const std::atomic<bool>* cancel, const ProgressCallback& progress,
                  double progress_interval) {
+  // Nobody reads the radiosity between run's rounds (its progress reports carry counts only), so
+  // the reflected estimate, a solve per curve side and channel, is made once at the end instead
+  // of after every round: from the same received power, so with the same result.
+  defer_readers_ = true;
   while (step_round(cancel, progress, progress_interval)) {
   }
+  defer_readers_ = false;
+  if (readers_stale_) refresh_readers(received_);
 }
 
 EnergyBooks Solver::books() const {

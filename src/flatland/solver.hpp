@@ -248,7 +248,8 @@ class Solver {
   // deposits so far (as received, not extrapolated), so a viewer sees light arrive photon by
   // photon; closing the round replaces it with the round's exact estimate.
   void include_open_round();
-  // Rounds until converged, budget spent or cancelled.
+  // Rounds until converged, budget spent or cancelled. The radiosity readers are brought up to
+  // date when it returns (not between its rounds: a progress report must not read them).
   void run(const std::atomic<bool>* cancel = nullptr, const ProgressCallback& progress = {},
            double progress_interval = 0.25);
 
@@ -379,6 +380,12 @@ class Solver {
   void choose_final_levels();
   void update_reflected(const std::vector<double>& received, const std::vector<double>& received_half,
                         LevelChoice choice = LevelChoice::Scheduled);
+  // The readers' state (reflected_, hermite_reflected_) from `received` at the chosen levels.
+  void refresh_readers(const std::vector<double>& received);
+  // While run() goes, update_reflected leaves the readers' state stale (readers_stale_) for run to
+  // refresh once when it returns.
+  bool defer_readers_ = false;
+  bool readers_stale_ = false;
   // Auto storage: each curve's level with the least estimated error (bias^2 + variance).
   void choose_levels(const std::vector<double>& received, const std::vector<double>& half);
   std::uint64_t photons_for_round(double unshot) const;
@@ -495,6 +502,8 @@ class Solver {
   double initial_ratio_ = 0.5;
   double previous_unshot_ = 0.0;
   Round round_;
+  std::vector<double> source_weights_;  // begin_round's scratch
+  std::vector<double> density_power_;
   bool round_open_ = false;
   std::uint64_t round_done_ = 0;            // photons of the open round shot so far
   std::vector<Accumulator> round_deposits_;  // per worker thread, for the open round
