@@ -1117,10 +1117,11 @@ TEST(Solver, ArchOnALitFloorLeaksNoLight) {
   // straddles them and no photon starts inside. Without them (discontinuities none) light leaks.
   const Scene scene = testing::scene_from_text(kArchOnAFloor);
   auto under_the_arch = [&](DiscontinuityMode mode, double width,
-                            Estimator estimator = SolverSettings{}.estimator) {
+                            Estimator estimator = SolverSettings{}.estimator, int elements = kAutoElements) {
     SolverSettings settings;
     settings.photons = 400'000;
     settings.estimator = estimator;
+    settings.elements = elements;
     settings.discontinuities = mode;
     settings.ray_width = width;
     Solver solver = make_solver(scene, settings);
@@ -1137,8 +1138,9 @@ TEST(Solver, ArchOnALitFloorLeaksNoLight) {
     EXPECT_EQ(under_the_arch(mode, 0.0), 0.0) << to_string(mode);
     EXPECT_EQ(under_the_arch(mode, 0.2), 0.0) << to_string(mode) << " with footprints";
   }
-  // The leak, measured with the lumped estimate (nonnegative, so its largest B is the leak).
-  EXPECT_GT(under_the_arch(DiscontinuityMode::None, 0.0, Estimator::Lumped), 0.01);
+  // The leak, measured with the lumped estimate (nonnegative, so its largest B is the leak) on
+  // a fixed mesh of 16 elements (auto storage's finer meshes narrow the leak, not close it).
+  EXPECT_GT(under_the_arch(DiscontinuityMode::None, 0.0, Estimator::Lumped, 16), 0.01);
 }
 
 // B on the floor of scenes2d/tests/reference_round_occluder.json (one bounce): rho E / 2 times the

@@ -183,8 +183,11 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
       reflecting += rho[0] + rho[1] + rho[2] > 0.0;
     }
     const double share = static_cast<double>(settings.photons) / static_cast<double>(std::max<std::size_t>(reflecting, 1));
-    while (finest_level + 1 < kAutoMaxLevels &&
-           (kAutoBaseElements << (finest_level + 1)) * kAutoPhotonsPerElement <= share)
+    // Elements the finest level may have: share / kAutoPhotonsPerElement, or at small budgets up
+    // to kAutoSmallBudgetElements as long as each still gets kAutoSmallBudgetPhotonsPerElement.
+    const double room = std::max(share / kAutoPhotonsPerElement,
+                                 std::min(share / kAutoSmallBudgetPhotonsPerElement, kAutoSmallBudgetElements));
+    while (finest_level + 1 < kAutoMaxLevels && (kAutoBaseElements << (finest_level + 1)) <= room)
       ++finest_level;
   }
   const int finest_elements = elements << finest_level;
