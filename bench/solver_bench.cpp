@@ -145,7 +145,7 @@ BENCHMARK(LinesAsCubics)->ArgsProduct({{1, 2}, {0, 1}})->Unit(benchmark::kMillis
 // Arguments: threads, the ray kind (0 point, 1 footprint, 2 band), the sampler (0 random, 1 Sobol').
 BENCHMARK(CubicsRays)->ArgsProduct({{1, 2}, {0, 1, 2}, {0, 1}})->Unit(benchmark::kMillisecond)->UseRealTime();
 // Arguments: threads, then elements per curve.
-BENCHMARK(CubicsStorage)->ArgsProduct({{1}, {4, 64, 1024, 4096}})->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(CubicsStorage)->ArgsProduct({{1, 2}, {4, 64, 1024, 4096}})->Unit(benchmark::kMillisecond)->UseRealTime();
 
 }  // namespace
 

@@ -296,6 +296,18 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
     }
   }
   if (reflecting_length > 0.0) solver.initial_ratio_ = weighted_reflectivity / reflecting_length;
+  // Runs of whole curves holding at least kCurveChunkCoefficients coefficients (the last may hold
+  // fewer): the pieces in which per-round work over the storage is shared among the threads.
+  solver.curve_chunks_.assign(1, 0);
+  std::size_t in_chunk = 0;
+  for (std::uint32_t c = 0; c < scene.curves.size(); ++c) {
+    for (Side side : {Side::Front, Side::Back})
+      if (scene.curves[c].has_side(side)) in_chunk += solver.storage_[c].basis.size();
+    if (in_chunk >= kCurveChunkCoefficients || c + 1 == scene.curves.size()) {
+      solver.curve_chunks_.push_back(c + 1);
+      in_chunk = 0;
+    }
+  }
   solver.walk_ = settings.transport == Transport::Walk;
   if (solver.walk_) {
     // A walk goes on with probability max rho at every hit, so its number of rays is at most
@@ -443,20 +455,36 @@ bool Solver::holds_power(const std::vector<double>& values, std::uint32_t curve,
 }
 
 void Solver::estimate(const std::vector<double>& power, std::vector<double>& coefficients) const {
-  const auto channels = static_cast<std::size_t>(channels_);
   coefficients.assign(power.size(), 0.0);
-  for (std::uint32_t c = 0; c < scene_->curves.size(); ++c)
-    for (Side side : {Side::Front, Side::Back}) {
-      const std::uint32_t offset = block_offset(c, side);
-      if (offset == kNoBlock) continue;
-      // Every estimator is linear: a side that holds no power (most sides of a large scene in a
-      // round of a few photons) keeps its zero coefficients without a solve.
-      if (!holds_power(power, c, offset)) continue;
-      for (std::size_t ch = 0; ch < channels; ++ch) {
-        const std::size_t first = offset * channels + ch;
-        estimate_at_level(c, chosen_level_[c], &power[first], &coefficients[first], channels);
-      }
+  for (std::uint32_t c = 0; c < scene_->curves.size(); ++c) estimate_curve(c, power, coefficients);
+}
+
+void Solver::estimate_curve(std::uint32_t c, const std::vector<double>& power, std::vector<double>& coefficients) const {
+  const auto channels = static_cast<std::size_t>(channels_);
+  for (Side side : {Side::Front, Side::Back}) {
+    const std::uint32_t offset = block_offset(c, side);
+    if (offset == kNoBlock) continue;
+    // Every estimator is linear: a side that holds no power (most sides of a large scene in a
+    // round of a few photons) keeps its zero coefficients without a solve.
+    if (!holds_power(power, c, offset)) continue;
+    for (std::size_t ch = 0; ch < channels; ++ch) {
+      const std::size_t first = offset * channels + ch;
+      estimate_at_level(c, chosen_level_[c], &power[first], &coefficients[first], channels);
     }
+  }
+}
+
+void Solver::for_each_curve(const std::function<void(std::uint32_t)>& f) {
+  // Each curve's work writes only that curve's coefficients, so the split changes no result.
+  auto chunk = [&](std::size_t i) {
+    for (std::uint32_t c = curve_chunks_[i]; c < curve_chunks_[i + 1]; ++c) f(c);
+  };
+  const std::size_t chunks = curve_chunks_.size() - 1;
+  if (threads_ > 1 && chunks > 1) {
+    worker_pool().for_each(chunks, chunk);
+  } else {
+    for (std::size_t i = 0; i < chunks; ++i) chunk(i);
+  }
 }
 
 void Solver::choose_levels(const std::vector<double>& received, const std::vector<double>& half) {
@@ -759,8 +787,10 @@ bool Solver::begin_round() {
   std::vector<double>& density_power = density_power_;
   density_power.clear();
   if (by_coefficient && (settings_.estimator != Estimator::Lumped || auto_storage_)) {
-    estimate(pool, density_power);
-    for (std::uint32_t c = 0; c < scene_->curves.size(); ++c)
+    density_power.assign(pool.size(), 0.0);
+    // A solve per curve side and channel: shared among the threads, by runs of curves.
+    for_each_curve([&](std::uint32_t c) {
+      estimate_curve(c, pool, density_power);
       for (Side side : {Side::Front, Side::Back}) {
         const std::uint32_t offset = block_offset(c, side);
         if (offset == kNoBlock) continue;
@@ -779,6 +809,7 @@ bool Solver::begin_round() {
           for (std::size_t ch = 0; ch < channels; ++ch)
             density_power[(offset + k) * channels + ch] *= storage_[c].basis_length[k];
       }
+    });
   }
   const std::vector<double>& coefficient_power = density_power.empty() ? pool : density_power;
   for (std::size_t j = 0; j < sources; ++j) {

@@ -427,6 +427,13 @@ class Solver {
   // Per-unit-length coefficients of `power` (same layout) by the chosen estimator, at each curve's
   // chosen level (prolonged into the finest basis).
   void estimate(const std::vector<double>& power, std::vector<double>& coefficients) const;
+  // The same for one curve's sides (coefficients already sized and zero there).
+  void estimate_curve(std::uint32_t c, const std::vector<double>& power, std::vector<double>& coefficients) const;
+  // f(c) for every curve, shared among the threads in runs of curves (curve_chunks_); f must
+  // write only curve c's own coefficients.
+  void for_each_curve(const std::function<void(std::uint32_t)>& f);
+  static constexpr std::size_t kCurveChunkCoefficients = 8192;
+  std::vector<std::uint32_t> curve_chunks_;  // curves [curve_chunks_[i], curve_chunks_[i + 1])
   // Whether the given side (block at `offset` of `curve`) holds a nonzero value in `values`.
   bool holds_power(const std::vector<double>& values, std::uint32_t curve, std::uint32_t offset) const;
   void estimate_on(const CurveStorage& storage, const double* power, double* coefficients,
