@@ -459,10 +459,7 @@ TEST(Solver, SameSeedGivesIdenticalResultsOnAnyThreadCount) {
     settings.sampler = SamplerKind::Random;  // Sobol': SobolGivesIdenticalResultsOnAnyThreadCountAndStep
     Solver solver = make_solver(scene, settings);
     solver.run();
-    nlohmann::json result = result_to_json(solver, 50);
-    result["stats"].erase("seconds");
-    result["settings"].erase("threads");
-    dumps.push_back(result.dump());
+    dumps.push_back(testing::solution_dump(solver));
   }
   EXPECT_EQ(dumps[0], dumps[1]);
   EXPECT_EQ(dumps[0], dumps[2]);
@@ -533,11 +530,7 @@ TEST(Solver, StepsOfAnySizeGiveTheSameResultAsWholeRounds) {
     EXPECT_EQ(paths[i].origin.x, first_round[i].origin.x) << i;
     EXPECT_EQ(paths[i].end.y, first_round[i].end.y) << i;
   }
-  nlohmann::json a = result_to_json(whole, 50);
-  nlohmann::json b = result_to_json(stepped, 50);
-  a["stats"].erase("seconds");
-  b["stats"].erase("seconds");
-  EXPECT_EQ(a.dump(), b.dump());
+  EXPECT_EQ(testing::solution_dump(whole), testing::solution_dump(stepped));
 }
 
 TEST(Solver, RunRefreshesTheReadersOnceWithTheSameResult) {
@@ -555,11 +548,7 @@ TEST(Solver, RunRefreshesTheReadersOnceWithTheSameResult) {
     Solver stepped = make_solver(scene, settings);
     while (stepped.step_round()) {
     }
-    nlohmann::json a = result_to_json(whole, 40);
-    nlohmann::json b = result_to_json(stepped, 40);
-    a["stats"].erase("seconds");
-    b["stats"].erase("seconds");
-    EXPECT_EQ(a.dump(), b.dump()) << to_string(basis);
+    EXPECT_EQ(testing::solution_dump(whole), testing::solution_dump(stepped)) << to_string(basis);
     const double u = 0.3 * scene.curves[0].segment_count;
     EXPECT_EQ(whole.radiosity(0, Side::Front, u)[0], stepped.radiosity(0, Side::Front, u)[0]);
     EXPECT_GT(whole.radiosity(0, Side::Front, u)[0], 0.0);
@@ -587,11 +576,8 @@ TEST(Solver, FineStorageSharesItsRoundsWorkWithTheSameBits) {
     settings.threads = threads;
     Solver solver = make_solver(scene, settings);
     solver.run();
-    nlohmann::json result = result_to_json(solver, 40);
-    result["stats"].erase("seconds");
-    result["settings"].erase("threads");
-    if (threads == 1) first = result.dump();
-    else EXPECT_EQ(result.dump(), first) << threads << " threads";
+    if (threads == 1) first = testing::solution_dump(solver);
+    else EXPECT_EQ(testing::solution_dump(solver), first) << threads << " threads";
   }
 }
 
