@@ -243,22 +243,32 @@ double HermiteReconstruction::sample(double u1, double u2) const {
   const std::size_t i = distribution_.sample(u1);
   const auto& b = bernstein_[i];
   // Solve G(x) = u2 G(1) on [0,1] for the piece's CDF up to a factor, G(x) = integral of p from 0
-  // to x: in the quartic Bernstein basis its coefficients are the running sums
-  // (0, b0, b0 + b1, b0 + b1 + b2, b0 + b1 + b2 + b3) / 4 (integrating Bernstein polynomials),
-  // nondecreasing, so G is nondecreasing and G(1) is the last. Newton from the linear guess; a
-  // step leaving the bracket [lo, hi], or a vanishing density, bisects.
-  const std::array<double, 5> cdf{0.0, b[0] / 4.0, (b[0] + b[1]) / 4.0, (b[0] + b[1] + b[2]) / 4.0,
-                                   ((b[0] + b[1]) + (b[2] + b[3])) / 4.0};
-  const double goal = u2 * cdf[4];
+  // to x, G(1) = (b0 + b1 + b2 + b3) / 4. Newton on the power forms p = c0 + c1 x + c2 x^2 + c3 x^3
+  // and G = x (c0 + x (c1 / 2 + x (c2 / 3 + x c3 / 4))) (Horner: a third of de Casteljau's work),
+  // from the root for the straight density through the end values b0 and b3,
+  // x = 2 v / (b0 + sqrt(b0^2 + 2 (b3 - b0) v)) with v = u2 (b0 + b3) / 2. A step leaving the
+  // bracket [lo, hi], or a vanishing density, bisects; it stops once G is within rounding of the
+  // goal (G is nondecreasing, p >= 0 by the Bernstein coefficients).
+  const double c0 = b[0];
+  const double c1 = 3.0 * (b[1] - b[0]);
+  const double c2 = 3.0 * ((b[0] + b[2]) - 2.0 * b[1]);
+  const double c3 = (b[3] - b[0]) + 3.0 * (b[1] - b[2]);
+  auto cdf = [&](double t) { return t * (c0 + t * (c1 / 2.0 + t * (c2 / 3.0 + t * (c3 / 4.0)))); };
+  auto density = [&](double t) { return c0 + t * (c1 + t * (c2 + t * c3)); };
+  const double total = ((b[0] + b[1]) + (b[2] + b[3])) / 4.0;
+  const double goal = u2 * total;
   double lo = 0.0;
   double hi = 1.0;
-  double x = u2;
+  const double v = u2 * 0.5 * (b[0] + b[3]);
+  const double denominator = b[0] + std::sqrt(std::max(0.0, b[0] * b[0] + 2.0 * (b[3] - b[0]) * v));
+  double x = denominator > 0.0 ? std::clamp(2.0 * v / denominator, 0.0, 1.0) : u2;
+  const double resolution = 4e-16 * total;
   for (int iteration = 0; iteration < 100; ++iteration) {
-    const double g = de_casteljau(cdf, x) - goal;
-    if (g == 0.0) break;
+    const double g = cdf(x) - goal;
+    if (std::fabs(g) <= resolution) break;
     if (g < 0.0) lo = x; else hi = x;
-    const double density = de_casteljau(b, x);
-    double next = density > 0.0 ? x - g / density : 0.5 * (lo + hi);
+    const double d = density(x);
+    double next = d > 0.0 ? x - g / d : 0.5 * (lo + hi);
     if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);
     if (std::fabs(next - x) <= 1e-15 || hi - lo <= 1e-15) {
       x = next;
