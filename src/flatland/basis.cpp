@@ -498,8 +498,10 @@ CurveStorage build_curve_storage(const Scene& scene, const Curve& curve, BasisKi
       entry(row, col) = col == row ? std::sqrt(std::max(sum, 0.0)) : sum / entry(col, col);
     }
   }
-  // Speed bound over each basis function's support: the largest bound of the segments it touches
-  // (on a periodic basis the support may reach a period before or after [0, segment_count)).
+  // Speed bound over each basis function's support: on each segment it touches, the bound over
+  // the part it touches (on a periodic basis the support may reach a period before or after
+  // [0, segment_count)). A bound local to a fine mesh's short support is nearly the speed itself,
+  // so the origins' rejection on speed seldom draws again.
   storage.speed_bound.assign(n, 0.0);
   const std::vector<double>& knots = storage.basis.knots();
   const double period = static_cast<double>(segment_count);
@@ -508,9 +510,16 @@ CurveStorage build_curve_storage(const Scene& scene, const Curve& curve, BasisKi
     const double end = knots[k + pu + 1];
     for (std::uint32_t i = 0; i < segment_count; ++i)
       for (const double shift : {0.0, -period, period})
-        if ((shift == 0.0 || storage.basis.is_periodic()) && i + 1.0 + shift > begin && i + shift < end)
-          storage.speed_bound[k] = std::max(storage.speed_bound[k],
-                                            scene.segments[curve.first_segment + i].speed_bound);
+        if ((shift == 0.0 || storage.basis.is_periodic()) && i + 1.0 + shift > begin && i + shift < end) {
+          const SceneSegment& segment = scene.segments[curve.first_segment + i];
+          const double t0 = std::clamp(begin - i - shift, 0.0, 1.0);
+          const double t1 = std::clamp(end - i - shift, 0.0, 1.0);
+          // Both are upper bounds there; over a long part the segment's may be the lower.
+          const double bound = segment.geometry.kind == SegmentKind::Line
+                                   ? segment.speed_bound
+                                   : std::min(segment.speed_bound, speed_bound(segment.geometry.shape, t0, t1));
+          storage.speed_bound[k] = std::max(storage.speed_bound[k], bound);
+        }
   }
   return storage;
 }

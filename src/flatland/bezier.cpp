@@ -181,7 +181,11 @@ Box tight_bounds(const Cubic& c) {
 // so |Q| on [u,v] is at most the largest of their norms (convex hull property). The middle point
 // lies within (v-u)^2/4 |D0 - 2 D1 + D2| <= 8 max|Q| / 256 of the curve, so the bound exceeds the
 // true maximum by at most about 3%. The last factor covers rounding.
-double speed_bound(const Cubic& c) {
+double speed_bound(const Cubic& c) { return speed_bound(c, 0.0, 1.0); }
+
+double speed_bound(const Cubic& c, double t0, double t1) {
+  // C' is a quadratic Bezier with control points d0, d1, d2; its blossom q(u, v) gives the control
+  // points q(a, a), q(a, b), q(b, b) of its restriction to [a, b], whose hull holds C' there.
   const Vec2 d0 = 3.0 * (c.p[1] - c.p[0]);
   const Vec2 d1 = 3.0 * (c.p[2] - c.p[1]);
   const Vec2 d2 = 3.0 * (c.p[3] - c.p[2]);
@@ -189,8 +193,8 @@ double speed_bound(const Cubic& c) {
   constexpr int kPieces = 8;
   double bound = 0.0;
   for (int k = 0; k < kPieces; ++k) {
-    const double u = k / double(kPieces);
-    const double v = (k + 1) / double(kPieces);
+    const double u = t0 + (t1 - t0) * (k / double(kPieces));
+    const double v = k + 1 == kPieces ? t1 : t0 + (t1 - t0) * ((k + 1) / double(kPieces));
     bound = std::max({bound, length(q(u, u)), length(q(u, v)), length(q(v, v))});
   }
   return bound * (1.0 + 1e-12);

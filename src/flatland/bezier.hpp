@@ -48,6 +48,9 @@ Box tight_bounds(const Cubic& c);
 // An upper bound of |C'(t)| on [0,1] that is within a few percent of the true maximum
 // (hull bounds of the derivative's quadratic Bezier over a few subintervals).
 double speed_bound(const Cubic& c);
+// The same on [t0, t1] (0 <= t0 <= t1 <= 1): the hull bounds of the derivative's restriction to
+// each of a few subintervals (the same as speed_bound(c) on [0, 1]).
+double speed_bound(const Cubic& c, double t0, double t1);
 
 // Arc length of c between t0 and t1 (t0 <= t1), adaptive Gauss-Legendre on |C'(t)| to a relative
 // accuracy of about 1e-13.
