@@ -204,6 +204,25 @@ TEST(Sampling, DiscreteDistributionFollowsWeightsAndSkipsZeros) {
   EXPECT_LT(testing::chi_square(observed, expected), testing::chi_square_critical(2));
 }
 
+TEST(Sampling, DiscreteDistributionIgnoresRoundingOfTiedWeights) {
+  // Weights whose scaled values (w n / total) are integers: 5 and 3 over 8 columns with six
+  // zeros. Topping up the zeros from the 3 leaves it at exactly 1 after two of them; on the other
+  // side of 1 by rounding (the same weights times a factor, as in a scaled copy of a scene) it
+  // used to turn small and take the next zero, and every pairing after it changed. The table must
+  // not depend on which side rounding falls: every u maps to the same index.
+  const std::vector<double> exact = {5.0, 3.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
+  for (double nudge : {1.0 + 4e-16, 1.0 - 4e-16, 1.0 + 1e-14, 1.0 - 1e-14}) {
+    std::vector<double> moved = exact;
+    moved[1] *= nudge;
+    const DiscreteDistribution a(exact);
+    const DiscreteDistribution b(moved);
+    int differing = 0;
+    for (int i = 0; i < 8000; ++i) differing += a.sample((i + 0.5) / 8000.0) != b.sample((i + 0.5) / 8000.0);
+    EXPECT_EQ(differing, 0) << "weight 1 times " << nudge;
+    EXPECT_NEAR(b.pmf(1), 3.0 / 8.0, 1e-9);
+  }
+}
+
 TEST(Sampling, DiscreteDistributionRestIsUniformGivenTheIndex) {
   // sample(u, rest) chooses as sample(u) does, and what is left of u is uniform in [0,1) and
   // independent of the index: a chi-square test over (index, quarter of rest) cells.
