@@ -9,7 +9,7 @@ photons=${1:-400000}
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 for basis in constant linear cubic; do
-  build/flatland solve scenes2d/penumbra.json --basis "$basis" --photons "$photons" --seed 7 \
+  build/flatland solve scenes2d/penumbra.json --basis "$basis" --elements 16 --photons "$photons" --seed 7 \
     --samples 600 --quiet --out "$work/$basis.json"
 done
 python3 - "$work" <<'PY'

@@ -378,51 +378,107 @@ int segment_elements(int elements, double segment_length, double curve_length) {
 
 namespace {
 
-// The storage nodes of a curve for about `wanted` elements: joints, element boundaries, then the
-// extra nodes merged in. Returns the closing continuity (Jump on an open curve).
+// The storage nodes of a curve for about `wanted` elements. The fixed nodes (joints, and the extra
+// nodes: events, contacts) cut each segment into regions; each region is split into elements of
+// equal arc length, as many as keep them no longer than the segment's (below), times
+// 2^subdivisions. Returns the closing continuity (Jump on an open curve).
+//
+// Splitting regions rather than the segment keeps every element between half and all of the
+// segment's element length at its level, unless it is a whole region shorter than that: an extra
+// node merged into a mesh split evenly over the segment could land a hair from an element
+// boundary and leave a sliver (an event 0.0009 from a boundary of elements 0.0156 long on the
+// round-occluder floor), whose short secants steer the Hermite reconstruction's slopes and whose
+// short supports catch few photons. A region's count doubles with each subdivision (or stays the
+// same while a short region waits), and s = start + length j / pieces is the same double for
+// (j, pieces) and (2 j, 2 pieces), so the meshes nest. A segment without extra nodes is one
+// region, split exactly as an even split of the segment.
 Continuity place_nodes(const Scene& scene, const Curve& curve, int wanted, int subdivisions,
                        bool smooth_joints, std::span<const MeshNode> extra,
                        std::vector<MeshNode>& nodes) {
   const std::uint32_t segment_count = curve.segment_count;
-  nodes.clear();
-  for (std::uint32_t i = 0; i < segment_count; ++i) {
-    const SceneSegment& segment = scene.segments[curve.first_segment + i];
-    if (i > 0)
-      nodes.push_back({static_cast<double>(i), smooth_joints ? Continuity::C1 : curve.joints[i - 1]});
-    // Each element of the `wanted` placement split into 2^subdivisions of equal arc length: the
-    // boundaries s = length j / pieces of a coarser placement are those of a finer one exactly
-    // (j and pieces both doubled), so the meshes nest.
-    const int pieces = segment_elements(wanted, segment.length, curve.length) << subdivisions;
-    for (int j = 1; j < pieces; ++j) {
-      const double s = segment.length * j / pieces;
-      const double t = segment.arc_length.parameter_at(segment.geometry.shape, s);
-      nodes.push_back({i + t, Continuity::C1});
-    }
-  }
   Continuity closing = !curve.closed ? Continuity::Jump
                        : smooth_joints ? Continuity::C1
                                        : curve.joints.back();
+  // The fixed nodes: joints, then the extra nodes merged in (one within 1e-9 of a fixed node
+  // lowers its continuity; one at the closing point of a closed curve lowers the closing joint's).
+  std::vector<MeshNode> fixed;
+  for (std::uint32_t i = 1; i < segment_count; ++i)
+    fixed.push_back({static_cast<double>(i), smooth_joints ? Continuity::C1 : curve.joints[i - 1]});
   for (const MeshNode& node : extra) {
-    // A node at the closing point of a closed curve lowers the closing joint's continuity.
     if (curve.closed && (std::fabs(node.u) <= 1e-9 || std::fabs(node.u - segment_count) <= 1e-9)) {
       closing = std::min(closing, node.continuity);
       continue;
     }
     if (!(node.u > 0.0 && node.u < segment_count)) continue;
-    const auto at = std::lower_bound(nodes.begin(), nodes.end(), node.u,
+    const auto at = std::lower_bound(fixed.begin(), fixed.end(), node.u,
                                      [](const MeshNode& a, double u) { return a.u < u; });
     auto merge = [&](std::vector<MeshNode>::iterator existing) {
-      if (existing == nodes.end() || std::fabs(existing->u - node.u) > 1e-9) return false;
+      if (existing == fixed.end() || std::fabs(existing->u - node.u) > 1e-9) return false;
       existing->continuity = std::min(existing->continuity, node.continuity);
       return true;
     };
-    if (merge(at) || (at != nodes.begin() && merge(at - 1))) continue;
-    nodes.insert(at, node);
+    if (merge(at) || (at != fixed.begin() && merge(at - 1))) continue;
+    fixed.insert(at, node);
+  }
+  // Each region between consecutive fixed nodes (and the curve's ends), split evenly in arc length.
+  nodes.clear();
+  std::size_t next_fixed = 0;
+  for (std::uint32_t i = 0; i < segment_count; ++i) {
+    const SceneSegment& segment = scene.segments[curve.first_segment + i];
+    const Cubic& shape = segment.geometry.shape;
+    const double segment_pieces = segment_elements(wanted, segment.length, curve.length);
+    const double element = segment.length / segment_pieces;  // at subdivision 0
+    if (i > 0) nodes.push_back(fixed[next_fixed++]);  // the joint
+    double region_start = 0.0;  // arc length from the segment's start
+    for (;;) {
+      const bool inside = next_fixed < fixed.size() && fixed[next_fixed].u < i + 1.0;
+      const double region_end =
+          inside ? std::clamp(segment.arc_length.length_at(shape, fixed[next_fixed].u - i), region_start, segment.length)
+                 : segment.length;
+      const double region = region_end - region_start;
+      // As many elements as keep them no longer than the segment's (its share of the segment's
+      // elements, rounded up), and the levels that pass before a region shorter than half an
+      // element is split at all: its elements are then between half and all of the level's
+      // element length, never a sliver of it. (The tolerances keep a region that is the whole
+      // segment at exactly the segment's elements.)
+      const int share =
+          std::max(1, static_cast<int>(std::ceil(segment_pieces * region / segment.length - 1e-9)));
+      int delay = 0;
+      while (delay < subdivisions && region / share * std::ldexp(1.0, delay + 1) <= element * (1.0 + 1e-9))
+        ++delay;
+      const int pieces = share << (subdivisions - delay);
+      for (int j = 1; j < pieces; ++j) {
+        const double s = region_start + region * j / pieces;
+        nodes.push_back({i + segment.arc_length.parameter_at(shape, s), Continuity::C1});
+      }
+      if (!inside) break;
+      nodes.push_back(fixed[next_fixed++]);
+      region_start = region_end;
+    }
   }
   return closing;
 }
 
 }  // namespace
+
+double longest_element(const Scene& scene, const Curve& curve, int elements, bool smooth_joints,
+                       std::span<const MeshNode> extra, int subdivisions) {
+  std::vector<MeshNode> nodes;
+  place_nodes(scene, curve, std::max(elements, 1), subdivisions, smooth_joints, extra, nodes);
+  auto arc_length = [&](double u) {
+    const auto i = static_cast<std::uint32_t>(std::clamp(std::floor(u), 0.0, curve.segment_count - 1.0));
+    const SceneSegment& segment = scene.segments[curve.first_segment + i];
+    return curve.segment_start[i] + segment.arc_length.length_at(segment.geometry.shape, u - i);
+  };
+  double longest = 0.0;
+  double previous = 0.0;
+  for (const MeshNode& node : nodes) {
+    const double s = arc_length(node.u);
+    longest = std::max(longest, s - previous);
+    previous = s;
+  }
+  return std::max(longest, curve.length - previous);
+}
 
 CurveStorage build_curve_storage(const Scene& scene, const Curve& curve, BasisKind kind,
                                  int elements, bool smooth_joints, std::span<const MeshNode> extra,

@@ -210,24 +210,32 @@ bool clamp_keeping_power(const CurveStorage& storage, double* coefficients, std:
 
 // How many elements build_curve_storage gives a segment of arc length `segment_length` on a curve
 // of length `curve_length` for `elements` per curve, before the 2^subdivisions split: its share of
-// `elements` by arc length, rounded, at least one.
+// `elements` by arc length, rounded, at least one (the segment's element length is its length
+// over this; regions between extra nodes round their own share up, see below).
 int segment_elements(int elements, double segment_length, double curve_length);
 
 // About `elements` elements per curve, shared among its segments in proportion to their arc
-// length (at least one each) and of equal arc length within a segment. A closed curve whose
-// closing joint is not a jump gets a periodic basis, with enough elements that no function
-// overlaps itself around the loop (at least 2 degree + 2 knots in the period). Joints take the curve's
-// joint continuity (or `smooth_joints`: all C1, the no-discontinuity baseline); element
-// boundaries inside a segment are C1 (the most a piecewise cubic with selected discontinuities
-// offers). `extra` nodes (increasing u, inside the curve) are added with their own continuity; one
-// that falls on an existing node within 1e-9 of the curve parameter lowers that node's continuity
-// instead (on a closed curve, one at u = 0 or u = segment_count lowers the closing joint's).
-// `subdivisions` splits every element into 2^subdivisions of equal arc length: storages of one
-// curve built with the same elements and extra nodes and increasing subdivisions nest (each
-// coarse basis function is a combination of fine ones; see Restriction).
+// length (at least one each). A closed curve whose closing joint is not a jump gets a periodic
+// basis, with enough elements that no function overlaps itself around the loop (at least
+// 2 degree + 2 knots in the period). Joints take the curve's joint continuity (or
+// `smooth_joints`: all C1, the no-discontinuity baseline); element boundaries inside a segment are
+// C1 (the most a piecewise cubic with selected discontinuities offers). `extra` nodes (increasing
+// u, inside the curve) are added with their own continuity; one that falls on a joint or another
+// extra node within 1e-9 of the curve parameter lowers that node's continuity instead (on a closed
+// curve, one at u = 0 or u = segment_count lowers the closing joint's). The joints and extra nodes
+// cut each segment into regions, each split into elements of equal arc length no longer than the
+// segment's (without extra nodes: the segment split evenly).
+// `subdivisions` splits every element into 2^subdivisions of equal arc length (a region shorter
+// than half the segment's elements at that split stays whole until they are as short as it is):
+// storages of one curve built with the same elements and extra nodes and increasing subdivisions
+// nest (each coarse basis function is a combination of fine ones; see Restriction).
 CurveStorage build_curve_storage(const Scene& scene, const Curve& curve, BasisKind kind,
                                  int elements, bool smooth_joints = false,
                                  std::span<const MeshNode> extra = {}, int subdivisions = 0);
+
+// The arc length of the longest element build_curve_storage makes with these arguments.
+double longest_element(const Scene& scene, const Curve& curve, int elements, bool smooth_joints,
+                       std::span<const MeshNode> extra, int subdivisions);
 
 // Between nested bases (every knot of `coarse` is a knot of `fine` with at least its
 // multiplicity): phi_coarse_i = sum_j R_ij phi_fine_j, with R >= 0 (knot insertion). Deposits

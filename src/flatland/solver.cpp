@@ -247,16 +247,10 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
     // Footprints spread every deposit over the ray's width, so the deposited density is smooth on
     // that scale: elements shorter than kFootprintFinestElement x the width resolve only the
     // spread, while each hit pays for every span it covers. Auto storage stops refining where the
-    // curve's longest element (at level l: a segment's segment_elements split 2^l times) would be
-    // shorter.
+    // curve's longest element would be shorter.
     int curve_finest = finest_level;
     if (solver.auto_storage_ && settings.ray_width > 0.0 && settings.ray_mode == RayMode::Footprint) {
-      double longest = 0.0;  // at level 0
-      for (std::uint32_t i = 0; i < curve.segment_count; ++i) {
-        const double length = scene.segments[curve.first_segment + i].length;
-        longest = std::max(longest, length / segment_elements(elements, length, curve.length));
-      }
-      while (curve_finest > 0 && longest / static_cast<double>(1 << curve_finest) <
+      while (curve_finest > 0 && longest_element(scene, curve, elements, smooth, events[c], curve_finest) <
                                      kFootprintFinestElement * settings.ray_width)
         --curve_finest;
     }
