@@ -124,13 +124,14 @@ namespace {
 // The storage's memory, estimated from above before anything is allocated. Per coefficient and
 // channel: the received, unshot and reflected totals (doubles), one fixed-point deposit per worker
 // thread and the Galerkin scratch; per coefficient, its knots, basis integral, origin sampler and
-// source weight (about 160 bytes). A curve has at most max(elements, segments) elements plus, per
-// segment, a joint of multiplicity up to the degree + 1 and visibility-event nodes.
+// source weight (about 160 bytes). A curve's segments share its elements, at least one each (at
+// most elements + segments); the regions between event nodes round their shares up, so that a
+// curve has at most twice that many, plus per segment a joint of multiplicity up to the degree + 1.
 Status check_memory(const Scene& scene, const SolverSettings& settings, unsigned threads) {
   double coefficients = 0.0;
   for (const Curve& curve : scene.curves) {
     const double sides = curve.sides == Sides::Both ? 2.0 : 1.0;
-    coefficients += sides * (std::max<double>(settings.elements, curve.segment_count) +
+    coefficients += sides * (2.0 * (static_cast<double>(settings.elements) + curve.segment_count) +
                              4.0 * curve.segment_count + 4.0);
   }
   const double per_coefficient = scene.channels * 8.0 * (4.0 + threads) + 160.0;
