@@ -12,9 +12,12 @@
 #             EXTEND= skips them
 #   MAIN      MAIN=0 skips the main measurement (only the extension, the table and the plots)
 set -eu
-here=$(cd "$(dirname "$0")" && pwd)
-root=$(cd "$here/../../.." && pwd)
+root=$(cd "$(dirname "$0")/../../.." && pwd)
 FLATLAND=${FLATLAND:-$root/build/flatland}
+# From the repository's top, with paths relative to it: what the programs print (and the logs
+# kept here) names no directory of the machine that ran them.
+cd "$root"
+here=docs/figures/time_to_accuracy
 SEEDS=${SEEDS:-3}
 BUDGETS=${BUDGETS:-1e4,3e4,1e5,3e5,1e6,3e6,1e7}
 THREADS=${THREADS:-2}
@@ -26,11 +29,11 @@ export BUDGETS EXTEND THREADS
 
 scene_file() {
     case "$1" in
-        penumbra)       echo "$root/scenes2d/penumbra.json" ;;
-        round_occluder) echo "$root/scenes2d/tests/reference_round_occluder.json" ;;
+        penumbra)       echo scenes2d/penumbra.json ;;
+        round_occluder) echo scenes2d/tests/reference_round_occluder.json ;;
         lit_ring)       python3 "$here/make_lit_ring.py" >/dev/null; echo "$here/lit_ring.json" ;;
-        ring_profile)   echo "$root/scenes2d/tests/reference_ring_profile.json" ;;
-        curved_room)    echo "$root/scenes2d/curved_room.json" ;;
+        ring_profile)   echo scenes2d/tests/reference_ring_profile.json ;;
+        curved_room)    echo scenes2d/curved_room.json ;;
         *) echo "unknown scene $1" >&2; exit 1 ;;
     esac
 }
@@ -43,7 +46,6 @@ for s in random sobol; do
     done
 done
 
-cd "$root"
 [ "$MAIN" = 1 ] || SCENES=""
 for name in $SCENES; do
     scene=$(scene_file "$name")
