@@ -705,11 +705,7 @@ TEST(Basis, RegionsBetweenNodesAreSplitEvenlyWithoutSlivers) {
                                        {0.8, Continuity::Jump},
                                        {0.800002, Continuity::C0},
                                        {1.3, Continuity::C0}};
-  auto arc_length = [&](double u) {
-    const auto i = static_cast<std::uint32_t>(std::min(std::floor(u), 1.0));
-    const SceneSegment& segment = scene.segments[i];
-    return curve.segment_start[i] + segment.arc_length.length_at(segment.geometry.shape, u - i);
-  };
+  auto arc_length = [&](double u) { return arc_length_at(scene, curve, u); };
   auto is_fixed = [&](double u) {
     if (u == 0.0 || u == 1.0 || u == 2.0) return true;
     for (const MeshNode& node : extra)

@@ -62,11 +62,7 @@ const Scene& scene() {
 }
 
 // Arc length from the curve's start at curve parameter u (the table's own length_at).
-double arc_length_at(const Curve& curve, double u) {
-  const auto j = std::min(static_cast<std::uint32_t>(u), curve.segment_count - 1);
-  const SceneSegment& segment = scene().segments[curve.first_segment + j];
-  return curve.segment_start[j] + segment.arc_length.length_at(segment.geometry.shape, u - j);
-}
+double arc_length_at(const Curve& curve, double u) { return flatland::arc_length_at(scene(), curve, u); }
 
 // The weights as a dense vector over the basis, after checking the contract: coefficients in
 // range and increasing, weights > 0, sum 1 to 1e-14.

@@ -465,15 +465,10 @@ double longest_element(const Scene& scene, const Curve& curve, int elements, boo
                        std::span<const MeshNode> extra, int subdivisions) {
   std::vector<MeshNode> nodes;
   place_nodes(scene, curve, std::max(elements, 1), subdivisions, smooth_joints, extra, nodes);
-  auto arc_length = [&](double u) {
-    const auto i = static_cast<std::uint32_t>(std::clamp(std::floor(u), 0.0, curve.segment_count - 1.0));
-    const SceneSegment& segment = scene.segments[curve.first_segment + i];
-    return curve.segment_start[i] + segment.arc_length.length_at(segment.geometry.shape, u - i);
-  };
   double longest = 0.0;
   double previous = 0.0;
   for (const MeshNode& node : nodes) {
-    const double s = arc_length(node.u);
+    const double s = arc_length_at(scene, curve, node.u);
     longest = std::max(longest, s - previous);
     previous = s;
   }

@@ -776,12 +776,6 @@ struct EventFinder {
   }
 };
 
-double arc_length_at(const Scene& scene, const Curve& curve, double u) {
-  const auto index = static_cast<std::uint32_t>(std::clamp(std::floor(u), 0.0, curve.segment_count - 1.0));
-  const SceneSegment& segment = scene.segments[curve.first_segment + index];
-  return curve.segment_start[index] + segment.arc_length.length_at(segment.geometry.shape, u - index);
-}
-
 // Merging per EventOptions (see the header), curve by curve.
 std::vector<DiscontinuityNode> merge_events(const Scene& scene, std::vector<DiscontinuityNode> events,
                                             const EventOptions& options) {

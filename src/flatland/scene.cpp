@@ -165,6 +165,12 @@ double emittance_factor(const Curve& curve, double u) {
   return s * s * s * v[i] + 3.0 * s * s * t * v[i + 1] + 3.0 * s * t * t * v[i + 2] + t * t * t * v[i + 3];
 }
 
+double arc_length_at(const Scene& scene, const Curve& curve, double u) {
+  const auto index = static_cast<std::uint32_t>(std::clamp(std::floor(u), 0.0, curve.segment_count - 1.0));
+  const SceneSegment& segment = scene.segments[curve.first_segment + index];
+  return curve.segment_start[index] + segment.arc_length.length_at(segment.geometry.shape, u - index);
+}
+
 CurvePoint point_at_arc_length(const Scene& scene, const Curve& curve, double s) {
   // The last segment whose start is <= s; clamp s into the curve.
   s = std::clamp(s, 0.0, curve.length);

@@ -130,6 +130,9 @@ struct CurvePoint {
   Vec2 position;
 };
 CurvePoint point_at_arc_length(const Scene& scene, const Curve& curve, double s);
+// Its inverse: the arc length from the curve's start to u = segment index + t (u clamped to the
+// curve's segments).
+double arc_length_at(const Scene& scene, const Curve& curve, double u);
 
 // Whether the chain is tangent-continuous at joint j (between segments j and j+1 of the curve, the
 // last segment and the first for the closing joint of a closed curve): the unit tangents agree to

@@ -640,11 +640,7 @@ int Solver::storage_elements(std::uint32_t curve) const {
 }
 
 double Solver::arc_length_at(std::uint32_t curve, double u) const {
-  const Curve& c = scene_->curves[curve];
-  const auto local =
-      static_cast<std::uint32_t>(std::clamp(std::floor(u), 0.0, c.segment_count - 1.0));
-  const SceneSegment& segment = scene_->segments[c.first_segment + local];
-  return c.segment_start[local] + segment.arc_length.length_at(segment.geometry.shape, u - local);
+  return flatland::arc_length_at(*scene_, scene_->curves[curve], u);
 }
 
 HermiteReconstruction Solver::hermite_of(std::uint32_t curve, int level, const double* values) const {
