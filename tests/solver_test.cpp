@@ -1269,13 +1269,14 @@ TEST(Solver, AutoStorageKeepsConvergingWithoutAFloor) {
   std::printf("auto storage with sobol: penumbra %.4g -> %.4g\n", sobol6, sobol7);
   EXPECT_LT(sobol7, 0.5 * sobol6);
   // Hermite storage interpolates the nodal values of a level's hats on that level's nodes, the
-  // level chosen by the Hermite curves' own error: no floor either. Its nodal values have the
-  // hats' order (2: about N^-2/5, a factor 0.40 a decade, where a floor gives about 1). Measured,
-  // seeds 1 and 2: round occluder 0.0249 -> 0.0118 (0.48), penumbra 0.0289 -> 0.0103 (0.36); the
-  // paper's 16 fixed elements (lumped): 0.0646 -> 0.0623 and 0.196 -> 0.195 (0.96, 0.99). The
-  // bound, 0.7, sits between the order's 0.40 and a floor's 1: the level choice adds a spread that
-  // the photons' variance alone does not predict (choosing by the hats' error instead gave 0.41
-  // and 0.54).
+  // level chosen by the Hermite curves' own error: no floor either. Its default estimator (auto) is
+  // the local one, whose nodal values are exact for cubics: the cubic's order, about N^-4/9, a
+  // factor 0.36 a decade, where a floor gives about 1. Measured, seeds 1 and 2: round occluder
+  // 0.0184 -> 0.0075 (0.41), penumbra 0.0252 -> 0.0063 (0.25); with Galerkin's hat projections
+  // (order 2, 0.40 a decade) 0.0249 -> 0.0118 (0.48) and 0.0289 -> 0.0103 (0.36); the paper's 16
+  // fixed elements (lumped): 0.0646 -> 0.0623 and 0.196 -> 0.195 (0.96, 0.99). The bound, 0.7,
+  // sits between the orders' 0.36-0.40 and a floor's 1: the level choice adds a spread that the
+  // photons' variance alone does not predict.
   const double hermite_round6 = floor_error(round, 2, round_occluder_floor, -2.0, 2.0, 1'000'000, kAutoElements,
                                             SamplerKind::Random, 2, BasisKind::Hermite);
   const double hermite_round7 = floor_error(round, 2, round_occluder_floor, -2.0, 2.0, 10'000'000, kAutoElements,

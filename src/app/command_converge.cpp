@@ -747,7 +747,7 @@ int run_converge(ConvergeOptions& o) {
     std::snprintf(line, sizeof line,
                   "\"%s\",%s,%s,%s,%s,%s,%.17g,%s,%s,%d,%.9g,%llu,%llu,%u,%.9g,%.9g,%.9g,%.9g,%.9g",
                   methods[row.method].name.c_str(), to_string(s.basis), to_string(s.sampling),
-                  to_string(s.discontinuities), to_string(s.estimator),
+                  to_string(s.discontinuities), to_string(resolve_estimator(s.estimator, s.basis)),
                   s.elements == kAutoElements ? "auto" : std::to_string(s.elements).c_str(), s.ray_width,
                   to_string(s.ray_mode), to_string(s.ray_profile), s.band_rays, s.tolerance,
                   static_cast<unsigned long long>(row.seed), static_cast<unsigned long long>(row.photons),

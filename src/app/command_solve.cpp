@@ -66,9 +66,10 @@ void add_solver_options(CLI::App* cmd, SolveOptions& o) {
                   "Coefficients from deposits: lumped (power over the basis function's length, the "
                   "paper's; positive, bias O(h^2) inside and O(h) at ends and nodes), galerkin (L2 "
                   "projection) or local (least-variance local quasi-interpolant; Hermite: nodal "
-                  "values); galerkin and local have bias O(h^(p+1)) everywhere and may dip below zero")
+                  "values); galerkin and local have bias O(h^(p+1)) everywhere and may dip below zero; "
+                  "auto: local for hermite storage, galerkin for the others (docs/method.md)")
       ->capture_default_str()
-      ->check(CLI::IsMember({"lumped", "galerkin", "local"}));
+      ->check(CLI::IsMember({"lumped", "galerkin", "local", "auto"}));
   cmd->add_option("--sampler", o.sampler,
                   "Where each photon's uniforms come from: random (independent pseudo-random "
                   "numbers) or sobol (randomised quasi-Monte Carlo: an Owen-scrambled Sobol' "

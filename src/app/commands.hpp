@@ -53,7 +53,7 @@ struct SolveOptions {
   std::string basis = "cubic";
   std::string sampling = "reconstructed";
   std::string discontinuities = "auto";
-  std::string estimator = "galerkin";
+  std::string estimator = "auto";
   std::string sampler = "sobol";
   std::string transport = "shooting";
   std::string elements = "auto";

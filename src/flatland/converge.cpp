@@ -32,7 +32,7 @@ Result<ConvergeMethod> parse_converge_method(const std::string& text, const Solv
       s.discontinuities = *mode;
     } else if (key == "estimator") {
       const std::optional<Estimator> estimator = estimator_from_string(value);
-      if (!estimator) return Error{where + "estimator must be lumped, galerkin or local"};
+      if (!estimator) return Error{where + "estimator must be lumped, galerkin, local or auto"};
       s.estimator = *estimator;
     } else if (key == "elements") {
       const std::optional<int> count = elements_from_string(value, 1 << 20);

@@ -70,14 +70,20 @@ const char* to_string(Estimator estimator) {
     case Estimator::Lumped: return "lumped";
     case Estimator::Galerkin: return "galerkin";
     case Estimator::Local: return "local";
+    case Estimator::Auto: return "auto";
   }
   return "?";
 }
 
 std::optional<Estimator> estimator_from_string(std::string_view name) {
-  for (Estimator e : {Estimator::Lumped, Estimator::Galerkin, Estimator::Local})
+  for (Estimator e : {Estimator::Lumped, Estimator::Galerkin, Estimator::Local, Estimator::Auto})
     if (name == to_string(e)) return e;
   return std::nullopt;
+}
+
+Estimator resolve_estimator(Estimator estimator, BasisKind basis) {
+  if (estimator != Estimator::Auto) return estimator;
+  return basis == BasisKind::Hermite ? Estimator::Local : Estimator::Galerkin;
 }
 
 const char* to_string(Transport transport) {
@@ -167,6 +173,8 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
   Solver solver;
   solver.scene_ = &scene;
   solver.settings_ = settings;
+  solver.settings_.estimator = resolve_estimator(settings.estimator, settings.basis);
+  const Estimator estimator = solver.settings_.estimator;
   solver.channels_ = scene.channels;
   solver.threads_ = settings.threads != 0 ? settings.threads
                                           : std::max(1u, std::thread::hardware_concurrency());
@@ -257,14 +265,14 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
     }
     CurveStorage& finest = solver.storage_[c];
     finest = build_curve_storage(scene, curve, settings.basis, elements, smooth, events[c], curve_finest);
-    if (settings.estimator == Estimator::Local) build_local_estimator(scene, curve, finest, hermite);
+    if (estimator == Estimator::Local) build_local_estimator(scene, curve, finest, hermite);
     // The coarser levels, each with its restriction from the finest.
     std::vector<Level>& levels = solver.levels_[c];
     for (int level = 0; level < curve_finest; ++level) {
       if (cancelled()) return;
       Level& coarse = levels.emplace_back();
       coarse.storage = build_curve_storage(scene, curve, settings.basis, elements, smooth, events[c], level);
-      if (settings.estimator == Estimator::Local) build_local_estimator(scene, curve, coarse.storage, hermite);
+      if (estimator == Estimator::Local) build_local_estimator(scene, curve, coarse.storage, hermite);
       coarse.restriction = restriction_between(coarse.storage.basis, finest.basis);
     }
   });

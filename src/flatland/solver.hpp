@@ -50,11 +50,16 @@ std::optional<PositionSampling> sampling_from_string(std::string_view name);
 // centroid, a bias of O(h^2) inside and O(h) at ends and discontinuity nodes), Galerkin (the L2
 // projection M b = p) or local (a least-variance local quasi-interpolant; Hermite: nodal values).
 // Galerkin and local have bias O(h^(p+1)) up to ends and nodes and may dip below zero; the density
-// that photon origins are drawn from is clamped at zero with its power kept.
-enum class Estimator { Lumped, Galerkin, Local };
+// that photon origins are drawn from is clamped at zero with its power kept. Auto (the default)
+// is local for Hermite storage, whose interpolation wants nodal values (1.4-2x less error than
+// Galerkin's hat projections on the five time-to-accuracy scenes, docs/method.md), and Galerkin
+// for the B-splines (better than local on four of those five).
+enum class Estimator { Lumped, Galerkin, Local, Auto };
 const char* to_string(Estimator estimator);
-// "lumped", "galerkin" or "local"; nullopt for anything else.
+// "lumped", "galerkin", "local" or "auto"; nullopt for anything else.
 std::optional<Estimator> estimator_from_string(std::string_view name);
+// The estimator a solve with this storage uses: `estimator` itself unless it is Auto.
+Estimator resolve_estimator(Estimator estimator, BasisKind basis);
 
 enum class RayMode { Footprint, Band };
 const char* to_string(RayMode mode);
@@ -124,7 +129,7 @@ struct SolverSettings {
   double tolerance = 1e-3;  // stop when unshot power < tolerance x emitted power
   PositionSampling sampling = PositionSampling::Reconstructed;
   DiscontinuityMode discontinuities = DiscontinuityMode::Auto;
-  Estimator estimator = Estimator::Galerkin;
+  Estimator estimator = Estimator::Auto;  // Solver::settings() holds it resolved
   // Extended rays: width in scene units (0: point rays), energy profile across the width, and
   // how the width is realised: a footprint spread along the receiver around the centre ray's
   // hit, or a band of `band_rays` parallel sub-rays each traced on its own.

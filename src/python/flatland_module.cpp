@@ -103,7 +103,7 @@ SolverSettings settings_from(const py::object& photons, std::uint64_t seed, unsi
   s.sampling = parse(sampling_from_string(sampling), "sampling", "uniform or reconstructed", sampling);
   s.discontinuities = parse(discontinuity_mode_from_string(discontinuities), "discontinuities",
                             "none, scene, auto or secondary", discontinuities);
-  s.estimator = parse(estimator_from_string(estimator), "estimator", "lumped, galerkin or local", estimator);
+  s.estimator = parse(estimator_from_string(estimator), "estimator", "lumped, galerkin, local or auto", estimator);
   s.sampler = parse(sampler_from_string(sampler), "sampler", "random or sobol", sampler);
   s.transport = parse(transport_from_string(transport), "transport", "shooting or walk", transport);
   s.ray_width = ray_width;
@@ -436,7 +436,7 @@ py::list converge(const PyScene& scene, const std::vector<std::string>& methods,
         d["basis"] = to_string(s.basis);
         d["sampling"] = to_string(s.sampling);
         d["discontinuities"] = to_string(s.discontinuities);
-        d["estimator"] = to_string(s.estimator);
+        d["estimator"] = to_string(resolve_estimator(s.estimator, s.basis));
         d["elements"] = s.elements == kAutoElements ? py::object(py::str("auto")) : py::object(py::int_(s.elements));
         d["ray_width"] = s.ray_width;
         d["ray_mode"] = to_string(s.ray_mode);
@@ -508,7 +508,7 @@ PYBIND11_MODULE(flatland, m) {
            }),
            py::arg("scene"), py::kw_only(), py::arg("photons") = py::int_(1'000'000), py::arg("seed") = 1, py::arg("threads") = 0,
            py::arg("basis") = "cubic", py::arg("elements") = py::str("auto"), py::arg("sampling") = "reconstructed",
-           py::arg("discontinuities") = "auto", py::arg("estimator") = "galerkin", py::arg("sampler") = "sobol",
+           py::arg("discontinuities") = "auto", py::arg("estimator") = "auto", py::arg("sampler") = "sobol",
            py::arg("transport") = "shooting", py::arg("ray_width") = 0.0, py::arg("ray_profile") = "box",
            py::arg("ray_mode") = "footprint", py::arg("band_rays") = 8, py::arg("tolerance") = 1e-3)
       .def("run", &PySolver::run, py::arg("progress") = py::none(), py::arg("interval") = 0.25,
@@ -540,7 +540,7 @@ PYBIND11_MODULE(flatland, m) {
         },
         py::arg("scene"), py::kw_only(), py::arg("photons") = py::int_(1'000'000), py::arg("seed") = 1, py::arg("threads") = 0,
         py::arg("basis") = "cubic", py::arg("elements") = py::str("auto"), py::arg("sampling") = "reconstructed",
-        py::arg("discontinuities") = "auto", py::arg("estimator") = "galerkin", py::arg("sampler") = "sobol",
+        py::arg("discontinuities") = "auto", py::arg("estimator") = "auto", py::arg("sampler") = "sobol",
         py::arg("transport") = "shooting", py::arg("ray_width") = 0.0, py::arg("ray_profile") = "box",
         py::arg("ray_mode") = "footprint", py::arg("band_rays") = 8, py::arg("tolerance") = 1e-3,
         py::arg("progress") = py::none(),

@@ -21,7 +21,7 @@ const char* const kBasisNames[] = {"constant", "linear", "cubic", "hermite"};
 const BasisKind kBases[] = {BasisKind::Constant, BasisKind::Linear, BasisKind::Cubic, BasisKind::Hermite};
 const char* const kSamplingNames[] = {"uniform", "reconstructed"};
 const char* const kDiscontinuityNames[] = {"none", "scene", "auto", "secondary"};
-const char* const kEstimatorNames[] = {"lumped", "galerkin", "local"};
+const char* const kEstimatorNames[] = {"lumped", "galerkin", "local", "auto"};
 const char* const kTransportNames[] = {"shooting", "walk"};
 const char* const kProfileNames[] = {"box", "tent", "epanechnikov", "cosine", "gauss"};
 const char* const kModeNames[] = {"footprint", "band"};
@@ -305,7 +305,7 @@ void Viewer::draw_solve_panel(const Snapshot& snapshot) {
     changed = true;
   }
   int estimator = static_cast<int>(settings_.estimator);
-  if (combo("estimator", &estimator, kEstimatorNames, 3)) {
+  if (combo("estimator", &estimator, kEstimatorNames, 4)) {
     settings_.estimator = static_cast<Estimator>(estimator);
     changed = true;
   }
