@@ -733,29 +733,32 @@ int run_converge(ConvergeOptions& o) {
   std::vector<Row> rows;
   for (const std::optional<Row>& row : done) rows.push_back(*row);
 
-  // The CSV, written atomically.
-  std::string csv =
-      "method,basis,sampling,discontinuities,estimator,elements,ray_width,ray_mode,ray_profile,"
-      "band_rays,tolerance,seed,photons,rounds,unshot,seconds,rel_l1,rel_l2,rel_linf,measure,curve,"
-      "sampler,transport,rays\n";
-  // measure and curve say what rel_* measure: "reflected" (B - E) or "total" (B), over the curve
-  // with that id, or over the scene when the curve is empty.
-  const std::string measured_fields = std::string(",") + to_string(measured.measure) + "," + csv_field(measured.curve);
+  // The CSV, written atomically: converge_fields' columns (measure and curve say what rel_*
+  // measure: "reflected" (B - E) or "total" (B), over the curve with that id, or over the scene
+  // when the curve is empty). The method's name is always quoted, the curve's id where it must be.
+  std::string csv;
+  for (const ConvergeField& field : converge_fields({}, {}, {}, measured.measure, {}))
+    csv += std::string(csv.empty() ? "" : ",") + field.name;
+  csv += "\n";
   for (const Row& row : rows) {
-    const SolverSettings& s = methods[row.method].settings;
-    char line[512];
-    std::snprintf(line, sizeof line,
-                  "\"%s\",%s,%s,%s,%s,%s,%.17g,%s,%s,%d,%.9g,%llu,%llu,%u,%.9g,%.9g,%.9g,%.9g,%.9g",
-                  methods[row.method].name.c_str(), to_string(s.basis), to_string(s.sampling),
-                  to_string(s.discontinuities), to_string(resolve_estimator(s.estimator, s.basis)),
-                  s.elements == kAutoElements ? "auto" : std::to_string(s.elements).c_str(), s.ray_width,
-                  to_string(s.ray_mode), to_string(s.ray_profile), s.band_rays, s.tolerance,
-                  static_cast<unsigned long long>(row.seed), static_cast<unsigned long long>(row.photons),
-                  row.rounds, row.unshot, row.seconds, row.error.l1, row.error.l2, row.error.linf);
-    csv += line + measured_fields;
-    std::snprintf(line, sizeof line, ",%s,%s,%llu\n", to_string(s.sampler), to_string(s.transport),
-                  static_cast<unsigned long long>(row.rays));
-    csv += line;
+    const std::vector<ConvergeField> fields =
+        converge_fields(methods[row.method].name, methods[row.method].settings, row, measured.measure, measured.curve);
+    std::string line;
+    for (const ConvergeField& field : fields) {
+      if (&field != &fields.front()) line += ',';
+      if (const auto* text = std::get_if<std::string>(&field.value)) {
+        line += field.name == std::string_view("method") ? "\"" + *text + "\""
+                : field.name == std::string_view("curve") ? csv_field(*text)
+                                                          : *text;
+      } else if (const auto* number = std::get_if<std::int64_t>(&field.value)) {
+        line += std::to_string(*number);
+      } else {
+        char real[40];
+        std::snprintf(real, sizeof real, "%.*g", field.digits, std::get<double>(field.value));
+        line += real;
+      }
+    }
+    csv += line + "\n";
   }
   if (Status status = write_file_atomically((directory / "convergence.csv").string(), csv); !status)
     return usage_error(status.error().message);

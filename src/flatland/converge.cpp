@@ -100,4 +100,37 @@ Result<ConvergeRow> converge_run(const Scene& scene, const SolverSettings& setti
   return row;
 }
 
+std::vector<ConvergeField> converge_fields(const std::string& method, const SolverSettings& settings,
+                                           const ConvergeRow& row, Measure measure, const std::string& curve) {
+  const SolverSettings& s = settings;
+  auto whole = [](auto value) { return static_cast<std::int64_t>(value); };
+  using Value = std::variant<std::string, std::int64_t, double>;
+  return {
+      {"method", method},
+      {"basis", to_string(s.basis)},
+      {"sampling", to_string(s.sampling)},
+      {"discontinuities", to_string(s.discontinuities)},
+      {"estimator", to_string(resolve_estimator(s.estimator, s.basis))},
+      {"elements", s.elements == kAutoElements ? Value(std::string("auto")) : Value(whole(s.elements))},
+      {"ray_width", s.ray_width, 17},
+      {"ray_mode", to_string(s.ray_mode)},
+      {"ray_profile", to_string(s.ray_profile)},
+      {"band_rays", whole(s.band_rays)},
+      {"tolerance", s.tolerance},
+      {"seed", whole(row.seed)},
+      {"photons", whole(row.photons)},
+      {"rounds", whole(row.rounds)},
+      {"unshot", row.unshot},
+      {"seconds", row.seconds},
+      {"rel_l1", row.error.l1},
+      {"rel_l2", row.error.l2},
+      {"rel_linf", row.error.linf},
+      {"measure", to_string(measure)},
+      {"curve", curve},
+      {"sampler", to_string(s.sampler)},
+      {"transport", to_string(s.transport)},
+      {"rays", whole(row.rays)},
+  };
+}
+
 }  // namespace flatland

@@ -6,6 +6,8 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <variant>
+#include <vector>
 
 #include "flatland/metrics.hpp"
 #include "flatland/result.hpp"
@@ -35,6 +37,21 @@ struct ConvergeRow {
   ErrorNorms error;
   std::uint64_t rays = 0;  // rays cast (a walk casts several)
 };
+
+// One column of a row of a convergence study, named as in convergence.csv and in the dicts that
+// flatland.converge returns: text, a whole number, or a real the CSV writes with `digits`
+// significant digits.
+struct ConvergeField {
+  const char* name;
+  std::variant<std::string, std::int64_t, double> value;
+  int digits = 9;
+};
+// A row's columns, in the CSV's order: the method (its name and its settings, the estimator
+// resolved), the run (seed, photons shot, rounds, unshot fraction, seconds), its errors, what they
+// measure (`measure`, over the curve with id `curve` or, empty, the scene) and the rays cast. The
+// command line and the Python module both write their rows from this, so the two cannot drift.
+std::vector<ConvergeField> converge_fields(const std::string& method, const SolverSettings& settings,
+                                           const ConvergeRow& row, Measure measure, const std::string& curve);
 
 // Solves `scene` with `settings` and compares the result, sampled `samples` times per curve, with
 // `reference` by `measure`, over the scene or the curve with index `curve`.

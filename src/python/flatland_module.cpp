@@ -430,32 +430,12 @@ py::list converge(const PyScene& scene, const std::vector<std::string>& methods,
         }
         if (raised) throw *raised;
         ConvergeRow row = value_or_fail(std::move(*run));
-        const SolverSettings& s = settings;
+        // The columns of the command line's convergence.csv, with Python's types.
         py::dict d;
-        d["method"] = parsed[m].name;
-        d["basis"] = to_string(s.basis);
-        d["sampling"] = to_string(s.sampling);
-        d["discontinuities"] = to_string(s.discontinuities);
-        d["estimator"] = to_string(resolve_estimator(s.estimator, s.basis));
-        d["elements"] = s.elements == kAutoElements ? py::object(py::str("auto")) : py::object(py::int_(s.elements));
-        d["ray_width"] = s.ray_width;
-        d["ray_mode"] = to_string(s.ray_mode);
-        d["ray_profile"] = to_string(s.ray_profile);
-        d["band_rays"] = s.band_rays;
-        d["tolerance"] = s.tolerance;
-        d["seed"] = row.seed;
-        d["photons"] = row.photons;
-        d["rounds"] = row.rounds;
-        d["unshot"] = row.unshot;
-        d["seconds"] = row.seconds;
-        d["rel_l1"] = row.error.l1;
-        d["rel_l2"] = row.error.l2;
-        d["rel_linf"] = row.error.linf;
-        d["measure"] = measure;
-        d["curve"] = curve.is_none() ? std::string() : curve.cast<std::string>();
-        d["sampler"] = to_string(s.sampler);
-        d["transport"] = to_string(s.transport);
-        d["rays"] = row.rays;
+        for (const ConvergeField& field :
+             converge_fields(parsed[m].name, settings, row, measured,
+                             curve.is_none() ? std::string() : curve.cast<std::string>()))
+          std::visit([&](const auto& value) { d[field.name] = value; }, field.value);
         rows.append(d);
         if (!progress.is_none()) {
           py::dict p;
