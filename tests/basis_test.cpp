@@ -56,6 +56,14 @@ Scene ring_scene(int version) {
     "curves": [{"id": "ring", "material": "wall", "bezier": [)" + points + "]}]}");
 }
 
+// A smooth R on ring_scene's ring at curve parameter u: 2 + cos(angle) + sin(2 angle) / 2.
+double smooth_on_ring(const Scene& ring, double u) {
+  const auto j = static_cast<std::uint32_t>(std::min(std::floor(u), 7.0));
+  const Vec2 p = evaluate(ring.segments[j].geometry.shape, u - j);
+  const double angle = std::atan2(p.y, p.x);
+  return 2.0 + std::cos(angle) + 0.5 * std::sin(2.0 * angle);
+}
+
 TEST(Basis, MultiplicityEncodesContinuity) {
   EXPECT_EQ(SplineBasis::multiplicity(3, Continuity::C1), 2);
   EXPECT_EQ(SplineBasis::multiplicity(3, Continuity::C0), 3);
@@ -597,12 +605,7 @@ TEST(Basis, EstimatorsDeliverTheBasisOrder) {
     return 1.0 + 0.5 * std::sin(3.0 * u) + 0.8 * std::fabs(u - 0.37) + (mid > 0.71 ? 0.6 : 0.0);
   };
   const Scene ring = ring_scene(2);
-  auto on_ring = [&](double u, double) {
-    const auto j = static_cast<std::uint32_t>(std::min(std::floor(u), 7.0));
-    const Vec2 p = evaluate(ring.segments[j].geometry.shape, u - j);
-    const double angle = std::atan2(p.y, p.x);
-    return 2.0 + std::cos(angle) + 0.5 * std::sin(2.0 * angle);
-  };
+  auto on_ring = [&](double u, double) { return smooth_on_ring(ring, u); };
   const std::vector<MeshNode> none;
   for (BasisKind kind : {BasisKind::Constant, BasisKind::Linear, BasisKind::Cubic}) {
     const double expected = degree_of(kind) + 1.0;
@@ -635,12 +638,7 @@ TEST(Basis, LocalEstimatorStaysLocalWithOneElementPerSegment) {
   // weights in the hundreds (noise amplified as much) and errors of 10-30 % in solves.
   const Scene ring = ring_scene(1);
   const Curve& curve = ring.curves[0];
-  auto on_ring = [&](double u, double) {
-    const auto j = static_cast<std::uint32_t>(std::min(std::floor(u), 7.0));
-    const Vec2 p = evaluate(ring.segments[j].geometry.shape, u - j);
-    const double angle = std::atan2(p.y, p.x);
-    return 2.0 + std::cos(angle) + 0.5 * std::sin(2.0 * angle);
-  };
+  auto on_ring = [&](double u, double) { return smooth_on_ring(ring, u); };
   const std::vector<MeshNode> none;
   for (BasisKind kind : {BasisKind::Linear, BasisKind::Cubic}) {
     SCOPED_TRACE(to_string(kind));
