@@ -14,6 +14,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -476,21 +477,28 @@ PYBIND11_MODULE(flatland, m) {
         return "<flatland.Scene '" + s.scene->name + "': " + std::to_string(s.scene->curves.size()) + " curves>";
       });
 
-  py::class_<PySolver>(m, "Solver", "A solve that can be stepped and read at any time (the viewer's object)")
-      .def(py::init([](const PyScene& scene, const py::object& photons, std::uint64_t seed, unsigned threads,
-                       const std::string& basis, const py::object& elements, const std::string& sampling,
-                       const std::string& discontinuities, const std::string& estimator, const std::string& sampler,
-                       const std::string& transport, double ray_width, const std::string& ray_profile,
-                       const std::string& ray_mode, int band_rays, double tolerance) {
-             return std::make_unique<PySolver>(
-                 scene, settings_from(photons, seed, threads, basis, elements, sampling, discontinuities, estimator,
-                                      sampler, transport, ray_width, ray_profile, ray_mode, band_rays, tolerance));
-           }),
-           py::arg("scene"), py::kw_only(), py::arg("photons") = py::int_(1'000'000), py::arg("seed") = 1, py::arg("threads") = 0,
-           py::arg("basis") = "cubic", py::arg("elements") = py::str("auto"), py::arg("sampling") = "reconstructed",
-           py::arg("discontinuities") = "auto", py::arg("estimator") = "auto", py::arg("sampler") = "sobol",
-           py::arg("transport") = "shooting", py::arg("ray_width") = 0.0, py::arg("ray_profile") = "box",
-           py::arg("ray_mode") = "footprint", py::arg("band_rays") = 8, py::arg("tolerance") = 1e-3)
+  // The solve keywords after the scene, with the defaults of `flatland solve`: one list for the
+  // Solver class and solve(), so the two cannot drift.
+  const auto solve_keywords = std::make_tuple(
+      py::arg("scene"), py::kw_only(), py::arg("photons") = py::int_(1'000'000), py::arg("seed") = 1,
+      py::arg("threads") = 0, py::arg("basis") = "cubic", py::arg("elements") = py::str("auto"),
+      py::arg("sampling") = "reconstructed", py::arg("discontinuities") = "auto", py::arg("estimator") = "auto",
+      py::arg("sampler") = "sobol", py::arg("transport") = "shooting", py::arg("ray_width") = 0.0,
+      py::arg("ray_profile") = "box", py::arg("ray_mode") = "footprint", py::arg("band_rays") = 8,
+      py::arg("tolerance") = 1e-3);
+  py::class_<PySolver> solver_class(m, "Solver", "A solve that can be stepped and read at any time (the viewer's object)");
+  const auto make_solver = [](const PyScene& scene, const py::object& photons, std::uint64_t seed, unsigned threads,
+                              const std::string& basis, const py::object& elements, const std::string& sampling,
+                              const std::string& discontinuities, const std::string& estimator,
+                              const std::string& sampler, const std::string& transport, double ray_width,
+                              const std::string& ray_profile, const std::string& ray_mode, int band_rays,
+                              double tolerance) {
+    return std::make_unique<PySolver>(
+        scene, settings_from(photons, seed, threads, basis, elements, sampling, discontinuities, estimator, sampler,
+                             transport, ray_width, ray_profile, ray_mode, band_rays, tolerance));
+  };
+  std::apply([&](const auto&... keywords) { solver_class.def(py::init(make_solver), keywords...); }, solve_keywords);
+  solver_class
       .def("run", &PySolver::run, py::arg("progress") = py::none(), py::arg("interval") = 0.25,
            "Shoots until converged or the budget is spent (GIL released; Ctrl-C raises KeyboardInterrupt)")
       .def("step_round", &PySolver::step_round, py::arg("progress") = py::none(), py::arg("interval") = 0.25,
@@ -507,24 +515,26 @@ PYBIND11_MODULE(flatland, m) {
       .def("to_json", &PySolver::to_json, py::arg("samples") = 100,
            "The document `flatland solve --out` writes");
 
-  m.def("solve", [](const PyScene& scene, const py::object& photons, std::uint64_t seed, unsigned threads,
-                    const std::string& basis, const py::object& elements, const std::string& sampling,
-                    const std::string& discontinuities, const std::string& estimator, const std::string& sampler,
-                    const std::string& transport, double ray_width, const std::string& ray_profile,
-                    const std::string& ray_mode, int band_rays, double tolerance, const py::object& progress) {
-          auto solver = std::make_unique<PySolver>(
-              scene, settings_from(photons, seed, threads, basis, elements, sampling, discontinuities, estimator,
-                                   sampler, transport, ray_width, ray_profile, ray_mode, band_rays, tolerance));
-          solver->run(progress, 0.25);
-          return solver;
-        },
-        py::arg("scene"), py::kw_only(), py::arg("photons") = py::int_(1'000'000), py::arg("seed") = 1, py::arg("threads") = 0,
-        py::arg("basis") = "cubic", py::arg("elements") = py::str("auto"), py::arg("sampling") = "reconstructed",
-        py::arg("discontinuities") = "auto", py::arg("estimator") = "auto", py::arg("sampler") = "sobol",
-        py::arg("transport") = "shooting", py::arg("ray_width") = 0.0, py::arg("ray_profile") = "box",
-        py::arg("ray_mode") = "footprint", py::arg("band_rays") = 8, py::arg("tolerance") = 1e-3,
-        py::arg("progress") = py::none(),
-        "Solves a scene (as `flatland solve`, same keywords, same bits for the same seed); returns the Solver");
+  std::apply(
+      [&](const auto&... keywords) {
+        m.def(
+            "solve",
+            [make_solver](const PyScene& scene, const py::object& photons, std::uint64_t seed, unsigned threads,
+                          const std::string& basis, const py::object& elements, const std::string& sampling,
+                          const std::string& discontinuities, const std::string& estimator,
+                          const std::string& sampler, const std::string& transport, double ray_width,
+                          const std::string& ray_profile, const std::string& ray_mode, int band_rays,
+                          double tolerance, const py::object& progress) {
+              auto solver = make_solver(scene, photons, seed, threads, basis, elements, sampling, discontinuities,
+                                        estimator, sampler, transport, ray_width, ray_profile, ray_mode, band_rays,
+                                        tolerance);
+              solver->run(progress, 0.25);
+              return solver;
+            },
+            keywords..., py::arg("progress") = py::none(),
+            "Solves a scene (as `flatland solve`, same keywords, same bits for the same seed); returns the Solver");
+      },
+      solve_keywords);
   m.def("reference", &reference, py::arg("scene"), py::kw_only(), py::arg("samples") = 100,
         py::arg("max_element_length") = 0.0, py::arg("estimate_error") = false,
         "The reference solution's JSON document (as `flatland reference --out`)");
