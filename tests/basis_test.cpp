@@ -540,7 +540,7 @@ double worst_error(const Scene& scene, const Curve& curve, BasisKind kind, int e
   }
   std::vector<double> c(n);
   switch (resolve_estimator(estimator, kind)) {
-    case Estimator::Auto:  // resolved above: not reached
+    case Estimator::Auto: break;  // resolved: never Auto
     case Estimator::Lumped:
       for (std::size_t k = 0; k < n; ++k) c[k] = deposits[k] / storage.basis_length[k];
       break;

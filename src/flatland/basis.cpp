@@ -852,7 +852,6 @@ void build_local_estimator(const Scene& scene, const Curve& curve, CurveStorage&
   // neighbours); a seed further off would extrapolate over several elements.
   auto window_of = [&](std::size_t k) {
     const auto e = static_cast<std::ptrdiff_t>(k);
-    LocalWindow window;
     if (!straddles(e)) return solve(k, grow(e, true, true));
     // Straddling a node: the value there from each side; the two sides' deposits are
     // independent, so inverse-variance weights give the combination of least variance.
@@ -861,20 +860,16 @@ void build_local_estimator(const Scene& scene, const Curve& curve, CurveStorage&
     const auto reach = static_cast<std::ptrdiff_t>(pu) + 1;
     while (e - left_seed < reach && exists(left_seed) && straddles(left_seed)) --left_seed;
     while (right_seed - e < reach && exists(right_seed) && straddles(right_seed)) ++right_seed;
-    {
-      LocalWindow left = solve(k, grow(left_seed, true, false));
-      LocalWindow right = solve(k, grow(right_seed, false, true));
-      if (left.degree >= 0 && right.degree >= 0) {
-        const double lambda = right.variance / (left.variance + right.variance);
-        window.functions = left.functions;
-        window.functions.insert(window.functions.end(), right.functions.begin(), right.functions.end());
-        for (double w : left.weights) window.weights.push_back(lambda * w);
-        for (double w : right.weights) window.weights.push_back((1.0 - lambda) * w);
-        window.degree = std::min(left.degree, right.degree);
-      } else {
-        window = left.degree >= 0 ? std::move(left) : std::move(right);
-      }
-    }
+    LocalWindow left = solve(k, grow(left_seed, true, false));
+    LocalWindow right = solve(k, grow(right_seed, false, true));
+    if (left.degree < 0 || right.degree < 0) return left.degree >= 0 ? left : right;
+    LocalWindow window;
+    const double lambda = right.variance / (left.variance + right.variance);
+    window.functions = left.functions;
+    window.functions.insert(window.functions.end(), right.functions.begin(), right.functions.end());
+    for (double w : left.weights) window.weights.push_back(lambda * w);
+    for (double w : right.weights) window.weights.push_back((1.0 - lambda) * w);
+    window.degree = std::min(left.degree, right.degree);
     return window;
   };
 
