@@ -264,6 +264,20 @@ TEST(Basis, PeriodicStorageHasNoSeamBias) {
   EXPECT_GT(seam_near, 3.0 * lumped_near);
 }
 
+// The two ways BasisSampler draws function k: inversion from (u1, u2), and the simplex draw from
+// degree + 1 uniforms.
+enum class Draw { Inversion, Simplex };
+
+double draw(const BasisSampler& sampler, std::size_t k, Draw how, flatland::Rng& rng) {
+  if (how == Draw::Inversion) {
+    const double u1 = rng.uniform();
+    return sampler.sample(k, u1, rng.uniform());
+  }
+  std::array<double, 4> uniforms{};
+  for (int i = 0; i <= sampler.degree(); ++i) uniforms[static_cast<std::size_t>(i)] = rng.uniform();
+  return sampler.sample_simplex(k, uniforms);
+}
+
 TEST(Basis, PeriodicSamplerWrapsAndFollowsTheFunction) {
   // A function straddling the closing point: samples lie in [u_begin, u_end) and follow phi_k,
   // checked by a chi-square against midpoint integrals of SplineBasis::evaluate over the support
@@ -278,17 +292,8 @@ TEST(Basis, PeriodicSamplerWrapsAndFollowsTheFunction) {
   const double b = basis.knots()[k + 4];
   ASSERT_LT(a, 0.0);
   ASSERT_GT(b, 0.0);
-  flatland::Rng rng(5, 0, 0);
   const int n = 40'000;
   const int bins = 10;
-  std::vector<double> observed(bins, 0.0);
-  for (int i = 0; i < n; ++i) {
-    const double u = sampler.sample(k, rng.uniform(), rng.uniform());
-    ASSERT_GE(u, 0.0);
-    ASSERT_LT(u, 3.0);
-    const double unwrapped = u >= b ? u - 3.0 : u;
-    observed[std::clamp(static_cast<int>((unwrapped - a) / (b - a) * bins), 0, bins - 1)] += 1;
-  }
   std::vector<double> expected(bins, 0.0);
   double total = 0.0;
   for (int bin = 0; bin < bins; ++bin) {
@@ -302,7 +307,19 @@ TEST(Basis, PeriodicSamplerWrapsAndFollowsTheFunction) {
     total += expected[bin];
   }
   for (double& e : expected) e *= n / total;
-  EXPECT_LT(testing::chi_square(observed, expected), testing::chi_square_critical(bins - 1));
+  for (const Draw how : {Draw::Inversion, Draw::Simplex}) {
+    flatland::Rng rng(how == Draw::Inversion ? 5 : 6, 0, 0);
+    std::vector<double> observed(bins, 0.0);
+    for (int i = 0; i < n; ++i) {
+      const double u = draw(sampler, k, how, rng);
+      ASSERT_GE(u, 0.0);
+      ASSERT_LT(u, 3.0);
+      const double unwrapped = u >= b ? u - 3.0 : u;
+      observed[std::clamp(static_cast<int>((unwrapped - a) / (b - a) * bins), 0, bins - 1)] += 1;
+    }
+    EXPECT_LT(testing::chi_square(observed, expected), testing::chi_square_critical(bins - 1))
+        << (how == Draw::Simplex ? "simplex" : "inversion");
+  }
   EXPECT_GT(sampler.pdf(k, 0.1), 0.0);
   EXPECT_GT(sampler.pdf(k, 2.95), 0.0);  // the part before 0, a period later
   EXPECT_EQ(sampler.pdf(k, 1.5), 0.0);
@@ -895,22 +912,21 @@ TEST(Basis, SamplerMassIsTheClosedFormIntegral) {
   }
 }
 
-TEST(Basis, SamplerFollowsTheBasisFunction) {
-  // Chi-square of samples of every basis function against the integral of phi_k over each bin,
-  // computed by the midpoint rule from SplineBasis::evaluate (not from the sampler).
-  const std::vector<MeshNode> nodes = {
-      {0.5, Continuity::C1}, {1.0, Continuity::Jump}, {1.6, Continuity::C0}, {2.5, Continuity::C1}};
-  const SplineBasis basis(3, 0.0, 3.0, nodes);
+// Chi-square of n samples of every basis function of a clamped basis against the integral of
+// phi_k over each of 24 bins of its support, computed by the midpoint rule from
+// SplineBasis::evaluate (not from the sampler); bins with small expectations are merged.
+void expect_samples_follow_every_function(const SplineBasis& basis, Draw how, std::uint64_t seed) {
   const BasisSampler sampler(basis);
-  flatland::Rng rng(21, 0, 0);
+  const auto p = static_cast<std::size_t>(basis.degree());
+  flatland::Rng rng(seed, 0, 0);
   const int n = 100'000;
   const int bins = 24;
   for (std::size_t k = 0; k < basis.size(); ++k) {
     const double a = basis.knots()[k];
-    const double b = basis.knots()[k + 4];
+    const double b = basis.knots()[k + p + 1];
     std::vector<double> observed(bins, 0.0);
     for (int i = 0; i < n; ++i) {
-      const double u = sampler.sample(k, rng.uniform(), rng.uniform());
+      const double u = draw(sampler, k, how, rng);
       ASSERT_GE(u, a);
       ASSERT_LE(u, b);
       observed[std::min(bins - 1, static_cast<int>((u - a) / (b - a) * bins))] += 1;
@@ -923,11 +939,10 @@ TEST(Basis, SamplerFollowsTheBasisFunction) {
         const double u = a + (b - a) * (bin + (j + 0.5) / steps) / bins;
         Values phi{};
         const std::size_t first = basis.evaluate(u, phi.data());
-        if (k >= first && k <= first + 3) expected[bin] += phi[k - first];
+        if (k >= first && k <= first + p) expected[bin] += phi[k - first];
       }
       total += expected[bin];
     }
-    // Merge bins with small expectations (support ends of a cubic B-spline) into neighbours.
     std::vector<double> o;
     std::vector<double> e;
     double pending_o = 0.0;
@@ -946,7 +961,58 @@ TEST(Basis, SamplerFollowsTheBasisFunction) {
       e.back() += pending_e;
     }
     EXPECT_LT(testing::chi_square(o, e), testing::chi_square_critical(static_cast<int>(o.size()) - 1))
-        << "basis function " << k;
+        << "degree " << p << ", basis function " << k << (how == Draw::Simplex ? ", simplex" : ", inversion");
+  }
+}
+
+TEST(Basis, SamplerFollowsTheBasisFunction) {
+  // Every degree, with a C1 node, a jump and a C0 node (repeated knots inside supports and at
+  // their ends), both draws.
+  const std::vector<MeshNode> nodes = {
+      {0.5, Continuity::C1}, {1.0, Continuity::Jump}, {1.6, Continuity::C0}, {2.5, Continuity::C1}};
+  for (int degree = 0; degree <= 3; ++degree) {
+    const SplineBasis basis(degree, 0.0, 3.0, nodes);
+    expect_samples_follow_every_function(basis, Draw::Inversion, 21 + static_cast<std::uint64_t>(degree));
+    expect_samples_follow_every_function(basis, Draw::Simplex, 31 + static_cast<std::uint64_t>(degree));
+  }
+}
+
+TEST(Basis, SimplexDrawHasTheKnotsMeanAndStaysOnTheSupport) {
+  // Curry and Schoenberg's closed form: the normalised B-spline on knots t_0 .. t_(p+1) has mean
+  // (t_0 + .. + t_(p+1)) / (p + 2) (and the simplex draw is built from that representation, so
+  // this checks the sorting and the spacings, independently of the chi-square above). The
+  // standard error of the sample mean is at most (t_(p+1) - t_0) / sqrt(12 n); 5 of them.
+  const std::vector<MeshNode> nodes = {
+      {0.25, Continuity::C1}, {0.3, Continuity::C1}, {1.0, Continuity::C0}, {2.9, Continuity::C1}};
+  for (int degree = 0; degree <= 3; ++degree) {
+    const SplineBasis basis(degree, 0.0, 3.0, nodes);
+    const BasisSampler sampler(basis);
+    const auto p = static_cast<std::size_t>(degree);
+    flatland::Rng rng(41, static_cast<std::uint64_t>(degree), 0);
+    const int n = 200'000;
+    for (std::size_t k = 0; k < basis.size(); ++k) {
+      const double* t = basis.knots().data() + k;
+      double mean = 0.0;
+      for (std::size_t i = 0; i <= p + 1; ++i) mean += t[i];
+      mean /= static_cast<double>(p + 2);
+      double sum = 0.0;
+      for (int i = 0; i < n; ++i) {
+        const double u = draw(sampler, k, Draw::Simplex, rng);
+        ASSERT_GE(u, t[0]);
+        ASSERT_LE(u, t[p + 1]);
+        sum += u;
+      }
+      EXPECT_NEAR(sum / n, mean, 5.0 * (t[p + 1] - t[0]) / std::sqrt(12.0 * n))
+          << "degree " << degree << ", basis function " << k;
+    }
+    // The extreme uniforms land on the support's ends, not beyond.
+    for (std::size_t k = 0; k < basis.size(); ++k) {
+      EXPECT_EQ(sampler.sample_simplex(k, {0.0, 0.0, 0.0, 0.0}), basis.knots()[k + p + 1]);
+      const double top = std::nextafter(1.0, 0.0);
+      const double u = sampler.sample_simplex(k, {top, top, top, top});
+      EXPECT_GE(u, basis.knots()[k]);
+      EXPECT_LT(u - basis.knots()[k], 1e-14 * 3.0);  // 3: the basis's extent
+    }
   }
 }
 

@@ -244,6 +244,8 @@ BasisSampler::BasisSampler(const SplineBasis& basis) {
   std::array<double, SplineBasis::kMaxDegree + 1> values{};
   first_piece_.assign(basis.size() + 1, 0);
   periodic_ = basis.is_periodic();
+  degree_ = p;
+  knots_ = knots;
   u_begin_ = basis.u_begin();
   u_end_ = basis.u_end();
   for (std::size_t k = 0; k < basis.size(); ++k) {
@@ -347,6 +349,42 @@ double BasisSampler::sample(std::size_t k, double u1, double u2) const {
     x = next;
   }
   return wrap(piece.u0 + std::clamp(x, 0.0, 1.0) * piece.width);
+}
+
+double BasisSampler::sample_simplex(std::size_t k, const std::array<double, 4>& uniforms) const {
+  // With v_(1) <= .. <= v_(p+1) the sorted uniforms, lambda_0 = v_(1), lambda_i = v_(i+1) - v_(i),
+  // lambda_(p+1) = 1 - v_(p+1), and sum lambda_i t_i = t_(p+1) - sum v_(i) (t_i - t_(i-1)): every
+  // term is >= 0 and they sum to at most t_(p+1) - t_0, so u stays on the support.
+  const double* t = knots_.data() + k;
+  auto sorted = [](double& a, double& b) {
+    const double low = std::min(a, b);
+    b = std::max(a, b);
+    a = low;
+  };
+  std::array<double, 4> v = uniforms;
+  double u = 0.0;
+  switch (degree_) {
+    case 0: u = t[1] - v[0] * (t[1] - t[0]); break;
+    case 1:
+      sorted(v[0], v[1]);
+      u = t[2] - v[0] * (t[1] - t[0]) - v[1] * (t[2] - t[1]);
+      break;
+    case 2:
+      sorted(v[0], v[1]);
+      sorted(v[1], v[2]);
+      sorted(v[0], v[1]);
+      u = t[3] - v[0] * (t[1] - t[0]) - v[1] * (t[2] - t[1]) - v[2] * (t[3] - t[2]);
+      break;
+    default:  // a sorting network of five exchanges
+      sorted(v[0], v[1]);
+      sorted(v[2], v[3]);
+      sorted(v[0], v[2]);
+      sorted(v[1], v[3]);
+      sorted(v[1], v[2]);
+      u = t[4] - v[0] * (t[1] - t[0]) - v[1] * (t[2] - t[1]) - v[2] * (t[3] - t[2]) - v[3] * (t[4] - t[3]);
+      break;
+  }
+  return wrap(std::clamp(u, t[0], t[degree_ + 1]));
 }
 
 double BasisSampler::wrap(double u) const {

@@ -114,6 +114,14 @@ class BasisSampler {
   // u1 chooses the piece, u2 the place inside it (both uniform in [0,1)). On a periodic basis u is
   // wrapped into [u_begin, u_end).
   double sample(std::size_t k, double u1, double u2) const;
+  // The same density from degree + 1 uniforms in [0,1), without inverting a CDF: the B-spline on
+  // knots t_0 <= .. <= t_(p+1), over its integral, is the density of sum lambda_i t_i for lambda
+  // uniform on the p + 1 simplex (Curry and Schoenberg), and the spacings of p + 1 sorted uniforms
+  // are such a lambda (docs/method.md, "Drawing from a basis function"). A few operations instead
+  // of a Newton loop, but it maps the unit cube onto the support less smoothly than the inversion,
+  // so quasi-Monte Carlo points keep sample().
+  double sample_simplex(std::size_t k, const std::array<double, 4>& uniforms) const;
+  int degree() const { return degree_; }
   // The density phi_k(u) / integral(phi_k du).
   double pdf(std::size_t k, double u) const;
   // integral(phi_k du) over the support.
@@ -132,8 +140,10 @@ class BasisSampler {
   static constexpr int kTable = 8;
   double wrap(double u) const;  // into [u_begin, u_end) on a periodic basis
   bool periodic_ = false;
+  int degree_ = 0;
   double u_begin_ = 0.0;
   double u_end_ = 1.0;
+  std::vector<double> knots_;  // the basis's (function k on knots_[k] .. knots_[k + degree + 1])
   std::vector<std::uint32_t> first_piece_;  // pieces of k: [first_piece_[k], first_piece_[k+1])
   std::vector<Piece> pieces_;
 };

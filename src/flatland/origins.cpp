@@ -1,6 +1,7 @@
 #include "flatland/origins.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 #include "flatland/bezier.hpp"
@@ -115,9 +116,10 @@ Origin sample_coefficient_origin(const Scene& scene, const Curve& curve, const C
     if (from_point) {
       u = storage.sampler.sample(k, draws.coordinate(kPiece), draws.place);
     } else {
-      const double place = draws.rng.uniform();
-      const double piece = draws.rng.uniform();
-      u = storage.sampler.sample(k, piece, place);
+      // Pseudo-random numbers have no stratification to keep: the simplex draw, no inversion.
+      std::array<double, 4> uniforms{};
+      for (int i = 0; i <= storage.sampler.degree(); ++i) uniforms[static_cast<std::size_t>(i)] = draws.rng.uniform();
+      u = storage.sampler.sample_simplex(k, uniforms);
     }
     const auto local =
         static_cast<std::uint32_t>(std::min<double>(std::floor(u), curve.segment_count - 1.0));
