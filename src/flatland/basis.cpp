@@ -241,54 +241,81 @@ BasisSampler::BasisSampler(const SplineBasis& basis) {
   constexpr std::array<double, 4> kNodes = {0.125, 0.375, 0.625, 0.875};
   const std::vector<double>& knots = basis.knots();
   const int p = basis.degree();
-  std::array<double, SplineBasis::kMaxDegree + 1> values{};
+  const auto pu = static_cast<std::size_t>(p);
   first_piece_.assign(basis.size() + 1, 0);
   periodic_ = basis.is_periodic();
   degree_ = p;
   knots_ = knots;
   u_begin_ = basis.u_begin();
   u_end_ = basis.u_end();
+
+  // The power form solves the 4x4 Vandermonde system of the nodes, the same matrix for every
+  // piece: its elimination (partial pivoting) is done once here, and each piece's values go
+  // through the same row exchanges and the same multipliers.
+  std::array<std::array<double, 4>, 4> matrix{};
+  for (std::size_t row = 0; row < 4; ++row) {
+    double power = 1.0;
+    for (std::size_t col = 0; col < 4; ++col, power *= kNodes[row]) matrix[row][col] = power;
+  }
+  std::array<std::size_t, 4> pivots{};
+  std::array<std::array<double, 4>, 4> factors{};  // factors[col][row], row > col
+  for (std::size_t col = 0; col < 4; ++col) {
+    std::size_t pivot = col;
+    for (std::size_t row = col + 1; row < 4; ++row)
+      if (std::fabs(matrix[row][col]) > std::fabs(matrix[pivot][col])) pivot = row;
+    pivots[col] = pivot;
+    std::swap(matrix[col], matrix[pivot]);
+    for (std::size_t row = col + 1; row < 4; ++row) {
+      const double factor = matrix[row][col] / matrix[col][col];
+      factors[col][row] = factor;
+      for (std::size_t c = col; c < 4; ++c) matrix[row][c] -= factor * matrix[col][c];
+    }
+  }
+
+  // The values of every function alive on a span at the four nodes, once per span (each span
+  // carries p + 1 functions). On a periodic basis the first p spans (before u_begin) are
+  // evaluated a period later, as span + K, where the recursion has the p knots it reads on the left.
+  const std::size_t spans = basis.size() + pu;
+  std::vector<std::array<std::array<double, SplineBasis::kMaxDegree + 1>, 4>> at_nodes(spans);
+  for (std::size_t span = 0; span < spans; ++span) {
+    const double u0 = knots[span];
+    const double width = knots[span + 1] - u0;
+    if (!(width > 0.0)) continue;
+    for (std::size_t row = 0; row < 4; ++row) {
+      const double x = kNodes[row];
+      if (span < pu)
+        basis.evaluate_in_span(span + basis.size(), u0 + x * width + (basis.u_end() - basis.u_begin()),
+                               at_nodes[span][row].data());
+      else
+        basis.evaluate_in_span(span, u0 + x * width, at_nodes[span][row].data());
+    }
+  }
+
+  std::size_t count = 0;  // the pieces, to allocate them once
+  for (std::size_t k = 0; k < basis.size(); ++k)
+    for (std::size_t span = k; span <= k + pu; ++span) count += knots[span + 1] > knots[span] ? 1 : 0;
+  pieces_.reserve(count);
   for (std::size_t k = 0; k < basis.size(); ++k) {
     first_piece_[k] = static_cast<std::uint32_t>(pieces_.size());
     double cumulative = 0.0;
-    for (std::size_t span = k; span <= k + static_cast<std::size_t>(p); ++span) {
+    for (std::size_t span = k; span <= k + pu; ++span) {
       const double u0 = knots[span];
       const double width = knots[span + 1] - u0;
       if (!(width > 0.0)) continue;
-      // Values at the nodes, then the power form by solving the 4x4 Vandermonde system.
-      std::array<std::array<double, 5>, 4> system{};
-      for (std::size_t row = 0; row < 4; ++row) {
-        const double x = kNodes[row];
-        // Function k is function k - (span - p) of this span (spans k .. k + p carry it). On a
-        // periodic basis the first p spans (before u_begin) are evaluated a period later, as
-        // span + K, where the recursion has the p knots it reads on the left.
-        if (span < static_cast<std::size_t>(p))
-          basis.evaluate_in_span(span + basis.size(), u0 + x * width + (basis.u_end() - basis.u_begin()),
-                                 values.data());
-        else
-          basis.evaluate_in_span(span, u0 + x * width, values.data());
-        const double phi = values[k + static_cast<std::size_t>(p) - span];
-        double power = 1.0;
-        for (std::size_t col = 0; col < 4; ++col, power *= x) system[row][col] = power;
-        system[row][4] = phi;
-      }
-      for (std::size_t col = 0; col < 4; ++col) {  // Gaussian elimination with partial pivoting
-        std::size_t pivot = col;
-        for (std::size_t row = col + 1; row < 4; ++row)
-          if (std::fabs(system[row][col]) > std::fabs(system[pivot][col])) pivot = row;
-        std::swap(system[col], system[pivot]);
-        for (std::size_t row = col + 1; row < 4; ++row) {
-          const double factor = system[row][col] / system[col][col];
-          for (std::size_t c = col; c < 5; ++c) system[row][c] -= factor * system[col][c];
-        }
+      // Function k is function k - (span - p) of this span (spans k .. k + p carry it).
+      std::array<double, 4> rhs{};
+      for (std::size_t row = 0; row < 4; ++row) rhs[row] = at_nodes[span][row][k + pu - span];
+      for (std::size_t col = 0; col < 4; ++col) {
+        std::swap(rhs[col], rhs[pivots[col]]);
+        for (std::size_t row = col + 1; row < 4; ++row) rhs[row] -= factors[col][row] * rhs[col];
       }
       Piece piece;
       piece.u0 = u0;
       piece.width = width;
       for (std::size_t row = 4; row-- > 0;) {
-        double sum = system[row][4];
-        for (std::size_t c = row + 1; c < 4; ++c) sum -= system[row][c] * piece.power[c];
-        piece.power[row] = sum / system[row][row];
+        double sum = rhs[row];
+        for (std::size_t c = row + 1; c < 4; ++c) sum -= matrix[row][c] * piece.power[c];
+        piece.power[row] = sum / matrix[row][row];
       }
       const auto& a = piece.power;
       for (int j = 0; j <= kTable; ++j) {
