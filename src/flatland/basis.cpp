@@ -295,6 +295,7 @@ BasisSampler::BasisSampler(const SplineBasis& basis) {
   for (std::size_t k = 0; k < basis.size(); ++k)
     for (std::size_t span = k; span <= k + pu; ++span) count += knots[span + 1] > knots[span] ? 1 : 0;
   pieces_.reserve(count);
+  cumulative_.reserve(count);
   for (std::size_t k = 0; k < basis.size(); ++k) {
     first_piece_[k] = static_cast<std::uint32_t>(pieces_.size());
     double cumulative = 0.0;
@@ -323,22 +324,22 @@ BasisSampler::BasisSampler(const SplineBasis& basis) {
         piece.table[static_cast<std::size_t>(j)] = x * (a[0] + x * (a[1] / 2 + x * (a[2] / 3 + x * (a[3] / 4))));
       }
       cumulative += width * (a[0] + a[1] / 2 + a[2] / 3 + a[3] / 4);
-      piece.cumulative = cumulative;
+      cumulative_.push_back(cumulative);
       pieces_.push_back(piece);
     }
   }
   first_piece_[basis.size()] = static_cast<std::uint32_t>(pieces_.size());
 }
 
-double BasisSampler::mass(std::size_t k) const { return pieces_[first_piece_[k + 1] - 1].cumulative; }
+double BasisSampler::mass(std::size_t k) const { return cumulative_[first_piece_[k + 1] - 1]; }
 
 double BasisSampler::sample(std::size_t k, double u1, double u2) const {
   const std::uint32_t begin = first_piece_[k];
   const std::uint32_t end = first_piece_[k + 1];
-  const double total = pieces_[end - 1].cumulative;
+  const double total = cumulative_[end - 1];
   const double target = u1 * total;
   std::uint32_t i = begin;
-  while (i + 1 < end && pieces_[i].cumulative <= target) ++i;
+  while (i + 1 < end && cumulative_[i] <= target) ++i;
   const Piece& piece = pieces_[i];
   const auto& a = piece.power;
   // Solve G(x) = u2 G(1) on [0,1] with G(x) = a0 x + a1 x^2/2 + a2 x^3/3 + a3 x^4/4, increasing

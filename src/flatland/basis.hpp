@@ -131,7 +131,6 @@ class BasisSampler {
   struct Piece {
     double u0 = 0.0;
     double width = 0.0;
-    double cumulative = 0.0;  // mass of this basis function's pieces up to and including this one
     std::array<double, 4> power{};  // phi_k(u0 + x width) = sum_i power[i] x^i, x in [0,1]
     // The piece's CDF in x (unnormalised) at x = j / kTable: brackets the inversion so that one
     // or two Newton steps from a linear interpolation finish it.
@@ -146,6 +145,9 @@ class BasisSampler {
   std::vector<double> knots_;  // the basis's (function k on knots_[k] .. knots_[k + degree + 1])
   std::vector<std::uint32_t> first_piece_;  // pieces of k: [first_piece_[k], first_piece_[k+1])
   std::vector<Piece> pieces_;
+  // Per piece, the mass of its function's pieces up to and including it: apart from the pieces,
+  // so that choosing one reads a cache line or two, not one per piece.
+  std::vector<double> cumulative_;
 };
 
 // The storage mesh of one curve: its basis and the integrals of each basis function over arc
