@@ -1002,7 +1002,12 @@ void footprint_weights(const Scene& scene, const Curve& curve, const SplineBasis
       const double pb = std::fmin(sb, s1);
       if (!(pb - pa > resolution)) continue;
       accumulate.enter_span(span);
-      if (s_centre > pa && s_centre < pb) {
+      // The tent and Epanechnikov profiles change their polynomial at the centre; the box's is
+      // the same on both sides, so where the span has its series the part holding the centre is
+      // one part (the quadrature of a span without one, near a cusp, keeps its two halves).
+      std::size_t unused_terms = 0;
+      const bool one_part = profile == RayProfile::Box && table->running(span, unused_terms) != nullptr;
+      if (s_centre > pa && s_centre < pb && !one_part) {
         part(span, pa, s_centre, s0, s1);
         part(span, s_centre, pb, s0, s1);
       } else if (pa == s0 && pb == s1) {
