@@ -658,21 +658,25 @@ std::vector<double> project_emittance_profile(const Scene& scene, const Curve& c
 void galerkin_estimate(const CurveStorage& storage, const double* deposits, double* coefficients,
                        std::size_t stride) {
   const std::size_t n = storage.basis.size();
-  auto factor = [&](std::size_t row, std::size_t col) {  // mass_first[row] <= col <= row
-    return storage.mass_cholesky[storage.mass_offset[row] + col - storage.mass_first[row]];
-  };
-  // Forward substitution L y = d by rows, then back substitution L^T b = y by columns of L.
-  std::vector<double> x(n);
+  // Forward substitution L y = d by rows, then back substitution L^T b = y by columns of L, both
+  // in the output (a scratch vector of the storage's size was allocated, and its pages faulted
+  // in, on every call). Row k reads deposit k before writing coefficient k, so the two may be
+  // the same array.
+  double* x = coefficients;
   for (std::size_t row = 0; row < n; ++row) {
+    const std::size_t first = storage.mass_first[row];
+    const double* l = storage.mass_cholesky.data() + storage.mass_offset[row];  // L_(row, first) ..
     double sum = deposits[row * stride];
-    for (std::size_t col = storage.mass_first[row]; col < row; ++col) sum -= factor(row, col) * x[col];
-    x[row] = sum / factor(row, row);
+    for (std::size_t col = first; col < row; ++col) sum -= l[col - first] * x[col * stride];
+    x[row * stride] = sum / l[row - first];
   }
   for (std::size_t row = n; row-- > 0;) {
-    x[row] /= factor(row, row);
-    for (std::size_t col = storage.mass_first[row]; col < row; ++col) x[col] -= factor(row, col) * x[row];
+    const std::size_t first = storage.mass_first[row];
+    const double* l = storage.mass_cholesky.data() + storage.mass_offset[row];
+    const double value = x[row * stride] / l[row - first];
+    x[row * stride] = value;
+    for (std::size_t col = first; col < row; ++col) x[col * stride] -= l[col - first] * value;
   }
-  for (std::size_t k = 0; k < n; ++k) coefficients[k * stride] = x[k];
 }
 
 bool clamp_keeping_power(const CurveStorage& storage, double* coefficients, std::size_t stride,

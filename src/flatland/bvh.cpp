@@ -3,6 +3,7 @@
 #include "flatland/bvh.hpp"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <limits>
 #include <utility>
@@ -47,7 +48,9 @@ struct Nearest {
       hit.segment = index;
       hit.t = h.t;
       hit.distance = h.distance;
-      limit = std::nextafter(h.distance, kInfinity);
+      // The next double up: h.distance is positive and finite, so that is its bits plus one
+      // (std::nextafter is a library call, once per accepted hit).
+      limit = std::bit_cast<double>(std::bit_cast<std::uint64_t>(h.distance) + 1);
     }
   }
 };
