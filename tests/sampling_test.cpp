@@ -46,6 +46,26 @@ TEST(Sampling, UniformHasMeanAndVarianceOfU01) {
   EXPECT_NEAR(sum2 / n, 1.0 / 3, 5 * std::sqrt(4.0 / 45 / n));
 }
 
+TEST(Sampling, IndexedUniformsAreSplitMixsOutputsAndUniform) {
+  // Number i is SplitMix64's output i + 1 from the state `key`, stepped one output at a time here;
+  // and 100,000 of them fill 20 bins evenly (chi-square).
+  const std::uint64_t key = 0x1234abcdull;
+  std::uint64_t state = key;
+  const int n = 100'000;
+  const int bins = 20;
+  std::vector<double> observed(bins, 0.0);
+  for (int i = 0; i < n; ++i) {
+    const double stepped = static_cast<double>(flatland::splitmix64(state) >> 11) * 0x1.0p-53;
+    const double u = flatland::indexed_uniform(key, static_cast<std::uint64_t>(i));
+    ASSERT_EQ(u, stepped) << i;
+    ASSERT_GE(u, 0.0);
+    ASSERT_LT(u, 1.0);
+    observed[static_cast<std::size_t>(u * bins)] += 1;
+  }
+  const std::vector<double> expected(bins, static_cast<double>(n) / bins);
+  EXPECT_LT(testing::chi_square(observed, expected), testing::chi_square_critical(bins - 1));
+}
+
 TEST(Sampling, DiffuseDirectionsFollowCosineOverTwo) {
   // Chi-square of the angle from the normal against the CDF (1 + sin theta) / 2, for a normal
   // that is not axis-aligned.

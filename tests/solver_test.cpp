@@ -565,18 +565,39 @@ TEST(Solver, RunRefreshesTheReadersOnceWithTheSameResult) {
 
 TEST(Solver, FineStorageSharesItsRoundsWorkWithTheSameBits) {
   // With 4096 elements a curve, begin_round's estimates are shared among the threads in runs of
-  // curves: every thread count must give the bits of one.
+  // curves, and shoot() chooses a batch's sources before shooting it (from 8192 coefficients on):
+  // every thread count, and steps that cut batches anywhere, must give the bits of one thread's
+  // whole rounds, with either sampler.
   const Scene scene = testing::scene_from_file("scenes2d/curved_room.json");
-  std::string first;
-  for (unsigned threads : {1u, 2u, 3u}) {
+  for (SamplerKind sampler : {SamplerKind::Sobol, SamplerKind::Random}) {
+    std::string first;
+    for (unsigned threads : {1u, 2u, 3u}) {
+      SolverSettings settings;
+      settings.photons = 100'000;
+      settings.elements = 4096;
+      settings.threads = threads;
+      settings.sampler = sampler;
+      Solver solver = make_solver(scene, settings);
+      if (threads == 1) {
+        std::size_t coefficients = 0;
+        for (std::uint32_t c = 0; c < scene.curves.size(); ++c)
+          for (Side side : {Side::Front, Side::Back})
+            if (solver.has_side(c, side)) coefficients += solver.radiosity_coefficients(c, side).size();
+        ASSERT_GE(coefficients, 8192u);  // the choice ahead is in use
+      }
+      solver.run();
+      if (threads == 1) first = testing::solution_dump(solver);
+      else EXPECT_EQ(testing::solution_dump(solver), first) << threads << " threads, " << to_string(sampler);
+    }
     SolverSettings settings;
     settings.photons = 100'000;
     settings.elements = 4096;
-    settings.threads = threads;
-    Solver solver = make_solver(scene, settings);
-    solver.run();
-    if (threads == 1) first = testing::solution_dump(solver);
-    else EXPECT_EQ(testing::solution_dump(solver), first) << threads << " threads";
+    settings.threads = 2;
+    settings.sampler = sampler;
+    Solver stepped = make_solver(scene, settings);
+    const std::uint64_t sizes[] = {1000, 4097, 777, 9000};
+    for (std::size_t step = 0; !stepped.stopped(); ++step) stepped.step_photons(sizes[step % std::size(sizes)]);
+    EXPECT_EQ(testing::solution_dump(stepped), first) << "steps, " << to_string(sampler);
   }
 }
 

@@ -379,6 +379,25 @@ double BasisSampler::sample(std::size_t k, double u1, double u2) const {
   return wrap(piece.u0 + std::clamp(x, 0.0, 1.0) * piece.width);
 }
 
+void BasisSampler::prefetch(std::size_t k, bool inversion) const {
+#if defined(__GNUC__)
+  if (inversion) {
+    const std::uint32_t begin = first_piece_[k];
+    const std::uint32_t end = first_piece_[k + 1];
+    __builtin_prefetch(cumulative_.data() + begin);
+    const char* piece = reinterpret_cast<const char*>(pieces_.data() + begin);
+    const char* last = reinterpret_cast<const char*>(pieces_.data() + end);
+    for (; piece < last; piece += 64) __builtin_prefetch(piece);
+  } else {
+    __builtin_prefetch(knots_.data() + k);
+    __builtin_prefetch(knots_.data() + k + static_cast<std::size_t>(degree_) + 1);
+  }
+#else
+  (void)k;
+  (void)inversion;
+#endif
+}
+
 double BasisSampler::sample_simplex(std::size_t k, const std::array<double, 4>& uniforms) const {
   // With v_(1) <= .. <= v_(p+1) the sorted uniforms, lambda_0 = v_(1), lambda_i = v_(i+1) - v_(i),
   // lambda_(p+1) = 1 - v_(p+1), and sum lambda_i t_i = t_(p+1) - sum v_(i) (t_i - t_(i-1)): every

@@ -57,6 +57,9 @@ class SplineBasis {
                               std::span<const MeshNode> nodes, Continuity closing);
 
   int degree() const { return degree_; }
+  // Asks the memory system for what drawing function k will read: its pieces (`inversion`, for
+  // sample()) or its knots (sample_simplex()). No effect on any result.
+  void prefetch(std::size_t k, bool inversion) const;
   std::size_t size() const { return size_; }
   bool is_periodic() const { return periodic_; }
   // The knot vector. Clamped: size() + degree + 1 knots. Periodic: the knots of one period
@@ -122,6 +125,9 @@ class BasisSampler {
   // so quasi-Monte Carlo points keep sample().
   double sample_simplex(std::size_t k, const std::array<double, 4>& uniforms) const;
   int degree() const { return degree_; }
+  // Asks the memory system for what drawing function k will read: its pieces (`inversion`, for
+  // sample()) or its knots (sample_simplex()). No effect on any result.
+  void prefetch(std::size_t k, bool inversion) const;
   // The density phi_k(u) / integral(phi_k du).
   double pdf(std::size_t k, double u) const;
   // integral(phi_k du) over the support.

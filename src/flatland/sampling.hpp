@@ -17,6 +17,14 @@ constexpr std::uint64_t splitmix64(std::uint64_t& state) {
   return z ^ (z >> 31);
 }
 
+// Uniform in [0, 1) number `index` of the sequence named by `key`: SplitMix64's output number
+// index + 1 from the state key, computed from the index alone (no stream to advance), so it is
+// the same whichever batch, thread or step asks for it.
+constexpr double indexed_uniform(std::uint64_t key, std::uint64_t index) {
+  std::uint64_t state = key + index * 0x9e3779b97f4a7c15ull;
+  return static_cast<double>(splitmix64(state) >> 11) * 0x1.0p-53;
+}
+
 // xoshiro256** (Blackman, Vigna 2018). A stream is named by (seed, a, b) — for the solver the
 // round and the batch — so any batch of any run can be replayed on its own, on any thread.
 class Rng {

@@ -20,6 +20,27 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
+// The key of a round's indexed uniforms that choose the photons' sources (random sampler): from
+// (seed, round), apart from the batches' streams by a constant of its own.
+std::uint64_t source_key(std::uint64_t seed, std::uint64_t round) {
+  std::uint64_t state = seed ^ 0x736f7572636573ull;  // "sources"
+  state = splitmix64(state) ^ (round * 0xd1342543de82ef95ull);
+  return splitmix64(state);
+}
+
+// From this many coefficients on, shoot() chooses a batch's sources before shooting it and asks
+// for their data ahead (measured: docs/performance.md); below, that data stays in the caches.
+constexpr std::size_t kAheadFrom = 8192;
+
+// A hint to the memory system; no effect on any result.
+inline void prefetch(const void* address) {
+#if defined(__GNUC__)
+  __builtin_prefetch(address);
+#else
+  (void)address;
+#endif
+}
+
 double seconds_since(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
 }
@@ -859,7 +880,54 @@ void Solver::shoot(Rng& rng, std::uint64_t first, std::uint64_t count, Accumulat
   // Consecutive photons of a half take consecutive points: one XOR per dimension each.
   SobolCursor cursor(sobol);
   SobolCursor cursor_odd(sobol_odd);
+  // The source, by unshot power: a side of a curve, or one of its coefficients. Sobol': from the
+  // photon's point (what the choice leaves of dimension kPlace places the origin); random: from
+  // the round's indexed uniforms, so that the choice does not depend on how the round is cut into
+  // batches and steps either.
+  const std::uint64_t key = source_key(settings_.seed, rounds_);
+  auto choose_source = [&](SobolCursor& even_point, SobolCursor& odd_point, std::uint32_t index, double& place) {
+    if (!qmc) return round_.sources.sample(indexed_uniform(key, index));
+    SobolCursor& point = halves && (index & 1u) != 0 ? odd_point : even_point;
+    point.seek(halves ? index >> 1 : index);
+    return round_.sources.sample(point.sample(kPlace), place);
+  };
+  // With many coefficients (their sampler's pieces, units and blocks far beyond the caches) every
+  // photon's source is chosen first, and while photon i is shot the data of photon i + kAhead's
+  // are asked for (docs/performance.md, "Origins' data asked for ahead"); the same choices either way.
+  const bool by_coefficient = sample_by_coefficient_;
+  const bool ahead = by_coefficient && coefficient_count_ >= kAheadFrom;
+  std::vector<std::uint32_t>& sources = acc.sources;
+  std::vector<double>& places = acc.places;
+  if (ahead) {
+    sources.resize(count);
+    places.resize(count);
+    SobolCursor even_point(sobol);
+    SobolCursor odd_point(sobol_odd);
+    for (std::uint64_t i = 0; i < count; ++i) {
+      double place = 0.0;
+      sources[i] = static_cast<std::uint32_t>(choose_source(even_point, odd_point, static_cast<std::uint32_t>(first + i), place));
+      places[i] = place;
+    }
+  }
+  constexpr std::uint64_t kAhead = 4;
   for (std::uint64_t i = 0; i < count; ++i) {
+    if (ahead) {
+      // Two stages: the source's own entries for photon i + 2 kAhead, then (those in cache by
+      // now) its basis function's for photon i + kAhead.
+      if (i + 2 * kAhead < count) {
+        const std::uint32_t later = sources[i + 2 * kAhead];
+        prefetch(&round_.photon_units[later]);
+        prefetch(&coefficient_block_[later]);
+      }
+      if (i + kAhead < count) {
+        const std::uint32_t later = sources[i + kAhead];
+        const std::uint32_t block = coefficient_block_[later];
+        const CurveStorage& storage = storage_[block / 2];
+        const std::size_t k = later - block_offset_[block];
+        storage.sampler.prefetch(k, qmc);
+        prefetch(&storage.speed_bound[k]);
+      }
+    }
     const auto index = static_cast<std::uint32_t>(first + i);  // < kMaxPhotonsPerRound
     // Auto storage: odd-numbered photons deposit into the accumulator's second half.
     if (auto_storage_) acc.half_offset = (index & 1u) != 0 ? coefficient_count_ * static_cast<std::size_t>(channels_) : 0;
@@ -868,11 +936,9 @@ void Solver::shoot(Rng& rng, std::uint64_t first, std::uint64_t count, Accumulat
     SobolCursor& net_point = odd ? cursor_odd : cursor;
     if (qmc) net_point.seek(net_index);
     auto quasi = [&net_point](int dimension) { return net_point.sample(dimension); };
-    // The source, by unshot power: a side of a curve, or one of its coefficients.
-    double place = 0.0;  // Sobol': what choosing the source left of dimension kPlace
-    const std::size_t source = qmc ? round_.sources.sample(quasi(kPlace), place)
-                                   : round_.sources.sample(rng.uniform());
-    const bool by_coefficient = sample_by_coefficient_;
+    double place = 0.0;
+    const std::size_t source = ahead ? sources[i] : choose_source(cursor, cursor_odd, index, place);
+    if (ahead) place = places[i];
     const std::uint32_t block =
         by_coefficient ? coefficient_block_[source] : static_cast<std::uint32_t>(source);
     const std::uint32_t curve_index = block / 2;

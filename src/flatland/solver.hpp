@@ -346,6 +346,10 @@ class Solver {
     std::array<std::int64_t, 3> absorbed{};
     std::array<std::int64_t, 3> shot{};
     std::uint64_t rays = 0;
+    // Scratch of shoot(): the sources of the photons it shoots, chosen before any is shot, and
+    // (Sobol') what each choice left of its coordinate.
+    std::vector<std::uint32_t> sources;
+    std::vector<double> places;
     void reset(std::size_t size);
   };
   struct Round {
