@@ -563,6 +563,31 @@ TEST(Solver, RunRefreshesTheReadersOnceWithTheSameResult) {
   for (double b : cancelled.radiosity_coefficients(0, Side::Front)) EXPECT_EQ(b, 0.0);
 }
 
+TEST(Solver, AutoStorageCountsTheElementsOfEverySegment) {
+  // Auto storage's finest level holds what the curve's share of the budget fills (room: 2048
+  // photons an element, or up to 128 elements at 128 photons each), counted as the elements the
+  // mesh really has: at least one a segment before any halving. The ring is one reflecting curve
+  // of 32 smooth cubic arcs with no events, in format version 1 (its closing point a seam, so the
+  // storage is clamped): C1 cubic storage on it has two coefficients an element and two more, so
+  // the finest level has
+  // (coefficient_count() - 2) / 2 elements, at most max(32, room), and one halving more would
+  // pass the room. (Counting kAutoBaseElements << level instead, 1e5 photons built 1024 elements
+  // for 100,000 photons.)
+  const Scene scene = testing::scene_from_file("scenes2d/tests/reference_ring_profile.json");
+  ASSERT_EQ(scene.curves.size(), 1u);
+  ASSERT_EQ(scene.curves[0].segment_count, 32u);
+  for (const double photons : {1e4, 1e5, 1e6, 1e7}) {
+    SolverSettings settings;
+    settings.photons = static_cast<std::uint64_t>(photons);
+    Solver solver = make_solver(scene, settings);
+    const double room = std::max(photons / 2048.0, std::min(photons / 128.0, 128.0));
+    const double elements = (static_cast<double>(solver.coefficient_count()) - 2.0) / 2.0;
+    EXPECT_LE(elements, std::max(32.0, room)) << photons;
+    EXPECT_GT(2.0 * elements, room) << photons;
+    EXPECT_EQ(std::ldexp(32.0, solver.storage_levels(0) - 1), elements) << photons;
+  }
+}
+
 TEST(Solver, FineStorageSharesItsRoundsWorkWithTheSameBits) {
   // With 4096 elements a curve, begin_round's estimates are shared among the threads in runs of
   // curves, and shoot() chooses a batch's sources before shooting it (from 8192 coefficients on):

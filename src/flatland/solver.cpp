@@ -206,6 +206,7 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
   solver.auto_storage_ = settings.elements == kAutoElements;
   const int elements = settings.elements != kAutoElements ? settings.elements : kAutoBaseElements;
   int finest_level = 0;
+  double room = 0.0;  // auto storage: elements a curve's finest level may have
   if (solver.auto_storage_) {
     std::size_t reflecting = 0;
     for (const Curve& curve : scene.curves) {
@@ -215,8 +216,8 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
     const double share = static_cast<double>(settings.photons) / static_cast<double>(std::max<std::size_t>(reflecting, 1));
     // Elements the finest level may have: share / kAutoPhotonsPerElement, or at small budgets up
     // to kAutoSmallBudgetElements as long as each still gets kAutoSmallBudgetPhotonsPerElement.
-    const double room = std::max(share / kAutoPhotonsPerElement,
-                                 std::min(share / kAutoSmallBudgetPhotonsPerElement, kAutoSmallBudgetElements));
+    room = std::max(share / kAutoPhotonsPerElement,
+                    std::min(share / kAutoSmallBudgetPhotonsPerElement, kAutoSmallBudgetElements));
     while (finest_level + 1 < kAutoMaxLevels && (kAutoBaseElements << (finest_level + 1)) <= room)
       ++finest_level;
   }
@@ -279,6 +280,11 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
     // spread, while each hit pays for every span it covers. Auto storage stops refining where the
     // curve's longest element would be shorter.
     int curve_finest = finest_level;
+    // A level has at least one element a segment before it halves them: a curve of many segments
+    // stops refining where its own count would pass the room (counting kAutoBaseElements << level
+    // built 1024 elements a curve for 3,900 photons on curves of 256 segments).
+    const auto base = std::max<double>(kAutoBaseElements, curve.segment_count);
+    while (solver.auto_storage_ && curve_finest > 0 && std::ldexp(base, curve_finest) > room) --curve_finest;
     if (solver.auto_storage_ && settings.ray_width > 0.0 && settings.ray_mode == RayMode::Footprint) {
       while (curve_finest > 0 && longest_element(scene, curve, elements, smooth, events[c], curve_finest) <
                                      kFootprintFinestElement * settings.ray_width)

@@ -313,6 +313,9 @@ class Solver {
   // chosen after the last round (coefficients stay in the finest basis, which holds it exactly).
   int storage_elements(std::uint32_t curve) const;
   bool auto_storage() const { return auto_storage_; }
+  // The levels a curve's mesh may take: with auto storage the coarsest (kAutoBaseElements
+  // elements, at least one a segment) and each halving of it up to the finest; 1 on a fixed mesh.
+  int storage_levels(std::uint32_t curve) const { return static_cast<int>(levels_[curve].size()) + 1; }
   // Radiosity coefficients of a curve side (lumped estimate): coefficient k, channel c at
   // [k * channels + c]; B(u) = E + sum_k b_k phi_k(u). Empty for a side that does not reflect.
   std::vector<double> radiosity_coefficients(std::uint32_t curve, Side side) const;
