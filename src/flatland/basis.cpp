@@ -276,7 +276,9 @@ BasisSampler::BasisSampler(const SplineBasis& basis) {
   // carries p + 1 functions). On a periodic basis the first p spans (before u_begin) are
   // evaluated a period later, as span + K, where the recursion has the p knots it reads on the left.
   const std::size_t spans = basis.size() + pu;
-  std::vector<std::array<std::array<double, SplineBasis::kMaxDegree + 1>, 4>> at_nodes(spans);
+  // Scratch kept by each thread: a scene of many short curves builds a sampler per curve.
+  thread_local std::vector<std::array<std::array<double, SplineBasis::kMaxDegree + 1>, 4>> at_nodes;
+  at_nodes.resize(spans);
   for (std::size_t span = 0; span < spans; ++span) {
     const double u0 = knots[span];
     const double width = knots[span + 1] - u0;
