@@ -78,23 +78,32 @@ void CubicsStorage(benchmark::State& state) {
   solve(state, Layout::Cubics, settings);
 }
 
-// Solver::create alone for the same room and meshes as CubicsStorage (one thread): the part of
-// that benchmark that does not depend on the photons.
-void CubicsStorageSetup(benchmark::State& state) {
-  Result<Scene> scene = parse_scene(make_scene(Layout::Cubics), "benchmark");
+// Times Solver::create alone on the scene `text` (parsed once, outside the timing).
+void create_solvers(benchmark::State& state, const std::string& text, const SolverSettings& settings) {
+  Result<Scene> scene = parse_scene(text, "benchmark");
   if (!scene) {
     state.SkipWithError(scene.error().message.c_str());
     return;
   }
+  for (auto _ : state) {
+    Result<Solver> solver = Solver::create(*scene, settings);
+    if (!solver) {
+      state.SkipWithError(solver.error().message.c_str());
+      return;
+    }
+    benchmark::DoNotOptimize(solver->coefficient_count());
+  }
+}
+
+// Solver::create alone for the same room and meshes as CubicsStorage (one thread): the part of
+// that benchmark that does not depend on the photons.
+void CubicsStorageSetup(benchmark::State& state) {
   SolverSettings settings;
   settings.photons = 2'000'000;
   settings.threads = 1;
   settings.basis = BasisKind::Cubic;
   settings.elements = static_cast<int>(state.range(0));
-  for (auto _ : state) {
-    Result<Solver> solver = Solver::create(*scene, settings);
-    benchmark::DoNotOptimize(solver->coefficient_count());
-  }
+  create_solvers(state, make_scene(Layout::Cubics), settings);
 }
 
 // Scene set-up at scale: a square room with a lamp under its ceiling and a grid of wavy
@@ -138,23 +147,11 @@ void SetupLoad(benchmark::State& state) {
 // Solver::create at default settings on 2 threads (1e6 photons): the tree, contacts and
 // discontinuity events, every curve's storage levels and samplers.
 void SetupSolver(benchmark::State& state) {
-  Result<Scene> scene =
-      parse_scene(make_large_scene(static_cast<int>(state.range(0)), static_cast<int>(state.range(1))), "benchmark");
-  if (!scene) {
-    state.SkipWithError(scene.error().message.c_str());
-    return;
-  }
   SolverSettings settings;
   settings.photons = 1'000'000;
   settings.threads = 2;
-  for (auto _ : state) {
-    Result<Solver> solver = Solver::create(*scene, settings);
-    if (!solver) {
-      state.SkipWithError(solver.error().message.c_str());
-      return;
-    }
-    benchmark::DoNotOptimize(solver->coefficient_count());
-  }
+  create_solvers(state, make_large_scene(static_cast<int>(state.range(0)), static_cast<int>(state.range(1))),
+                 settings);
 }
 
 // Arguments: threads, then positions (0 uniform in arc length, 1 reconstructed).

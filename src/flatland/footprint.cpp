@@ -1005,8 +1005,7 @@ void footprint_weights(const Scene& scene, const Curve& curve, const SplineBasis
       // The tent and Epanechnikov profiles change their polynomial at the centre; the box's is
       // the same on both sides, so where the span has its series the part holding the centre is
       // one part (the quadrature of a span without one, near a cusp, keeps its two halves).
-      std::size_t unused_terms = 0;
-      const bool one_part = profile == RayProfile::Box && table->running(span, unused_terms) != nullptr;
+      const bool one_part = profile == RayProfile::Box && table->has_series(span);
       if (s_centre > pa && s_centre < pb && !one_part) {
         part(span, pa, s_centre, s0, s1);
         part(span, s_centre, pb, s0, s1);

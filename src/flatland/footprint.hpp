@@ -131,6 +131,7 @@ class FootprintTable {
 
   // The running-moment series of a span: nullptr when it has none, else `terms` coefficients per
   // (j, r), laid out [term][j][r] (powers() * stride() values per term).
+  bool has_series(std::size_t span) const { return series_[span - first_].terms != 0; }
   const double* running(std::size_t span, std::size_t& terms) const {
     const Series& series = series_[span - first_];
     terms = series.terms;
