@@ -63,8 +63,8 @@ class SegmentAccelerator {
     std::uint32_t count = 0;  // 0 for interior nodes
   };
 
-  std::uint32_t build_node(std::uint32_t first, std::uint32_t count, int depth,
-                           std::vector<Box>& boxes, std::vector<Vec2>& centers);
+  struct Build;  // the build's per-segment lists (bvh.cpp)
+  std::uint32_t build_node(std::uint32_t first, std::uint32_t count, int depth, int parent_axis, Build& build);
 
   // The tree the queries walk: the binary tree collapsed into nodes of up to four children, whose
   // boxes are floats relative to `wide_centre_` (padded by far more than float rounding) in
