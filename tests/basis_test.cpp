@@ -450,6 +450,51 @@ TEST(Basis, StorageIntegralsSumToCurveLength) {
   for (double v : constant.basis_length) EXPECT_NEAR(v, 1.0, 1e-13);
 }
 
+TEST(Basis, SpeedBoundHoldsOverEachSupportAndIsTight) {
+  // speed_bound[k] bounds |C'(u)| over phi_k's support, on every segment the support touches
+  // (periodic supports wrap round the closing point), and is close to the largest speed there:
+  // compared with |C'| sampled densely, on curves of several segments whose speed varies along
+  // each segment (closed with smooth joints, so periodic; and open).
+  const Scene scene = testing::scene_from_text(R"({
+    "flatland": 2,
+    "materials": {"wall": {"reflectivity": 0.5, "emittance": 1}},
+    "curves": [
+      {"id": "loop", "material": "wall",
+       "bezier": [[0,0],[0.2,0],[3,-0.5],[3,1],[3,2.5],[2.5,3],[1,3],[0.2,3],[-1,2],[-1,1],[-1,0.2],[-0.1,0],[0,0]]},
+      {"id": "wave", "material": "wall",
+       "bezier": [[0,5],[0.1,6],[2,6],[2,5],[2,4],[2.5,4.2],[4,5],[5,5.5],[6,7],[8,5]]}
+    ]})");
+  ASSERT_TRUE(scene.curves[0].closed);
+  for (const Curve& curve : scene.curves) {
+    const double period = curve.segment_count;
+    auto speed = [&](double u) {
+      u -= period * std::floor(u / period);
+      const auto j = static_cast<std::uint32_t>(std::min(std::floor(u), period - 1.0));
+      return length(derivative(scene.segments[curve.first_segment + j].geometry.shape, u - j));
+    };
+    for (BasisKind kind : {BasisKind::Constant, BasisKind::Linear, BasisKind::Cubic}) {
+      for (int elements : {1, 3, 16, 64}) {
+        for (bool smooth : {true, false}) {
+          const CurveStorage storage = build_curve_storage(scene, curve, kind, elements, smooth, {}, 0);
+          const std::vector<double>& knots = storage.basis.knots();
+          const std::size_t p = static_cast<std::size_t>(storage.basis.degree());
+          for (std::size_t k = 0; k < storage.basis.size(); ++k) {
+            const double begin = knots[k];
+            const double end = knots[k + p + 1];
+            double fastest = 0.0;
+            constexpr int kSamples = 2000;
+            for (int i = 0; i <= kSamples; ++i) fastest = std::max(fastest, speed(begin + (end - begin) * i / kSamples));
+            EXPECT_GE(storage.speed_bound[k], fastest * (1.0 - 1e-12))
+                << curve.id << " " << to_string(kind) << " " << elements << " k " << k;
+            EXPECT_LE(storage.speed_bound[k], 1.1 * fastest)
+                << curve.id << " " << to_string(kind) << " " << elements << " k " << k;
+          }
+        }
+      }
+    }
+  }
+}
+
 TEST(Basis, GalerkinReproducesFunctionsInTheSpace) {
   // On a straight line (u proportional to arc length) a cubic f(u) lies in the cubic spline space:
   // from exact deposits p_k = integral(f phi_k ds) the Galerkin estimate gives back f, while the

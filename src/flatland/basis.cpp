@@ -586,23 +586,15 @@ CurveStorage build_curve_storage(const Scene& scene, const Curve& curve, BasisKi
                                           storage.nodes, storage.closing);
   }
 
-  // Integrals of phi_k |C'(u)| du: four 8-point Gauss-Legendre panels per span integrate the
-  // polynomial-times-speed product to far below Monte Carlo noise.
+  // Integrals of phi_k |C'(u)| du and the mass matrix, in one pass of the quadrature: four
+  // 8-point Gauss-Legendre panels per span integrate the polynomial-times-speed products to far
+  // below Monte Carlo noise. The mass matrix is kept in envelope storage (row k from column
+  // mass_first[k]), then factored in place: L has the same envelope as M. B-splines more than p
+  // apart have disjoint supports, so a clamped basis is banded; on a periodic one the functions
+  // straddling the closing point (the first p) meet the last p, whose rows then reach back to
+  // column 0.
   const int p = storage.basis.degree();
   const std::size_t n = storage.basis.size();
-  storage.basis_length.assign(n, 0.0);
-  for_each_quadrature_point(scene, curve, storage.basis,
-                            [&](double, double weight, const auto& index, const auto& values, std::size_t) {
-                              for (std::size_t j = 0; j <= static_cast<std::size_t>(p); ++j)
-                                storage.basis_length[index[j]] += weight * values[j];
-                            });
-  storage.sampler = BasisSampler(storage.basis);
-
-  // The mass matrix by the same quadrature, in envelope storage (row k from column
-  // mass_first[k]), then its Cholesky factor in place: L has the same envelope as M. B-splines
-  // more than p apart have disjoint supports, so a clamped basis is banded; on a periodic one the
-  // functions straddling the closing point (the first p) meet the last p, whose rows then reach
-  // back to column 0.
   const auto pu = static_cast<std::size_t>(p);
   storage.mass_first.assign(n, 0);
   storage.mass_offset.assign(n + 1, 0);
@@ -616,13 +608,16 @@ CurveStorage build_curve_storage(const Scene& scene, const Curve& curve, BasisKi
   auto entry = [&](std::size_t row, std::size_t col) -> double& {  // mass_first[row] <= col <= row
     return envelope[storage.mass_offset[row] + col - storage.mass_first[row]];
   };
+  storage.basis_length.assign(n, 0.0);
   for_each_quadrature_point(scene, curve, storage.basis,
                             [&](double, double weight, const auto& index, const auto& values, std::size_t) {
+                              for (std::size_t j = 0; j <= pu; ++j) storage.basis_length[index[j]] += weight * values[j];
                               for (std::size_t i = 0; i <= pu; ++i)
                                 for (std::size_t j = 0; j <= pu; ++j)
                                   if (index[j] <= index[i])
                                     entry(index[i], index[j]) += weight * values[i] * values[j];
                             });
+  storage.sampler = BasisSampler(storage.basis);
   // Envelope Cholesky: L_kk = sqrt(M_kk - sum L_kj^2), L_ik = (M_ik - sum L_ij L_kj) / L_kk, the
   // sums over the columns both rows hold.
   for (std::size_t row = 0; row < n; ++row) {
@@ -643,9 +638,15 @@ CurveStorage build_curve_storage(const Scene& scene, const Curve& curve, BasisKi
   for (std::size_t k = 0; k < n; ++k) {
     const double begin = knots[k];
     const double end = knots[k + pu + 1];
-    for (std::uint32_t i = 0; i < segment_count; ++i)
-      for (const double shift : {0.0, -period, period})
-        if ((shift == 0.0 || storage.basis.is_periodic()) && i + 1.0 + shift > begin && i + shift < end) {
+    // Only the segments under the support (a few, with one more on each side against rounding),
+    // not all of the curve's: that was quadratic in the segments of a long curve.
+    const auto near = [&](double at) {
+      return static_cast<std::uint32_t>(std::clamp(at, 0.0, static_cast<double>(segment_count)));
+    };
+    for (const double shift : {0.0, -period, period}) {
+      if (shift != 0.0 && !storage.basis.is_periodic()) continue;
+      for (std::uint32_t i = near(std::floor(begin - shift) - 1.0); i < near(std::ceil(end - shift) + 1.0); ++i)
+        if (i + 1.0 + shift > begin && i + shift < end) {
           const SceneSegment& segment = scene.segments[curve.first_segment + i];
           const double t0 = std::clamp(begin - i - shift, 0.0, 1.0);
           const double t1 = std::clamp(end - i - shift, 0.0, 1.0);
@@ -655,6 +656,7 @@ CurveStorage build_curve_storage(const Scene& scene, const Curve& curve, BasisKi
                                    : std::min(segment.speed_bound, speed_bound(segment.geometry.shape, t0, t1));
           storage.speed_bound[k] = std::max(storage.speed_bound[k], bound);
         }
+    }
   }
   return storage;
 }
