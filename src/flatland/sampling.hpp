@@ -120,11 +120,17 @@ inline double square_to_beam_pdf(double half_angle, Vec2 normal, Vec2 direction)
 class DiscreteDistribution {
  public:
   DiscreteDistribution() = default;
+  // Assigning once, it borrows the thread's scratch for assign and gives it back: the solver
+  // builds one per curve (65,536 in the set-up benchmark), three allocations fewer each.
   explicit DiscreteDistribution(std::span<const double> weights) {
+    thread_local Scratch scratch;
+    scaled_.swap(scratch.scaled);
+    small_.swap(scratch.small);
+    large_.swap(scratch.large);
     assign(weights);
-    scaled_ = {};
-    small_ = {};
-    large_ = {};
+    scaled_.swap(scratch.scaled);
+    small_.swap(scratch.small);
+    large_.swap(scratch.large);
   }
   void assign(std::span<const double> weights);
 
@@ -167,6 +173,11 @@ class DiscreteDistribution {
   std::vector<double> scaled_;
   std::vector<std::uint32_t> small_;
   std::vector<std::uint32_t> large_;
+  struct Scratch {
+    std::vector<double> scaled;
+    std::vector<std::uint32_t> small;
+    std::vector<std::uint32_t> large;
+  };
 };
 
 }  // namespace flatland
