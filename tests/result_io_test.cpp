@@ -5,9 +5,11 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <filesystem>
 #include <fstream>
+#include <vector>
 #include <string>
 
 #include <gtest/gtest.h>
@@ -72,6 +74,36 @@ TEST(ResultText, InvalidUtf8IsReplacedNotFatal) {
   EXPECT_EQ(text.back(), '\n');
   const nlohmann::json back = nlohmann::json::parse(text);
   EXPECT_EQ(back["file"].get<std::string>(), "bad\xEF\xBF\xBD\xEF\xBF\xBD.json");  // two U+FFFD
+}
+
+// result_text writes the curves one at a time; its text is json_text(result_to_json(..)) byte for
+// byte, on every shipped scene (one-sided and two-sided curves, colour, closed curves, emitters
+// with a profile) and with the spline of each kind of storage.
+TEST(ResultText, StreamedTextIsTheDocumentsText) {
+  std::vector<std::string> paths;
+  for (const auto& entry : fs::directory_iterator(testing::source_path("scenes2d")))
+    if (entry.path().extension() == ".json") paths.push_back(entry.path().string());
+  paths.push_back(testing::source_path("scenes2d/tests/reference_ring_profile.json"));
+  std::sort(paths.begin(), paths.end());
+  ASSERT_GE(paths.size(), 9u);
+  for (const std::string& path : paths) {
+    Result<Scene> scene = load_scene(path);
+    ASSERT_TRUE(scene.ok()) << scene.error().message;
+    for (BasisKind basis : {BasisKind::Cubic, BasisKind::Constant, BasisKind::Hermite}) {
+      SolverSettings settings;
+      settings.photons = 20'000;
+      settings.threads = 1;
+      settings.basis = basis;
+      Result<Solver> solver = Solver::create(*scene, settings);
+      ASSERT_TRUE(solver.ok()) << solver.error().message;
+      solver->run();
+      for (int samples : {1, 7}) {
+        const std::string text = result_text(*solver, samples);
+        EXPECT_EQ(text, json_text(result_to_json(*solver, samples))) << path << " " << to_string(basis);
+        EXPECT_EQ(text.back(), '\n');
+      }
+    }
+  }
 }
 
 TEST_F(ResultIo, OutputPathsAreCheckedBeforeWork) {

@@ -120,7 +120,7 @@ int run_render(RenderOptions& o) {
 
   OutputFiles files;
   if (!o.result.empty())
-    if (Status status = files.stage(o.result, json_text(result_to_json(solver, o.solve.samples))); !status)
+    if (Status status = files.stage(o.result, result_text(solver, o.solve.samples)); !status)
       return usage_error(status.error().message);
   Result<std::string> png = png::encode_png(image);
   if (!png) return usage_error(o.out + ": " + png.error().message);

@@ -302,15 +302,17 @@ int run_solve(SolveOptions& o) {
   if (!o.quiet) print_summary(solver);
 
   OutputFiles files;
-  if (!o.out.empty() || reference) {
+  if (reference) {
     const nlohmann::json document = result_to_json(solver, o.samples);
-    if (reference) {
-      Result<Comparison> comparison = compare_results(document, *reference);
-      if (!comparison) return usage_error("--reference " + o.reference + ": " + comparison.error().message);
-      if (!o.quiet) print_comparison(*comparison);
-    }
+    Result<Comparison> comparison = compare_results(document, *reference);
+    if (!comparison) return usage_error("--reference " + o.reference + ": " + comparison.error().message);
+    if (!o.quiet) print_comparison(*comparison);
     if (!o.out.empty())
       if (Status status = files.stage(o.out, json_text(document)); !status) return usage_error(status.error().message);
+  } else if (!o.out.empty()) {
+    // The same text, without holding the whole document as a JSON tree (result_io.hpp).
+    if (Status status = files.stage(o.out, result_text(solver, o.samples)); !status)
+      return usage_error(status.error().message);
   }
   if (!o.picture.empty()) {
     Result<std::string> png = encode_png(draw_picture(solver));

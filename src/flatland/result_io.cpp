@@ -29,7 +29,10 @@ nlohmann::json program_to_json() {
   return {{"name", "flatland"}, {"version", program_version()}, {"commit", program_commit()}};
 }
 
-nlohmann::json result_to_json(const Solver& solver, int samples_per_curve) {
+namespace {
+
+// The result document of `solver` with its sampled result, but for "curves" (an empty array).
+nlohmann::json result_without_curves(const Solver& solver, int samples_per_curve, const SampledResult& sampled) {
   const Scene& scene = solver.scene();
   const SolverSettings& settings = solver.settings();
   nlohmann::json result;
@@ -56,10 +59,45 @@ nlohmann::json result_to_json(const Solver& solver, int samples_per_curve) {
       {"band_rays", settings.band_rays},
       {"samples", samples_per_curve},
   };
-  const SampledResult sampled = sample_solver(solver, samples_per_curve);
   result["stats"] = stats_to_json(*sampled.stats);
+  result["curves"] = nlohmann::json::array();
+  return result;
+}
+
+}  // namespace
+
+nlohmann::json result_to_json(const Solver& solver, int samples_per_curve) {
+  const SampledResult sampled = sample_solver(solver, samples_per_curve);
+  nlohmann::json result = result_without_curves(solver, samples_per_curve, sampled);
   result["curves"] = curves_to_json(sampled);
   return result;
+}
+
+std::string result_text(const Solver& solver, int samples_per_curve) {
+  const SampledResult sampled = sample_solver(solver, samples_per_curve);
+  const std::string outline = json_text(result_without_curves(solver, samples_per_curve, sampled));
+  // The outline holds `"curves": []` (keys are sorted, so first); the curves go in its place as
+  // dump(1) would write them at that depth: "[", each entry on its own lines two spaces in, "]"
+  // one space in.
+  const std::string empty = "\"curves\": []";
+  const std::size_t at = outline.find(empty);
+  if (at == std::string::npos || sampled.curves.empty()) return outline;
+  const std::size_t open = at + empty.size() - 2;
+  std::string text(outline, 0, open);
+  nlohmann::detail::serializer<nlohmann::json> serializer(nlohmann::detail::output_adapter<char>(text), ' ',
+                                                          nlohmann::json::error_handler_t::replace);
+  text += "[\n";
+  const std::size_t curves = sampled.curves.size();
+  for (std::size_t c = 0; c < curves; ++c) {
+    // Room for the rest, from the first curves' size (growing by doubling copied it all twice).
+    if (c == std::min<std::size_t>(curves, 64) && c < curves)
+      text.reserve(text.size() + (text.size() - open) / c * (curves - c) * 5 / 4 + outline.size());
+    text += c == 0 ? "  " : ",\n  ";
+    serializer.dump(curve_to_json(sampled.curves[c], sampled.channels), true, false, 1, 2);
+  }
+  text += "\n ]";
+  text.append(outline, open + 2, std::string::npos);
+  return text;
 }
 
 nlohmann::json stats_to_json(const ResultStats& stats) {

@@ -108,44 +108,45 @@ SampledResult sample_solver(const Solver& solver, int samples_per_curve) {
   return result;
 }
 
-nlohmann::json curves_to_json(const SampledResult& result) {
-  const int channels = result.channels;
-  nlohmann::json curves = nlohmann::json::array();
-  for (const ResultCurve& curve : result.curves) {
-    nlohmann::json samples = nlohmann::json::array();
-    for (const ResultSample& sample : curve.samples) {
-      nlohmann::json entry = {{"s", sample.s}, {"x", sample.x}, {"y", sample.y}, {"B", spectrum_to_json(sample.B, channels)}};
-      if (sample.B_back) entry["B_back"] = spectrum_to_json(*sample.B_back, channels);
-      if (sample.E) entry["E"] = spectrum_to_json(*sample.E, channels);
-      samples.push_back(std::move(entry));
-    }
-    nlohmann::json entry = {{"id", curve.id},
-                            {"length", curve.length},
-                            {"sides", sides_name(curve.sides)},
-                            {"segments", curve.segments},
-                            {"samples", std::move(samples)}};
-    if (curve.emittance) entry["emittance"] = spectrum_to_json(*curve.emittance, channels);
-    // The stored spline, so a result can be re-plotted exactly: B(u) = E + sum_k b_k phi_k(u)
-    // with phi_k the B-splines of `degree` on `knots`, u = segment index + t.
-    if (const std::optional<StoredSpline>& spline = curve.spline) {
-      entry["degree"] = spline->degree;
-      // The mesh in use: with auto storage the chosen level, held exactly by the finest basis whose
-      // knots and coefficients follow (docs/result-format.md).
-      entry["elements"] = spline->elements;
-      // A periodic basis (a closed curve smooth at its closing point) lists one period of knots
-      // extended by `degree` on each side; its functions wrap round (docs/result-format.md).
-      entry["periodic"] = spline->periodic;
-      if (spline->closing) entry["closing"] = continuity_name(*spline->closing);
-      entry["knots"] = spline->knots;
-      nlohmann::json nodes = nlohmann::json::array();
-      for (const MeshNode& node : spline->continuity)
-        nodes.push_back({{"u", node.u}, {"continuity", continuity_name(node.continuity)}});
-      entry["continuity"] = std::move(nodes);
-      if (!spline->coefficients.empty()) entry["coefficients"] = spline->coefficients;
-      if (curve.sides == Sides::Both) entry["coefficients_back"] = spline->coefficients_back;
-    }
-    curves.push_back(std::move(entry));
+nlohmann::json curve_to_json(const ResultCurve& curve, int channels) {
+  nlohmann::json samples = nlohmann::json::array();
+  for (const ResultSample& sample : curve.samples) {
+    nlohmann::json entry = {{"s", sample.s}, {"x", sample.x}, {"y", sample.y}, {"B", spectrum_to_json(sample.B, channels)}};
+    if (sample.B_back) entry["B_back"] = spectrum_to_json(*sample.B_back, channels);
+    if (sample.E) entry["E"] = spectrum_to_json(*sample.E, channels);
+    samples.push_back(std::move(entry));
   }
+  nlohmann::json entry = {{"id", curve.id},
+                          {"length", curve.length},
+                          {"sides", sides_name(curve.sides)},
+                          {"segments", curve.segments},
+                          {"samples", std::move(samples)}};
+  if (curve.emittance) entry["emittance"] = spectrum_to_json(*curve.emittance, channels);
+  // The stored spline, so a result can be re-plotted exactly: B(u) = E + sum_k b_k phi_k(u)
+  // with phi_k the B-splines of `degree` on `knots`, u = segment index + t.
+  if (const std::optional<StoredSpline>& spline = curve.spline) {
+    entry["degree"] = spline->degree;
+    // The mesh in use: with auto storage the chosen level, held exactly by the finest basis whose
+    // knots and coefficients follow (docs/result-format.md).
+    entry["elements"] = spline->elements;
+    // A periodic basis (a closed curve smooth at its closing point) lists one period of knots
+    // extended by `degree` on each side; its functions wrap round (docs/result-format.md).
+    entry["periodic"] = spline->periodic;
+    if (spline->closing) entry["closing"] = continuity_name(*spline->closing);
+    entry["knots"] = spline->knots;
+    nlohmann::json nodes = nlohmann::json::array();
+    for (const MeshNode& node : spline->continuity)
+      nodes.push_back({{"u", node.u}, {"continuity", continuity_name(node.continuity)}});
+    entry["continuity"] = std::move(nodes);
+    if (!spline->coefficients.empty()) entry["coefficients"] = spline->coefficients;
+    if (curve.sides == Sides::Both) entry["coefficients_back"] = spline->coefficients_back;
+  }
+  return entry;
+}
+
+nlohmann::json curves_to_json(const SampledResult& result) {
+  nlohmann::json curves = nlohmann::json::array();
+  for (const ResultCurve& curve : result.curves) curves.push_back(curve_to_json(curve, result.channels));
   return curves;
 }
 

@@ -77,8 +77,10 @@ SampledResult sample_radiosity(const Scene& scene, int samples_per_curve, const 
 // A solver's result: its radiosity sampled, its stored splines and its statistics.
 SampledResult sample_solver(const Solver& solver, int samples_per_curve);
 
-// The "curves" array of a result document (with the splines when the result has them).
+// The "curves" array of a result document (with the splines when the result has them), and one
+// entry of it.
 nlohmann::json curves_to_json(const SampledResult& result);
+nlohmann::json curve_to_json(const ResultCurve& curve, int channels);
 // The curves of a result document. `what` names it in errors ("the result", "the reference");
 // `suffix` is appended to the place of a malformed value (" (reference)").
 Result<SampledResult> sampled_from_json(const nlohmann::json& document, const std::string& what,

@@ -205,7 +205,7 @@ class PySolver {
   std::string to_json(int samples) const {
     check_idle();
     if (samples < 1 || samples > 1'000'000) fail("samples: must be between 1 and 1000000");
-    return json_text(result_to_json(*solver_, samples));
+    return result_text(*solver_, samples);
   }
   const PyScene& scene() const { return scene_; }
 
