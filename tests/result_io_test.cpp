@@ -106,6 +106,37 @@ TEST(ResultText, StreamedTextIsTheDocumentsText) {
   }
 }
 
+// Past 64 curves result_text reserves room for the rest from the numbers they write: on a scene
+// whose first curves are long (many knots, coefficients) and the rest short, the text is still
+// the document's, and the room reserved stays near what it needs.
+TEST(ResultText, ManyCurvesOfMixedSizes) {
+  std::string text = R"({"flatland": 2, "materials": {"wall": {"reflectivity": 0.5},
+    "lamp": {"reflectivity": 0, "emittance": 1}}, "curves": [
+    {"id": "room", "material": "wall", "line": [[0,0],[100,0],[100,100],[0,100],[0,0]]},
+    {"id": "lamp", "material": "lamp", "line": [[60,99],[40,99]]})";
+  for (int k = 0; k < 300; ++k) {
+    const double x = 2.0 + 6.0 * (k % 16);
+    const double y = 2.0 + 5.0 * (k / 16);
+    std::string points = "[" + std::to_string(x) + "," + std::to_string(y) + "]";
+    const int segments = k < 64 ? 64 : 1;
+    for (int i = 1; i <= segments; ++i)
+      points += ",[" + std::to_string(x + 4.0 * i / segments) + "," + std::to_string(y + (i % 2) * 0.5) + "]";
+    text += ",{\"id\": \"c" + std::to_string(k) + "\", \"material\": \"wall\", \"sides\": \"both\", \"line\": [" +
+            points + "]}";
+  }
+  const Scene scene = testing::scene_from_text(text + "]}");
+  ASSERT_EQ(scene.curves.size(), 302u);
+  SolverSettings settings;
+  settings.photons = 50'000;
+  settings.threads = 1;
+  Result<Solver> solver = Solver::create(scene, settings);
+  ASSERT_TRUE(solver.ok()) << solver.error().message;
+  solver->run();
+  const std::string streamed = result_text(*solver, 1);
+  EXPECT_EQ(streamed, json_text(result_to_json(*solver, 1)));
+  EXPECT_LE(streamed.capacity(), 2 * streamed.size());
+}
+
 TEST_F(ResultIo, OutputPathsAreCheckedBeforeWork) {
   EXPECT_TRUE(check_output_file((directory_ / "r.json").string()).ok());
   const Status missing = check_output_file((directory_ / "no" / "r.json").string());

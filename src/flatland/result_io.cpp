@@ -84,16 +84,34 @@ std::string result_text(const Solver& solver, int samples_per_curve) {
   if (at == std::string::npos || sampled.curves.empty()) return outline;
   const std::size_t open = at + empty.size() - 2;
   std::string text(outline, 0, open);
+  // nlohmann's serializer (a detail of the library, the same from 3.10 to 3.12) writes an entry
+  // at a given depth, as dump() does inside a document.
   nlohmann::detail::serializer<nlohmann::json> serializer(nlohmann::detail::output_adapter<char>(text), ' ',
                                                           nlohmann::json::error_handler_t::replace);
   text += "[\n";
+  // Room for the whole text (growing by doubling copied it all twice): the numbers every curve
+  // writes, at the bytes per number of the first curves.
   const std::size_t curves = sampled.curves.size();
+  auto numbers = [&](const ResultCurve& curve) {
+    const std::size_t per_sample = 3 + static_cast<std::size_t>(sampled.channels) * 3;
+    std::size_t count = 8 + curve.samples.size() * per_sample;
+    if (curve.spline)
+      count += curve.spline->knots.size() + curve.spline->coefficients.size() +
+               curve.spline->coefficients_back.size() + 2 * curve.spline->continuity.size();
+    return count;
+  };
+  std::size_t numbers_done = 0;
   for (std::size_t c = 0; c < curves; ++c) {
-    // Room for the rest, from the first curves' size (growing by doubling copied it all twice).
-    if (c == std::min<std::size_t>(curves, 64) && c < curves)
-      text.reserve(text.size() + (text.size() - open) / c * (curves - c) * 5 / 4 + outline.size());
+    if (c == 64) {
+      std::size_t numbers_left = 0;
+      for (std::size_t rest = c; rest < curves; ++rest) numbers_left += numbers(sampled.curves[rest]);
+      const double per_number = static_cast<double>(text.size() - open) / static_cast<double>(numbers_done);
+      text.reserve(text.size() + static_cast<std::size_t>(1.25 * per_number * static_cast<double>(numbers_left)) +
+                   outline.size());
+    }
     text += c == 0 ? "  " : ",\n  ";
     serializer.dump(curve_to_json(sampled.curves[c], sampled.channels), true, false, 1, 2);
+    numbers_done += numbers(sampled.curves[c]);
   }
   text += "\n ]";
   text.append(outline, open + 2, std::string::npos);

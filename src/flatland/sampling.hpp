@@ -169,7 +169,7 @@ class DiscreteDistribution {
   std::vector<double> weights_;
   double total_ = 0.0;
   // assign's scratch, kept so that a distribution assigned every round (the solver's sources)
-  // reuses its memory; the constructor, assigning once, lets it go.
+  // reuses its memory; the constructor, assigning once, hands it back to its thread.
   std::vector<double> scaled_;
   std::vector<std::uint32_t> small_;
   std::vector<std::uint32_t> large_;

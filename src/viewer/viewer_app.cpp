@@ -655,7 +655,7 @@ Status Viewer::run() {
     if (options_.frames > 0 && frames_done_ >= options_.frames) break;
     // A late frame is made up by the next ones drawn without a pause, so the rate averages
     // max_fps, but at most kPaceCatchUp behind: after a long stall (a window drag, a new scene)
-    // the frames start on time again instead of racing.
+    // at most that many seconds' frames follow without a pause, then the pace resumes.
     next_frame += period;
     const double now = seconds_since_start();
     if (next_frame > now) std::this_thread::sleep_for(std::chrono::duration<double>(next_frame - now));
