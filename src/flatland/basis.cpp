@@ -635,14 +635,14 @@ CurveStorage build_curve_storage(const Scene& scene, const Curve& curve, BasisKi
   storage.speed_bound.assign(n, 0.0);
   const std::vector<double>& knots = storage.basis.knots();
   const double period = static_cast<double>(segment_count);
+  // Only the segments under a support (a few, with one more on each side against rounding), not
+  // all of the curve's: that was quadratic in the segments of a long curve.
+  const auto near = [&](double at) {
+    return static_cast<std::uint32_t>(std::clamp(at, 0.0, period));
+  };
   for (std::size_t k = 0; k < n; ++k) {
     const double begin = knots[k];
     const double end = knots[k + pu + 1];
-    // Only the segments under the support (a few, with one more on each side against rounding),
-    // not all of the curve's: that was quadratic in the segments of a long curve.
-    const auto near = [&](double at) {
-      return static_cast<std::uint32_t>(std::clamp(at, 0.0, static_cast<double>(segment_count)));
-    };
     for (const double shift : {0.0, -period, period}) {
       if (shift != 0.0 && !storage.basis.is_periodic()) continue;
       for (std::uint32_t i = near(std::floor(begin - shift) - 1.0); i < near(std::ceil(end - shift) + 1.0); ++i)

@@ -57,9 +57,6 @@ class SplineBasis {
                               std::span<const MeshNode> nodes, Continuity closing);
 
   int degree() const { return degree_; }
-  // Asks the memory system for what drawing function k will read: its pieces (`inversion`, for
-  // sample()) or its knots (sample_simplex()). No effect on any result.
-  void prefetch(std::size_t k, bool inversion) const;
   std::size_t size() const { return size_; }
   bool is_periodic() const { return periodic_; }
   // The knot vector. Clamped: size() + degree + 1 knots. Periodic: the knots of one period

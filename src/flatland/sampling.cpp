@@ -21,9 +21,9 @@ void DiscreteDistribution::assign(std::span<const double> weights) {
   // every pairing after it, so the same scene scaled or moved (weights equal to 1e-14) drew other
   // sources for the same u. Treating it as exactly 1 moves probabilities by at most kTie / n.
   constexpr double kTie = 1e-9;
-  std::vector<double>& scaled = scaled_;
-  std::vector<std::uint32_t>& small = small_;
-  std::vector<std::uint32_t>& large = large_;
+  std::vector<double>& scaled = scratch_.scaled;
+  std::vector<std::uint32_t>& small = scratch_.small;
+  std::vector<std::uint32_t>& large = scratch_.large;
   scaled.resize(n);
   small.clear();
   large.clear();

@@ -3,6 +3,7 @@
 
 #include <cstdint>
 #include <span>
+#include <utility>
 #include <vector>
 
 #include "flatland/vec2.hpp"
@@ -124,13 +125,9 @@ class DiscreteDistribution {
   // builds one per curve (65,536 in the set-up benchmark), three allocations fewer each.
   explicit DiscreteDistribution(std::span<const double> weights) {
     thread_local Scratch scratch;
-    scaled_.swap(scratch.scaled);
-    small_.swap(scratch.small);
-    large_.swap(scratch.large);
+    std::swap(scratch_, scratch);
     assign(weights);
-    scaled_.swap(scratch.scaled);
-    small_.swap(scratch.small);
-    large_.swap(scratch.large);
+    std::swap(scratch_, scratch);
   }
   void assign(std::span<const double> weights);
 
@@ -170,14 +167,12 @@ class DiscreteDistribution {
   double total_ = 0.0;
   // assign's scratch, kept so that a distribution assigned every round (the solver's sources)
   // reuses its memory; the constructor, assigning once, hands it back to its thread.
-  std::vector<double> scaled_;
-  std::vector<std::uint32_t> small_;
-  std::vector<std::uint32_t> large_;
   struct Scratch {
     std::vector<double> scaled;
     std::vector<std::uint32_t> small;
     std::vector<std::uint32_t> large;
   };
+  Scratch scratch_;
 };
 
 }  // namespace flatland

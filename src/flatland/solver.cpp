@@ -942,9 +942,8 @@ void Solver::shoot(Rng& rng, std::uint64_t first, std::uint64_t count, Accumulat
     SobolCursor& net_point = odd ? cursor_odd : cursor;
     if (qmc) net_point.seek(net_index);
     auto quasi = [&net_point](int dimension) { return net_point.sample(dimension); };
-    double place = 0.0;
+    double place = ahead ? places[i] : 0.0;
     const std::size_t source = ahead ? sources[i] : choose_source(cursor, cursor_odd, index, place);
-    if (ahead) place = places[i];
     const std::uint32_t block =
         by_coefficient ? coefficient_block_[source] : static_cast<std::uint32_t>(source);
     const std::uint32_t curve_index = block / 2;
