@@ -899,7 +899,7 @@ void Solver::shoot(Rng& rng, std::uint64_t first, std::uint64_t count, Accumulat
   };
   // With many coefficients (their sampler's pieces, units and blocks far beyond the caches) every
   // photon's source is chosen first, and while photon i is shot the data of photon i + kAhead's
-  // are asked for (docs/performance.md, "Sources chosen ahead"); the same choices either way.
+  // are asked for (docs/performance-log.md, "Sources chosen ahead"); the same choices either way.
   const bool by_coefficient = sample_by_coefficient_;
   const bool ahead = by_coefficient && coefficient_count_ >= kAheadFrom;
   std::vector<std::uint32_t>& sources = acc.sources;

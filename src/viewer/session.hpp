@@ -101,7 +101,7 @@ class Session {
   std::uint64_t next_serial_ = 0;
   // Seconds of shooting a piece: long enough to amortise the per-piece work (the view's estimate
   // and the snapshot, serial while the other threads wait: with 25 ms the viewer shot 10 M photons
-  // in 300 frames, with 50 ms 13.6 M; docs/performance.md), short enough for a prompt pause and
+  // in 300 frames, with 50 ms 13.6 M; docs/performance-log.md), short enough for a prompt pause and
   // paths that arrive every other frame.
   static constexpr double kPieceSeconds = 0.05;
   // Paths recorded per running piece (frames are paced to 25 ms and draw at most 600 new paths):

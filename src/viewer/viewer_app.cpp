@@ -644,7 +644,7 @@ Status Viewer::save_screenshot(const std::string& path) {
 Status Viewer::run() {
   const double start = seconds_since_start();
   // Frame pacing: Mesa's software rasteriser draws on the same cores as the solver's threads, so
-  // frames beyond what the eye needs are taken from the solve (docs/performance.md: unpaced, 44
+  // frames beyond what the eye needs are taken from the solve (docs/performance-log.md: unpaced, 44
   // frames/s at 0.49 of the headless photon rate; paced at 40 with late frames made up, 40
   // frames/s at 0.62).
   int max_fps = options_.max_fps;
