@@ -90,28 +90,22 @@ std::string result_text(const Solver& solver, int samples_per_curve) {
                                                           nlohmann::json::error_handler_t::replace);
   text += "[\n";
   // Room for the whole text (growing by doubling copied it all twice): the numbers every curve
-  // writes, at the bytes per number of the first curves.
+  // writes, at the bytes per number of the first kMeasured curves.
+  constexpr std::size_t kMeasured = 64;
   const std::size_t curves = sampled.curves.size();
-  auto numbers = [&](const ResultCurve& curve) {
-    const std::size_t per_sample = 3 + static_cast<std::size_t>(sampled.channels) * 3;
-    std::size_t count = 8 + curve.samples.size() * per_sample;
-    if (curve.spline)
-      count += curve.spline->knots.size() + curve.spline->coefficients.size() +
-               curve.spline->coefficients_back.size() + 2 * curve.spline->continuity.size();
-    return count;
-  };
-  std::size_t numbers_done = 0;
+  std::size_t numbers_measured = 0;
   for (std::size_t c = 0; c < curves; ++c) {
-    if (c == 64) {
+    if (c == kMeasured) {
       std::size_t numbers_left = 0;
-      for (std::size_t rest = c; rest < curves; ++rest) numbers_left += numbers(sampled.curves[rest]);
-      const double per_number = static_cast<double>(text.size() - open) / static_cast<double>(numbers_done);
+      for (std::size_t rest = c; rest < curves; ++rest)
+        numbers_left += curve_json_numbers(sampled.curves[rest], sampled.channels);
+      const double per_number = static_cast<double>(text.size() - open) / static_cast<double>(numbers_measured);
       text.reserve(text.size() + static_cast<std::size_t>(1.25 * per_number * static_cast<double>(numbers_left)) +
                    outline.size());
     }
     text += c == 0 ? "  " : ",\n  ";
     serializer.dump(curve_to_json(sampled.curves[c], sampled.channels), true, false, 1, 2);
-    numbers_done += numbers(sampled.curves[c]);
+    if (c < kMeasured) numbers_measured += curve_json_numbers(sampled.curves[c], sampled.channels);
   }
   text += "\n ]";
   text.append(outline, open + 2, std::string::npos);

@@ -144,6 +144,15 @@ nlohmann::json curve_to_json(const ResultCurve& curve, int channels) {
   return entry;
 }
 
+std::size_t curve_json_numbers(const ResultCurve& curve, int channels) {
+  const std::size_t per_sample = 3 + static_cast<std::size_t>(channels) * 3;  // s, x, y, B, B_back, E
+  std::size_t count = 8 + curve.samples.size() * per_sample;
+  if (curve.spline)
+    count += curve.spline->knots.size() + curve.spline->coefficients.size() + curve.spline->coefficients_back.size() +
+             2 * curve.spline->continuity.size();
+  return count;
+}
+
 nlohmann::json curves_to_json(const SampledResult& result) {
   nlohmann::json curves = nlohmann::json::array();
   for (const ResultCurve& curve : result.curves) curves.push_back(curve_to_json(curve, result.channels));

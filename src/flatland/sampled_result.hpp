@@ -81,6 +81,9 @@ SampledResult sample_solver(const Solver& solver, int samples_per_curve);
 // entry of it.
 nlohmann::json curves_to_json(const SampledResult& result);
 nlohmann::json curve_to_json(const ResultCurve& curve, int channels);
+// About how many numbers curve_to_json writes for the curve (each sample counted with all its
+// optional spectra): what result_text reserves room by.
+std::size_t curve_json_numbers(const ResultCurve& curve, int channels);
 // The curves of a result document. `what` names it in errors ("the result", "the reference");
 // `suffix` is appended to the place of a malformed value (" (reference)").
 Result<SampledResult> sampled_from_json(const nlohmann::json& document, const std::string& what,
