@@ -1,4 +1,6 @@
 // The command-line contract: exit codes, one-line errors naming what is wrong, no partial files.
+#include <sys/stat.h>
+#include <sys/sysmacros.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -34,7 +36,9 @@ class Cli : public testing::ScratchDirectoryTest {
  protected:
   Cli() : ScratchDirectoryTest("flatland-cli") {}
 
-  CommandRun run(const std::string& arguments) { return testing::run_flatland(arguments, directory_); }
+  CommandRun run(const std::string& arguments, const std::string& environment = "") {
+    return testing::run_flatland(arguments, directory_, environment);
+  }
 
   std::string scene(const std::string& name) { return testing::source_path("scenes2d/" + name); }
 };
@@ -597,50 +601,6 @@ TEST_F(Cli, NumbersBeyondADoubleInAResultAreOneLineErrors) {
   }
 }
 
-// Every output path is checked before the work starts: a budget of 1e15 photons would take
-// months, so these return at once only if nothing is solved.
-TEST_F(Cli, OutputPathsAreCheckedBeforeAnyWork) {
-  const std::string missing = (directory_ / "missing" / "r.json").string();
-  for (const std::string& command :
-       {"solve " + scene("penumbra.json") + " --photons 1e15 --out " + missing,
-        "solve " + scene("penumbra.json") + " --photons 1e15 --picture " + (directory_ / "missing" / "r.png").string(),
-        "solve " + scene("penumbra.json") + " --photons 1e15 --out " + directory_.string(),
-        "reference " + scene("penumbra.json") + " --elements 30000 --out " + missing}) {
-    const CommandRun r = run(command);
-    EXPECT_EQ(r.exit_code, 2) << command;
-    EXPECT_EQ(lines(r.err), 1) << r.err;
-  }
-  std::ofstream(directory_ / "file") << "x";
-  const CommandRun converge = run("converge " + scene("penumbra.json") + " --budgets 1e15 --out " + (directory_ / "file").string());
-  EXPECT_EQ(converge.exit_code, 2) << converge.err;
-}
-
-// A scene path that is not valid UTF-8 ends up in the result's "file": it is written with the
-// invalid bytes replaced (it used to abort after the solve).
-TEST_F(Cli, AScenePathThatIsNotUtf8IsWritten) {
-  const fs::path odd = directory_ / "bad\xff.json";
-  fs::copy_file(scene("penumbra.json"), odd);
-  const fs::path out = directory_ / "r.json";
-  const CommandRun r = run("solve " + shell_quoted(odd.string()) + " --photons 20000 --samples 5 --quiet --out " + out.string());
-  ASSERT_EQ(r.exit_code, 0) << r.err;
-  const nlohmann::json result = nlohmann::json::parse(read_file(out));
-  EXPECT_NE(result["scene"]["file"].get<std::string>().find("bad\xEF\xBF\xBD.json"), std::string::npos);
-}
-
-TEST_F(Cli, ResultsTooLargeAndStorageBeyondMemoryAreRefusedAtOnce) {
-  // 40 curves x 1e6 samples = 4e7 samples > 1e7: refused before the (1e15-photon) solve.
-  nlohmann::json many = {{"flatland", 1}, {"materials", {{"lamp", {{"emittance", 1}}}}}, {"curves", nlohmann::json::array()}};
-  for (int i = 0; i < 40; ++i)
-    many["curves"].push_back({{"id", "c" + std::to_string(i)}, {"material", "lamp"},
-                              {"line", {{i, 0}, {i, 1}}}});
-  const fs::path file = directory_ / "many.json";
-  std::ofstream(file) << many.dump();
-  const CommandRun samples = run("solve " + file.string() + " --photons 1e15 --samples 1000000 --out " +
-                                 (directory_ / "r.json").string());
-  EXPECT_EQ(samples.exit_code, 2);
-  EXPECT_NE(samples.err.find("give at most --samples 250000"), std::string::npos) << samples.err;
-}
-
 // Starts `flatland ARGUMENTS...` (no shell), sends `signal` after `delay` seconds, and returns the
 // exit code and how long the process took to end after the signal.
 struct Stopped {
@@ -671,6 +631,323 @@ Stopped run_and_signal(const std::vector<std::string>& arguments, int signal, do
   stopped.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   return stopped;
 }
+
+// Every output path is checked before the work starts: a budget of 1e15 photons would take
+// months, so these return at once only if nothing is solved.
+TEST_F(Cli, OutputPathsAreCheckedBeforeAnyWork) {
+  const std::string missing = (directory_ / "missing" / "r.json").string();
+  for (const std::string& command :
+       {"solve " + scene("penumbra.json") + " --photons 1e15 --out " + missing,
+        "solve " + scene("penumbra.json") + " --photons 1e15 --picture " + (directory_ / "missing" / "r.png").string(),
+        "solve " + scene("penumbra.json") + " --photons 1e15 --out " + directory_.string(),
+        "reference " + scene("penumbra.json") + " --elements 30000 --out " + missing}) {
+    const CommandRun r = run(command);
+    EXPECT_EQ(r.exit_code, 2) << command;
+    EXPECT_EQ(lines(r.err), 1) << r.err;
+  }
+  std::ofstream(directory_ / "file") << "x";
+  const CommandRun converge = run("converge " + scene("penumbra.json") + " --budgets 1e15 --out " + (directory_ / "file").string());
+  EXPECT_EQ(converge.exit_code, 2) << converge.err;
+#ifdef FLATLAND_HAVE_VIEWER
+  // The viewer's pictures are written after its last frame: checked before the first (no window
+  // opens, so this needs no display).
+  for (const std::string& option : {"--screenshot " + directory_.string(), "--screenshot-ui " + missing}) {
+    const CommandRun view = run("view " + scene("penumbra.json") + " --frames 100000 " + option, "env -u DISPLAY");
+    EXPECT_EQ(view.exit_code, 2) << option << ": " << view.err;
+    EXPECT_EQ(lines(view.err), 1) << view.err;
+  }
+#endif
+}
+
+// In a sticky directory (as /tmp) another user's file cannot be replaced: refused before the
+// (1e15-photon) solve, not after it. Run as an unprivileged user (setpriv), so root only.
+TEST_F(Cli, AnotherUsersFileInAStickyDirectoryIsRefusedBeforeTheWork) {
+  if (::geteuid() != 0 || std::system("command -v setpriv >/dev/null") != 0)
+    GTEST_SKIP() << "needs root and setpriv to act as another user";
+  const fs::path sticky = directory_ / "sticky";
+  fs::create_directory(sticky);
+  fs::permissions(directory_, fs::perms(0755));
+  fs::permissions(sticky, fs::perms(01777));
+  fs::copy_file(scene("penumbra.json"), sticky / "scene.json");
+  fs::permissions(sticky / "scene.json", fs::perms(0644));
+  std::ofstream(sticky / "theirs.json") << "{}";  // root's
+  const auto start = std::chrono::steady_clock::now();
+  const CommandRun r = run("solve " + (sticky / "scene.json").string() + " --photons 1e15 --out " +
+                               (sticky / "theirs.json").string(),
+                           "setpriv --reuid=65534 --regid=65534 --clear-groups");
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_EQ(lines(r.err), 1) << r.err;
+  EXPECT_NE(r.err.find("belongs to another user"), std::string::npos) << r.err;
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), 10.0);
+  EXPECT_EQ(read_file(sticky / "theirs.json"), "{}");
+}
+
+// Runs a bash command line and returns its exit code (-1 if it did not exit).
+int shell(const std::string& command) {
+  const std::string quoted = "bash -c '" + command + "'";
+  const int status = std::system(quoted.c_str());
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+bool is_character_device(const fs::path& path) {
+  struct stat info {};
+  return ::lstat(path.c_str(), &info) == 0 && S_ISCHR(info.st_mode);
+}
+
+// A device node of the test's own in its directory (1, minor: 3 null, 5 zero, 7 full), or an empty
+// path when the test cannot make one (not root). Never the machine's /dev.
+fs::path make_device(const fs::path& directory, const std::string& name, unsigned minor) {
+  if (::geteuid() != 0) return {};
+  const fs::path node = directory / name;
+  if (::mknod(node.c_str(), S_IFCHR | 0666, makedev(1, minor)) != 0) return {};
+  return node;
+}
+
+// "-" is the standard output: the result goes there and the reports to standard error. A device
+// or a FIFO is written through and stays what it is (a rename over /dev/null used to replace the
+// machine's null device with a regular file); a full device or a reader that stops reading is a
+// one-line error with exit code 2, never a signal.
+TEST_F(Cli, OutputsToStandardOutputDevicesAndPipesAreWrittenThrough) {
+  const std::string penumbra = scene("penumbra.json");
+  const CommandRun dash = run("solve " + penumbra + " --photons 20000 --samples 10 --out -");
+  ASSERT_EQ(dash.exit_code, 0) << dash.err;
+  EXPECT_EQ(nlohmann::json::parse(dash.out)["flatland_result"], 1);
+  EXPECT_NE(dash.err.find("energy"), std::string::npos) << dash.err;
+  EXPECT_NE(dash.err.find("wrote     -"), std::string::npos) << dash.err;
+  // The same through /dev/stdout into a file the shell opened: written where the stream stands.
+  const fs::path redirected = directory_ / "redirected.json";
+  ASSERT_EQ(shell(std::string(FLATLAND_BINARY) + " solve " + penumbra + " --photons 20000 --samples 10 --quiet " +
+                  "--out /dev/stdout > " + redirected.string()),
+            0);
+  EXPECT_EQ(nlohmann::json::parse(read_file(redirected))["flatland_result"], 1);
+
+  const fs::path err = directory_ / "pipe.err";
+  const int closed = shell(std::string(FLATLAND_BINARY) + " solve " + scene("default.json") +
+                           " --photons 20000 --samples 5000 --quiet --out - 2>" + err.string() +
+                           " | head -c 100 >/dev/null; exit ${PIPESTATUS[0]}");
+  EXPECT_EQ(closed, 2);
+  EXPECT_EQ(lines(read_file(err)), 1) << read_file(err);
+  EXPECT_NE(read_file(err).find("closed the pipe"), std::string::npos) << read_file(err);
+
+  const fs::path fifo = directory_ / "fifo.json";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  const fs::path received = directory_ / "received.json";
+  ASSERT_EQ(shell("cat " + fifo.string() + " > " + received.string() + " & " + std::string(FLATLAND_BINARY) +
+                  " solve " + penumbra + " --photons 20000 --samples 10 --quiet --out " + fifo.string() + "; wait"),
+            0);
+  EXPECT_EQ(nlohmann::json::parse(read_file(received))["flatland_result"], 1);
+
+  const fs::path null = make_device(directory_, "null", 3);
+  const fs::path null2 = make_device(directory_, "null2", 3);
+  const fs::path full = make_device(directory_, "full", 7);
+  if (null.empty() || null2.empty() || full.empty()) GTEST_SKIP() << "making device nodes needs root";
+  std::vector<std::string> commands = {
+      "solve " + penumbra + " --photons 20000 --out " + null.string() + " --picture " + null2.string(),
+      "reference " + penumbra + " --elements 100 --no-error-estimate --out " + null.string()};
+#ifdef FLATLAND_HAVE_VIEWER
+  commands.push_back("render " + penumbra + " --photons 20000 --width 64 --height 64 --out " + null.string() +
+                     " --result " + null2.string());
+#endif
+  for (const std::string& command : commands) {
+    const CommandRun r = run(command);
+    EXPECT_EQ(r.exit_code, 0) << command << "\n" << r.err;
+    EXPECT_TRUE(is_character_device(null)) << command;
+    EXPECT_TRUE(is_character_device(null2)) << command;
+  }
+  const CommandRun no_space = run("solve " + penumbra + " --photons 20000 --quiet --out " + full.string());
+  EXPECT_EQ(no_space.exit_code, 2);
+  EXPECT_EQ(lines(no_space.err), 1) << no_space.err;
+  EXPECT_NE(no_space.err.find("No space left"), std::string::npos) << no_space.err;
+  EXPECT_TRUE(is_character_device(full));
+  // Nothing else was made beside them: no temporaries, no regular files.
+  for (const auto& entry : fs::directory_iterator(directory_))
+    EXPECT_FALSE(entry.path().filename().string().rfind(".null", 0) == 0) << entry.path();
+}
+
+// An output that is one of the command's inputs, or another of its outputs, is refused before any
+// work, whatever the spelling: the scene is never replaced by its result, nor a result by a picture.
+TEST_F(Cli, OutputsThatAreInputsOrEachOtherAreRefused) {
+  const fs::path copy = directory_ / "s.json";
+  fs::copy_file(scene("penumbra.json"), copy);
+  const std::string scene_text = read_file(copy);
+  const std::string other_spelling = (directory_ / "." / "s.json").string();
+  const std::string out = (directory_ / "same.json").string();
+  const std::string out_again = (directory_ / "sub" / ".." / "same.json").string();
+  fs::create_directory(directory_ / "sub");
+  std::vector<std::pair<std::string, std::string>> cases = {
+      {"solve " + copy.string() + " --photons 1e15 --out " + other_spelling, "scene file"},
+      {"solve " + copy.string() + " --photons 1e15 --out " + out + " --picture " + out_again, "also --out"},
+      {"reference " + copy.string() + " --elements 30000 --out " + copy.string(), "scene file"},
+  };
+#ifdef FLATLAND_HAVE_VIEWER
+  cases.push_back({"render " + copy.string() + " --photons 1e15 --out " + out + " --result " + out_again, "also --out"});
+  cases.push_back({"view " + copy.string() + " --frames 100000 --screenshot " + out + " --screenshot-ui " + out_again,
+                   "also --screenshot"});
+#endif
+  for (const auto& [command, mentions] : cases) {
+    const CommandRun r = run(command, "env -u DISPLAY");
+    EXPECT_EQ(r.exit_code, 2) << command << "\n" << r.err;
+    EXPECT_EQ(lines(r.err), 1) << r.err;
+    EXPECT_NE(r.err.find(mentions), std::string::npos) << command << "\n" << r.err;
+  }
+  EXPECT_EQ(read_file(copy), scene_text);
+  EXPECT_FALSE(fs::exists(out));
+}
+
+// A FIFO with no writer is waited for, and Ctrl-C ends the wait at once with 130; an endless device
+// is a one-line error (no JSON object starts with a NUL byte), not a read until memory runs out.
+TEST_F(Cli, InputsFromPipesAndEndlessDevicesNeverHang) {
+  const fs::path fifo = directory_ / "waiting.json";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  for (const std::vector<std::string>& arguments :
+       {std::vector<std::string>{"solve", fifo.string()}, {"compare", fifo.string(), fifo.string()}}) {
+    const Stopped stopped = run_and_signal(arguments, SIGINT, 0.5, directory_);
+    EXPECT_EQ(stopped.exit_code, 130) << arguments[0] << ": " << read_file(directory_ / "signal.log");
+    EXPECT_LT(stopped.seconds_to_stop, 1.0) << arguments[0];
+  }
+  const fs::path zero = make_device(directory_, "zero", 5);
+  if (zero.empty()) GTEST_SKIP() << "making a device node needs root";
+  const fs::path result = directory_ / "r.json";
+  ASSERT_EQ(run("solve " + scene("penumbra.json") + " --photons 20000 --quiet --out " + result.string()).exit_code, 0);
+  for (const std::string& command : {"solve " + zero.string(), "compare " + result.string() + " " + zero.string()}) {
+    const auto start = std::chrono::steady_clock::now();
+    const CommandRun r = run(command);
+    EXPECT_EQ(r.exit_code, 2) << command;
+    EXPECT_EQ(lines(r.err), 1) << r.err;
+    EXPECT_NE(r.err.find("zero:1:1: "), std::string::npos) << r.err;  // the first byte, as for any file
+    EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), 5.0);
+  }
+}
+
+// Threads the system refuses (an address-space limit leaves no room for more stacks) are done
+// without: the solve and the reference run on those that started and say so; the same bits.
+TEST_F(Cli, ThreadsTheSystemRefusesAreDoneWithout) {
+#if defined(__SANITIZE_ADDRESS__)
+  GTEST_SKIP() << "AddressSanitizer reserves more address space than the limit allows";
+#endif
+  const std::string penumbra = scene("penumbra.json");
+  const fs::path many = directory_ / "many.json";
+  const fs::path one = directory_ / "one.json";
+  const CommandRun limited = run("solve " + penumbra + " --photons 100000 --threads 1000 --out " + many.string(),
+                                 "ulimit -v 1500000;");
+  ASSERT_EQ(limited.exit_code, 0) << limited.err;
+  EXPECT_NE(limited.err.find("of the 1000 threads asked for"), std::string::npos) << limited.err;
+  ASSERT_EQ(run("solve " + penumbra + " --photons 100000 --threads 1 --quiet --out " + one.string()).exit_code, 0);
+  auto solution = [](const fs::path& path) {
+    nlohmann::json result = nlohmann::json::parse(read_file(path));
+    result["stats"].erase("seconds");
+    result["settings"].erase("threads");
+    return result.dump();
+  };
+  EXPECT_EQ(solution(many), solution(one));
+  const CommandRun reference = run("reference " + penumbra + " --elements 2000 --no-error-estimate --threads 1000",
+                                   "ulimit -v 1500000;");
+  EXPECT_EQ(reference.exit_code, 0) << reference.err;
+  EXPECT_NE(reference.err.find("threads asked for"), std::string::npos) << reference.err;
+}
+
+// Numbers outside what an option means are refused, as Python refuses them, never wrapped round.
+TEST_F(Cli, OptionValuesOutsideTheirMeaningAreRefused) {
+  const std::string penumbra = scene("penumbra.json");
+  for (const char* seed : {"-1", "18446744073709551616", "1e26", "1.5", "0x10"}) {
+    const CommandRun r = run("solve " + penumbra + " --photons 1000 --seed " + std::string(seed));
+    EXPECT_EQ(r.exit_code, 2) << seed;
+    EXPECT_EQ(lines(r.err), 1) << r.err;
+    EXPECT_NE(r.err.find("--seed"), std::string::npos) << r.err;
+  }
+  const fs::path largest = directory_ / "largest.json";
+  ASSERT_EQ(run("solve " + penumbra + " --photons 1000 --quiet --seed 18446744073709551615 --out " + largest.string()).exit_code, 0);
+  EXPECT_EQ(nlohmann::json::parse(read_file(largest))["settings"]["seed"].get<std::uint64_t>(), 18446744073709551615ull);
+
+  const CommandRun wide = run("solve " + penumbra + " --photons 1000 --ray-width 1e300");
+  EXPECT_EQ(wide.exit_code, 2);
+  EXPECT_NE(wide.err.find("wider than the scene"), std::string::npos) << wide.err;
+
+  const std::string converge = "converge " + penumbra + " --out " + (directory_ / "c").string();
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {converge + " --times 1e300", "--times"},
+      {converge + " --methods cubic,cubic", "given twice"},
+      {converge + " --methods basis=cubic+basis=linear", "given twice"},
+      {converge + " --elements 100000", "65536"},
+      {converge + " --budgets 1e16", "2^50"},
+  };
+  for (const auto& [command, mentions] : cases) {
+    const auto start = std::chrono::steady_clock::now();
+    const CommandRun r = run(command);
+    EXPECT_EQ(r.exit_code, 2) << command;
+    EXPECT_EQ(lines(r.err), 1) << r.err;
+    EXPECT_NE(r.err.find(mentions), std::string::npos) << command << "\n" << r.err;
+    EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), 5.0) << command;
+  }
+  const CommandRun help = run("converge --help");
+  EXPECT_NE(help.out.find("65536"), std::string::npos);
+  EXPECT_EQ(help.out.find("1048576"), std::string::npos);
+}
+
+// Results of different scene files (their SHA-256 differ) are never compared: compare, solve
+// --reference and converge --reference refuse them, the last two before any solve.
+TEST_F(Cli, ResultsOfDifferentSceneFilesAreNotCompared) {
+  const fs::path bright = directory_ / "bright.json";
+  nlohmann::json changed = nlohmann::json::parse(read_file(scene("penumbra.json")));
+  changed["materials"]["emitter"]["emittance"] = 2.0;
+  std::ofstream(bright) << changed.dump(1);
+  const fs::path a = directory_ / "a.json";
+  const fs::path b = directory_ / "b.json";
+  ASSERT_EQ(run("solve " + scene("penumbra.json") + " --photons 20000 --samples 10 --quiet --out " + a.string()).exit_code, 0);
+  ASSERT_EQ(run("solve " + bright.string() + " --photons 20000 --samples 10 --quiet --out " + b.string()).exit_code, 0);
+  for (const std::string& command :
+       {"compare " + a.string() + " " + b.string(),
+        "solve " + bright.string() + " --photons 1e15 --samples 10 --reference " + a.string(),
+        "converge " + bright.string() + " --budgets 1e15 --samples 10 --reference " + a.string() + " --out " +
+            (directory_ / "c").string()}) {
+    const CommandRun r = run(command);
+    EXPECT_EQ(r.exit_code, 2) << command;
+    EXPECT_EQ(lines(r.err), 1) << r.err;
+    EXPECT_NE(r.err.find("scene file"), std::string::npos) << command << "\n" << r.err;
+  }
+  // A malformed result names what is missing, in the program's words.
+  nlohmann::json broken = nlohmann::json::parse(read_file(a));
+  broken["curves"][0]["samples"][0].erase("B");
+  std::ofstream(directory_ / "broken.json") << broken.dump();
+  const CommandRun r = run("compare " + (directory_ / "broken.json").string() + " " + a.string());
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_EQ(lines(r.err), 1) << r.err;
+  EXPECT_NE(r.err.find("has no \"B\""), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("json.exception"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("--measure total"), std::string::npos) << r.err;
+}
+
+// A scene path that is not valid UTF-8 ends up in the result's "file": it is written with the
+// invalid bytes replaced (it used to abort after the solve).
+TEST_F(Cli, AScenePathThatIsNotUtf8IsWritten) {
+  const fs::path odd = directory_ / "bad\xff.json";
+  fs::copy_file(scene("penumbra.json"), odd);
+  const fs::path out = directory_ / "r.json";
+  const CommandRun r = run("solve " + shell_quoted(odd.string()) + " --photons 20000 --samples 5 --quiet --out " + out.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const nlohmann::json result = nlohmann::json::parse(read_file(out));
+  EXPECT_NE(result["scene"]["file"].get<std::string>().find("bad\xEF\xBF\xBD.json"), std::string::npos);
+}
+
+TEST_F(Cli, ResultsTooLargeAndStorageBeyondMemoryAreRefusedAtOnce) {
+  // 40 curves x 1e6 samples, hundreds of bytes each, would be a result of several GB, more than
+  // flatland reads back: refused before the (1e15-photon) solve, with a count that fits.
+  nlohmann::json many = {{"flatland", 1}, {"materials", {{"lamp", {{"emittance", 1}}}}}, {"curves", nlohmann::json::array()}};
+  for (int i = 0; i < 40; ++i)
+    many["curves"].push_back({{"id", "c" + std::to_string(i)}, {"material", "lamp"},
+                              {"line", {{i, 0}, {i, 1}}}});
+  const fs::path file = directory_ / "many.json";
+  std::ofstream(file) << many.dump();
+  const CommandRun samples = run("solve " + file.string() + " --photons 1e15 --samples 1000000 --out " +
+                                 (directory_ / "r.json").string());
+  EXPECT_EQ(samples.exit_code, 2);
+  const std::size_t at = samples.err.find("give at most --samples ");
+  ASSERT_NE(at, std::string::npos) << samples.err;
+  const long fits = std::atol(samples.err.c_str() + at + 23);
+  EXPECT_GT(fits, 0) << samples.err;
+  EXPECT_LT(fits, 1'000'000) << samples.err;
+}
+
 
 // Ctrl-C and SIGTERM stop long work within about a second, with exit code 130 and nothing
 // written: the reference (which used to ignore both and run for hours) and a solve.
@@ -749,6 +1026,101 @@ TEST_F(Cli, MpiBadInputIsReportedOnceWithExitCode2) {
       ++errors;
     EXPECT_EQ(errors, 1u) << command << "\n" << r.err;
   }
+}
+
+// An MPMD launch (mpirun -np 1 A : -np 1 B): rank 0 runs `first`, rank 1 `second`, each with its
+// own mpirun arguments (a working directory, say).
+CommandRun mpmd(const std::string& first, const std::string& second, const fs::path& directory,
+                const std::string& first_place = "", const std::string& second_place = "") {
+  const std::string launcher = "OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 "
+                               "ASAN_OPTIONS=${ASAN_OPTIONS:+$ASAN_OPTIONS:}detect_leaks=0 " +
+                               std::string(FLATLAND_MPIRUN) + " --oversubscribe -np 1 " + first_place + " " +
+                               FLATLAND_BINARY + " " + first + " : -np 1 " + second_place;
+  return testing::run_flatland(second, directory, launcher);
+}
+
+// Every process must be given the same command (only --threads may differ) and read the same scene
+// bytes; otherwise all stop at once with exit code 2 and a message naming what differs. (They used
+// to crash, hang, or write a result that named one seed and was made with two.)
+TEST_F(Cli, MpiProcessesMustAgreeOnTheCommandAndTheScene) {
+  const std::string solve = "solve " + scene("penumbra.json") + " --photons 100000 --quiet";
+  const struct {
+    std::string first, second, mentions;
+  } cases[] = {
+      {solve + " --seed 1", solve + " --seed 2", "'--seed 2' here"},
+      {solve, "converge " + scene("penumbra.json"), "'converge' here"},
+      {solve, solve + " --help", "'--help' here"},
+      {solve + " --basis cubic", solve + " --basis linear", "'--basis linear' here"},
+  };
+  for (const auto& c : cases) {
+    const CommandRun r = mpmd(c.first, c.second, directory_);
+    EXPECT_EQ(r.exit_code, 2) << c.second << "\n" << r.err;
+    EXPECT_NE(r.err.find(c.mentions), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("process 1 of 2"), std::string::npos) << r.err;
+    EXPECT_EQ(r.out.find("solved"), std::string::npos) << r.out;
+  }
+  // Threads may differ: each process sets its own machine's.
+  const CommandRun threads = mpmd(solve + " --threads 1", solve + " --threads=2", directory_);
+  EXPECT_EQ(threads.exit_code, 0) << threads.err;
+  // The same path, other bytes (two machines with two versions of a scene): the working
+  // directories differ here.
+  for (const char* place : {"a", "b"}) {
+    fs::create_directory(directory_ / place);
+    nlohmann::json version = nlohmann::json::parse(read_file(scene("penumbra.json")));
+    version["materials"]["emitter"]["emittance"] = place[0] == 'a' ? 1.0 : 2.0;
+    std::ofstream(directory_ / place / "s.json") << version.dump(1);
+  }
+  const std::string same_path = "solve s.json --photons 100000 --quiet";
+  const CommandRun bytes = mpmd(same_path, same_path, directory_, "-wdir " + (directory_ / "a").string(),
+                                "-wdir " + (directory_ / "b").string());
+  EXPECT_EQ(bytes.exit_code, 2) << bytes.err;
+  EXPECT_NE(bytes.err.find("another scene file than process 0"), std::string::npos) << bytes.err;
+}
+
+// Ctrl-C (SIGINT) to one process stops every process within a fraction of a second, wherever each
+// is in its round, with exit code 130 and nothing written (the others used to finish their share
+// of the round first).
+TEST_F(Cli, MpiInterruptOfOneProcessStopsThemAll) {
+  const fs::path out = directory_ / "r.json";
+  const std::string command = "exec env OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 "
+                              "ASAN_OPTIONS=${ASAN_OPTIONS:+$ASAN_OPTIONS:}detect_leaks=0 " +
+                              std::string(FLATLAND_MPIRUN) + " --oversubscribe -np 2 " + FLATLAND_BINARY + " solve " +
+                              scene("default.json") + " --photons 1e12 --threads 1 --out " + out.string() +
+                              " >/dev/null 2>" + (directory_ / "mpirun.log").string();
+  const pid_t launcher = ::fork();
+  if (launcher == 0) {
+    ::execl("/bin/sh", "sh", "-c", command.c_str(), static_cast<char*>(nullptr));
+    ::_exit(127);
+  }
+  // The processes of the run: mpirun's children, once both are shooting.
+  std::vector<pid_t> ranks;
+  for (int tries = 0; tries < 100 && ranks.size() < 2; ++tries) {
+    ::usleep(100'000);
+    ranks.clear();
+    std::ifstream children("/proc/" + std::to_string(launcher) + "/task/" + std::to_string(launcher) + "/children");
+    for (pid_t pid = 0; children >> pid;) ranks.push_back(pid);
+  }
+  ASSERT_EQ(ranks.size(), 2u);
+  ::sleep(2);
+  const auto sent = std::chrono::steady_clock::now();
+  ::kill(ranks[1], SIGINT);
+  auto gone = [](pid_t pid) {
+    std::ifstream status("/proc/" + std::to_string(pid) + "/status");
+    std::string line;
+    while (std::getline(status, line))
+      if (line.rfind("State:", 0) == 0) return line.find('Z') != std::string::npos;
+    return true;
+  };
+  while (!(gone(ranks[0]) && gone(ranks[1])) &&
+         std::chrono::duration<double>(std::chrono::steady_clock::now() - sent).count() < 30.0)
+    ::usleep(10'000);
+  const double stopped = std::chrono::duration<double>(std::chrono::steady_clock::now() - sent).count();
+  int status = 0;
+  ::waitpid(launcher, &status, 0);
+  EXPECT_LT(stopped, 1.0) << read_file(directory_ / "mpirun.log");
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 130) << read_file(directory_ / "mpirun.log");
+  EXPECT_FALSE(fs::exists(out));
 }
 
 TEST_F(Cli, MpiConvergeDealsRunsOutAndWritesOneTable) {

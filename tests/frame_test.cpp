@@ -282,6 +282,28 @@ TEST(Frame, OverlayStaysOnTheCurvesWithinItsPixelOffsets) {
   }
 }
 
+// The bound that render checks memory with, before anything is drawn: the overlay of every curve
+// with B on both sides, band, graph and stroke, is never larger, and the bound is tight.
+TEST(Frame, OverlayVertexBoundHoldsAndIsTight) {
+  auto scene = std::make_shared<const Scene>(testing::scene_from_file("scenes2d/default.json"));
+  Snapshot snapshot;
+  snapshot.scene = scene;
+  auto traces = std::make_shared<const std::vector<CurveTrace>>(trace_curves(*scene));
+  snapshot.traces = traces;
+  snapshot.radiosity.resize(scene->curves.size());
+  for (std::size_t c = 0; c < scene->curves.size(); ++c)
+    for (int side = 0; side < 2; ++side)
+      snapshot.radiosity[c][static_cast<std::size_t>(side)].assign((*traces)[c].points.size(), Spectrum{1.0, 2.0, 3.0});
+  DrawOptions options;
+  options.band = options.graph = options.curves = true;
+  options.discontinuities = options.storage_nodes = false;
+  const std::size_t drawn = build_overlay(snapshot, options).size();
+  const std::size_t bound = overlay_vertex_bound(*scene);
+  EXPECT_LE(drawn, bound);
+  EXPECT_GE(static_cast<double>(drawn), 0.95 * static_cast<double>(bound));
+  EXPECT_GT(render_memory_bound(*scene, 0), static_cast<double>(bound * sizeof(LineVertex)));
+}
+
 TEST(Frame, ColourMapBrightensWithRadiosity) {
   double previous = -1.0;
   for (int i = 0; i <= 20; ++i) {

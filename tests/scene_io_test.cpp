@@ -630,7 +630,7 @@ TEST(SceneIoFiles, MissingFileAndDirectory) {
   const Result<Scene> missing = load_scene("/nonexistent/dir/scene.json");
   ASSERT_FALSE(missing.ok());
   EXPECT_EQ(missing.error().message,
-            "/nonexistent/dir/scene.json: cannot read scene file: No such file or directory");
+            "/nonexistent/dir/scene.json: cannot read the scene file: No such file or directory");
   const Result<Scene> directory = load_scene(kSourceDir + "/scenes2d");
   ASSERT_FALSE(directory.ok());
   EXPECT_CONTAINS(directory.error().message, "scenes2d: is a directory, not a scene file");

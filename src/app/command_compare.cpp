@@ -36,19 +36,19 @@ nlohmann::json comparison_to_json(const Comparison& comparison, const std::strin
 }
 
 void print_comparison(const Comparison& comparison, bool scene_row) {
-  std::printf("%s\n", comparison.measure == Measure::Reflected
+  std::fprintf(report_stream(), "%s\n", comparison.measure == Measure::Reflected
                           ? "errors of the reflected part B - E (emitted light E is exact in every method)"
                           : "errors of the radiosity B (emitted + reflected)");
-  std::printf("%-24s %12s %12s %12s\n", "curve", "rel. L1", "rel. L2", "rel. Linf");
+  std::fprintf(report_stream(), "%-24s %12s %12s %12s\n", "curve", "rel. L1", "rel. L2", "rel. Linf");
   for (const CurveError& curve : comparison.curves) {
     if (curve.measured)
-      std::printf("%-24s %12.4e %12.4e %12.4e\n", curve.id.c_str(), curve.norms.l1, curve.norms.l2,
+      std::fprintf(report_stream(), "%-24s %12.4e %12.4e %12.4e\n", curve.id.c_str(), curve.norms.l1, curve.norms.l2,
                   curve.norms.linf);
     else
-      std::printf("%-24s %38s\n", curve.id.c_str(), "(reflects no light in the reference)");
+      std::fprintf(report_stream(), "%-24s %38s\n", curve.id.c_str(), "(reflects no light in the reference)");
   }
   if (scene_row)
-    std::printf("%-24s %12.4e %12.4e %12.4e\n", "(scene)", comparison.scene.l1, comparison.scene.l2,
+    std::fprintf(report_stream(), "%-24s %12.4e %12.4e %12.4e\n", "(scene)", comparison.scene.l1, comparison.scene.l2,
                 comparison.scene.linf);
 }
 
@@ -73,22 +73,16 @@ CLI::App* add_compare_command(CLI::App& parent, CompareOptions& o) {
 }
 
 int run_compare(const CompareOptions& o) {
-  Result<nlohmann::json> result = read_result_file(o.result);
-  if (!result) {
-    std::fprintf(stderr, "flatland: error: %s\n", result.error().message.c_str());
-    return kExitUsage;
-  }
-  Result<nlohmann::json> reference = read_result_file(o.reference);
-  if (!reference) {
-    std::fprintf(stderr, "flatland: error: %s\n", reference.error().message.c_str());
-    return kExitUsage;
-  }
+  Result<nlohmann::json> result = read_result_file(o.result, &interrupt_flag());
+  if (!result) return input_error(result.error());
+  Result<nlohmann::json> reference = read_result_file(o.reference, &interrupt_flag());
+  if (!reference) return input_error(reference.error());
   const Measure measure = parse_measure(o.measure);
   Result<Comparison> comparison = compare_results(*result, *reference, measure);
   if (!comparison) {
-    std::fprintf(stderr, "flatland: error: %s and %s: %s%s\n", o.result.c_str(), o.reference.c_str(),
-                 comparison.error().message.c_str(), measure == Measure::Reflected ? " (--measure total)" : "");
-    return kExitUsage;
+    const std::string& message = comparison.error().message;
+    return usage_error(o.result + " and " + o.reference + ": " + message +
+                       (message == kNothingReflected ? " (--measure total)" : ""));
   }
   if (!o.curve.empty()) {
     std::vector<std::string> ids;

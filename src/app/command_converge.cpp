@@ -304,8 +304,12 @@ std::vector<std::string> csv_fields(const std::string& line) {
 
 Result<std::vector<Row>> read_rows(const fs::path& path, std::vector<std::string>& methods, int& seeds,
                                    int& elements, Measured& measured) {
-  std::ifstream in(path);
-  if (!in) return Error{path.string() + ": cannot read it (run converge without --replot first)"};
+  Result<std::string> table = read_input_file(path.string(), "convergence table", &interrupt_flag(), InputContent::Text);
+  if (!table) {
+    if (table.error().message == kFileWaitCancelled) return table.error();
+    return Error{table.error().message + " (run converge without --replot first)"};
+  }
+  std::istringstream in(*table);
   std::string line;
   std::getline(in, line);
   std::vector<std::string> header = split(line);
@@ -387,6 +391,10 @@ Result<std::vector<Row>> read_rows(const fs::path& path, std::vector<std::string
   return rows;
 }
 
+// The longest run --times may ask for: at any rate a machine reaches (below 1e9 photons/s) its
+// photons stay below kMaxPhotons.
+constexpr double kMaxRunSeconds = 1e6;
+
 // What to run: the methods of --methods and the budgets of --budgets (photons) or --times
 // (seconds), parsed and checked before any work.
 struct Plan {
@@ -400,8 +408,10 @@ Result<Plan> parse_plan(const ConvergeOptions& o) {
   SolverSettings defaults;
   defaults.threads = o.threads;
   defaults.tolerance = o.tolerance;
-  defaults.elements = *elements_from_string(o.elements, 1 << 20);
+  defaults.elements = *elements_from_string(o.elements, kMaxElements);
   for (const std::string& text : split(o.methods)) {
+    for (const Method& earlier : plan.methods)
+      if (earlier.name == text) return Error{"--methods: '" + text + "' is given twice; give each method once"};
     Result<Method> method = parse_converge_method(text, defaults);
     if (!method) return method.error();
     plan.methods.push_back(std::move(*method));
@@ -413,6 +423,12 @@ Result<Plan> parse_plan(const ConvergeOptions& o) {
     const double value = std::strtod(text.c_str(), &end);
     if (end == text.c_str() || *end != '\0' || !(value > 0.0) || !std::isfinite(value))
       return Error{std::string(plan.by_time ? "--times" : "--budgets") + ": '" + text + "' is not a positive number"};
+    if (plan.by_time && value > kMaxRunSeconds)
+      return Error{"--times: '" + text + "' seconds is more than a run may take (at most " +
+                   std::to_string(static_cast<long>(kMaxRunSeconds)) + " s, about 12 days)"};
+    if (!plan.by_time) {
+      if (Result<std::uint64_t> count = parse_count(text, "--budgets"); !count) return count.error();
+    }
     plan.budgets.push_back(value);
   }
   if (plan.budgets.empty()) return Error{"--budgets: give at least one budget"};
@@ -454,7 +470,7 @@ CLI::App* add_converge_command(CLI::App& parent, ConvergeOptions& o) {
   budgets->excludes(times);
   cmd->add_option("--seeds", o.seeds, "Seeds per method and budget")
       ->capture_default_str()
-      ->check(CLI::Range(1, 1000));
+      ->check(CLI::Range(1, kMaxSeeds));
   cmd->add_option("--samples", o.samples, "Samples per curve (the reference is solved with these)")
       ->capture_default_str()
       ->check(CLI::Range(1, 1000000));
@@ -465,7 +481,7 @@ CLI::App* add_converge_command(CLI::App& parent, ConvergeOptions& o) {
                   "Storage elements per curve of every method, or auto (each curve's mesh follows "
                   "its photons); a method's elements=N overrides it")
       ->capture_default_str()
-      ->check(elements_check(1 << 20));
+      ->check(elements_check(kMaxElements));
   cmd->add_option("--tolerance", o.tolerance,
                   "Unshot-power tolerance of every solve (a method's tolerance=X overrides it); "
                   "small, so that each solve spends its whole budget")
@@ -550,13 +566,15 @@ int run_converge(ConvergeOptions& o) {
   // A replot draws what a run wrote: rank 0's work alone.
   if (o.replot && !speaks_for_the_run()) return kExitOk;
   Result<Plan> plan = parse_plan(o);
-  Result<Scene> scene = plan ? load_scene(o.scene) : Result<Scene>(Error{""});
+  Result<Scene> scene = plan ? load_scene(o.scene, &interrupt_flag()) : Result<Scene>(Error{""});
   std::optional<int> unusable;
   if (!plan) unusable = usage_error(plan.error().message);
-  else if (!scene) unusable = usage_error(scene.error().message);
+  else if (!scene) unusable = input_error(scene.error());
   if (o.replot && unusable) return *unusable;
-  if (!o.replot)
+  if (!o.replot) {
     if (const std::optional<int> code = agree(unusable)) return *code;
+    if (const std::optional<int> code = agree_on_digest("scene file", o.scene, scene->source_sha256)) return *code;
+  }
   std::vector<Method>& methods = plan->methods;
   const std::vector<double>& budgets = plan->budgets;
   const bool by_time = plan->by_time;
@@ -568,11 +586,11 @@ int run_converge(ConvergeOptions& o) {
     int elements = 0;
     Measured table_measured;
     Result<std::vector<Row>> rows = read_rows(directory / "convergence.csv", names, seeds, elements, table_measured);
-    if (!rows) return usage_error(rows.error().message);
+    if (!rows) return input_error(rows.error());
     double floor = -1.0;
     if (!o.reference.empty()) {
-      Result<nlohmann::json> read = read_result_file(o.reference);
-      if (!read) return usage_error(read.error().message);
+      Result<nlohmann::json> read = read_result_file(o.reference, &interrupt_flag());
+      if (!read) return input_error(read.error());
       floor = floor_for(*read, estimated_error_of(*read), table_measured);
     }
     if (Status status = draw_plot({directory, scene->name, elements, seeds, names, *rows, table_measured, floor});
@@ -622,8 +640,8 @@ int run_converge(ConvergeOptions& o) {
     // The reference, and an estimate of its own error from solves with elements twice and four
     // times as long (the order observed from the three; docs/reference.md): the plot's floor.
     if (!o.reference.empty()) {
-      Result<nlohmann::json> read = read_result_file(o.reference);
-      if (!read) return usage_error(read.error().message);
+      Result<nlohmann::json> read = read_result_file(o.reference, &interrupt_flag());
+      if (!read) return input_error(read.error());
       reference = std::move(*read);
       floor = estimated_error_of(reference);
       // Of this scene, sampled as the runs will be: said now, not after the first solve.
@@ -653,7 +671,7 @@ int run_converge(ConvergeOptions& o) {
     Result<Comparison> self = compare_results(reference, reference, measured.measure);
     if (!self)
       return usage_error("--measure " + o.measure + ": " + (o.reference.empty() ? "" : o.reference + ": ") +
-                         self.error().message + (measured.measure == Measure::Reflected ? " (--measure total)" : ""));
+                         self.error().message + (self.error().message == kNothingReflected ? " (--measure total)" : ""));
     if (!o.curve.empty() && !self->curves[curve_index].measured)
       return usage_error("--curve: '" + o.curve + "' reflects no light in the reference (B - E is zero along "
                          "it), so it has no relative error of B - E; use --measure total");
@@ -701,7 +719,13 @@ int run_converge(ConvergeOptions& o) {
         const std::size_t run = (m * budgets.size() + b) * static_cast<std::size_t>(o.seeds) + (seed - 1);
         if (run % processes != process_rank()) continue;
         SolverSettings settings = methods[m].settings;
-        settings.photons = static_cast<std::uint64_t>(std::max(1.0, by_time ? budgets[b] * rate : budgets[b]));
+        const double photons = std::max(1.0, by_time ? std::floor(budgets[b] * rate) : budgets[b]);
+        if (photons > static_cast<double>(kMaxPhotons)) {
+          failure = usage_error("--times: " + std::to_string(budgets[b]) + " s at the measured " +
+                                human_count(rate) + " photons/s is more than the 2^50 photons a solve may shoot");
+          break;
+        }
+        settings.photons = static_cast<std::uint64_t>(photons);
         settings.seed = static_cast<std::uint64_t>(seed);
         Result<Row> row = converge_run(*scene, settings, *sampled_reference, measured.measure,
                                        o.curve.empty() ? std::nullopt : std::optional<std::size_t>(curve_index),

@@ -82,8 +82,8 @@ Result<ErrorNorms> estimate_reference_error(const Scene& scene, ReferenceSetting
 }
 
 int run_reference(ReferenceOptions& o) {
-  Result<Scene> scene = load_scene(o.scene);
-  if (!scene) return usage_error(scene.error().message);
+  Result<Scene> scene = load_scene(o.scene, &interrupt_flag());
+  if (!scene) return input_error(scene.error());
   if (o.max_element_length != 0.0) {
     if (!(o.max_element_length > 0.0) || !std::isfinite(o.max_element_length))
       return usage_error("--max-element-length: must be a positive length");
@@ -92,7 +92,7 @@ int run_reference(ReferenceOptions& o) {
     o.settings.max_element_length = scene->scale / o.elements;
   }
   if (Status status = validate(o.settings); !status) return usage_error(status.error().message);
-  if (const std::optional<int> code = check_outputs({o.out})) return *code;
+  if (const std::optional<int> code = check_outputs({{"--out", o.out}}, {{"scene file", o.scene}})) return *code;
   if (!o.out.empty())
     if (Status status = check_result_size(*scene, o.samples); !status) return usage_error(status.error().message);
   o.settings.cancel = &interrupt_flag();
@@ -114,6 +114,8 @@ int run_reference(ReferenceOptions& o) {
   Result<ReferenceSolution> solution = solve_reference(*scene, o.settings);
   line.finish();
   if (!solution) return reference_failure(solution.error());
+  if (!o.quiet && !solution->thread_shortfall().empty())
+    note(solution->thread_shortfall() + "; the reference is the same on any thread count");
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   const ReferenceSolution& reference = *solution;
   const SampledResult sampled = sample_radiosity(
@@ -135,21 +137,22 @@ int run_reference(ReferenceOptions& o) {
     estimated = *estimate;
   }
   if (!o.quiet) {
-    std::printf("scene     %s (%s): %zu curves\n", scene->name.c_str(), scene->source.c_str(),
+    std::FILE* out = report_stream();
+    std::fprintf(out, "scene     %s (%s): %zu curves\n", scene->name.c_str(), scene->source.c_str(),
                 scene->curves.size());
-    std::printf("reference %zu elements, %d GMRES steps, residual %.2g, linear-solve error below %.2g%s\n",
+    std::fprintf(out, "reference %zu elements, %d GMRES steps, residual %.2g, linear-solve error below %.2g%s\n",
                 solution->elements(), solution->iterations(), solution->residual(),
                 solution->error_bound(),
                 solution->error_bound() > o.settings.tolerance ? " (tolerance not reached: round-off)" : "");
-    std::printf("time      %.3f s (form factors %.3f s, solve %.3f s)\n", seconds,
+    std::fprintf(out, "time      %.3f s (form factors %.3f s, solve %.3f s)\n", seconds,
                 solution->form_factor_seconds(), solution->solve_seconds());
     if (estimated) {
       const ErrorNorms& e = estimated->error;
       if (std::isnan(estimated->order))
-        std::printf("accuracy  estimated relative error L1 %.2g, L2 %.2g, Linf %.2g (no order: %s)\n", e.l1,
+        std::fprintf(out, "accuracy  estimated relative error L1 %.2g, L2 %.2g, Linf %.2g (no order: %s)\n", e.l1,
                     e.l2, e.linf, estimated->note.c_str());
       else
-        std::printf("accuracy  estimated relative error L1 %.2g, L2 %.2g, Linf %.2g (observed order %.2f "
+        std::fprintf(out, "accuracy  estimated relative error L1 %.2g, L2 %.2g, Linf %.2g (observed order %.2f "
                     "from elements 1, 2 and 4 times as long%s%s)\n",
                     e.l1, e.l2, e.linf, estimated->order, estimated->note.empty() ? "" : ": ",
                     estimated->note.c_str());
@@ -158,10 +161,10 @@ int run_reference(ReferenceOptions& o) {
   if (!o.out.empty()) {
     const nlohmann::json result = reference_result_to_json(*scene, o.settings, *solution, o.samples, seconds,
                                                            estimated ? &*estimated : nullptr, curves);
-    OutputFiles files;
+    OutputFiles files(&interrupt_flag());
     if (Status status = files.stage(o.out, json_text(result)); !status) return usage_error(status.error().message);
     if (const std::optional<int> code = commit_outputs(files)) return *code;
-    if (!o.quiet) std::printf("wrote     %s\n", o.out.c_str());
+    if (!o.quiet) std::fprintf(report_stream(), "wrote     %s\n", o.out.c_str());
   }
   return kExitOk;
 }

@@ -7,6 +7,7 @@
 #include "app/commands.hpp"
 #include "app/output.hpp"
 #include "app/progress.hpp"
+#include "flatland/resources.hpp"
 #include "flatland/result_io.hpp"
 #include "png/png_io.hpp"
 #include "viewer/offscreen.hpp"
@@ -49,15 +50,23 @@ int run_render(RenderOptions& o) {
     std::fprintf(stderr, "flatland: error: %s\n", status.error().message.c_str());
     return kExitUsage;
   }
-  Result<Scene> loaded = load_scene(o.solve.scene);
-  if (!loaded) {
-    std::fprintf(stderr, "flatland: error: %s\n", loaded.error().message.c_str());
-    return kExitUsage;
-  }
+  Result<Scene> loaded = load_scene(o.solve.scene, &interrupt_flag());
+  if (!loaded) return input_error(loaded.error());
   auto scene = std::make_shared<const Scene>(std::move(*loaded));
-  if (const std::optional<int> code = check_outputs({o.out, o.result})) return *code;
+  if (const std::optional<int> code =
+          check_outputs({{"--out", o.out}, {"--result", o.result}}, {{"scene file", o.solve.scene}}))
+    return *code;
   if (!o.result.empty())
     if (Status status = check_result_size(*scene, o.solve.samples); !status) return usage_error(status.error().message);
+  // Drawing holds every curve's trace and overlay at once: refused now if it cannot fit (the solve
+  // checks its own storage against the same budget).
+  const double drawing = viewer::render_memory_bound(*scene, static_cast<std::size_t>(o.paths));
+  if (const double budget = static_cast<double>(default_memory_budget()); drawing > budget)
+    return usage_error(o.solve.scene + ": drawing its " + std::to_string(scene->curves.size()) + " curves and " +
+                       std::to_string(o.paths) + " paths would take about " + format_bytes(drawing) +
+                       ", more than the " + format_bytes(budget) +
+                       " this process may give it; draw a smaller scene or fewer --paths, or use flatland solve "
+                       "--out for the result alone");
   // GL before the solve: a machine that cannot render says so at once.
   Result<std::unique_ptr<viewer::OffscreenContext>> context = viewer::OffscreenContext::create(o.width, o.height);
   if (!context) {
@@ -96,6 +105,8 @@ int run_render(RenderOptions& o) {
     }
   }
   if (const std::optional<int> code = abnormal_stop(solver)) return *code;
+  if (!o.solve.quiet && !solver.thread_shortfall().empty())
+    note(solver.thread_shortfall() + "; the results are the same bits on any thread count");
 
   viewer::Snapshot snapshot;
   snapshot.scene = scene;
@@ -118,7 +129,7 @@ int run_render(RenderOptions& o) {
   png::PngImage image{o.width, o.height, 4, viewer::Renderer::read_pixels(o.width, o.height)};
   for (std::size_t i = 3; i < image.pixels.size(); i += 4) image.pixels[i] = 255;
 
-  OutputFiles files;
+  OutputFiles files(&interrupt_flag());
   if (!o.result.empty())
     if (Status status = files.stage(o.result, result_text(solver, o.solve.samples)); !status)
       return usage_error(status.error().message);
@@ -127,12 +138,13 @@ int run_render(RenderOptions& o) {
   if (Status status = files.stage(o.out, *png); !status) return usage_error(status.error().message);
   if (const std::optional<int> code = commit_outputs(files)) return *code;
   if (!o.solve.quiet) {
-    if (!o.result.empty()) std::printf("wrote     %s\n", o.result.c_str());
-    std::printf("solved    %llu %s (%llu rays) in %u rounds, %.3f s\n",
+    std::FILE* out = report_stream();
+    if (!o.result.empty()) std::fprintf(out, "wrote     %s\n", o.result.c_str());
+    std::fprintf(out, "solved    %llu %s (%llu rays) in %u rounds, %.3f s\n",
                 static_cast<unsigned long long>(solver.photons_shot()),
                 solver.settings().transport == Transport::Walk ? "walks" : "photons",
                 static_cast<unsigned long long>(solver.rays_traced()), solver.rounds(), solver.seconds());
-    std::printf("wrote     %s (%dx%d, %zu paths)\n", o.out.c_str(), o.width, o.height, paths.size());
+    std::fprintf(out, "wrote     %s (%dx%d, %zu paths)\n", o.out.c_str(), o.width, o.height, paths.size());
   }
   return kExitOk;
 }

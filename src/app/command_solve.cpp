@@ -28,15 +28,28 @@ Result<std::uint64_t> parse_count(const std::string& text, const std::string& op
   if (end == text.c_str() || *end != '\0' || !std::isfinite(value)) return Error{hint};
   if (value != std::floor(value)) return Error{hint};
   if (value < 1.0) return Error{option + ": must be at least 1, got '" + text + "'"};
-  if (value > 0x1.0p53) return Error{option + ": at most 2^53, got '" + text + "'"};
+  if (value > static_cast<double>(kMaxPhotons))
+    return Error{option + ": at most 2^50 (about 1.1e15), got '" + text + "'"};
   return static_cast<std::uint64_t>(value);
+}
+
+Result<std::uint64_t> parse_seed(const std::string& text, const std::string& option) {
+  const std::string hint = option + ": expected a whole number from 0 to 18446744073709551615, got '" + text + "'";
+  if (text.empty() || text.size() > 20 || text.find_first_not_of("0123456789") != std::string::npos) return Error{hint};
+  std::uint64_t value = 0;
+  for (const char digit : text) {
+    const auto d = static_cast<std::uint64_t>(digit - '0');
+    if (value > (UINT64_MAX - d) / 10) return Error{hint};
+    value = value * 10 + d;
+  }
+  return value;
 }
 
 void add_solver_options(CLI::App* cmd, SolveOptions& o) {
   cmd->add_option("--photons", o.photons,
                   "Total photon budget over all rounds, e.g. 250000 or 1e6")
       ->capture_default_str();
-  cmd->add_option("--seed", o.settings.seed,
+  cmd->add_option("--seed", o.seed,
                   "Random seed; the same seed gives bit-identical results on any thread count")
       ->capture_default_str();
   cmd->add_option("--threads", o.settings.threads, "Worker threads (0: every core)")
@@ -104,7 +117,7 @@ void add_solver_options(CLI::App* cmd, SolveOptions& o) {
                   "one each), or auto: each curve's mesh follows the photons that land on it, "
                   "chosen after every round among nested halvings by least estimated error")
       ->capture_default_str()
-      ->check(elements_check(1 << 16));
+      ->check(elements_check(kMaxElements));
   cmd->add_option("--tolerance", o.settings.tolerance,
                   "Stop when the unshot power falls below this fraction of the emitted power")
       ->capture_default_str();
@@ -141,6 +154,7 @@ CLI::App* add_solve_command(CLI::App& parent, SolveOptions& o) {
 namespace {
 
 void print_summary(const Solver& solver) {
+  std::FILE* out = report_stream();
   const Scene& scene = solver.scene();
   std::size_t cubic_segments = 0;
   for (const SceneSegment& segment : scene.segments)
@@ -149,7 +163,7 @@ void print_summary(const Solver& solver) {
   const double rate = solver.seconds() > 0.0
                           ? static_cast<double>(solver.photons_shot()) / solver.seconds()
                           : 0.0;
-  std::printf("scene     %s (%s): %zu curves, %zu segments (%zu cubic), %s\n", scene.name.c_str(),
+  std::fprintf(out, "scene     %s (%s): %zu curves, %zu segments (%zu cubic), %s\n", scene.name.c_str(),
               scene.source.c_str(), scene.curves.size(), scene.segments.size(), cubic_segments,
               scene.channels == 1 ? "grey" : "colour");
   const SolverSettings& settings = solver.settings();
@@ -178,13 +192,13 @@ void print_summary(const Solver& solver) {
   } else {
     std::snprintf(storage_text, sizeof storage_text, "%d elements per curve", settings.elements);
   }
-  std::printf("method    %s%s basis (%s), %s, %s positions, discontinuities %s, "
+  std::fprintf(out, "method    %s%s basis (%s), %s, %s positions, discontinuities %s, "
               "%s, %s sampler\n",
               settings.transport == Transport::Walk ? "random walks, " : "", to_string(settings.basis), to_string(settings.estimator), storage_text,
               to_string(settings.sampling), to_string(settings.discontinuities), rays,
               to_string(settings.sampler));
   // What the scene made the solver use (and so what it left out).
-  std::printf("features  %s (%d channel%s), %s, %zu discontinuity nodes (%zu from contacts, %zu "
+  std::fprintf(out, "features  %s (%d channel%s), %s, %zu discontinuity nodes (%zu from contacts, %zu "
               "from visibility events), %zu storage coefficients\n",
               scene.channels == 1 ? "grey" : "colour", scene.channels, scene.channels == 1 ? "" : "s",
               cubic_segments == 0 ? "lines only (no cubic solver)"
@@ -198,22 +212,22 @@ void print_summary(const Solver& solver) {
     std::snprintf(workers, sizeof workers, "%u processes x %u threads", process_count(), solver.thread_count());
   else
     std::snprintf(workers, sizeof workers, "%u threads", solver.thread_count());
-  std::printf("solved    %s %s (%s rays) in %u rounds, %.3f s, %s %s/s on %s\n",
+  std::fprintf(out, "solved    %s %s (%s rays) in %u rounds, %.3f s, %s %s/s on %s\n",
               human_count(static_cast<double>(solver.photons_shot())).c_str(), walks ? "walks" : "photons",
               human_count(static_cast<double>(solver.rays_traced())).c_str(), solver.rounds(),
               solver.seconds(), human_count(rate).c_str(), walks ? "walks" : "photons", workers);
   if (walks)
-    std::printf("stopped   %s (walks end by themselves: nothing is left unshot)\n",
+    std::fprintf(out, "stopped   %s (walks end by themselves: nothing is left unshot)\n",
                 to_string(solver.stop_reason()));
   else
-    std::printf("stopped   %s: unshot power %.3g%% of emitted (tolerance %.3g%%)\n",
+    std::fprintf(out, "stopped   %s: unshot power %.3g%% of emitted (tolerance %.3g%%)\n",
                 to_string(solver.stop_reason()), 100.0 * books.unshot / books.emitted,
                 100.0 * solver.settings().tolerance);
   if (const RoundSharing* sharing = solver.round_sharing(); sharing != nullptr && solver.rounds() > 0)
-    std::printf("shared    %u processes summed %s bytes per round (%s in all, %u rounds)\n", sharing->size(),
+    std::fprintf(out, "shared    %u processes summed %s bytes per round (%s in all, %u rounds)\n", sharing->size(),
                 human_count(static_cast<double>(solver.bytes_shared()) / solver.rounds()).c_str(),
                 human_count(static_cast<double>(solver.bytes_shared())).c_str(), solver.rounds());
-  std::printf("energy    emitted %.6g = absorbed %.6g + escaped %.6g + unshot %.6g (imbalance %.2g)\n",
+  std::fprintf(out, "energy    emitted %.6g = absorbed %.6g + escaped %.6g + unshot %.6g (imbalance %.2g)\n",
               books.emitted, books.absorbed, books.escaped, books.unshot, books.imbalance());
 }
 
@@ -242,13 +256,16 @@ Status finish_solver_settings(SolveOptions& o) {
   Result<std::uint64_t> photons = parse_count(o.photons, "--photons");
   if (!photons) return photons.error();
   o.settings.photons = *photons;
+  Result<std::uint64_t> seed = parse_seed(o.seed, "--seed");
+  if (!seed) return seed.error();
+  o.settings.seed = *seed;
   // (The option checks have let only these names through.)
   o.settings.basis = *basis_from_string(o.basis);
   o.settings.discontinuities = *discontinuity_mode_from_string(o.discontinuities);
   o.settings.ray_profile = *parse_ray_profile(o.ray_profile);
   o.settings.ray_mode = *ray_mode_from_string(o.ray_mode);
   o.settings.estimator = *estimator_from_string(o.estimator);
-  o.settings.elements = *elements_from_string(o.elements, 1 << 16);
+  o.settings.elements = *elements_from_string(o.elements, kMaxElements);
   o.settings.sampler = *sampler_from_string(o.sampler);
   o.settings.transport = *transport_from_string(o.transport);
   o.settings.sampling = *sampling_from_string(o.sampling);
@@ -263,24 +280,32 @@ int run_solve(SolveOptions& o) {
   // and writes the outputs. All agree to go on before the set-up and after it (processes.hpp).
   auto prepare = [&]() -> std::optional<int> {
     if (Status status = finish_solver_settings(o); !status) return usage_error(status.error().message);
-    Result<Scene> loaded = load_scene(o.scene);
-    if (!loaded) return usage_error(loaded.error().message);
+    Result<Scene> loaded = load_scene(o.scene, &interrupt_flag());
+    if (!loaded) return input_error(loaded.error());
     scene = std::move(*loaded);
     // Everything the solve's end needs is checked before it starts: the output paths, the size of
     // the result, and the reference (read now, so a bad one costs no solve).
     if (speaks_for_the_run()) {
-      if (const std::optional<int> code = check_outputs({o.out, o.picture})) return *code;
+      if (const std::optional<int> code = check_outputs({{"--out", o.out}, {"--picture", o.picture}},
+                                                        {{"scene file", o.scene}, {"--reference", o.reference}}))
+        return *code;
       if (!o.out.empty() || !o.reference.empty())
         if (Status status = check_result_size(*scene, o.samples); !status) return usage_error(status.error().message);
       if (!o.reference.empty()) {
-        Result<nlohmann::json> read = read_result_file(o.reference);
-        if (!read) return usage_error("--reference: " + read.error().message);
+        Result<nlohmann::json> read = read_result_file(o.reference, &interrupt_flag());
+        if (!read) return input_error(read.error(), "--reference: ");
+        // Of this scene file, sampled as the result will be: said now, not after the solve.
+        Result<SampledResult> given = sampled_from_json(*read, "the reference");
+        if (!given) return usage_error("--reference " + o.reference + ": " + given.error().message);
+        if (Status status = check_reference_of(*given, *scene, o.samples); !status)
+          return usage_error("--reference " + o.reference + ": " + status.error().message);
         reference = std::move(*read);
       }
     }
     return std::nullopt;
   };
   if (const std::optional<int> code = agree(prepare())) return *code;
+  if (const std::optional<int> code = agree_on_digest("scene file", o.scene, scene->source_sha256)) return *code;
   // Set-up can take a while (storage for a large budget): only once every process may go on.
   auto create = [&]() -> std::optional<int> {
     Result<Solver> created = Solver::create(*scene, o.settings, &interrupt_flag());
@@ -299,9 +324,11 @@ int run_solve(SolveOptions& o) {
   if (const std::optional<int> code = abnormal_stop(solver)) return *code;
   // The other processes have the same solution; rank 0 reports and writes it.
   if (!speaks_for_the_run()) return kExitOk;
+  if (!o.quiet && !solver.thread_shortfall().empty())
+    note(solver.thread_shortfall() + "; the results are the same bits on any thread count");
   if (!o.quiet) print_summary(solver);
 
-  OutputFiles files;
+  OutputFiles files(&interrupt_flag());
   if (reference) {
     const nlohmann::json document = result_to_json(solver, o.samples);
     Result<Comparison> comparison = compare_results(document, *reference);
@@ -321,8 +348,8 @@ int run_solve(SolveOptions& o) {
   }
   if (const std::optional<int> code = commit_outputs(files)) return *code;
   if (!o.quiet) {
-    if (!o.out.empty()) std::printf("wrote     %s\n", o.out.c_str());
-    if (!o.picture.empty()) std::printf("wrote     %s\n", o.picture.c_str());
+    if (!o.out.empty()) std::fprintf(report_stream(), "wrote     %s\n", o.out.c_str());
+    if (!o.picture.empty()) std::fprintf(report_stream(), "wrote     %s\n", o.picture.c_str());
   }
   return kExitOk;
 }

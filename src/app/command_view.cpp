@@ -2,6 +2,7 @@
 #include <cstdio>
 
 #include "app/commands.hpp"
+#include "app/output.hpp"
 #include "viewer/viewer_app.hpp"
 
 namespace flatland::app {
@@ -85,6 +86,11 @@ int run_view(ViewCommandOptions& o) {
     std::fprintf(stderr, "flatland: error: --screenshot needs --frames N (the frame after which to take it)\n");
     return kExitUsage;
   }
+  // The pictures are written after the last frame: their paths are checked before the first.
+  if (const std::optional<int> code =
+          check_outputs({{"--screenshot", o.screenshot}, {"--screenshot-ui", o.screenshot_ui}},
+                        {{"scene file", o.solve.scene}, {"--reference", o.reference}}))
+    return *code;
   viewer::ViewOptions options;
   options.scene = o.solve.scene;
   options.reference = o.reference;
@@ -109,11 +115,9 @@ int run_view(ViewCommandOptions& o) {
   options.vsync = !o.no_vsync;
   options.max_fps = o.max_fps;
   options.report = o.report;
+  options.cancel = &interrupt_flag();
   Result<std::unique_ptr<viewer::Viewer>> viewer = viewer::Viewer::create(options);
-  if (!viewer) {
-    std::fprintf(stderr, "flatland: error: %s\n", viewer.error().message.c_str());
-    return kExitUsage;
-  }
+  if (!viewer) return input_error(viewer.error());
   if (Status status = (*viewer)->run(); !status) {
     std::fprintf(stderr, "flatland: error: %s\n", status.error().message.c_str());
     return kExitUsage;

@@ -49,6 +49,7 @@ CLI::Validator elements_check(int max);
 struct SolveOptions {
   std::string scene;
   std::string photons = "1e6";  // parsed by parse_count, so "1e6" and "250000" both work
+  std::string seed = "1";       // parsed by parse_seed: a whole number from 0 to 2^64 - 1
   SolverSettings settings;
   std::string basis = "cubic";
   std::string sampling = "reconstructed";
@@ -176,8 +177,11 @@ struct RenderOptions {
 CLI::App* add_render_command(CLI::App& parent, RenderOptions& options);
 int run_render(RenderOptions& options);
 
-// "1e6", "250000", "2.5e5" -> 250000; anything not a whole number in [1, 2^53] is an error
-// naming the option.
+// "1e6", "250000", "2.5e5" -> 250000; anything not a whole number in [1, kMaxPhotons] (2^50) is an
+// error naming the option.
 Result<std::uint64_t> parse_count(const std::string& text, const std::string& option);
+// "0" .. "18446744073709551615" (decimal digits only, as Python's int); anything else (a sign,
+// an exponent, a value past 2^64 - 1) is an error naming the option.
+Result<std::uint64_t> parse_seed(const std::string& text, const std::string& option);
 
 }  // namespace flatland::app

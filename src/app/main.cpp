@@ -1,5 +1,7 @@
 // flatland: diffuse light transport in 2D after "Cubic Monte Carlo Radiosity".
 #include <csignal>
+#include <exception>
+#include <new>
 #include <cstdio>
 #include <optional>
 
@@ -52,6 +54,21 @@ void restore(int fd, int saved) {
   ::close(saved);
 }
 
+int run_command(CommandLine& command_line) {
+  switch (command_line.command) {
+    case Command::Solve: return run_solve(command_line.solve);
+    case Command::Reference: return run_reference(command_line.reference);
+    case Command::Compare: return run_compare(command_line.compare);
+    case Command::Converge: return run_converge(command_line.converge);
+#ifdef FLATLAND_HAVE_VIEWER
+    case Command::View: return run_view(command_line.view);
+    case Command::Render: return run_render(command_line.render);
+#endif
+    default: break;
+  }
+  return kExitUsage;
+}
+
 // Commands that share their work among the processes of mpirun (docs/mpi.md).
 bool shares_work(Command command) { return command == Command::Solve || command == Command::Converge; }
 
@@ -66,6 +83,8 @@ int main(int argc, char** argv) {
     if (world->size() > 1) set_shared_processes(&*world);
   }
 #endif
+  // Every process must run the same command (on the same files, checked once they are read).
+  if (const std::optional<int> exit_code = agree_on_command_line(argc, argv)) return *exit_code;
   // Only rank 0 prints; the others' output is dropped (their errors are kept, processes.hpp).
   int saved_error = -1;
   if (!speaks_for_the_run()) {
@@ -83,16 +102,20 @@ int main(int argc, char** argv) {
 
   std::signal(SIGINT, handle_interrupt);
   std::signal(SIGTERM, handle_interrupt);
-  switch (command_line.command) {
-    case Command::Solve: return run_solve(command_line.solve);
-    case Command::Reference: return run_reference(command_line.reference);
-    case Command::Compare: return run_compare(command_line.compare);
-    case Command::Converge: return run_converge(command_line.converge);
-#ifdef FLATLAND_HAVE_VIEWER
-    case Command::View: return run_view(command_line.view);
-    case Command::Render: return run_render(command_line.render);
+  // A reader that closes a pipe early (`flatland solve s.json --out - | head`) gives a write error
+  // (EPIPE) with a one-line message, not death by SIGPIPE.
+  std::signal(SIGPIPE, SIG_IGN);
+#ifdef FLATLAND_HAVE_MPI
+  // A Ctrl-C on any process reaches the others within a fraction of a second (docs/mpi.md).
+  if (world && world->size() > 1) world->relay_cancel(&interrupt_flag());
 #endif
-    default: break;
+  try {
+    return run_command(command_line);
+  } catch (const std::bad_alloc&) {
+    return usage_error("out of memory: the work does not fit in the memory this process may use (see ulimit -v); "
+                       "ask for less (fewer elements, samples or threads)");
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "flatland: internal error: %s\n", e.what());
+    return kExitFailure;
   }
-  return kExitUsage;
 }

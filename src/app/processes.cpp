@@ -1,5 +1,7 @@
 #include "app/processes.hpp"
 
+#include "app/output.hpp"
+
 #include <cstdio>
 #include <cstring>
 #include <string>
@@ -68,6 +70,70 @@ void share_text(std::string& text) {
   if (speaker && !text.empty()) std::memcpy(words.data(), text.data(), text.size());
   processes->sum(words);
   if (!speaker) text.assign(reinterpret_cast<const char*>(words.data()), static_cast<std::size_t>(length[0]));
+}
+
+namespace {
+
+// The arguments that say what the run does: all but the program's name and --threads (with its
+// value), which a process may set for the cores of its own machine.
+std::vector<std::string> meaningful_arguments(int argc, const char* const* argv) {
+  std::vector<std::string> kept;
+  for (int i = 1; i < argc; ++i) {
+    const std::string argument = argv[i];
+    if (argument == "--threads") {
+      ++i;
+      continue;
+    }
+    if (argument.rfind("--threads=", 0) == 0) continue;
+    kept.push_back(argument);
+  }
+  return kept;
+}
+
+// Argument i in quotes, after its option when it is an option's value ('--seed 2').
+std::string quoted_or_none(const std::vector<std::string>& arguments, std::size_t i) {
+  if (i >= arguments.size()) return "nothing";
+  const bool value = i > 0 && arguments[i - 1].rfind("--", 0) == 0 && arguments[i - 1].find('=') == std::string::npos &&
+                     arguments[i].rfind("-", 0) != 0;
+  return "'" + (value ? arguments[i - 1] + " " : std::string()) + arguments[i] + "'";
+}
+
+}  // namespace
+
+std::optional<int> agree_on_command_line(int argc, const char* const* argv) {
+  if (shared_processes() == nullptr) return std::nullopt;
+  const std::vector<std::string> mine = meaningful_arguments(argc, argv);
+  // The arguments joined by NUL, which no argument can hold.
+  std::string joined;
+  for (const std::string& argument : mine) joined += argument + '\0';
+  std::string first = joined;
+  share_text(first);
+  std::optional<int> code;
+  if (first != joined) {
+    std::vector<std::string> theirs;
+    for (std::size_t at = 0; at < first.size();) {
+      const std::size_t end = first.find('\0', at);
+      theirs.push_back(first.substr(at, end - at));
+      at = end + 1;
+    }
+    std::size_t i = 0;
+    while (i < mine.size() && i < theirs.size() && mine[i] == theirs[i]) ++i;
+    code = usage_error("this process's command line differs from process 0's at argument " + std::to_string(i + 1) +
+                       ": " + quoted_or_none(mine, i) + " here, " + quoted_or_none(theirs, i) +
+                       " there; start every process with the same command (only --threads may differ)");
+  }
+  return agree(code);
+}
+
+std::optional<int> agree_on_digest(const std::string& what, const std::string& path, const std::string& digest) {
+  if (shared_processes() == nullptr) return std::nullopt;
+  std::string first = digest;
+  share_text(first);
+  std::optional<int> code;
+  if (digest != first && !digest.empty() && !first.empty())
+    code = usage_error(path + ": this process read another " + what + " than process 0 (SHA-256 " + digest.substr(0, 12) +
+                       "... here, " + first.substr(0, 12) + "... there); give every process the same file");
+  return agree(code);
 }
 
 }  // namespace flatland::app

@@ -30,4 +30,16 @@ std::optional<int> agree(std::optional<int> code);
 // Collective: rank 0's `text` on every process (alone: unchanged).
 void share_text(std::string& text);
 
+// Collective, before parsing: whether every process was given the same command line (but for
+// --threads, which each may set for its machine). A process whose arguments differ from rank 0's
+// stops with a message naming the first that differs; then all stop with exit code 2. Alone,
+// nullopt.
+std::optional<int> agree_on_command_line(int argc, const char* const* argv);
+
+// Collective: whether every process read the same bytes as `what` (`path`, SHA-256 `digest`), as
+// when two machines hold different versions of a scene file. As agree(): nullopt when they all
+// did; otherwise all stop with exit code 2, and a process whose bytes differ from rank 0's says so.
+// `digest` is empty on a process that has nothing to compare (it stops anyway).
+std::optional<int> agree_on_digest(const std::string& what, const std::string& path, const std::string& digest);
+
 }  // namespace flatland::app

@@ -1,6 +1,8 @@
 #include "flatland/converge.hpp"
 
+#include <algorithm>
 #include <cstdlib>
+#include <vector>
 #include <sstream>
 
 #include "flatland/footprint.hpp"
@@ -12,12 +14,16 @@ Result<ConvergeMethod> parse_converge_method(const std::string& text, const Solv
   ConvergeMethod method{text, defaults};
   std::stringstream parts(text);
   std::string part;
+  std::vector<std::string> keys;  // given so far: a key given twice would silently take its last value
   while (std::getline(parts, part, '+')) {
     const auto equals = part.find('=');
     const std::string key = equals == std::string::npos ? "basis" : part.substr(0, equals);
     const std::string value = equals == std::string::npos ? part : part.substr(equals + 1);
     SolverSettings& s = method.settings;
     const std::string where = "--methods: '" + text + "': ";
+    if (std::find(keys.begin(), keys.end(), key) != keys.end())
+      return Error{where + key + " is given twice; give each key once"};
+    keys.push_back(key);
     if (key == "basis") {
       const std::optional<BasisKind> basis = basis_from_string(value);
       if (!basis) return Error{where + "basis must be constant, linear, cubic or hermite"};
@@ -35,8 +41,8 @@ Result<ConvergeMethod> parse_converge_method(const std::string& text, const Solv
       if (!estimator) return Error{where + "estimator must be lumped, galerkin, local or auto"};
       s.estimator = *estimator;
     } else if (key == "elements") {
-      const std::optional<int> count = elements_from_string(value, 1 << 20);
-      if (!count) return Error{where + "elements must be auto or a whole number from 1 to 1048576"};
+      const std::optional<int> count = elements_from_string(value, kMaxElements);
+      if (!count) return Error{where + "elements must be auto or a whole number from 1 to " + std::to_string(kMaxElements)};
       s.elements = *count;
     } else if (key == "ray-width") {
       char* end = nullptr;

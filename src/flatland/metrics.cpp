@@ -112,6 +112,10 @@ Result<Comparison> compare_results(const nlohmann::json& result, const nlohmann:
 }
 
 Result<Comparison> compare_sampled(const SampledResult& result, const SampledResult& reference, Measure measure) {
+  if (!result.scene_sha256.empty() && !reference.scene_sha256.empty() && result.scene_sha256 != reference.scene_sha256)
+    return Error{"the results were made from different scene files (SHA-256 " + result.scene_sha256.substr(0, 12) +
+                 "... and " + reference.scene_sha256.substr(0, 12) +
+                 "... in the reference); compare results of the same scene file"};
   if (result.curves.size() != reference.curves.size())
     return Error{"the results do not describe the same scene: " + std::to_string(result.curves.size()) +
                  " curves against " + std::to_string(reference.curves.size())};
@@ -186,8 +190,7 @@ Result<Comparison> compare_sampled(const SampledResult& result, const SampledRes
     scene.add(curve);
   }
   if (measure == Measure::Reflected && scene.max_reference == 0.0)
-    return Error{"the reference's reflected part B - E is zero everywhere (no curve reflects light), so its "
-                 "relative error is undefined; measure the total B instead"};
+    return Error{kNothingReflected};
   comparison.scene = scene.norms();
   comparison.reference_l2 = value_scale * std::sqrt(scene.square_reference * length_scale);
   return comparison;

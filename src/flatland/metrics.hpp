@@ -58,6 +58,12 @@ struct Comparison {
 // needs none), a reflected part below 1e-12 of B counts as zero (the round-off of B - E), a curve
 // whose reference reflects nothing is marked unmeasured, and a reference that reflects nothing
 // anywhere is an error: its relative error is undefined.
+// The error of a comparison under Measure::Reflected whose reference reflects no light anywhere;
+// a front end adds how to ask for Measure::Total in its own words.
+inline constexpr const char* kNothingReflected =
+    "the reference's reflected part B - E is zero everywhere (no curve reflects light), so its relative error is "
+    "undefined; measure the total B instead";
+
 Result<Comparison> compare_sampled(const SampledResult& result, const SampledResult& reference,
                                    Measure measure = Measure::Total);
 // The same for two result documents (sampled_from_json reads them; "the result" and "the

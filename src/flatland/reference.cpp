@@ -12,6 +12,7 @@
 #include "flatland/discontinuity.hpp"
 #include "flatland/resources.hpp"
 #include "flatland/result_io.hpp"
+#include "flatland/workers.hpp"
 #include "flatland/sampled_result.hpp"
 
 namespace flatland {
@@ -995,10 +996,9 @@ Result<ReferenceSolution> solve_reference(const Scene& scene, const ReferenceSet
   {
     const unsigned threads =
         static_cast<unsigned>(std::min<std::size_t>(thread_count(settings.threads), std::max<std::size_t>(rows, 1)));
-    std::vector<std::thread> pool;
-    for (unsigned k = 1; k < threads; ++k) pool.emplace_back(worker, false);
-    worker(true);
-    for (std::thread& thread : pool) thread.join();
+    WorkerPool pool(threads);
+    solution.thread_shortfall_ = pool.shortfall();
+    pool.run(pool.threads(), [&](unsigned w) { worker(w == 0); });
   }
   if (cancelled()) return Error{kReferenceCancelled};
   if (out_of_memory.load()) {

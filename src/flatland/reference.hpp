@@ -156,6 +156,8 @@ class ReferenceSolution {
   // channels). It is the linear solve's error only, not the discretisation's.
   double error_bound() const { return error_bound_; }
   double form_factor_seconds() const { return form_factor_seconds_; }
+  // Empty, or why the form factors ran on fewer threads than asked (WorkerPool::shortfall).
+  const std::string& thread_shortfall() const { return thread_shortfall_; }
   double solve_seconds() const { return solve_seconds_; }
   const Scene& scene() const { return scene_; }
 
@@ -182,6 +184,7 @@ class ReferenceSolution {
   double residual_ = 0.0;
   double error_bound_ = 0.0;
   double form_factor_seconds_ = 0.0;
+  std::string thread_shortfall_;
   double solve_seconds_ = 0.0;
 };
 

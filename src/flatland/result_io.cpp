@@ -16,6 +16,7 @@
 #include <signal.h>
 #include <unistd.h>
 
+#include "flatland/resources.hpp"
 #include "flatland/text.hpp"
 
 namespace flatland {
@@ -187,146 +188,47 @@ Result<nlohmann::json> parse_result(std::string_view text, const std::string& so
   return document;
 }
 
-Result<nlohmann::json> read_result_file(const std::string& path) {
-  std::error_code ec;
-  if (std::filesystem::is_directory(path, ec))
-    return Error{path + ": is a directory, not a result file; give the path of a .json file"};
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return Error{path + ": cannot read the result file: " + std::strerror(errno)};
-  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  if (in.bad()) return Error{path + ": cannot read the result file: " + std::strerror(errno)};
-  return parse_result(text, path);
+Result<nlohmann::json> read_result_file(const std::string& path, const std::atomic<bool>* cancel) {
+  Result<std::string> text = read_input_file(path, "result file", cancel);
+  if (!text) return text.error();
+  return parse_result(*text, path);
 }
 
 std::string json_text(const nlohmann::json& document) {
   return document.dump(1, ' ', false, nlohmann::json::error_handler_t::replace) + "\n";
 }
 
-namespace {
-
-namespace fs = std::filesystem;
-
-fs::path directory_of(const fs::path& target) {
-  return target.parent_path().empty() ? fs::path(".") : target.parent_path();
-}
-
-// Our temporary names: temporary_prefix(target) + PID + "-" + digits.
-std::string temporary_prefix(const fs::path& target) {
-  // (Appended piece by piece: GCC 12 warns falsely about `"." + std::string` under -O3.)
-  std::string prefix = ".";
-  prefix += target.filename().string();
-  prefix += ".tmp";
-  return prefix;
-}
-
-// Removes temporary files of `target` whose writing process is gone (killed mid-write).
-void remove_stale_temporaries(const fs::path& target) {
-  const std::string prefix = temporary_prefix(target);
-  std::error_code ec;
-  for (fs::directory_iterator it(directory_of(target), ec), end; !ec && it != end; it.increment(ec)) {
-    const std::string name = it->path().filename().string();
-    if (name.size() <= prefix.size() || name.compare(0, prefix.size(), prefix) != 0) continue;
-    const std::string rest = name.substr(prefix.size());
-    const std::size_t dash = rest.find('-');
-    if (dash == 0 || dash == std::string::npos || dash + 1 == rest.size() ||
-        rest.find_first_not_of("0123456789-") != std::string::npos || rest.find('-', dash + 1) != std::string::npos)
-      continue;
-    const long pid = std::strtol(rest.substr(0, dash).c_str(), nullptr, 10);
-    if (pid <= 0 || pid == ::getpid()) continue;
-    if (::kill(static_cast<pid_t>(pid), 0) == 0 || errno != ESRCH) continue;  // still running
-    std::error_code ignored;
-    fs::remove(it->path(), ignored);
+double result_sample_bytes(const Scene& scene, int samples_per_curve) {
+  // One sample as json_text writes it inside a curve (depth 4, one space an indent):
+  //     {                         "{" and "}," lines: 12 bytes
+  //      "s": 0.5,                a number: 5 + 10 (the longest key, "B_back": ) + 24 + 2 = 41
+  //      "B": [                   a spectrum of three: 5 + 11 + 1, three lines of 6 + 24 + 2,
+  //       0.1,                    and "],": 8; 121 in all
+  // s, x and y are numbers; B, B_back and E are numbers in a grey scene, spectra in colour.
+  constexpr double kNumberLine = 41.0;
+  constexpr double kSpectrumLines = 121.0;
+  constexpr double kBraces = 12.0;
+  const double value = scene.channels == 1 ? kNumberLine : kSpectrumLines;
+  double bytes = 0.0;
+  for (const Curve& curve : scene.curves) {
+    const double values = 1.0 + (curve.sides == Sides::Both ? 1.0 : 0.0) + (scene.is_emitter(curve) ? 1.0 : 0.0);
+    bytes += kBraces + 3.0 * kNumberLine + values * value;
   }
-}
-
-}  // namespace
-
-Status check_output_file(const std::string& path) {
-  const fs::path target(path);
-  if (path.empty() || target.filename().empty() || target.filename() == "." || target.filename() == "..")
-    return Error{path + ": not a file name; give a path such as out/result.json"};
-  std::error_code ec;
-  if (fs::is_directory(target, ec)) return Error{path + ": is a directory; give a file name"};
-  const fs::path directory = directory_of(target);
-  if (!fs::is_directory(directory, ec))
-    return Error{path + ": directory " + directory.string() + " does not exist; create it first"};
-  if (::access(directory.c_str(), W_OK | X_OK) != 0)
-    return Error{path + ": cannot write in directory " + directory.string() + ": " + std::strerror(errno)};
-  return ok_status();
-}
-
-OutputFiles::~OutputFiles() { discard(); }
-
-void OutputFiles::discard() {
-  for (const Staged& file : staged_) {
-    std::error_code ignored;
-    fs::remove(file.temporary, ignored);
-  }
-  staged_.clear();
-}
-
-Status OutputFiles::stage(const std::string& path, const std::string& contents) {
-  if (Status status = check_output_file(path); !status) return status;
-  const fs::path target(path);
-  remove_stale_temporaries(target);
-  // A unique temporary name in the same directory, so the rename is atomic.
-  std::random_device device;
-  std::string name = temporary_prefix(target);
-  name += std::to_string(::getpid());
-  name += '-';
-  name += std::to_string(device());
-  const fs::path temporary = directory_of(target) / name;
-  std::error_code ec;
-  {
-    std::ofstream out(temporary, std::ios::binary | std::ios::trunc);
-    if (!out) return Error{path + ": cannot write: " + std::strerror(errno)};
-    staged_.push_back({path, temporary.string()});
-    out.write(contents.data(), static_cast<std::streamsize>(contents.size()));
-    out.flush();
-    if (!out) {
-      const std::string reason = std::strerror(errno);
-      out.close();
-      fs::remove(temporary, ec);
-      staged_.pop_back();
-      return Error{path + ": write failed: " + reason};
-    }
-  }
-  return ok_status();
-}
-
-Status OutputFiles::commit() {
-  for (std::size_t i = 0; i < staged_.size(); ++i) {
-    std::error_code ec;
-    fs::rename(staged_[i].temporary, staged_[i].target, ec);
-    if (ec) {
-      const std::string message = staged_[i].target + ": cannot replace the file: " + ec.message();
-      staged_.erase(staged_.begin(), staged_.begin() + static_cast<std::ptrdiff_t>(i));
-      discard();
-      return Error{message};
-    }
-  }
-  staged_.clear();
-  return ok_status();
+  return bytes * samples_per_curve;
 }
 
 Status check_result_size(const Scene& scene, int samples_per_curve) {
-  double sides = 0.0;
-  for (const Curve& curve : scene.curves) sides += curve.sides == Sides::Both ? 2.0 : 1.0;
-  const double total = sides * samples_per_curve;
-  if (total <= kMaxResultSamples) return ok_status();
-  char message[320];
+  const double bytes = result_sample_bytes(scene, samples_per_curve);
+  if (bytes <= static_cast<double>(kMaxInputBytes)) return ok_status();
+  const double per_sample = bytes / samples_per_curve;
+  char message[400];
   std::snprintf(message, sizeof message,
-                "--samples %d: %zu curves make %.3g radiosity samples in the result; at most %.3g "
-                "(about 100 bytes of JSON each); give at most --samples %.0f",
-                samples_per_curve, scene.curves.size(), total, kMaxResultSamples,
-                std::max(1.0, std::floor(kMaxResultSamples / std::max(sides, 1.0))));
+                "--samples %d: %zu curves would make a result of up to %s, more than %s, the most "
+                "flatland reads back (docs/limits.md); give at most --samples %.0f",
+                samples_per_curve, scene.curves.size(), format_bytes(bytes).c_str(),
+                format_bytes(static_cast<double>(kMaxInputBytes)).c_str(),
+                std::max(1.0, std::floor(static_cast<double>(kMaxInputBytes) / per_sample)));
   return Error{message};
-}
-
-Status write_file_atomically(const std::string& path, const std::string& contents) {
-  OutputFiles files;
-  if (Status status = files.stage(path, contents); !status) return status;
-  return files.commit();
 }
 
 }  // namespace flatland

@@ -1,5 +1,4 @@
-// The result file of `flatland solve` (format "flatland_result": 1, docs/result-format.md) and the
-// atomic file writing every output goes through.
+// The result file of `flatland solve` (format "flatland_result": 1, docs/result-format.md).
 #pragma once
 
 #include <atomic>
@@ -10,6 +9,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "flatland/files.hpp"
 #include "flatland/result.hpp"
 #include "flatland/scene.hpp"
 #include "flatland/solver.hpp"
@@ -44,52 +44,21 @@ nlohmann::json program_to_json();
 // object with "flatland_result": 1. Errors name the source, line and column (numbers beyond a
 // double's range included) and never throw.
 Result<nlohmann::json> parse_result(std::string_view text, const std::string& source);
-Result<nlohmann::json> read_result_file(const std::string& path);
+// The result file at `path`, read by read_input_file (a pipe's wait ends when `cancel` is set).
+Result<nlohmann::json> read_result_file(const std::string& path, const std::atomic<bool>* cancel = nullptr);
 
 // The text of a JSON document as every output writes it (one-space indent, a final newline).
 // Strings that are not valid UTF-8 (a scene file's name can be any bytes) have the invalid bytes
 // replaced by U+FFFD instead of failing.
 std::string json_text(const nlohmann::json& document);
 
-// Checks, before any work starts, that `path` can be written as a file: it names a file (not a
-// directory) in a directory that exists and is writable. The error names the path and the fix.
-Status check_output_file(const std::string& path);
-
-// Output files written all or nothing. stage() writes each file's contents to a temporary file
-// beside it (.NAME.tmpPID-RANDOM, in the same directory, so the rename is atomic); commit()
-// renames them all over their targets. Files staged but not committed (an error, an interrupt)
-// are removed when the object goes away, so no partial output is ever left. A temporary file
-// that a killed process (SIGKILL, power loss) left behind is removed by the next stage() of the
-// same target once its process no longer runs.
-class OutputFiles {
- public:
-  OutputFiles() = default;
-  OutputFiles(const OutputFiles&) = delete;
-  OutputFiles& operator=(const OutputFiles&) = delete;
-  ~OutputFiles();
-
-  Status stage(const std::string& path, const std::string& contents);
-  // Renames every staged file over its target, in staging order.
-  Status commit();
-  // Removes every staged file that is not committed yet.
-  void discard();
-
- private:
-  struct Staged {
-    std::string target;
-    std::string temporary;
-  };
-  std::vector<Staged> staged_;
-};
-
-// At most this many radiosity samples in one result (curves x samples, two-sided curves twice):
-// about 100 bytes of JSON each, so 1 GB of text and several GB while it is built.
-inline constexpr double kMaxResultSamples = 1e7;
-// Refuses, before any work, a result that would hold more samples than that.
+// An upper bound of the bytes that `samples_per_curve` samples of every curve take in a result's
+// text (json_text): each number at its longest shortest-round-trip form, 24 characters, with the
+// keys and indentation around it; a two-sided curve's samples hold B_back, an emitter's E.
+double result_sample_bytes(const Scene& scene, int samples_per_curve);
+// Refuses, before any work, a result whose samples could take more than kMaxInputBytes, so that
+// every result the program writes is one it can read back; the message gives the largest
+// --samples that fits.
 Status check_result_size(const Scene& scene, int samples_per_curve);
-
-// Writes `contents` to a temporary file beside `path`, then renames it over `path`: a failed or
-// interrupted write never leaves a partial file. The error names the path and the reason.
-Status write_file_atomically(const std::string& path, const std::string& contents);
 
 }  // namespace flatland

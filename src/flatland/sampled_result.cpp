@@ -18,6 +18,16 @@ const char* continuity_name(Continuity continuity) {
   return continuity == Continuity::C1 ? "C1" : continuity == Continuity::C0 ? "C0" : "C-1";
 }
 
+// The number `object[key]` of a result document, or an error naming `place`, the key and what it
+// holds instead.
+Result<double> number_at(const nlohmann::json& object, const char* key, const std::string& place) {
+  if (!object.is_object()) return Error{"malformed result: " + place + " is not an object"};
+  const auto it = object.find(key);
+  if (it == object.end()) return Error{"malformed result: " + place + " has no \"" + key + "\""};
+  if (!it->is_number()) return Error{"malformed result: " + place + "." + key + ": expected a number, got " + it->dump()};
+  return it->get<double>();
+}
+
 // A B, B_back, E or emittance value of a document: a number (grey) or [r, g, b].
 Result<Spectrum> spectrum_of(const nlohmann::json& value, int channels, const std::string& where) {
   if (channels == 1 && value.is_number()) return Spectrum{value.get<double>(), 0.0, 0.0};
@@ -49,6 +59,7 @@ nlohmann::json spectrum_to_json(const Spectrum& value, int channels) {
 SampledResult sample_radiosity(const Scene& scene, int samples_per_curve, const RadiosityFunction& radiosity) {
   SampledResult result;
   result.channels = scene.channels;
+  result.scene_sha256 = scene.source_sha256;
   for (std::uint32_t c = 0; c < scene.curves.size(); ++c) {
     const Curve& curve = scene.curves[c];
     const Side main_side = curve.sides == Sides::Back ? Side::Back : Side::Front;
@@ -160,6 +171,10 @@ nlohmann::json curves_to_json(const SampledResult& result) {
 }
 
 Status check_reference_of(const SampledResult& reference, const Scene& scene, int samples) {
+  if (!reference.scene_sha256.empty() && !scene.source_sha256.empty() && reference.scene_sha256 != scene.source_sha256)
+    return Error{"the reference was made from another scene file than " + scene.source + " (SHA-256 " +
+                 reference.scene_sha256.substr(0, 12) + "... against " + scene.source_sha256.substr(0, 12) +
+                 "...); solve the reference from the same file"};
   bool same = reference.curves.size() == scene.curves.size();
   for (std::size_t c = 0; same && c < scene.curves.size(); ++c) same = reference.curves[c].id == scene.curves[c].id;
   if (!same)
@@ -179,14 +194,22 @@ Result<SampledResult> sampled_from_json(const nlohmann::json& document, const st
   const nlohmann::json& curves = document["curves"];
   SampledResult result;
   result.channels = channels_of_document(curves);
+  if (const auto scene = document.find("scene"); scene != document.end() && scene->is_object())
+    if (const auto sha = scene->find("sha256"); sha != scene->end() && sha->is_string())
+      result.scene_sha256 = sha->get<std::string>();
   try {
     for (std::size_t c = 0; c < curves.size(); ++c) {
       const nlohmann::json& in = curves[c];
+      if (!in.is_object()) return Error{"malformed result: curves[" + std::to_string(c) + "] is not an object"};
       ResultCurve& curve = result.curves.emplace_back();
-      curve.id = in.value("id", "");
+      const auto id = in.find("id");
+      curve.id = id != in.end() && id->is_string() ? id->get<std::string>() : std::string();
       const std::string where = "curves[" + std::to_string(c) + "] (\"" + curve.id + "\")";
-      curve.length = in.at("length").get<double>();
-      const std::string sides = in.value("sides", "front");
+      Result<double> length = number_at(in, "length", where);
+      if (!length) return length.error();
+      curve.length = *length;
+      const auto sides_entry = in.find("sides");
+      const std::string sides = sides_entry != in.end() && sides_entry->is_string() ? sides_entry->get<std::string>() : "front";
       curve.sides = sides == "both" ? Sides::Both : sides == "back" ? Sides::Back : Sides::Front;
       // (A whole number that fits: a JSON number such as 1e100 would not convert to an int.)
       const nlohmann::json segments = in.value("segments", nlohmann::json(0));
@@ -199,16 +222,25 @@ Result<SampledResult> sampled_from_json(const nlohmann::json& document, const st
         if (!e) return e.error();
         curve.emittance = *e;
       }
-      const nlohmann::json& samples = in.at("samples");
+      const auto samples_entry = in.find("samples");
+      if (samples_entry == in.end()) return Error{"malformed result: " + where + " has no \"samples\""};
+      const nlohmann::json& samples = *samples_entry;
       if (!samples.is_array()) return Error{"malformed result: " + where + ".samples is not an array"};
       for (std::size_t j = 0; j < samples.size(); ++j) {
         const nlohmann::json& s = samples[j];
         const std::string place = where + ".samples[" + std::to_string(j) + "]";
         ResultSample& sample = curve.samples.emplace_back();
-        sample.s = s.at("s").get<double>();
-        sample.x = s.value("x", 0.0);
-        sample.y = s.value("y", 0.0);
-        Result<Spectrum> b = spectrum_of(s.at("B"), result.channels, place + ".B" + suffix);
+        Result<double> at = number_at(s, "s", place);
+        if (!at) return at.error();
+        sample.s = *at;
+        for (const auto& [key, value] : {std::pair{"x", &sample.x}, std::pair{"y", &sample.y}}) {
+          if (!s.contains(key)) continue;
+          Result<double> coordinate = number_at(s, key, place);
+          if (!coordinate) return coordinate.error();
+          *value = *coordinate;
+        }
+        if (!s.contains("B")) return Error{"malformed result: " + place + " has no \"B\"" + suffix};
+        Result<Spectrum> b = spectrum_of(s["B"], result.channels, place + ".B" + suffix);
         if (!b) return b.error();
         sample.B = *b;
         if (s.contains("B_back")) {

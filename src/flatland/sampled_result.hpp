@@ -62,6 +62,9 @@ struct ResultStats {
 
 struct SampledResult {
   int channels = 1;  // 1 (grey) or 3; a grey value is channel 0 of its Spectrum
+  // The SHA-256 of the scene file the result was made from (hex); empty where it is not known (a
+  // document without "scene"). Results of different scene files are never compared.
+  std::string scene_sha256;
   std::vector<ResultCurve> curves;
   std::optional<ResultStats> stats;  // results of a solver
 };
@@ -89,7 +92,8 @@ std::size_t curve_json_numbers(const ResultCurve& curve, int channels);
 Result<SampledResult> sampled_from_json(const nlohmann::json& document, const std::string& what,
                                         const std::string& suffix = "");
 
-// Whether `reference` is of `scene` (its curves' ids, in order) and, when `samples` > 0, sampled
+// Whether `reference` is of `scene` (made from the same file, by the SHA-256 it records, and with
+// the same curves' ids, in order) and, when `samples` > 0, sampled
 // `samples` times per curve; the error says what differs ("the reference describes another scene
 // than FILE ..." or "the reference has N samples per curve, the runs M").
 Status check_reference_of(const SampledResult& reference, const Scene& scene, int samples = 0);

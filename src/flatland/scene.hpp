@@ -3,6 +3,7 @@
 #pragma once
 
 #include <array>
+#include <atomic>
 #include <cstdint>
 #include <string>
 #include <string_view>
@@ -145,7 +146,9 @@ bool is_tangent_continuous(const Scene& scene, const Curve& curve, std::uint32_t
 //   "scenes2d/room.json:14:9: parse error: ..."
 // (just "SOURCE: FIELD: ..." when a problem has no single place in the text). Never throws.
 Result<Scene> parse_scene(std::string_view text, std::string_view source);
-Result<Scene> load_scene(const std::string& path);
+// The scene file at `path`, read by read_input_file (files.hpp): at most kMaxInputBytes, and a
+// wait on a pipe ends when `cancel` is set (with the error kFileWaitCancelled).
+Result<Scene> load_scene(const std::string& path, const std::atomic<bool>* cancel = nullptr);
 
 // Build the derived data (segments, lengths, bounds, scale) from curves and materials that are
 // already filled in and valid; used by the parser and by code that edits a scene (the viewer).

@@ -27,6 +27,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "flatland/files.hpp"
 #include "flatland/scene.hpp"
 #include "flatland/sha256.hpp"
 #include "flatland/text.hpp"
@@ -870,28 +871,10 @@ Result<Scene> parse_scene(std::string_view text, std::string_view source) {
   }
 }
 
-Result<Scene> load_scene(const std::string& path) {
-  try {
-    std::error_code ec;
-    if (std::filesystem::is_directory(path, ec)) {
-      return Error{path + ": is a directory, not a scene file; give the path of a .json file"};
-    }
-    std::FILE* file = std::fopen(path.c_str(), "rb");
-    if (file == nullptr) {
-      return Error{path + ": cannot read scene file: " + std::strerror(errno)};
-    }
-    std::string text;
-    char buffer[1 << 16];
-    std::size_t got = 0;
-    while ((got = std::fread(buffer, 1, sizeof buffer, file)) > 0) text.append(buffer, got);
-    const bool failed = std::ferror(file) != 0;
-    const int error = errno;
-    std::fclose(file);
-    if (failed) return Error{path + ": cannot read scene file: " + std::strerror(error)};
-    return parse_scene(text, path);
-  } catch (const std::exception& e) {
-    return Error{path + ": cannot read scene file: " + e.what()};
-  }
+Result<Scene> load_scene(const std::string& path, const std::atomic<bool>* cancel) {
+  Result<std::string> text = read_input_file(path, "scene file", cancel);
+  if (!text) return text.error();
+  return parse_scene(*text, path);
 }
 
 }  // namespace flatland

@@ -45,8 +45,6 @@ double seconds_since(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
 }
 
-constexpr int kMaxElements = 1 << 16;
-
 }  // namespace
 
 const char* to_string(StopReason reason) {
@@ -129,7 +127,7 @@ const char* to_string(PositionSampling sampling) {
 Status validate(const SolverSettings& settings) {
   if (settings.photons < 1)
     return Error{"--photons: must be at least 1"};
-  if (settings.photons > (std::uint64_t{1} << 50))
+  if (settings.photons > kMaxPhotons)
     return Error{"--photons: at most 2^50 (about 1.1e15) photons per solve"};
   if (settings.elements != kAutoElements && (settings.elements < 1 || settings.elements > kMaxElements))
     return Error{"--elements: must be auto or between 1 and " + std::to_string(kMaxElements)};
@@ -190,6 +188,16 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
   if (Status status = validate(settings); !status) return status.error();
   if (scene.curves.empty() || scene.segments.empty())
     return Error{scene.source + ": the scene has no curves"};
+  // A ray wider than the whole scene spreads every photon over everything it meets: the answer
+  // is a blur of the scene, not of the light.
+  if (settings.ray_width > scene.scale) {
+    char message[240];
+    std::snprintf(message, sizeof message,
+                  "--ray-width: %g is wider than the scene itself (its bounding box's diagonal is %g); give "
+                  "a width well below it, such as %.2g (1 %%)",
+                  settings.ray_width, scene.scale, 0.01 * scene.scale);
+    return Error{message};
+  }
 
   Solver solver;
   solver.scene_ = &scene;

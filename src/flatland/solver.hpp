@@ -100,6 +100,11 @@ inline constexpr double kWalkMaxReflectivity = 0.999;
 // Hermite storage deposits on hats, which nest like any spline space: each level's Hermite curve
 // is built on that level's nodes, and the level is chosen by those curves' error.
 inline constexpr int kAutoElements = 0;
+// The most storage elements a curve may be given, and the most photons one solve may shoot.
+inline constexpr int kMaxElements = 1 << 16;
+inline constexpr std::uint64_t kMaxPhotons = std::uint64_t{1} << 50;
+// The most seeds a convergence study runs per method and budget.
+inline constexpr int kMaxSeeds = 1000;
 // Auto storage's levels: the coarsest has about kAutoBaseElements elements per curve (and at
 // least one per segment), each next level halves every element, and the finest stops where a
 // reflecting curve's equal share of the photon budget would put fewer than kAutoPhotonsPerElement
@@ -270,7 +275,10 @@ class Solver {
 
   const Scene& scene() const { return *scene_; }
   const SolverSettings& settings() const { return settings_; }
-  unsigned thread_count() const { return threads_; }
+  // The worker threads that run: those asked for, or fewer once the system refused to start some
+  // (results are the same bits on any count); thread_shortfall() then says so, else it is empty.
+  unsigned thread_count() const { return pool_.started() != nullptr ? pool_.started()->threads() : threads_; }
+  std::string thread_shortfall() const { return pool_.started() != nullptr ? pool_.started()->shortfall() : std::string(); }
   std::uint64_t photons_shot() const { return photons_shot_; }
   // Rays cast in finished rounds: one per photon when shooting point rays or footprints, a band's
   // sub-rays each, and every hop of a walk.

@@ -1,14 +1,38 @@
 #include "flatland/workers.hpp"
 
+#include <cstdint>
+
+#include "flatland/resources.hpp"
+
 #include <algorithm>
 #include <atomic>
+#include <system_error>
 
 namespace flatland {
 
-WorkerPool::WorkerPool(unsigned threads) {
-  const unsigned helpers = threads > 1 ? threads - 1 : 0;
+WorkerPool::WorkerPool(unsigned threads) : requested_(std::max(threads, 1u)) {
+  unsigned helpers = requested_ - 1;
+  // Under an address-space limit (ulimit -v) every thread's stack counts against it: the helpers
+  // take at most half of what is left, so the work itself still has room.
+  if (const std::size_t left = address_space_left(); left != SIZE_MAX) {
+    const std::size_t room = left / 2 / thread_stack_bytes();
+    if (room < helpers) {
+      helpers = static_cast<unsigned>(room);
+      shortfall_ = "started " + std::to_string(helpers + 1) + " of the " + std::to_string(requested_) +
+                   " threads asked for (the address-space limit, ulimit -v, leaves room for no more stacks)";
+    }
+  }
   helpers_.reserve(helpers);
-  for (unsigned i = 0; i < helpers; ++i) helpers_.emplace_back(&WorkerPool::helper, this, i + 1);
+  for (unsigned i = 0; i < helpers; ++i) {
+    try {
+      helpers_.emplace_back(&WorkerPool::helper, this, i + 1);
+    } catch (const std::system_error& e) {
+      // The helpers started so far wait for work as they would in a pool of this size.
+      shortfall_ = "started " + std::to_string(helpers_.size() + 1) + " of the " + std::to_string(requested_) +
+                   " threads asked for (the system refused more: " + e.code().message() + ")";
+      break;
+    }
+  }
 }
 
 WorkerPool::~WorkerPool() {

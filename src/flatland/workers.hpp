@@ -5,6 +5,7 @@
 // is bit-identical on any thread count.
 #pragma once
 
+#include <algorithm>
 #include <condition_variable>
 #include <cstddef>
 #include <cstdint>
@@ -12,6 +13,7 @@
 #include <functional>
 #include <memory>
 #include <mutex>
+#include <string>
 #include <thread>
 #include <vector>
 
@@ -19,13 +21,18 @@ namespace flatland {
 
 class WorkerPool {
  public:
-  // A pool of `threads` workers: the caller of run() is worker 0, threads - 1 helpers wait.
+  // A pool of `threads` workers: the caller of run() is worker 0, threads - 1 helpers wait. When
+  // the system refuses a thread (a process limit, an address-space limit), the pool keeps the
+  // helpers it could start: threads() is then less than asked, and shortfall() says why.
   explicit WorkerPool(unsigned threads);
   ~WorkerPool();
   WorkerPool(const WorkerPool&) = delete;
   WorkerPool& operator=(const WorkerPool&) = delete;
 
   unsigned threads() const { return static_cast<unsigned>(helpers_.size()) + 1; }
+  // How many threads were asked for, and why fewer run (empty when all run).
+  unsigned requested() const { return requested_; }
+  const std::string& shortfall() const { return shortfall_; }
 
   // Runs task(w) for every w in [0, workers) (at most threads()), worker 0 on the calling thread,
   // and returns when all have finished. An exception thrown by a task is rethrown here (the
@@ -39,6 +46,8 @@ class WorkerPool {
   void helper(unsigned index);
 
   std::vector<std::thread> helpers_;
+  unsigned requested_ = 1;
+  std::string shortfall_;
   std::mutex mutex_;
   std::condition_variable start_;
   std::condition_variable done_;
@@ -63,11 +72,13 @@ class LazyWorkerPool {
   LazyWorkerPool(LazyWorkerPool&&) noexcept = default;
   LazyWorkerPool& operator=(LazyWorkerPool&&) noexcept = default;
 
-  // The pool, with `threads` workers (restarted if it had another number).
+  // The pool, with `threads` workers asked for (restarted if it was asked for another number).
   WorkerPool& get(unsigned threads) {
-    if (!pool_ || pool_->threads() != threads) pool_ = std::make_unique<WorkerPool>(threads);
+    if (!pool_ || pool_->requested() != std::max(threads, 1u)) pool_ = std::make_unique<WorkerPool>(threads);
     return *pool_;
   }
+  // The pool if it has started, else null.
+  const WorkerPool* started() const { return pool_.get(); }
 
  private:
   std::unique_ptr<WorkerPool> pool_;

@@ -247,11 +247,57 @@ std::pair<std::size_t, std::size_t> newest_journey(const std::vector<PathRecord>
   return {run_start(end), end};
 }
 
+namespace {
+
+// The samples per segment that `traces` were made with (trace_curves gives every segment as many).
+int traced_samples_per_segment(const Scene& scene, const std::vector<CurveTrace>& traces) {
+  for (std::size_t c = 0; c < traces.size() && c < scene.curves.size(); ++c)
+    if (scene.curves[c].segment_count > 0 && !traces[c].points.empty())
+      return static_cast<int>(traces[c].points.size() / scene.curves[c].segment_count);
+  return 48;
+}
+
+}  // namespace
+
+std::size_t overlay_vertex_bound(const Scene& scene, int samples_per_segment) {
+  const auto per_segment = static_cast<std::size_t>(std::max(samples_per_segment, 2));
+  std::size_t vertices = 0;
+  for (const Curve& curve : scene.curves) {
+    const std::size_t points = per_segment * curve.segment_count;
+    if (points < 2) continue;
+    constexpr std::size_t kStrips = 2 * 2 + 1;  // band and graph on each side, the stroke
+    vertices += (points - 1) * 6 * kStrips;
+  }
+  return vertices;
+}
+
+double render_memory_bound(const Scene& scene, std::size_t paths, int samples_per_segment) {
+  double points = 0.0;
+  for (const Curve& curve : scene.curves)
+    points += static_cast<double>(std::max(samples_per_segment, 2)) * curve.segment_count;
+  // A trace point: position, normal, u and s; and B on both sides there.
+  const double traces = points * (2.0 * sizeof(Vec2) + 2.0 * sizeof(double) + 2.0 * sizeof(Spectrum));
+  // The overlay's vertices, and the piece of them the driver holds at a time (Renderer::draw).
+  const double overlay = static_cast<double>(overlay_vertex_bound(scene, samples_per_segment)) * sizeof(LineVertex) +
+                         2.0 * (std::size_t{3} << 20) * sizeof(LineVertex);
+  // A path: as the solver records it, as the viewer keeps it, and its six vertices, twice.
+  const double path_bytes = static_cast<double>(paths) * (sizeof(PhotonPath) + sizeof(PathRecord) + 12.0 * sizeof(LineVertex));
+  return traces + overlay + path_bytes;
+}
+
 std::vector<LineVertex> build_overlay(const Snapshot& snapshot, const DrawOptions& options) {
   std::vector<LineVertex> vertices;
   if (!snapshot.scene || !snapshot.traces) return vertices;
   const Scene& scene = *snapshot.scene;
   const auto& traces = *snapshot.traces;
+  // Room for every curve's strips and marks at once: a vector grown by doubling would hold up to
+  // three times the vertices while it copies (a scene of 20,000 curves draws 28 million).
+  std::size_t marks = 0;
+  for (const std::vector<NodeMark>& nodes : snapshot.nodes) marks += nodes.size();
+  vertices.reserve(overlay_vertex_bound(scene, snapshot.traces->empty() || (*snapshot.traces)[0].points.empty()
+                                                    ? 48
+                                                    : traced_samples_per_segment(scene, *snapshot.traces)) +
+                   6 * marks + 6 * 256);
   OverlayBuilder out{vertices};
   const double range = radiosity_range(snapshot, options.channel) / std::max(options.band_exposure, 1e-6f);
   const int channels = scene.channels;

@@ -195,6 +195,15 @@ std::array<float, 3> colour_map(double t);
 // zoom, so this is rebuilt only when the snapshot or the options change).
 std::vector<LineVertex> build_overlay(const Snapshot& snapshot, const DrawOptions& options);
 
+// The most vertices build_overlay makes for the curves of `scene` traced with `samples_per_segment`
+// (trace_curves): on each of the two sides a band and a graph, and the curve's stroke, six vertices
+// a piece between trace points; the few marks of storage nodes and the newest journey are left out.
+std::size_t overlay_vertex_bound(const Scene& scene, int samples_per_segment = 48);
+// An upper bound of the memory drawing `scene` once takes, before any of it is allocated: the
+// traces and the radiosity sampled on them, the overlay's vertices (and the piece of them the
+// driver copies at a time), and `paths` photon paths.
+double render_memory_bound(const Scene& scene, std::size_t paths, int samples_per_segment = 48);
+
 // The newest photon's journey among `paths` (oldest first): the indices [first, paths.size()) of
 // the run of paths that ends with the last one, each a bounce after the one before and starting
 // where it landed (a walk's hops); a walk whose record was cut short is passed over for the one

@@ -14,6 +14,9 @@ namespace flatland::viewer {
 
 namespace {
 
+// Overlay vertices uploaded and drawn at a time: whole triangles, 96 MB.
+constexpr std::size_t kOverlayPiece = std::size_t{3} << 20;
+
 struct EmbeddedShader {
   const char* name;
   const char* source;
@@ -302,9 +305,15 @@ Status Renderer::draw(const std::vector<LineVertex>& overlay, const PathDraw& pa
     set_view_uniforms(lines_program_, view);
     glBindVertexArray(lines_vao_);
     glBindBuffer(GL_ARRAY_BUFFER, lines_vbo_);
-    glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(overlay.size() * sizeof(LineVertex)),
-                 overlay.data(), GL_STREAM_DRAW);
-    glDrawArrays(GL_TRIANGLES, 0, static_cast<GLsizei>(overlay.size()));
+    // In pieces of whole triangles, drawn in order (so blended alike): one buffer of a large
+    // scene's overlay would pass 4 GB, where drivers' offsets overflow (Mesa's llvmpipe crashes),
+    // and the driver would copy it whole.
+    for (std::size_t first = 0; first < overlay.size(); first += kOverlayPiece) {
+      const std::size_t count = std::min(kOverlayPiece, overlay.size() - first);
+      glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(count * sizeof(LineVertex)), overlay.data() + first,
+                   GL_STREAM_DRAW);
+      glDrawArrays(GL_TRIANGLES, 0, static_cast<GLsizei>(count));
+    }
   }
   glBindVertexArray(0);
   glUseProgram(0);

@@ -121,7 +121,7 @@ Result<std::unique_ptr<Viewer>> Viewer::create(const ViewOptions& options) {
 
   // The scene and the reference first: a bad file is reported before any window opens.
   viewer->scene_path_ = options.scene.empty() ? default_scene_path() : options.scene;
-  Result<Scene> scene = load_scene(viewer->scene_path_);
+  Result<Scene> scene = load_scene(viewer->scene_path_, options.cancel);
   if (!scene) return scene.error();
   viewer->scene_ = std::make_shared<const Scene>(std::move(*scene));
   viewer->file_time_ = file_time(viewer->scene_path_);
@@ -143,7 +143,7 @@ Result<std::unique_ptr<Viewer>> Viewer::create(const ViewOptions& options) {
   viewer->draw_.fade = options.path_fade;
   std::shared_ptr<const SampledResult> reference;
   if (!options.reference.empty()) {
-    Result<nlohmann::json> read = read_result_file(options.reference);
+    Result<nlohmann::json> read = read_result_file(options.reference, options.cancel);
     if (!read) return Error{"--reference: " + read.error().message};
     nlohmann::json document = std::move(*read);
     if (!document.contains("curves") || !document["curves"].is_array())
@@ -248,7 +248,7 @@ void Viewer::set_message(std::string text) {
 }
 
 void Viewer::load_scene_file(const std::string& path) {
-  Result<Scene> scene = load_scene(path);
+  Result<Scene> scene = load_scene(path, options_.cancel);
   if (!scene) {
     set_message(scene.error().message);
     return;
@@ -449,10 +449,10 @@ bool Viewer::frame() {
   draw(snapshot);
   ++frames_done_;
   if (options_.frames > 0 && frames_done_ >= options_.frames && !options_.screenshot_ui.empty())
-    save_window_picture(options_.screenshot_ui);  // the back buffer, panels included, before it is shown
+    screenshot_ui_saved_ = save_window_picture(options_.screenshot_ui);  // the back buffer, panels included
   if (!window_picture_.empty()) {
-    save_window_picture(window_picture_);
-    set_message("saved " + window_picture_);
+    const Status saved = save_window_picture(window_picture_);
+    set_message(saved ? "saved " + window_picture_ : saved.error().message);
     window_picture_.clear();
   }
   SDL_GL_SwapWindow(impl_->window);
@@ -610,10 +610,10 @@ void Viewer::draw(const std::shared_ptr<const Snapshot>& snapshot) {
   ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
 }
 
-void Viewer::save_window_picture(const std::string& path) {
+Status Viewer::save_window_picture(const std::string& path) {
   PngImage image{view_.width, view_.height, 4, Renderer::read_pixels(view_.width, view_.height)};
   for (std::size_t i = 3; i < image.pixels.size(); i += 4) image.pixels[i] = 255;
-  if (Status saved = write_png(path, image); !saved) set_message(saved.error().message);
+  return write_png(path, image);
 }
 
 Status Viewer::save_screenshot(const std::string& path) {
@@ -663,6 +663,7 @@ Status Viewer::run() {
   }
   const double elapsed = seconds_since_start() - start;
   const std::shared_ptr<const Snapshot> snapshot = session_->snapshot();
+  if (!screenshot_ui_saved_) return screenshot_ui_saved_;
   if (!options_.screenshot.empty())
     if (Status saved = save_screenshot(options_.screenshot); !saved) return saved;
   if (options_.report && !frame_seconds_.empty()) {

@@ -4,6 +4,8 @@
 // the same object.
 #pragma once
 
+#include <atomic>
+
 #include <array>
 #include <cstdint>
 #include <map>
@@ -47,6 +49,8 @@ struct ViewOptions {
   // solver's cores) and no limit otherwise (vsync paces the frames); negative is no limit.
   int max_fps = 0;
   bool report = false;  // print frame and photon rates at the end
+  // Ends a wait for the scene or reference file (a FIFO with no writer yet) when set: Ctrl-C.
+  const std::atomic<bool>* cancel = nullptr;
 };
 
 // How each frame steps the solve (parsed from ViewOptions::step).
@@ -123,7 +127,7 @@ class Viewer {
   void step_solve();
   void handle_scene_mouse(const Snapshot& snapshot);
   void draw(const std::shared_ptr<const Snapshot>& snapshot);
-  void save_window_picture(const std::string& path);
+  Status save_window_picture(const std::string& path);
   void handle_event(const void* sdl_event);
   void handle_key(int key, bool ctrl);
   // Panels (panels.cpp).
@@ -195,6 +199,7 @@ class Viewer {
   bool slow_stepping_ = false;     // the first-photons preset's timed steps
   double last_slow_step_ = -1e9;
   std::string window_picture_;     // Ctrl+S: the whole window, legends included, after this frame
+  Status screenshot_ui_saved_ = ok_status();  // how writing --screenshot-ui went
   bool quit_ = false;
   bool software_renderer_ = false;  // GL_RENDERER is llvmpipe or softpipe
   int frames_done_ = 0;
