@@ -14,6 +14,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <thread>
 #include <tuple>
 #include <vector>
 
@@ -38,6 +39,11 @@ namespace {
 // The module's exception: a ValueError whose message is the command line's one-line error.
 [[noreturn]] void fail(const std::string& message) { throw py::value_error(message); }
 
+// A RuntimeWarning (something the user should know that changes no result).
+void warn(const std::string& message) {
+  if (PyErr_WarnEx(PyExc_RuntimeWarning, message.c_str(), 1) != 0) throw py::error_already_set();
+}
+
 template <typename T>
 T value_or_fail(Result<T> result) {
   if (!result) fail(result.error().message);
@@ -56,10 +62,98 @@ struct PyScene {
   }
 };
 
-PyScene load(const std::string& path) { return {std::make_shared<const Scene>(value_or_fail(load_scene(path)))}; }
+// Runs work(cancel) with the GIL released on a helper thread, while this thread looks for signals
+// every 50 ms: Ctrl-C (KeyboardInterrupt, or whatever a handler raises) sets `cancel`, waits for
+// the work to stop and is raised here. Work that polls `cancel` (a wait on a pipe, a reference's
+// rows) so stops within a fraction of a second. Without a thread to spare, the work runs on this
+// thread and only ends by itself.
+void run_watching_signals(const std::function<void(const std::atomic<bool>*)>& work) {
+  std::atomic<bool> cancel{false};
+  std::atomic<bool> done{false};
+  std::exception_ptr failure;
+  std::optional<py::error_already_set> raised;
+  std::thread helper;
+  try {
+    helper = std::thread([&] {
+      try {
+        work(&cancel);
+      } catch (...) {
+        failure = std::current_exception();
+      }
+      done.store(true);
+    });
+  } catch (const std::system_error&) {
+    py::gil_scoped_release release;
+    work(&cancel);
+    return;
+  }
+  {
+    py::gil_scoped_release release;
+    while (!done.load()) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+      py::gil_scoped_acquire gil;
+      if (!raised && PyErr_CheckSignals() != 0) {
+        raised.emplace();  // fetches the handler's exception
+        cancel.store(true);
+      }
+    }
+    helper.join();
+  }
+  if (raised) throw *raised;
+  if (failure) std::rethrow_exception(failure);
+}
+
+PyScene load(const std::string& path) {
+  std::optional<Result<Scene>> loaded;
+  run_watching_signals([&](const std::atomic<bool>* cancel) { loaded.emplace(load_scene(path, cancel)); });
+  return {std::make_shared<const Scene>(value_or_fail(std::move(*loaded)))};
+}
+
+// A Python value as JSON for the scene parser: dicts (string keys), lists, tuples, NumPy arrays and
+// scalars (by tolist()), strings, bools, ints and finite floats. Anything else, a NaN or infinite
+// number (which JSON cannot hold), or nesting deeper than the parser's limit is an error naming
+// its place in the document ("curves[2].bezier[1][0]").
+nlohmann::ordered_json json_of(const py::handle& value, const std::string& place, const std::string& name, int depth) {
+  const auto where = [&] { return name + ": " + (place.empty() ? std::string("the document") : place) + ": "; };
+  if (depth > 64) fail(where() + "nested more than 64 deep (or it contains itself)");
+  if (value.is_none()) return nullptr;
+  if (py::isinstance<py::bool_>(value)) return value.cast<bool>();
+  if (py::isinstance<py::int_>(value)) {
+    try {
+      return value.cast<long long>();
+    } catch (const py::cast_error&) {
+      fail(where() + py::repr(value).cast<std::string>() + " is too large a number");
+    }
+  }
+  if (py::isinstance<py::float_>(value)) {
+    const double number = value.cast<double>();
+    if (!std::isfinite(number))
+      fail(where() + py::repr(value).cast<std::string>() + " is not a finite number; give a finite number");
+    return number;
+  }
+  if (py::isinstance<py::str>(value)) return value.cast<std::string>();
+  if (py::isinstance<py::dict>(value)) {
+    nlohmann::ordered_json object = nlohmann::ordered_json::object();
+    for (const auto& [key, item] : value.cast<py::dict>()) {
+      if (!py::isinstance<py::str>(key)) fail(where() + "keys must be strings, got " + py::repr(key).cast<std::string>());
+      const std::string text = key.cast<std::string>();
+      object[text] = json_of(item, place.empty() ? text : place + "." + text, name, depth + 1);
+    }
+    return object;
+  }
+  if (py::isinstance<py::list>(value) || py::isinstance<py::tuple>(value)) {
+    nlohmann::ordered_json array = nlohmann::ordered_json::array();
+    std::size_t i = 0;
+    for (const py::handle item : value) array.push_back(json_of(item, place + "[" + std::to_string(i++) + "]", name, depth + 1));
+    return array;
+  }
+  if (py::hasattr(value, "tolist")) return json_of(value.attr("tolist")(), place, name, depth + 1);
+  fail(where() + "a " + py::str(py::type::handle_of(value).attr("__name__")).cast<std::string>() +
+       " cannot be held in a scene (numbers, strings, lists and dicts can)");
+}
 
 PyScene from_dict(const py::dict& document, const std::string& name) {
-  const std::string text = py::module_::import("json").attr("dumps")(document).cast<std::string>();
+  const std::string text = json_of(document, "", name, 0).dump();
   return {std::make_shared<const Scene>(value_or_fail(parse_scene(text, name)))};
 }
 
@@ -69,9 +163,23 @@ std::uint64_t photon_count(const py::object& value) {
   if (!py::isinstance<py::bool_>(value) && (py::isinstance<py::int_>(value) || py::isinstance<py::float_>(value)))
     number = value.cast<double>();
   else fail("photons: expected a whole number such as 250000 or 1e6, got " + py::repr(value).cast<std::string>());
-  if (!(number >= 1.0 && number <= 0x1.0p53) || number != std::floor(number))
-    fail("photons: expected a whole number from 1 to 2^53 such as 250000 or 1e6, got " + py::repr(value).cast<std::string>());
+  if (!(number >= 1.0 && number <= static_cast<double>(kMaxPhotons)) || number != std::floor(number))
+    fail("photons: expected a whole number from 1 to 2^50 (about 1.1e15) such as 250000 or 1e6, got " +
+         py::repr(value).cast<std::string>());
   return static_cast<std::uint64_t>(number);
+}
+
+// A Python int in [1, kMaxElements], or nullopt (one too large for a C++ integer included).
+std::optional<int> element_count(const py::object& value) {
+  if (!py::isinstance<py::int_>(value) || py::isinstance<py::bool_>(value)) return std::nullopt;
+  long long count = 0;
+  try {
+    count = value.cast<long long>();
+  } catch (const py::cast_error&) {
+    return std::nullopt;
+  }
+  if (count < 1 || count > kMaxElements) return std::nullopt;
+  return static_cast<int>(count);
 }
 
 // Keyword settings, named as the command line's options (--ray-width is ray_width).
@@ -97,9 +205,10 @@ SolverSettings settings_from(const py::object& photons, std::uint64_t seed, unsi
   } else if (!py::isinstance<py::int_>(elements) || py::isinstance<py::bool_>(elements)) {
     fail("elements: expected \"auto\" or a whole number, got " + py::repr(elements).cast<std::string>());
   } else {
-    const long long count = elements.cast<long long>();
-    if (count < 1 || count > (1 << 16)) fail("elements: must be auto or between 1 and 65536, got " + std::to_string(count));
-    s.elements = static_cast<int>(count);
+    const std::optional<int> count = element_count(elements);
+    if (!count) fail("elements: must be auto or between 1 and " + std::to_string(kMaxElements) + ", got " +
+                     py::repr(elements).cast<std::string>());
+    s.elements = *count;
   }
   s.sampling = parse(sampling_from_string(sampling), "sampling", "uniform or reconstructed", sampling);
   s.discontinuities = parse(discontinuity_mode_from_string(discontinuities), "discontinuities",
@@ -153,9 +262,12 @@ class PySolver {
     const std::uint32_t c = scene_.curve_index(curve_id);
     const Curve& curve = scene_.scene->curves[c];
     const Side side = back ? Side::Back : Side::Front;
-    if (!solver_->has_side(c, side) && !scene_.scene->is_emitter(curve))
+    // A side the curve does not have (its "sides" in the scene) neither emits nor reflects: asked
+    // for, it is an error on every curve, emitter or not.
+    const bool listed = curve.sides == Sides::Both || (curve.sides == Sides::Back) == back;
+    if (!listed)
       fail("curve '" + curve_id + "' has no " + (back ? "back" : "front") + " side that emits or reflects (sides: " +
-           (curve.sides == Sides::Both ? "both" : curve.sides == Sides::Front ? "front" : "back") + ")");
+           (curve.sides == Sides::Front ? "front" : "back") + "); ask for back=" + (back ? "False" : "True"));
     const auto values = s.unchecked<1>();
     const int channels = scene_.scene->channels;
     std::vector<py::ssize_t> shape{values.shape(0)};
@@ -263,6 +375,10 @@ class PySolver {
     }
     if (raised) throw *raised;
     if (failure) std::rethrow_exception(failure);
+    if (!warned_threads_ && !solver_->thread_shortfall().empty()) {
+      warned_threads_ = true;
+      warn(solver_->thread_shortfall() + "; the results are the same bits on any thread count");
+    }
     if (solver_->stop_reason() == StopReason::Cancelled) {
       PyErr_SetNone(PyExc_KeyboardInterrupt);
       throw py::error_already_set();
@@ -273,6 +389,7 @@ class PySolver {
   PyScene scene_;
   std::unique_ptr<Solver> solver_;
   std::atomic<bool> busy_{false};
+  bool warned_threads_ = false;
 };
 
 // flatland.reference: the deterministic reference solution (flatland reference), as the document
@@ -283,24 +400,31 @@ std::string reference(const PyScene& scene, int samples, double max_element_leng
   if (Status status = validate(settings); !status) fail(status.error().message);
   if (samples < 1 || samples > 1'000'000) fail("samples: must be between 1 and 1000000");
   const auto start = std::chrono::steady_clock::now();
-  std::optional<ReferenceSolution> solution;
-  {
-    py::gil_scoped_release release;
-    Result<ReferenceSolution> solved = solve_reference(*scene.scene, settings);
-    if (solved) solution.emplace(std::move(*solved));
-    else {
-      py::gil_scoped_acquire gil;
-      fail(solved.error().message);
-    }
-  }
+  // Ctrl-C stops the form factors (and the estimate's two solves) within a row.
+  std::optional<Result<ReferenceSolution>> solved;
+  run_watching_signals([&](const std::atomic<bool>* cancel) {
+    ReferenceSettings watched = settings;
+    watched.cancel = cancel;
+    solved.emplace(solve_reference(*scene.scene, watched));
+  });
+  const ReferenceSolution solution = value_or_fail(std::move(*solved));
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  const ReferenceSolution& r = *solution;
+  const ReferenceSolution& r = solution;
+  if (!r.thread_shortfall().empty()) warn(r.thread_shortfall() + "; the reference is the same on any thread count");
   const SampledResult sampled = sample_radiosity(
       *scene.scene, samples, [&r](std::uint32_t c, Side side, double u) { return r.radiosity(c, side, u); });
   const nlohmann::json curves = curves_to_json(sampled);
   std::optional<ReferenceErrorEstimate> estimate;
-  if (estimate_error) estimate = value_or_fail(estimate_discretisation_error(*scene.scene, settings, samples, sampled));
-  return json_text(reference_result_to_json(*scene.scene, settings, r, samples, seconds,
+  if (estimate_error) {
+    std::optional<Result<ReferenceErrorEstimate>> estimated;
+    run_watching_signals([&](const std::atomic<bool>* cancel) {
+      ReferenceSettings watched = settings;
+      watched.cancel = cancel;
+      estimated.emplace(estimate_discretisation_error(*scene.scene, watched, samples, sampled));
+    });
+    estimate = value_or_fail(std::move(*estimated));
+  }
+  return json_text(reference_result_to_json(*scene.scene, settings, solution, samples, seconds,
                                             estimate ? &*estimate : nullptr, curves));
 }
 
@@ -325,9 +449,10 @@ py::dict norms(const ErrorNorms& e) {
 // flatland.compare: the errors of a result against a reference, as `compare --json` prints them.
 py::dict compare(const py::object& result, const py::object& reference, const std::string& measure) {
   if (measure != "reflected" && measure != "total") fail("measure: expected reflected or total, got '" + measure + "'");
-  const Comparison comparison = value_or_fail(compare_sampled(
-      sampled_of(result, "result"), sampled_of(reference, "reference"),
-      measure == "total" ? Measure::Total : Measure::Reflected));
+  Result<Comparison> compared = compare_sampled(sampled_of(result, "result"), sampled_of(reference, "reference"),
+                                                measure == "total" ? Measure::Total : Measure::Reflected);
+  if (!compared && compared.error().message == kNothingReflected) fail(compared.error().message + " (measure=\"total\")");
+  const Comparison comparison = value_or_fail(std::move(compared));
   py::dict d;
   d["measure"] = measure;
   d["scene"] = norms(comparison.scene);
@@ -345,21 +470,27 @@ py::list converge(const PyScene& scene, const std::vector<std::string>& methods,
                   const py::object& progress) {
   if (measure != "reflected" && measure != "total") fail("measure: expected reflected or total, got '" + measure + "'");
   if (samples < 1 || samples > 1'000'000) fail("samples: must be between 1 and 1000000");
-  if (seeds < 1 || seeds > 1'000'000) fail("seeds: must be between 1 and 1000000");
+  if (seeds < 1 || seeds > kMaxSeeds) fail("seeds: must be between 1 and " + std::to_string(kMaxSeeds));
   if (methods.empty()) fail("methods: give at least one method");
   if (budgets.empty()) fail("budgets: give at least one budget");
   for (const double budget : budgets)
-    if (!(budget >= 1.0 && budget <= 0x1.0p53)) fail("budgets: each must be a photon count from 1 to 2^53, got " + std::to_string(budget));
+    if (!(budget >= 1.0 && budget <= static_cast<double>(kMaxPhotons)) || budget != std::floor(budget))
+      fail("budgets: each must be a whole photon count from 1 to 2^50 (about 1.1e15), got " + std::to_string(budget));
   SolverSettings defaults;
   defaults.threads = threads;
   defaults.tolerance = tolerance;
-  const std::string elements_text = py::isinstance<py::str>(elements) ? elements.cast<std::string>()
-                                    : py::isinstance<py::int_>(elements) && !py::isinstance<py::bool_>(elements)
-                                        ? std::to_string(elements.cast<long long>())
-                                        : std::string("?");
-  const std::optional<int> element_count = elements_from_string(elements_text, 1 << 20);
-  if (!element_count) fail("elements: must be auto or a whole number from 1 to 1048576, got " + py::repr(elements).cast<std::string>());
-  defaults.elements = *element_count;
+  const std::optional<int> elements_given = py::isinstance<py::str>(elements)
+                                               ? elements_from_string(elements.cast<std::string>(), kMaxElements)
+                                               : element_count(elements);
+  if (!elements_given)
+    fail("elements: must be auto or a whole number from 1 to " + std::to_string(kMaxElements) + ", got " +
+         py::repr(elements).cast<std::string>());
+  defaults.elements = *elements_given;
+  if (!curve.is_none() && !py::isinstance<py::str>(curve))
+    fail("curve: expected a curve's id (a string), got " + py::repr(curve).cast<std::string>());
+  for (std::size_t m = 0; m < methods.size(); ++m)
+    for (std::size_t earlier = 0; earlier < m; ++earlier)
+      if (methods[m] == methods[earlier]) fail("methods: '" + methods[m] + "' is given twice; give each method once");
   std::vector<ConvergeMethod> parsed;
   for (const std::string& text : methods) parsed.push_back(value_or_fail(parse_converge_method(text, defaults)));
   std::optional<std::size_t> curve_index;

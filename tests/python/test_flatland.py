@@ -252,3 +252,91 @@ def test_ctrl_c_interrupts_a_solve():
     with pytest.raises(KeyboardInterrupt):
         flatland.solve(scene, photons=10**12, elements=16, tolerance=1e-9)
     assert time.perf_counter() - start < 10
+
+
+def test_ctrl_c_interrupts_a_reference():
+    # The form factors of 12,000 elements take about a minute; Ctrl-C stops them within a row.
+    scene = flatland.Scene.load("scenes2d/default.json")
+    timer = threading.Timer(0.5, lambda: os.kill(os.getpid(), signal.SIGINT))
+    timer.start()
+    start = time.perf_counter()
+    with pytest.raises(KeyboardInterrupt):
+        flatland.reference(scene, max_element_length=0.003)
+    assert time.perf_counter() - start < 3
+
+
+def test_a_fifo_with_no_writer_is_waited_for_and_ctrl_c_ends_the_wait(tmp_path):
+    fifo = tmp_path / "scene.json"
+    os.mkfifo(fifo)
+    timer = threading.Timer(0.5, lambda: os.kill(os.getpid(), signal.SIGINT))
+    timer.start()
+    start = time.perf_counter()
+    with pytest.raises(KeyboardInterrupt):
+        flatland.Scene.load(str(fifo))
+    assert time.perf_counter() - start < 2
+
+
+def test_misused_keywords_raise_value_errors_as_the_command_line_refuses_them(tmp_path):
+    scene = flatland.Scene.load("scenes2d/penumbra.json")
+    # A path holds no NUL: "a.json\0junk" used to load a.json.
+    with pytest.raises(ValueError, match="NUL"):
+        flatland.Scene.load("scenes2d/penumbra.json\0junk")
+    with pytest.raises(ValueError, match=r"2\^50"):
+        flatland.solve(scene, photons=2**51)
+    for elements in (2**64, 0, 65537, True, "many"):
+        with pytest.raises(ValueError, match="elements"):
+            flatland.solve(scene, photons=1000, elements=elements)
+    with pytest.raises(ValueError, match="elements"):
+        flatland.converge(scene, budgets=[1e3], elements=2**64)
+    with pytest.raises(ValueError, match="curve"):
+        flatland.converge(scene, budgets=[1e3], curve=5)
+    with pytest.raises(ValueError, match="seeds"):
+        flatland.converge(scene, budgets=[1e3], seeds=1001)  # the command line's --seeds limit
+    with pytest.raises(ValueError, match="given twice"):
+        flatland.converge(scene, budgets=[1e3], methods=["cubic", "cubic"])
+    with pytest.raises(ValueError, match="wider than the scene"):
+        flatland.solve(scene, photons=1000, ray_width=1e300)
+    cli = run_cli("solve", "scenes2d/penumbra.json", "--photons", "1000", "--ray-width", "1e300")
+    assert cli.returncode == 2 and "wider than the scene" in cli.stderr
+
+
+def test_back_sides_that_a_curve_lacks_are_refused_on_every_curve():
+    scene = flatland.Scene.load("scenes2d/penumbra.json")  # every curve one-sided; one is the lamp
+    result = flatland.solve(scene, photons=10_000)
+    s = np.array([0.1])
+    assert result.B("emitter", s)[0] == 1.0  # the lamp's front: B = E
+    for curve in ("emitter", "occluder", "receiver"):
+        with pytest.raises(ValueError, match="no back side"):
+            result.B(curve, s, back=True)
+
+
+def test_scenes_from_dicts_take_numpy_and_name_the_field_of_a_bad_number():
+    document = json.load(open("scenes2d/penumbra.json"))
+    as_arrays = json.loads(json.dumps(document))
+    for curve in as_arrays["curves"]:
+        curve["line"] = np.array(curve["line"], dtype=np.float64)
+    as_arrays["materials"]["receiver"]["reflectivity"] = np.float32(0.5)
+    plain = flatland.solve(flatland.Scene.from_dict(document), photons=20_000)
+    numpy = flatland.solve(flatland.Scene.from_dict(as_arrays), photons=20_000)
+    assert np.array_equal(plain.B("receiver", np.linspace(0, 6, 7)), numpy.B("receiver", np.linspace(0, 6, 7)))
+    bad = json.loads(json.dumps(document))
+    bad["curves"][2]["line"][1][0] = float("nan")
+    with pytest.raises(ValueError, match=r"curves\[2\]\.line\[1\]\[0\]: nan is not a finite number"):
+        flatland.Scene.from_dict(bad)
+    cyclic = {"flatland": 2, "curves": []}
+    cyclic["curves"].append(cyclic)
+    with pytest.raises(ValueError, match="nested more than 64 deep"):
+        flatland.Scene.from_dict(cyclic)
+    with pytest.raises(ValueError, match="cannot be held in a scene"):
+        flatland.Scene.from_dict({"flatland": 2, "curves": [object()]})
+
+
+def test_results_of_different_scene_files_are_not_compared(tmp_path):
+    penumbra = flatland.solve(flatland.Scene.load("scenes2d/penumbra.json"), photons=10_000)
+    changed = json.load(open("scenes2d/penumbra.json"))
+    changed["materials"]["emitter"]["emittance"] = 2.0
+    other = tmp_path / "other.json"
+    other.write_text(json.dumps(changed))
+    brighter = flatland.solve(flatland.Scene.load(str(other)), photons=10_000)
+    with pytest.raises(ValueError, match="different scene files"):
+        flatland.compare(penumbra.to_json(), brighter.to_json())
