@@ -1,4 +1,5 @@
 // The command-line contract: exit codes, one-line errors naming what is wrong, no partial files.
+#include <fcntl.h>
 #include <sys/stat.h>
 #include <sys/sysmacros.h>
 #include <sys/wait.h>
@@ -607,7 +608,10 @@ struct Stopped {
   int exit_code = -1;
   double seconds_to_stop = 0.0;
 };
-Stopped run_and_signal(const std::vector<std::string>& arguments, int signal, double delay, const fs::path& directory) {
+// With `opened`, the signal waits (at most 20 s) until the process has that file open: a process
+// still starting would not yet have its handlers.
+Stopped run_and_signal(const std::vector<std::string>& arguments, int signal, double delay, const fs::path& directory,
+                       const fs::path& opened = {}) {
   std::vector<std::string> words = {FLATLAND_BINARY};
   words.insert(words.end(), arguments.begin(), arguments.end());
   std::vector<char*> argv;
@@ -622,6 +626,14 @@ Stopped run_and_signal(const std::vector<std::string>& arguments, int signal, do
     ::_exit(127);
   }
   ::usleep(static_cast<useconds_t>(delay * 1e6));
+  for (int tries = 0; !opened.empty() && tries < 2000; ++tries) {
+    bool found = false;
+    std::error_code ec;
+    for (fs::directory_iterator it("/proc/" + std::to_string(child) + "/fd", ec), end; !ec && it != end; it.increment(ec))
+      found = found || fs::read_symlink(it->path(), ec) == opened;
+    if (found) break;
+    ::usleep(10'000);
+  }
   const auto sent = std::chrono::steady_clock::now();
   ::kill(child, signal);
   int status = 0;
@@ -700,6 +712,13 @@ fs::path make_device(const fs::path& directory, const std::string& name, unsigne
   if (::geteuid() != 0) return {};
   const fs::path node = directory / name;
   if (::mknod(node.c_str(), S_IFCHR | 0666, makedev(1, minor)) != 0) return {};
+  // (On a file system mounted nodev a node is made but cannot be opened.)
+  const int fd = ::open(node.c_str(), O_RDONLY | O_NONBLOCK);
+  if (fd < 0) {
+    fs::remove(node);
+    return {};
+  }
+  ::close(fd);
   return node;
 }
 
@@ -749,7 +768,9 @@ TEST_F(Cli, OutputsToStandardOutputDevicesAndPipesAreWrittenThrough) {
                      " --result " + null2.string());
 #endif
   for (const std::string& command : commands) {
-    const CommandRun r = run(command);
+    // (Mesa keeps allocations until exit that LeakSanitizer would report: render runs without its
+    // leak check in a sanitizer build, as the viewer's tests do.)
+    const CommandRun r = run(command, "ASAN_OPTIONS=${ASAN_OPTIONS:+$ASAN_OPTIONS:}detect_leaks=0");
     EXPECT_EQ(r.exit_code, 0) << command << "\n" << r.err;
     EXPECT_TRUE(is_character_device(null)) << command;
     EXPECT_TRUE(is_character_device(null2)) << command;
@@ -760,8 +781,16 @@ TEST_F(Cli, OutputsToStandardOutputDevicesAndPipesAreWrittenThrough) {
   EXPECT_NE(no_space.err.find("No space left"), std::string::npos) << no_space.err;
   EXPECT_TRUE(is_character_device(full));
   // Nothing else was made beside them: no temporaries, no regular files.
-  for (const auto& entry : fs::directory_iterator(directory_))
-    EXPECT_FALSE(entry.path().filename().string().rfind(".null", 0) == 0) << entry.path();
+  for (const auto& entry : fs::directory_iterator(directory_)) {
+    const std::string name = entry.path().filename().string();
+    EXPECT_TRUE(name == "null" || name == "null2" || name == "full" || name == "fifo.json" || name == "pipe.err" ||
+                name == "redirected.json" || name == "received.json" || name == "stdout.txt" || name == "stderr.txt")
+        << name;
+  }
+  // The null device takes two outputs at once.
+  const CommandRun both = run("solve " + penumbra + " --photons 20000 --quiet --out " + null.string() + " --picture " +
+                              null.string());
+  EXPECT_EQ(both.exit_code, 0) << both.err;
 }
 
 // An output that is one of the command's inputs, or another of its outputs, is refused before any
@@ -801,7 +830,7 @@ TEST_F(Cli, InputsFromPipesAndEndlessDevicesNeverHang) {
   ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
   for (const std::vector<std::string>& arguments :
        {std::vector<std::string>{"solve", fifo.string()}, {"compare", fifo.string(), fifo.string()}}) {
-    const Stopped stopped = run_and_signal(arguments, SIGINT, 0.5, directory_);
+    const Stopped stopped = run_and_signal(arguments, SIGINT, 0.1, directory_, fifo);
     EXPECT_EQ(stopped.exit_code, 130) << arguments[0] << ": " << read_file(directory_ / "signal.log");
     EXPECT_LT(stopped.seconds_to_stop, 1.0) << arguments[0];
   }
@@ -903,7 +932,8 @@ TEST_F(Cli, ResultsOfDifferentSceneFilesAreNotCompared) {
     const CommandRun r = run(command);
     EXPECT_EQ(r.exit_code, 2) << command;
     EXPECT_EQ(lines(r.err), 1) << r.err;
-    EXPECT_NE(r.err.find("scene file"), std::string::npos) << command << "\n" << r.err;
+    EXPECT_NE(r.err.find("scene"), std::string::npos) << command << "\n" << r.err;
+    EXPECT_NE(r.err.find("SHA-256"), std::string::npos) << command << "\n" << r.err;
   }
   // A malformed result names what is missing, in the program's words.
   nlohmann::json broken = nlohmann::json::parse(read_file(a));
@@ -1117,7 +1147,8 @@ TEST_F(Cli, MpiInterruptOfOneProcessStopsThemAll) {
   const double stopped = std::chrono::duration<double>(std::chrono::steady_clock::now() - sent).count();
   int status = 0;
   ::waitpid(launcher, &status, 0);
-  EXPECT_LT(stopped, 1.0) << read_file(directory_ / "mpirun.log");
+  // (Measured 0.12 s; the bound leaves room for a sanitizer build on two busy cores.)
+  EXPECT_LT(stopped, 2.0) << read_file(directory_ / "mpirun.log");
   ASSERT_TRUE(WIFEXITED(status));
   EXPECT_EQ(WEXITSTATUS(status), 130) << read_file(directory_ / "mpirun.log");
   EXPECT_FALSE(fs::exists(out));

@@ -47,6 +47,13 @@ class Files : public testing::ScratchDirectoryTest {
     if (::geteuid() != 0) return {};
     const std::string node = path(name);
     if (::mknod(node.c_str(), S_IFCHR | 0666, makedev(1, minor)) != 0) return {};
+    // (On a file system mounted nodev a node is made but cannot be opened.)
+    const int fd = ::open(node.c_str(), O_RDONLY | O_NONBLOCK);
+    if (fd < 0) {
+      fs::remove(node);
+      return {};
+    }
+    ::close(fd);
     return node;
   }
   std::string fifo(const std::string& name) const {

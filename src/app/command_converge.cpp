@@ -76,8 +76,17 @@ Status run_gnuplot(const fs::path& directory, const std::string& script) {
   std::string program = "gnuplot";
   std::string argument = script;
   char* argv[] = {program.data(), argument.data(), nullptr};
+  // gnuplot gets the default SIGPIPE back (flatland ignores it, and an ignored signal is inherited).
+  posix_spawnattr_t attributes;
+  posix_spawnattr_init(&attributes);
+  sigset_t defaults;
+  sigemptyset(&defaults);
+  sigaddset(&defaults, SIGPIPE);
+  posix_spawnattr_setsigdefault(&attributes, &defaults);
+  posix_spawnattr_setflags(&attributes, POSIX_SPAWN_SETSIGDEF);
   pid_t child = 0;
-  const int spawned = ::posix_spawnp(&child, "gnuplot", &actions, nullptr, argv, environ);
+  const int spawned = ::posix_spawnp(&child, "gnuplot", &actions, &attributes, argv, environ);
+  posix_spawnattr_destroy(&attributes);
   posix_spawn_file_actions_destroy(&actions);
   ::close(pipe_ends[1]);
   if (spawned != 0) {
@@ -200,7 +209,7 @@ Status draw_plot(const PlotInput& in) {
     }
     data += "\n\n";  // a gnuplot data block per method
   }
-  if (Status status = write_file_atomically((directory / "convergence.dat").string(), data); !status)
+  if (Status status = write_file_atomically((directory / "convergence.dat").string(), data, &interrupt_flag()); !status)
     return status;
 
   // gnuplot runs in the directory, so the script names its files without the directory's path;
@@ -244,7 +253,7 @@ Status draw_plot(const PlotInput& in) {
   const fs::path svg_temporary = directory / ".convergence.svg.tmp";
   script += "set terminal pngcairo size 900,720\nset output '.convergence.png.tmp'\n" + plot;
   script += "set terminal svg size 900,720\nset output '.convergence.svg.tmp'\n" + plot;
-  if (Status status = write_file_atomically((directory / "convergence.gp").string(), script); !status) return status;
+  if (Status status = write_file_atomically((directory / "convergence.gp").string(), script, &interrupt_flag()); !status) return status;
   std::error_code ec;
   if (Status status = run_gnuplot(directory, "convergence.gp"); !status) {
     fs::remove(png_temporary, ec);
@@ -784,7 +793,7 @@ int run_converge(ConvergeOptions& o) {
     }
     csv += line + "\n";
   }
-  if (Status status = write_file_atomically((directory / "convergence.csv").string(), csv); !status)
+  if (Status status = write_file_atomically((directory / "convergence.csv").string(), csv, &interrupt_flag()); !status)
     return usage_error(status.error().message);
 
   int shared_elements = methods.front().settings.elements;

@@ -4,6 +4,7 @@
 #include <new>
 #include <cstdio>
 #include <optional>
+#include <string>
 
 #include <fcntl.h>
 #include <unistd.h>
@@ -109,13 +110,25 @@ int main(int argc, char** argv) {
   // A Ctrl-C on any process reaches the others within a fraction of a second (docs/mpi.md).
   if (world && world->size() > 1) world->relay_cancel(&interrupt_flag());
 #endif
+  // A failure that one process meets alone (out of memory) cannot wait for the others to agree:
+  // they may be waiting for it in a sum. It says so itself and, under MPI, ends the whole job.
+  const auto stop_alone = [&](const std::string& message, int code) {
+    std::string prefix = "flatland: ";
+    if (process_count() > 1)
+      prefix = "flatland (process " + std::to_string(process_rank()) + " of " + std::to_string(process_count()) + "): ";
+    std::fprintf(stderr, "%s%s\n", prefix.c_str(), message.c_str());
+#ifdef FLATLAND_HAVE_MPI
+    if (world && world->size() > 1) world->abort(code);
+#endif
+    return code;
+  };
   try {
     return run_command(command_line);
   } catch (const std::bad_alloc&) {
-    return usage_error("out of memory: the work does not fit in the memory this process may use (see ulimit -v); "
-                       "ask for less (fewer elements, samples or threads)");
+    return stop_alone("error: out of memory: the work does not fit in the memory this process may use (see "
+                      "ulimit -v); ask for less (fewer elements, samples or threads)",
+                      kExitUsage);
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "flatland: internal error: %s\n", e.what());
-    return kExitFailure;
+    return stop_alone(std::string("internal error: ") + e.what(), kExitFailure);
   }
 }

@@ -59,7 +59,8 @@ std::optional<int> check_outputs(const std::vector<NamedPath>& outputs, const st
     Result<OutputTarget> target = examine_output(output.path);
     if (!target) return usage_error(target.error().message);
     for (std::size_t i = 0; i < seen.size(); ++i) {
-      if (seen[i].second != target->identity) continue;
+      // The null device takes any number of outputs (--out /dev/null --picture /dev/null).
+      if (seen[i].second != target->identity || (i >= input_count && target->discards)) continue;
       const NamedPath& other = *seen[i].first;
       const std::string what = other.option.rfind("--", 0) == 0 ? other.option : "the " + other.option;
       if (i < input_count)

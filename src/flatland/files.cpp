@@ -4,6 +4,7 @@
 #include <poll.h>
 #include <signal.h>
 #include <sys/stat.h>
+#include <sys/sysmacros.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -159,8 +160,11 @@ Result<OutputTarget> examine_output(const std::string& path) {
     }
     const fs::path directory = directory_of(given);
     struct stat folder {};
-    if (::stat(directory.c_str(), &folder) != 0 || !S_ISDIR(folder.st_mode))
-      return Error{path + ": directory " + directory.string() + " does not exist; create it first"};
+    if (::stat(directory.c_str(), &folder) != 0) {
+      if (errno == ENOENT) return Error{path + ": directory " + directory.string() + " does not exist; create it first"};
+      return Error{path + ": cannot reach directory " + directory.string() + ": " + reason(errno)};
+    }
+    if (!S_ISDIR(folder.st_mode)) return Error{path + ": " + directory.string() + " is not a directory"};
     if (!may_access(directory.string(), W_OK | X_OK))
       return Error{path + ": cannot write in directory " + directory.string() + ": " + reason(errno)};
     target.kind = OutputKind::NewFile;
@@ -213,6 +217,7 @@ Result<OutputTarget> examine_output(const std::string& path) {
     if (!may_access(path, W_OK)) return Error{path + ": cannot write to it: " + reason(errno)};
     target.kind = OutputKind::WrittenThrough;
     target.real_path = path;
+    target.discards = S_ISCHR(info.st_mode) && info.st_rdev == makedev(1, 3);
     target.shares_standard_output = have_standard_output && standard_output.st_dev == info.st_dev &&
                                     standard_output.st_ino == info.st_ino && ::isatty(STDOUT_FILENO) == 1;
     return target;
@@ -261,9 +266,12 @@ void remove_stale_temporaries(const fs::path& target) {
 }
 
 // Writes all of `contents` to `fd`, which `target` names in errors. Each write waits for poll to
-// say the descriptor takes data, watching `cancel` every kWaitMilliseconds; on a descriptor that
-// blocks (a standard stream, shared with other processes, is never switched to non-blocking) the
-// pieces are at most PIPE_BUF bytes, which a pipe that polls writable takes without blocking.
+// say the descriptor takes data, watching `cancel` every kWaitMilliseconds. A standard stream is
+// shared with other processes and never switched to non-blocking: its pieces are at most PIPE_BUF
+// bytes, which a pipe that polls writable takes without blocking as long as nobody else writes to
+// it at the same moment (a pipe shared with another writer, or a stopped terminal, can still hold
+// a write up).
+
 Status write_all(int fd, const OutputTarget& target, std::string_view contents, const std::atomic<bool>* cancel,
                  bool blocking) {
   struct stat info {};
@@ -305,6 +313,12 @@ Status write_through(const OutputTarget& target, std::string_view contents, cons
     ::poll(nullptr, 0, kWaitMilliseconds);
   }
   const Descriptor fd(opened);
+  // The same device or FIFO that was examined: a regular file put in its place since would be
+  // written over from its start, neither replaced whole nor truncated.
+  struct stat info {};
+  if (::fstat(fd.get(), &info) != 0 || !(S_ISCHR(info.st_mode) || S_ISFIFO(info.st_mode)) ||
+      info.st_dev != target.identity.device || info.st_ino != target.identity.inode)
+    return Error{target.path + ": changed since it was checked (no longer the device or FIFO it was); nothing written"};
   return write_all(fd.get(), target, contents, cancel, false);
 }
 
@@ -326,11 +340,14 @@ Result<std::string> write_temporary(const OutputTarget& target, std::string_view
   if (opened < 0) return Error{target.path + ": cannot write: " + reason(errno)};
   Status written = ok_status();
   {
-    const Descriptor fd(opened);
     struct stat replaced {};
     if (target.kind == OutputKind::ReplacedFile && ::stat(target.real_path.c_str(), &replaced) == 0)
-      (void)::fchmod(fd.get(), replaced.st_mode & 07777);
-    written = write_all(fd.get(), target, contents, nullptr, false);
+      (void)::fchmod(opened, replaced.st_mode & 0777);
+    written = write_all(opened, target, contents, nullptr, false);
+    // On the disk before the rename, so that a crash leaves the old file or the new one, never an
+    // empty one; and a failure the file system reports only now (NFS, quotas) is an error here.
+    if (written && ::fsync(opened) != 0) written = Error{target.path + ": write failed: " + reason(errno)};
+    if (::close(opened) != 0 && written) written = Error{target.path + ": write failed: " + reason(errno)};
   }
   if (!written) {
     std::error_code ignored;

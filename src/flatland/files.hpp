@@ -19,8 +19,8 @@
 
 namespace flatland {
 
-// The largest input read: 1 GiB. A scene of a million curves is about 150 MB, and check_result_size
-// keeps every result the program writes below this, so whatever it writes it can read back.
+// The largest input read: 1 GiB. A scene of a million curves is about 85 MB, and check_result_size
+// keeps the samples of every result the program writes below this.
 inline constexpr std::uint64_t kMaxInputBytes = std::uint64_t{1} << 30;
 
 // The message of the error that a read or write ended by its cancel flag returns.
@@ -72,6 +72,8 @@ struct OutputTarget {
   // elsewhere (to standard error) to keep out of it: true for a StandardStream on descriptor 1, and for a terminal
   // or pipe that descriptor 1 is also connected to.
   bool shares_standard_output = false;
+  // Whether it is the null device, which takes any number of outputs at once.
+  bool discards = false;
 };
 
 // Examines `path` as an output before any work starts: "-" is the standard output; a name in an
@@ -85,12 +87,13 @@ Status check_output_file(const std::string& path);
 
 // Output files written all or nothing where the file system allows it. stage() writes a file's
 // contents to a temporary file in its directory (.NAME.tmpPID-RANDOM, so the rename is atomic),
-// or keeps them for an output that is written through; commit() renames the temporary files over
-// their targets and writes the others, in staging order. Files staged but not committed (an
-// error, an interrupt) are removed when the object goes away, so no partial regular file is ever
-// left. A temporary file that a killed process (SIGKILL, power loss) left behind is removed by the
-// next stage() of the same target once its process no longer runs. A write-through output that
-// waits (a FIFO with no reader, a full pipe) watches `cancel` every 50 ms.
+// synced to the disk, or keeps them for an output that is written through; commit() renames the
+// temporary files over their targets and writes the others, in staging order. A rename replaces
+// this name only: other hard links to the file keep the old contents. Files staged but not
+// committed (an error, an interrupt) are removed when the object goes away, so no partial regular
+// file is ever left. A temporary file that a killed process (SIGKILL, power loss) left behind is
+// removed by the next stage() of the same target once its process no longer runs. A
+// write-through output that waits (a FIFO with no reader, a full pipe) watches `cancel` every 50 ms.
 class OutputFiles {
  public:
   explicit OutputFiles(const std::atomic<bool>* cancel = nullptr) : cancel_(cancel) {}

@@ -113,7 +113,7 @@ Result<Comparison> compare_results(const nlohmann::json& result, const nlohmann:
 
 Result<Comparison> compare_sampled(const SampledResult& result, const SampledResult& reference, Measure measure) {
   if (!result.scene_sha256.empty() && !reference.scene_sha256.empty() && result.scene_sha256 != reference.scene_sha256)
-    return Error{"the results were made from different scene files (SHA-256 " + result.scene_sha256.substr(0, 12) +
+    return Error{"the results were made from different scenes (content SHA-256 " + result.scene_sha256.substr(0, 12) +
                  "... and " + reference.scene_sha256.substr(0, 12) +
                  "... in the reference); compare results of the same scene file"};
   if (result.curves.size() != reference.curves.size())

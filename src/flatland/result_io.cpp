@@ -23,6 +23,7 @@ namespace flatland {
 
 nlohmann::json scene_to_json(const Scene& scene) {
   return {{"name", scene.name}, {"file", scene.source}, {"sha256", scene.source_sha256},
+          {"content_sha256", scene.content_sha256},
           {"channels", scene.channels}};
 }
 

@@ -59,7 +59,7 @@ nlohmann::json spectrum_to_json(const Spectrum& value, int channels) {
 SampledResult sample_radiosity(const Scene& scene, int samples_per_curve, const RadiosityFunction& radiosity) {
   SampledResult result;
   result.channels = scene.channels;
-  result.scene_sha256 = scene.source_sha256;
+  result.scene_sha256 = scene.content_sha256;
   for (std::uint32_t c = 0; c < scene.curves.size(); ++c) {
     const Curve& curve = scene.curves[c];
     const Side main_side = curve.sides == Sides::Back ? Side::Back : Side::Front;
@@ -171,10 +171,10 @@ nlohmann::json curves_to_json(const SampledResult& result) {
 }
 
 Status check_reference_of(const SampledResult& reference, const Scene& scene, int samples) {
-  if (!reference.scene_sha256.empty() && !scene.source_sha256.empty() && reference.scene_sha256 != scene.source_sha256)
-    return Error{"the reference was made from another scene file than " + scene.source + " (SHA-256 " +
-                 reference.scene_sha256.substr(0, 12) + "... against " + scene.source_sha256.substr(0, 12) +
-                 "...); solve the reference from the same file"};
+  if (!reference.scene_sha256.empty() && !scene.content_sha256.empty() && reference.scene_sha256 != scene.content_sha256)
+    return Error{"the reference was made from another scene than " + scene.source + " (content SHA-256 " +
+                 reference.scene_sha256.substr(0, 12) + "... against " + scene.content_sha256.substr(0, 12) +
+                 "...); solve the reference from the same scene file"};
   bool same = reference.curves.size() == scene.curves.size();
   for (std::size_t c = 0; same && c < scene.curves.size(); ++c) same = reference.curves[c].id == scene.curves[c].id;
   if (!same)
@@ -195,7 +195,7 @@ Result<SampledResult> sampled_from_json(const nlohmann::json& document, const st
   SampledResult result;
   result.channels = channels_of_document(curves);
   if (const auto scene = document.find("scene"); scene != document.end() && scene->is_object())
-    if (const auto sha = scene->find("sha256"); sha != scene->end() && sha->is_string())
+    if (const auto sha = scene->find("content_sha256"); sha != scene->end() && sha->is_string())
       result.scene_sha256 = sha->get<std::string>();
   try {
     for (std::size_t c = 0; c < curves.size(); ++c) {

@@ -62,8 +62,9 @@ struct ResultStats {
 
 struct SampledResult {
   int channels = 1;  // 1 (grey) or 3; a grey value is channel 0 of its Spectrum
-  // The SHA-256 of the scene file the result was made from (hex); empty where it is not known (a
-  // document without "scene"). Results of different scene files are never compared.
+  // The SHA-256 of the scene the result was made from (hex; Scene::content_sha256), or where the
+  // result does not record that, of the scene file's bytes; empty where neither is known (a
+  // document without "scene"). Results of different scenes are never compared.
   std::string scene_sha256;
   std::vector<ResultCurve> curves;
   std::optional<ResultStats> stats;  // results of a solver

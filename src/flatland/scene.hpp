@@ -102,6 +102,10 @@ struct Scene {
   std::string description;  // free text from the file ("description"), for people; may be empty
   std::string source;  // file the scene came from, for messages
   std::string source_sha256;  // SHA-256 of the text it was parsed from (results' provenance)
+  // SHA-256 of the scene's JSON in one canonical form (keys sorted, no white space, numbers as the
+  // parser read them): the same for a file reformatted, or for the same scene built in Python from
+  // a dict. Results of scenes whose content differs are never compared.
+  std::string content_sha256;
   int channels = 1;    // 1 (grey) or 3 (colour)
   std::vector<Material> materials;
   std::vector<Curve> curves;

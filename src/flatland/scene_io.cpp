@@ -409,7 +409,9 @@ class SceneReader {
                          std::to_string(first.line) + ", column " + std::to_string(first.column) +
                          "); each key may appear once in an object, remove one of them"};
     }
-    return read_scene(root);
+    Scene scene = read_scene(root);
+    scene.content_sha256 = sha256_hex(nlohmann::json(root).dump());
+    return scene;
   }
 
   // Turns an error of finalize_scene ("FIELD: what") into a located message.

@@ -26,10 +26,13 @@ WorkerPool::WorkerPool(unsigned threads) : requested_(std::max(threads, 1u)) {
   for (unsigned i = 0; i < helpers; ++i) {
     try {
       helpers_.emplace_back(&WorkerPool::helper, this, i + 1);
-    } catch (const std::system_error& e) {
-      // The helpers started so far wait for work as they would in a pool of this size.
+    } catch (const std::exception& e) {
+      // (std::system_error when the system refuses a thread; std::bad_alloc when a thread's state
+      // does not fit.) The helpers started so far wait for work as in a pool of this size.
+      const auto* refused = dynamic_cast<const std::system_error*>(&e);
       shortfall_ = "started " + std::to_string(helpers_.size() + 1) + " of the " + std::to_string(requested_) +
-                   " threads asked for (the system refused more: " + e.code().message() + ")";
+                   " threads asked for (the system refused more: " +
+                   (refused != nullptr ? refused->code().message() : std::string("out of memory")) + ")";
       break;
     }
   }

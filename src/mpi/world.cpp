@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cstdlib>
 #include <system_error>
+#include <vector>
 
 namespace flatland::mpi {
 
@@ -14,9 +15,18 @@ namespace {
 // The tag of a cancel message on the relay's communicator.
 constexpr int kCancelTag = 1;
 
-MPI_Comm& communicator(void* slot) { return *static_cast<MPI_Comm*>(slot); }
-
 }  // namespace
+
+// The relay's own communicator (so its messages never meet the sums), the cancel messages this
+// process sent to and received from each other process, and the sends' requests. The counts are
+// the relay thread's while it runs, the World's after it has stopped.
+struct World::Relay {
+  MPI_Comm comm = MPI_COMM_NULL;
+  std::vector<int> sent;
+  std::vector<int> received;
+  std::vector<MPI_Request> requests;
+  int message = 1;  // what every cancel message carries (a send's buffer must outlive it)
+};
 
 bool started_by_launcher() {
   // (Per-process variables only: Slurm's SLURM_NTASKS is also set in a job script's own shell.)
@@ -38,26 +48,11 @@ World::World(int* argc, char*** argv) {
 }
 
 World::~World() {
-  if (relay_.joinable()) {
-    stopping_.store(true);
-    relay_.join();
-  }
-  if (relay_communicator_ != nullptr) {
-    // Messages still on their way (two processes cancelled at once) are received, not left behind.
-    MPI_Comm& comm = communicator(relay_communicator_);
-    for (int arrived = 1; arrived != 0;) {
-      MPI_Status status;
-      MPI_Iprobe(MPI_ANY_SOURCE, kCancelTag, comm, &arrived, &status);
-      if (arrived != 0) {
-        int ignored = 0;
-        MPI_Recv(&ignored, 1, MPI_INT, status.MPI_SOURCE, kCancelTag, comm, MPI_STATUS_IGNORE);
-      }
-    }
-    MPI_Comm_free(&comm);
-    delete &comm;
-  }
+  stop_relay();
   MPI_Finalize();
 }
+
+void World::abort(int code) { MPI_Abort(MPI_COMM_WORLD, code); std::abort(); }
 
 void World::sum(std::span<std::int64_t> values) {
   constexpr std::size_t kPiece = std::size_t{1} << 28;
@@ -69,11 +64,11 @@ void World::sum(std::span<std::int64_t> values) {
 }
 
 void World::relay_cancel(std::atomic<bool>* flag) {
-  if (!threads_supported_ || size_ < 2 || relay_.joinable()) return;
-  // Collective: every process makes the relay's communicator, so its messages never meet the sums.
-  auto* comm = new MPI_Comm;
-  MPI_Comm_dup(MPI_COMM_WORLD, comm);
-  relay_communicator_ = comm;
+  if (!threads_supported_ || size_ < 2 || relay_state_) return;
+  relay_state_ = std::make_unique<Relay>();
+  MPI_Comm_dup(MPI_COMM_WORLD, &relay_state_->comm);
+  relay_state_->sent.assign(size_, 0);
+  relay_state_->received.assign(size_, 0);
   try {
     relay_ = std::thread([this, flag] { relay(flag); });
   } catch (const std::system_error&) {
@@ -82,27 +77,52 @@ void World::relay_cancel(std::atomic<bool>* flag) {
 }
 
 void World::relay(std::atomic<bool>* flag) {
-  MPI_Comm& comm = communicator(relay_communicator_);
+  Relay& state = *relay_state_;
   bool told = false;  // whether this process has told the others (or heard from one)
   while (!stopping_.load()) {
     if (!told && flag->load()) {
-      const int one = 1;
-      // One int is sent eagerly: MPI_Send returns without waiting for the receiver.
-      for (unsigned other = 0; other < size_; ++other)
-        if (other != rank_) MPI_Send(&one, 1, MPI_INT, static_cast<int>(other), kCancelTag, comm);
+      // Not waited for here: a peer receives it at its next look, or when the relays stop.
+      for (unsigned other = 0; other < size_; ++other) {
+        if (other == rank_) continue;
+        MPI_Request request;
+        MPI_Isend(&state.message, 1, MPI_INT, static_cast<int>(other), kCancelTag, state.comm, &request);
+        state.requests.push_back(request);
+        ++state.sent[other];
+      }
       told = true;
     }
     int arrived = 0;
     MPI_Status status;
-    MPI_Iprobe(MPI_ANY_SOURCE, kCancelTag, comm, &arrived, &status);
+    MPI_Iprobe(MPI_ANY_SOURCE, kCancelTag, state.comm, &arrived, &status);
     if (arrived != 0) {
       int ignored = 0;
-      MPI_Recv(&ignored, 1, MPI_INT, status.MPI_SOURCE, kCancelTag, comm, MPI_STATUS_IGNORE);
+      MPI_Recv(&ignored, 1, MPI_INT, status.MPI_SOURCE, kCancelTag, state.comm, MPI_STATUS_IGNORE);
+      ++state.received[static_cast<std::size_t>(status.MPI_SOURCE)];
       flag->store(true);
       told = true;
     }
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
   }
+}
+
+void World::stop_relay() {
+  if (!relay_state_) return;
+  stopping_.store(true);
+  if (relay_.joinable()) relay_.join();
+  // Collective: how many messages each process sent each other one, so that every message still
+  // on its way is received before the communicator goes (two processes may both have cancelled).
+  Relay& state = *relay_state_;
+  std::vector<int> coming(size_, 0);
+  MPI_Alltoall(state.sent.data(), 1, MPI_INT, coming.data(), 1, MPI_INT, state.comm);
+  for (unsigned other = 0; other < size_; ++other)
+    for (int k = state.received[other]; k < coming[other]; ++k) {
+      int ignored = 0;
+      MPI_Recv(&ignored, 1, MPI_INT, static_cast<int>(other), kCancelTag, state.comm, MPI_STATUS_IGNORE);
+    }
+  if (!state.requests.empty())
+    MPI_Waitall(static_cast<int>(state.requests.size()), state.requests.data(), MPI_STATUSES_IGNORE);
+  MPI_Comm_free(&state.comm);
+  relay_state_.reset();
 }
 
 }  // namespace flatland::mpi

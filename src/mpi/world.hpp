@@ -5,6 +5,7 @@
 
 #include <atomic>
 #include <cstdint>
+#include <memory>
 #include <span>
 #include <thread>
 
@@ -31,21 +32,28 @@ class World final : public RoundSharing {
   // MPI_Allreduce (sum) in place, in pieces of at most 2^28 integers.
   void sum(std::span<std::int64_t> values) override;
 
-  // Makes `flag` (the process's interrupt flag) collective: a thread looks every 20 ms whether it
-  // was set here, and then tells every other process, and whether another process told this one,
-  // and then sets it. A Ctrl-C on any process so stops all of them within a fraction of a second,
-  // wherever each is in its work. Needs MPI_THREAD_MULTIPLE; without it (an MPI built without
-  // thread support) a cancel reaches the others at the end of the round, as the round's sum.
+  // Collective. Makes `flag` (the process's interrupt flag) collective: a thread looks every 20 ms
+  // whether it was set here, and then tells every other process, and whether another process told
+  // this one, and then sets it. A Ctrl-C on any process so stops all of them within a fraction of a
+  // second, wherever each is in its work. Needs MPI_THREAD_MULTIPLE; without it (an MPI built
+  // without thread support) a cancel reaches the others at the end of the round, as the round's
+  // sum. The relay stops when the World goes away, collectively: every cancel message sent is
+  // received first, as MPI requires before a communicator is freed.
   void relay_cancel(std::atomic<bool>* flag);
-  bool relays_cancel() const { return relay_.joinable(); }
+
+  // Ends the whole job at once with `code` (MPI_Abort): for a process that cannot go on (out of
+  // memory) while the others may be waiting for it in a sum.
+  [[noreturn]] void abort(int code);
 
  private:
+  struct Relay;
   void relay(std::atomic<bool>* flag);
+  void stop_relay();
 
   unsigned rank_ = 0;
   unsigned size_ = 1;
   bool threads_supported_ = false;
-  void* relay_communicator_ = nullptr;  // an MPI_Comm, kept opaque so this header needs no mpi.h
+  std::unique_ptr<Relay> relay_state_;  // its communicator and message counts (mpi.h stays in the .cpp)
   std::atomic<bool> stopping_{false};
   std::thread relay_;
 };

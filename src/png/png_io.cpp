@@ -80,10 +80,10 @@ Result<std::string> encode_png(const PngImage& image) {
   return bytes;
 }
 
-Status write_png(const std::string& path, const PngImage& image) {
+Status write_png(const std::string& path, const PngImage& image, const std::atomic<bool>* cancel) {
   Result<std::string> bytes = encode_png(image);
   if (!bytes) return Error{path + ": " + bytes.error().message};
-  return write_file_atomically(path, *bytes);
+  return write_file_atomically(path, *bytes, cancel);
 }
 
 Result<PngImage> read_png(const std::string& path) {

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstdint>
+#include <atomic>
 #include <string>
 #include <vector>
 
@@ -18,7 +19,8 @@ struct PngImage {
 };
 
 Result<std::string> encode_png(const PngImage& image);
-Status write_png(const std::string& path, const PngImage& image);
+// Written as every output is (files.hpp): `cancel` ends a wait for a FIFO's reader.
+Status write_png(const std::string& path, const PngImage& image, const std::atomic<bool>* cancel = nullptr);
 // Any PNG, converted to 8-bit RGBA.
 Result<PngImage> read_png(const std::string& path);
 

@@ -85,6 +85,7 @@ void describe_solver(const Solver& solver, const std::vector<CurveTrace>& traces
 
 Session::Session() {
   snapshot_ = std::make_shared<const Snapshot>();
+  // (A thread that the system refuses throws std::system_error, which Viewer::create reports.)
   thread_ = std::thread([this] { worker(); });
 }
 

@@ -223,7 +223,11 @@ Result<std::unique_ptr<Viewer>> Viewer::create(const ViewOptions& options) {
   impl->imgui = true;
   viewer->impl_ = std::move(impl);
 
-  viewer->session_ = std::make_unique<Session>();
+  try {
+    viewer->session_ = std::make_unique<Session>();
+  } catch (const std::system_error& e) {
+    return Error{"cannot start the solver's thread: " + e.code().message() + " (see ulimit -u and ulimit -v)"};
+  }
   viewer->session_->set_path_limit(options.keep_paths);
   viewer->session_->set_reference(reference);
   char budget[32];
@@ -351,7 +355,7 @@ void Viewer::handle_key(int key, bool ctrl) {
       if (ctrl) {
         const std::string name = "flatland-" + scene_->name + "-result.json";
         Result<nlohmann::json> result = session_->result_json(100);
-        Status saved = result ? write_file_atomically(name, json_text(*result)) : Status(result.error());
+        Status saved = result ? write_file_atomically(name, json_text(*result), options_.cancel) : Status(result.error());
         set_message(saved ? "saved " + name : saved.error().message);
       }
       break;
@@ -613,7 +617,7 @@ void Viewer::draw(const std::shared_ptr<const Snapshot>& snapshot) {
 Status Viewer::save_window_picture(const std::string& path) {
   PngImage image{view_.width, view_.height, 4, Renderer::read_pixels(view_.width, view_.height)};
   for (std::size_t i = 3; i < image.pixels.size(); i += 4) image.pixels[i] = 255;
-  return write_png(path, image);
+  return write_png(path, image, options_.cancel);
 }
 
 Status Viewer::save_screenshot(const std::string& path) {
@@ -638,7 +642,7 @@ Status Viewer::save_screenshot(const std::string& path) {
   PngImage image{width, height, 4, Renderer::read_pixels(width, height)};
   glBindFramebuffer(GL_FRAMEBUFFER, 0);
   for (std::size_t i = 3; i < image.pixels.size(); i += 4) image.pixels[i] = 255;
-  return write_png(path, image);
+  return write_png(path, image, options_.cancel);
 }
 
 Status Viewer::run() {
