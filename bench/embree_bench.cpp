@@ -16,10 +16,10 @@
 #include <benchmark/benchmark.h>
 #include <embree3/rtcore.h>
 
-#include "flatland/bezier.hpp"
-#include "flatland/bvh.hpp"
-#include "flatland/sampling.hpp"
-#include "flatland/scene.hpp"
+#include "flatland/geometry/bezier.hpp"
+#include "flatland/geometry/accelerator.hpp"
+#include "flatland/transport/sampling.hpp"
+#include "flatland/scene/scene.hpp"
 
 #include "bench_scenes.hpp"
 

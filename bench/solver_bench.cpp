@@ -9,8 +9,8 @@
 
 #include <benchmark/benchmark.h>
 
-#include "flatland/scene.hpp"
-#include "flatland/solver.hpp"
+#include "flatland/scene/scene.hpp"
+#include "flatland/transport/solver.hpp"
 
 #include "bench_scenes.hpp"
 

@@ -15,8 +15,8 @@
 
 #include <nlohmann/json.hpp>
 
-#include "flatland/metrics.hpp"
-#include "flatland/result_io.hpp"
+#include "flatland/results/metrics.hpp"
+#include "flatland/results/result_io.hpp"
 
 namespace {
 

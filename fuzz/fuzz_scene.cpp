@@ -13,9 +13,9 @@
 #include <string>
 #include <string_view>
 
-#include "flatland/result_io.hpp"
-#include "flatland/scene.hpp"
-#include "flatland/solver.hpp"
+#include "flatland/results/result_io.hpp"
+#include "flatland/scene/scene.hpp"
+#include "flatland/transport/solver.hpp"
 
 namespace {
 

@@ -1,4 +1,4 @@
-#include "flatland/basis.hpp"
+#include "flatland/storage/curve_storage.hpp"
 
 #include <algorithm>
 #include <array>
@@ -13,9 +13,9 @@
 
 #include <gtest/gtest.h>
 
-#include "flatland/quadrature.hpp"
-#include "flatland/sampling.hpp"
-#include "flatland/solver.hpp"
+#include "flatland/base/quadrature.hpp"
+#include "flatland/transport/sampling.hpp"
+#include "flatland/transport/solver.hpp"
 #include "test_support.hpp"
 
 namespace flatland {

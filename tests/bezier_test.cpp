@@ -1,4 +1,4 @@
-#include "flatland/bezier.hpp"
+#include "flatland/geometry/bezier.hpp"
 
 #include <algorithm>
 #include <cmath>

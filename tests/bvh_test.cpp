@@ -1,4 +1,4 @@
-#include "flatland/bvh.hpp"
+#include "flatland/geometry/accelerator.hpp"
 
 #include <cmath>
 #include <limits>

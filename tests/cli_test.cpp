@@ -20,7 +20,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
-#include "flatland/sha256.hpp"
+#include "flatland/base/sha256.hpp"
 
 #include "test_support.hpp"
 

@@ -1,4 +1,4 @@
-#include "flatland/discontinuity.hpp"
+#include "flatland/geometry/discontinuities.hpp"
 
 #include <algorithm>
 #include <cmath>

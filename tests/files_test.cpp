@@ -2,7 +2,7 @@
 // cancel, outputs written all or nothing, devices and pipes written through and never replaced.
 // Device nodes are made by the test itself (mknod, as root) in its own directory, never the
 // machine's /dev.
-#include "flatland/files.hpp"
+#include "flatland/base/files.hpp"
 
 #include <fcntl.h>
 #include <sys/stat.h>

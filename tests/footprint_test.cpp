@@ -1,4 +1,4 @@
-#include "flatland/footprint.hpp"
+#include "flatland/transport/footprint.hpp"
 
 #include <algorithm>
 #include <array>
@@ -10,8 +10,8 @@
 
 #include <gtest/gtest.h>
 
-#include "flatland/result_io.hpp"
-#include "flatland/sampling.hpp"
+#include "flatland/results/result_io.hpp"
+#include "flatland/transport/sampling.hpp"
 #include "test_support.hpp"
 
 namespace flatland {

@@ -1,4 +1,4 @@
-#include "flatland/hermite.hpp"
+#include "flatland/storage/hermite.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -8,7 +8,7 @@
 
 #include <gtest/gtest.h>
 
-#include "flatland/sampling.hpp"
+#include "flatland/transport/sampling.hpp"
 #include "test_support.hpp"
 
 namespace flatland {

@@ -1,4 +1,4 @@
-#include "flatland/intersect.hpp"
+#include "flatland/geometry/intersect.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -11,7 +11,7 @@
 
 #include "test_support.hpp"
 
-#include "flatland/bezier.hpp"
+#include "flatland/geometry/bezier.hpp"
 
 namespace flatland {
 namespace {

@@ -1,4 +1,4 @@
-#include "flatland/metrics.hpp"
+#include "flatland/results/metrics.hpp"
 
 #include <gtest/gtest.h>
 

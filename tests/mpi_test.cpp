@@ -9,8 +9,8 @@
 
 #include <gtest/gtest.h>
 
-#include "flatland/result_io.hpp"
-#include "flatland/solver.hpp"
+#include "flatland/results/result_io.hpp"
+#include "flatland/transport/solver.hpp"
 #include "test_support.hpp"
 
 namespace flatland {

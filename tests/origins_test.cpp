@@ -2,7 +2,7 @@
 // density its Pdf states, and both match a density computed here independently (arc length by
 // bisection of point_at_arc_length, the emittance profile, the B-spline basis, the Hermite
 // reconstruction's values) by quadrature over bins of arc length.
-#include "flatland/origins.hpp"
+#include "flatland/transport/origins.hpp"
 
 #include <cmath>
 #include <functional>
@@ -10,7 +10,7 @@
 
 #include <gtest/gtest.h>
 
-#include "flatland/bezier.hpp"
+#include "flatland/geometry/bezier.hpp"
 #include "test_support.hpp"
 
 namespace flatland {

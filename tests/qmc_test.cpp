@@ -1,4 +1,4 @@
-#include "flatland/qmc.hpp"
+#include "flatland/transport/qmc.hpp"
 
 #include <cmath>
 #include <cstdio>
@@ -7,7 +7,7 @@
 
 #include <gtest/gtest.h>
 
-#include "flatland/sampling.hpp"
+#include "flatland/transport/sampling.hpp"
 #include "test_support.hpp"
 
 namespace flatland {

@@ -1,4 +1,4 @@
-#include "flatland/reference.hpp"
+#include "flatland/reference/reference.hpp"
 
 #include <algorithm>
 #include <atomic>
@@ -11,10 +11,10 @@
 
 #include <gtest/gtest.h>
 
-#include "flatland/bezier.hpp"
-#include "flatland/metrics.hpp"
-#include "flatland/quadrature.hpp"
-#include "flatland/result_io.hpp"
+#include "flatland/geometry/bezier.hpp"
+#include "flatland/results/metrics.hpp"
+#include "flatland/base/quadrature.hpp"
+#include "flatland/results/result_io.hpp"
 #include "test_support.hpp"
 
 namespace flatland {

@@ -1,6 +1,6 @@
 // Result files: reading them back with errors that name the line, writing every output all or
 // nothing, and the checks made before any work starts.
-#include "flatland/result_io.hpp"
+#include "flatland/results/result_io.hpp"
 
 #include <sys/wait.h>
 #include <unistd.h>

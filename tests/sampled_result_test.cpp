@@ -1,13 +1,13 @@
 // flatland/sampled_result: a result as data, and its JSON edge.
-#include "flatland/sampled_result.hpp"
+#include "flatland/results/sampled_result.hpp"
 
 #include <cmath>
 #include <string>
 
 #include <gtest/gtest.h>
 
-#include "flatland/metrics.hpp"
-#include "flatland/result_io.hpp"
+#include "flatland/results/metrics.hpp"
+#include "flatland/results/result_io.hpp"
 #include "test_support.hpp"
 
 namespace flatland {

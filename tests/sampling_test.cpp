@@ -1,4 +1,4 @@
-#include "flatland/sampling.hpp"
+#include "flatland/transport/sampling.hpp"
 
 #include <array>
 #include <cmath>

@@ -13,7 +13,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "flatland/scene.hpp"
+#include "flatland/scene/scene.hpp"
 
 namespace flatland {
 namespace {

@@ -4,7 +4,7 @@
 
 #include <gtest/gtest.h>
 
-#include "flatland/result_io.hpp"
+#include "flatland/results/result_io.hpp"
 #include "test_support.hpp"
 
 namespace flatland::viewer {

@@ -1,4 +1,4 @@
-#include "flatland/sha256.hpp"
+#include "flatland/base/sha256.hpp"
 
 #include <string>
 

@@ -1,4 +1,4 @@
-#include "flatland/solver.hpp"
+#include "flatland/transport/solver.hpp"
 
 #include <algorithm>
 #include <atomic>
@@ -16,7 +16,7 @@
 
 #include <gtest/gtest.h>
 
-#include "flatland/result_io.hpp"
+#include "flatland/results/result_io.hpp"
 #include "test_support.hpp"
 
 namespace flatland {

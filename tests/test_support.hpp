@@ -14,10 +14,10 @@
 
 #include <gtest/gtest.h>
 
-#include "flatland/bezier.hpp"
-#include "flatland/result_io.hpp"
-#include "flatland/scene.hpp"
-#include "flatland/solver.hpp"
+#include "flatland/geometry/bezier.hpp"
+#include "flatland/results/result_io.hpp"
+#include "flatland/scene/scene.hpp"
+#include "flatland/transport/solver.hpp"
 
 namespace flatland::testing {
 

@@ -1,6 +1,6 @@
 // Text helpers: edit distance, did-you-mean hints with a bounded cost, positions in a text, and
 // numbers beyond a double's range.
-#include "flatland/text.hpp"
+#include "flatland/base/text.hpp"
 
 #include <chrono>
 #include <string>

@@ -1,7 +1,7 @@
 // The persistent worker pool: every worker index runs once per run, every index of for_each is
 // visited once, runs follow each other without lost wake-ups, failures come back to the caller,
 // and a copied holder starts its own threads.
-#include "flatland/workers.hpp"
+#include "flatland/base/workers.hpp"
 
 #include <algorithm>
 #include <atomic>

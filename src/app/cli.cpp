@@ -8,9 +8,9 @@
 #include <utility>
 #include <vector>
 
-#include "flatland/reference.hpp"
-#include "flatland/text.hpp"
-#include "flatland/version.hpp"
+#include "flatland/reference/reference.hpp"
+#include "flatland/base/text.hpp"
+#include "flatland/base/version.hpp"
 #ifdef FLATLAND_HAVE_VIEWER
 #include "viewer/viewer_app.hpp"
 #endif

@@ -3,7 +3,7 @@
 
 #include "app/commands.hpp"
 #include "app/output.hpp"
-#include "flatland/result_io.hpp"
+#include "flatland/results/result_io.hpp"
 
 namespace flatland::app {
 

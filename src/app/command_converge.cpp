@@ -21,8 +21,8 @@
 #include "app/output.hpp"
 #include "app/processes.hpp"
 #include "app/progress.hpp"
-#include "flatland/converge.hpp"
-#include "flatland/result_io.hpp"
+#include "flatland/results/converge.hpp"
+#include "flatland/results/result_io.hpp"
 
 namespace flatland::app {
 

@@ -10,8 +10,8 @@
 #include "app/commands.hpp"
 #include "app/output.hpp"
 #include "app/progress.hpp"
-#include "flatland/reference.hpp"
-#include "flatland/result_io.hpp"
+#include "flatland/reference/reference.hpp"
+#include "flatland/results/result_io.hpp"
 
 namespace flatland::app {
 

@@ -15,8 +15,8 @@
 #include "app/picture.hpp"
 #include "app/processes.hpp"
 #include "app/progress.hpp"
-#include "flatland/result_io.hpp"
-#include "flatland/scene.hpp"
+#include "flatland/results/result_io.hpp"
+#include "flatland/scene/scene.hpp"
 
 namespace flatland::app {
 

@@ -10,9 +10,9 @@
 
 #include <CLI/CLI.hpp>
 
-#include "flatland/metrics.hpp"
-#include "flatland/reference.hpp"
-#include "flatland/solver.hpp"
+#include "flatland/results/metrics.hpp"
+#include "flatland/reference/reference.hpp"
+#include "flatland/transport/solver.hpp"
 
 namespace flatland::app {
 

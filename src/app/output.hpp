@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-#include "flatland/files.hpp"
+#include "flatland/base/files.hpp"
 
 namespace flatland::app {
 

@@ -5,7 +5,7 @@
 #include <vector>
 
 #include "png/png_io.hpp"
-#include "flatland/result_io.hpp"
+#include "flatland/results/result_io.hpp"
 
 namespace flatland::app {
 

@@ -4,7 +4,7 @@
 
 #include <string>
 
-#include "flatland/solver.hpp"
+#include "flatland/transport/solver.hpp"
 #include "png/png_io.hpp"
 
 namespace flatland::app {

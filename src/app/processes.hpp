@@ -7,7 +7,7 @@
 #include <optional>
 #include <string>
 
-#include "flatland/solver.hpp"
+#include "flatland/transport/solver.hpp"
 
 namespace flatland::app {
 

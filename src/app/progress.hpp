@@ -3,7 +3,7 @@
 
 #include <string>
 
-#include "flatland/solver.hpp"
+#include "flatland/transport/solver.hpp"
 
 namespace flatland::app {
 

@@ -9,7 +9,7 @@
 #include <span>
 #include <thread>
 
-#include "flatland/solver.hpp"
+#include "flatland/transport/solver.hpp"
 
 namespace flatland::mpi {
 

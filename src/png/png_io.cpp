@@ -4,7 +4,7 @@
 
 #include <cstdio>
 
-#include "flatland/result_io.hpp"
+#include "flatland/results/result_io.hpp"
 
 namespace flatland::png {
 

@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-#include "flatland/result.hpp"
+#include "flatland/base/status.hpp"
 
 namespace flatland::png {
 

@@ -20,16 +20,16 @@
 
 #include <nlohmann/json.hpp>
 
-#include "flatland/converge.hpp"
-#include "flatland/discontinuity.hpp"
-#include "flatland/footprint.hpp"
-#include "flatland/metrics.hpp"
-#include "flatland/reference.hpp"
-#include "flatland/result_io.hpp"
-#include "flatland/sampled_result.hpp"
-#include "flatland/scene.hpp"
-#include "flatland/solver.hpp"
-#include "flatland/version.hpp"
+#include "flatland/results/converge.hpp"
+#include "flatland/geometry/discontinuities.hpp"
+#include "flatland/transport/footprint.hpp"
+#include "flatland/results/metrics.hpp"
+#include "flatland/reference/reference.hpp"
+#include "flatland/results/result_io.hpp"
+#include "flatland/results/sampled_result.hpp"
+#include "flatland/scene/scene.hpp"
+#include "flatland/transport/solver.hpp"
+#include "flatland/base/version.hpp"
 
 namespace py = pybind11;
 

@@ -11,8 +11,8 @@
 #include <string>
 #include <vector>
 
-#include "flatland/scene.hpp"
-#include "flatland/solver.hpp"
+#include "flatland/scene/scene.hpp"
+#include "flatland/transport/solver.hpp"
 
 namespace flatland::viewer {
 

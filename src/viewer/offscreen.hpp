@@ -5,7 +5,7 @@
 
 #include <memory>
 
-#include "flatland/result.hpp"
+#include "flatland/base/status.hpp"
 
 namespace flatland::viewer {
 

@@ -11,7 +11,7 @@
 #include <string>
 #include <vector>
 
-#include "flatland/result.hpp"
+#include "flatland/base/status.hpp"
 #include "viewer/frame.hpp"
 
 namespace flatland::viewer {

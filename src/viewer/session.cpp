@@ -4,8 +4,8 @@
 #include <chrono>
 #include <cmath>
 
-#include "flatland/metrics.hpp"
-#include "flatland/result_io.hpp"
+#include "flatland/results/metrics.hpp"
+#include "flatland/results/result_io.hpp"
 
 namespace flatland::viewer {
 

@@ -15,9 +15,9 @@
 
 #include <nlohmann/json.hpp>
 
-#include "flatland/sampled_result.hpp"
-#include "flatland/scene.hpp"
-#include "flatland/solver.hpp"
+#include "flatland/results/sampled_result.hpp"
+#include "flatland/scene/scene.hpp"
+#include "flatland/transport/solver.hpp"
 #include "viewer/frame.hpp"
 
 namespace flatland::viewer {

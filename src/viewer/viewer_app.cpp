@@ -18,7 +18,7 @@
 #include <thread>
 
 #include "png/png_io.hpp"
-#include "flatland/result_io.hpp"
+#include "flatland/results/result_io.hpp"
 #include "viewer/renderer.hpp"
 
 namespace flatland::viewer {

@@ -14,8 +14,8 @@
 #include <string>
 #include <vector>
 
-#include "flatland/result.hpp"
-#include "flatland/solver.hpp"
+#include "flatland/base/status.hpp"
+#include "flatland/transport/solver.hpp"
 #include "viewer/session.hpp"
 
 namespace flatland::viewer {

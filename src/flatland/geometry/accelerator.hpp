@@ -1,0 +1,95 @@
+// Nearest-hit queries against all segments of a scene: a bounding volume hierarchy over the
+// segments' boxes (built binary, walked as nodes of four with one SIMD slab test each), with a
+// linear scan for scenes too small to profit.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "flatland/geometry/bezier.hpp"
+#include "flatland/geometry/intersect.hpp"
+
+namespace flatland {
+
+enum class SegmentKind : std::uint8_t { Line, Cubic };
+
+// What the ray caster needs of a segment. Lines keep their end points in shape.p[0] and p[3].
+struct SegmentGeometry {
+  SegmentKind kind = SegmentKind::Line;
+  Cubic shape;
+};
+
+constexpr std::uint32_t kNoSegment = 0xffffffffu;
+
+struct SceneHit {
+  std::uint32_t segment = kNoSegment;
+  double t = 0.0;
+  double distance = 0.0;
+};
+
+// Where a ray starts: on a segment (so that segment is tested with the deflated query, and a line
+// never hits itself) or in free space (segment = kNoSegment).
+struct RayOrigin {
+  std::uint32_t segment = kNoSegment;
+  double t = 0.0;
+};
+
+// The segment's bounding box: its two ends for a line, the curve's tight box (end points and the
+// extrema of x(t) and y(t)) for a cubic.
+Box segment_box(const SegmentGeometry& g);
+
+class SegmentAccelerator {
+ public:
+  SegmentAccelerator() = default;
+  explicit SegmentAccelerator(std::vector<SegmentGeometry> segments);
+
+  // Nearest hit with distance in (0, infinity), or segment == kNoSegment for a miss. Of hits at
+  // the same distance (a ray through a joint) the smaller segment index wins, so the answer does
+  // not depend on the order of the search and equals closest_hit_brute_force bit for bit.
+  SceneHit closest_hit(const Ray& ray, const RayOrigin& from) const;
+  // The same answer by testing every segment; for tests and tiny scenes.
+  SceneHit closest_hit_brute_force(const Ray& ray, const RayOrigin& from) const;
+
+  std::span<const SegmentGeometry> segments() const { return segments_; }
+  bool uses_hierarchy() const { return !nodes_.empty(); }
+  bool has_cubics() const { return has_cubics_; }
+
+ private:
+  struct Node {
+    Box bounds;
+    // Interior: children at index+1 and second_child; leaf: first/count into order_.
+    std::uint32_t second_child_or_first = 0;
+    std::uint32_t count = 0;  // 0 for interior nodes
+  };
+
+  struct Build;  // the build's per-segment lists (bvh.cpp)
+  std::uint32_t build_node(std::uint32_t first, std::uint32_t count, int depth, int parent_axis, Build& build);
+
+  // The tree the queries walk: the binary tree collapsed into nodes of up to four children, whose
+  // boxes are floats relative to `wide_centre_` (padded by far more than float rounding) in
+  // structure-of-arrays form, so that one node tests its four boxes together. A child is another
+  // wide node or a leaf, a range of ordered_; an unused slot has an empty box.
+  struct WideNode {
+    alignas(16) float lower_x[4];
+    float lower_y[4];
+    float upper_x[4];
+    float upper_y[4];
+    std::uint32_t child[4];  // wide node index, or first index into ordered_ for a leaf
+    std::uint32_t count[4];  // segments of a leaf; 0 for a wide node or an unused slot
+    std::uint32_t used = 0;  // slots 0 .. used - 1 hold children
+  };
+  std::uint32_t collapse(std::uint32_t binary, double pad);
+  SceneHit closest_hit_binary(const Ray& ray, const RayOrigin& from) const;
+  std::vector<WideNode> wide_;
+  Vec2 wide_centre_;
+  double wide_reach_ = 0.0;  // rays from farther than this from the centre use the binary tree
+
+  std::vector<SegmentGeometry> segments_;  // in the caller's order (indices of SceneHit)
+  std::vector<std::uint32_t> order_;       // leaf order -> index into segments_
+  std::vector<SegmentGeometry> ordered_;   // segments_[order_[i]], so leaves read memory linearly
+  std::vector<Node> nodes_;
+  bool has_cubics_ = false;
+};
+
+}  // namespace flatland

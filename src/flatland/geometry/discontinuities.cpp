@@ -1,0 +1,1094 @@
+// Contacts (D0) and direct-light events (D1) from the geometry: polynomial roots in Bernstein form
+// isolated by subdivision (the convex hull property), refined by bisection or Newton, and ray casts
+// for visibility.
+#include "flatland/geometry/discontinuities.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <utility>
+
+namespace flatland {
+
+const char* to_string(DiscontinuityMode mode) {
+  switch (mode) {
+    case DiscontinuityMode::None: return "none";
+    case DiscontinuityMode::Scene: return "scene";
+    case DiscontinuityMode::Auto: return "auto";
+    case DiscontinuityMode::Secondary: return "secondary";
+  }
+  return "?";
+}
+
+std::optional<DiscontinuityMode> discontinuity_mode_from_string(std::string_view name) {
+  for (DiscontinuityMode mode : {DiscontinuityMode::None, DiscontinuityMode::Scene, DiscontinuityMode::Auto,
+                                 DiscontinuityMode::Secondary})
+    if (name == to_string(mode)) return mode;
+  return std::nullopt;
+}
+
+namespace {
+
+constexpr double kEpsilon = std::numeric_limits<double>::epsilon();
+// A point lies on a curve, and two points coincide, within kTouch * scale (the scene's size).
+constexpr double kTouch = 1e-9;
+// A cubic whose inner control points lie within kStraight * scale of its chord is straight here:
+// it has no interior tangent points (g is zero up to rounding along all of it).
+constexpr double kStraight = 1e-9;
+// Curve parameters closer than this are the same node.
+constexpr double kSameParameter = 1e-9;
+// A line through a tangent point grazes the curve there; rounding splits the double root into two
+// crossings about sqrt(2 rounding / curvature) apart. Crossings of the point's own curve closer than
+// kGraze * scale to it are that graze, not a hit.
+constexpr double kGraze = 1e-6;
+// A direction whose sine with a segment's tangent is below this runs along the segment.
+constexpr double kAlongSine = 1e-9;
+// Proper crossings stay this far (in t) from the segments' ends; closer ones are contacts at the
+// end point (found by the vertex and joint rules).
+constexpr double kInteriorMargin = 1e-10;
+
+constexpr double kBinomial[6][6] = {{1, 0, 0, 0, 0, 0},  {1, 1, 0, 0, 0, 0},   {1, 2, 1, 0, 0, 0},
+                                    {1, 3, 3, 1, 0, 0},  {1, 4, 6, 4, 1, 0},   {1, 5, 10, 10, 5, 1}};
+
+// ---------------------------------------------------------------------------------------------
+// Bernstein polynomials of degree <= 5 on an interval: subdivision and root isolation.
+
+// The two halves at the middle of a polynomial with Bernstein coefficients c[0..n] (de Casteljau).
+void split_half(const double* c, int n, double* left, double* right) {
+  double w[6];
+  std::copy(c, c + n + 1, w);
+  left[0] = w[0];
+  right[n] = w[n];
+  for (int level = 1; level <= n; ++level) {
+    for (int i = 0; i + level <= n; ++i) w[i] = 0.5 * (w[i] + w[i + 1]);
+    left[level] = w[0];
+    right[n - level] = w[n - level];
+  }
+}
+
+// Sign changes of the coefficient sequence, zeros skipped: by Descartes' rule for the Bernstein
+// basis an upper bound of the number of roots inside the interval, of the same parity.
+int sign_changes(const double* c, int n) {
+  int changes = 0;
+  int last = 0;
+  for (int i = 0; i <= n; ++i) {
+    const int s = (c[i] > 0.0) - (c[i] < 0.0);
+    if (s == 0) continue;
+    if (last != 0 && s != last) ++changes;
+    last = s;
+  }
+  return changes;
+}
+
+// The root of f in [lo, hi], where f changes sign: bisection on f's own sign (the polynomial's end
+// signs `rising` decide which half to keep when f rounds to the wrong sign at an end).
+template <class F>
+double bisect(const F& f, double lo, double hi, bool rising) {
+  for (int iteration = 0; iteration < 200; ++iteration) {
+    const double middle = 0.5 * (lo + hi);
+    if (!(middle > lo && middle < hi)) break;
+    const double value = f(middle);
+    if (value == 0.0) return middle;
+    if ((value < 0.0) == rising) {
+      lo = middle;
+    } else {
+      hi = middle;
+    }
+  }
+  return 0.5 * (lo + hi);
+}
+
+// The simple (sign-changing) roots of f inside (lo, hi), where f has Bernstein coefficients c[0..n]
+// on [lo, hi]. Halves the interval until the coefficients have at most one sign change (then there
+// is exactly one root if the end coefficients differ in sign, none otherwise), then bisects f
+// itself, evaluated directly for accuracy. Coefficients all within `noise` of zero are rounding: no
+// root is claimed there. Roots exactly at lo or hi of the first call are not reported (the caller
+// decides about segment ends); a double root (tangency) is not a sign change and is not reported.
+template <class F>
+void isolate_roots(const double* c, int n, double lo, double hi, double noise, const F& f, int depth,
+                   std::vector<double>& roots) {
+  double largest = 0.0;
+  for (int i = 0; i <= n; ++i) largest = std::max(largest, std::fabs(c[i]));
+  if (largest <= noise) return;
+  const int changes = sign_changes(c, n);
+  if (changes == 0) return;
+  const bool opposite_ends = (c[0] < 0.0 && c[n] > 0.0) || (c[0] > 0.0 && c[n] < 0.0);
+  if ((changes == 1 && opposite_ends) || depth >= 44) {
+    if (opposite_ends) roots.push_back(bisect(f, lo, hi, c[0] < 0.0));
+    return;
+  }
+  double left[6];
+  double right[6];
+  split_half(c, n, left, right);
+  const double middle = 0.5 * (lo + hi);
+  isolate_roots(left, n, lo, middle, noise, f, depth + 1, roots);
+  // A root exactly at the split point: the polynomial crosses zero there.
+  if (left[n] == 0.0 && ((left[n - 1] < 0.0 && right[1] > 0.0) || (left[n - 1] > 0.0 && right[1] < 0.0)))
+    roots.push_back(middle);
+  isolate_roots(right, n, middle, hi, noise, f, depth + 1, roots);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Small geometry.
+
+Box padded(Box box, double pad) {
+  box.lower = box.lower - Vec2{pad, pad};
+  box.upper = box.upper + Vec2{pad, pad};
+  return box;
+}
+
+bool overlap(const Box& a, const Box& b) {
+  return a.lower.x <= b.upper.x && b.lower.x <= a.upper.x && a.lower.y <= b.upper.y &&
+         b.lower.y <= a.upper.y;
+}
+
+// Whether the segment is straight for the purpose of tangent points: a line, or a cubic whose inner
+// control points lie within kStraight * scale of the chord (then the whole curve does).
+bool is_straight(const SegmentGeometry& g, double scale) {
+  if (g.kind == SegmentKind::Line) return true;
+  const Cubic& c = g.shape;
+  const Vec2 chord = c.p[3] - c.p[0];
+  const double chord_length = length(chord);
+  const double limit = kStraight * scale;
+  if (chord_length <= limit) return false;  // a closed loop in one segment
+  for (int i = 1; i <= 2; ++i) {
+    if (std::fabs(cross(chord, c.p[i] - c.p[0])) > limit * chord_length) return false;
+    const double along = dot(chord, c.p[i] - c.p[0]);
+    if (along < -limit * chord_length || along > chord_length * (chord_length + limit)) return false;
+  }
+  return true;
+}
+
+// The point of segment g nearest to p: the nearest of 32 samples, then Newton on
+// h(t) = C'(t) . (C(t) - p) (half the derivative of the squared distance) kept inside the samples'
+// bracket. Lines in closed form.
+std::pair<double, double> closest_parameter(const SegmentGeometry& g, Vec2 p) {
+  const Cubic& c = g.shape;
+  if (g.kind == SegmentKind::Line) {
+    const Vec2 d = c.p[3] - c.p[0];
+    const double t = std::clamp(dot(p - c.p[0], d) / dot(d, d), 0.0, 1.0);
+    return {t, length(lerp(c.p[0], c.p[3], t) - p)};
+  }
+  const CubicPoint nearest = closest_point_on_cubic(c, p);
+  return {nearest.t, nearest.distance};
+}
+
+// ---------------------------------------------------------------------------------------------
+// A static tree over boxes, for "which segments are near this box" (contacts).
+
+class BoxTree {
+ public:
+  explicit BoxTree(std::vector<Box> boxes) : boxes_(std::move(boxes)) {
+    order_.resize(boxes_.size());
+    for (std::uint32_t i = 0; i < order_.size(); ++i) order_[i] = i;
+    if (!boxes_.empty()) build(0, static_cast<std::uint32_t>(boxes_.size()));
+  }
+
+  // Calls visit(i) for every box i overlapping `box`.
+  template <class F>
+  void query(const Box& box, const F& visit) const {
+    if (nodes_.empty()) return;
+    std::uint32_t stack[128];
+    int top = 0;
+    stack[top++] = 0;
+    while (top > 0) {
+      const Node& node = nodes_[stack[--top]];
+      if (!overlap(node.bounds, box)) continue;
+      if (node.count > 0) {
+        for (std::uint32_t k = node.first; k < node.first + node.count; ++k)
+          if (overlap(boxes_[order_[k]], box)) visit(order_[k]);
+      } else {
+        stack[top++] = node.first;
+        stack[top++] = node.second;
+      }
+    }
+  }
+
+ private:
+  struct Node {
+    Box bounds;
+    std::uint32_t first = 0;   // leaf: first index into order_; interior: first child
+    std::uint32_t count = 0;   // 0 for interior nodes
+    std::uint32_t second = 0;  // interior: second child
+  };
+
+  // Median split along the longer axis of the box centres; depth stays about log2(n).
+  std::uint32_t build(std::uint32_t first, std::uint32_t count) {
+    const auto index = static_cast<std::uint32_t>(nodes_.size());
+    nodes_.push_back({});
+    Box bounds;
+    Box centres;
+    for (std::uint32_t k = first; k < first + count; ++k) {
+      bounds.extend(boxes_[order_[k]]);
+      centres.extend(boxes_[order_[k]].center());
+    }
+    if (count <= 4) {
+      nodes_[index] = Node{bounds, first, count, 0};
+      return index;
+    }
+    const bool along_x = centres.extent().x >= centres.extent().y;
+    const std::uint32_t half = count / 2;
+    std::nth_element(order_.begin() + first, order_.begin() + first + half, order_.begin() + first + count,
+                     [&](std::uint32_t a, std::uint32_t b) {
+                       const Vec2 ca = boxes_[a].center();
+                       const Vec2 cb = boxes_[b].center();
+                       return along_x ? ca.x < cb.x : ca.y < cb.y;
+                     });
+    const std::uint32_t a = build(first, half);
+    const std::uint32_t b = build(first + half, count - half);
+    nodes_[index] = Node{bounds, a, 0, b};
+    return index;
+  }
+
+  std::vector<Box> boxes_;
+  std::vector<std::uint32_t> order_;
+  std::vector<Node> nodes_;
+};
+
+// ---------------------------------------------------------------------------------------------
+// Vertices: end points of open curves and corners (the closing point of a closed curve only if it
+// is a corner).
+
+struct Vertex {
+  Vec2 position;
+  std::uint32_t curve = 0;
+  double u = 0.0;                        // curve parameter (0 for a closing corner)
+  std::uint32_t before = kNoSegment;     // segment ending here (t = 1)
+  std::uint32_t after = kNoSegment;      // segment starting here (t = 0)
+  std::uint32_t segment() const { return after != kNoSegment ? after : before; }
+  double t() const { return after != kNoSegment ? 0.0 : 1.0; }
+};
+
+std::vector<Vertex> vertices_of(const Scene& scene, std::uint32_t c) {
+  const Curve& curve = scene.curves[c];
+  const std::uint32_t first = curve.first_segment;
+  const std::uint32_t last = first + curve.segment_count - 1;
+  std::vector<Vertex> out;
+  auto start_of = [&](std::uint32_t s) { return scene.segments[s].geometry.shape.p[0]; };
+  if (!curve.closed) out.push_back({start_of(first), c, 0.0, kNoSegment, first});
+  for (std::uint32_t j = 0; j < curve.joint_count(); ++j) {
+    if (is_tangent_continuous(scene, curve, j)) continue;
+    const bool closing = j + 1 == curve.segment_count;
+    const std::uint32_t after = closing ? first : first + j + 1;
+    out.push_back({start_of(after), c, closing ? 0.0 : j + 1.0, first + j, after});
+  }
+  if (!curve.closed) {
+    out.push_back({scene.segments[last].geometry.shape.p[3], c, static_cast<double>(curve.segment_count),
+                   last, kNoSegment});
+  }
+  return out;
+}
+
+// A curve parameter on a closed curve wrapped into [0, segment_count), the closing point as 0.
+double wrap(const Curve& curve, double u) {
+  if (!curve.closed) return u;
+  const double n = curve.segment_count;
+  if (u >= n - kSameParameter) u -= n;
+  if (u < 0.0 && u > -kSameParameter) u = 0.0;
+  return u;
+}
+
+bool before_node(const DiscontinuityNode& a, const DiscontinuityNode& b) {
+  return a.curve < b.curve || (a.curve == b.curve && a.u < b.u);
+}
+
+// Sorted, with nodes of one curve within kSameParameter in u (around the closing point of a closed
+// curve too) merged into the first, keeping the lower continuity.
+std::vector<DiscontinuityNode> sorted_unique(const Scene& scene, std::vector<DiscontinuityNode> nodes) {
+  std::sort(nodes.begin(), nodes.end(), before_node);
+  std::vector<DiscontinuityNode> out;
+  for (const DiscontinuityNode& node : nodes) {
+    if (!out.empty() && out.back().curve == node.curve && node.u - out.back().u <= kSameParameter) {
+      out.back().continuity = std::min(out.back().continuity, node.continuity);
+      continue;
+    }
+    out.push_back(node);
+  }
+  // Wrap-around on closed curves: a node just below segment_count is the node at 0.
+  std::vector<DiscontinuityNode> result;
+  for (std::size_t i = 0; i < out.size(); ++i) {
+    const Curve& curve = scene.curves[out[i].curve];
+    const bool last_of_curve = i + 1 == out.size() || out[i + 1].curve != out[i].curve;
+    if (curve.closed && last_of_curve && out[i].u >= curve.segment_count - kSameParameter) continue;
+    result.push_back(out[i]);
+  }
+  return result;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Tangent points from a point.
+
+// g(t) = cross(C(t) - p, C'(t)) in Bernstein form of degree 5. With C(t) - p = sum_i B_i^3(t) a_i,
+// a_i = P_i - p, and C'(t) = sum_j B_j^2(t) d_j, d_j = 3 (P_(j+1) - P_j), the product rule of the
+// Bernstein basis gives b_k = sum_(i+j=k) C(3,i) C(2,j) / C(5,k) cross(a_i, d_j). *noise is the
+// rounding of the coefficients (a few ulps of the largest product).
+void tangent_coefficients(const Cubic& c, Vec2 p, double b[6], double* noise) {
+  Vec2 a[4];
+  Vec2 d[3];
+  double a_max = 0.0;
+  double d_max = 0.0;
+  for (int i = 0; i < 4; ++i) {
+    a[i] = c.p[i] - p;
+    a_max = std::max(a_max, length(a[i]));
+  }
+  for (int j = 0; j < 3; ++j) {
+    d[j] = 3.0 * (c.p[j + 1] - c.p[j]);
+    d_max = std::max(d_max, length(d[j]));
+  }
+  for (int k = 0; k <= 5; ++k) {
+    double sum = 0.0;
+    for (int i = std::max(0, k - 2); i <= std::min(3, k); ++i) {
+      sum += kBinomial[3][i] * kBinomial[2][k - i] * cross(a[i], d[k - i]);
+    }
+    b[k] = sum / kBinomial[5][k];
+  }
+  *noise = 64.0 * kEpsilon * a_max * d_max;
+}
+
+double tangent_function(const Cubic& c, Vec2 p, double t) { return cross(evaluate(c, t) - p, derivative(c, t)); }
+
+// The interior tangent points of one curved segment from p (simple roots of g in (0,1)).
+void segment_tangent_points(const Cubic& c, Vec2 p, std::vector<double>& roots) {
+  double b[6];
+  double noise = 0.0;
+  tangent_coefficients(c, p, b, &noise);
+  isolate_roots(b, 5, 0.0, 1.0, noise, [&](double t) { return tangent_function(c, p, t); }, 0, roots);
+}
+
+// A point of a curve where a critical line touches it.
+struct Feature {
+  Vec2 position;
+  std::uint32_t curve = 0;
+  std::uint32_t segment = kNoSegment;  // index into Scene::segments
+  double t = 0.0;
+  double u = 0.0;
+  const Vertex* vertex = nullptr;  // null: a tangent point of a curved piece
+};
+
+// The tangent points of a curve seen from p, as features: interior roots of every curved segment,
+// and tangent-continuous joints between curved segments where g changes sign across the joint
+// (the tangent point is the joint itself, up to 1e-10 in t). Points within kTouch * scale of p and
+// at vertices are dropped; roots within kSameParameter are one.
+std::vector<Feature> curve_tangent_points(const Scene& scene, std::uint32_t c, Vec2 p,
+                                          const std::vector<Vertex>& vertices) {
+  const Curve& curve = scene.curves[c];
+  std::vector<Feature> out;
+  if (curve.kind == SegmentKind::Line) return out;
+  const double touch = kTouch * scene.scale;
+  std::vector<char> curved(curve.segment_count);
+  std::vector<double> roots;
+  for (std::uint32_t j = 0; j < curve.segment_count; ++j) {
+    const SceneSegment& segment = scene.segments[curve.first_segment + j];
+    curved[j] = !is_straight(segment.geometry, scene.scale);
+    if (!curved[j]) continue;
+    const Cubic& shape = segment.geometry.shape;
+    // Cheap rejection: p inside the hull's box can still see tangents, so only the sign test of the
+    // coefficients prunes (inside isolate_roots).
+    roots.clear();
+    segment_tangent_points(shape, p, roots);
+    for (const double t : roots) out.push_back({evaluate(shape, t), c, curve.first_segment + j, t, j + t, nullptr});
+  }
+  constexpr double kJointStep = 1e-10;
+  for (std::uint32_t j = 0; j < curve.joint_count(); ++j) {
+    const std::uint32_t next = j + 1 == curve.segment_count ? 0 : j + 1;
+    if (!curved[j] || !curved[next] || !is_tangent_continuous(scene, curve, j)) continue;
+    const Cubic& a = scene.segments[curve.first_segment + j].geometry.shape;
+    const Cubic& b = scene.segments[curve.first_segment + next].geometry.shape;
+    const double left = tangent_function(a, p, 1.0 - kJointStep);
+    const double right = tangent_function(b, p, kJointStep);
+    if ((left < 0.0 && right > 0.0) || (left > 0.0 && right < 0.0))
+      out.push_back({b.p[0], c, curve.first_segment + next, 0.0, static_cast<double>(next), nullptr});
+  }
+  std::erase_if(out, [&](const Feature& f) {
+    if (length(f.position - p) <= touch) return true;
+    for (const Vertex& v : vertices) {
+      const double gap = std::fabs(f.u - v.u);
+      if (gap <= kSameParameter || (curve.closed && std::fabs(gap - curve.segment_count) <= kSameParameter))
+        return true;
+    }
+    return false;
+  });
+  std::sort(out.begin(), out.end(), [](const Feature& x, const Feature& y) { return x.u < y.u; });
+  std::vector<Feature> unique;
+  for (const Feature& f : out) {
+    if (!unique.empty() && f.u - unique.back().u <= kSameParameter) continue;
+    unique.push_back(f);
+  }
+  if (curve.closed && unique.size() >= 2 &&
+      unique.front().u + curve.segment_count - unique.back().u <= kSameParameter)
+    unique.pop_back();
+  return unique;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Bitangents of two cubic segments: G1(t,u) = cross(A'(t), B'(u)) = 0 (parallel tangents) and
+// G2(t,u) = cross(B(u) - A(t), A'(t)) = 0 (B(u) on A's tangent line at t), an equivalent form of
+// cross(A - B, A') = 0 = cross(A - B, B') away from A(t) = B(u). Both are tensor-product Bernstein
+// polynomials: G1 of degree (2,2) with coefficients cross(a_i, b_j) (a_i, b_j the hodographs'
+// control vectors), G2 of degree (5,3) with coefficients
+//   sum_(i+l=k) C(3,i) C(2,l) / C(5,k) cross(Q_j - P_i, a_l)
+// (B(u) - A(t) = sum_i sum_j B_i^3(t) B_j^3(u) (Q_j - P_i), times A'(t)). Boxes of (t,u) where
+// either has coefficients of one strict sign hold no solution; the others are halved down to 1/32,
+// where Newton on (G1, G2) from the box's centre is tried (the Jacobian is regular at a bitangent of
+// two curved pieces), further halving where it fails.
+
+struct BitangentBox {
+  double t0, t1, u0, u1;
+  double g1[3][3];  // [t][u]
+  double g2[6][4];  // [t][u]
+};
+
+template <int T, int U>
+void split_t(const double (&c)[T][U], double (&left)[T][U], double (&right)[T][U]) {
+  for (int j = 0; j < U; ++j) {
+    double column[6];
+    double l[6];
+    double r[6];
+    for (int i = 0; i < T; ++i) column[i] = c[i][j];
+    split_half(column, T - 1, l, r);
+    for (int i = 0; i < T; ++i) {
+      left[i][j] = l[i];
+      right[i][j] = r[i];
+    }
+  }
+}
+
+template <int T, int U>
+void split_u(const double (&c)[T][U], double (&left)[T][U], double (&right)[T][U]) {
+  for (int i = 0; i < T; ++i) split_half(c[i], U - 1, left[i], right[i]);
+}
+
+template <int T, int U>
+bool one_sign(const double (&c)[T][U]) {
+  bool positive = true;
+  bool negative = true;
+  for (int i = 0; i < T; ++i) {
+    for (int j = 0; j < U; ++j) {
+      positive = positive && c[i][j] > 0.0;
+      negative = negative && c[i][j] < 0.0;
+    }
+  }
+  return positive || negative;
+}
+
+template <int T, int U>
+double largest(const double (&c)[T][U]) {
+  double m = 0.0;
+  for (int i = 0; i < T; ++i)
+    for (int j = 0; j < U; ++j) m = std::max(m, std::fabs(c[i][j]));
+  return m;
+}
+
+// Newton on (G1, G2) from (t, u); true with the solution when it converges.
+bool bitangent_newton(const Cubic& a, const Cubic& b, double& t, double& u) {
+  for (int iteration = 0; iteration < 40; ++iteration) {
+    const Vec2 pa = evaluate(a, t);
+    const Vec2 pb = evaluate(b, u);
+    const Vec2 da = derivative(a, t);
+    const Vec2 db = derivative(b, u);
+    const Vec2 dda = second_derivative(a, t);
+    const Vec2 ddb = second_derivative(b, u);
+    const double g1 = cross(da, db);
+    const double g2 = cross(pb - pa, da);
+    // d/dt G1 = cross(A'', B'), d/du G1 = cross(A', B''); d/dt G2 = cross(B - A, A''),
+    // d/du G2 = cross(B', A').
+    const double j11 = cross(dda, db);
+    const double j12 = cross(da, ddb);
+    const double j21 = cross(pb - pa, dda);
+    const double j22 = cross(db, da);
+    const double det = j11 * j22 - j12 * j21;
+    if (!(std::fabs(det) > 0.0) || !std::isfinite(det)) return false;
+    const double dt = (g1 * j22 - g2 * j12) / det;
+    const double du = (j11 * g2 - j21 * g1) / det;
+    t -= dt;
+    u -= du;
+    if (!(t > -0.5 && t < 1.5 && u > -0.5 && u < 1.5)) return false;
+    if (std::fabs(dt) <= 1e-15 && std::fabs(du) <= 1e-15) return true;
+  }
+  return false;
+}
+
+std::vector<std::pair<double, double>> segment_bitangents(const Cubic& a, const Cubic& b, double scale) {
+  BitangentBox root{0.0, 1.0, 0.0, 1.0, {}, {}};
+  Vec2 da[3];
+  Vec2 db[3];
+  for (int i = 0; i < 3; ++i) {
+    da[i] = 3.0 * (a.p[i + 1] - a.p[i]);
+    db[i] = 3.0 * (b.p[i + 1] - b.p[i]);
+  }
+  double g1_magnitude = 0.0;
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) {
+      root.g1[i][j] = cross(da[i], db[j]);
+      g1_magnitude = std::max(g1_magnitude, length(da[i]) * length(db[j]));
+    }
+  }
+  double g2_magnitude = 0.0;
+  for (int k = 0; k <= 5; ++k) {
+    for (int j = 0; j < 4; ++j) {
+      double sum = 0.0;
+      for (int i = std::max(0, k - 2); i <= std::min(3, k); ++i) {
+        const Vec2 offset = b.p[j] - a.p[i];
+        sum += kBinomial[3][i] * kBinomial[2][k - i] * cross(offset, da[k - i]);
+        g2_magnitude = std::max(g2_magnitude, length(offset) * length(da[k - i]));
+      }
+      root.g2[k][j] = sum / kBinomial[5][k];
+    }
+  }
+  const double noise1 = 64.0 * kEpsilon * g1_magnitude;
+  const double noise2 = 64.0 * kEpsilon * g2_magnitude;
+  std::vector<std::pair<double, double>> found;
+  std::vector<BitangentBox> stack{root};
+  int budget = 20000;
+  while (!stack.empty() && budget-- > 0) {
+    const BitangentBox box = stack.back();
+    stack.pop_back();
+    if (one_sign(box.g1) || one_sign(box.g2)) continue;
+    if (largest(box.g1) <= noise1 && largest(box.g2) <= noise2) continue;  // collinear straight pieces
+    const double wt = box.t1 - box.t0;
+    const double wu = box.u1 - box.u0;
+    if (wt <= 1.0 / 32 && wu <= 1.0 / 32) {
+      double t = 0.5 * (box.t0 + box.t1);
+      double u = 0.5 * (box.u0 + box.u1);
+      if (bitangent_newton(a, b, t, u) && t >= box.t0 - 0.1 * wt && t <= box.t1 + 0.1 * wt &&
+          u >= box.u0 - 0.1 * wu && u <= box.u1 + 0.1 * wu && t >= 0.0 && t <= 1.0 && u >= 0.0 && u <= 1.0) {
+        if (length(evaluate(a, t) - evaluate(b, u)) > kTouch * scale) found.emplace_back(t, u);
+        continue;
+      }
+      if (wt <= 1e-7 && wu <= 1e-7) continue;  // a degenerate point (a touching of the curves)
+    }
+    BitangentBox first = box;
+    BitangentBox second = box;
+    if (wt >= wu) {
+      split_t(box.g1, first.g1, second.g1);
+      split_t(box.g2, first.g2, second.g2);
+      first.t1 = second.t0 = 0.5 * (box.t0 + box.t1);
+    } else {
+      split_u(box.g1, first.g1, second.g1);
+      split_u(box.g2, first.g2, second.g2);
+      first.u1 = second.u0 = 0.5 * (box.u0 + box.u1);
+    }
+    stack.push_back(second);
+    stack.push_back(first);
+  }
+  std::sort(found.begin(), found.end());
+  std::vector<std::pair<double, double>> unique;
+  for (const auto& s : found) {
+    bool seen = false;
+    for (const auto& q : unique)
+      seen = seen || (std::fabs(q.first - s.first) <= kSameParameter && std::fabs(q.second - s.second) <= kSameParameter);
+    if (!seen) unique.push_back(s);
+  }
+  return unique;
+}
+
+// Bitangent features of two curves: pairs of tangent points (on a, on b).
+std::vector<std::pair<Feature, Feature>> curve_bitangents(const Scene& scene, std::uint32_t ca, std::uint32_t cb,
+                                                          const std::vector<Vertex>& vertices_a,
+                                                          const std::vector<Vertex>& vertices_b) {
+  std::vector<std::pair<Feature, Feature>> out;
+  const Curve& curve_a = scene.curves[ca];
+  const Curve& curve_b = scene.curves[cb];
+  if (curve_a.kind == SegmentKind::Line || curve_b.kind == SegmentKind::Line) return out;
+  auto at_vertex = [](const Curve& curve, const std::vector<Vertex>& vertices, double u) {
+    for (const Vertex& v : vertices) {
+      const double gap = std::fabs(u - v.u);
+      if (gap <= kSameParameter || (curve.closed && std::fabs(gap - curve.segment_count) <= kSameParameter))
+        return true;
+    }
+    return false;
+  };
+  for (std::uint32_t i = 0; i < curve_a.segment_count; ++i) {
+    const std::uint32_t sa = curve_a.first_segment + i;
+    const SegmentGeometry& ga = scene.segments[sa].geometry;
+    if (is_straight(ga, scene.scale)) continue;
+    for (std::uint32_t j = 0; j < curve_b.segment_count; ++j) {
+      const std::uint32_t sb = curve_b.first_segment + j;
+      if (sa == sb) continue;  // a single cubic has no bitangent with itself that matters here
+      const SegmentGeometry& gb = scene.segments[sb].geometry;
+      if (is_straight(gb, scene.scale)) continue;
+      for (const auto& [t, u] : segment_bitangents(ga.shape, gb.shape, scene.scale)) {
+        const double ua = wrap(curve_a, i + t);
+        const double ub = wrap(curve_b, j + u);
+        if (at_vertex(curve_a, vertices_a, ua) || at_vertex(curve_b, vertices_b, ub)) continue;
+        bool seen = false;
+        for (const auto& [fa, fb] : out) {
+          seen = seen || (std::fabs(fa.u - ua) <= kSameParameter && std::fabs(fb.u - ub) <= kSameParameter);
+        }
+        if (seen) continue;
+        out.push_back({Feature{evaluate(ga.shape, t), ca, sa, t, ua, nullptr},
+                       Feature{evaluate(gb.shape, u), cb, sb, u, ub, nullptr}});
+      }
+    }
+  }
+  return out;
+}
+
+// ---------------------------------------------------------------------------------------------
+// The rules of a critical line at its two touching points.
+
+// The unit tangent at a vertex pointing into the segment s (which starts or ends there).
+Vec2 outgoing_tangent(const Scene& scene, std::uint32_t s, bool starts_here) {
+  const Cubic& c = scene.segments[s].geometry.shape;
+  return starts_here ? unit_tangent(c, 0.0, scene.scale) : -unit_tangent(c, 1.0, scene.scale);
+}
+
+// Which side of the line through the vertex with direction d the segment s lies on near the vertex
+// (+1 left, -1 right, 0 along it): by its tangent there, or by its middle when the tangent runs
+// along the line (a cubic leaving a vertex along the line curves off to one side).
+int side_of_line(const Scene& scene, const Vertex& v, std::uint32_t s, bool starts_here, Vec2 d) {
+  const double sine = cross(d, outgoing_tangent(scene, s, starts_here));
+  if (std::fabs(sine) > kAlongSine) return sine > 0.0 ? 1 : -1;
+  const SegmentGeometry& g = scene.segments[s].geometry;
+  if (g.kind == SegmentKind::Line) return 0;
+  const Vec2 middle = evaluate(g.shape, 0.5) - v.position;
+  const double off = cross(d, middle);
+  if (std::fabs(off) <= kTouch * scene.scale) return 0;
+  return off > 0.0 ? 1 : -1;
+}
+
+// Whether the line through the vertex crosses its curve there (the segments on strictly opposite
+// sides).
+bool line_crosses_at(const Scene& scene, const Vertex& v, Vec2 d) {
+  if (v.before == kNoSegment || v.after == kNoSegment) return false;
+  const int a = side_of_line(scene, v, v.before, false, d);
+  const int b = side_of_line(scene, v, v.after, true, d);
+  return a * b < 0;
+}
+
+// Whether some channel of the curve's material reflects (a secondary source).
+bool reflects(const Scene& scene, const Curve& curve) {
+  const Material& material = scene.material_of(curve);
+  for (int channel = 0; channel < scene.channels; ++channel)
+    if (material.reflectivity[static_cast<std::size_t>(channel)] > 0.0) return true;
+  return false;
+}
+
+bool emits_toward(const Curve& curve, const Vec2 normal, Vec2 d, bool straight) {
+  const double facing = dot(normal, d);
+  if (facing > kAlongSine) return curve.has_side(Side::Front);
+  if (facing < -kAlongSine) return curve.has_side(Side::Back);
+  return straight;  // a straight piece seen edge-on along the line: its light vanishes across it
+}
+
+// The source rule at a point A of the emitter.
+//  - Vertex: some adjacent segment's emitting side faces d (x = A + s d sees that side), or a
+//    straight adjacent segment runs along the line. A corner the line passes through (segments on
+//    both sides) is a silhouette of nothing: with diffuse emission of continuous radiance the
+//    visible part's end moves smoothly across it, so it counts only for non-diffuse emission
+//    (the radiance jumps with the normal there).
+//  - Tangent point: the line is S's tangent there, and near the touching point x sees the branch of S
+//    that runs toward x, whose visible side is the convex one (away from the centre of curvature).
+//    The line bounds the visible emitting part iff that convex side emits. At an inflection (zero
+//    curvature) it bounds nothing.
+bool source_allows(const Scene& scene, const Feature& a, Vec2 d) {
+  const Curve& curve = scene.curves[a.curve];
+  if (a.vertex != nullptr) {
+    const Vertex& v = *a.vertex;
+    // (A reflector reflects diffusely: a secondary source is diffuse whatever its emission.)
+    const bool diffuse = !scene.is_emitter(curve) ||
+                         scene.material_of(curve).emission.kind == Emission::Kind::Diffuse;
+    if (line_crosses_at(scene, v, d) && diffuse) return false;
+    for (const std::uint32_t s : {v.before, v.after}) {
+      if (s == kNoSegment) continue;
+      const SegmentGeometry& g = scene.segments[s].geometry;
+      const double t = s == v.after ? 0.0 : 1.0;
+      const Vec2 tangent = outgoing_tangent(scene, s, s == v.after);
+      const bool along = std::fabs(cross(d, tangent)) <= kAlongSine;
+      const bool straight = g.kind == SegmentKind::Line || is_straight(g, scene.scale);
+      if (along && !straight) continue;  // grazing a curved end: the kink is of higher order
+      if (emits_toward(curve, unit_normal(g.shape, t, scene.scale), d, straight)) return true;
+    }
+    return false;
+  }
+  const Cubic& c = scene.segments[a.segment].geometry.shape;
+  const Vec2 d1 = derivative(c, a.t);
+  const double bend = cross(d1, second_derivative(c, a.t));
+  if (std::fabs(bend) <= 1e-9 * std::pow(length(d1), 3) / scene.scale) return false;  // inflection
+  // bend > 0: turning left, the centre of curvature on the front side, the convex side is the back.
+  return curve.has_side(bend > 0.0 ? Side::Back : Side::Front);
+}
+
+// The occluder rule at B: at a vertex, the curve stays on one side of the line (a line through a
+// corner that the curve crosses is blocked on both sides: no event). A tangent point is a simple
+// root of g, so the curve stays on one side there.
+bool occluder_allows(const Scene& scene, const Feature& b, Vec2 d) {
+  return b.vertex == nullptr || !line_crosses_at(scene, *b.vertex, d);
+}
+
+Feature vertex_feature(const Vertex& v) {
+  return Feature{v.position, v.curve, v.segment(), v.t(), v.u, &v};
+}
+
+// ---------------------------------------------------------------------------------------------
+
+struct EventFinder {
+  const Scene& scene;
+  const SegmentAccelerator& accelerator;
+  std::vector<DiscontinuityNode> events;
+
+  // The first hit of the ray from feature f along d, leaving f's segment (deflated) and skipping the
+  // crossings of f's own curve within kGraze * scale of f, which a line through a tangent point (or
+  // along a cubic's end tangent) makes by rounding: each is passed by restarting from it.
+  SceneHit cast(const Feature& f, Vec2 d) const {
+    const double graze = kGraze * scene.scale;
+    SceneHit hit = accelerator.closest_hit(Ray{f.position, d}, RayOrigin{f.segment, f.t});
+    double travelled = 0.0;
+    for (int i = 0; i < 4 && hit.segment != kNoSegment && scene.segments[hit.segment].curve == f.curve &&
+                    travelled + hit.distance <= graze;
+         ++i) {
+      travelled += hit.distance;
+      hit = accelerator.closest_hit(Ray{f.position + travelled * d, d}, RayOrigin{hit.segment, hit.t});
+    }
+    if (hit.segment != kNoSegment) hit.distance += travelled;
+    return hit;
+  }
+
+  void try_line(const Feature& a, const Feature& b) {
+    const Vec2 offset = b.position - a.position;
+    const double distance = length(offset);
+    if (distance <= kTouch * scene.scale) return;
+    const Vec2 d = (1.0 / distance) * offset;
+    if (!source_allows(scene, a, d) || !occluder_allows(scene, b, d)) return;
+    // The touching segment A-B must be free; a hit at B itself (or a graze of B's curve next to B)
+    // is B.
+    const SceneHit blocker = cast(a, d);
+    if (blocker.segment != kNoSegment && blocker.distance < distance - kTouch * scene.scale) {
+      const Vec2 where = a.position + blocker.distance * d;
+      if (scene.segments[blocker.segment].curve != b.curve || length(where - b.position) > kGraze * scene.scale)
+        return;
+    }
+    // A surface touching B (a contact there) blocks the line at B: its node is the contact's.
+    const SceneHit hit = cast(b, d);
+    if (hit.segment == kNoSegment || hit.distance <= kTouch * scene.scale) return;
+    const SceneSegment& segment = scene.segments[hit.segment];
+    const Curve& receiver = scene.curves[segment.curve];
+    // Light arrives travelling along d: it meets the front if the front normal opposes d. Only a side
+    // that reflects stores light that could show the kink.
+    const Side side = dot(unit_normal(segment.geometry.shape, hit.t, scene.scale), d) < 0.0 ? Side::Front : Side::Back;
+    const Spectrum& rho = scene.material_of(receiver).reflectivity;
+    bool reflects = false;
+    for (int channel = 0; channel < scene.channels; ++channel)
+      reflects = reflects || rho[static_cast<std::size_t>(channel)] > 0.0;
+    if (!receiver.has_side(side) || !reflects) return;
+    events.push_back({segment.curve, wrap(receiver, segment.index_in_curve + hit.t), Continuity::C0});
+  }
+};
+
+// Merging per EventOptions (see the header), curve by curve.
+std::vector<DiscontinuityNode> merge_events(const Scene& scene, std::vector<DiscontinuityNode> events,
+                                            const EventOptions& options) {
+  std::sort(events.begin(), events.end(), before_node);
+  std::vector<DiscontinuityNode> out;
+  std::size_t begin = 0;
+  while (begin < events.size()) {
+    std::size_t end = begin;
+    while (end < events.size() && events[end].curve == events[begin].curve) ++end;
+    const Curve& curve = scene.curves[events[begin].curve];
+    const double gap = options.merge_fraction * curve.length / std::max(options.elements, 1);
+    // Arc lengths of the value-jump joints and open ends, where events are dropped.
+    std::vector<double> jumps;
+    if (!curve.closed || curve.joints.back() == Continuity::Jump) {
+      jumps.push_back(0.0);
+      jumps.push_back(curve.length);
+    }
+    for (std::uint32_t j = 0; j + 1 < curve.segment_count; ++j)
+      if (curve.joints[j] == Continuity::Jump) jumps.push_back(curve.segment_start[j + 1]);
+    struct Cluster {
+      double s_first, s_last, u_sum;
+      int count;
+    };
+    std::vector<Cluster> clusters;
+    for (std::size_t i = begin; i < end; ++i) {
+      const double s = arc_length_at(scene, curve, events[i].u);
+      bool near_jump = false;
+      for (const double jump : jumps) near_jump = near_jump || std::fabs(s - jump) < gap;
+      if (near_jump) continue;
+      if (!clusters.empty() && s - clusters.back().s_first < gap) {
+        clusters.back().s_last = s;
+        clusters.back().u_sum += events[i].u;
+        ++clusters.back().count;
+      } else {
+        clusters.push_back({s, s, events[i].u, 1});
+      }
+    }
+    // Around the closing point of a periodic curve the first and last clusters may be one.
+    if (curve.closed && clusters.size() >= 2 &&
+        clusters.front().s_first + curve.length - clusters.back().s_last < gap) {
+      Cluster& last = clusters.back();
+      Cluster& first = clusters.front();
+      const double u_sum = first.u_sum + last.u_sum - last.count * static_cast<double>(curve.segment_count);
+      first.u_sum = u_sum;
+      first.count += last.count;
+      clusters.pop_back();
+    }
+    for (const Cluster& cluster : clusters) {
+      double u = cluster.u_sum / cluster.count;
+      if (u < 0.0) u += curve.segment_count;
+      out.push_back({events[begin].curve, wrap(curve, u), Continuity::C0});
+    }
+    begin = end;
+  }
+  std::sort(out.begin(), out.end(), before_node);
+  return out;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Contacts.
+
+// Proper crossings of two segments, (t_a, t_b) strictly inside both (kInteriorMargin).
+void segment_crossings(const SegmentGeometry& a, const SegmentGeometry& b, double scale,
+                       std::vector<std::pair<double, double>>& out) {
+  auto interior = [](double t) { return t > kInteriorMargin && t < 1.0 - kInteriorMargin; };
+  if (a.kind == SegmentKind::Line && b.kind == SegmentKind::Line) {
+    // a0 + s (a1 - a0) = b0 + t (b1 - b0): s = cross(b0 - a0, eb) / cross(ea, eb), likewise t.
+    const Vec2 ea = a.shape.p[3] - a.shape.p[0];
+    const Vec2 eb = b.shape.p[3] - b.shape.p[0];
+    const double denominator = cross(ea, eb);
+    if (std::fabs(denominator) <= 1e-12 * length(ea) * length(eb)) return;  // parallel
+    const Vec2 w = b.shape.p[0] - a.shape.p[0];
+    const double s = cross(w, eb) / denominator;
+    const double t = cross(w, ea) / denominator;
+    if (interior(s) && interior(t)) out.emplace_back(s, t);
+    return;
+  }
+  if (a.kind == SegmentKind::Line || b.kind == SegmentKind::Line) {
+    const bool line_first = a.kind == SegmentKind::Line;
+    const SegmentGeometry& line = line_first ? a : b;
+    const Cubic& c = line_first ? b.shape : a.shape;
+    // f(t) = cross(e, C(t) - l0) / |e| is the cubic's signed distance to the line, in Bernstein form
+    // with coefficients cross(e, P_i - l0) / |e|.
+    const Vec2 l0 = line.shape.p[0];
+    const Vec2 e = line.shape.p[3] - l0;
+    const double e_length = length(e);
+    double k[4];
+    double magnitude = 0.0;
+    for (int i = 0; i < 4; ++i) {
+      k[i] = cross(e, c.p[i] - l0) / e_length;
+      magnitude = std::max(magnitude, length(c.p[i] - l0));
+    }
+    std::vector<double> roots;
+    isolate_roots(k, 3, 0.0, 1.0, 16.0 * kEpsilon * magnitude,
+                  [&](double t) { return cross(e, evaluate(c, t) - l0) / e_length; }, 0, roots);
+    for (const double t : roots) {
+      const double s = dot(evaluate(c, t) - l0, e) / (e_length * e_length);
+      if (!interior(t) || !interior(s)) continue;
+      if (line_first) {
+        out.emplace_back(s, t);
+      } else {
+        out.emplace_back(t, s);
+      }
+    }
+    return;
+  }
+  // Two cubics: halve the pair while the control-point boxes overlap; from pieces 1/16 wide, Newton
+  // on A(t) - B(u) = 0 (Jacobian [A', -B']) from their centres, accepted where it converges inside
+  // the pieces and the crossing is transversal (a tangential touching is not a crossing).
+  struct Pair {
+    double t0, t1, u0, u1;
+    Cubic a, b;
+  };
+  const double pad = kTouch * scale;
+  std::vector<Pair> stack{{0.0, 1.0, 0.0, 1.0, a.shape, b.shape}};
+  std::vector<std::pair<double, double>> found;
+  int budget = 4000;
+  while (!stack.empty() && budget-- > 0) {
+    const Pair pair = stack.back();
+    stack.pop_back();
+    if (!overlap(padded(hull_bounds(pair.a), pad), hull_bounds(pair.b))) continue;
+    const double wt = pair.t1 - pair.t0;
+    const double wu = pair.u1 - pair.u0;
+    if (wt <= 1.0 / 16 && wu <= 1.0 / 16) {
+      double t = 0.5 * (pair.t0 + pair.t1);
+      double u = 0.5 * (pair.u0 + pair.u1);
+      bool converged = false;
+      for (int iteration = 0; iteration < 30 && !converged; ++iteration) {
+        const Vec2 f = evaluate(a.shape, t) - evaluate(b.shape, u);
+        const Vec2 da = derivative(a.shape, t);
+        const Vec2 db = derivative(b.shape, u);
+        const double det = cross(db, da);  // det [da, -db]
+        if (!(std::fabs(det) > 0.0)) break;
+        // [da -db] (dt, du) = f: Cramer's rule.
+        const double dt = cross(db, f) / det;
+        const double du = cross(da, f) / det;
+        t -= dt;
+        u -= du;
+        if (!(t > -0.5 && t < 1.5 && u > -0.5 && u < 1.5)) break;
+        converged = std::fabs(dt) <= 1e-15 && std::fabs(du) <= 1e-15;
+      }
+      if (converged && t >= pair.t0 - 0.1 * wt && t <= pair.t1 + 0.1 * wt && u >= pair.u0 - 0.1 * wu &&
+          u <= pair.u1 + 0.1 * wu) {
+        const Vec2 da = derivative(a.shape, t);
+        const Vec2 db = derivative(b.shape, u);
+        if (interior(t) && interior(u) && std::fabs(cross(da, db)) > 1e-6 * length(da) * length(db))
+          found.emplace_back(t, u);
+        continue;
+      }
+      if (wt <= 1.0 / 4096 && wu <= 1.0 / 4096) continue;
+    }
+    if (wt >= wu) {
+      const auto [left, right] = split(pair.a, 0.5);
+      const double middle = 0.5 * (pair.t0 + pair.t1);
+      stack.push_back({middle, pair.t1, pair.u0, pair.u1, right, pair.b});
+      stack.push_back({pair.t0, middle, pair.u0, pair.u1, left, pair.b});
+    } else {
+      const auto [left, right] = split(pair.b, 0.5);
+      const double middle = 0.5 * (pair.u0 + pair.u1);
+      stack.push_back({pair.t0, pair.t1, middle, pair.u1, pair.a, right});
+      stack.push_back({pair.t0, pair.t1, pair.u0, middle, pair.a, left});
+    }
+  }
+  for (const auto& s : found) {
+    bool seen = false;
+    for (const auto& q : out)
+      seen = seen || (std::fabs(q.first - s.first) <= kSameParameter && std::fabs(q.second - s.second) <= kSameParameter);
+    if (!seen) out.push_back(s);
+  }
+}
+
+// Whether segments i and j of one curve share an end point (neighbours, also across the closing
+// point).
+bool neighbours(const Curve& curve, std::uint32_t i, std::uint32_t j) {
+  if (i == j) return true;
+  const std::uint32_t lo = std::min(i, j);
+  const std::uint32_t hi = std::max(i, j);
+  return hi == lo + 1 || (curve.closed && lo == 0 && hi + 1 == curve.segment_count);
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------
+
+std::vector<double> tangent_points(const Scene& scene, std::uint32_t curve, Vec2 p) {
+  std::vector<double> out;
+  for (const Feature& f : curve_tangent_points(scene, curve, p, vertices_of(scene, curve))) out.push_back(f.u);
+  return out;
+}
+
+std::vector<std::pair<double, double>> bitangents(const Scene& scene, std::uint32_t curve_a,
+                                                  std::uint32_t curve_b) {
+  std::vector<std::pair<double, double>> out;
+  for (const auto& [a, b] :
+       curve_bitangents(scene, curve_a, curve_b, vertices_of(scene, curve_a), vertices_of(scene, curve_b)))
+    out.emplace_back(a.u, b.u);
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+std::vector<DiscontinuityNode> find_visibility_events(const Scene& scene,
+                                                      const SegmentAccelerator& accelerator,
+                                                      const EventOptions& options) {
+  const auto curve_count = static_cast<std::uint32_t>(scene.curves.size());
+  std::vector<std::vector<Vertex>> vertices(curve_count);
+  for (std::uint32_t c = 0; c < curve_count; ++c) vertices[c] = vertices_of(scene, c);
+  std::vector<const Vertex*> all_vertices;
+  for (const std::vector<Vertex>& list : vertices)
+    for (const Vertex& v : list) all_vertices.push_back(&v);
+  std::vector<std::uint32_t> curved_curves;
+  for (std::uint32_t c = 0; c < curve_count; ++c)
+    if (scene.curves[c].kind == SegmentKind::Cubic) curved_curves.push_back(c);
+
+  EventFinder finder{scene, accelerator, {}};
+  for (std::uint32_t s = 0; s < curve_count; ++s) {
+    const Curve& source = scene.curves[s];
+    if (!scene.is_emitter(source) && !(options.secondary && reflects(scene, source))) continue;
+    // VV and VT: from the emitter's vertices to every vertex and every tangent point.
+    for (const Vertex& v : vertices[s]) {
+      const Feature a = vertex_feature(v);
+      for (const Vertex* w : all_vertices) {
+        if (w != &v) finder.try_line(a, vertex_feature(*w));
+      }
+      for (const std::uint32_t o : curved_curves)
+        for (const Feature& b : curve_tangent_points(scene, o, v.position, vertices[o])) finder.try_line(a, b);
+    }
+    if (scene.curves[s].kind != SegmentKind::Cubic) continue;
+    // TV: tangent points of the emitter seen from every vertex.
+    for (const Vertex* w : all_vertices) {
+      const Feature b = vertex_feature(*w);
+      for (const Feature& a : curve_tangent_points(scene, s, w->position, vertices[s])) finder.try_line(a, b);
+    }
+    // TT: bitangents of the emitter and every curved curve (itself included).
+    for (const std::uint32_t o : curved_curves)
+      for (const auto& [a, b] : curve_bitangents(scene, s, o, vertices[s], vertices[o])) finder.try_line(a, b);
+  }
+  return merge_events(scene, std::move(finder.events), options);
+}
+
+std::vector<DiscontinuityNode> find_contacts(const Scene& scene) {
+  const double touch = kTouch * scene.scale;
+  std::vector<Box> boxes;
+  boxes.reserve(scene.segments.size());
+  for (const SceneSegment& segment : scene.segments) boxes.push_back(padded(segment_box(segment.geometry), touch));
+  const BoxTree tree(boxes);
+  std::vector<DiscontinuityNode> nodes;
+  auto add = [&](std::uint32_t c, double u) {
+    const Curve& curve = scene.curves[c];
+    if (!curve.closed && (u <= kSameParameter || u >= curve.segment_count - kSameParameter)) return;
+    nodes.push_back({c, wrap(curve, u), Continuity::Jump});
+  };
+  auto point_box = [](Vec2 p) {
+    Box box;
+    box.extend(p);
+    return box;
+  };
+
+  // Vertices on other curves, or on segments of their own curve that do not end there.
+  for (std::uint32_t c = 0; c < scene.curves.size(); ++c) {
+    for (const Vertex& v : vertices_of(scene, c)) {
+      tree.query(point_box(v.position), [&](std::uint32_t s) {
+        const SceneSegment& segment = scene.segments[s];
+        if (segment.curve == c && (s == v.before || s == v.after)) return;
+        const auto [t, distance] = closest_parameter(segment.geometry, v.position);
+        if (distance <= touch) add(segment.curve, segment.index_in_curve + t);
+      });
+    }
+  }
+
+  // Tangent-continuous joints on another curve (or a segment of their own curve that does not end
+  // there), where the curve passes through: the joint's neighbours on both sides of the other
+  // curve's tangent line. A crossing exactly at a joint is not interior to either segment.
+  for (std::uint32_t c = 0; c < scene.curves.size(); ++c) {
+    const Curve& curve = scene.curves[c];
+    for (std::uint32_t j = 0; j < curve.joint_count(); ++j) {
+      if (!is_tangent_continuous(scene, curve, j)) continue;
+      const std::uint32_t before = curve.first_segment + j;
+      const std::uint32_t after = j + 1 == curve.segment_count ? curve.first_segment : before + 1;
+      const Vec2 joint = scene.segments[after].geometry.shape.p[0];
+      tree.query(point_box(joint), [&](std::uint32_t s) {
+        const SceneSegment& segment = scene.segments[s];
+        if (segment.curve == c && (s == before || s == after)) return;
+        const auto [t, distance] = closest_parameter(segment.geometry, joint);
+        if (distance > touch) return;
+        const Vec2 base = evaluate(segment.geometry.shape, t);
+        const Vec2 tangent = unit_tangent(segment.geometry.shape, t, scene.scale);
+        const double h = 1e-3;
+        const double side_before = cross(tangent, evaluate(scene.segments[before].geometry.shape, 1.0 - h) - base);
+        const double side_after = cross(tangent, evaluate(scene.segments[after].geometry.shape, h) - base);
+        if (!((side_before < 0.0 && side_after > 0.0) || (side_before > 0.0 && side_after < 0.0))) return;
+        add(c, j + 1.0);
+        add(segment.curve, segment.index_in_curve + t);
+      });
+    }
+  }
+
+  // Proper crossings of two segments.
+  std::vector<std::pair<double, double>> crossings;
+  for (std::uint32_t i = 0; i < scene.segments.size(); ++i) {
+    const SceneSegment& a = scene.segments[i];
+    tree.query(boxes[i], [&](std::uint32_t j) {
+      if (j <= i) return;
+      const SceneSegment& b = scene.segments[j];
+      if (a.curve == b.curve && neighbours(scene.curves[a.curve], a.index_in_curve, b.index_in_curve)) return;
+      crossings.clear();
+      segment_crossings(a.geometry, b.geometry, scene.scale, crossings);
+      for (const auto& [t, u] : crossings) {
+        add(a.curve, a.index_in_curve + t);
+        add(b.curve, b.index_in_curve + u);
+      }
+    });
+  }
+  return sorted_unique(scene, std::move(nodes));
+}
+
+}  // namespace flatland

@@ -1,0 +1,235 @@
+#include "flatland/results/result_io.hpp"
+
+#include "flatland/base/version.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <optional>
+#include <random>
+
+#include <signal.h>
+#include <unistd.h>
+
+#include "flatland/base/resources.hpp"
+#include "flatland/base/text.hpp"
+
+namespace flatland {
+
+nlohmann::json scene_to_json(const Scene& scene) {
+  return {{"name", scene.name}, {"file", scene.source}, {"sha256", scene.source_sha256},
+          {"content_sha256", scene.content_sha256},
+          {"channels", scene.channels}};
+}
+
+nlohmann::json program_to_json() {
+  return {{"name", "flatland"}, {"version", program_version()}, {"commit", program_commit()}};
+}
+
+namespace {
+
+// The result document of `solver` with its sampled result, but for "curves" (an empty array).
+nlohmann::json result_without_curves(const Solver& solver, int samples_per_curve, const SampledResult& sampled) {
+  const Scene& scene = solver.scene();
+  const SolverSettings& settings = solver.settings();
+  nlohmann::json result;
+  result["flatland_result"] = 1;
+  result["program"] = program_to_json();
+  result["scene"] = scene_to_json(scene);
+  result["settings"] = {
+      {"method", to_string(settings.transport)},
+      {"transport", to_string(settings.transport)},
+      {"photons", settings.photons},
+      {"seed", settings.seed},
+      {"threads", solver.thread_count()},
+      {"processes", solver.round_sharing() != nullptr ? solver.round_sharing()->size() : 1u},
+      {"basis", to_string(settings.basis)},
+      {"elements", settings.elements == kAutoElements ? nlohmann::json("auto") : nlohmann::json(settings.elements)},
+      {"tolerance", settings.tolerance},
+      {"sampling", to_string(settings.sampling)},
+      {"discontinuities", to_string(settings.discontinuities)},
+      {"estimator", to_string(settings.estimator)},
+      {"sampler", to_string(settings.sampler)},
+      {"ray_width", settings.ray_width},
+      {"ray_profile", to_string(settings.ray_profile)},
+      {"ray_mode", to_string(settings.ray_mode)},
+      {"band_rays", settings.band_rays},
+      {"samples", samples_per_curve},
+  };
+  result["stats"] = stats_to_json(*sampled.stats);
+  result["curves"] = nlohmann::json::array();
+  return result;
+}
+
+}  // namespace
+
+nlohmann::json result_to_json(const Solver& solver, int samples_per_curve) {
+  const SampledResult sampled = sample_solver(solver, samples_per_curve);
+  nlohmann::json result = result_without_curves(solver, samples_per_curve, sampled);
+  result["curves"] = curves_to_json(sampled);
+  return result;
+}
+
+std::string result_text(const Solver& solver, int samples_per_curve) {
+  const SampledResult sampled = sample_solver(solver, samples_per_curve);
+  const std::string outline = json_text(result_without_curves(solver, samples_per_curve, sampled));
+  // The outline holds `"curves": []` (keys are sorted, so first); the curves go in its place as
+  // dump(1) would write them at that depth: "[", each entry on its own lines two spaces in, "]"
+  // one space in.
+  const std::string empty = "\"curves\": []";
+  const std::size_t at = outline.find(empty);
+  if (at == std::string::npos || sampled.curves.empty()) return outline;
+  const std::size_t open = at + empty.size() - 2;
+  std::string text(outline, 0, open);
+  // nlohmann's serializer (a detail of the library, the same from 3.10 to 3.12) writes an entry
+  // at a given depth, as dump() does inside a document.
+  nlohmann::detail::serializer<nlohmann::json> serializer(nlohmann::detail::output_adapter<char>(text), ' ',
+                                                          nlohmann::json::error_handler_t::replace);
+  text += "[\n";
+  // Room for the whole text (growing by doubling copied it all twice): the numbers every curve
+  // writes, at the bytes per number of the first kMeasured curves.
+  constexpr std::size_t kMeasured = 64;
+  const std::size_t curves = sampled.curves.size();
+  std::size_t numbers_measured = 0;
+  for (std::size_t c = 0; c < curves; ++c) {
+    if (c == kMeasured) {
+      std::size_t numbers_left = 0;
+      for (std::size_t rest = c; rest < curves; ++rest)
+        numbers_left += curve_json_numbers(sampled.curves[rest], sampled.channels);
+      const double per_number = static_cast<double>(text.size() - open) / static_cast<double>(numbers_measured);
+      text.reserve(text.size() + static_cast<std::size_t>(1.25 * per_number * static_cast<double>(numbers_left)) +
+                   outline.size());
+    }
+    text += c == 0 ? "  " : ",\n  ";
+    serializer.dump(curve_to_json(sampled.curves[c], sampled.channels), true, false, 1, 2);
+    if (c < kMeasured) numbers_measured += curve_json_numbers(sampled.curves[c], sampled.channels);
+  }
+  text += "\n ]";
+  text.append(outline, open + 2, std::string::npos);
+  return text;
+}
+
+nlohmann::json stats_to_json(const ResultStats& stats) {
+  return {
+      {"photons", stats.photons},
+      {"rounds", stats.rounds},
+      {"rays", stats.rays},
+      {"seconds", stats.seconds},
+      {"stop_reason", to_string(stats.stop_reason)},
+      {"emitted_power", stats.books.emitted},
+      {"absorbed_power", stats.books.absorbed},
+      {"escaped_power", stats.books.escaped},
+      {"unshot_power", stats.books.unshot},
+  };
+}
+
+nlohmann::json reference_result_to_json(const Scene& scene, const ReferenceSettings& settings,
+                                        const ReferenceSolution& solution, int samples_per_curve,
+                                        double seconds, const ReferenceErrorEstimate* estimate,
+                                        const nlohmann::json& curves) {
+  nlohmann::json result;
+  result["flatland_result"] = 1;
+  result["program"] = program_to_json();
+  result["scene"] = scene_to_json(scene);
+  result["settings"] = {{"method", "reference"},
+                        {"max_element_length",
+                         settings.max_element_length > 0.0 ? settings.max_element_length : scene.scale / 400.0},
+                        {"quadrature", settings.quadrature},
+                        {"tolerance", settings.tolerance},
+                        {"samples", samples_per_curve}};
+  result["stats"] = {{"elements", solution.elements()},
+                     {"iterations", solution.iterations()},
+                     {"residual", solution.residual()},
+                     {"error_bound", solution.error_bound()},
+                     {"seconds", seconds},
+                     {"form_factor_seconds", solution.form_factor_seconds()},
+                     {"solve_seconds", solution.solve_seconds()}};
+  if (estimate != nullptr) {
+    const ErrorNorms& e = estimate->error;
+    result["stats"]["estimated_error"] = {{"l1", e.l1}, {"l2", e.l2}, {"linf", e.linf}};
+    // null where no order could be observed (differences at round-off).
+    auto number_or_null = [](double value) { return std::isnan(value) ? nlohmann::json(nullptr) : nlohmann::json(value); };
+    result["stats"]["observed_order"] = number_or_null(estimate->observed_order);
+    result["stats"]["estimate_order"] = number_or_null(estimate->order);
+    if (!estimate->note.empty()) result["stats"]["estimate_note"] = estimate->note;
+  }
+  result["curves"] = curves;
+  return result;
+}
+
+Result<nlohmann::json> parse_result(std::string_view text, const std::string& source) {
+  auto at = [&](std::size_t offset) {
+    const TextPosition p = position_of(text, offset);
+    return source + ":" + std::to_string(p.line) + ":" + std::to_string(p.column) + ": ";
+  };
+  nlohmann::json document;
+  try {
+    document = nlohmann::json::parse(text.begin(), text.end());
+  } catch (const nlohmann::json::parse_error& e) {
+    return Error{at(e.byte > 0 ? e.byte - 1 : 0) + "not valid JSON; is this a result written by "
+                 "'flatland solve --out'?"};
+  } catch (const nlohmann::json::out_of_range&) {
+    const std::optional<std::size_t> offset = find_overflowing_number(text);
+    return Error{(offset ? at(*offset) : source + ": ") +
+                 "a number is beyond the range of a double (it overflows to infinity)"};
+  } catch (const std::exception& e) {
+    return Error{source + ": cannot read the result: " + e.what()};
+  }
+  if (!document.is_object() || !document.contains("flatland_result"))
+    return Error{source + ": not a flatland result (no \"flatland_result\" key); write one with "
+                 "'flatland solve --out' or 'flatland reference --out'"};
+  if (document["flatland_result"] != 1)
+    return Error{source + ": unsupported result version " + document["flatland_result"].dump() +
+                 "; this program reads version 1"};
+  return document;
+}
+
+Result<nlohmann::json> read_result_file(const std::string& path, const std::atomic<bool>* cancel) {
+  Result<std::string> text = read_input_file(path, "result file", cancel);
+  if (!text) return text.error();
+  return parse_result(*text, path);
+}
+
+std::string json_text(const nlohmann::json& document) {
+  return document.dump(1, ' ', false, nlohmann::json::error_handler_t::replace) + "\n";
+}
+
+double result_sample_bytes(const Scene& scene, int samples_per_curve) {
+  // One sample as json_text writes it inside a curve (depth 4, one space an indent):
+  //     {                         "{" and "}," lines: 12 bytes
+  //      "s": 0.5,                a number: 5 + 10 (the longest key, "B_back": ) + 24 + 2 = 41
+  //      "B": [                   a spectrum of three: 5 + 11 + 1, three lines of 6 + 24 + 2,
+  //       0.1,                    and "],": 8; 121 in all
+  // s, x and y are numbers; B, B_back and E are numbers in a grey scene, spectra in colour.
+  constexpr double kNumberLine = 41.0;
+  constexpr double kSpectrumLines = 121.0;
+  constexpr double kBraces = 12.0;
+  const double value = scene.channels == 1 ? kNumberLine : kSpectrumLines;
+  double bytes = 0.0;
+  for (const Curve& curve : scene.curves) {
+    const double values = 1.0 + (curve.sides == Sides::Both ? 1.0 : 0.0) + (scene.is_emitter(curve) ? 1.0 : 0.0);
+    bytes += kBraces + 3.0 * kNumberLine + values * value;
+  }
+  return bytes * samples_per_curve;
+}
+
+Status check_result_size(const Scene& scene, int samples_per_curve) {
+  const double bytes = result_sample_bytes(scene, samples_per_curve);
+  if (bytes <= static_cast<double>(kMaxInputBytes)) return ok_status();
+  const double per_sample = bytes / samples_per_curve;
+  char message[400];
+  std::snprintf(message, sizeof message,
+                "--samples %d: %zu curves would make a result of up to %s, more than %s, the most "
+                "flatland reads back (docs/limits.md); give at most --samples %.0f",
+                samples_per_curve, scene.curves.size(), format_bytes(bytes).c_str(),
+                format_bytes(static_cast<double>(kMaxInputBytes)).c_str(),
+                std::max(1.0, std::floor(static_cast<double>(kMaxInputBytes) / per_sample)));
+  return Error{message};
+}
+
+}  // namespace flatland

@@ -1,0 +1,64 @@
+// The result file of `flatland solve` (format "flatland_result": 1, docs/result-format.md).
+#pragma once
+
+#include <atomic>
+#include <functional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "flatland/base/files.hpp"
+#include "flatland/base/status.hpp"
+#include "flatland/scene/scene.hpp"
+#include "flatland/transport/solver.hpp"
+#include "flatland/reference/reference.hpp"
+#include "flatland/results/sampled_result.hpp"
+
+namespace flatland {
+
+
+// The whole result document: scene, settings, stats and K samples per curve at s_j = (j+0.5) L/K.
+nlohmann::json result_to_json(const Solver& solver, int samples_per_curve);
+// json_text(result_to_json(solver, samples_per_curve)), byte for byte, with the curves written
+// one at a time instead of held as one JSON tree: a scene of 65,536 curves spent 6 s building
+// that tree (small allocations, page faults) and 3 s writing it out.
+std::string result_text(const Solver& solver, int samples_per_curve);
+
+// The document `flatland reference --out` writes: the reference's settings and statistics, its
+// estimated error when `estimate` is given, and `curves` (curves_to_json of its samples).
+nlohmann::json reference_result_to_json(const Scene& scene, const ReferenceSettings& settings,
+                                        const ReferenceSolution& solution, int samples_per_curve,
+                                        double seconds, const ReferenceErrorEstimate* estimate,
+                                        const nlohmann::json& curves);
+
+// The "stats" entry of a solver's result.
+nlohmann::json stats_to_json(const ResultStats& stats);
+// The "scene" entry of a result.
+nlohmann::json scene_to_json(const Scene& scene);
+// The program that wrote a result: {"name": "flatland", "version", "commit"} (version.hpp).
+nlohmann::json program_to_json();
+
+// A result document from its text (`source` names it in errors): JSON whose top level is an
+// object with "flatland_result": 1. Errors name the source, line and column (numbers beyond a
+// double's range included) and never throw.
+Result<nlohmann::json> parse_result(std::string_view text, const std::string& source);
+// The result file at `path`, read by read_input_file (a pipe's wait ends when `cancel` is set).
+Result<nlohmann::json> read_result_file(const std::string& path, const std::atomic<bool>* cancel = nullptr);
+
+// The text of a JSON document as every output writes it (one-space indent, a final newline).
+// Strings that are not valid UTF-8 (a scene file's name can be any bytes) have the invalid bytes
+// replaced by U+FFFD instead of failing.
+std::string json_text(const nlohmann::json& document);
+
+// An upper bound of the bytes that `samples_per_curve` samples of every curve take in a result's
+// text (json_text): each number at its longest shortest-round-trip form, 24 characters, with the
+// keys and indentation around it; a two-sided curve's samples hold B_back, an emitter's E.
+double result_sample_bytes(const Scene& scene, int samples_per_curve);
+// Refuses, before any work, a result whose samples could take more than kMaxInputBytes, so that
+// every result the program writes is one it can read back; the message gives the largest
+// --samples that fits.
+Status check_result_size(const Scene& scene, int samples_per_curve);
+
+}  // namespace flatland

@@ -1,0 +1,882 @@
+// Reading scene files (format version 1, docs/scene-format.md).
+//
+// Two passes over the text. nlohmann::json parses it (syntax errors carry a byte offset, which we
+// turn into line:column). A small scanner then walks the same text and records where every value
+// and every object key starts, by field path ("curves[2].bezier[3]"), and notices what nlohmann
+// silently accepts or reports without a position: duplicate keys and numbers that overflow. The
+// validation works on the parsed value and asks the scanner's map where a field is, so every error
+// reads "SOURCE:LINE:COLUMN: FIELD.PATH: what is wrong; what to do".
+//
+// Nothing here throws out of parse_scene / load_scene: validation failures are thrown internally as
+// ParseFailure and caught at the top, as is anything else (allocation failure, a library exception).
+#include <algorithm>
+#include <cerrno>
+#include <charconv>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <initializer_list>
+#include <limits>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <system_error>
+#include <unordered_map>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "flatland/base/files.hpp"
+#include "flatland/scene/scene.hpp"
+#include "flatland/base/sha256.hpp"
+#include "flatland/base/text.hpp"
+
+namespace flatland {
+namespace {
+
+using Json = nlohmann::ordered_json;  // keeps materials and keys in file order
+
+// Nesting deeper than this is rejected: a scene needs four levels (curves[i].bezier[j][k]).
+constexpr std::size_t kMaxDepth = 64;
+// Names shown in a "defined: ..." list before it is cut short.
+constexpr std::size_t kMaxListedNames = 12;
+
+// ---------------------------------------------------------------------------------------------
+// Small text helpers
+
+std::string format_number(double value) {
+  char buffer[64];
+  const auto result = std::to_chars(buffer, buffer + sizeof buffer, value);  // shortest round trip
+  return std::string(buffer, result.ptr);
+}
+
+// A user's string quoted for a one-line message: JSON escapes (so a newline in a key cannot break
+// the line) and long strings cut short.
+std::string quote(std::string_view s) {
+  constexpr std::size_t kMaxShown = 60;
+  std::string shown(s.substr(0, kMaxShown));
+  std::string out = Json(shown).dump(-1, ' ', false, Json::error_handler_t::replace);
+  if (s.size() > kMaxShown) out.insert(out.size() - 1, "...");
+  return out;
+}
+
+std::string type_name(const Json& v) {
+  switch (v.type()) {
+    case Json::value_t::object: return "an object";
+    case Json::value_t::array: return "an array";
+    case Json::value_t::string: return "a string";
+    case Json::value_t::boolean: return "a boolean";
+    case Json::value_t::null: return "null";
+    case Json::value_t::number_integer:
+    case Json::value_t::number_unsigned:
+    case Json::value_t::number_float: return "a number";
+    default: return "an unsupported value";
+  }
+}
+
+// Field paths: keys made of [A-Za-z0-9_-] join with dots (materials.wall.reflectivity); any other
+// key is written as a quoted subscript (materials["my lamp"].emittance).
+bool is_plain_key(std::string_view key) {
+  if (key.empty()) return false;
+  return std::all_of(key.begin(), key.end(), [](char ch) {
+    return (ch >= 'a' && ch <= 'z') || (ch >= 'A' && ch <= 'Z') || (ch >= '0' && ch <= '9') ||
+           ch == '_' || ch == '-';
+  });
+}
+
+std::string append_key(const std::string& path, std::string_view key) {
+  if (is_plain_key(key)) return path.empty() ? std::string(key) : path + "." + std::string(key);
+  return path + "[" + quote(key) + "]";
+}
+
+std::string append_index(const std::string& path, std::size_t index) {
+  return path + "[" + std::to_string(index) + "]";
+}
+
+std::optional<std::string> closest(std::string_view word, const std::vector<std::string>& candidates) {
+  return closest_match(word, candidates);
+}
+
+std::string quoted_list(const std::vector<std::string>& names) {
+  std::string out;
+  for (std::size_t i = 0; i < names.size() && i < kMaxListedNames; ++i) {
+    if (i > 0) out += ", ";
+    out += quote(names[i]);
+  }
+  if (names.size() > kMaxListedNames) out += ", ...";
+  return out;
+}
+
+// ---------------------------------------------------------------------------------------------
+// The position scanner: a walk over JSON text that records, per field path, where each value and
+// each object key begins. It runs on text nlohmann has accepted (or accepted up to an overflowing
+// number), keeps an explicit stack instead of recursing, and stops quietly on anything unexpected.
+// Without `record` it only looks for what nlohmann lets through (duplicate keys, nesting too deep)
+// and builds no paths: a scene file is scanned that way first, and positions are recorded only
+// when a message needs one (a path string and two map entries per number would be most of the
+// time a large scene takes to load).
+
+struct DuplicateKey {
+  std::string object_path;
+  std::string key;
+  std::size_t offset = 0;        // the second occurrence's opening quote
+  std::size_t first_offset = 0;  // the first occurrence's
+};
+
+struct NumberOverflow {
+  std::string path;
+  std::string token;
+  std::size_t offset = 0;
+};
+
+struct TextMap {
+  std::unordered_map<std::string, std::size_t> values;  // path -> offset of the value
+  std::unordered_map<std::string, std::size_t> keys;    // path -> offset of the member's key
+  std::optional<DuplicateKey> duplicate;                // the first duplicate key in the text
+  std::optional<NumberOverflow> overflow;               // the first number beyond double's range
+  std::optional<std::size_t> too_deep;                  // offset of a container nested too deep
+};
+
+// Whether a JSON number token lies beyond the largest double (as opposed to rounding to zero or
+// parsing normally). from_chars reports both overflow and underflow as out of range; the decimal
+// exponent of the leading significant digit tells them apart.
+bool overflows(std::string_view token) {
+  double value = 0.0;
+  const auto result = std::from_chars(token.data(), token.data() + token.size(), value);
+  if (result.ec == std::errc()) return std::isinf(value);
+  if (result.ec != std::errc::result_out_of_range) return false;
+  long long leading = 0;  // decimal exponent of the first nonzero digit, before the exponent part
+  bool found = false;
+  std::size_t i = token.empty() || token[0] != '-' ? 0 : 1;
+  long long integer_digits = 0;
+  for (; i < token.size() && token[i] >= '0' && token[i] <= '9'; ++i) {
+    if (!found && token[i] != '0') {
+      found = true;
+      integer_digits = 0;
+    }
+    if (found) ++integer_digits;
+  }
+  if (found) leading = integer_digits - 1;
+  if (i < token.size() && token[i] == '.') {
+    ++i;
+    long long place = -1;
+    for (; i < token.size() && token[i] >= '0' && token[i] <= '9'; ++i, --place) {
+      if (!found && token[i] != '0') {
+        found = true;
+        leading = place;
+      }
+    }
+  }
+  if (!found) return false;
+  long long exponent = 0;
+  if (i < token.size() && (token[i] == 'e' || token[i] == 'E')) {
+    ++i;
+    bool negative = false;
+    if (i < token.size() && (token[i] == '+' || token[i] == '-')) negative = token[i++] == '-';
+    for (; i < token.size() && token[i] >= '0' && token[i] <= '9'; ++i) {
+      exponent = std::min<long long>(exponent * 10 + (token[i] - '0'), 1'000'000'000);
+    }
+    if (negative) exponent = -exponent;
+  }
+  return leading + exponent > 0;
+}
+
+void append_utf8(std::string& out, std::uint32_t code) {
+  if (code < 0x80) {
+    out += static_cast<char>(code);
+  } else if (code < 0x800) {
+    out += static_cast<char>(0xC0 | (code >> 6));
+    out += static_cast<char>(0x80 | (code & 0x3F));
+  } else if (code < 0x10000) {
+    out += static_cast<char>(0xE0 | (code >> 12));
+    out += static_cast<char>(0x80 | ((code >> 6) & 0x3F));
+    out += static_cast<char>(0x80 | (code & 0x3F));
+  } else {
+    out += static_cast<char>(0xF0 | (code >> 18));
+    out += static_cast<char>(0x80 | ((code >> 12) & 0x3F));
+    out += static_cast<char>(0x80 | ((code >> 6) & 0x3F));
+    out += static_cast<char>(0x80 | (code & 0x3F));
+  }
+}
+
+class TextScanner {
+ public:
+  TextScanner(std::string_view text, bool record) : text_(text), record_(record) {}
+
+  TextMap scan() {
+    if (text_.substr(0, 3) == "\xEF\xBB\xBF") pos_ = 3;  // a UTF-8 byte order mark
+    std::string path;  // of the value about to be read
+    bool expect_value = true;
+    while (true) {
+      skip_space();
+      if (pos_ >= text_.size()) return std::move(map_);
+      if (expect_value) {
+        if (record_) map_.values.emplace(path, pos_);
+        const char ch = text_[pos_];
+        if (ch == '{' || ch == '[') {
+          if (stack_.size() >= kMaxDepth) {
+            map_.too_deep = pos_;
+            return std::move(map_);
+          }
+          stack_.push_back(Frame{path, ch == '{', 0, {}});
+          ++pos_;
+          skip_space();
+          if (pos_ < text_.size() && (text_[pos_] == '}' || text_[pos_] == ']')) {
+            ++pos_;
+            stack_.pop_back();
+            expect_value = false;
+          } else if (ch == '{') {
+            if (!read_member_key(path)) return std::move(map_);
+          } else if (record_) {
+            path = append_index(stack_.back().path, 0);
+          }
+          continue;
+        }
+        if (ch == '"') {
+          read_string();
+        } else {
+          const std::size_t start = pos_;
+          while (pos_ < text_.size() && !is_space(text_[pos_]) && text_[pos_] != ',' &&
+                 text_[pos_] != ']' && text_[pos_] != '}') {
+            ++pos_;
+          }
+          const std::string_view token = text_.substr(start, pos_ - start);
+          if (record_ && !map_.overflow && overflows(token)) {
+            map_.overflow = NumberOverflow{path, std::string(token), start};
+          }
+        }
+        expect_value = false;
+        continue;
+      }
+      if (stack_.empty()) return std::move(map_);
+      const char ch = text_[pos_];
+      if (ch == ',') {
+        ++pos_;
+        Frame& frame = stack_.back();
+        if (frame.object) {
+          if (!read_member_key(path)) return std::move(map_);
+        } else if (record_) {
+          path = append_index(frame.path, ++frame.count);
+        }
+        expect_value = true;
+      } else if (ch == '}' || ch == ']') {
+        ++pos_;
+        stack_.pop_back();
+      } else {
+        return std::move(map_);  // not JSON after all; keep what we have
+      }
+    }
+  }
+
+ private:
+  struct Frame {
+    std::string path;
+    bool object = false;
+    std::size_t count = 0;  // index of the current array element
+    std::unordered_map<std::string, std::size_t> seen;  // keys of an object -> offset
+  };
+
+  static bool is_space(char ch) { return ch == ' ' || ch == '\t' || ch == '\n' || ch == '\r'; }
+
+  void skip_space() {
+    while (pos_ < text_.size() && is_space(text_[pos_])) ++pos_;
+  }
+
+  // "key" : -> sets path to the member's path; false when the text is not shaped like a member.
+  bool read_member_key(std::string& path) {
+    skip_space();
+    if (pos_ >= text_.size() || text_[pos_] != '"') return false;
+    const std::size_t key_offset = pos_;
+    const std::string key = read_string();
+    skip_space();
+    if (pos_ >= text_.size() || text_[pos_] != ':') return false;
+    ++pos_;
+    Frame& frame = stack_.back();
+    if (record_) {
+      path = append_key(frame.path, key);
+      map_.keys.emplace(path, key_offset);
+    }
+    const auto [where, inserted] = frame.seen.emplace(key, key_offset);
+    if (!inserted && !map_.duplicate) {
+      map_.duplicate = DuplicateKey{frame.path, key, key_offset, where->second};
+    }
+    return true;
+  }
+
+  // Decodes the string starting at the opening quote at pos_ and leaves pos_ after the closing one.
+  std::string read_string() {
+    std::string out;
+    ++pos_;
+    while (pos_ < text_.size() && text_[pos_] != '"') {
+      const char ch = text_[pos_++];
+      if (ch != '\\') {
+        out += ch;
+        continue;
+      }
+      if (pos_ >= text_.size()) break;
+      const char escape = text_[pos_++];
+      switch (escape) {
+        case 'b': out += '\b'; break;
+        case 'f': out += '\f'; break;
+        case 'n': out += '\n'; break;
+        case 'r': out += '\r'; break;
+        case 't': out += '\t'; break;
+        case 'u': {
+          std::uint32_t code = read_hex4();
+          if (code >= 0xD800 && code < 0xDC00 && text_.substr(pos_, 2) == "\\u") {
+            pos_ += 2;
+            const std::uint32_t low = read_hex4();
+            code = 0x10000 + ((code - 0xD800) << 10) + (low - 0xDC00);
+          }
+          append_utf8(out, code);
+          break;
+        }
+        default: out += escape;  // \" \\ \/
+      }
+    }
+    if (pos_ < text_.size()) ++pos_;  // the closing quote
+    return out;
+  }
+
+  std::uint32_t read_hex4() {
+    std::uint32_t code = 0;
+    for (int k = 0; k < 4 && pos_ < text_.size(); ++k, ++pos_) {
+      const char ch = text_[pos_];
+      std::uint32_t digit = 0;
+      if (ch >= '0' && ch <= '9') digit = static_cast<std::uint32_t>(ch - '0');
+      else if (ch >= 'a' && ch <= 'f') digit = static_cast<std::uint32_t>(ch - 'a' + 10);
+      else if (ch >= 'A' && ch <= 'F') digit = static_cast<std::uint32_t>(ch - 'A' + 10);
+      code = code * 16 + digit;
+    }
+    return code;
+  }
+
+  std::string_view text_;
+  bool record_ = true;
+  std::size_t pos_ = 0;
+  std::vector<Frame> stack_;
+  TextMap map_;
+};
+
+// ---------------------------------------------------------------------------------------------
+// Validation
+
+struct ParseFailure {
+  std::string message;
+};
+
+enum class Quantity { Reflectivity, Emittance };
+
+// Emittance values and profile factors (docs/scene-format.md, limits).
+constexpr double kMaxEmittance = 1e100;
+constexpr double kMinEmittance = 1e-100;
+
+class SceneReader {
+ public:
+  SceneReader(std::string_view text, std::string_view source) : text_(text), source_(source) {}
+
+  Scene read() {
+    Json root;
+    try {
+      root = Json::parse(text_.begin(), text_.end());
+    } catch (const Json::parse_error& e) {
+      throw ParseFailure{at_offset(e.byte > 0 ? e.byte - 1 : 0) + "parse error: " +
+                         strip_library_prefix(e.what())};
+    } catch (const Json::out_of_range&) {
+      // nlohmann refuses numbers beyond double's range (id 406) without a position: find it.
+      map_ = TextScanner(text_, true).scan();
+      if (map_->overflow) {
+        fail(map_->overflow->path, "the number " + map_->overflow->token +
+                                      " is too large for a double (it overflows to infinity); "
+                                      "use a finite value");
+      }
+      throw ParseFailure{source_ + ": a number is too large for a double; use finite values"};
+    }
+    {
+      const TextMap check = TextScanner(text_, false).scan();
+      if (check.too_deep || check.duplicate) map_ = TextScanner(text_, true).scan();
+    }
+    if (map_ && map_->too_deep) {
+      throw ParseFailure{at_offset(*map_->too_deep) + "values nested more than " +
+                         std::to_string(kMaxDepth) + " deep; a scene file needs four levels"};
+    }
+    if (map_ && map_->duplicate) {
+      const DuplicateKey& d = *map_->duplicate;
+      const TextPosition first = position_of(text_, d.first_offset);
+      throw ParseFailure{at_offset(d.offset) + (d.object_path.empty() ? "" : d.object_path + ": ") +
+                         "duplicate key " + quote(d.key) + " (first at line " +
+                         std::to_string(first.line) + ", column " + std::to_string(first.column) +
+                         "); each key may appear once in an object, remove one of them"};
+    }
+    Scene scene = read_scene(root);
+    scene.content_sha256 = sha256_hex(nlohmann::json(root).dump());
+    return scene;
+  }
+
+  // Turns an error of finalize_scene ("FIELD: what") into a located message.
+  std::string locate(const std::string& message) const {
+    const std::size_t colon = message.find(": ");
+    if (colon == std::string::npos) return source_ + ": " + message;
+    const std::string field = message.substr(0, colon);
+    return prefix(field, false) + message;
+  }
+
+ private:
+  // ---- messages
+
+  std::string at_offset(std::size_t offset) const {
+    const TextPosition p = position_of(text_, offset);
+    return source_ + ":" + std::to_string(p.line) + ":" + std::to_string(p.column) + ": ";
+  }
+
+  // "SOURCE:LINE:COLUMN: " for the value (or with at_key, the key) at path; "SOURCE: " if unknown.
+  // Positions are recorded on the first message that needs one.
+  std::string prefix(const std::string& path, bool at_key) const {
+    if (!map_) map_ = TextScanner(text_, true).scan();
+    if (at_key) {
+      if (const auto it = map_->keys.find(path); it != map_->keys.end()) return at_offset(it->second);
+    }
+    if (const auto it = map_->values.find(path); it != map_->values.end()) return at_offset(it->second);
+    return source_ + ": ";
+  }
+
+  [[noreturn]] void fail(const std::string& path, const std::string& what) const {
+    throw ParseFailure{prefix(path, false) + (path.empty() ? "" : path + ": ") + what};
+  }
+
+  static std::string strip_library_prefix(const std::string& what) {
+    // "[json.exception.parse_error.101] parse error at line 2, column 10: syntax error ..."
+    const std::size_t bracket = what.find("] ");
+    const std::size_t colon = what.find(": ", bracket == std::string::npos ? 0 : bracket);
+    if (bracket == std::string::npos || colon == std::string::npos) return what;
+    return what.substr(colon + 2);
+  }
+
+  // ---- generic checks
+
+  void check_keys(const Json& object, const std::string& path,
+                  std::initializer_list<std::string_view> allowed) const {
+    const std::vector<std::string> names(allowed.begin(), allowed.end());
+    for (const auto& item : object.items()) {
+      const std::string& key = item.key();
+      if (std::find(names.begin(), names.end(), key) != names.end()) continue;
+      std::string what = "unknown key " + quote(key);
+      if (const auto hint = closest(key, names)) {
+        what += "; did you mean " + quote(*hint) + "?";
+      } else {
+        what += "; the keys here are " + quoted_list(names);
+      }
+      const std::string where = path.empty() ? "" : path + ": ";
+      throw ParseFailure{prefix(append_key(path, key), true) + where + what};
+    }
+  }
+
+  const Json& require(const Json& object, const std::string& path, const char* key,
+                      const std::string& what_to_do) const {
+    const auto it = object.find(key);
+    if (it == object.end()) {
+      fail(path, std::string("missing ") + quote(key) + "; " + what_to_do);
+    }
+    return *it;
+  }
+
+  double number(const Json& v, const std::string& path) const {
+    if (!v.is_number()) fail(path, "expected a number, got " + type_name(v));
+    const double x = v.get<double>();
+    if (!std::isfinite(x)) fail(path, "the number must be finite");
+    return x;
+  }
+
+  // "diffuse", {"lobe": n} or {"beam": half-angle in degrees}.
+  Emission emission(const Json& v, const std::string& path) const {
+    constexpr const char* kForms =
+        "use \"diffuse\", {\"lobe\": n} (cos^n, n >= 0) or {\"beam\": half-angle in degrees}";
+    Emission result;
+    if (v.is_string()) {
+      if (v.get<std::string>() != "diffuse") fail(path, std::string("unknown emission; ") + kForms);
+      return result;
+    }
+    if (!v.is_object() || v.size() != 1) fail(path, std::string("expected one emission form; ") + kForms);
+    check_keys(v, path, {"lobe", "beam"});
+    if (const auto it = v.find("lobe"); it != v.end()) {
+      const double n = number(*it, append_key(path, "lobe"));
+      if (n < 0.0 || n > 1000.0)
+        fail(append_key(path, "lobe"), "the exponent must be in [0, 1000], got " + format_number(n));
+      result.kind = Emission::Kind::Lobe;
+      result.exponent = n;
+    } else {
+      const double degrees = number(v.at("beam"), append_key(path, "beam"));
+      if (!(degrees > 0.0 && degrees <= 90.0))
+        fail(append_key(path, "beam"),
+             "the half-angle must be in (0, 90] degrees, got " + format_number(degrees));
+      result.kind = Emission::Kind::Beam;
+      result.half_angle = degrees * 3.14159265358979323846 / 180.0;
+    }
+    return result;
+  }
+
+  std::string text_value(const Json& v, const std::string& path, const char* what) const {
+    if (!v.is_string()) fail(path, std::string("expected ") + what + " (a string), got " + type_name(v));
+    return v.get<std::string>();
+  }
+
+  // A grey number or [r, g, b]; sets `colour` for the array form.
+  Spectrum spectrum(const Json& v, const std::string& path, Quantity quantity, bool& colour) const {
+    Spectrum s{};
+    if (v.is_number()) {
+      const double x = number(v, path);
+      check_range(x, path, quantity);
+      s = {x, x, x};
+      return s;
+    }
+    if (!v.is_array()) {
+      fail(path, "expected a number (grey) or [r, g, b] (colour), got " + type_name(v));
+    }
+    if (v.size() != 3) {
+      fail(path, "expected a number (grey) or [r, g, b] (colour), got an array of " +
+                     std::to_string(v.size()) + (v.size() == 1 ? " element" : " elements"));
+    }
+    for (std::size_t k = 0; k < 3; ++k) {
+      const std::string element = append_index(path, k);
+      s[k] = number(v[k], element);
+      check_range(s[k], element, quantity);
+    }
+    colour = true;
+    return s;
+  }
+
+  void check_range(double x, const std::string& path, Quantity quantity) const {
+    if (quantity == Quantity::Reflectivity) {
+      if (x < 0.0) fail(path, "must be in [0, 1), got " + format_number(x) + "; use 0 for black");
+      if (x >= 1.0) {
+        fail(path, "must be below 1: a surface that reflects everything never converges (got " +
+                       format_number(x) + "); use at most 0.99");
+      }
+    } else if (x < 0.0) {
+      fail(path, "must be >= 0 (power per unit length), got " + format_number(x) +
+                     "; use 0 for a surface that does not emit");
+    } else if (x > kMaxEmittance || (x > 0.0 && x < kMinEmittance)) {
+      // Emitted power E x length must stay far inside a double's range (and its fixed-point
+      // units representable) for every scene size the format allows.
+      fail(path, "must be 0 or between 1e-100 and 1e100 (power per unit length), got " +
+                     format_number(x) + "; choose the unit of power so that it is");
+    }
+  }
+
+  // A point of a curve; its path is spelled out only for a message (most of a large scene's
+  // values are points).
+  Vec2 point(const Json& v, const std::string& points_path, std::size_t k) const {
+    if (v.is_array() && v.size() == 2 && v[0].is_number() && v[1].is_number()) {
+      const Vec2 p{v[0].get<double>(), v[1].get<double>()};
+      if (std::isfinite(p.x) && std::isfinite(p.y)) return p;
+    }
+    return point(v, append_index(points_path, k));
+  }
+
+  Vec2 point(const Json& v, const std::string& path) const {
+    if (!v.is_array()) fail(path, "expected a point [x, y], got " + type_name(v));
+    if (v.size() != 2) {
+      fail(path, "expected a point [x, y], got an array of " + std::to_string(v.size()) +
+                     (v.size() == 1 ? " element" : " elements"));
+    }
+    return Vec2{number(v[0], append_index(path, 0)), number(v[1], append_index(path, 1))};
+  }
+
+  // ---- the scene
+
+  Scene read_scene(const Json& root) {
+    if (!root.is_object()) {
+      fail("", "a scene file must be a JSON object {\"flatland\": 2, ...}, got " + type_name(root));
+    }
+    const int version = read_version(root);
+    version_ = version;
+    check_keys(root, "", {"flatland", "name", "description", "materials", "curves"});
+
+    Scene scene;
+    scene.source = source_;
+    scene.format_version = version;
+    if (const auto it = root.find("name"); it != root.end()) {
+      scene.name = text_value(*it, "name", "the scene's name");
+    } else {
+      scene.name = std::filesystem::path(source_).stem().string();
+      if (scene.name.empty()) scene.name = "scene";
+    }
+    if (const auto it = root.find("description"); it != root.end()) {
+      scene.description = text_value(*it, "description", "a description");
+    }
+
+    bool colour = false;
+    read_materials(root, scene, colour);
+    read_curves(root, scene, colour);
+    scene.channels = colour ? 3 : 1;
+
+    if (const Status status = finalize_scene(scene); !status) {
+      throw ParseFailure{locate(status.error().message)};
+    }
+    const bool lit = std::any_of(scene.curves.begin(), scene.curves.end(),
+                                 [&](const Curve& c) { return scene.is_emitter(c); });
+    if (!lit) {
+      fail("curves", "no curve emits light, so nothing would be lit; give a material (or a curve) "
+                     "a positive \"emittance\"");
+    }
+    return scene;
+  }
+
+  int read_version(const Json& root) const {
+    const auto it = root.find("flatland");
+    if (it == root.end()) {
+      fail("", "missing \"flatland\": 2, the format version; this program reads versions 1 and 2 "
+               "(docs/scene-format.md)");
+    }
+    if (!it->is_number()) {
+      fail("flatland", "expected the format version as a number (1), got " + type_name(*it));
+    }
+    const double version = it->get<double>();
+    if (version != 1.0 && version != 2.0) {
+      fail("flatland", "unsupported format version " + format_number(version) +
+                           "; this program reads versions 1 and 2 (docs/scene-format.md)");
+    }
+    return static_cast<int>(version);
+  }
+
+  void read_materials(const Json& root, Scene& scene, bool& colour) {
+    const Json& materials = require(root, "", "materials",
+                                    "add \"materials\": {\"name\": {\"reflectivity\": 0.5}, ...}");
+    if (!materials.is_object()) {
+      fail("materials", "expected an object of named materials {\"name\": {...}}, got " +
+                            type_name(materials));
+    }
+    if (materials.empty()) {
+      fail("materials", "no materials defined; define at least one, e.g. "
+                        "{\"lamp\": {\"emittance\": 1}}");
+    }
+    for (const auto& item : materials.items()) {
+      const std::string path = append_key("materials", item.key());
+      if (item.key().empty()) fail(path, "a material name must not be empty; give it a name");
+      const Json& m = item.value();
+      if (!m.is_object()) {
+        fail(path, "expected a material object {\"reflectivity\": ..., \"emittance\": ...}, got " +
+                       type_name(m));
+      }
+      check_keys(m, path, {"reflectivity", "emittance", "emission"});
+      Material material;
+      material.name = item.key();
+      if (const auto it = m.find("reflectivity"); it != m.end()) {
+        material.reflectivity =
+            spectrum(*it, append_key(path, "reflectivity"), Quantity::Reflectivity, colour);
+      }
+      if (const auto it = m.find("emittance"); it != m.end()) {
+        material.emittance = spectrum(*it, append_key(path, "emittance"), Quantity::Emittance, colour);
+      }
+      if (const auto it = m.find("emission"); it != m.end())
+        material.emission = emission(*it, append_key(path, "emission"));
+      material_index_.emplace(material.name, static_cast<std::uint32_t>(scene.materials.size()));
+      material_names_.push_back(material.name);
+      scene.materials.push_back(std::move(material));
+    }
+  }
+
+  void read_curves(const Json& root, Scene& scene, bool& colour) {
+    const Json& curves = require(root, "", "curves",
+                                 "add \"curves\": [{\"id\": ..., \"material\": ..., \"line\": ...}]");
+    if (!curves.is_array()) fail("curves", "expected an array of curves, got " + type_name(curves));
+    if (curves.empty()) fail("curves", "the scene has no curves; add at least one");
+    std::unordered_map<std::string, std::size_t> ids;
+    for (std::size_t i = 0; i < curves.size(); ++i) {
+      const std::string path = append_index("curves", i);
+      Curve curve = read_curve(curves[i], path, scene, colour);
+      const auto [where, inserted] = ids.emplace(curve.id, i);
+      if (!inserted) {
+        fail(path + ".id", "duplicate id " + quote(curve.id) + " (curves[" +
+                               std::to_string(where->second) + "] and curves[" + std::to_string(i) +
+                               "]); give each curve its own id");
+      }
+      scene.curves.push_back(std::move(curve));
+    }
+  }
+
+  Curve read_curve(const Json& v, const std::string& path, const Scene& scene, bool& colour) const {
+    if (!v.is_object()) {
+      fail(path, "expected a curve object {\"id\": ..., \"material\": ..., \"line\" or \"bezier\": "
+                 "...}, got " + type_name(v));
+    }
+    check_keys(v, path, {"id", "material", "line", "bezier", "joints", "sides", "emittance",
+                         "emittance_profile"});
+    Curve curve;
+    curve.id = text_value(require(v, path, "id", "give the curve a unique \"id\""), path + ".id", "an id");
+    if (curve.id.empty()) fail(path + ".id", "the id must not be empty; give the curve a name");
+
+    const std::string material_path = path + ".material";
+    const std::string material =
+        text_value(require(v, path, "material", "name one of the scene's materials"), material_path,
+               "a material name");
+    const auto found = material_index_.find(material);
+    if (found == material_index_.end()) {
+      std::string what = "unknown material " + quote(material);
+      if (const auto hint = closest(material, material_names_)) what += "; did you mean " + quote(*hint) + "?";
+      what += " (defined: " + quoted_list(material_names_) + ")";
+      fail(material_path, what);
+    }
+    curve.material = found->second;
+    curve.emittance = scene.materials[found->second].emittance;
+
+    const bool has_line = v.contains("line");
+    const bool has_bezier = v.contains("bezier");
+    if (has_line == has_bezier) {
+      fail(path, has_line ? "has both \"line\" and \"bezier\"; give exactly one"
+                          : "missing geometry; give \"line\": [[x, y], ...] or "
+                            "\"bezier\": [[x, y], ...] (3k+1 control points)");
+    }
+    const char* key = has_line ? "line" : "bezier";
+    const std::string points_path = path + "." + key;
+    const Json& points = v.at(key);
+    if (!points.is_array()) {
+      fail(points_path, "expected an array of points [[x, y], ...], got " + type_name(points));
+    }
+    curve.kind = has_line ? SegmentKind::Line : SegmentKind::Cubic;
+    for (std::size_t k = 0; k < points.size(); ++k) {
+      curve.points.push_back(point(points[k], points_path, k));
+    }
+    std::size_t segments = 0;
+    if (has_line) {
+      if (curve.points.size() < 2) {
+        fail(points_path, "a line needs at least 2 points, got " + std::to_string(curve.points.size()));
+      }
+      for (std::size_t k = 1; k < curve.points.size(); ++k) {
+        if (curve.points[k] == curve.points[k - 1]) {
+          fail(append_index(points_path, k),
+               "coincides with the previous point (" + std::string(key) + "[" + std::to_string(k - 1) +
+                   "]), which would make a zero-length segment; remove one of them");
+        }
+      }
+      segments = curve.points.size() - 1;
+    } else {
+      const std::size_t n = curve.points.size();
+      if (n < 4 || (n - 1) % 3 != 0) {
+        fail(points_path, "expected 3k+1 points, got " + std::to_string(n) +
+                              "; a chain of k cubic segments sharing end points has 4, 7, 10, ... "
+                              "control points");
+      }
+      segments = (n - 1) / 3;
+    }
+    if (std::all_of(curve.points.begin(), curve.points.end(),
+                    [&](Vec2 p) { return p == curve.points.front(); })) {
+      fail(points_path, "all points coincide, so the curve has zero length; give distinct points");
+    }
+
+    if (const auto it = v.find("joints"); it != v.end()) {
+      // A closed chain (last point = first, exactly as written) may also name its closing joint;
+      // finalize_scene checks the count against the closure it finds.
+      // Version 1 had no closing joint (the closing point was a seam).
+      const bool closed = version_ >= 2 && curve.points.size() > 1 &&
+                          curve.points.back() == curve.points.front();
+      curve.joints = read_joints(*it, path + ".joints", segments, closed);
+    }
+    if (const auto it = v.find("sides"); it != v.end()) {
+      curve.sides = read_sides(*it, path + ".sides");
+    }
+    if (const auto it = v.find("emittance"); it != v.end()) {
+      curve.emittance = spectrum(*it, path + ".emittance", Quantity::Emittance, colour);
+    }
+    if (const auto it = v.find("emittance_profile"); it != v.end()) {
+      const std::string profile_path = path + ".emittance_profile";
+      if (!it->is_array())
+        fail(profile_path, "expected an array of factors, one per point, got " + type_name(*it));
+      if (it->size() != curve.points.size())
+        fail(profile_path, "expected " + std::to_string(curve.points.size()) +
+                               " factors (one per point), got " + std::to_string(it->size()));
+      for (std::size_t k = 0; k < it->size(); ++k) {
+        const double factor = number((*it)[k], append_index(profile_path, k));
+        if (factor < 0.0 || factor > kMaxEmittance)
+          fail(append_index(profile_path, k), "must be between 0 and 1e100, got " + format_number(factor));
+        curve.emittance_profile.push_back(factor);
+      }
+    }
+    return curve;
+  }
+
+  std::vector<Continuity> read_joints(const Json& v, const std::string& path,
+                                      std::size_t segments, bool closed) const {
+    const std::size_t joints = segments - 1;
+    if (v.is_string()) {
+      // One value for every joint, the closing point of a closed chain included.
+      return std::vector<Continuity>(closed ? segments : joints, continuity(v, path));
+    }
+    if (!v.is_array()) {
+      fail(path, "expected \"C1\", \"C0\" or \"C-1\" for every joint, or an array with one of them "
+                 "per joint, got " + type_name(v));
+    }
+    if (v.size() != joints && !(closed && v.size() == segments)) {
+      if (closed) {
+        fail(path, "expected " + std::to_string(segments) + (segments == 1 ? " entry" : " entries") +
+                       " (one per joint of the closed chain, the last at the closing point) or " +
+                       std::to_string(joints) + " (the closing point by its tangents), got " +
+                       std::to_string(v.size()));
+      }
+      fail(path, "expected " + std::to_string(joints) + (joints == 1 ? " entry" : " entries") +
+                     " (one per joint between the " + std::to_string(segments) +
+                     (segments == 1 ? " segment" : " segments") + "), got " +
+                     std::to_string(v.size()));
+    }
+    std::vector<Continuity> out;
+    for (std::size_t k = 0; k < v.size(); ++k) out.push_back(continuity(v[k], append_index(path, k)));
+    return out;
+  }
+
+  Continuity continuity(const Json& v, const std::string& path) const {
+    const std::string value = text_value(v, path, "\"C1\", \"C0\" or \"C-1\"");
+    if (value == "C1") return Continuity::C1;
+    if (value == "C0") return Continuity::C0;
+    if (value == "C-1") return Continuity::Jump;
+    fail_choice(path, "continuity", value, {"C1", "C0", "C-1"});
+  }
+
+  Sides read_sides(const Json& v, const std::string& path) const {
+    const std::string value = text_value(v, path, "\"front\", \"back\" or \"both\"");
+    if (value == "front") return Sides::Front;
+    if (value == "back") return Sides::Back;
+    if (value == "both") return Sides::Both;
+    fail_choice(path, "value", value, {"front", "back", "both"});
+  }
+
+  [[noreturn]] void fail_choice(const std::string& path, const char* what, const std::string& value,
+                                const std::vector<std::string>& choices) const {
+    std::string message = std::string("unknown ") + what + " " + quote(value);
+    if (const auto hint = closest(value, choices)) message += "; did you mean " + quote(*hint) + "?";
+    message += " (accepted: " + quoted_list(choices) + ")";
+    fail(path, message);
+  }
+
+  std::string_view text_;
+  std::string source_;
+  int version_ = kSceneFormatVersion;  // of the file being read
+  mutable std::optional<TextMap> map_;  // positions, recorded when a message needs one
+  std::unordered_map<std::string, std::uint32_t> material_index_;
+  std::vector<std::string> material_names_;
+};
+
+}  // namespace
+
+Result<Scene> parse_scene(std::string_view text, std::string_view source) {
+  try {
+    SceneReader reader(text, source);
+    Result<Scene> scene = reader.read();
+    if (scene) scene->source_sha256 = sha256_hex(text);
+    return scene;
+  } catch (const ParseFailure& failure) {
+    return Error{failure.message};
+  } catch (const std::exception& e) {
+    return Error{std::string(source) + ": cannot read the scene: " + e.what()};
+  } catch (...) {
+    return Error{std::string(source) + ": cannot read the scene: unknown error"};
+  }
+}
+
+Result<Scene> load_scene(const std::string& path, const std::atomic<bool>* cancel) {
+  Result<std::string> text = read_input_file(path, "scene file", cancel);
+  if (!text) return text.error();
+  return parse_scene(*text, path);
+}
+
+}  // namespace flatland

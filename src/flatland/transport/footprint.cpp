@@ -1,0 +1,1075 @@
+#include "flatland/transport/footprint.hpp"
+
+#include "flatland/base/quadrature.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cassert>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <numbers>
+#include <string>
+
+#include "flatland/base/text.hpp"
+
+namespace flatland {
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+
+// The truncated Gaussian: sigma = 1/3, so |x| <= 1 is |z| <= 3. kGaussTail = erfc(3/sqrt 2) is the
+// untruncated mass beyond 3 sigma on both sides (the tests check 1/Z against std::erf); the
+// normaliser is Z = integral over [-1,1] of exp(-x^2/(2 sigma^2)) = sigma sqrt(2 pi) (1 - tail).
+constexpr double kGaussTail = 0.0026997960632601913;
+constexpr double kGaussKept = 1.0 - kGaussTail;
+constexpr double kSqrt2Pi = std::numbers::sqrt2 / std::numbers::inv_sqrtpi;
+constexpr double kGaussNorm = 1.0 / ((1.0 / 3.0) * kSqrt2Pi * kGaussKept);  // 1/Z
+constexpr double kGaussScale = 3.0 / std::numbers::sqrt2;  // x / (sigma sqrt 2)
+
+
+constexpr std::array<const char*, 5> kProfileNames = {"box", "tent", "epanechnikov", "cosine",
+                                                      "gauss"};
+
+// k(x) for x already in [-1, 1].
+inline double density_inside(RayProfile profile, double x) {
+  switch (profile) {
+    case RayProfile::Box: return 0.5;
+    case RayProfile::Tent: return 1.0 - std::fabs(x);
+    case RayProfile::Epanechnikov: return 0.75 * (1.0 - x * x);
+    case RayProfile::Cosine: return 0.25 * kPi * std::cos(0.5 * kPi * x);
+    case RayProfile::Gauss: return kGaussNorm * std::exp(-4.5 * x * x);
+  }
+  return 0.0;
+}
+
+// An antiderivative of x k(x) on [-1, 1], for the centroids of the quadrature's strata:
+//   box x^2/4; tent x^2/2 - |x|^3/3; Epanechnikov 3/4 (x^2/2 - x^4/4);
+//   cosine (pi/4) (x sin(cx)/c + cos(cx)/c^2) with c = pi/2;
+//   Gauss -sigma^2 exp(-x^2/(2 sigma^2)) / Z.
+double first_moment_antiderivative(RayProfile profile, double x) {
+  const double x2 = x * x;
+  switch (profile) {
+    case RayProfile::Box: return 0.25 * x2;
+    case RayProfile::Tent: return 0.5 * x2 - std::fabs(x) * x2 / 3.0;
+    case RayProfile::Epanechnikov: return 0.375 * x2 - 0.1875 * x2 * x2;
+    case RayProfile::Cosine:
+      return 0.5 * x * std::sin(0.5 * kPi * x) + std::cos(0.5 * kPi * x) / kPi;
+    case RayProfile::Gauss: return -kGaussNorm * std::exp(-4.5 * x2) / 9.0;
+  }
+  return 0.0;
+}
+
+// Gauss-Legendre rules on [-1, 1]. Three points integrate polynomials of degree 5 exactly, which
+// covers a line's integrand for the polynomial profiles (profile piece of degree <= 2 times a
+// basis function of degree <= 3); eight points (degree 15) serve everything else.
+using gauss::kNodes3;
+using gauss::kNodes8;
+using gauss::kWeights3;
+using gauss::kWeights8;
+
+using Matrix8 = std::array<std::array<double, 8>, 8>;
+
+// Spectral integration on a cubic's panel: with the speed known at the 8 Gauss nodes, the arc
+// length from the panel's start to node g is integral_{-1}^{x_g} of the speed's interpolating
+// polynomial = sum_j S[g][j] speed_j, where S[g][j] = integral_{-1}^{x_g} l_j(y) dy and l_j is the
+// Lagrange polynomial of node j (degree 7). Each S[g][j] is computed with the 8-point rule mapped
+// onto [-1, x_g], exact for degree 7. So s(u) at the nodes costs no evaluations beyond the speeds
+// the quadrature needs anyway, and is exact when the speed is a polynomial of degree <= 7.
+constexpr Matrix8 make_integration_matrix() {
+  Matrix8 s{};
+  for (std::size_t g = 0; g < 8; ++g) {
+    const double half = 0.5 * (kNodes8[g] + 1.0);
+    for (std::size_t j = 0; j < 8; ++j) {
+      double sum = 0.0;
+      for (std::size_t m = 0; m < 8; ++m) {
+        const double y = -1.0 + half * (kNodes8[m] + 1.0);
+        double lagrange = 1.0;
+        for (std::size_t i = 0; i < 8; ++i)
+          if (i != j) lagrange *= (y - kNodes8[i]) / (kNodes8[j] - kNodes8[i]);
+        sum += kWeights8[m] * lagrange;
+      }
+      s[g][j] = half * sum;
+    }
+  }
+  return s;
+}
+constexpr Matrix8 kIntegrate8 = make_integration_matrix();
+
+// Longest panel (in the curve parameter) of a cubic's quadrature: as the basis module's lengths,
+// four panels per segment at most, so the speed |C'| is resolved whatever the footprint's size.
+constexpr double kMaxCubicPanel = 0.25;
+
+// The segment (of `count`) holding the knot span [ua, ub]; joints are knots, so a non-empty span
+// lies within one segment (an empty one is given the segment starting at ua).
+std::uint32_t segment_of_span(double ua, double ub, std::uint32_t count) {
+  return static_cast<std::uint32_t>(
+      std::min<double>(std::floor(ub > ua ? 0.5 * (ua + ub) : ua), count - 1));
+}
+
+// Chebyshev series on [-1, 1], f(y) = sum_k c_k T_k(y), for the span table's partial spans.
+//
+// Point i of the n Chebyshev-Lobatto points (n >= 2), cos(pi i / (n - 1)): from 1 down to -1.
+double lobatto_point(std::size_t i, std::size_t n) {
+  return std::cos(kPi * static_cast<double>(i) / static_cast<double>(n - 1));
+}
+
+// The coefficients of the polynomial of degree n - 1 through values f[i] at the n Lobatto points
+// (the discrete cosine transform of type I).
+void chebyshev_fit(const double* f, std::size_t n, double* c) {
+  const std::size_t m = n - 1;
+  for (std::size_t k = 0; k < n; ++k) {
+    double sum = 0.5 * (f[0] + (k % 2 == 0 ? f[m] : -f[m]));
+    for (std::size_t i = 1; i < m; ++i) {
+      const std::size_t angle = (k * i) % (2 * m);  // cos(pi k i / m), reduced exactly
+      sum += f[i] * std::cos(kPi * static_cast<double>(angle) / static_cast<double>(m));
+    }
+    c[k] = (k == 0 || k == m ? 1.0 : 2.0) * sum / static_cast<double>(m);
+  }
+}
+
+// f(y) by Clenshaw's recurrence.
+double chebyshev_value(const double* c, std::size_t n, double y) {
+  double b1 = 0.0;
+  double b2 = 0.0;
+  for (std::size_t k = n; k-- > 1;) {
+    const double b = 2.0 * y * b1 - b2 + c[k];
+    b2 = b1;
+    b1 = b;
+  }
+  return y * b1 - b2 + c[0];
+}
+
+// y f(y): y T_0 = T_1 and y T_k = (T_(k+1) + T_(k-1)) / 2; `c` grows by one term.
+void chebyshev_times_y(std::vector<double>& c) {
+  std::vector<double> d(c.size() + 1, 0.0);
+  for (std::size_t k = 0; k < c.size(); ++k) {
+    if (k == 0) {
+      d[1] += c[0];
+    } else {
+      d[k + 1] += 0.5 * c[k];
+      d[k - 1] += 0.5 * c[k];
+    }
+  }
+  c = std::move(d);
+}
+
+// The antiderivative that vanishes at -1: C_1 = c_0 - c_2 / 2, C_k = (c_(k-1) - c_(k+1)) / (2k),
+// and C_0 such that sum C_k (-1)^k = 0; one term more than `c`.
+std::vector<double> chebyshev_integral(const std::vector<double>& c) {
+  const std::size_t n = c.size();
+  auto at = [&](std::size_t k) { return k < n ? c[k] : 0.0; };
+  std::vector<double> integral(n + 1, 0.0);
+  for (std::size_t k = 1; k <= n; ++k)
+    integral[k] = k == 1 ? at(0) - 0.5 * at(2) : (at(k - 1) - at(k + 1)) / (2.0 * static_cast<double>(k));
+  double at_minus_one = 0.0;
+  for (std::size_t k = n + 1; k-- > 1;) at_minus_one += k % 2 == 0 ? integral[k] : -integral[k];
+  integral[0] = -at_minus_one;
+  return integral;
+}
+
+// Fits g(y) on [-1, 1] (`count` functions at once: g(y, values) writes them) with 7, 9, 11, 13,
+// 17, 25 or 33 Lobatto points, the fewest for which every function's last two coefficients are at most
+// `tolerance` and its interpolant matches it within 4 tolerance half-way between the points
+// (each size's fit is simply computed afresh). Returns the number of
+// points, 0 when even 33 do not do; `coefficients` holds count x n values, function-major.
+template <class Function>
+std::size_t chebyshev_fit_checked(Function&& g, std::size_t count, double tolerance,
+                                  std::vector<double>& coefficients) {
+  std::vector<double> values;
+  std::vector<double> at(count);
+  for (const std::size_t n : {std::size_t{7}, std::size_t{9}, std::size_t{11}, std::size_t{13}, std::size_t{17}, std::size_t{25}, std::size_t{33}}) {
+    values.assign(count * n, 0.0);
+    for (std::size_t i = 0; i < n; ++i) {
+      g(lobatto_point(i, n), at.data());
+      for (std::size_t f = 0; f < count; ++f) values[f * n + i] = at[f];
+    }
+    coefficients.assign(count * n, 0.0);
+    bool good = true;
+    for (std::size_t f = 0; f < count && good; ++f) {
+      double* c = coefficients.data() + f * n;
+      chebyshev_fit(values.data() + f * n, n, c);
+      good = std::fabs(c[n - 1]) <= tolerance && std::fabs(c[n - 2]) <= tolerance;
+    }
+    for (std::size_t i = 0; i + 1 < n && good; ++i) {
+      const double y = std::cos(kPi * (static_cast<double>(i) + 0.5) / static_cast<double>(n - 1));
+      g(y, at.data());
+      for (std::size_t f = 0; f < count && good; ++f)
+        good = std::fabs(chebyshev_value(coefficients.data() + f * n, n, y) - at[f]) <= 4.0 * tolerance;
+    }
+    if (good) return n;
+  }
+  return 0;
+}
+
+
+// Divides the weights appended after `begin` by their sum, drops zeros, and hands the rounding
+// residual 1 - sum to the largest weight, so the sum is 1 to the last bit or two. False when
+// there is nothing (positive and finite) to normalise.
+bool normalise_appended(std::vector<FootprintWeight>& out, std::size_t begin) {
+  double total = 0.0;
+  for (std::size_t i = begin; i < out.size(); ++i) total += out[i].weight;
+  if (!(total > 0.0) || !std::isfinite(total)) return false;
+  const double inverse = 1.0 / total;
+  std::size_t kept = begin;
+  std::size_t largest = begin;
+  double largest_weight = 0.0;  // kept in a register, not reloaded through `largest`
+  double sum = 0.0;
+  for (std::size_t i = begin; i < out.size(); ++i) {
+    if (!(out[i].weight > 0.0)) continue;
+    const double weight = out[i].weight * inverse;
+    out[kept] = {out[i].coefficient, weight};
+    sum += weight;
+    if (weight > largest_weight) {
+      largest_weight = weight;
+      largest = kept;
+    }
+    ++kept;
+  }
+  out.resize(kept);
+  out[largest].weight += 1.0 - sum;
+  return true;
+}
+
+// The point deposit phi_k(u): the limit of the footprint as a -> 0.
+void deposit_point(const SplineBasis& basis, double u, std::vector<FootprintWeight>& out) {
+  const std::size_t begin = out.size();
+  std::array<double, SplineBasis::kMaxDegree + 1> phi{};
+  const std::size_t first = basis.evaluate(u, phi.data());
+  for (int r = 0; r <= basis.degree(); ++r) {
+    const auto j = static_cast<std::size_t>(r);
+    if (phi[j] > 0.0) out.push_back({basis.index(first + j), phi[j]});
+  }
+  const bool ok = normalise_appended(out, begin);
+  assert(ok);  // B-splines sum to one at every u
+  (void)ok;
+}
+
+// Accumulates weight * phi_k(u) into the contiguous run of coefficients appended after `begin`,
+// which starts at the first function of the first span visited. Spans come in increasing order,
+// so the run only grows at its end.
+//
+// The functions are evaluated by the Cox-de Boor recursion of SplineBasis::evaluate (Piegl and
+// Tiller, A2.2) without its search for the span, which the caller knows. The recursion's
+// denominators right[r+1] + left[j-r] = knots[span+r+1] - knots[span+1-j+r] do not depend on u, so
+// their reciprocals are taken once per span: the nodes of a span then cost no division.
+class Accumulator {
+ public:
+  Accumulator(const SplineBasis& basis, std::vector<FootprintWeight>& out)
+      : knots_(basis.knots().data()),
+        degree_(static_cast<std::size_t>(basis.degree())),
+        out_(out),
+        begin_(out.size()) {}
+
+  // Enter the knot span [knots[span], knots[span+1]] (non-empty, not before the previous one).
+  void enter_span(std::size_t span) {
+    const std::size_t first = span - degree_;
+    if (out_.size() == begin_) base_ = first;
+    assert(first >= base_);
+    span_ = span;
+    const std::size_t needed = begin_ + (first - base_) + degree_ + 1;
+    while (out_.size() < needed) out_.push_back({base_ + (out_.size() - begin_), 0.0});
+    offset_ = begin_ + (first - base_);
+    inverses_ready_ = false;
+  }
+
+  // The current span whole, with the profile c0 + c1 y + c2 y^2 (FootprintTable's moments).
+  void add_moments(const double* moments, std::size_t stride, double c0, double c1, double c2) {
+    FootprintWeight* run = out_.data() + offset_;
+    for (std::size_t r = 0; r <= degree_; ++r)
+      run[r].weight += c0 * moments[r] + c1 * moments[stride + r] + c2 * moments[2 * stride + r];
+  }
+
+  // The current span's part [ya, yb] in its arc-length coordinate, with the profile
+  // c[0] + c[1] y + c[2] y^2 (c[j] for j < powers), from FootprintTable's running moments
+  // (`terms` per (j, r), laid out [term][j][r]): w_r += sum_j c_j (K_j,r(yb) - K_j,r(ya)).
+  // The differences D_k = T_k(yb) - T_k(ya) come from their own recurrence,
+  // D_(k+1) = 2 yb D_k + 2 (yb - ya) T_k(ya) - D_(k-1), so they keep their relative accuracy
+  // however short the part is (subtracting the two values would leave only rounding).
+  void add_running(const double* series, std::size_t terms, std::size_t powers, double ya,
+                   double yb, const std::array<double, 3>& c) {
+    static_assert(SplineBasis::kMaxDegree == 3);
+    switch (degree_) {
+      case 0: return add_running<1>(series, terms, powers, ya, yb, c);
+      case 1: return add_running<2>(series, terms, powers, ya, yb, c);
+      case 2: return add_running<3>(series, terms, powers, ya, yb, c);
+      default: return add_running<4>(series, terms, powers, ya, yb, c);
+    }
+  }
+
+  // u inside the current span.
+  void add(double u, double weight) {
+    if (!inverses_ready_) {
+      for (std::size_t j = 1; j <= degree_; ++j)
+        for (std::size_t r = 0; r < j; ++r)
+          inverse_[j][r] = 1.0 / (knots_[span_ + r + 1] - knots_[span_ + 1 - j + r]);
+      inverses_ready_ = true;
+    }
+    std::array<double, SplineBasis::kMaxDegree + 1> phi{};
+    std::array<double, SplineBasis::kMaxDegree + 1> left{};
+    std::array<double, SplineBasis::kMaxDegree + 1> right{};
+    phi[0] = 1.0;
+    for (std::size_t j = 1; j <= degree_; ++j) {
+      left[j] = u - knots_[span_ + 1 - j];
+      right[j] = knots_[span_ + j] - u;
+      double saved = 0.0;
+      for (std::size_t r = 0; r < j; ++r) {
+        const double temp = phi[r] * inverse_[j][r];
+        phi[r] = saved + right[r + 1] * temp;
+        saved = left[j - r] * temp;
+      }
+      phi[j] = saved;
+    }
+    FootprintWeight* run = out_.data() + offset_;
+    for (std::size_t r = 0; r <= degree_; ++r) run[r].weight += weight * phi[r];
+  }
+
+  std::size_t begin() const { return begin_; }
+
+ private:
+  // add_running for a basis of Stride = degree + 1 functions per span: the sums stay in registers.
+  template <std::size_t Stride>
+  void add_running(const double* series, std::size_t terms, std::size_t powers, double ya,
+                   double yb, const std::array<double, 3>& c) {
+    const double delta = yb - ya;
+    double d_previous = 0.0;  // D_0
+    double d = delta;         // D_1
+    double t_previous = 1.0;  // T_0(ya)
+    double t = ya;            // T_1(ya)
+    std::array<double, Stride> sum{};
+    const std::size_t block = powers * Stride;
+    for (std::size_t k = 1; k < terms; ++k) {  // D_0 = 0: the constant terms cancel
+      const double* row = series + k * block;
+      for (std::size_t j = 0; j < powers; ++j) {
+        const double factor = c[j] * d;
+        for (std::size_t r = 0; r < Stride; ++r) sum[r] += factor * row[j * Stride + r];
+      }
+      const double d_next = 2.0 * yb * d + 2.0 * delta * t - d_previous;
+      const double t_next = 2.0 * ya * t - t_previous;
+      d_previous = d;
+      d = d_next;
+      t_previous = t;
+      t = t_next;
+    }
+    FootprintWeight* run = out_.data() + offset_;
+    for (std::size_t r = 0; r < Stride; ++r) run[r].weight += sum[r];
+  }
+
+  const double* knots_;
+  std::size_t degree_;
+  std::vector<FootprintWeight>& out_;
+  std::size_t begin_;
+  std::size_t base_ = 0;
+  std::size_t span_ = 0;
+  std::size_t offset_ = 0;
+  bool inverses_ready_ = false;
+  std::array<std::array<double, SplineBasis::kMaxDegree>, SplineBasis::kMaxDegree + 1> inverse_{};
+};
+
+}  // namespace
+
+const char* to_string(RayProfile profile) {
+  const auto index = static_cast<std::size_t>(profile);
+  return index < kProfileNames.size() ? kProfileNames[index] : "?";
+}
+
+Result<RayProfile> parse_ray_profile(std::string_view name) {
+  for (std::size_t i = 0; i < kProfileNames.size(); ++i) {
+    if (name == kProfileNames[i]) return static_cast<RayProfile>(i);
+  }
+  const std::vector<std::string> names(kProfileNames.begin(), kProfileNames.end());
+  std::string message = "unknown ray profile '" + std::string(name) + "'";
+  if (const auto hint = closest_match(name, names)) message += "; did you mean '" + *hint + "'?";
+  message += " (accepted: box, tent, epanechnikov, cosine, gauss)";
+  return Error{message};
+}
+
+double profile_density(RayProfile profile, double x) {
+  if (!(std::fabs(x) <= 1.0)) return 0.0;
+  return density_inside(profile, x);
+}
+
+double profile_cdf(RayProfile profile, double x) {
+  if (x <= -1.0) return 0.0;
+  if (x >= 1.0) return 1.0;
+  if (std::isnan(x)) return x;
+  switch (profile) {
+    case RayProfile::Box: return 0.5 * (x + 1.0);
+    case RayProfile::Tent: {
+      // (1+x)^2/2 on the rising side, 1 - (1-x)^2/2 on the falling side.
+      if (x < 0.0) return 0.5 * (1.0 + x) * (1.0 + x);
+      return 1.0 - 0.5 * (1.0 - x) * (1.0 - x);
+    }
+    case RayProfile::Epanechnikov: return 0.25 * (2.0 + x * (3.0 - x * x));
+    case RayProfile::Cosine: return 0.5 * (1.0 + std::sin(0.5 * kPi * x));
+    case RayProfile::Gauss: {
+      // F(x) = (erf(3x/sqrt 2) + kept) / (2 kept). On the lower half write it with erfc,
+      // F(x) = (erfc(3|x|/sqrt 2) - tail) / (2 kept), which keeps its relative accuracy in the
+      // lower tail; the upper half is 1 - F(-x).
+      const double lower = 0.5 * (std::erfc(kGaussScale * std::fabs(x)) - kGaussTail) / kGaussKept;
+      return x < 0.0 ? lower : 1.0 - lower;
+    }
+  }
+  return 0.0;
+}
+
+double profile_sample(RayProfile profile, double u) {
+  // The ends exactly (the closed forms below round them to within an ulp).
+  if (!(u > 0.0)) return -1.0;
+  if (u >= 1.0) return 1.0;
+  switch (profile) {
+    case RayProfile::Box: return 2.0 * u - 1.0;
+    case RayProfile::Tent:
+      return u < 0.5 ? std::sqrt(2.0 * u) - 1.0 : 1.0 - std::sqrt(2.0 * (1.0 - u));
+    case RayProfile::Epanechnikov: {
+      // Solve (2 + 3x - x^3)/4 = u, i.e. x^3 - 3x + (4u - 2) = 0. With x = 2 sin(theta) the
+      // identity sin(3 theta) = 3 sin(theta) - 4 sin^3(theta) turns it into sin(3 theta) = 2u - 1;
+      // theta = asin(2u - 1)/3 in [-pi/6, pi/6] gives the root in [-1, 1].
+      return 2.0 * std::sin(std::asin(2.0 * u - 1.0) / 3.0);
+    }
+    case RayProfile::Cosine: return std::asin(2.0 * u - 1.0) * (2.0 / kPi);
+    case RayProfile::Gauss: {
+      // No closed form (erf has no inverse in the standard library). By symmetry solve on the
+      // lower half, F(x) = v with v = min(u, 1-u) <= 1/2 and x in [-1, 0], where F is convex
+      // (the density increases): Newton from x = 0 then approaches the root monotonically from
+      // above; the bracket [lo, hi] and bisection guard against rounding all the same.
+      const double v = std::min(u, 1.0 - u);
+      if (v <= 0.0) return u < 0.5 ? -1.0 : 1.0;
+      double lo = -1.0;
+      double hi = 0.0;
+      double x = 0.0;
+      for (int iteration = 0; iteration < 100; ++iteration) {
+        const double g = profile_cdf(profile, x) - v;
+        if (g == 0.0) break;
+        if (g > 0.0) hi = x; else lo = x;
+        double next = x - g / density_inside(profile, x);
+        if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);
+        const bool done = std::fabs(next - x) <= 1e-16 * (1.0 + std::fabs(x)) || hi - lo <= 1e-16;
+        x = next;
+        if (done) break;
+      }
+      return u < 0.5 ? x : -x;
+    }
+  }
+  return 0.0;
+}
+
+void profile_quadrature(RayProfile profile, int count, std::vector<double>& offsets,
+                        std::vector<double>& weights) {
+  assert(count >= 1);
+  const auto n = static_cast<std::size_t>(std::max(count, 1));
+  offsets.resize(n);
+  weights.assign(n, 1.0 / static_cast<double>(n));
+  // Stratum i is [b_i, b_(i+1)] with b_i = F^-1(i/n); its centroid is
+  // n * integral over the stratum of x k(x) dx = n (M(b_(i+1)) - M(b_i)).
+  double lower = -1.0;
+  double lower_moment = first_moment_antiderivative(profile, lower);
+  for (std::size_t i = 0; i < n; ++i) {
+    const double mass = static_cast<double>(i + 1) / static_cast<double>(n);
+    const double upper = i + 1 == n ? 1.0 : profile_sample(profile, mass);
+    const double upper_moment = first_moment_antiderivative(profile, upper);
+    const double centroid = static_cast<double>(n) * (upper_moment - lower_moment);
+    offsets[i] = std::clamp(centroid, lower, upper);
+    lower = upper;
+    lower_moment = upper_moment;
+  }
+  // Exact symmetry (the strata are symmetric; rounding is not): mirror the upper half.
+  for (std::size_t i = 0; i < n / 2; ++i) {
+    const double mirrored = 0.5 * (offsets[n - 1 - i] - offsets[i]);
+    offsets[i] = -mirrored;
+    offsets[n - 1 - i] = mirrored;
+  }
+  if (n % 2 == 1) offsets[n / 2] = 0.0;
+  // 1/n summed n times need not give 1 exactly; put the residual on the middle weight.
+  double sum = 0.0;
+  for (double w : weights) sum += w;
+  weights[n / 2] += 1.0 - sum;
+}
+
+double footprint_half_length(double width, double cos_incidence) {
+  return width / (2.0 * std::fmax(std::fabs(cos_incidence), kGrazingCosine));
+}
+
+int profile_powers(RayProfile profile) {
+  switch (profile) {
+    case RayProfile::Box: return 1;
+    case RayProfile::Tent: return 2;
+    case RayProfile::Epanechnikov: return 3;
+    default: return 0;
+  }
+}
+
+FootprintTable::FootprintTable(const Scene& scene, const Curve& curve, const SplineBasis& basis,
+                               int powers)
+    : first_(basis.first_span()),
+      stride_(static_cast<std::size_t>(basis.degree()) + 1),
+      powers_(std::clamp(powers, 1, 3)) {
+  // Raw moments A_j = integral z^j phi_r ds with z the arc length from the span's start, then
+  // shifted to y = z / h - 1: M_0 = A_0, M_1 = A_1 / h - A_0, M_2 = A_2 / h^2 - 2 A_1 / h + A_0.
+  // A span lies within one segment (joints are knots). On a cubic, z at the Gauss nodes comes from
+  // the speeds by spectral integration (kIntegrate8) on panels of at most 1/16 in u.
+  const std::vector<double>& knots = basis.knots();
+  const std::size_t spans = basis.end_span() - first_;
+  length_.assign(spans, 0.0);
+  moments_.assign(spans * 3 * stride_, 0.0);
+  std::array<double, SplineBasis::kMaxDegree + 1> phi{};
+  for (std::size_t k = first_; k < basis.end_span(); ++k) {
+    const double ua = knots[k];
+    const double ub = knots[k + 1];
+    if (!(ub > ua)) continue;
+    const std::uint32_t j = segment_of_span(ua, ub, curve.segment_count);
+    const SceneSegment& segment = scene.segments[curve.first_segment + j];
+    const bool line = segment.geometry.kind == SegmentKind::Line;
+    const int panels = line ? 1 : std::max(4, static_cast<int>(std::ceil((ub - ua) * 16.0)));
+    const double width = (ub - ua) / panels;
+    const double half = 0.5 * width;
+    std::array<std::array<double, SplineBasis::kMaxDegree + 1>, 3> raw{};
+    double z_panel = 0.0;
+    for (int panel = 0; panel < panels; ++panel) {
+      const double mid = ua + (panel + 0.5) * width;
+      std::array<double, 8> speed{};
+      for (std::size_t g = 0; g < 8; ++g)
+        speed[g] = line ? segment.length
+                        : flatland::length(derivative(segment.geometry.shape, mid + half * kNodes8[g] - j));
+      double panel_length = 0.0;
+      for (std::size_t g = 0; g < 8; ++g) {
+        double partial = 0.0;
+        for (std::size_t m = 0; m < 8; ++m) partial += kIntegrate8[g][m] * speed[m];
+        const double z = line ? half * (1.0 + kNodes8[g]) * segment.length : z_panel + half * partial;
+        const double u = mid + half * kNodes8[g];
+        basis.evaluate_in_span(k, u, phi.data());
+        const double w = kWeights8[g] * half * speed[g];
+        for (std::size_t r = 0; r < stride_; ++r) {
+          raw[0][r] += w * phi[r];
+          raw[1][r] += w * z * phi[r];
+          raw[2][r] += w * z * z * phi[r];
+        }
+        panel_length += kWeights8[g] * speed[g];
+      }
+      z_panel += half * panel_length;
+    }
+    const double total = line ? (ub - ua) * segment.length : z_panel;
+    length_[k - first_] = total;
+    if (!(total > 0.0)) continue;
+    const double inverse_h = 2.0 / total;
+    double* m = moments_.data() + (k - first_) * 3 * stride_;
+    for (std::size_t r = 0; r < stride_; ++r) {
+      m[r] = raw[0][r];
+      m[stride_ + r] = raw[1][r] * inverse_h - raw[0][r];
+      m[2 * stride_ + r] =
+          (raw[2][r] * inverse_h - 2.0 * raw[1][r]) * inverse_h + raw[0][r];
+    }
+  }
+  build_series(scene, curve, basis);
+}
+
+void FootprintTable::build_series(const Scene& scene, const Curve& curve, const SplineBasis& basis) {
+  // Span starts in arc length, from each segment's start (joints are knots: a span lies within
+  // one segment), and per non-empty span the running moments' series (see the header).
+  const std::vector<double>& knots = basis.knots();
+  const std::size_t spans = basis.end_span() - first_;
+  const std::size_t powers = static_cast<std::size_t>(powers_);
+  const std::size_t block = powers * stride_;
+  start_.assign(spans + 1, curve.length);
+  series_.assign(spans, Series{});
+  std::vector<double> g;         // phi_r(u(y)) fits, function-major
+  std::vector<double> sigma;     // s(v) - s0 fit
+  std::vector<double> running;   // one (j, r) series while it is built
+  smooth_joints_.assign(curve.segment_count, false);
+  for (std::uint32_t joint = 0; joint < curve.joint_count(); ++joint)
+    smooth_joints_[joint] = is_tangent_continuous(scene, curve, joint);
+  std::array<double, SplineBasis::kMaxDegree + 1> phi{};
+  for (std::size_t k = first_; k < basis.end_span(); ++k) {
+    const double ua = knots[k];
+    const double ub = knots[k + 1];
+    const std::uint32_t j = segment_of_span(ua, ub, curve.segment_count);
+    const SceneSegment& segment = scene.segments[curve.first_segment + j];
+    const bool line = segment.geometry.kind == SegmentKind::Line;
+    // Arc lengths within the segment (exact), so that rounding is relative to the segment's
+    // length, not the curve's.
+    auto arc = [&](double u) {
+      const double t = std::clamp(u - j, 0.0, 1.0);
+      if (t == 0.0) return 0.0;
+      return line ? t * segment.length : segment.arc_length.length_at(segment.geometry.shape, t);
+    };
+    const double z0 = arc(ua);
+    start_[k - first_] = curve.segment_start[j] + z0;
+    if (!(ub > ua)) continue;
+    const double z1 = arc(ub);
+    const double mid = 0.5 * (z0 + z1);
+    const double h = 0.5 * (z1 - z0);
+    if (!(h > 0.0)) continue;
+    // u at y in [-1, 1] (s = mid + h y within the segment), within the span.
+    auto u_at = [&](double y) {
+      if (line) return std::clamp(ua + 0.5 * (y + 1.0) * (ub - ua), ua, ub);
+      return std::clamp(j + segment.arc_length.parameter_at(segment.geometry.shape, mid + h * y),
+                        ua, ub);
+    };
+    auto basis_at = [&](double y, double* values) {
+      basis.evaluate_in_span(k, u_at(y), phi.data());
+      for (std::size_t r = 0; r < stride_; ++r) values[r] = phi[r];
+    };
+    std::size_t n = 0;
+    std::size_t n_length = 0;
+    if (line) {
+      // phi_r(u(y)) is a polynomial of degree <= 3: four Lobatto points fit it exactly.
+      n = 4;
+      g.assign(stride_ * n, 0.0);
+      std::vector<double> values(stride_ * n);
+      for (std::size_t i = 0; i < n; ++i) {
+        basis.evaluate_in_span(k, u_at(lobatto_point(i, n)), phi.data());
+        for (std::size_t r = 0; r < stride_; ++r) values[r * n + i] = phi[r];
+      }
+      for (std::size_t r = 0; r < stride_; ++r) chebyshev_fit(values.data() + r * n, n, g.data() + r * n);
+    } else {
+      // The inversion s -> u is accurate to about 1e-15 of the segment's length, which is
+      // 1e-15 L / h in y: the tolerance follows it on short spans.
+      n = chebyshev_fit_checked(basis_at, stride_, 1e-14 * std::fmax(1.0, segment.length / (2.0 * h)), g);
+      if (n == 0) continue;  // no series: quadrature on this span
+      const double u_mid = 0.5 * (ua + ub);
+      const double half_u = 0.5 * (ub - ua);
+      n_length = chebyshev_fit_checked(
+          [&](double v, double* value) { value[0] = arc(u_mid + half_u * v) - z0; }, 1,
+          1e-14 * segment.length, sigma);
+      if (n_length == 0) continue;
+    }
+    // K_j,r = h * integral of y^j g_r from -1: terms n + powers for every j (zeros beyond).
+    const std::size_t terms = n + powers;
+    Series& series = series_[k - first_];
+    series.offset = coefficients_.size();
+    series.terms = static_cast<std::uint32_t>(terms);
+    series.length_terms = static_cast<std::uint32_t>(n_length);
+    series.u_mid = 0.5 * (ua + ub);
+    series.inverse_half_u = 2.0 / (ub - ua);
+    coefficients_.resize(series.offset + terms * block + n_length, 0.0);
+    double* out = coefficients_.data() + series.offset;
+    for (std::size_t r = 0; r < stride_; ++r) {
+      running.assign(g.begin() + static_cast<std::ptrdiff_t>(r * n),
+                     g.begin() + static_cast<std::ptrdiff_t>((r + 1) * n));
+      for (std::size_t p = 0; p < powers; ++p) {
+        if (p > 0) chebyshev_times_y(running);
+        const std::vector<double> integral = chebyshev_integral(running);
+        for (std::size_t t = 0; t < integral.size() && t < terms; ++t)
+          out[t * block + p * stride_ + r] = h * integral[t];
+      }
+    }
+    std::copy(sigma.begin(), sigma.begin() + static_cast<std::ptrdiff_t>(n_length), out + terms * block);
+  }
+  // An empty span starts where the next one does; the last entry stays the curve's length; and
+  // no start lies past the next (an arc length within a segment can exceed the segment's length
+  // by a rounding), so the starts are sorted for span_at.
+  for (std::size_t k = spans; k-- > 0;) {
+    if (!(knots[first_ + k + 1] > knots[first_ + k])) start_[k] = start_[k + 1];
+    start_[k] = std::fmin(start_[k], start_[k + 1]);
+  }
+}
+
+std::size_t FootprintTable::span_at(double s) const {
+  // The last span whose start is <= s; among equal starts the last, the non-empty one.
+  const auto it = std::upper_bound(start_.begin(), start_.end() - 1, s);
+  const std::size_t k = it == start_.begin() ? 0 : static_cast<std::size_t>(it - start_.begin()) - 1;
+  return first_ + k;
+}
+
+double FootprintTable::arc_length_in_span(std::size_t span, double u) const {
+  const Series& series = series_[span - first_];
+  if (series.length_terms == 0) return std::numeric_limits<double>::quiet_NaN();
+  const double v = std::clamp((u - series.u_mid) * series.inverse_half_u, -1.0, 1.0);
+  const double* sigma = coefficients_.data() + series.offset + series.terms * powers_ * stride_;
+  return start_[span - first_] + chebyshev_value(sigma, series.length_terms, v);
+}
+
+void footprint_weights(const Scene& scene, const Curve& curve, const SplineBasis& basis,
+                       double u_hit, double half_length, RayProfile profile,
+                       std::vector<FootprintWeight>& out, std::span<const double> walls,
+                       const FootprintTable* table) {
+  // Plan. Offsets x = s - s_hit along the receiver's arc length. The run is the stretch of
+  // tangent-continuous segments around the hit, [X0, X1] in x; on a closed curve it may continue
+  // across the closing point (x then runs past the curve's length and wraps), and a closed curve
+  // that is smooth all round has no ends at all. The spread is k(x / a) / a on [-a, a]. What
+  // would fall beyond an end of the run is reflected about that end (the image k((x - 2 X0) / a)
+  // on [X0, 2 X0 + a], likewise at X1): every image point lies at the same distance from the end
+  // as the mass it replaces, so energy is exact and a uniform incident flux gives a uniform
+  // deposit up to the end (renormalising instead piles the cut-off mass up near it: ln 2 of the
+  // truth at the end for a box). A run shorter than the footprint would need images of images;
+  // the one reflection at each end is then renormalised.
+  //
+  // Each image interval is cut where it wraps into pieces that lie within the curve, and on each
+  // piece, in the curve parameter u (ds = |C'(u)| du),
+  //   w_k += integral k((x(u) - c) / a) phi_k(u) |C'(u)| du,  c the image's centre,
+  // split where the integrand is not smooth: knots (phi_k), segment joints (|C'|), and the
+  // centre (the tent's kink). Each part gets Gauss-Legendre panels. x is carried from part to part:
+  // exactly linear on lines, integrated spectrally on cubics (kIntegrate8), and reset to c at the
+  // centre. The constant 1/a is dropped: the weights are normalised at the end.
+  const std::uint32_t count = curve.segment_count;
+  assert(count > 0 && std::isfinite(u_hit));
+  // fmax/fmin also send a NaN to the curve's start instead of into an index.
+  u_hit = std::fmin(std::fmax(u_hit, 0.0), static_cast<double>(count));
+  const std::uint32_t hit = std::min(static_cast<std::uint32_t>(u_hit), count - 1);
+  if (!(half_length > 0.0)) {
+    deposit_point(basis, u_hit, out);
+    return;
+  }
+  const SceneSegment* segments = scene.segments.data() + curve.first_segment;
+  const std::vector<double>& start = curve.segment_start;
+  const double a = half_length;
+  const double total = curve.length;
+
+  // Arc length within segment j at parameter t, and its inverse: closed form on lines.
+  auto length_in = [segments](std::uint32_t j, double t) {
+    const SceneSegment& segment = segments[j];
+    return segment.geometry.kind == SegmentKind::Line
+               ? t * segment.length
+               : segment.arc_length.length_at(segment.geometry.shape, t);
+  };
+  auto parameter_in = [segments](std::uint32_t j, double s) {
+    const SceneSegment& segment = segments[j];
+    return segment.geometry.kind == SegmentKind::Line
+               ? std::clamp(s / segment.length, 0.0, 1.0)
+               : segment.arc_length.parameter_at(segment.geometry.shape, s);
+  };
+
+  const bool polynomial_profile = is_polynomial(profile);
+  // A table serves the polynomial profiles whose powers of y it keeps: the walk then goes by arc
+  // length (integrate_piece_by_arc); any other footprint walks in u with quadrature.
+  const bool use_table = polynomial_profile && table != nullptr && !table->empty() &&
+                         table->powers() >= profile_powers(profile);
+  assert(table == nullptr || table->empty() || table->matches(basis));
+  const std::vector<double>& knots = basis.knots();
+
+  const double t_hit = u_hit - hit;
+  double into_hit = std::numeric_limits<double>::quiet_NaN();  // from the hit segment's start
+  std::size_t hit_span = 0;  // with a table: the knot span holding u_hit (the one that starts there)
+  if (use_table) {
+    hit_span = basis.find_span(u_hit);
+    // On a cubic the span's s(u) series gives the hit's arc length without quadrature.
+    if (segments[hit].geometry.kind != SegmentKind::Line)
+      into_hit = std::clamp(table->arc_length_in_span(hit_span, u_hit) - start[hit], 0.0,
+                            segments[hit].length);
+  }
+  if (std::isnan(into_hit)) into_hit = length_in(hit, t_hit);
+  const double s_hit = start[hit] + into_hit;
+
+  // The run, walking over smooth joints (the closing one too, on a closed curve) while the
+  // footprint reaches past them. `before` and `after` are the run's lengths on each side of the
+  // hit; infinite when the walk comes all the way round.
+  auto smooth = [&](std::uint32_t joint) {
+    return use_table ? table->smooth_joint(joint) : is_tangent_continuous(scene, curve, joint);
+  };
+  double before = into_hit;
+  double after = segments[hit].length - into_hit;
+  bool endless = false;
+  {
+    std::uint32_t j = hit;
+    std::uint32_t steps = 0;
+    while (before < a) {
+      const bool wraps = j == 0;
+      if (wraps && !curve.closed) break;
+      const std::uint32_t previous = wraps ? count - 1 : j - 1;
+      if (!smooth(previous)) break;
+      if (++steps > count) { endless = true; break; }
+      j = previous;
+      before += segments[j].length;
+    }
+    j = hit;
+    steps = 0;
+    while (!endless && after < a) {
+      const bool wraps = j + 1 == count;
+      if (wraps && !curve.closed) break;
+      if (!smooth(j)) break;
+      if (++steps > count) { endless = true; break; }
+      j = wraps ? 0 : j + 1;
+      after += segments[j].length;
+    }
+  }
+  // Walls (contacts: another curve stands on this one there) end the run like corners.
+  if (!walls.empty()) {
+    if (endless) {
+      before = after = std::numeric_limits<double>::infinity();
+      endless = false;
+    }
+    for (const double wall : walls) {
+      double below = s_hit - wall;  // arc length from the wall up to the hit
+      if (curve.closed) {
+        below -= std::floor(below / total) * total;
+        before = std::fmin(before, below);
+        after = std::fmin(after, total - below);
+      } else if (below >= 0.0) {
+        before = std::fmin(before, below);
+      } else {
+        after = std::fmin(after, -below);
+      }
+    }
+  }
+  // A closed smooth curve that the footprint would wrap round more than 64 times gets a flat
+  // spread (its periodic sum is flat to 2 %), one lap each way.
+  const bool flat = endless && a > 32.0 * total;
+  const double reach = flat ? 0.5 * total : a;
+  const double x0 = endless ? -reach : std::fmax(-before, -a);
+  const double x1 = endless ? reach : std::fmin(after, a);
+  const bool cut_low = !endless && before < a;
+  const bool cut_high = !endless && after < a;
+
+  // u at offset x from the hit, in lap n of the curve (s = s_hit + x - n length, within the
+  // curve); `at_end` picks the end of the previous segment (or of the curve) for a point on a
+  // joint. On the hit segment of a line u is u_hit + x / L directly, which keeps tiny footprints
+  // accurate.
+  const bool hit_is_line = segments[hit].geometry.kind == SegmentKind::Line;
+  auto u_at = [&](double x, bool at_end, double n) {
+    if (n == 0.0 && hit_is_line && x >= -into_hit && x <= segments[hit].length - into_hit)
+      return std::clamp(u_hit + x / segments[hit].length, static_cast<double>(hit), hit + 1.0);
+    const double s = std::clamp(s_hit + x - n * total, 0.0, total);
+    const auto it = std::upper_bound(start.begin(), start.begin() + count, s);
+    auto j = static_cast<std::uint32_t>(std::max<std::ptrdiff_t>(0, (it - start.begin()) - 1));
+    if (at_end && j > 0 && s == start[j]) --j;  // the end of the previous segment
+    return j + parameter_in(j, s - start[j]);
+  };
+
+  // 0 for an infinite footprint, or a flat one: a flat spread.
+  const double inverse_a = flat ? 0.0 : 1.0 / a;
+  // The Gaussian changes fastest: its panels span at most half the footprint (x-width 1/2), where
+  // eight points reach about 1e-14 (a whole half, x-width 1, would give about 1e-9).
+  auto profile_panels = [&](double x_width) {
+    return profile == RayProfile::Gauss ? std::max(1, static_cast<int>(std::ceil(2.0 * x_width)))
+                                        : 1;
+  };
+  const std::size_t begin = out.size();
+  bool several = false;  // more than one piece appended: merge before normalising
+
+  // The polynomial profile in a span's arc-length coordinate y, where the offset from the image's
+  // centre over a is x_mid + beta y, on the side of the centre `below` says: c0 + c1 y + c2 y^2.
+  auto profile_in_y = [&](double x_mid, double beta, bool below) -> std::array<double, 3> {
+    if (profile == RayProfile::Tent) {  // 1 - |x|
+      const double sign = below ? -1.0 : 1.0;
+      return {1.0 - sign * x_mid, -sign * beta, 0.0};
+    }
+    if (profile == RayProfile::Epanechnikov)  // 3/4 (1 - x^2)
+      return {0.75 * (1.0 - x_mid * x_mid), -1.5 * x_mid * beta, -0.75 * beta * beta};
+    return {0.5, 0.0, 0.0};
+  };
+
+  // Integrates the part [ua, ub] of segment j (within one knot span, which the accumulator has
+  // entered, on one side of the centre) by Gauss-Legendre panels; delta_a, the part's start's
+  // offset from the image's centre, advances to its end.
+  auto integrate_part = [&](Accumulator& accumulate, std::uint32_t j, double ua, double ub,
+                            double& delta_a) {
+    const SceneSegment& segment = segments[j];
+    const double jd = j;
+    if (segment.geometry.kind == SegmentKind::Line) {
+      // Constant speed L: delta(u) = delta_a + (u - ua) L exactly.
+      const double speed = segment.length;
+      const int panels = polynomial_profile ? 1 : profile_panels((ub - ua) * speed * inverse_a);
+      const double width = (ub - ua) / panels;
+      const double half = 0.5 * width;
+      for (int panel = 0; panel < panels; ++panel) {
+        const double pa = ua + panel * width;
+        const double mid = pa + half;
+        const double delta_pa = delta_a + panel * width * speed;
+        auto node = [&](double x, double w) {
+          const double delta = delta_pa + half * (1.0 + x) * speed;
+          const double offset = std::clamp(delta * inverse_a, -1.0, 1.0);
+          accumulate.add(mid + half * x, w * half * speed * density_inside(profile, offset));
+        };
+        if (polynomial_profile) {
+          for (std::size_t g = 0; g < 3; ++g) node(kNodes3[g], kWeights3[g]);
+        } else {
+          for (std::size_t g = 0; g < 8; ++g) node(kNodes8[g], kWeights8[g]);
+        }
+      }
+      delta_a += (ub - ua) * speed;
+    } else {
+      const Cubic& shape = segment.geometry.shape;
+      // speed_bound >= |C'|, so the Gaussian's panels are at most half a footprint wide.
+      const int panels =
+          std::max(profile_panels((ub - ua) * segment.speed_bound * inverse_a),
+                   static_cast<int>(std::ceil((ub - ua) / kMaxCubicPanel)));
+      const double width = (ub - ua) / panels;
+      const double half = 0.5 * width;
+      for (int panel = 0; panel < panels; ++panel) {
+        const double mid = ua + (panel + 0.5) * width;
+        std::array<double, 8> speed{};
+        for (std::size_t g = 0; g < 8; ++g)
+          speed[g] = length(derivative(shape, mid + half * kNodes8[g] - jd));
+        double panel_length = 0.0;
+        for (std::size_t g = 0; g < 8; ++g) {
+          double partial = 0.0;
+          for (std::size_t m = 0; m < 8; ++m) partial += kIntegrate8[g][m] * speed[m];
+          const double delta = delta_a + half * partial;
+          const double offset = std::clamp(delta * inverse_a, -1.0, 1.0);
+          accumulate.add(mid + half * kNodes8[g],
+                         kWeights8[g] * half * speed[g] * density_inside(profile, offset));
+          panel_length += kWeights8[g] * speed[g];
+        }
+        delta_a += half * panel_length;
+      }
+    }
+  };
+
+  // Integrates the image centred at c over the piece of offsets [xa, xb] that lies within lap n
+  // of the curve, from u0 to u1.
+  auto integrate_piece = [&](double xa, double xb, double c, double n) {
+    double u0 = u_at(xa, false, n);
+    double u1 = u_at(xb, true, n);
+    const bool has_centre = c > xa && c < xb;
+    const double u_centre = has_centre ? (c == 0.0 && n == 0.0 ? u_hit : u_at(c, false, n)) : -1.0;
+    if (has_centre) {
+      u0 = std::fmin(u0, u_centre);
+      u1 = std::fmax(u1, u_centre);
+    }
+    if (!(u1 > u0)) return;
+    if (out.size() > begin) several = true;
+    Accumulator accumulate(basis, out);
+    auto next_knot = std::upper_bound(knots.begin(), knots.end(), u0);
+    double ua = u0;
+    double delta_a = xa - c;
+    while (ua < u1) {
+      // The part [ua, ub]: up to the next knot, joint, centre or u1, whichever comes first.
+      double ub = u1;
+      if (next_knot != knots.end()) ub = std::min(ub, *next_knot);
+      ub = std::min(ub, std::floor(ua) + 1.0);
+      if (has_centre && ua < u_centre) ub = std::min(ub, u_centre);
+      const std::uint32_t j = std::min(static_cast<std::uint32_t>(ua), count - 1);
+      // The knot span holding the part: knots[span] <= ua < ub <= knots[span + 1] = *next_knot
+      // (clamped to the spans that cover [u_begin, u_end)).
+      const std::size_t span = std::clamp(static_cast<std::size_t>(next_knot - knots.begin()),
+                                          basis.first_span() + 1, basis.end_span()) - 1;
+      accumulate.enter_span(span);
+
+      integrate_part(accumulate, j, ua, ub, delta_a);
+      if (has_centre && ub == u_centre) delta_a = 0.0;
+      ua = ub;
+      while (next_knot != knots.end() && *next_knot <= ua) ++next_knot;
+    }
+  };
+  // The same by arc length, with the table (use_table): the piece is
+  // [sa, sb] = s_hit - n length + [xa, xb], walked span by span from the span holding sa. Whole
+  // spans take the moments, parts of spans the running moments' differences; a span with no
+  // series (near a cusp) takes quadrature in u between the inverted ends of its part.
+  auto integrate_piece_by_arc = [&](double xa, double xb, double c, double n) {
+    const double lap = s_hit - n * total;
+    const double sa = std::clamp(lap + xa, 0.0, total);
+    const double sb = std::clamp(lap + xb, 0.0, total);
+    if (!(sb > sa)) return;
+    if (out.size() > begin) several = true;
+    Accumulator accumulate(basis, out);
+    const double s_centre = lap + c;
+    const std::size_t powers = static_cast<std::size_t>(table->powers());
+    // Parts no longer than a few roundings of the curve's arc length are slivers made by
+    // rounding s_hit + x (one just across a corner, say), not footprint: they are left out, and
+    // a footprint made of nothing else deposits at the point.
+    const double resolution = 4.0 * std::numeric_limits<double>::epsilon() * total;
+    auto part = [&](std::size_t span, double pa, double pb, double s0, double s1) {
+      std::size_t terms = 0;
+      const double* series = table->running(span, terms);
+      // In the span's coordinate the tent and Epanechnikov pieces have coefficients up to
+      // (1 + beta)^2 with beta = h / a, which cancel to the profile's O(1) values: with a
+      // footprint far shorter than the span that cancellation would eat the digits, so beyond
+      // beta = 16 (errors then below 300 roundings) such parts take the quadrature. The box is
+      // a constant and needs no such care.
+      const bool conditioned =
+          profile == RayProfile::Box || 0.5 * (s1 - s0) * inverse_a <= 16.0;
+      if (series != nullptr && conditioned) {
+        const double mid = 0.5 * (s0 + s1);
+        const double inverse_h = 2.0 / (s1 - s0);
+        const double ya = std::clamp((pa - mid) * inverse_h, -1.0, 1.0);
+        const double yb = std::clamp((pb - mid) * inverse_h, -1.0, 1.0);
+        const std::array<double, 3> coefficients = profile_in_y(
+            (mid - s_centre) * inverse_a, 0.5 * (s1 - s0) * inverse_a, 0.5 * (pa + pb) < s_centre);
+        accumulate.add_running(series, terms, powers, ya, yb, coefficients);
+        return;
+      }
+      const double u_begin = knots[span];
+      const double u_end = knots[span + 1];
+      const std::uint32_t j = segment_of_span(u_begin, u_end, count);
+      const double ua = std::clamp(j + parameter_in(j, pa - start[j]), u_begin, u_end);
+      const double ub = std::clamp(j + parameter_in(j, pb - start[j]), u_begin, u_end);
+      double delta_a = pa - s_centre;
+      if (ub > ua) integrate_part(accumulate, j, ua, ub, delta_a);
+    };
+    // The span holding sa: near the hit's for the hit's own lap, else by bisection.
+    std::size_t first_span = hit_span;
+    if (n == 0.0 && std::fabs(sa - s_hit) <= 4.0 * table->length(hit_span)) {
+      while (first_span > basis.first_span() && table->start(first_span) > sa) --first_span;
+      while (first_span + 1 < basis.end_span() && table->start(first_span + 1) <= sa) ++first_span;
+    } else {
+      first_span = table->span_at(sa);
+    }
+    for (std::size_t span = first_span; span < basis.end_span(); ++span) {
+      const double s0 = table->start(span);
+      if (!(s0 < sb)) break;
+      const double s1 = table->start(span + 1);
+      const double pa = std::fmax(sa, s0);
+      const double pb = std::fmin(sb, s1);
+      if (!(pb - pa > resolution)) continue;
+      accumulate.enter_span(span);
+      // The tent and Epanechnikov profiles change their polynomial at the centre; the box's is
+      // the same on both sides, so where the span has its series the part holding the centre is
+      // one part (the quadrature of a span without one, near a cusp, keeps its two halves).
+      const bool one_part = profile == RayProfile::Box && table->has_series(span);
+      if (s_centre > pa && s_centre < pb && !one_part) {
+        part(span, pa, s_centre, s0, s1);
+        part(span, s_centre, pb, s0, s1);
+      } else if (pa == s0 && pb == s1) {
+        const double span_length = table->length(span);
+        const double x_mid = (s0 + 0.5 * span_length - s_centre) * inverse_a;
+        const std::array<double, 3> coefficients =
+            profile_in_y(x_mid, 0.5 * span_length * inverse_a, x_mid < 0.0);
+        accumulate.add_moments(table->moments(span), table->stride(), coefficients[0],
+                               coefficients[1], coefficients[2]);
+      } else {
+        part(span, pa, pb, s0, s1);
+      }
+    }
+  };
+  // An image interval [xa, xb] cut into laps of the curve: pieces end where s_hit + x crosses a
+  // multiple of the length (only on a closed run).
+  auto integrate_image = [&](double xa, double xb, double c) {
+    if (!(xb > xa)) return;
+    auto piece = [&](double a0, double a1, double n) {
+      if (use_table) {
+        integrate_piece_by_arc(a0, a1, c, n);
+      } else {
+        integrate_piece(a0, a1, c, n);
+      }
+    };
+    if (!curve.closed) return piece(xa, xb, 0.0);
+    while (xa < xb) {
+      double n = std::floor((s_hit + xa) / total);
+      double lap_end = (n + 1.0) * total - s_hit;
+      if (!(lap_end > xa)) {  // xa rounded onto the lap's end: it starts the next lap
+        n += 1.0;
+        lap_end += total;
+      }
+      const double xe = std::fmin(xb, lap_end);
+      piece(xa, xe, n);
+      xa = xe;
+    }
+  };
+  integrate_image(x0, x1, 0.0);
+  if (cut_low) integrate_image(x0, std::fmin(2.0 * x0 + a, x1), 2.0 * x0);
+  if (cut_high) integrate_image(std::fmax(2.0 * x1 - a, x0), x1, 2.0 * x1);
+
+  // Wrapped indices on a periodic basis, and pieces naming the same coefficient, are merged.
+  // (One piece on a periodic basis is an increasing run: only one that passes the last index
+  // wraps.)
+  if (several || (basis.is_periodic() && out.size() > begin && out.back().coefficient >= basis.size())) {
+    for (std::size_t i = begin; i < out.size(); ++i) out[i].coefficient = basis.index(out[i].coefficient);
+    std::sort(out.begin() + static_cast<std::ptrdiff_t>(begin), out.end(),
+              [](const FootprintWeight& p, const FootprintWeight& q) { return p.coefficient < q.coefficient; });
+    std::size_t kept = begin;
+    for (std::size_t i = begin; i < out.size(); ++i) {
+      if (kept > begin && out[kept - 1].coefficient == out[i].coefficient) {
+        out[kept - 1].weight += out[i].weight;
+      } else {
+        out[kept++] = out[i];
+      }
+    }
+    out.resize(kept);
+  }
+  if (!normalise_appended(out, begin)) {
+    out.resize(begin);
+    deposit_point(basis, u_hit, out);
+  }
+}
+
+}  // namespace flatland
