@@ -5,7 +5,7 @@
 #     |R_2h - R_h| / (2^p - 1), p the order observed from the three (stats.estimated_error,
 #     stats.observed_order).
 #  2. The closed-form scenes (penumbra, round occluder, ring): that estimate against the true
-#     error, from the test that holds the closed forms (tests/reference_test.cpp,
+#     error, from the test that holds the closed forms (tests/reference/reference_test.cpp,
 #     Reference.DISABLED_EstimatedAgainstTrueErrorTable).
 # Needs BUILD/flatland and BUILD/reference_test (BUILD defaults to build).
 # Usage: docs/figures/reference_accuracy.sh [BUILD]
