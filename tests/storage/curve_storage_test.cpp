@@ -1,4 +1,6 @@
 #include "flatland/storage/curve_storage.hpp"
+#include "flatland/storage/estimators.hpp"
+#include "flatland/storage/restriction.hpp"
 
 #include <algorithm>
 #include <array>

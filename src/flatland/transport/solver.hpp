@@ -26,6 +26,8 @@
 #include <vector>
 
 #include "flatland/storage/curve_storage.hpp"
+#include "flatland/storage/estimators.hpp"
+#include "flatland/storage/restriction.hpp"
 #include "flatland/geometry/accelerator.hpp"
 #include "flatland/geometry/discontinuities.hpp"
 #include "flatland/transport/footprint.hpp"
