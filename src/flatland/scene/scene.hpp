@@ -10,7 +10,7 @@
 #include <vector>
 
 #include "flatland/geometry/bezier.hpp"
-#include "flatland/geometry/accelerator.hpp"
+#include "flatland/geometry/segments.hpp"
 #include "flatland/base/status.hpp"
 #include "flatland/base/vec2.hpp"
 
