@@ -417,7 +417,7 @@ Result<Plan> parse_plan(const ConvergeOptions& o) {
   SolverSettings defaults;
   defaults.threads = o.threads;
   defaults.tolerance = o.tolerance;
-  defaults.elements = *elements_from_string(o.elements, kMaxElements);
+  if (Status status = set_solve_option(defaults, SolveOption::Elements, o.elements); !status) return status.error();
   for (const std::string& text : split(o.methods)) {
     for (const Method& earlier : plan.methods)
       if (earlier.name == text) return Error{"--methods: '" + text + "' is given twice; give each method once"};
@@ -464,12 +464,13 @@ CLI::App* add_converge_command(CLI::App& parent, ConvergeOptions& o) {
   cmd->add_option("scene", o.scene, "Scene file (JSON)")->required();
   cmd->add_option("--reference", o.reference,
                   "Reference result (flatland reference --out); computed when not given");
+  std::string keys;  // the solve options a method may set (options.hpp)
+  for (const SolveOptionSpec& spec : solve_options())
+    if (spec.per_method) keys += (keys.empty() ? "" : ", ") + std::string(spec.flag);
   cmd->add_option("--methods", o.methods,
-                  "Comma-separated methods: a basis name, or key=value pairs joined by '+' "
-                  "(basis, sampling, discontinuities, estimator, elements, ray-width, ray-mode, "
-                  "ray-profile, band-rays, tolerance, sampler, transport), e.g. "
-                  "constant,cubic,cubic+sampling=uniform,cubic+elements=64+sampler=sobol,"
-                  "cubic+transport=walk")
+                  "Comma-separated methods: a basis name, or key=value pairs joined by '+' (" + keys +
+                      "; as solve's options), e.g. constant,cubic,cubic+sampling=uniform,"
+                      "cubic+elements=64+sampler=sobol,cubic+transport=walk")
       ->capture_default_str();
   auto* budgets = cmd->add_option("--budgets", o.budgets, "Comma-separated photon budgets")
                       ->capture_default_str();
@@ -490,7 +491,7 @@ CLI::App* add_converge_command(CLI::App& parent, ConvergeOptions& o) {
                   "Storage elements per curve of every method, or auto (each curve's mesh follows "
                   "its photons); a method's elements=N overrides it")
       ->capture_default_str()
-      ->check(elements_check(kMaxElements));
+      ->type_name(std::string(spec_of(SolveOption::Elements).value));
   cmd->add_option("--tolerance", o.tolerance,
                   "Unshot-power tolerance of every solve (a method's tolerance=X overrides it); "
                   "small, so that each solve spends its whole budget")

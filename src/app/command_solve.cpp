@@ -21,116 +21,28 @@
 namespace flatland::app {
 
 Result<std::uint64_t> parse_count(const std::string& text, const std::string& option) {
-  const std::string hint = option + ": expected a whole number such as 250000 or 1e6, got '" + text + "'";
-  if (text.empty()) return Error{hint};
-  char* end = nullptr;
-  const double value = std::strtod(text.c_str(), &end);
-  if (end == text.c_str() || *end != '\0' || !std::isfinite(value)) return Error{hint};
-  if (value != std::floor(value)) return Error{hint};
-  if (value < 1.0) return Error{option + ": must be at least 1, got '" + text + "'"};
-  if (value > static_cast<double>(kMaxPhotons))
-    return Error{option + ": at most 2^50 (about 1.1e15), got '" + text + "'"};
-  return static_cast<std::uint64_t>(value);
+  return parse_photon_count(text, option);
 }
 
-Result<std::uint64_t> parse_seed(const std::string& text, const std::string& option) {
-  const std::string hint = option + ": expected a whole number from 0 to 18446744073709551615, got '" + text + "'";
-  if (text.empty() || text.size() > 20 || text.find_first_not_of("0123456789") != std::string::npos) return Error{hint};
-  std::uint64_t value = 0;
-  for (const char digit : text) {
-    const auto d = static_cast<std::uint64_t>(digit - '0');
-    if (value > (UINT64_MAX - d) / 10) return Error{hint};
-    value = value * 10 + d;
-  }
-  return value;
+SolveOptions::SolveOptions() {
+  const SolverSettings defaults;
+  for (const SolveOptionSpec& spec : solve_options()) text[spec.option] = solve_option_text(defaults, spec.option);
 }
 
 void add_solver_options(CLI::App* cmd, SolveOptions& o) {
-  cmd->add_option("--photons", o.photons,
-                  "Total photon budget over all rounds, e.g. 250000 or 1e6")
-      ->capture_default_str();
-  cmd->add_option("--seed", o.seed,
-                  "Random seed; the same seed gives bit-identical results on any thread count")
-      ->capture_default_str();
-  cmd->add_option("--threads", o.settings.threads, "Worker threads (0: every core)")
-      ->capture_default_str()
-      ->check(CLI::Range(0u, 1024u));
-  cmd->add_option("--basis", o.basis,
-                  "Illumination along each curve: constant, linear or cubic B-splines, or hermite "
-                  "(cubic Hermite interpolation of nodal values)")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"constant", "linear", "cubic", "hermite"}));
-  cmd->add_option("--sampling", o.sampling,
-                  "Where photons leave a source: uniform in arc length (constant radiosity "
-                  "assumption) or reconstructed (density proportional to the reconstructed unshot "
-                  "radiosity, the paper's method)")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"uniform", "reconstructed"}));
-  cmd->add_option("--discontinuities", o.discontinuities,
-                  "Nodes where illumination may jump or kink: none (smooth everywhere), scene (the "
-                  "scene's joints, C-1 at corners by default, and C-1 at contacts, where a curve "
-                  "ends on or crosses another) or auto (those plus C0 nodes at direct-light "
-                  "events: penumbra boundaries from emitters' end points, corners and silhouettes) "
-                  "or secondary (auto plus the same events of every reflecting curve, as a source "
-                  "of the light it reflects)")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"none", "scene", "auto", "secondary"}));
-  cmd->add_option("--estimator", o.estimator,
-                  "Coefficients from deposits: lumped (power over the basis function's length, the "
-                  "paper's; positive, bias O(h^2) inside and O(h) at ends and nodes), galerkin (L2 "
-                  "projection) or local (least-variance local quasi-interpolant; Hermite: nodal "
-                  "values); galerkin and local have bias O(h^(p+1)) everywhere and may dip below zero; "
-                  "auto: local for hermite storage, galerkin for the others (docs/method.md)")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"lumped", "galerkin", "local", "auto"}));
-  cmd->add_option("--sampler", o.sampler,
-                  "Where each photon's uniforms come from: random (independent pseudo-random "
-                  "numbers) or sobol (randomised quasi-Monte Carlo: an Owen-scrambled Sobol' "
-                  "point per photon; same seed, same bits on any thread count)")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"random", "sobol"}));
-  cmd->add_option("--transport", o.transport,
-                  "How light travels: shooting (progressive rounds, each shooting the light the last "
-                  "one reflected: the paper's method) or walk (each photon a random walk from an "
-                  "emitter, tallied at every hit and ended by Russian roulette; --photons counts "
-                  "walks, --tolerance is not used)")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"shooting", "walk"}));
-  cmd->add_option("--ray-width", o.settings.ray_width,
-                  "Width of extended rays in scene units (0: point rays, no extended-ray code runs)")
-      ->capture_default_str();
-  cmd->add_option("--ray-profile", o.ray_profile,
-                  "Energy profile across an extended ray: box, tent, epanechnikov, cosine or gauss "
-                  "(truncated at 3 sigma)")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"box", "tent", "epanechnikov", "cosine", "gauss"}));
-  cmd->add_option("--ray-mode", o.ray_mode,
-                  "footprint: spread the centre ray's power along the receiver over the projected "
-                  "width; band: trace --band-rays parallel sub-rays across the width")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"footprint", "band"}));
-  cmd->add_option("--band-rays", o.settings.band_rays, "Sub-rays per photon in band mode")
-      ->capture_default_str()
-      ->check(CLI::Range(1, 256));
-  cmd->add_option("--elements", o.elements,
-                  "Storage elements per curve (shared among its segments by arc length, at least "
-                  "one each), or auto: each curve's mesh follows the photons that land on it, "
-                  "chosen after every round among nested halvings by least estimated error")
-      ->capture_default_str()
-      ->check(elements_check(kMaxElements));
-  cmd->add_option("--tolerance", o.settings.tolerance,
-                  "Stop when the unshot power falls below this fraction of the emitted power")
-      ->capture_default_str();
+  // Every option of options.hpp, with its help and what it accepts; the values are checked by
+  // finish_solver_settings, as Python's and converge's are.
+  for (const SolveOptionSpec& spec : solve_options()) {
+    // What it takes, as the help shows it: its names (basis: constant|linear|cubic|hermite) or a
+    // letter for a number.
+    std::string takes(spec.value);
+    for (std::size_t i = 0; i < spec.choices.size(); ++i) takes += (i > 0 ? "|" : "") + std::string(spec.choices[i]);
+    cmd->add_option("--" + std::string(spec.flag), o.text[spec.option], std::string(spec.help))
+        ->capture_default_str()
+        ->type_name(takes);
+  }
 }
 
-CLI::Validator elements_check(int max) {
-  return CLI::Validator(
-      [max](std::string& text) -> std::string {
-        if (elements_from_string(text, max)) return {};
-        return "must be auto or a whole number from 1 to " + std::to_string(max) + ", not '" + text + "'";
-      },
-      "auto|1.." + std::to_string(max));
-}
 
 CLI::App* add_solve_command(CLI::App& parent, SolveOptions& o) {
   CLI::App* cmd = parent.add_subcommand(
@@ -253,23 +165,11 @@ std::optional<int> abnormal_stop(const Solver& solver) {
 }
 
 Status finish_solver_settings(SolveOptions& o) {
-  Result<std::uint64_t> photons = parse_count(o.photons, "--photons");
-  if (!photons) return photons.error();
-  o.settings.photons = *photons;
-  Result<std::uint64_t> seed = parse_seed(o.seed, "--seed");
-  if (!seed) return seed.error();
-  o.settings.seed = *seed;
-  // (The option checks have let only these names through.)
-  o.settings.basis = *basis_from_string(o.basis);
-  o.settings.discontinuities = *discontinuity_mode_from_string(o.discontinuities);
-  o.settings.ray_profile = *parse_ray_profile(o.ray_profile);
-  o.settings.ray_mode = *ray_mode_from_string(o.ray_mode);
-  o.settings.estimator = *estimator_from_string(o.estimator);
-  o.settings.elements = *elements_from_string(o.elements, kMaxElements);
-  o.settings.sampler = *sampler_from_string(o.sampler);
-  o.settings.transport = *transport_from_string(o.transport);
-  o.settings.sampling = *sampling_from_string(o.sampling);
-  return validate(o.settings);
+  for (const SolveOptionSpec& spec : solve_options())
+    if (Status status = set_solve_option(o.settings, spec.option, o.text[spec.option]); !status)
+      return Error{spelled(status.error().message, Spelling::CommandLine)};
+  if (Status status = validate(o.settings); !status) return Error{spelled(status.error().message, Spelling::CommandLine)};
+  return ok_status();
 }
 
 int run_solve(SolveOptions& o) {

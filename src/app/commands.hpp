@@ -5,6 +5,7 @@
 #include <atomic>
 #include <cstdio>
 #include <cstdlib>
+#include <map>
 #include <optional>
 #include <string>
 
@@ -12,6 +13,7 @@
 
 #include "flatland/results/metrics.hpp"
 #include "flatland/reference/reference.hpp"
+#include "flatland/transport/options.hpp"
 #include "flatland/transport/solver.hpp"
 
 namespace flatland::app {
@@ -43,23 +45,14 @@ inline CLI::Validator finite_range(double low, double high) {
 // Set by SIGINT / SIGTERM; long work checks it between batches.
 std::atomic<bool>& interrupt_flag();
 
-// --elements's CLI11 check (elements_from_string), with a message naming what is accepted.
-CLI::Validator elements_check(int max);
 
 struct SolveOptions {
+  SolveOptions();
   std::string scene;
-  std::string photons = "1e6";  // parsed by parse_count, so "1e6" and "250000" both work
-  std::string seed = "1";       // parsed by parse_seed: a whole number from 0 to 2^64 - 1
+  // Each solve option as typed (options.hpp), starting at its default's text; set into `settings`
+  // by finish_solver_settings.
+  std::map<SolveOption, std::string> text;
   SolverSettings settings;
-  std::string basis = "cubic";
-  std::string sampling = "reconstructed";
-  std::string discontinuities = "auto";
-  std::string estimator = "auto";
-  std::string sampler = "sobol";
-  std::string transport = "shooting";
-  std::string elements = "auto";
-  std::string ray_profile = "box";
-  std::string ray_mode = "footprint";
   int samples = 100;
   std::string out;
   std::string picture;
@@ -178,10 +171,7 @@ CLI::App* add_render_command(CLI::App& parent, RenderOptions& options);
 int run_render(RenderOptions& options);
 
 // "1e6", "250000", "2.5e5" -> 250000; anything not a whole number in [1, kMaxPhotons] (2^50) is an
-// error naming the option.
+// error naming the option (parse_photon_count).
 Result<std::uint64_t> parse_count(const std::string& text, const std::string& option);
-// "0" .. "18446744073709551615" (decimal digits only, as Python's int); anything else (a sign,
-// an exponent, a value past 2^64 - 1) is an error naming the option.
-Result<std::uint64_t> parse_seed(const std::string& text, const std::string& option);
 
 }  // namespace flatland::app

@@ -4,6 +4,7 @@
 
 #include "app/commands.hpp"
 #include "app/processes.hpp"
+#include "flatland/transport/options.hpp"
 
 namespace flatland::app {
 
@@ -31,7 +32,9 @@ void note(const std::string& message) {
 }
 
 int usage_error(const std::string& message) {
-  say("flatland: error: " + message + "\n");
+  // A message of the core that begins with an option's name ("ray width: ...") names it as this
+  // command line spells it ("--ray-width: ...").
+  say("flatland: error: " + spelled(message, Spelling::CommandLine) + "\n");
   return kExitUsage;
 }
 

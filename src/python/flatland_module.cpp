@@ -28,6 +28,8 @@
 #include "flatland/results/result_io.hpp"
 #include "flatland/results/sampled_result.hpp"
 #include "flatland/scene/scene.hpp"
+#include "flatland/base/text.hpp"
+#include "flatland/transport/options.hpp"
 #include "flatland/transport/solver.hpp"
 #include "flatland/base/version.hpp"
 
@@ -157,72 +159,54 @@ PyScene from_dict(const py::dict& document, const std::string& name) {
   return {std::make_shared<const Scene>(value_or_fail(parse_scene(text, name)))};
 }
 
-// A photon count: an int, or a float that is a whole number (1e6), as --photons accepts.
-std::uint64_t photon_count(const py::object& value) {
-  double number = 0.0;
-  if (!py::isinstance<py::bool_>(value) && (py::isinstance<py::int_>(value) || py::isinstance<py::float_>(value)))
-    number = value.cast<double>();
-  else fail("photons: expected a whole number such as 250000 or 1e6, got " + py::repr(value).cast<std::string>());
-  if (!(number >= 1.0 && number <= static_cast<double>(kMaxPhotons)) || number != std::floor(number))
-    fail("photons: expected a whole number from 1 to 2^50 (about 1.1e15) such as 250000 or 1e6, got " +
+// A keyword's value as the text the command line would take for the option (options.hpp): an int
+// as its digits, a float as its shortest round-trip form, a string as it is, a NumPy scalar as the
+// Python number it holds. Booleans and other types are refused here, with the keyword's name.
+std::string option_text(const py::handle& value, const SolveOptionSpec& spec) {
+  const auto refuse = [&] {
+    fail(std::string(spec.keyword) + ": expected " + (spec.choices.empty() ? "a number" : "a name") + ", got " +
          py::repr(value).cast<std::string>());
-  return static_cast<std::uint64_t>(number);
-}
-
-// A Python int in [1, kMaxElements], or nullopt (one too large for a C++ integer included).
-std::optional<int> element_count(const py::object& value) {
-  if (!py::isinstance<py::int_>(value) || py::isinstance<py::bool_>(value)) return std::nullopt;
-  long long count = 0;
-  try {
-    count = value.cast<long long>();
-  } catch (const py::cast_error&) {
-    return std::nullopt;
-  }
-  if (count < 1 || count > kMaxElements) return std::nullopt;
-  return static_cast<int>(count);
-}
-
-// Keyword settings, named as the command line's options (--ray-width is ray_width).
-SolverSettings settings_from(const py::object& photons, std::uint64_t seed, unsigned threads, const std::string& basis,
-                             const py::object& elements, const std::string& sampling,
-                             const std::string& discontinuities, const std::string& estimator,
-                             const std::string& sampler, const std::string& transport, double ray_width,
-                             const std::string& ray_profile, const std::string& ray_mode, int band_rays,
-                             double tolerance) {
-  SolverSettings s;
-  s.photons = photon_count(photons);
-  s.seed = seed;
-  s.threads = threads;
-  // Each name through the core's own parser; the message names the keyword and what it accepts.
-  auto parse = [](const auto& parsed, const char* keyword, const char* accepted, const std::string& name) {
-    if (!parsed) fail(std::string(keyword) + ": expected " + accepted + ", got '" + name + "'");
-    return *parsed;
   };
-  s.basis = parse(basis_from_string(basis), "basis", "constant, linear, cubic or hermite", basis);
-  if (py::isinstance<py::str>(elements)) {
-    if (elements.cast<std::string>() != "auto") fail("elements: expected \"auto\" or a whole number, got '" + elements.cast<std::string>() + "'");
-    s.elements = kAutoElements;
-  } else if (!py::isinstance<py::int_>(elements) || py::isinstance<py::bool_>(elements)) {
-    fail("elements: expected \"auto\" or a whole number, got " + py::repr(elements).cast<std::string>());
-  } else {
-    const std::optional<int> count = element_count(elements);
-    if (!count) fail("elements: must be auto or between 1 and " + std::to_string(kMaxElements) + ", got " +
-                     py::repr(elements).cast<std::string>());
-    s.elements = *count;
+  if (py::isinstance<py::bool_>(value) || value.is_none()) refuse();
+  if (py::isinstance<py::int_>(value)) return py::str(value).cast<std::string>();
+  if (py::isinstance<py::float_>(value)) return format_number(value.cast<double>());
+  if (py::isinstance<py::str>(value)) return value.cast<std::string>();
+  if (py::hasattr(value, "item") && !py::hasattr(value, "__len__")) return option_text(value.attr("item")(), spec);
+  refuse();
+  return {};
+}
+
+// A keyword's settings: each one an option of options.hpp, named as the command line names it with
+// underscores (--ray-width is ray_width), set as the command line sets it; the rest take the
+// defaults of `flatland solve`. Messages name the keywords.
+SolverSettings settings_from(const py::kwargs& keywords) {
+  SolverSettings s;
+  std::vector<std::string> names;
+  for (const SolveOptionSpec& spec : solve_options()) names.emplace_back(spec.keyword);
+  for (const auto& [key, value] : keywords) {
+    const std::string keyword = py::str(key).cast<std::string>();
+    const std::optional<SolveOption> option = option_by_keyword(keyword);
+    if (!option) {
+      std::string message = "unknown keyword '" + keyword + "'";
+      if (const auto hint = closest_match(keyword, names)) message += "; did you mean '" + *hint + "'?";
+      message += "; the keywords are";
+      for (const std::string& name : names) message += " " + name;
+      throw py::type_error(message);
+    }
+    if (Status status = set_solve_option(s, *option, option_text(value, spec_of(*option))); !status)
+      fail(spelled(status.error().message, Spelling::Python));
   }
-  s.sampling = parse(sampling_from_string(sampling), "sampling", "uniform or reconstructed", sampling);
-  s.discontinuities = parse(discontinuity_mode_from_string(discontinuities), "discontinuities",
-                            "none, scene, auto or secondary", discontinuities);
-  s.estimator = parse(estimator_from_string(estimator), "estimator", "lumped, galerkin, local or auto", estimator);
-  s.sampler = parse(sampler_from_string(sampler), "sampler", "random or sobol", sampler);
-  s.transport = parse(transport_from_string(transport), "transport", "shooting or walk", transport);
-  s.ray_width = ray_width;
-  s.ray_profile = value_or_fail(parse_ray_profile(ray_profile));
-  s.ray_mode = parse(ray_mode_from_string(ray_mode), "ray_mode", "footprint or band", ray_mode);
-  s.band_rays = band_rays;
-  s.tolerance = tolerance;
-  if (Status status = validate(s); !status) fail(status.error().message);
+  if (Status status = validate(s); !status) fail(spelled(status.error().message, Spelling::Python));
   return s;
+}
+
+// The keywords with their defaults, for the docstrings of solve and Solver.
+std::string keywords_help() {
+  std::string text = "Keywords (the command line's options, with underscores) and their defaults:";
+  const SolverSettings defaults;
+  for (const SolveOptionSpec& spec : solve_options())
+    text += "\n  " + std::string(spec.keyword) + "=" + solve_option_text(defaults, spec.option);
+  return text;
 }
 
 // A solve: steppable (step_round, step_photons, run) and readable at any time.
@@ -479,20 +463,20 @@ py::list converge(const PyScene& scene, const std::vector<std::string>& methods,
   SolverSettings defaults;
   defaults.threads = threads;
   defaults.tolerance = tolerance;
-  const std::optional<int> elements_given = py::isinstance<py::str>(elements)
-                                               ? elements_from_string(elements.cast<std::string>(), kMaxElements)
-                                               : element_count(elements);
-  if (!elements_given)
-    fail("elements: must be auto or a whole number from 1 to " + std::to_string(kMaxElements) + ", got " +
-         py::repr(elements).cast<std::string>());
-  defaults.elements = *elements_given;
+  if (Status status = set_solve_option(defaults, SolveOption::Elements, option_text(elements, spec_of(SolveOption::Elements)));
+      !status)
+    fail(spelled(status.error().message, Spelling::Python));
   if (!curve.is_none() && !py::isinstance<py::str>(curve))
     fail("curve: expected a curve's id (a string), got " + py::repr(curve).cast<std::string>());
   for (std::size_t m = 0; m < methods.size(); ++m)
     for (std::size_t earlier = 0; earlier < m; ++earlier)
       if (methods[m] == methods[earlier]) fail("methods: '" + methods[m] + "' is given twice; give each method once");
   std::vector<ConvergeMethod> parsed;
-  for (const std::string& text : methods) parsed.push_back(value_or_fail(parse_converge_method(text, defaults)));
+  for (const std::string& text : methods) {
+    Result<ConvergeMethod> method = parse_converge_method(text, defaults);
+    if (!method) fail(spelled(method.error().message, Spelling::Python));
+    parsed.push_back(std::move(*method));
+  }
   std::optional<std::size_t> curve_index;
   if (!curve.is_none()) curve_index = scene.curve_index(curve.cast<std::string>());
   const Measure measured = measure == "total" ? Measure::Total : Measure::Reflected;
@@ -608,27 +592,15 @@ PYBIND11_MODULE(flatland, m) {
         return "<flatland.Scene '" + s.scene->name + "': " + std::to_string(s.scene->curves.size()) + " curves>";
       });
 
-  // The solve keywords after the scene, with the defaults of `flatland solve`: one list for the
-  // Solver class and solve(), so the two cannot drift.
-  const auto solve_keywords = std::make_tuple(
-      py::arg("scene"), py::kw_only(), py::arg("photons") = py::int_(1'000'000), py::arg("seed") = 1,
-      py::arg("threads") = 0, py::arg("basis") = "cubic", py::arg("elements") = py::str("auto"),
-      py::arg("sampling") = "reconstructed", py::arg("discontinuities") = "auto", py::arg("estimator") = "auto",
-      py::arg("sampler") = "sobol", py::arg("transport") = "shooting", py::arg("ray_width") = 0.0,
-      py::arg("ray_profile") = "box", py::arg("ray_mode") = "footprint", py::arg("band_rays") = 8,
-      py::arg("tolerance") = 1e-3);
-  py::class_<PySolver> solver_class(m, "Solver", "A solve that can be stepped and read at any time (the viewer's object)");
-  const auto make_solver = [](const PyScene& scene, const py::object& photons, std::uint64_t seed, unsigned threads,
-                              const std::string& basis, const py::object& elements, const std::string& sampling,
-                              const std::string& discontinuities, const std::string& estimator,
-                              const std::string& sampler, const std::string& transport, double ray_width,
-                              const std::string& ray_profile, const std::string& ray_mode, int band_rays,
-                              double tolerance) {
-    return std::make_unique<PySolver>(
-        scene, settings_from(photons, seed, threads, basis, elements, sampling, discontinuities, estimator, sampler,
-                             transport, ray_width, ray_profile, ray_mode, band_rays, tolerance));
-  };
-  std::apply([&](const auto&... keywords) { solver_class.def(py::init(make_solver), keywords...); }, solve_keywords);
+  // The solve's keywords are its options (options.hpp), taken as **kwargs and checked one by one
+  // as the command line checks them; their names and defaults are in the docstrings.
+  static const std::string solver_help =
+      "A solve that can be stepped and read at any time (the viewer's object).\n" + keywords_help();
+  py::class_<PySolver> solver_class(m, "Solver", solver_help.c_str());
+  solver_class.def(py::init([](const PyScene& scene, const py::kwargs& keywords) {
+                     return std::make_unique<PySolver>(scene, settings_from(keywords));
+                   }),
+                   py::arg("scene"));
   solver_class
       .def("run", &PySolver::run, py::arg("progress") = py::none(), py::arg("interval") = 0.25,
            "Shoots until converged or the budget is spent (GIL released; Ctrl-C raises KeyboardInterrupt)")
@@ -646,26 +618,22 @@ PYBIND11_MODULE(flatland, m) {
       .def("to_json", &PySolver::to_json, py::arg("samples") = 100,
            "The document `flatland solve --out` writes");
 
-  std::apply(
-      [&](const auto&... keywords) {
-        m.def(
-            "solve",
-            [make_solver](const PyScene& scene, const py::object& photons, std::uint64_t seed, unsigned threads,
-                          const std::string& basis, const py::object& elements, const std::string& sampling,
-                          const std::string& discontinuities, const std::string& estimator,
-                          const std::string& sampler, const std::string& transport, double ray_width,
-                          const std::string& ray_profile, const std::string& ray_mode, int band_rays,
-                          double tolerance, const py::object& progress) {
-              auto solver = make_solver(scene, photons, seed, threads, basis, elements, sampling, discontinuities,
-                                        estimator, sampler, transport, ray_width, ray_profile, ray_mode, band_rays,
-                                        tolerance);
-              solver->run(progress, 0.25);
-              return solver;
-            },
-            keywords..., py::arg("progress") = py::none(),
-            "Solves a scene (as `flatland solve`, same keywords, same bits for the same seed); returns the Solver");
+  static const std::string solve_help =
+      "Solves a scene (as `flatland solve`: the same options, the same bits for the same seed); returns "
+      "the Solver. progress=callable is called about every quarter second with a dict.\n" + keywords_help();
+  m.def(
+      "solve",
+      [](const PyScene& scene, py::kwargs keywords) {
+        py::object progress = py::none();
+        if (keywords.contains("progress")) {
+          progress = keywords["progress"];
+          PyDict_DelItemString(keywords.ptr(), "progress");
+        }
+        auto solver = std::make_unique<PySolver>(scene, settings_from(keywords));
+        solver->run(progress, 0.25);
+        return solver;
       },
-      solve_keywords);
+      py::arg("scene"), solve_help.c_str());
   m.def("reference", &reference, py::arg("scene"), py::kw_only(), py::arg("samples") = 100,
         py::arg("max_element_length") = 0.0, py::arg("estimate_error") = false,
         "The reference solution's JSON document (as `flatland reference --out`)");

@@ -17,21 +17,6 @@ namespace flatland::viewer {
 
 namespace {
 
-const char* const kBasisNames[] = {"constant", "linear", "cubic", "hermite"};
-const BasisKind kBases[] = {BasisKind::Constant, BasisKind::Linear, BasisKind::Cubic, BasisKind::Hermite};
-const char* const kSamplingNames[] = {"uniform", "reconstructed"};
-const char* const kDiscontinuityNames[] = {"none", "scene", "auto", "secondary"};
-const char* const kEstimatorNames[] = {"lumped", "galerkin", "local", "auto"};
-const char* const kTransportNames[] = {"shooting", "walk"};
-const char* const kProfileNames[] = {"box", "tent", "epanechnikov", "cosine", "gauss"};
-const char* const kModeNames[] = {"footprint", "band"};
-
-template <typename T, std::size_t N>
-int index_of(const T (&values)[N], T value) {
-  for (std::size_t i = 0; i < N; ++i)
-    if (values[i] == value) return static_cast<int>(i);
-  return 0;
-}
 
 const char* continuity_name(Continuity c) {
   return c == Continuity::Jump ? "C-1" : c == Continuity::C0 ? "C0" : "C1";
@@ -90,6 +75,22 @@ ImU32 to_u32(const std::array<float, 3>& c, float alpha = 1.0f) {
 }
 
 }  // namespace
+
+bool Viewer::option_combo(SolveOption option) {
+  // The option's names as the command line and Python take them (options.hpp).
+  const SolveOptionSpec& spec = spec_of(option);
+  std::vector<std::string> names(spec.choices.begin(), spec.choices.end());
+  std::vector<const char*> pointers;
+  int index = 0;
+  const std::string current = solve_option_text(settings_, option);
+  for (std::size_t i = 0; i < names.size(); ++i) {
+    pointers.push_back(names[i].c_str());
+    if (names[i] == current) index = static_cast<int>(i);
+  }
+  const std::string label(spec.name);
+  if (!combo(label.c_str(), &index, pointers.data(), static_cast<int>(pointers.size()))) return false;
+  return set_solve_option(settings_, option, names[static_cast<std::size_t>(index)]).ok();
+}
 
 bool Viewer::combo(const char* label, int* index, const char* const* names, int count) {
   bool changed = false;
@@ -277,11 +278,7 @@ void Viewer::draw_solve_panel(const Snapshot& snapshot) {
     settings_.threads = static_cast<unsigned>(threads);
     changed = true;
   }
-  int basis = index_of(kBases, settings_.basis);
-  if (combo("basis", &basis, kBasisNames, 4)) {
-    settings_.basis = kBases[basis];
-    changed = true;
-  }
+  changed = option_combo(SolveOption::Basis) || changed;
   bool auto_elements = settings_.elements == kAutoElements;
   if (ImGui::Checkbox("auto elements", &auto_elements)) {
     settings_.elements = auto_elements ? kAutoElements : 16;
@@ -294,26 +291,10 @@ void Viewer::draw_solve_panel(const Snapshot& snapshot) {
       changed = true;
     }
   }
-  int sampling = settings_.sampling == PositionSampling::Uniform ? 0 : 1;
-  if (combo("sampling", &sampling, kSamplingNames, 2)) {
-    settings_.sampling = sampling == 0 ? PositionSampling::Uniform : PositionSampling::Reconstructed;
-    changed = true;
-  }
-  int discontinuities = static_cast<int>(settings_.discontinuities);
-  if (combo("discontinuities", &discontinuities, kDiscontinuityNames, 4)) {
-    settings_.discontinuities = static_cast<DiscontinuityMode>(discontinuities);
-    changed = true;
-  }
-  int estimator = static_cast<int>(settings_.estimator);
-  if (combo("estimator", &estimator, kEstimatorNames, 4)) {
-    settings_.estimator = static_cast<Estimator>(estimator);
-    changed = true;
-  }
-  int transport = static_cast<int>(settings_.transport);
-  if (combo("transport", &transport, kTransportNames, 2)) {
-    settings_.transport = static_cast<Transport>(transport);
-    changed = true;
-  }
+  changed = option_combo(SolveOption::Sampling) || changed;
+  changed = option_combo(SolveOption::Discontinuities) || changed;
+  changed = option_combo(SolveOption::Estimator) || changed;
+  changed = option_combo(SolveOption::Transport) || changed;
   if (ImGui::IsItemHovered())
     ImGui::SetTooltip("shooting: rounds of one hop each (the paper's method)\n"
                       "walk: each photon a whole random walk, ended by Russian roulette");
@@ -325,16 +306,8 @@ void Viewer::draw_solve_panel(const Snapshot& snapshot) {
     changed = true;
   }
   if (settings_.ray_width > 0.0) {
-    int profile = static_cast<int>(settings_.ray_profile);
-    if (combo("ray profile", &profile, kProfileNames, 5)) {
-      settings_.ray_profile = static_cast<RayProfile>(profile);
-      changed = true;
-    }
-    int mode = settings_.ray_mode == RayMode::Footprint ? 0 : 1;
-    if (combo("ray mode", &mode, kModeNames, 2)) {
-      settings_.ray_mode = mode == 0 ? RayMode::Footprint : RayMode::Band;
-      changed = true;
-    }
+    changed = option_combo(SolveOption::RayProfile) || changed;
+    changed = option_combo(SolveOption::RayMode) || changed;
     if (settings_.ray_mode == RayMode::Band && ImGui::SliderInt("band rays", &settings_.band_rays, 1, 64))
       changed = true;
   }

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "flatland/base/status.hpp"
+#include "flatland/transport/options.hpp"
 #include "flatland/transport/solver.hpp"
 #include "viewer/session.hpp"
 
@@ -142,6 +143,8 @@ class Viewer {
   void track(const char* label);
   // ImGui::Combo with every item tracked as "label:item" for the UI tests.
   bool combo(const char* label, int* index, const char* const* names, int count);
+  // A combo of a solve option's names (options.hpp), labelled with its name; true when changed.
+  bool option_combo(SolveOption option);
   // `stage`: the part of the window the scene is drawn on (none: all of it).
   void render_scene(const Snapshot& snapshot, const ViewTransform& view, const PixelRect* stage = nullptr);
   // Records the current ImGui window's rectangle as panel `name` (call between Begin and End).

@@ -73,15 +73,6 @@ TEST(Discontinuity, ReflectorsAreSecondarySourcesOnRequest) {
   for (std::size_t i = 0; i < expected.size(); ++i) EXPECT_NEAR(found[i], expected[i], 1e-12);
 }
 
-TEST(Discontinuity, ModeNamesReadBack) {
-  for (DiscontinuityMode mode : {DiscontinuityMode::None, DiscontinuityMode::Scene, DiscontinuityMode::Auto,
-                                 DiscontinuityMode::Secondary})
-    EXPECT_EQ(discontinuity_mode_from_string(to_string(mode)), mode);
-  EXPECT_EQ(to_string(DiscontinuityMode::Secondary), std::string("secondary"));
-  EXPECT_FALSE(discontinuity_mode_from_string("Auto"));
-  EXPECT_FALSE(discontinuity_mode_from_string(""));
-}
-
 TEST(Discontinuity, HiddenVerticesMakeNoEvents) {
   // A wall between the lamp and the occluder's left end hides it from the lamp's right end only.
   const Scene scene = testing::scene_from_text(R"({

@@ -75,8 +75,14 @@ def test_bad_scenes_and_options_raise_the_command_lines_message(tmp_path):
     with pytest.raises(ValueError, match="photons"):
         flatland.solve(scene, photons=2.5)
     assert flatland.solve(scene, photons=1e4).stats["photons"] <= 10_000  # 1e4 reads as --photons 1e4 does
-    with pytest.raises(ValueError, match="--tolerance"):
+    # The keyword's own name, never a command-line flag the user did not type.
+    with pytest.raises(ValueError, match="^tolerance: ") as error:
         flatland.solve(scene, tolerance=2.0)
+    assert "--" not in str(error.value)
+    with pytest.raises(ValueError, match="^ray_width: "):
+        flatland.solve(scene, ray_width=-1.0)
+    with pytest.raises(TypeError, match="did you mean 'ray_width'"):
+        flatland.solve(scene, ray_widht=0.1)
     with pytest.raises(ValueError, match="no curve 'floor'"):
         flatland.solve(scene, photons=1000).B("floor", np.array([0.0]))
     with pytest.raises(ValueError):
@@ -175,7 +181,7 @@ def test_converge_gives_the_rows_of_the_command_line(tmp_path):
                 assert f"{value:.9g}" == text or float(text) == value, key
             else:
                 assert str(value) == text, key
-    with pytest.raises(ValueError, match="--methods: 'cubic:x'"):
+    with pytest.raises(ValueError, match="^methods: 'cubic:x'"):
         flatland.converge(flatland.Scene.load("scenes2d/penumbra.json"), methods=["cubic:x"], budgets=[1e4])
     # A solve as the reference, at the runs' own samples; a reference sampled otherwise is refused
     # before any run.

@@ -150,19 +150,6 @@ void expect_close(const std::vector<double>& got, const std::vector<double>& wan
     EXPECT_NEAR(got[k], want[k], tolerance) << what << " coefficient " << k;
 }
 
-TEST(Footprint, ProfileNamesRoundTrip) {
-  for (RayProfile profile : kProfiles) {
-    const Result<RayProfile> parsed = parse_ray_profile(to_string(profile));
-    ASSERT_TRUE(parsed.ok());
-    EXPECT_EQ(*parsed, profile);
-  }
-  EXPECT_STREQ(to_string(RayProfile::Epanechnikov), "epanechnikov");
-  const Result<RayProfile> typo = parse_ray_profile("tnet");
-  ASSERT_FALSE(typo.ok());
-  EXPECT_NE(typo.error().message.find("did you mean 'tent'?"), std::string::npos)
-      << typo.error().message;
-  EXPECT_NE(typo.error().message.find("box, tent, epanechnikov, cosine, gauss"), std::string::npos);
-}
 
 TEST(Footprint, ProfilesIntegrateToOneWithTheirMomentsAndCdf) {
   // Midpoint rule with 10^6 cells on [-1, 1]: the tent's kink at 0 is a cell boundary, so the

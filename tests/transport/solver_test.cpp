@@ -981,7 +981,7 @@ TEST(Solver, StorageBeyondTheMemoryLimitIsRefusedBeforeAllocating) {
   settings.memory_limit = 1 << 20;  // 1 MB
   Result<Solver> solver = Solver::create(scene, settings);
   ASSERT_FALSE(solver.ok());
-  EXPECT_NE(solver.error().message.find("--elements 65536"), std::string::npos) << solver.error().message;
+  EXPECT_NE(solver.error().message.find("elements: 65536"), std::string::npos) << solver.error().message;
   EXPECT_NE(solver.error().message.find("use fewer elements"), std::string::npos);
   settings.elements = 16;
   EXPECT_TRUE(Solver::create(scene, settings).ok());
@@ -1833,13 +1833,13 @@ TEST(Solver, WalksRefuseBandsAndNearlyPerfectReflectors) {
   settings.ray_mode = RayMode::Band;
   const Status band = validate(settings);
   ASSERT_FALSE(band.ok());
-  EXPECT_NE(band.error().message.find("--ray-mode footprint"), std::string::npos) << band.error().message;
+  EXPECT_NE(band.error().message.find("ray mode footprint"), std::string::npos) << band.error().message;
   settings.ray_width = 0.0;
   const Scene scene = testing::scene_from_text(testing::circle_enclosure(0.9999999, 1.0));
   Result<Solver> solver = Solver::create(scene, settings);
   ASSERT_FALSE(solver.ok());
   EXPECT_NE(solver.error().message.find("circle"), std::string::npos) << solver.error().message;
-  EXPECT_NE(solver.error().message.find("--transport shooting"), std::string::npos);
+  EXPECT_NE(solver.error().message.find("transport shooting"), std::string::npos);
   settings.transport = Transport::Shooting;
   EXPECT_TRUE(Solver::create(scene, settings).ok());
 }

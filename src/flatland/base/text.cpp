@@ -5,6 +5,7 @@
 #include <cerrno>
 #include <climits>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <limits>
 
@@ -51,6 +52,20 @@ std::optional<std::string> closest_match(std::string_view word,
     }
   }
   return best;
+}
+
+std::string format_number(double value, int significant) {
+  char text[40];
+  if (significant > 0) {
+    std::snprintf(text, sizeof text, "%.*g", significant, value);
+    return text;
+  }
+  // The fewest significant digits that read back exactly (17 always do).
+  for (int digits = 1; digits <= 17; ++digits) {
+    std::snprintf(text, sizeof text, "%.*g", digits, value);
+    if (std::strtod(text, nullptr) == value || !std::isfinite(value)) break;
+  }
+  return text;
 }
 
 TextPosition position_of(std::string_view text, std::size_t offset) {

@@ -33,6 +33,10 @@ TextPosition position_of(std::string_view text, std::size_t offset);
 // without saying where.
 std::optional<std::size_t> find_overflowing_number(std::string_view text);
 
+// A number as text: with `significant` digits (printf's %g), or, with 0, the shortest text that
+// reads back as the same double. Every message that shows a number writes it with this.
+std::string format_number(double value, int significant = 0);
+
 // A whole number that fits an int ("16", "-3"), or nullopt ("16x", "1e3", "99999999999", "").
 std::optional<int> whole_number(const std::string& text);
 

@@ -21,12 +21,6 @@ const char* to_string(DiscontinuityMode mode) {
   return "?";
 }
 
-std::optional<DiscontinuityMode> discontinuity_mode_from_string(std::string_view name) {
-  for (DiscontinuityMode mode : {DiscontinuityMode::None, DiscontinuityMode::Scene, DiscontinuityMode::Auto,
-                                 DiscontinuityMode::Secondary})
-    if (name == to_string(mode)) return mode;
-  return std::nullopt;
-}
 
 namespace {
 

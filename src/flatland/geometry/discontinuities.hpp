@@ -25,8 +25,6 @@ namespace flatland {
 // as a source (the kinks its reflected light makes past occluders).
 enum class DiscontinuityMode { None, Scene, Auto, Secondary };
 const char* to_string(DiscontinuityMode mode);
-// The mode named by to_string's name, or nothing.
-std::optional<DiscontinuityMode> discontinuity_mode_from_string(std::string_view name);
 
 struct DiscontinuityNode {
   std::uint32_t curve = 0;

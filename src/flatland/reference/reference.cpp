@@ -685,13 +685,13 @@ std::vector<std::vector<double>> element_boundaries(const Scene& scene, double m
 
 Status validate(const ReferenceSettings& settings) {
   if (!std::isfinite(settings.max_element_length) || settings.max_element_length < 0.0)
-    return Error{"--max-element-length: must be a finite length >= 0 (0: scene scale / 400)"};
+    return Error{"max element length: must be a finite length >= 0 (0: scene scale / 400)"};
   if (settings.quadrature < 1 || settings.quadrature > 64)
-    return Error{"--quadrature: must be between 1 and 64 points per element"};
+    return Error{"quadrature: must be between 1 and 64 points per element"};
   if (!std::isfinite(settings.tolerance) || settings.tolerance <= 0.0 || settings.tolerance >= 1.0)
-    return Error{"--tolerance: must be a number in (0, 1), e.g. 1e-12"};
-  if (settings.max_iterations < 1) return Error{"--max-iterations: must be at least 1"};
-  if (settings.threads > 1024) return Error{"--threads: at most 1024 (0 uses every core)"};
+    return Error{"tolerance: must be a number in (0, 1), e.g. 1e-12"};
+  if (settings.max_iterations < 1) return Error{"max iterations: must be at least 1"};
+  if (settings.threads > 1024) return Error{"threads: at most 1024 (0 uses every core)"};
   return ok_status();
 }
 

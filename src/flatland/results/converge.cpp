@@ -6,79 +6,41 @@
 #include <sstream>
 
 #include "flatland/transport/footprint.hpp"
+#include "flatland/transport/options.hpp"
 #include "flatland/base/text.hpp"
 
 namespace flatland {
 
 Result<ConvergeMethod> parse_converge_method(const std::string& text, const SolverSettings& defaults) {
   ConvergeMethod method{text, defaults};
+  const std::string where = "methods: '" + text + "': ";
+  // The keys a method may set: the solve's options but photons, seed and threads, which belong to
+  // the study.
+  std::vector<std::string> keys;
+  for (const SolveOptionSpec& spec : solve_options())
+    if (spec.per_method) keys.emplace_back(spec.flag);
+  std::vector<std::string> given;  // a key given twice would silently take its last value
   std::stringstream parts(text);
   std::string part;
-  std::vector<std::string> keys;  // given so far: a key given twice would silently take its last value
   while (std::getline(parts, part, '+')) {
     const auto equals = part.find('=');
     const std::string key = equals == std::string::npos ? "basis" : part.substr(0, equals);
     const std::string value = equals == std::string::npos ? part : part.substr(equals + 1);
-    SolverSettings& s = method.settings;
-    const std::string where = "--methods: '" + text + "': ";
-    if (std::find(keys.begin(), keys.end(), key) != keys.end())
-      return Error{where + key + " is given twice; give each key once"};
-    keys.push_back(key);
-    if (key == "basis") {
-      const std::optional<BasisKind> basis = basis_from_string(value);
-      if (!basis) return Error{where + "basis must be constant, linear, cubic or hermite"};
-      s.basis = *basis;
-    } else if (key == "sampling") {
-      const std::optional<PositionSampling> sampling = sampling_from_string(value);
-      if (!sampling) return Error{where + "sampling must be uniform or reconstructed"};
-      s.sampling = *sampling;
-    } else if (key == "discontinuities") {
-      const std::optional<DiscontinuityMode> mode = discontinuity_mode_from_string(value);
-      if (!mode) return Error{where + "discontinuities must be none, scene, auto or secondary"};
-      s.discontinuities = *mode;
-    } else if (key == "estimator") {
-      const std::optional<Estimator> estimator = estimator_from_string(value);
-      if (!estimator) return Error{where + "estimator must be lumped, galerkin, local or auto"};
-      s.estimator = *estimator;
-    } else if (key == "elements") {
-      const std::optional<int> count = elements_from_string(value, kMaxElements);
-      if (!count) return Error{where + "elements must be auto or a whole number from 1 to " + std::to_string(kMaxElements)};
-      s.elements = *count;
-    } else if (key == "ray-width") {
-      char* end = nullptr;
-      s.ray_width = std::strtod(value.c_str(), &end);
-      if (end == value.c_str() || *end != '\0') return Error{where + "ray-width must be a number"};
-    } else if (key == "ray-mode") {
-      const std::optional<RayMode> mode = ray_mode_from_string(value);
-      if (!mode) return Error{where + "ray-mode must be footprint or band"};
-      s.ray_mode = *mode;
-    } else if (key == "band-rays") {
-      const std::optional<int> count = whole_number(value);
-      if (!count) return Error{where + "band-rays must be a whole number"};
-      s.band_rays = *count;
-    } else if (key == "tolerance") {
-      char* end = nullptr;
-      s.tolerance = std::strtod(value.c_str(), &end);
-      if (end == value.c_str() || *end != '\0') return Error{where + "tolerance must be a number"};
-    } else if (key == "ray-profile") {
-      Result<RayProfile> profile = parse_ray_profile(value);
-      if (!profile) return Error{where + profile.error().message};
-      s.ray_profile = *profile;
-    } else if (key == "sampler") {
-      const std::optional<SamplerKind> sampler = sampler_from_string(value);
-      if (!sampler) return Error{where + "sampler must be random or sobol"};
-      s.sampler = *sampler;
-    } else if (key == "transport") {
-      const std::optional<Transport> transport = transport_from_string(value);
-      if (!transport) return Error{where + "transport must be shooting or walk"};
-      s.transport = *transport;
-    } else {
-      return Error{where + "unknown key '" + key +
-                   "'; keys: basis, sampling, discontinuities, estimator, elements, ray-width, "
-                   "ray-mode, ray-profile, band-rays, tolerance, sampler, transport"};
+    const std::optional<SolveOption> option = option_by_flag(key);
+    if (!option || !spec_of(*option).per_method) {
+      std::string message = where + "unknown key '" + key + "'";
+      if (const auto hint = closest_match(key, keys)) message += "; did you mean '" + *hint + "'?";
+      message += "; keys:";
+      for (const std::string& name : keys) message += " " + name;
+      return Error{message};
     }
+    if (std::find(given.begin(), given.end(), key) != given.end())
+      return Error{where + key + " is given twice; give each key once"};
+    given.push_back(key);
+    if (Status status = set_solve_option(method.settings, *option, value); !status)
+      return Error{where + status.error().message};
   }
-  if (Status status = validate(method.settings); !status) return Error{"--methods: '" + text + "': " + status.error().message};
+  if (Status status = validate(method.settings); !status) return Error{where + status.error().message};
   return method;
 }
 
@@ -92,8 +54,8 @@ Result<ConvergeRow> converge_run(const Scene& scene, const SolverSettings& setti
   Result<Comparison> comparison = compare_sampled(
       sample_radiosity(scene, samples, [&](std::uint32_t c, Side side, double u) { return solver->radiosity(c, side, u); }),
       reference, measure);
-  if (!comparison) return Error{"--reference: " + comparison.error().message};
-  if (curve && *curve >= comparison->curves.size()) return Error{"--curve: no such curve in the reference"};
+  if (!comparison) return Error{"reference: " + comparison.error().message};
+  if (curve && *curve >= comparison->curves.size()) return Error{"curve: no such curve in the reference"};
   const EnergyBooks books = solver->books();
   ConvergeRow row;
   row.seed = settings.seed;

@@ -23,7 +23,7 @@ struct ConvergeMethod {
 };
 
 // "cubic", or settings joined by '+': "basis=cubic+sampling=uniform+ray-width=0.05+...", keys
-// named as the solve command's options; the rest from `defaults`. Errors begin "--methods: 'TEXT': ".
+// named as the solve command's options; the rest from `defaults`. Errors begin "methods: 'TEXT': ".
 Result<ConvergeMethod> parse_converge_method(const std::string& text, const SolverSettings& defaults);
 
 struct ConvergeRow {

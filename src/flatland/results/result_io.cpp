@@ -224,8 +224,8 @@ Status check_result_size(const Scene& scene, int samples_per_curve) {
   const double per_sample = bytes / samples_per_curve;
   char message[400];
   std::snprintf(message, sizeof message,
-                "--samples %d: %zu curves would make a result of up to %s, more than %s, the most "
-                "flatland reads back (docs/limits.md); give at most --samples %.0f",
+                "samples: %d a curve on %zu curves would make a result of up to %s, more than %s, the most "
+                "flatland reads back (docs/limits.md); give at most %.0f",
                 samples_per_curve, scene.curves.size(), format_bytes(bytes).c_str(),
                 format_bytes(static_cast<double>(kMaxInputBytes)).c_str(),
                 std::max(1.0, std::floor(static_cast<double>(kMaxInputBytes) / per_sample)));

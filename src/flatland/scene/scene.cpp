@@ -3,6 +3,8 @@
 // validation (zero-length segments, interior cusps) that needs the scene's size for its tolerances.
 #include "flatland/scene/scene.hpp"
 
+#include "flatland/base/text.hpp"
+
 #include "flatland/base/quadrature.hpp"
 
 #include <algorithm>
@@ -26,18 +28,13 @@ constexpr double kMinExtent = 1e-100;
 // Two unit tangents within this angle (radians) make a tangent-continuous joint.
 constexpr double kTangentAngle = 1e-9;
 
-std::string format_number(double value) {
-  char buffer[32];
-  std::snprintf(buffer, sizeof buffer, "%.6g", value);
-  return buffer;
-}
 
 std::string point_text(Vec2 p) {
   // Appended piece by piece: GCC 12 warns falsely (-Wrestrict) about "(" + std::string.
   std::string text = "(";
-  text += format_number(p.x);
+  text += format_number(p.x, 6);
   text += ", ";
-  text += format_number(p.y);
+  text += format_number(p.y, 6);
   text += ")";
   return text;
 }
@@ -233,7 +230,7 @@ Status finalize_scene(Scene& scene) {
                                "give the curves distinct points");
   }
   if (size < kMinExtent) {
-    return fail("curves", "the scene is only " + format_number(size) +
+    return fail("curves", "the scene is only " + format_number(size, 6) +
                               " across; scale it up to at least 1e-100 (the unit is the metre)");
   }
   const double zero_length = kZeroLength * size;
@@ -270,9 +267,9 @@ Status finalize_scene(Scene& scene) {
         if (const auto cusp = find_cusp(shape, size)) {
           return fail(point_path(c, i, first_point),
                       "segment " + std::to_string(j) + " has a cusp at t = " +
-                          format_number(*cusp) + ", point " + point_text(evaluate(shape, *cusp)) +
+                          format_number(*cusp, 6) + ", point " + point_text(evaluate(shape, *cusp)) +
                           ", where the normal flips; split the curve at t = " +
-                          format_number(*cusp) + " into two curves or two segments");
+                          format_number(*cusp, 6) + " into two curves or two segments");
         }
       }
       SceneSegment segment;

@@ -45,11 +45,6 @@ constexpr std::size_t kMaxListedNames = 12;
 // ---------------------------------------------------------------------------------------------
 // Small text helpers
 
-std::string format_number(double value) {
-  char buffer[64];
-  const auto result = std::to_chars(buffer, buffer + sizeof buffer, value);  // shortest round trip
-  return std::string(buffer, result.ptr);
-}
 
 // A user's string quoted for a one-line message: JSON escapes (so a newline in a key cannot break
 // the line) and long strings cut short.

@@ -17,11 +17,6 @@ const char* to_string(BasisKind kind) {
   return "?";
 }
 
-std::optional<BasisKind> basis_from_string(std::string_view name) {
-  for (BasisKind kind : {BasisKind::Constant, BasisKind::Linear, BasisKind::Cubic, BasisKind::Hermite})
-    if (name == to_string(kind)) return kind;
-  return std::nullopt;
-}
 
 int SplineBasis::multiplicity(int degree, Continuity continuity) {
   // Multiplicity m at a knot leaves C^(degree - m) continuity: m = degree - c, clamped to what a

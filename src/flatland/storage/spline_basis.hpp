@@ -26,8 +26,6 @@ namespace flatland {
 enum class BasisKind { Constant, Linear, Cubic, Hermite };
 
 const char* to_string(BasisKind kind);
-// "constant", "linear", "cubic" or "hermite"; nullopt for anything else.
-std::optional<BasisKind> basis_from_string(std::string_view name);
 inline int degree_of(BasisKind kind) {
   return kind == BasisKind::Constant ? 0 : kind == BasisKind::Cubic ? 3 : 1;
 }

@@ -373,16 +373,6 @@ const char* to_string(RayProfile profile) {
   return index < kProfileNames.size() ? kProfileNames[index] : "?";
 }
 
-Result<RayProfile> parse_ray_profile(std::string_view name) {
-  for (std::size_t i = 0; i < kProfileNames.size(); ++i) {
-    if (name == kProfileNames[i]) return static_cast<RayProfile>(i);
-  }
-  const std::vector<std::string> names(kProfileNames.begin(), kProfileNames.end());
-  std::string message = "unknown ray profile '" + std::string(name) + "'";
-  if (const auto hint = closest_match(name, names)) message += "; did you mean '" + *hint + "'?";
-  message += " (accepted: box, tent, epanechnikov, cosine, gauss)";
-  return Error{message};
-}
 
 double profile_density(RayProfile profile, double x) {
   if (!(std::fabs(x) <= 1.0)) return 0.0;

@@ -30,11 +30,8 @@ namespace flatland {
 
 enum class RayProfile { Box, Tent, Epanechnikov, Cosine, Gauss };
 
-// "box", "tent", "epanechnikov", "cosine", "gauss".
+// "box", "tent", "epanechnikov", "cosine", "gauss" (options.hpp reads them).
 const char* to_string(RayProfile profile);
-// The inverse of to_string; an unknown name gives an error that lists the accepted names (and a
-// "did you mean" hint for a likely typo).
-Result<RayProfile> parse_ray_profile(std::string_view name);
 
 // Box, tent and Epanechnikov: polynomial on each side of the centre (FootprintTable serves them).
 inline bool is_polynomial(RayProfile profile) {

@@ -58,92 +58,6 @@ const char* to_string(StopReason reason) {
   return "?";
 }
 
-const char* to_string(RayMode mode) { return mode == RayMode::Footprint ? "footprint" : "band"; }
-
-const char* to_string(SamplerKind sampler) {
-  return sampler == SamplerKind::Random ? "random" : "sobol";
-}
-
-// The names of a two-valued setting, as its to_string writes them.
-template <typename Enum>
-std::optional<Enum> one_of(std::string_view name, Enum a, Enum b) {
-  if (name == to_string(a)) return a;
-  if (name == to_string(b)) return b;
-  return std::nullopt;
-}
-
-std::optional<SamplerKind> sampler_from_string(std::string_view name) {
-  return one_of(name, SamplerKind::Random, SamplerKind::Sobol);
-}
-
-std::optional<RayMode> ray_mode_from_string(std::string_view name) {
-  return one_of(name, RayMode::Footprint, RayMode::Band);
-}
-
-std::optional<PositionSampling> sampling_from_string(std::string_view name) {
-  return one_of(name, PositionSampling::Uniform, PositionSampling::Reconstructed);
-}
-
-const char* to_string(Estimator estimator) {
-  switch (estimator) {
-    case Estimator::Lumped: return "lumped";
-    case Estimator::Galerkin: return "galerkin";
-    case Estimator::Local: return "local";
-    case Estimator::Auto: return "auto";
-  }
-  return "?";
-}
-
-std::optional<Estimator> estimator_from_string(std::string_view name) {
-  for (Estimator e : {Estimator::Lumped, Estimator::Galerkin, Estimator::Local, Estimator::Auto})
-    if (name == to_string(e)) return e;
-  return std::nullopt;
-}
-
-Estimator resolve_estimator(Estimator estimator, BasisKind basis) {
-  if (estimator != Estimator::Auto) return estimator;
-  return basis == BasisKind::Hermite ? Estimator::Local : Estimator::Galerkin;
-}
-
-const char* to_string(Transport transport) {
-  return transport == Transport::Shooting ? "shooting" : "walk";
-}
-
-std::optional<Transport> transport_from_string(std::string_view name) {
-  return one_of(name, Transport::Shooting, Transport::Walk);
-}
-
-std::optional<int> elements_from_string(const std::string& text, int max) {
-  if (text == "auto") return kAutoElements;
-  const std::optional<int> value = whole_number(text);
-  if (!value || *value < 1 || *value > max) return std::nullopt;
-  return value;
-}
-
-const char* to_string(PositionSampling sampling) {
-  return sampling == PositionSampling::Uniform ? "uniform" : "reconstructed";
-}
-
-Status validate(const SolverSettings& settings) {
-  if (settings.photons < 1)
-    return Error{"--photons: must be at least 1"};
-  if (settings.photons > kMaxPhotons)
-    return Error{"--photons: at most 2^50 (about 1.1e15) photons per solve"};
-  if (settings.elements != kAutoElements && (settings.elements < 1 || settings.elements > kMaxElements))
-    return Error{"--elements: must be auto or between 1 and " + std::to_string(kMaxElements)};
-  if (!std::isfinite(settings.tolerance) || settings.tolerance <= 0.0 || settings.tolerance >= 1.0)
-    return Error{"--tolerance: must be a number in (0, 1), e.g. 1e-3"};
-  if (settings.threads > 1024) return Error{"--threads: at most 1024 (0 uses every core)"};
-  if (!std::isfinite(settings.ray_width) || settings.ray_width < 0.0)
-    return Error{"--ray-width: must be a finite width >= 0 in scene units (0: point rays)"};
-  if (settings.band_rays < 1 || settings.band_rays > 256)
-    return Error{"--band-rays: must be between 1 and 256"};
-  if (settings.transport == Transport::Walk && settings.ray_width > 0.0 && settings.ray_mode == RayMode::Band)
-    return Error{"--transport walk: a band's sub-rays have no single point to bounce from; use "
-                 "--ray-mode footprint (or --transport shooting)"};
-  return ok_status();
-}
-
 namespace {
 
 // The storage's memory, estimated from above before anything is allocated. Per coefficient and
@@ -165,7 +79,7 @@ Status check_memory(const Scene& scene, const SolverSettings& settings, unsigned
   if (bytes <= static_cast<double>(limit)) return ok_status();
   char message[320];
   std::snprintf(message, sizeof message,
-                "--elements %d: %zu curves would need about %.3g storage coefficients and %s of "
+                "elements: %d a curve on %zu curves would need about %.3g storage coefficients and %s of "
                 "memory, more than the limit of %s; use fewer elements per curve",
                 settings.elements, scene.curves.size(), coefficients, format_bytes(bytes).c_str(),
                 format_bytes(static_cast<double>(limit)).c_str());
@@ -193,7 +107,7 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
   if (settings.ray_width > scene.scale) {
     char message[240];
     std::snprintf(message, sizeof message,
-                  "--ray-width: %g is wider than the scene itself (its bounding box's diagonal is %g); give "
+                  "ray width: %g is wider than the scene itself (its bounding box's diagonal is %g); give "
                   "a width well below it, such as %.2g (1 %%)",
                   settings.ray_width, scene.scale, 0.01 * scene.scale);
     return Error{message};
@@ -362,8 +276,7 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
       char message[320];
       std::snprintf(message, sizeof message,
                     "%s: curve '%s' reflects %.9g: a random walk would average %.3g rays; "
-                    "--transport walk needs every reflectivity at most %g (use --transport "
-                    "shooting)",
+                    "walks need every reflectivity at most %g (use transport shooting)",
                     scene.source.c_str(), brightest->id.c_str(), most, 1.0 / (1.0 - most),
                     kWalkMaxReflectivity);
       return Error{message};

@@ -1,0 +1,63 @@
+#include "flatland/transport/settings.hpp"
+
+#include <cmath>
+
+#include "flatland/base/text.hpp"
+
+namespace flatland {
+
+const char* to_string(RayMode mode) { return mode == RayMode::Footprint ? "footprint" : "band"; }
+
+const char* to_string(SamplerKind sampler) {
+  return sampler == SamplerKind::Random ? "random" : "sobol";
+}
+
+
+
+
+
+const char* to_string(Estimator estimator) {
+  switch (estimator) {
+    case Estimator::Lumped: return "lumped";
+    case Estimator::Galerkin: return "galerkin";
+    case Estimator::Local: return "local";
+    case Estimator::Auto: return "auto";
+  }
+  return "?";
+}
+
+
+Estimator resolve_estimator(Estimator estimator, BasisKind basis) {
+  if (estimator != Estimator::Auto) return estimator;
+  return basis == BasisKind::Hermite ? Estimator::Local : Estimator::Galerkin;
+}
+
+const char* to_string(Transport transport) {
+  return transport == Transport::Shooting ? "shooting" : "walk";
+}
+
+
+
+const char* to_string(PositionSampling sampling) {
+  return sampling == PositionSampling::Uniform ? "uniform" : "reconstructed";
+}
+
+Status validate(const SolverSettings& settings) {
+  // The options' names as options.hpp gives them; each front end spells them its own way.
+  if (settings.photons < 1) return Error{"photons: must be at least 1"};
+  if (settings.photons > kMaxPhotons) return Error{"photons: at most 2^50 (about 1.1e15) photons per solve"};
+  if (settings.elements != kAutoElements && (settings.elements < 1 || settings.elements > kMaxElements))
+    return Error{"elements: must be auto or between 1 and " + std::to_string(kMaxElements)};
+  if (!std::isfinite(settings.tolerance) || settings.tolerance <= 0.0 || settings.tolerance >= 1.0)
+    return Error{"tolerance: must be a number in (0, 1), e.g. 1e-3"};
+  if (settings.threads > 1024) return Error{"threads: at most 1024 (0 uses every core)"};
+  if (!std::isfinite(settings.ray_width) || settings.ray_width < 0.0)
+    return Error{"ray width: must be a finite width >= 0 in scene units (0: point rays)"};
+  if (settings.band_rays < 1 || settings.band_rays > 256) return Error{"band rays: must be between 1 and 256"};
+  if (settings.transport == Transport::Walk && settings.ray_width > 0.0 && settings.ray_mode == RayMode::Band)
+    return Error{"transport: a walk goes on from where its photon lands, and a band's sub-rays land in many "
+                 "places; use ray mode footprint with walks (or transport shooting with bands)"};
+  return ok_status();
+}
+
+}  // namespace flatland

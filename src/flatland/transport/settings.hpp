@@ -1,0 +1,122 @@
+// The settings of a solve: what is stored where, how photons start and travel, how many, and
+// the limits each setting must keep (checked by validate). options.hpp names them for the front
+// ends.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <string_view>
+
+#include "flatland/base/status.hpp"
+#include "flatland/geometry/discontinuities.hpp"
+#include "flatland/storage/spline_basis.hpp"
+#include "flatland/transport/footprint.hpp"
+
+namespace flatland {
+
+// Where on a source photons start: uniformly in arc length (the constant radiosity assumption),
+// or with density proportional to the reconstructed unshot radiosity (the paper's section 3.4).
+enum class PositionSampling { Uniform, Reconstructed };
+const char* to_string(PositionSampling sampling);
+
+// How coefficients are estimated from deposits (basis.hpp): lumped (b_k = p_k / integral(phi_k ds),
+// the paper's distance-weighted deposit: positive, but it puts each coefficient at its function's
+// centroid, a bias of O(h^2) inside and O(h) at ends and discontinuity nodes), Galerkin (the L2
+// projection M b = p) or local (a least-variance local quasi-interpolant; Hermite: nodal values).
+// Galerkin and local have bias O(h^(p+1)) up to ends and nodes and may dip below zero; the density
+// that photon origins are drawn from is clamped at zero with its power kept. Auto (the default)
+// is local for Hermite storage, whose interpolation wants nodal values (1.4-2x less error than
+// Galerkin's hat projections on the five time-to-accuracy scenes, docs/method.md), and Galerkin
+// for the B-splines (better than local on four of those five).
+enum class Estimator { Lumped, Galerkin, Local, Auto };
+const char* to_string(Estimator estimator);
+// The estimator a solve with this storage uses: `estimator` itself unless it is Auto.
+Estimator resolve_estimator(Estimator estimator, BasisKind basis);
+
+enum class RayMode { Footprint, Band };
+const char* to_string(RayMode mode);
+
+// Where a photon's uniforms come from: independent pseudo-random numbers, or randomised
+// quasi-Monte Carlo (an Owen-scrambled Sobol' point per photon, indexed by its number in the
+// round; qmc.hpp and docs/method.md).
+enum class SamplerKind { Random, Sobol };
+const char* to_string(SamplerKind sampler);
+
+// How light gets from the emitters to its last bounce (docs/method.md, Transport):
+// - Shooting: progressive rounds, each shooting the power the previous round reflected, one hop
+//   per photon (the paper's method).
+// - Walk: every photon is a random walk from an emitter that, at each hit, tallies the power it
+//   carries as received there and goes on with probability max rho (Russian roulette) in a new
+//   diffuse direction, its channels weighted by rho / max rho: the collision estimator. The same
+//   storage and estimators turn its tallies into B = E + rho x received; a walk costs about
+//   1 / (1 - rho) rays, and its whole journey can be shown.
+enum class Transport { Shooting, Walk };
+const char* to_string(Transport transport);
+// Walks are refused where a side reflects more than this: a walk would average over 1000 rays,
+// and a batch of 4096 walks (the unit between checks for a cancel) several seconds.
+inline constexpr double kWalkMaxReflectivity = 0.999;
+
+// SolverSettings::elements for storage that follows the photons (`--elements auto`): deposits
+// land on a fine dyadic mesh, every coarser level's deposits follow exactly (the meshes nest), and
+// after every round each curve takes the level with the least estimated error, bias (from the
+// differences between levels) squared plus variance (from two independent halves of the photons).
+// Hermite storage deposits on hats, which nest like any spline space: each level's Hermite curve
+// is built on that level's nodes, and the level is chosen by those curves' error.
+inline constexpr int kAutoElements = 0;
+// The most storage elements a curve may be given, and the most photons one solve may shoot.
+inline constexpr int kMaxElements = 1 << 16;
+inline constexpr std::uint64_t kMaxPhotons = std::uint64_t{1} << 50;
+// The most seeds a convergence study runs per method and budget.
+inline constexpr int kMaxSeeds = 1000;
+// Auto storage's levels: the coarsest has about kAutoBaseElements elements per curve (and at
+// least one per segment), each next level halves every element, and the finest stops where a
+// reflecting curve's equal share of the photon budget would put fewer than kAutoPhotonsPerElement
+// photons on an element, or at kAutoMaxLevels levels.
+inline constexpr int kAutoBaseElements = 4;
+inline constexpr int kAutoMaxLevels = 11;
+inline constexpr double kAutoPhotonsPerElement = 2048.0;
+// ... but a small budget may go finer: up to kAutoSmallBudgetElements per curve while every
+// element still gets kAutoSmallBudgetPhotonsPerElement photons. With 2048 photons an element alone,
+// 1e4-3e5 photons left the curved room 4-32 elements a curve, and the level choice, wanting finer,
+// could only take the finest (linear 9 % and Hermite 14 % at 1e5 photons, against 1.4 % and 2 %).
+inline constexpr double kAutoSmallBudgetPhotonsPerElement = 128.0;
+inline constexpr double kAutoSmallBudgetElements = 128.0;
+// With footprint rays, auto storage refines a curve only while its longest element is at least
+// this fraction of the ray's width: the footprint's spread smooths every deposit on that scale (its
+// bias is O(width^2)), so finer elements would resolve nothing but cost time on every hit.
+inline constexpr double kFootprintFinestElement = 0.25;
+
+struct SolverSettings {
+  std::uint64_t photons = 1'000'000;  // total budget over all rounds
+  std::uint64_t seed = 1;
+  unsigned threads = 0;  // 0: all hardware threads
+  BasisKind basis = BasisKind::Cubic;
+  // Storage elements per curve (about; at least one per segment), or kAutoElements: each curve's
+  // mesh chosen after every round from nested levels by the photons that landed there.
+  int elements = kAutoElements;
+  double tolerance = 1e-3;  // stop when unshot power < tolerance x emitted power
+  PositionSampling sampling = PositionSampling::Reconstructed;
+  DiscontinuityMode discontinuities = DiscontinuityMode::Auto;
+  Estimator estimator = Estimator::Auto;  // Solver::settings() holds it resolved
+  // Extended rays: width in scene units (0: point rays), energy profile across the width, and
+  // how the width is realised: a footprint spread along the receiver around the centre ray's
+  // hit, or a band of `band_rays` parallel sub-rays each traced on its own.
+  double ray_width = 0.0;
+  RayProfile ray_profile = RayProfile::Box;
+  RayMode ray_mode = RayMode::Footprint;
+  int band_rays = 8;
+  SamplerKind sampler = SamplerKind::Sobol;
+  // With Transport::Walk, `photons` counts walks; `tolerance` is not used (a walk ends by itself),
+  // and rays must be points or footprints (a band's sub-rays have no single place to go on from).
+  Transport transport = Transport::Shooting;
+  // Memory the solver's storage may take (0: default_memory_budget(), three quarters of the
+  // machine's); settings that would need more are refused by Solver::create before allocating.
+  std::size_t memory_limit = 0;
+};
+
+// Checks ranges; the message names the setting and the accepted range.
+Status validate(const SolverSettings& settings);
+
+}  // namespace flatland
