@@ -1,5 +1,6 @@
 #include "flatland/geometry/accelerator.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <numbers>
@@ -333,6 +334,36 @@ TEST(Bvh, DegenerateLayouts) {
     }
     expect_same(accelerator.closest_hit(ray, RayOrigin{}),
                 accelerator.closest_hit_brute_force(ray, RayOrigin{}), i);
+  }
+}
+
+}  // namespace
+}  // namespace flatland
+
+namespace flatland {
+namespace {
+
+// The tree's second query: the segments whose boxes meet a box are exactly those a scan finds,
+// with and without the hierarchy (8 segments or fewer are scanned).
+TEST(Accelerator, OverlapQueryFindsWhatAScanFinds) {
+  std::mt19937_64 rng(17);
+  std::uniform_real_distribution<double> u(-1.2, 1.2);
+  for (const int count : {5, 300}) {
+    const std::vector<SegmentGeometry> segments = random_scene(rng, count);
+    const SegmentAccelerator accelerator(segments);
+    EXPECT_EQ(accelerator.uses_hierarchy(), count > 8);
+    for (int trial = 0; trial < 200; ++trial) {
+      Box box;
+      box.extend(Vec2{u(rng), u(rng)});
+      box = box.padded(0.3 * std::abs(u(rng)));
+      std::vector<std::uint32_t> found;
+      accelerator.for_each_overlapping(box, [&](std::uint32_t i) { found.push_back(i); });
+      std::sort(found.begin(), found.end());
+      std::vector<std::uint32_t> scanned;
+      for (std::uint32_t i = 0; i < segments.size(); ++i)
+        if (segment_box(segments[i]).overlaps(box)) scanned.push_back(i);
+      EXPECT_EQ(found, scanned) << "trial " << trial;
+    }
   }
 }
 

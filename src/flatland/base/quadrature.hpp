@@ -1,8 +1,10 @@
-// Gauss-Legendre rules on [-1, 1], shared by every integral of the core. An n-point rule
-// integrates polynomials of degree 2n - 1 exactly.
+// Gauss-Legendre rules, the one source of every quadrature in the core: the fixed 3-, 4- and
+// 8-point rules on [-1, 1], and a rule of any number of points on [0, 1] (the reference's form
+// factors). An n-point rule integrates polynomials of degree 2n - 1 exactly.
 #pragma once
 
 #include <array>
+#include <vector>
 
 namespace flatland::gauss {
 
@@ -20,5 +22,10 @@ inline constexpr std::array<double, 8> kNodes8 = {
 inline constexpr std::array<double, 8> kWeights8 = {
     0.1012285362903762591, 0.2223810344533744706, 0.3137066458778872873, 0.3626837833783619830,
     0.3626837833783619830, 0.3137066458778872873, 0.2223810344533744706, 0.1012285362903762591};
+
+// The n-point rule on [0, 1] (weights summing to 1, nodes increasing): Newton's method on the
+// Legendre polynomial P_n from the Chebyshev-like first guesses cos(pi (k + 3/4) / (n + 1/2)),
+// with P_n and P_n' by the three-term recurrence. Accurate to rounding for n <= 64.
+void legendre_unit_rule(int n, std::vector<double>& nodes, std::vector<double>& weights);
 
 }  // namespace flatland::gauss

@@ -51,6 +51,12 @@ struct Box {
   Vec2 extent() const { return upper - lower; }
   // hypot, not sqrt(x^2 + y^2): a scene 1e-300 across has a diagonal, not 0.
   double diagonal() const { return empty() ? 0.0 : std::hypot(upper.x - lower.x, upper.y - lower.y); }
+  // The box grown by `pad` on every side.
+  Box padded(double pad) const { return Box{lower - Vec2{pad, pad}, upper + Vec2{pad, pad}}; }
+  // Whether the two closed boxes share a point.
+  bool overlaps(const Box& b) const {
+    return lower.x <= b.upper.x && b.lower.x <= upper.x && lower.y <= b.upper.y && b.lower.y <= upper.y;
+  }
 };
 
 }  // namespace flatland

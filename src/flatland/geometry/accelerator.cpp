@@ -128,14 +128,15 @@ SegmentAccelerator::SegmentAccelerator(std::vector<SegmentGeometry> segments)
     : segments_(std::move(segments)) {
   has_cubics_ = std::any_of(segments_.begin(), segments_.end(),
                             [](const SegmentGeometry& g) { return g.kind == SegmentKind::Cubic; });
+  boxes_.reserve(segments_.size());
+  for (const SegmentGeometry& segment : segments_) boxes_.push_back(segment_box(segment));
   if (segments_.size() <= kLinearScanLimit) return;
 
   const auto n = static_cast<std::uint32_t>(segments_.size());
-  std::vector<Box> boxes(n);
+  std::vector<Box> boxes = boxes_;
   std::vector<Vec2> centers(n);
   Box scene;
   for (std::uint32_t i = 0; i < n; ++i) {
-    boxes[i] = segment_box(segments_[i]);
     centers[i] = boxes[i].center();
     scene.extend(boxes[i]);
   }

@@ -25,6 +25,32 @@ class SegmentAccelerator {
   // The same answer by testing every segment; for tests and tiny scenes.
   SceneHit closest_hit_brute_force(const Ray& ray, const RayOrigin& from) const;
 
+  // Calls visit(i) for every segment i whose box (segment_box) overlaps `box`, in no particular
+  // order: the tree's second query, "which segments are near here" (contacts).
+  template <class Visit>
+  void for_each_overlapping(const Box& box, const Visit& visit) const {
+    if (nodes_.empty()) {
+      for (std::uint32_t i = 0; i < boxes_.size(); ++i)
+        if (boxes_[i].overlaps(box)) visit(i);
+      return;
+    }
+    std::uint32_t stack[128];  // the build's depth stays below 64
+    int top = 0;
+    stack[top++] = 0;
+    while (top > 0) {
+      const std::uint32_t index = stack[--top];
+      const Node& node = nodes_[index];
+      if (!node.bounds.overlaps(box)) continue;
+      if (node.count > 0) {
+        for (std::uint32_t k = node.second_child_or_first; k < node.second_child_or_first + node.count; ++k)
+          if (boxes_[order_[k]].overlaps(box)) visit(order_[k]);
+      } else {
+        stack[top++] = index + 1;
+        stack[top++] = node.second_child_or_first;
+      }
+    }
+  }
+
   std::span<const SegmentGeometry> segments() const { return segments_; }
   bool uses_hierarchy() const { return !nodes_.empty(); }
   bool has_cubics() const { return has_cubics_; }
@@ -60,6 +86,7 @@ class SegmentAccelerator {
   double wide_reach_ = 0.0;  // rays from farther than this from the centre use the binary tree
 
   std::vector<SegmentGeometry> segments_;  // in the caller's order (indices of SceneHit)
+  std::vector<Box> boxes_;                 // segment_box of each, in the same order
   std::vector<std::uint32_t> order_;       // leaf order -> index into segments_
   std::vector<SegmentGeometry> ordered_;   // segments_[order_[i]], so leaves read memory linearly
   std::vector<Node> nodes_;

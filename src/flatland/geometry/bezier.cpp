@@ -1,6 +1,9 @@
 // Cubic Bezier segments: evaluation, derivatives, subdivision, bounds, arc length and its inverse.
 #include "flatland/geometry/bezier.hpp"
 
+#include "flatland/base/quadrature.hpp"
+#include "flatland/base/roots.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -53,23 +56,18 @@ int quadratic_roots_in_unit_interval(double a, double b, double c, double roots[
   return n;
 }
 
-// 8-point Gauss-Legendre rule on [-1,1]: nodes +-x_i with weights w_i; exact for degree 15.
-constexpr double kGaussNodes[4] = {0.1834346424956498049394761, 0.5255324099163289858177390,
-                                   0.7966664774136267395915539, 0.9602898564975362316835609};
-constexpr double kGaussWeights[4] = {0.3626837833783619829651504, 0.3137066458778872873379622,
-                                     0.2223810344533744705443560, 0.1012285362903762591525314};
-
 // |C'(t)|: the integrand of every arc length.
 double speed(const Cubic& c, double t) { return length(derivative(c, t)); }
 
-// Integral of |C'| over [a,b] by the 8-point rule.
+// Integral of |C'| over [a,b] by the 8-point Gauss-Legendre rule (exact for degree 15), its
+// symmetric nodes +-x_i taken in pairs.
 double gauss_length(const Cubic& c, double a, double b) {
   const double half = 0.5 * (b - a);
   const double mid = 0.5 * (a + b);
   double sum = 0.0;
-  for (int i = 0; i < 4; ++i) {
-    const double dx = half * kGaussNodes[i];
-    sum += kGaussWeights[i] * (speed(c, mid - dx) + speed(c, mid + dx));
+  for (std::size_t i = 4; i < 8; ++i) {
+    const double dx = half * gauss::kNodes8[i];
+    sum += gauss::kWeights8[i] * (speed(c, mid - dx) + speed(c, mid + dx));
   }
   return half * sum;
 }
@@ -345,23 +343,14 @@ double ArcLengthTable::parameter_at(const Cubic& c, double s) const {
     const double guess = lo + h * (x + m0 * x * (1.0 - x) * (1.0 - x) - m1 * x * x * (1.0 - x));
     if (guess > lo && guess < hi) t = guess;
   }
-  const double tolerance = 1e-15 * total;
-  for (int iteration = 0; iteration < 100; ++iteration) {
-    const double residual = length_from_knot(c, k, t) - target;
-    if (std::abs(residual) <= tolerance) return t;
-    if (residual < 0.0) {
-      lo = t;
-    } else {
-      hi = t;
-    }
-    const double v = speed(c, t);
-    double next = v > 0.0 ? t - residual / v : lo - 1.0;
-    if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);
-    if (next == t || !(hi > lo)) return next;
-    if (hi - lo <= 4.0 * std::numeric_limits<double>::epsilon() * hi) return 0.5 * (lo + hi);
-    t = next;
-  }
-  return t;
+  return newton_bisection([&](double at) { return length_from_knot(c, k, at) - target; },
+                          [&](double at) { return speed(c, at); }, t, lo, hi, 100, 1e-15 * total,
+                          [](double at, double next, double low, double high) -> std::optional<double> {
+                            if (next == at || !(high > low)) return next;
+                            if (high - low <= 4.0 * std::numeric_limits<double>::epsilon() * high)
+                              return 0.5 * (low + high);
+                            return std::nullopt;
+                          });
 }
 
 CubicPoint closest_point_on_cubic(const Cubic& c, Vec2 p) {

@@ -3,6 +3,8 @@
 // for visibility.
 #include "flatland/geometry/discontinuities.hpp"
 
+#include "flatland/base/roots.hpp"
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -79,18 +81,14 @@ int sign_changes(const double* c, int n) {
 // signs `rising` decide which half to keep when f rounds to the wrong sign at an end).
 template <class F>
 double bisect(const F& f, double lo, double hi, bool rising) {
-  for (int iteration = 0; iteration < 200; ++iteration) {
-    const double middle = 0.5 * (lo + hi);
-    if (!(middle > lo && middle < hi)) break;
-    const double value = f(middle);
-    if (value == 0.0) return middle;
-    if ((value < 0.0) == rising) {
-      lo = middle;
-    } else {
-      hi = middle;
-    }
-  }
-  return 0.5 * (lo + hi);
+  // Newton-bisection without a slope is bisection: each point the bracket's middle, until the
+  // middle is no longer strictly inside (the bracket is two adjacent doubles).
+  return newton_bisection([&](double x) { return rising ? f(x) : -f(x); }, [](double) { return 0.0; },
+                          0.5 * (lo + hi), lo, hi, 200, 0.0,
+                          [](double, double next, double low, double high) -> std::optional<double> {
+                            if (!(next > low && next < high)) return 0.5 * (low + high);
+                            return std::nullopt;
+                          });
 }
 
 // The simple (sign-changing) roots of f inside (lo, hi), where f has Bernstein coefficients c[0..n]
@@ -126,17 +124,6 @@ void isolate_roots(const double* c, int n, double lo, double hi, double noise, c
 // ---------------------------------------------------------------------------------------------
 // Small geometry.
 
-Box padded(Box box, double pad) {
-  box.lower = box.lower - Vec2{pad, pad};
-  box.upper = box.upper + Vec2{pad, pad};
-  return box;
-}
-
-bool overlap(const Box& a, const Box& b) {
-  return a.lower.x <= b.upper.x && b.lower.x <= a.upper.x && a.lower.y <= b.upper.y &&
-         b.lower.y <= a.upper.y;
-}
-
 // Whether the segment is straight for the purpose of tangent points: a line, or a cubic whose inner
 // control points lie within kStraight * scale of the chord (then the whole curve does).
 bool is_straight(const SegmentGeometry& g, double scale) {
@@ -168,77 +155,6 @@ std::pair<double, double> closest_parameter(const SegmentGeometry& g, Vec2 p) {
   return {nearest.t, nearest.distance};
 }
 
-// ---------------------------------------------------------------------------------------------
-// A static tree over boxes, for "which segments are near this box" (contacts).
-
-class BoxTree {
- public:
-  explicit BoxTree(std::vector<Box> boxes) : boxes_(std::move(boxes)) {
-    order_.resize(boxes_.size());
-    for (std::uint32_t i = 0; i < order_.size(); ++i) order_[i] = i;
-    if (!boxes_.empty()) build(0, static_cast<std::uint32_t>(boxes_.size()));
-  }
-
-  // Calls visit(i) for every box i overlapping `box`.
-  template <class F>
-  void query(const Box& box, const F& visit) const {
-    if (nodes_.empty()) return;
-    std::uint32_t stack[128];
-    int top = 0;
-    stack[top++] = 0;
-    while (top > 0) {
-      const Node& node = nodes_[stack[--top]];
-      if (!overlap(node.bounds, box)) continue;
-      if (node.count > 0) {
-        for (std::uint32_t k = node.first; k < node.first + node.count; ++k)
-          if (overlap(boxes_[order_[k]], box)) visit(order_[k]);
-      } else {
-        stack[top++] = node.first;
-        stack[top++] = node.second;
-      }
-    }
-  }
-
- private:
-  struct Node {
-    Box bounds;
-    std::uint32_t first = 0;   // leaf: first index into order_; interior: first child
-    std::uint32_t count = 0;   // 0 for interior nodes
-    std::uint32_t second = 0;  // interior: second child
-  };
-
-  // Median split along the longer axis of the box centres; depth stays about log2(n).
-  std::uint32_t build(std::uint32_t first, std::uint32_t count) {
-    const auto index = static_cast<std::uint32_t>(nodes_.size());
-    nodes_.push_back({});
-    Box bounds;
-    Box centres;
-    for (std::uint32_t k = first; k < first + count; ++k) {
-      bounds.extend(boxes_[order_[k]]);
-      centres.extend(boxes_[order_[k]].center());
-    }
-    if (count <= 4) {
-      nodes_[index] = Node{bounds, first, count, 0};
-      return index;
-    }
-    const bool along_x = centres.extent().x >= centres.extent().y;
-    const std::uint32_t half = count / 2;
-    std::nth_element(order_.begin() + first, order_.begin() + first + half, order_.begin() + first + count,
-                     [&](std::uint32_t a, std::uint32_t b) {
-                       const Vec2 ca = boxes_[a].center();
-                       const Vec2 cb = boxes_[b].center();
-                       return along_x ? ca.x < cb.x : ca.y < cb.y;
-                     });
-    const std::uint32_t a = build(first, half);
-    const std::uint32_t b = build(first + half, count - half);
-    nodes_[index] = Node{bounds, a, 0, b};
-    return index;
-  }
-
-  std::vector<Box> boxes_;
-  std::vector<std::uint32_t> order_;
-  std::vector<Node> nodes_;
-};
 
 // ---------------------------------------------------------------------------------------------
 // Vertices: end points of open curves and corners (the closing point of a closed curve only if it
@@ -890,7 +806,7 @@ void segment_crossings(const SegmentGeometry& a, const SegmentGeometry& b, doubl
   while (!stack.empty() && budget-- > 0) {
     const Pair pair = stack.back();
     stack.pop_back();
-    if (!overlap(padded(hull_bounds(pair.a), pad), hull_bounds(pair.b))) continue;
+    if (!hull_bounds(pair.a).padded(pad).overlaps(hull_bounds(pair.b))) continue;
     const double wt = pair.t1 - pair.t0;
     const double wu = pair.u1 - pair.u0;
     if (wt <= 1.0 / 16 && wu <= 1.0 / 16) {
@@ -1011,10 +927,12 @@ std::vector<DiscontinuityNode> find_visibility_events(const Scene& scene,
 
 std::vector<DiscontinuityNode> find_contacts(const Scene& scene) {
   const double touch = kTouch * scene.scale;
-  std::vector<Box> boxes;
-  boxes.reserve(scene.segments.size());
-  for (const SceneSegment& segment : scene.segments) boxes.push_back(padded(segment_box(segment.geometry), touch));
-  const BoxTree tree(boxes);
+  // The segments near a place: those whose box comes within `touch` of it (the caster's tree
+  // answers that as well as rays).
+  std::vector<SegmentGeometry> geometry;
+  geometry.reserve(scene.segments.size());
+  for (const SceneSegment& segment : scene.segments) geometry.push_back(segment.geometry);
+  const SegmentAccelerator tree(std::move(geometry));
   std::vector<DiscontinuityNode> nodes;
   auto add = [&](std::uint32_t c, double u) {
     const Curve& curve = scene.curves[c];
@@ -1030,7 +948,7 @@ std::vector<DiscontinuityNode> find_contacts(const Scene& scene) {
   // Vertices on other curves, or on segments of their own curve that do not end there.
   for (std::uint32_t c = 0; c < scene.curves.size(); ++c) {
     for (const Vertex& v : vertices_of(scene, c)) {
-      tree.query(point_box(v.position), [&](std::uint32_t s) {
+      tree.for_each_overlapping(point_box(v.position).padded(touch), [&](std::uint32_t s) {
         const SceneSegment& segment = scene.segments[s];
         if (segment.curve == c && (s == v.before || s == v.after)) return;
         const auto [t, distance] = closest_parameter(segment.geometry, v.position);
@@ -1049,7 +967,7 @@ std::vector<DiscontinuityNode> find_contacts(const Scene& scene) {
       const std::uint32_t before = curve.first_segment + j;
       const std::uint32_t after = j + 1 == curve.segment_count ? curve.first_segment : before + 1;
       const Vec2 joint = scene.segments[after].geometry.shape.p[0];
-      tree.query(point_box(joint), [&](std::uint32_t s) {
+      tree.for_each_overlapping(point_box(joint).padded(touch), [&](std::uint32_t s) {
         const SceneSegment& segment = scene.segments[s];
         if (segment.curve == c && (s == before || s == after)) return;
         const auto [t, distance] = closest_parameter(segment.geometry, joint);
@@ -1070,7 +988,7 @@ std::vector<DiscontinuityNode> find_contacts(const Scene& scene) {
   std::vector<std::pair<double, double>> crossings;
   for (std::uint32_t i = 0; i < scene.segments.size(); ++i) {
     const SceneSegment& a = scene.segments[i];
-    tree.query(boxes[i], [&](std::uint32_t j) {
+    tree.for_each_overlapping(segment_box(a.geometry).padded(touch).padded(touch), [&](std::uint32_t j) {
       if (j <= i) return;
       const SceneSegment& b = scene.segments[j];
       if (a.curve == b.curve && neighbours(scene.curves[a.curve], a.index_in_curve, b.index_in_curve)) return;

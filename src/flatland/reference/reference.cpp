@@ -6,9 +6,11 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <numbers>
 #include <string>
 #include <thread>
 
+#include "flatland/base/quadrature.hpp"
 #include "flatland/geometry/discontinuities.hpp"
 #include "flatland/base/resources.hpp"
 #include "flatland/results/result_io.hpp"
@@ -18,38 +20,6 @@
 namespace flatland {
 
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
-
-// Gauss-Legendre nodes and weights on [0, 1] (weights sum to 1): Newton on P_n from the
-// Chebyshev-like first guesses cos(pi (k + 3/4) / (n + 1/2)); P_n and P_n' by the three-term
-// recurrence. Accurate to rounding for n <= 64.
-void gauss_legendre_unit(int n, std::vector<double>& nodes, std::vector<double>& weights) {
-  nodes.assign(static_cast<std::size_t>(n), 0.0);
-  weights.assign(static_cast<std::size_t>(n), 0.0);
-  for (int k = 0; k < n; ++k) {
-    double z = std::cos(kPi * (k + 0.75) / (n + 0.5));
-    double derivative = 1.0;
-    for (int iteration = 0; iteration < 100; ++iteration) {
-      double p0 = 1.0;
-      double p1 = z;
-      for (int m = 2; m <= n; ++m) {
-        const double p2 = ((2.0 * m - 1.0) * z * p1 - (m - 1.0) * p0) / m;
-        p0 = p1;
-        p1 = p2;
-      }
-      // P_n'(z) = n (z P_n - P_(n-1)) / (z^2 - 1).
-      derivative = n * (z * p1 - p0) / (z * z - 1.0);
-      const double step = p1 / derivative;
-      z -= step;
-      if (std::fabs(step) < 1e-16) break;
-    }
-    const double weight = 2.0 / ((1.0 - z * z) * derivative * derivative);
-    // Node z in [-1, 1] maps to (1 - z) / 2 so the nodes come out increasing.
-    nodes[static_cast<std::size_t>(k)] = 0.5 * (1.0 - z);
-    weights[static_cast<std::size_t>(k)] = 0.5 * weight;
-  }
-}
 
 std::size_t patch_index(std::uint32_t element, Side side) {
   return 2 * static_cast<std::size_t>(element) + static_cast<std::size_t>(side);
@@ -709,7 +679,7 @@ double pair_form_factor(const std::vector<ReferenceElement>& elements, std::uint
                         std::uint32_t j, Side sj, int points, bool split, std::size_t* pieces) {
   std::vector<double> nodes;
   std::vector<double> weights;
-  gauss_legendre_unit(points, nodes, weights);
+  gauss::legendre_unit_rule(points, nodes, weights);
   PairQuadrature quadrature(elements, nodes, weights);
   const double f = quadrature.form_factor(i, si, j, sj, split);
   if (pieces != nullptr) *pieces = quadrature.pieces();
@@ -923,7 +893,7 @@ Result<ReferenceSolution> solve_reference(const Scene& scene, const ReferenceSet
   const std::size_t rows = solution.row_patch_.size();
   std::vector<double> nodes;
   std::vector<double> weights;
-  gauss_legendre_unit(settings.quadrature, nodes, weights);
+  gauss::legendre_unit_rule(settings.quadrature, nodes, weights);
   std::vector<std::vector<std::pair<std::uint32_t, double>>> row_entries(rows);
   std::vector<double> row_sums(rows, 0.0);
   std::atomic<std::size_t> next_row{0};

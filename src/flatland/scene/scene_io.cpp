@@ -18,6 +18,7 @@
 #include <filesystem>
 #include <initializer_list>
 #include <limits>
+#include <numbers>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -506,7 +507,7 @@ class SceneReader {
         fail(append_key(path, "beam"),
              "the half-angle must be in (0, 90] degrees, got " + format_number(degrees));
       result.kind = Emission::Kind::Beam;
-      result.half_angle = degrees * 3.14159265358979323846 / 180.0;
+      result.half_angle = degrees * std::numbers::pi / 180.0;
     }
     return result;
   }

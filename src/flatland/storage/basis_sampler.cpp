@@ -1,5 +1,7 @@
 #include "flatland/storage/basis_sampler.hpp"
 
+#include "flatland/base/roots.hpp"
+
 #include <algorithm>
 #include <array>
 #include <cassert>
@@ -139,17 +141,11 @@ double BasisSampler::sample(std::size_t k, double u1, double u2) const {
   const double g_lo = table[static_cast<std::size_t>(j)];
   const double g_hi = table[static_cast<std::size_t>(j + 1)];
   double x = g_hi > g_lo ? lo + (hi - lo) * (goal - g_lo) / (g_hi - g_lo) : 0.5 * (lo + hi);
-  const double resolution = 4e-16 * table[kTable];
-  for (int iteration = 0; iteration < 60; ++iteration) {
-    const double g = cdf(x) - goal;
-    if (std::fabs(g) <= resolution) break;
-    if (g < 0.0) lo = x; else hi = x;
-    if (hi - lo <= 4e-16) break;
-    const double d = density(x);
-    double next = d > 0.0 ? x - g / d : 0.5 * (lo + hi);
-    if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);
-    x = next;
-  }
+  x = newton_bisection([&](double t) { return cdf(t) - goal; }, density, x, lo, hi, 60, 4e-16 * table[kTable],
+                       [](double at, double, double low, double high) -> std::optional<double> {
+                         if (high - low <= 4e-16) return at;  // a few ulps of [0, 1]
+                         return std::nullopt;
+                       });
   return wrap(piece.u0 + std::clamp(x, 0.0, 1.0) * piece.width);
 }
 

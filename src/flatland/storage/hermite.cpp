@@ -1,5 +1,7 @@
 #include "flatland/storage/hermite.hpp"
 
+#include "flatland/base/roots.hpp"
+
 #include <algorithm>
 #include <cassert>
 #include <cmath>
@@ -257,25 +259,15 @@ double HermiteReconstruction::sample(double u1, double u2) const {
   auto density = [&](double t) { return c0 + t * (c1 + t * (c2 + t * c3)); };
   const double total = ((b[0] + b[1]) + (b[2] + b[3])) / 4.0;
   const double goal = u2 * total;
-  double lo = 0.0;
-  double hi = 1.0;
   const double v = u2 * 0.5 * (b[0] + b[3]);
   const double denominator = b[0] + std::sqrt(std::max(0.0, b[0] * b[0] + 2.0 * (b[3] - b[0]) * v));
-  double x = denominator > 0.0 ? std::clamp(2.0 * v / denominator, 0.0, 1.0) : u2;
-  const double resolution = 4e-16 * total;
-  for (int iteration = 0; iteration < 100; ++iteration) {
-    const double g = cdf(x) - goal;
-    if (std::fabs(g) <= resolution) break;
-    if (g < 0.0) lo = x; else hi = x;
-    const double d = density(x);
-    double next = d > 0.0 ? x - g / d : 0.5 * (lo + hi);
-    if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);
-    if (std::fabs(next - x) <= 1e-15 || hi - lo <= 1e-15) {
-      x = next;
-      break;
-    }
-    x = next;
-  }
+  const double start = denominator > 0.0 ? std::clamp(2.0 * v / denominator, 0.0, 1.0) : u2;
+  const double x = newton_bisection([&](double t) { return cdf(t) - goal; }, density, start, 0.0, 1.0, 100,
+                                    4e-16 * total,
+                                    [](double at, double next, double low, double high) -> std::optional<double> {
+                                      if (std::fabs(next - at) <= 1e-15 || high - low <= 1e-15) return next;
+                                      return std::nullopt;
+                                    });
   const HermitePiece& piece = pieces_[i];
   return piece.u0 + std::clamp(x, 0.0, 1.0) * piece.width;
 }

@@ -1,5 +1,7 @@
 #include "flatland/transport/footprint.hpp"
 
+#include "flatland/base/roots.hpp"
+
 #include "flatland/base/quadrature.hpp"
 
 #include <algorithm>
@@ -16,7 +18,6 @@
 namespace flatland {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
 
 // The truncated Gaussian: sigma = 1/3, so |x| <= 1 is |z| <= 3. kGaussTail = erfc(3/sqrt 2) is the
 // untruncated mass beyond 3 sigma on both sides (the tests check 1/Z against std::erf); the
@@ -37,7 +38,7 @@ inline double density_inside(RayProfile profile, double x) {
     case RayProfile::Box: return 0.5;
     case RayProfile::Tent: return 1.0 - std::fabs(x);
     case RayProfile::Epanechnikov: return 0.75 * (1.0 - x * x);
-    case RayProfile::Cosine: return 0.25 * kPi * std::cos(0.5 * kPi * x);
+    case RayProfile::Cosine: return 0.25 * std::numbers::pi * std::cos(0.5 * std::numbers::pi * x);
     case RayProfile::Gauss: return kGaussNorm * std::exp(-4.5 * x * x);
   }
   return 0.0;
@@ -54,7 +55,7 @@ double first_moment_antiderivative(RayProfile profile, double x) {
     case RayProfile::Tent: return 0.5 * x2 - std::fabs(x) * x2 / 3.0;
     case RayProfile::Epanechnikov: return 0.375 * x2 - 0.1875 * x2 * x2;
     case RayProfile::Cosine:
-      return 0.5 * x * std::sin(0.5 * kPi * x) + std::cos(0.5 * kPi * x) / kPi;
+      return 0.5 * x * std::sin(0.5 * std::numbers::pi * x) + std::cos(0.5 * std::numbers::pi * x) / std::numbers::pi;
     case RayProfile::Gauss: return -kGaussNorm * std::exp(-4.5 * x2) / 9.0;
   }
   return 0.0;
@@ -111,7 +112,7 @@ std::uint32_t segment_of_span(double ua, double ub, std::uint32_t count) {
 //
 // Point i of the n Chebyshev-Lobatto points (n >= 2), cos(pi i / (n - 1)): from 1 down to -1.
 double lobatto_point(std::size_t i, std::size_t n) {
-  return std::cos(kPi * static_cast<double>(i) / static_cast<double>(n - 1));
+  return std::cos(std::numbers::pi * static_cast<double>(i) / static_cast<double>(n - 1));
 }
 
 // The coefficients of the polynomial of degree n - 1 through values f[i] at the n Lobatto points
@@ -122,7 +123,7 @@ void chebyshev_fit(const double* f, std::size_t n, double* c) {
     double sum = 0.5 * (f[0] + (k % 2 == 0 ? f[m] : -f[m]));
     for (std::size_t i = 1; i < m; ++i) {
       const std::size_t angle = (k * i) % (2 * m);  // cos(pi k i / m), reduced exactly
-      sum += f[i] * std::cos(kPi * static_cast<double>(angle) / static_cast<double>(m));
+      sum += f[i] * std::cos(std::numbers::pi * static_cast<double>(angle) / static_cast<double>(m));
     }
     c[k] = (k == 0 || k == m ? 1.0 : 2.0) * sum / static_cast<double>(m);
   }
@@ -192,7 +193,7 @@ std::size_t chebyshev_fit_checked(Function&& g, std::size_t count, double tolera
       good = std::fabs(c[n - 1]) <= tolerance && std::fabs(c[n - 2]) <= tolerance;
     }
     for (std::size_t i = 0; i + 1 < n && good; ++i) {
-      const double y = std::cos(kPi * (static_cast<double>(i) + 0.5) / static_cast<double>(n - 1));
+      const double y = std::cos(std::numbers::pi * (static_cast<double>(i) + 0.5) / static_cast<double>(n - 1));
       g(y, at.data());
       for (std::size_t f = 0; f < count && good; ++f)
         good = std::fabs(chebyshev_value(coefficients.data() + f * n, n, y) - at[f]) <= 4.0 * tolerance;
@@ -391,7 +392,7 @@ double profile_cdf(RayProfile profile, double x) {
       return 1.0 - 0.5 * (1.0 - x) * (1.0 - x);
     }
     case RayProfile::Epanechnikov: return 0.25 * (2.0 + x * (3.0 - x * x));
-    case RayProfile::Cosine: return 0.5 * (1.0 + std::sin(0.5 * kPi * x));
+    case RayProfile::Cosine: return 0.5 * (1.0 + std::sin(0.5 * std::numbers::pi * x));
     case RayProfile::Gauss: {
       // F(x) = (erf(3x/sqrt 2) + kept) / (2 kept). On the lower half write it with erfc,
       // F(x) = (erfc(3|x|/sqrt 2) - tail) / (2 kept), which keeps its relative accuracy in the
@@ -417,7 +418,7 @@ double profile_sample(RayProfile profile, double u) {
       // theta = asin(2u - 1)/3 in [-pi/6, pi/6] gives the root in [-1, 1].
       return 2.0 * std::sin(std::asin(2.0 * u - 1.0) / 3.0);
     }
-    case RayProfile::Cosine: return std::asin(2.0 * u - 1.0) * (2.0 / kPi);
+    case RayProfile::Cosine: return std::asin(2.0 * u - 1.0) * (2.0 / std::numbers::pi);
     case RayProfile::Gauss: {
       // No closed form (erf has no inverse in the standard library). By symmetry solve on the
       // lower half, F(x) = v with v = min(u, 1-u) <= 1/2 and x in [-1, 0], where F is convex
@@ -425,19 +426,12 @@ double profile_sample(RayProfile profile, double u) {
       // above; the bracket [lo, hi] and bisection guard against rounding all the same.
       const double v = std::min(u, 1.0 - u);
       if (v <= 0.0) return u < 0.5 ? -1.0 : 1.0;
-      double lo = -1.0;
-      double hi = 0.0;
-      double x = 0.0;
-      for (int iteration = 0; iteration < 100; ++iteration) {
-        const double g = profile_cdf(profile, x) - v;
-        if (g == 0.0) break;
-        if (g > 0.0) hi = x; else lo = x;
-        double next = x - g / density_inside(profile, x);
-        if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);
-        const bool done = std::fabs(next - x) <= 1e-16 * (1.0 + std::fabs(x)) || hi - lo <= 1e-16;
-        x = next;
-        if (done) break;
-      }
+      const double x = newton_bisection(
+          [&](double t) { return profile_cdf(profile, t) - v; }, [&](double t) { return density_inside(profile, t); },
+          0.0, -1.0, 0.0, 100, 0.0, [](double at, double next, double low, double high) -> std::optional<double> {
+            if (std::fabs(next - at) <= 1e-16 * (1.0 + std::fabs(at)) || high - low <= 1e-16) return next;
+            return std::nullopt;
+          });
       return u < 0.5 ? x : -x;
     }
   }

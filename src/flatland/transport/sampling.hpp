@@ -1,7 +1,9 @@
 // Random numbers and the samplers of the shooter, in Sample / Pdf / Invert sets.
 #pragma once
 
+#include <cmath>
 #include <cstdint>
+#include <numbers>
 #include <span>
 #include <utility>
 #include <vector>
@@ -87,7 +89,7 @@ inline double square_to_diffuse_invert(Vec2 normal, Vec2 direction) {
 inline Vec2 sample_lobe(Rng& rng, double exponent, Vec2 normal) {
   const Vec2 tangent{normal.y, -normal.x};
   for (;;) {
-    const double theta = (rng.uniform() - 0.5) * 3.14159265358979323846;
+    const double theta = (rng.uniform() - 0.5) * std::numbers::pi;
     const double c = std::cos(theta);
     if (rng.uniform() < std::pow(c, exponent)) return std::sin(theta) * tangent + c * normal;
   }
@@ -97,7 +99,7 @@ inline Vec2 sample_lobe(Rng& rng, double exponent, Vec2 normal) {
 inline double sample_lobe_pdf(double exponent, Vec2 normal, Vec2 direction) {
   const double c = dot(normal, direction);
   if (!(c > 0.0)) return 0.0;
-  const double norm = std::sqrt(3.14159265358979323846) * std::exp(std::lgamma(0.5 * (exponent + 1.0)) -
+  const double norm = std::sqrt(std::numbers::pi) * std::exp(std::lgamma(0.5 * (exponent + 1.0)) -
                                                                    std::lgamma(0.5 * exponent + 1.0));
   return std::pow(c, exponent) / norm;
 }
