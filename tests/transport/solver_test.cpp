@@ -920,7 +920,7 @@ TEST(Solver, StiffRoomWithABlackLampIsNeverFalselyConverged) {
       before = solver.photons_shot();
       if (solver.photons_shot() < settings.photons) smallest = std::min(smallest, round);  // the last takes the rest
     }
-    EXPECT_GE(smallest, Solver::kMinPhotonsPerRound);
+    EXPECT_GE(smallest, ProgressiveShooting::kMinPhotonsPerRound);
     const EnergyBooks books = solver.books();
     EXPECT_NEAR(books.imbalance(), 0.0, 1e-9 * books.emitted);
     if (solver.stop_reason() == StopReason::Converged) {
@@ -939,7 +939,7 @@ TEST(Solver, StiffRoomWithABlackLampIsNeverFalselyConverged) {
 // The round's photon count: the budget's share of the power, at least 256, at most 2^30
 // (fixed-point quantisation below 5e-10 of a photon's power).
 TEST(Solver, RoundsAreCappedForFixedPointAccuracy) {
-  EXPECT_LE(static_cast<double>(Solver::kMaxPhotonsPerRound) * 0x1.0p-61, 1e-9);
+  EXPECT_LE(static_cast<double>(ProgressiveShooting::kMaxPhotonsPerRound) * 0x1.0p-61, 1e-9);
   const Scene scene = testing::scene_from_text(testing::circle_enclosure(0.5, 1.0));
   SolverSettings settings;
   settings.photons = std::uint64_t{1} << 40;
@@ -947,7 +947,7 @@ TEST(Solver, RoundsAreCappedForFixedPointAccuracy) {
   std::atomic<bool> cancel{false};
   // The first round is the largest; cancel it at once and read the count it was given.
   solver.step_photons(1, &cancel);
-  EXPECT_EQ(solver.round_photons(), Solver::kMaxPhotonsPerRound);
+  EXPECT_EQ(solver.round_photons(), ProgressiveShooting::kMaxPhotonsPerRound);
 }
 
 // Emittance at both ends of the accepted range (1e-100 .. 1e100 per unit length) solves with

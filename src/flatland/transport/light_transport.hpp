@@ -1,0 +1,81 @@
+// How light gets from the emitters to its last bounce, round by round (docs/method.md,
+// Transport): what a round's photons leave with, how many a round shoots, what its deposits mean
+// for the received power, and the energy books. Every transport shoots its photons with the same
+// PhotonShooter; a transport whose photons go on from where they land (random walks) says so.
+//
+// A new transport is a class of its own file that implements this interface and an alternative
+// of the Solver's variant (solver.hpp); the two below are
+//   ProgressiveShooting (shooting.hpp): rounds of one hop each, shooting what the last reflected;
+//   RandomWalks (walks.hpp): every photon a whole walk from an emitter, ended by Russian roulette.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "flatland/transport/photon_shooter.hpp"
+#include "flatland/transport/scene_storage.hpp"
+
+namespace flatland {
+
+// Power summed over channels. emitted = absorbed + escaped + unshot after every round.
+struct EnergyBooks {
+  double emitted = 0.0;
+  double absorbed = 0.0;
+  double escaped = 0.0;
+  double unshot = 0.0;
+  double imbalance() const { return emitted - (absorbed + escaped + unshot); }
+};
+
+// A finished round as a transport reads it: its deposits summed over threads (per coefficient and
+// channel, in fixed-point units, with the odd-numbered photons' part apart under automatic
+// storage), its escaped and absorbed units per channel, and the power of one unit.
+struct RoundTotals {
+  std::span<const Deposits> deposits;
+  std::array<std::int64_t, 3> escaped{};
+  std::array<std::int64_t, 3> absorbed{};
+  double inverse_scale = 0.0;
+  std::uint64_t photons = 0;       // of this round
+  std::uint64_t photons_shot = 0;  // of the solve, this round's included
+  bool halves = false;             // the deposits hold the odd photons' part apart
+};
+
+class LightTransport {
+ public:
+  virtual ~LightTransport() = default;
+
+  // Whether a photon goes on from where it lands (a walk), whether the photons of round `round`
+  // carry light straight from the emitters, and the bounce their first flights record.
+  virtual bool photons_go_on() const = 0;
+  virtual bool emitted_light(std::uint32_t round) const = 0;
+  virtual std::uint32_t bounce(std::uint32_t round) const = 0;
+
+  // The power per coefficient and channel that the next round's photons leave with, and the power
+  // still waiting to be shot (shooting's pool; zero for walks, which start afresh every round).
+  virtual const std::vector<double>& pool() const = 0;
+  virtual const std::vector<double>& unshot() const = 0;
+  // Whether no round is needed any more with `pool_power` in the pool.
+  virtual bool converged(double pool_power) const = 0;
+  // The photons of the next round, `shot` of the `budget` shot in `rounds` rounds.
+  virtual std::uint64_t round_photons(double pool_power, std::uint64_t shot, std::uint64_t budget,
+                                      std::uint32_t rounds) const = 0;
+  // Bits of the fixed point's scale a round of `photons` gives up so that its deposits fit.
+  virtual int headroom_bits(std::uint64_t photons) = 0;
+  // The most bits any round gave up: the books' rounding allowance.
+  virtual int most_headroom_bits() const = 0;
+
+  // A finished round into the received power (and its odd-photon half) and the books.
+  virtual void end_round(const SceneStorage& storage, const RoundTotals& round, std::vector<double>& received,
+                         std::vector<double>& received_half) = 0;
+  // The open round's power so far (per coefficient and channel; `open_odd` the odd photons' part)
+  // into copies of the received power, as a reader sees the light arrive: `done` of the round's
+  // `photons` shot, after `before` in finished rounds.
+  virtual void add_open_round(std::vector<double>& received, std::vector<double>& received_half,
+                              const std::vector<double>& open, const std::vector<double>& open_odd, double before,
+                              double done, double photons, bool halves) const = 0;
+  // Adds the absorbed, escaped and unshot power to `books` (emitted already in it).
+  virtual void add_books(EnergyBooks& books, int channels, std::uint32_t rounds) const = 0;
+};
+
+}  // namespace flatland

@@ -1,0 +1,445 @@
+#include "flatland/transport/photon_shooter.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+#include "flatland/transport/origins.hpp"
+#include "flatland/transport/qmc.hpp"
+
+namespace flatland {
+
+namespace {
+
+// The key of a round's indexed uniforms that choose the photons' sources (random sampler): from
+// (seed, round), apart from the batches' streams by a constant of its own.
+std::uint64_t source_key(std::uint64_t seed, std::uint64_t round) {
+  std::uint64_t state = seed ^ 0x736f7572636573ull;  // "sources"
+  state = splitmix64(state) ^ (round * 0xd1342543de82ef95ull);
+  return splitmix64(state);
+}
+
+// From this many coefficients on, shoot() chooses a batch's sources before shooting it and asks
+// for their data ahead (measured: docs/performance.md); below, that data stays in the caches.
+constexpr std::size_t kAheadFrom = 8192;
+
+// A hint to the memory system; no effect on any result.
+inline void prefetch(const void* address) {
+#if defined(__GNUC__)
+  __builtin_prefetch(address);
+#else
+  (void)address;
+#endif
+}
+
+}  // namespace
+
+void Deposits::reset(std::size_t size) {
+  received.assign(size, 0);
+  escaped = {};
+  absorbed = {};
+  shot = {};
+  rays = 0;
+}
+
+PhotonShooter::PhotonShooter(const Scene& scene, const SolverSettings& settings, SegmentAccelerator accelerator,
+                             std::vector<std::vector<double>> walls)
+    : scene_(&scene),
+      seed_(settings.seed),
+      sobol_(settings.sampler == SamplerKind::Sobol),
+      halves_(settings.elements == kAutoElements),
+      ray_width_(settings.ray_width),
+      ray_profile_(settings.ray_profile),
+      accelerator_(std::move(accelerator)),
+      walls_(std::move(walls)) {
+  const bool reconstructed = settings.sampling == PositionSampling::Reconstructed;
+  by_hermite_ = reconstructed && settings.basis == BasisKind::Hermite;
+  by_coefficient_ = reconstructed && !by_hermite_;
+  for (const SceneSegment& segment : scene.segments)
+    segment_info_.push_back({segment.curve, segment.index_in_curve, segment.geometry.kind});
+  line_tangents_ = line_tangents(scene);
+  for (const Curve& curve : scene.curves) segment_choice_.push_back(segment_choice(scene, curve));
+  if (settings.ray_width > 0.0) {
+    ray_kind_ = settings.ray_mode == RayMode::Band ? RayKind::Band : RayKind::Footprint;
+    if (ray_kind_ == RayKind::Band) profile_quadrature(settings.ray_profile, settings.band_rays, band_offsets_, band_weights_);
+  }
+}
+
+bool PhotonShooter::prepare_footprints(const SceneStorage& storage, const std::atomic<bool>* cancel) {
+  if (ray_kind_ != RayKind::Footprint || !is_polynomial(ray_profile_)) return true;
+  // Whole knot spans of the deposit mesh from precomputed moments (footprint.hpp).
+  footprint_tables_.reserve(scene_->curves.size());
+  for (std::uint32_t c = 0; c < scene_->curves.size(); ++c) {
+    if (cancel != nullptr && cancel->load(std::memory_order_relaxed)) return false;
+    footprint_tables_.emplace_back(*scene_, scene_->curves[c], storage.finest(c).basis, profile_powers(ray_profile_));
+  }
+  return true;
+}
+
+void PhotonShooter::shoot(const RoundView& round, Rng& rng, std::uint64_t first, std::uint64_t count, Deposits& acc,
+                          std::vector<PhotonPath>* paths, std::size_t path_limit) const {
+  // The ray kind is fixed per solve: each kind gets its own compiled loop, so point rays carry no
+  // footprint or band code at all.
+  switch (ray_kind_) {
+    case RayKind::Point: return shoot_rays<RayKind::Point>(round, rng, first, count, acc, paths, path_limit);
+    case RayKind::Footprint:
+      return shoot_rays<RayKind::Footprint>(round, rng, first, count, acc, paths, path_limit);
+    case RayKind::Band: return shoot_rays<RayKind::Band>(round, rng, first, count, acc, paths, path_limit);
+  }
+}
+
+template <PhotonShooter::RayKind kRays>
+void PhotonShooter::shoot_rays(const RoundView& round, Rng& rng, std::uint64_t first, std::uint64_t count,
+                               Deposits& acc, std::vector<PhotonPath>* paths, std::size_t path_limit) const {
+  const SceneStorage& storage = *round.storage;
+  const RoundPlan& plan = *round.plan;
+  std::vector<FootprintWeight> footprint;
+  if constexpr (kRays == RayKind::Footprint) footprint.reserve(64);
+  const auto channels = static_cast<std::size_t>(storage.channels());
+  const double scale = scene_->scale;
+  // Randomised quasi-Monte Carlo: photon j of the round takes point j of the round's scrambled
+  // Sobol' sequence (named by seed and round), whichever batch, step or thread shoots it; its
+  // coordinates (PhotonDimension) and how rejection loops use them are in origins.hpp.
+  static_assert(kAcceptLobe < kSobolDimensions);
+  const bool qmc = sobol_;
+  // With auto storage the round's photons form two halves, even and odd numbers, whose spread
+  // measures the estimate's variance (choose_levels): the halves must be independent, so with
+  // Sobol' each is a net of its own, scrambled independently (streams 2 round and 2 round + 1),
+  // photon i taking point i / 2 of its half's. (Halves of one net are stratified against each
+  // other: parity fixes the first digit of the first coordinate, and their difference is far
+  // from noise.) A fixed mesh keeps one net per round (stream `round`).
+  const bool halves = qmc && halves_;
+  const ScrambledSobol sobol(seed_, halves ? 2 * std::uint64_t{round.number} : round.number);
+  const ScrambledSobol sobol_odd(seed_, 2 * std::uint64_t{round.number} + 1);
+  // Consecutive photons of a half take consecutive points: one XOR per dimension each.
+  SobolCursor cursor(sobol);
+  SobolCursor cursor_odd(sobol_odd);
+  // The source, by unshot power: a side of a curve, or one of its coefficients. Sobol': from the
+  // photon's point (what the choice leaves of dimension kPlace places the origin); random: from
+  // the round's indexed uniforms, so that the choice does not depend on how the round is cut into
+  // batches and steps either.
+  const std::uint64_t key = source_key(seed_, round.number);
+  auto choose_source = [&](SobolCursor& even_point, SobolCursor& odd_point, std::uint32_t index, double& place) {
+    if (!qmc) return plan.sources.sample(indexed_uniform(key, index));
+    SobolCursor& point = halves && (index & 1u) != 0 ? odd_point : even_point;
+    point.seek(halves ? index >> 1 : index);
+    return plan.sources.sample(point.sample(kPlace), place);
+  };
+  // With many coefficients (their sampler's pieces, units and blocks far beyond the caches) every
+  // photon's source is chosen first, and while photon i is shot the data of photon i + kAhead's
+  // are asked for (docs/performance-log.md, "Sources chosen ahead"); the same choices either way.
+  const bool by_coefficient = by_coefficient_;
+  const bool ahead = by_coefficient && storage.coefficient_count() >= kAheadFrom;
+  std::vector<std::uint32_t>& sources = acc.sources;
+  std::vector<double>& places = acc.places;
+  if (ahead) {
+    sources.resize(count);
+    places.resize(count);
+    SobolCursor even_point(sobol);
+    SobolCursor odd_point(sobol_odd);
+    for (std::uint64_t i = 0; i < count; ++i) {
+      double place = 0.0;
+      sources[i] = static_cast<std::uint32_t>(choose_source(even_point, odd_point, static_cast<std::uint32_t>(first + i), place));
+      places[i] = place;
+    }
+  }
+  constexpr std::uint64_t kAhead = 4;
+  for (std::uint64_t i = 0; i < count; ++i) {
+    if (ahead) {
+      // Two stages: the source's own entries for photon i + 2 kAhead, then (those in cache by
+      // now) its basis function's for photon i + kAhead.
+      if (i + 2 * kAhead < count) {
+        const std::uint32_t later = sources[i + 2 * kAhead];
+        prefetch(&plan.photon_units[later]);
+        prefetch(storage.coefficient_blocks().data() + later);
+      }
+      if (i + kAhead < count) {
+        const std::uint32_t later = sources[i + kAhead];
+        const std::uint32_t block = storage.coefficient_block(later);
+        const CurveStorage& curve_storage = storage.finest(block / 2);
+        const std::size_t k = later - storage.block_offset(block);
+        curve_storage.sampler.prefetch(k, qmc);
+        prefetch(&curve_storage.speed_bound[k]);
+      }
+    }
+    const auto index = static_cast<std::uint32_t>(first + i);  // < kMaxPhotonsPerRound
+    // Auto storage: odd-numbered photons deposit into the accumulator's second half.
+    if (halves_) acc.half_offset = (index & 1u) != 0 ? storage.coefficient_count() * static_cast<std::size_t>(storage.channels()) : 0;
+    const bool odd = halves && (index & 1u) != 0;
+    const std::uint32_t net_index = halves ? index >> 1 : index;
+    SobolCursor& net_point = odd ? cursor_odd : cursor;
+    if (qmc) net_point.seek(net_index);
+    auto quasi = [&net_point](int dimension) { return net_point.sample(dimension); };
+    double place = ahead ? places[i] : 0.0;
+    const std::size_t source = ahead ? sources[i] : choose_source(cursor, cursor_odd, index, place);
+    const std::uint32_t block =
+        by_coefficient ? storage.coefficient_block(source) : static_cast<std::uint32_t>(source);
+    const std::uint32_t curve_index = block / 2;
+    const bool back = (block & 1u) != 0;
+    const Curve& curve = scene_->curves[curve_index];
+    const std::array<std::int64_t, 3>& units = plan.photon_units[source];
+    for (std::size_t ch = 0; ch < channels; ++ch) acc.shot[ch] += units[ch];
+
+    // Where the photon leaves (origins.hpp): emitted light of a curve with an emittance profile
+    // (first round only, and every walk) where the profile says, reflected light where the
+    // unshot density is (a coefficient's basis function or the Hermite reconstruction), or
+    // uniformly in arc length.
+    const bool emitted_light = round.emitted_light;
+    OriginDraws draws{rng, qmc ? &net_point : nullptr, place};
+    const Origin leaves =
+        emitted_light && !curve.emittance_profile.empty()
+            ? sample_profiled_origin(*scene_, curve, segment_choice_[curve_index], draws)
+        : by_coefficient
+            ? sample_coefficient_origin(*scene_, curve, storage.finest(curve_index),
+                                        source - storage.block_offset(block), line_tangents_, draws)
+        : by_hermite_
+            ? sample_hermite_origin(*scene_, curve, (*round.hermite_unshot)[block], draws)
+            : sample_uniform_origin(*scene_, curve, segment_choice_[curve_index], line_tangents_, draws);
+    const std::uint32_t segment_index = leaves.segment;
+    const double t = leaves.t;
+    const Vec2 origin = leaves.position;
+    const Vec2 tangent = leaves.tangent;
+    // Directions: diffuse, except an emitter's own light in the first round (every later round
+    // shoots reflected light only) when its material says otherwise.
+    const Vec2 normal = back ? -perp(tangent) : perp(tangent);
+    Vec2 direction;
+    const Emission& emission = scene_->material_of(curve).emission;
+    if (!emitted_light || emission.kind == Emission::Kind::Diffuse) {
+      direction = square_to_diffuse(qmc ? quasi(kDirection) : rng.uniform(), normal);
+    } else if (emission.kind == Emission::Kind::Lobe) {
+      // Sobol': sample_lobe's first proposal (theta uniform, kept with probability cos^n) from
+      // the point; when it is refused, sample_lobe draws afresh from the stream.
+      const double theta = qmc ? (quasi(kDirection) - 0.5) * std::numbers::pi : 0.0;
+      const double c = std::cos(theta);
+      if (qmc && quasi(kAcceptLobe) < std::pow(c, emission.exponent))
+        direction = std::sin(theta) * Vec2{normal.y, -normal.x} + c * normal;
+      else
+        direction = sample_lobe(rng, emission.exponent, normal);
+    } else {
+      direction = square_to_beam(qmc ? quasi(kDirection) : rng.uniform(), emission.half_angle, normal);
+    }
+    const Ray ray{origin, direction};
+
+    PhotonPath* path = nullptr;
+    if (paths != nullptr && paths->size() < path_limit) {
+      path = &paths->emplace_back();
+      path->origin = origin;
+      path->source_curve = curve_index;
+      path->source_side = back ? Side::Back : Side::Front;
+      path->source_segment = segment_index;
+      path->source_t = t;
+      for (std::size_t ch = 0; ch < channels; ++ch)
+        path->power[ch] = static_cast<double>(units[ch]) / plan.scale;
+      path->bounce = round.bounce;
+    }
+    if constexpr (kRays == RayKind::Band) {
+      // K parallel sub-rays across the width W. Each starts on the source segment itself, moved
+      // along it by offset * W / (2 cos(theta_out)) so the sub-rays' perpendicular spacing is the
+      // profile's offsets times W/2 (clamped at the segment's ends, so no sub-ray starts outside
+      // the scene). A sub-ray whose start does not face its direction (the source bends away)
+      // leaves from the centre instead. Each carries its share of the units, the last one the
+      // remainder, and deposits where it lands.
+      const SceneSegment& emitter = scene_->segments[segment_index];
+      const Cubic& shape = emitter.geometry.shape;
+      const bool line_source = emitter.geometry.kind == SegmentKind::Line;
+      const double along = 0.5 * ray_width_ /
+                           std::max(dot(direction, normal), kGrazingCosine);
+      const double s0 = line_source ? t * emitter.length : emitter.arc_length.length_at(shape, t);
+      std::array<std::int64_t, 3> left = units;
+      for (std::size_t ray_index = 0; ray_index < band_offsets_.size(); ++ray_index) {
+        const bool last = ray_index + 1 == band_offsets_.size();
+        std::array<std::int64_t, 3> share{};
+        for (std::size_t ch = 0; ch < channels; ++ch) {
+          share[ch] = last ? left[ch]
+                           : static_cast<std::int64_t>(band_weights_[ray_index] *
+                                                           static_cast<double>(units[ch]) + 0.5);
+          left[ch] -= share[ch];
+        }
+        // Strictly inside the segment: from the very end point (a corner of a room) a sub-ray
+        // could leave between the two walls.
+        const double s_i = std::clamp(s0 + band_offsets_[ray_index] * along, 0x1.0p-40 * emitter.length,
+                                      (1.0 - 0x1.0p-40) * emitter.length);
+        double t_i = line_source ? s_i / emitter.length : emitter.arc_length.parameter_at(shape, s_i);
+        Vec2 start = line_source ? lerp(shape.p[0], shape.p[3], t_i) : evaluate(shape, t_i);
+        if (!line_source) {
+          const Vec2 n_i = perp(unit_tangent(shape, t_i, scale));
+          if (!((back ? -dot(n_i, direction) : dot(n_i, direction)) > 0.0)) {
+            t_i = t;
+            start = origin;
+          }
+        }
+        const Ray sub{start, direction};
+        const SceneHit hit = accelerator_.closest_hit(sub, RayOrigin{segment_index, t_i});
+        receive<RayKind::Point>(round, hit, sub, share, acc,
+                                ray_index == band_offsets_.size() / 2 ? path : nullptr, footprint);
+      }
+      acc.rays += band_offsets_.size();
+    } else {
+      const SceneHit hit = accelerator_.closest_hit(ray, RayOrigin{segment_index, t});
+      ++acc.rays;
+      receive<kRays>(round, hit, ray, units, acc, path, footprint);
+      if (round.photons_go_on) walk_on<kRays>(round, rng, hit, ray, units, acc, paths, path_limit, path, footprint);
+    }
+  }
+}
+
+Side PhotonShooter::side_hit(const SceneHit& hit, const Ray& ray, Vec2& tangent) const {
+  // The ray arrives on the front when it travels against the front normal, i.e. when
+  // cross(C'(t), d) < 0. Only the sign matters, so C'(t) need not be normalised; where it
+  // vanishes (an end point with coincident control points) the tangent comes from the first
+  // non-vanishing derivative.
+  const SegmentInfo& info = segment_info_[hit.segment];
+  tangent = line_tangents_[hit.segment];
+  if (info.kind == SegmentKind::Cubic) {
+    const Cubic& shape = scene_->segments[hit.segment].geometry.shape;
+    tangent = derivative(shape, hit.t);
+    if (length_squared(tangent) <= 1e-24 * scene_->scale * scene_->scale)
+      tangent = unit_tangent(shape, hit.t, scene_->scale);
+  }
+  return cross(tangent, ray.direction) < 0.0 ? Side::Front : Side::Back;
+}
+
+template <PhotonShooter::RayKind kRays>
+void PhotonShooter::walk_on(const RoundView& round, Rng& rng, SceneHit hit, Ray ray, std::array<std::int64_t, 3> units,
+                            Deposits& acc, std::vector<PhotonPath>* paths, std::size_t path_limit, PhotonPath* last,
+                            std::vector<FootprintWeight>& footprint) const {
+  const SceneStorage& storage = *round.storage;
+  const RoundPlan& plan = *round.plan;
+  const auto channels = static_cast<std::size_t>(storage.channels());
+  for (std::uint32_t bounce = 1;; ++bounce) {
+    if (hit.segment == kNoSegment) return;  // escaped (receive booked it)
+    Vec2 tangent;
+    const Side side = side_hit(hit, ray, tangent);
+    const std::uint32_t curve = segment_info_[hit.segment].curve;
+    const std::uint32_t block = curve * 2 + static_cast<std::uint32_t>(side);
+    if (storage.block_offset(block) == SceneStorage::kNoBlock || storage.block_black(block)) {  // absorbed (receive booked it)
+      if (last != nullptr) last->absorbed = true;
+      return;
+    }
+    // Russian roulette: go on with probability q = max rho, each channel then carrying rho / q of
+    // its power, so every channel's expected power after the bounce is rho times what arrived.
+    // What the reweighting leaves behind (channels below the maximum, and rounding) is absorbed,
+    // so every walk's units end exactly as absorbed or escaped.
+    const Spectrum& rho = storage.block_reflectivity(block);
+    double survive = 0.0;
+    for (std::size_t ch = 0; ch < channels; ++ch) survive = std::max(survive, rho[ch]);
+    if (!(rng.uniform() < survive)) {
+      for (std::size_t ch = 0; ch < channels; ++ch) acc.absorbed[ch] += units[ch];
+      if (last != nullptr) last->absorbed = true;
+      return;
+    }
+    std::int64_t carried = 0;
+    for (std::size_t ch = 0; ch < channels; ++ch) {
+      const auto kept = static_cast<std::int64_t>(static_cast<double>(units[ch]) * (rho[ch] / survive) + 0.5);
+      acc.absorbed[ch] += units[ch] - kept;
+      units[ch] = kept;
+      carried += kept;
+    }
+    if (carried == 0) {  // (all absorbed above)
+      if (last != nullptr) last->absorbed = true;
+      return;
+    }
+    // A diffuse bounce from the side that was hit, starting on the curve itself.
+    const SceneSegment& segment = scene_->segments[hit.segment];
+    const Cubic& shape = segment.geometry.shape;
+    const Vec2 point = segment.geometry.kind == SegmentKind::Line ? lerp(shape.p[0], shape.p[3], hit.t)
+                                                                  : evaluate(shape, hit.t);
+    const Vec2 front = perp(normalized(tangent));
+    const Vec2 normal = side == Side::Front ? front : -front;
+    ray = Ray{point, square_to_diffuse(rng.uniform(), normal)};
+    const RayOrigin origin{hit.segment, hit.t};
+    hit = accelerator_.closest_hit(ray, origin);
+    ++acc.rays;
+    PhotonPath* path = nullptr;
+    if (paths != nullptr && paths->size() >= path_limit && last != nullptr) last->cut = true;
+    if (paths != nullptr && paths->size() < path_limit) {
+      path = &paths->emplace_back();
+      path->origin = point;
+      path->source_curve = curve;
+      path->source_side = side;
+      path->source_segment = origin.segment;
+      path->source_t = origin.t;
+      for (std::size_t ch = 0; ch < channels; ++ch)
+        path->power[ch] = static_cast<double>(units[ch]) / plan.scale;
+      path->bounce = bounce;
+    }
+    last = path;
+    receive<kRays>(round, hit, ray, units, acc, path, footprint);
+  }
+}
+
+template <PhotonShooter::RayKind kRays>
+void PhotonShooter::receive(const RoundView& round, const SceneHit& hit, const Ray& ray,
+                            const std::array<std::int64_t, 3>& units, Deposits& acc, PhotonPath* path,
+                            std::vector<FootprintWeight>& footprint) const {
+  const SceneStorage& storage = *round.storage;
+  const auto channels = static_cast<std::size_t>(storage.channels());
+  if (hit.segment == kNoSegment) {
+    for (std::size_t ch = 0; ch < channels; ++ch) acc.escaped[ch] += units[ch];
+    if (path != nullptr) {
+      path->escaped = true;
+      path->end = ray.origin + ray.direction;
+    }
+    return;
+  }
+  const SegmentInfo& info = segment_info_[hit.segment];
+  Vec2 hit_tangent;
+  const Side side = side_hit(hit, ray, hit_tangent);
+  if (path != nullptr) {
+    path->end = ray.origin + hit.distance * ray.direction;
+    path->hit_curve = info.curve;
+    path->hit_side = side;
+    path->hit_s = storage.arc_length_at(info.curve, info.index_in_curve + hit.t);
+  }
+  const std::uint32_t offset = storage.block_offset(info.curve, side);
+  // A side that reflects nothing (rho = 0 in every channel) turns all it receives into absorbed
+  // power whatever the deposit's shape: no footprint or deposit is computed for it.
+  if (offset == SceneStorage::kNoBlock || storage.block_black(info.curve * 2 + static_cast<std::uint32_t>(side))) {
+    for (std::size_t ch = 0; ch < channels; ++ch) acc.absorbed[ch] += units[ch];
+    return;
+  }
+  const double u = info.index_in_curve + hit.t;
+  if constexpr (kRays == RayKind::Footprint) {
+    // Spread along the receiver over the projected width with the profile; the weights sum to
+    // one and the largest share takes the rounding remainder.
+    const double cos_incidence = std::fabs(cross(hit_tangent, ray.direction)) / length(hit_tangent);
+    footprint.clear();
+    footprint_weights(*scene_, scene_->curves[info.curve], storage.finest(info.curve).basis, u,
+                      footprint_half_length(ray_width_, cos_incidence),
+                      ray_profile_, footprint, walls_[info.curve],
+                      footprint_tables_.empty() ? nullptr : &footprint_tables_[info.curve]);
+    std::size_t largest = 0;
+    for (std::size_t i = 1; i < footprint.size(); ++i)
+      if (footprint[i].weight > footprint[largest].weight) largest = i;
+    for (std::size_t ch = 0; ch < channels; ++ch) {
+      std::int64_t left = units[ch];
+      for (std::size_t i = 0; i < footprint.size(); ++i) {
+        if (i == largest) continue;
+        const auto share = static_cast<std::int64_t>(footprint[i].weight * static_cast<double>(units[ch]) + 0.5);
+        acc.received[acc.half_offset + (offset + footprint[i].coefficient) * channels + ch] += share;
+        left -= share;
+      }
+      acc.received[acc.half_offset + (offset + footprint[largest].coefficient) * channels + ch] += left;
+    }
+  } else {
+    // Deposit on the basis functions alive at u; the last share takes the remainder so every
+    // photon's units land exactly.
+    const SplineBasis& basis = storage.finest(info.curve).basis;
+    std::array<double, SplineBasis::kMaxDegree + 1> phi{};
+    const std::size_t first = basis.evaluate(u, phi.data());
+    const auto degree = static_cast<std::size_t>(basis.degree());
+    std::int64_t* target = acc.received.data() + acc.half_offset + offset * channels;
+    for (std::size_t ch = 0; ch < channels; ++ch) {
+      std::int64_t left = units[ch];
+      for (std::size_t j = 0; j < degree; ++j) {
+        // Round half up by truncation (the product is >= 0); std::llround is a library call.
+        const auto share = static_cast<std::int64_t>(phi[j] * static_cast<double>(units[ch]) + 0.5);
+        target[basis.index(first + j) * channels + ch] += share;
+        left -= share;
+      }
+      target[basis.index(first + degree) * channels + ch] += left;
+    }
+  }
+}
+
+}  // namespace flatland

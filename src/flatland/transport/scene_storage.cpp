@@ -1,0 +1,379 @@
+#include "flatland/transport/scene_storage.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+
+namespace flatland {
+
+namespace {
+
+bool is_cancelled(const std::atomic<bool>* cancel) { return cancel != nullptr && cancel->load(std::memory_order_relaxed); }
+
+// The finest level of one curve under `plan`: footprints spread every deposit over the ray's
+// width, so the deposited density is smooth on that scale; elements shorter than
+// kFootprintFinestElement x the width resolve only the spread, while each hit pays for every span
+// it covers. A level also has at least one element a segment before it halves them, so a curve of
+// many segments stops refining where its own count would pass the room (counting
+// kAutoBaseElements << level built 1024 elements a curve for 3,900 photons on curves of 256
+// segments).
+int finest_level_of(const Scene& scene, const Curve& curve, const SolverSettings& settings, const StoragePlan& plan,
+                    bool smooth, std::span<const MeshNode> events) {
+  int finest = plan.finest_level;
+  const auto base = std::max<double>(kAutoBaseElements, curve.segment_count);
+  while (plan.automatic && finest > 0 && std::ldexp(base, finest) > plan.room) --finest;
+  if (plan.automatic && settings.ray_width > 0.0 && settings.ray_mode == RayMode::Footprint) {
+    while (finest > 0 && longest_element(scene, curve, plan.elements, smooth, events, finest) <
+                             kFootprintFinestElement * settings.ray_width)
+      --finest;
+  }
+  return finest;
+}
+
+}  // namespace
+
+Result<SceneStorage> SceneStorage::build(const Scene& scene, const SolverSettings& settings, const StoragePlan& plan,
+                                         const std::vector<std::vector<MeshNode>>& events, WorkerPool& pool,
+                                         const std::atomic<bool>* cancel) {
+  SceneStorage built;
+  built.scene_ = &scene;
+  built.basis_ = settings.basis;
+  built.estimator_ = settings.estimator;
+  built.channels_ = scene.channels;
+  const bool hermite = settings.basis == BasisKind::Hermite;
+  const bool local = settings.estimator == Estimator::Local;
+  const bool smooth = settings.discontinuities == DiscontinuityMode::None;
+  built.storage_.resize(scene.curves.size());
+  built.levels_.resize(scene.curves.size());
+  // Every curve's storage and its coarser levels, each curve's by one worker.
+  pool.for_each(scene.curves.size(), [&](std::size_t c) {
+    if (is_cancelled(cancel)) return;
+    const Curve& curve = scene.curves[c];
+    const int finest_level = finest_level_of(scene, curve, settings, plan, smooth, events[c]);
+    CurveStorage& finest = built.storage_[c];
+    finest = build_curve_storage(scene, curve, settings.basis, plan.elements, smooth, events[c], finest_level);
+    if (local) build_local_estimator(scene, curve, finest, hermite);
+    // The coarser levels, each with its restriction from the finest.
+    std::vector<Level>& levels = built.levels_[c];
+    for (int level = 0; level < finest_level; ++level) {
+      if (is_cancelled(cancel)) return;
+      Level& coarse = levels.emplace_back();
+      coarse.storage = build_curve_storage(scene, curve, settings.basis, plan.elements, smooth, events[c], level);
+      if (local) build_local_estimator(scene, curve, coarse.storage, hermite);
+      coarse.restriction = restriction_between(coarse.storage.basis, finest.basis);
+    }
+  });
+  if (is_cancelled(cancel)) return Error{"cancelled"};
+  built.lay_out_blocks(scene);
+  return built;
+}
+
+void SceneStorage::lay_out_blocks(const Scene& scene) {
+  const auto channels = static_cast<std::size_t>(channels_);
+  block_offset_.assign(scene.curves.size() * 2, kNoBlock);
+  block_reflectivity_.assign(scene.curves.size() * 2, Spectrum{});
+  block_black_.assign(scene.curves.size() * 2, 0);
+  for (std::uint32_t c = 0; c < scene.curves.size(); ++c) {
+    const Curve& curve = scene.curves[c];
+    chosen_level_.push_back(static_cast<int>(levels_[c].size()));
+    const Material& material = scene.material_of(curve);
+    for (Side side : {Side::Front, Side::Back}) {
+      if (!curve.has_side(side)) continue;
+      const std::uint32_t block = c * 2 + static_cast<std::uint32_t>(side);
+      block_offset_[block] = static_cast<std::uint32_t>(coefficient_count_);
+      block_reflectivity_[block] = material.reflectivity;
+      bool black = true;
+      for (std::size_t ch = 0; ch < channels; ++ch) black = black && !(material.reflectivity[ch] > 0.0);
+      block_black_[block] = black ? 1 : 0;
+      coefficient_count_ += storage_[c].basis.size();
+      coefficient_block_.resize(coefficient_count_, block);
+    }
+  }
+  curve_chunks_.assign(1, 0);
+  std::size_t in_chunk = 0;
+  for (std::uint32_t c = 0; c < scene.curves.size(); ++c) {
+    for (Side side : {Side::Front, Side::Back})
+      if (scene.curves[c].has_side(side)) in_chunk += storage_[c].basis.size();
+    if (in_chunk >= kChunkCoefficients || c + 1 == scene.curves.size()) {
+      curve_chunks_.push_back(c + 1);
+      in_chunk = 0;
+    }
+  }
+}
+
+const CurveStorage& SceneStorage::at_level(std::uint32_t curve, int level) const {
+  const std::vector<Level>& levels = levels_[curve];
+  return level < static_cast<int>(levels.size()) ? levels[static_cast<std::size_t>(level)].storage : storage_[curve];
+}
+
+int SceneStorage::elements_in_use(std::uint32_t curve) const {
+  const CurveStorage& storage = at_level(curve, chosen_level_[curve]);
+  int spans = 0;
+  const std::vector<double>& knots = storage.basis.knots();
+  for (std::size_t span = storage.basis.first_span(); span < storage.basis.end_span(); ++span)
+    spans += knots[span + 1] > knots[span];
+  return spans;
+}
+
+std::size_t SceneStorage::discontinuity_nodes() const {
+  std::size_t count = 0;
+  for (const CurveStorage& storage : storage_)
+    for (const MeshNode& node : storage.nodes) count += node.continuity != Continuity::C1;
+  return count;
+}
+
+double SceneStorage::arc_length_at(std::uint32_t curve, double u) const {
+  return flatland::arc_length_at(*scene_, scene_->curves[curve], u);
+}
+
+void SceneStorage::estimate_on(const CurveStorage& storage, const double* power, double* coefficients,
+                         std::size_t stride) const {
+  if (estimator_ == Estimator::Galerkin) {
+    galerkin_estimate(storage, power, coefficients, stride);
+  } else if (estimator_ == Estimator::Local) {
+    local_estimate(storage, power, coefficients, stride);
+  } else {
+    for (std::size_t k = 0; k < storage.basis.size(); ++k)
+      coefficients[k * stride] = power[k * stride] / storage.basis_length[k];
+  }
+}
+
+std::vector<double> SceneStorage::estimate_in_level(std::uint32_t curve, int level, const double* power,
+                                              std::size_t stride) const {
+  const std::vector<Level>& levels = levels_[curve];
+  const std::size_t n = at_level(curve, level).basis.size();
+  std::vector<double> deposits(n);
+  std::vector<double> estimate(n);
+  if (level >= static_cast<int>(levels.size())) {
+    for (std::size_t k = 0; k < n; ++k) deposits[k] = power[k * stride];
+    estimate_on(storage_[curve], deposits.data(), estimate.data(), 1);
+    return estimate;
+  }
+  // Deposits of the coarse level follow from the fine ones.
+  const Level& coarse = levels[static_cast<std::size_t>(level)];
+  restrict_deposits(coarse.restriction, power, stride, deposits.data());
+  estimate_on(coarse.storage, deposits.data(), estimate.data(), 1);
+  return estimate;
+}
+
+void SceneStorage::estimate_at_level(std::uint32_t curve, int level, const double* power,
+                               double* coefficients, std::size_t stride) const {
+  if (level >= static_cast<int>(levels_[curve].size())) {
+    estimate_on(storage_[curve], power, coefficients, stride);
+    return;
+  }
+  // A coarse level's estimate, prolonged, is the same function in the fine basis.
+  const std::vector<double> estimate = estimate_in_level(curve, level, power, stride);
+  prolong_coefficients(levels_[curve][static_cast<std::size_t>(level)].restriction, estimate.data(), coefficients,
+                       stride);
+}
+
+bool SceneStorage::holds_power(const std::vector<double>& values, std::uint32_t curve, std::uint32_t offset) const {
+  const auto channels = static_cast<std::size_t>(channels_);
+  const double* block = &values[offset * channels];
+  return std::any_of(block, block + storage_[curve].basis.size() * channels, [](double x) { return x != 0.0; });
+}
+
+void SceneStorage::estimate(const std::vector<double>& power, std::vector<double>& coefficients) const {
+  coefficients.assign(power.size(), 0.0);
+  for (std::uint32_t c = 0; c < scene_->curves.size(); ++c) estimate_curve(c, power, coefficients);
+}
+
+void SceneStorage::estimate_curve(std::uint32_t c, const std::vector<double>& power, std::vector<double>& coefficients) const {
+  const auto channels = static_cast<std::size_t>(channels_);
+  for (Side side : {Side::Front, Side::Back}) {
+    const std::uint32_t offset = block_offset(c, side);
+    if (offset == kNoBlock) continue;
+    // Every estimator is linear: a side that holds no power (most sides of a large scene in a
+    // round of a few photons) keeps its zero coefficients without a solve.
+    if (!holds_power(power, c, offset)) continue;
+    for (std::size_t ch = 0; ch < channels; ++ch) {
+      const std::size_t first = offset * channels + ch;
+      estimate_at_level(c, chosen_level_[c], &power[first], &coefficients[first], channels);
+    }
+  }
+}
+
+void SceneStorage::choose_levels(const std::vector<double>& received, const std::vector<double>& half) {
+  // Per curve, with the reflected power summed over channels (rho times received) on each side:
+  // the estimate f_l at every level l, and f_l^A, f_l^B from the two halves of the photons (odd
+  // and even numbers in their round: independent, with equal means; with Sobol' two independently
+  // scrambled nets, see shoot). Then, in the L2 norm along
+  // the curve (the fine mass matrix),
+  //   variance  V_l = |f_l^A - f_l^B|^2     (its expectation is Var f_l^A + Var f_l^B = Var f_l),
+  //   bias^2    |f_l - f_(l+1)|^2 less its own noise |D^A - D^B|^2 (D^X = f_l^X - f_(l+1)^X),
+  //             times (2^q / (2^q - 1))^2: with the bias shrinking by 2^q per level (q the
+  //             estimator's order), f_l - f_(l+1) is (1 - 2^-q) of level l's bias; the finest
+  //             level's bias is the one below it over 2^q,
+  // and the level kept minimises bias^2 + V (ties: the coarser). Each level's bias comes from its
+  // own step to the next: sums of steps accumulate their noise, and differences to the finest
+  // level carry the finest level's large variance, both of which pushed choices off the best.
+  const auto channels = static_cast<std::size_t>(channels_);
+  for (std::uint32_t c = 0; c < scene_->curves.size(); ++c) {
+    const int finest = static_cast<int>(levels_[c].size());
+    if (finest == 0) continue;
+    const CurveStorage& fine = storage_[c];
+    const std::size_t n = fine.basis.size();
+    const auto count = static_cast<std::size_t>(finest) + 1;
+    // A curve that received nothing keeps its level (as one whose reflected power is zero does).
+    bool received_any = false;
+    for (Side side : {Side::Front, Side::Back}) {
+      const std::uint32_t offset = block_offset(c, side);
+      received_any = received_any || (offset != kNoBlock && holds_power(received, c, offset));
+    }
+    if (!received_any) continue;
+    // Per side, the reflected power summed over channels (rho times received): all photons, and
+    // the halves A and B.
+    std::vector<std::array<std::vector<double>, 3>> reflected;
+    double total = 0.0;
+    for (Side side : {Side::Front, Side::Back}) {
+      const std::uint32_t offset = block_offset(c, side);
+      if (offset == kNoBlock) continue;
+      const Spectrum& rho = block_reflectivity_[c * 2 + static_cast<std::uint32_t>(side)];
+      auto& [all, a, b] = reflected.emplace_back();
+      all.assign(n, 0.0);
+      a.assign(n, 0.0);
+      b.assign(n, 0.0);
+      for (std::size_t k = 0; k < n; ++k)
+        for (std::size_t ch = 0; ch < channels; ++ch) {
+          const std::size_t index = (offset + k) * channels + ch;
+          all[k] += rho[ch] * received[index];
+          a[k] += rho[ch] * half[index];
+        }
+      for (std::size_t k = 0; k < n; ++k) {
+        b[k] = all[k] - a[k];
+        total += all[k];
+      }
+    }
+    const std::size_t sides = reflected.size();
+    if (sides == 0 || !(total > 0.0)) continue;
+    // Each level's function as a vector whose squared norm is its squared L2 norm along the curve:
+    // a spline's coefficients prolonged into the fine basis (the norm through the fine mass
+    // matrix), or a Hermite curve's values at two Gauss-Legendre points in arc length on every
+    // finest span (every level's Hermite curve is a cubic in arc length there; the rule is exact
+    // for the squared norm of differences up to linear, an approximation for cubic ones that chose
+    // the same levels as four points on the tests' scenes at half the cost): the level is chosen by
+    // the error of what is reconstructed.
+    const bool hermite = basis_ == BasisKind::Hermite;
+    std::vector<double> at;       // increasing arc lengths
+    std::vector<double> weights;  // the quadrature's weight of each
+    if (hermite) {
+      const double gauss = 1.0 / std::sqrt(3.0);
+      const std::vector<double>& knots = fine.basis.knots();
+      double s1 = arc_length_at(c, knots[fine.basis.first_span()]);  // each knot's arc length once
+      for (std::size_t span = fine.basis.first_span(); span < fine.basis.end_span(); ++span) {
+        if (!(knots[span + 1] > knots[span])) continue;
+        const double s0 = s1;
+        s1 = arc_length_at(c, knots[span + 1]);
+        const double half_width = 0.5 * (s1 - s0);
+        for (const double x : {-gauss, gauss}) {
+          at.push_back(s0 + half_width * (1.0 + x));
+          weights.push_back(half_width);
+        }
+      }
+    }
+    const std::size_t width = hermite ? at.size() : n;
+    auto represent = [&](std::size_t level, const std::vector<double>& source, double* out) {
+      if (!hermite) {
+        estimate_at_level(c, static_cast<int>(level), source.data(), out, 1);
+        return;
+      }
+      const std::vector<double> nodal = estimate_in_level(c, static_cast<int>(level), source.data(), 1);
+      hermite_of(c, static_cast<int>(level), nodal.data()).evaluate_increasing(at, out);
+    };
+    // [level][side][i]: full, A and B estimates.
+    using PerLevel = std::vector<std::vector<double>>;
+    PerLevel full(count, std::vector<double>(sides * width));
+    PerLevel part_a = full;
+    PerLevel part_b = full;
+    const std::array<PerLevel*, 3> targets = {&full, &part_a, &part_b};
+    for (std::size_t level = 0; level < count; ++level)
+      for (std::size_t side = 0; side < sides; ++side)
+        for (std::size_t set = 0; set < 3; ++set)
+          represent(level, reflected[side][set], (*targets[set])[level].data() + side * width);
+    // |x|^2 = x^T M x = |L^T x|^2 per side, with M's Cholesky factor L in envelope storage (a
+    // Hermite curve: the Gauss rule above on its values).
+    auto norm2 = [&](auto value) {
+      double sum = 0.0;
+      if (hermite) {
+        for (std::size_t i = 0; i < sides * width; ++i) sum += weights[i % width] * value(i) * value(i);
+        return sum;
+      }
+      std::vector<double> y(n);
+      for (std::size_t s = 0; s < sides; ++s) {
+        std::fill(y.begin(), y.end(), 0.0);
+        for (std::size_t row = 0; row < n; ++row) {
+          const double x = value(s * n + row);
+          for (std::size_t col = fine.mass_first[row]; col <= row; ++col)
+            y[col] += fine.mass_cholesky[fine.mass_offset[row] + col - fine.mass_first[row]] * x;
+        }
+        for (double v : y) sum += v * v;
+      }
+      return sum;
+    };
+    // The estimator's order q: its bias shrinks by 2^q per level.
+    const int degree = fine.basis.degree();
+    const double order = estimator_ == Estimator::Lumped ? std::min(degree + 1, 2) : degree + 1.0;
+    const double richardson = std::pow(2.0, order) / (std::pow(2.0, order) - 1.0);
+    const std::size_t last = count - 1;
+    double best = std::numeric_limits<double>::infinity();
+    double bias2 = 0.0;
+    int chosen = finest;
+    for (std::size_t l = 0; l < count; ++l) {
+      if (l < last) {
+        const double difference = norm2([&](std::size_t i) { return full[l][i] - full[l + 1][i]; });
+        const double noise = norm2([&](std::size_t i) {
+          return (part_a[l][i] - part_a[l + 1][i]) - (part_b[l][i] - part_b[l + 1][i]);
+        });
+        bias2 = std::max(difference - noise, 0.0) * richardson * richardson;
+      } else {
+        bias2 /= std::pow(2.0, 2.0 * order);  // the finest: the last step's bias, one level on
+      }
+      const double variance = norm2([&](std::size_t i) { return part_a[l][i] - part_b[l][i]; });
+      if (bias2 + variance < best) {
+        best = bias2 + variance;
+        chosen = static_cast<int>(l);
+      }
+    }
+    chosen_level_[c] = chosen;
+  }
+}
+
+HermiteReconstruction SceneStorage::hermite_of(std::uint32_t curve, int level, const double* values) const {
+  // Hat k of a linear B-spline peaks at knots[k + 1] (its Greville point); two hats peaking at the
+  // same place are the two sides of a C-1 node.
+  const CurveStorage& storage = at_level(curve, level);
+  const std::vector<double>& knots = storage.basis.knots();
+  HermiteInput input;
+  std::size_t next_node = 0;  // storage.nodes is sorted by u, as the Greville points are
+  for (std::size_t k = 0; k < storage.basis.size(); ++k) {
+    const double u = knots[k + 1];
+    const double value = values[k];
+    if (k > 0 && u == knots[k]) {  // the right side of a jump
+      input.right.back() = value;
+      continue;
+    }
+    while (next_node < storage.nodes.size() && storage.nodes[next_node].u < u) ++next_node;
+    const Continuity continuity =
+        next_node < storage.nodes.size() && storage.nodes[next_node].u == u
+            ? storage.nodes[next_node].continuity
+            : Continuity::C1;
+    input.u.push_back(arc_length_at(curve, u));
+    input.left.push_back(value);
+    input.right.push_back(value);
+    input.continuity.push_back(continuity);
+  }
+  if (storage.basis.is_periodic()) {
+    // Hat 0 peaks at the closing point: it is node 0 and, a lap later, node n.
+    input.periodic = true;
+    input.continuity.front() = storage.closing;
+    input.u.push_back(scene_->curves[curve].length);
+    input.left.push_back(values[0]);
+    input.right.push_back(values[0]);
+    input.continuity.push_back(storage.closing);
+  }
+  return HermiteReconstruction(input);
+}
+
+}  // namespace flatland

@@ -1,0 +1,88 @@
+#include "flatland/transport/shooting.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace flatland {
+
+ProgressiveShooting::ProgressiveShooting(std::vector<double> emission, double emitted, double decay, double tolerance)
+    : unshot_(std::move(emission)), emitted_(emitted), initial_ratio_(decay), tolerance_(tolerance) {}
+
+std::uint64_t ProgressiveShooting::round_photons(double unshot, std::uint64_t shot, std::uint64_t budget,
+                                                 std::uint32_t rounds) const {
+  // Photons of (about) equal power in every round: this round gets the share of the remaining
+  // budget that its power is of all the power still to be shot. With the observed decay ratio r
+  // of the unshot power, that is about U / (1 - r) (the geometric tail; ignoring where the
+  // tolerance cuts it off keeps a reserve, so the budget is never spent one round too early).
+  // Every round shoots at least kMinPhotonsPerRound, so the rounds still needed to reach the
+  // tolerance, K = ln(tolerance E / U) / ln r, each get that much set aside first; when the budget
+  // cannot pay for them all, the solve ends with its budget spent and says how much is unshot.
+  const std::uint64_t remaining = budget - shot;
+  const double ratio = std::clamp(rounds == 0 ? initial_ratio_ : unshot / previous_unshot_, 0.0, 0.999999);
+  const double target = tolerance_ * emitted_;
+  double later_rounds = 0.0;
+  if (ratio > 0.0 && unshot > target)
+    later_rounds = std::clamp(std::ceil(std::log(target / unshot) / std::log(ratio)) - 1.0, 0.0, 1e15);
+  const double reserve = later_rounds * static_cast<double>(kMinPhotonsPerRound);
+  const double available = std::max(0.0, static_cast<double>(remaining) - reserve);
+  auto photons = static_cast<std::uint64_t>(std::llround(available * (1.0 - ratio)));
+  photons = std::max(photons, std::min(remaining, kMinPhotonsPerRound));
+  return std::min({photons, remaining, kMaxPhotonsPerRound});
+}
+
+void ProgressiveShooting::end_round(const SceneStorage& storage, const RoundTotals& round,
+                                    std::vector<double>& received, std::vector<double>& received_half) {
+  // Power shot this round leaves the pool; what was received comes back as rho times itself. With
+  // automatic storage, odd-numbered photons deposited into the deposits' second half.
+  const auto channels = static_cast<std::size_t>(storage.channels());
+  const std::size_t half = storage.coefficient_count() * channels;
+  double previous_pool = 0.0;
+  for (double value : unshot_) previous_pool += value;
+  for (std::uint32_t block = 0; block < storage.block_count(); ++block) {
+    const std::uint32_t offset = storage.block_offset(block);
+    if (offset == SceneStorage::kNoBlock) continue;
+    const Spectrum& rho = storage.block_reflectivity(block);
+    const std::size_t count = storage.finest(block / 2).basis.size();
+    for (std::size_t k = 0; k < count; ++k) {
+      for (std::size_t ch = 0; ch < channels; ++ch) {
+        const std::size_t index = (offset + k) * channels + ch;
+        std::int64_t units = 0;
+        std::int64_t odd = 0;
+        for (const Deposits& deposits : round.deposits) {
+          units += deposits.received[index];
+          if (round.halves) odd += deposits.received[half + index];
+        }
+        units += odd;
+        const double power = static_cast<double>(units) * round.inverse_scale;
+        received[index] += power;
+        if (round.halves) received_half[index] += static_cast<double>(odd) * round.inverse_scale;
+        unshot_[index] = rho[ch] * power;
+        absorbed_[ch].add(power - unshot_[index]);
+      }
+    }
+  }
+  for (std::size_t ch = 0; ch < channels; ++ch) {
+    escaped_[ch].add(static_cast<double>(round.escaped[ch]) * round.inverse_scale);
+    absorbed_[ch].add(static_cast<double>(round.absorbed[ch]) * round.inverse_scale);
+  }
+  previous_unshot_ = previous_pool;
+}
+
+void ProgressiveShooting::add_open_round(std::vector<double>& received, std::vector<double>& received_half,
+                                         const std::vector<double>& open, const std::vector<double>& open_odd, double,
+                                         double, double, bool halves) const {
+  for (std::size_t index = 0; index < received.size(); ++index) {
+    received[index] += open[index];
+    if (halves) received_half[index] += open_odd[index];
+  }
+}
+
+void ProgressiveShooting::add_books(EnergyBooks& books, int channels, std::uint32_t) const {
+  for (int ch = 0; ch < channels; ++ch) {
+    books.absorbed += absorbed_[static_cast<std::size_t>(ch)].value();
+    books.escaped += escaped_[static_cast<std::size_t>(ch)].value();
+  }
+  for (double value : unshot_) books.unshot += value;
+}
+
+}  // namespace flatland

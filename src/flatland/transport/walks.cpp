@@ -1,0 +1,97 @@
+#include "flatland/transport/walks.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+namespace flatland {
+
+Result<RandomWalks> RandomWalks::create(const Scene& scene, std::vector<double> emission) {
+  // A walk goes on with probability max rho at every hit, so its number of rays is at most
+  // geometric with mean 1 / (1 - max rho) over the scene's reflecting sides.
+  double most = 0.0;
+  const Curve* brightest = nullptr;
+  for (const Curve& curve : scene.curves)
+    for (std::size_t ch = 0; ch < static_cast<std::size_t>(scene.channels); ++ch)
+      if (scene.material_of(curve).reflectivity[ch] > most) {
+        most = scene.material_of(curve).reflectivity[ch];
+        brightest = &curve;
+      }
+  if (most > kWalkMaxReflectivity) {
+    char message[320];
+    std::snprintf(message, sizeof message,
+                  "%s: curve '%s' reflects %.9g: a random walk would average %.3g rays; "
+                  "walks need every reflectivity at most %g (use transport shooting)",
+                  scene.source.c_str(), brightest->id.c_str(), most, 1.0 / (1.0 - most), kWalkMaxReflectivity);
+    return Error{message};
+  }
+  RandomWalks walks;
+  walks.expected_rays_ = 1.0 / (1.0 - most);
+  walks.nothing_.assign(emission.size(), 0.0);
+  walks.emission_ = std::move(emission);
+  return walks;
+}
+
+std::uint64_t RandomWalks::round_photons(double, std::uint64_t shot, std::uint64_t budget, std::uint32_t) const {
+  return std::min({std::max(kMinWalksPerRound, shot / 2), kMaxWalksPerRound, budget - shot});
+}
+
+int RandomWalks::headroom_bits(std::uint64_t photons) {
+  // A walk tallies its power at every hop, so a round of n walks deposits about n R times a
+  // walk's power, R the mean rays per walk (at most expected_rays_): the scale gives up H bits,
+  // 2^H >= R (1 + 64 / n), so the total stays below 2^63 unless the round's rays exceed
+  // 4 R n + 256 R, which for a sum of n geometric counts is rarer than e^-60. With n <= 2^20 and
+  // R <= 1e6 a walk still carries at least 2^18 units.
+  const double rays = expected_rays_ * (1.0 + 64.0 / static_cast<double>(photons));
+  const int bits = std::max(0, static_cast<int>(std::ceil(std::log2(rays))));
+  most_headroom_bits_ = std::max(most_headroom_bits_, bits);
+  return bits;
+}
+
+void RandomWalks::end_round(const SceneStorage& storage, const RoundTotals& round, std::vector<double>& received,
+                            std::vector<double>& received_half) {
+  // Each round's tallies estimate the whole received power (its walks carry all the emitted
+  // power between them): the running estimate is their average weighted by walks. Power is
+  // absorbed or escapes only where a walk's units end, so the books stay exact per round.
+  const auto channels = static_cast<std::size_t>(storage.channels());
+  const std::size_t half = storage.coefficient_count() * channels;
+  const double weight = static_cast<double>(round.photons) / static_cast<double>(round.photons_shot);
+  for (std::size_t index = 0; index < half; ++index) {
+    std::int64_t units = 0;
+    std::int64_t odd = 0;
+    for (const Deposits& deposits : round.deposits) {
+      units += deposits.received[index];
+      if (round.halves) odd += deposits.received[half + index];
+    }
+    received[index] += weight * (static_cast<double>(units + odd) * round.inverse_scale - received[index]);
+    if (round.halves)
+      received_half[index] += weight * (static_cast<double>(odd) * round.inverse_scale - received_half[index]);
+  }
+  for (std::size_t ch = 0; ch < channels; ++ch) {
+    escaped_[ch] += weight * (static_cast<double>(round.escaped[ch]) * round.inverse_scale - escaped_[ch]);
+    absorbed_[ch] += weight * (static_cast<double>(round.absorbed[ch]) * round.inverse_scale - absorbed_[ch]);
+  }
+}
+
+void RandomWalks::add_open_round(std::vector<double>& received, std::vector<double>& received_half,
+                                 const std::vector<double>& open, const std::vector<double>& open_odd, double before,
+                                 double done, double photons, bool halves) const {
+  // The round's walks so far, each carrying 1/n of the emitted power, estimate done / n of the
+  // received power; averaged with the finished rounds by walks.
+  if (!(done > 0.0)) return;
+  for (std::size_t index = 0; index < received.size(); ++index) {
+    received[index] = (before * received[index] + photons * open[index]) / (before + done);
+    if (halves) received_half[index] = (before * received_half[index] + photons * open_odd[index]) / (before + done);
+  }
+}
+
+void RandomWalks::add_books(EnergyBooks& books, int channels, std::uint32_t rounds) const {
+  for (int ch = 0; ch < channels; ++ch) {
+    books.absorbed += absorbed_[static_cast<std::size_t>(ch)];
+    books.escaped += escaped_[static_cast<std::size_t>(ch)];
+  }
+  // Until a round has finished nothing is accounted for: the emitted power is still to go.
+  if (rounds == 0) books.unshot = books.emitted;
+}
+
+}  // namespace flatland
