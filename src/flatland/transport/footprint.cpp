@@ -663,107 +663,148 @@ double FootprintTable::arc_length_in_span(std::size_t span, double u) const {
   return start_[span - first_] + chebyshev_value(sigma, series.length_terms, v);
 }
 
-void footprint_weights(const Scene& scene, const Curve& curve, const SplineBasis& basis,
-                       double u_hit, double half_length, RayProfile profile,
-                       std::vector<FootprintWeight>& out, std::span<const double> walls,
-                       const FootprintTable* table) {
-  // Plan. Offsets x = s - s_hit along the receiver's arc length. The run is the stretch of
-  // tangent-continuous segments around the hit, [X0, X1] in x; on a closed curve it may continue
-  // across the closing point (x then runs past the curve's length and wraps), and a closed curve
-  // that is smooth all round has no ends at all. The spread is k(x / a) / a on [-a, a]. What
-  // would fall beyond an end of the run is reflected about that end (the image k((x - 2 X0) / a)
-  // on [X0, 2 X0 + a], likewise at X1): every image point lies at the same distance from the end
-  // as the mass it replaces, so energy is exact and a uniform incident flux gives a uniform
-  // deposit up to the end (renormalising instead piles the cut-off mass up near it: ln 2 of the
-  // truth at the end for a box). A run shorter than the footprint would need images of images;
-  // the one reflection at each end is then renormalised.
-  //
-  // Each image interval is cut where it wraps into pieces that lie within the curve, and on each
-  // piece, in the curve parameter u (ds = |C'(u)| du),
-  //   w_k += integral k((x(u) - c) / a) phi_k(u) |C'(u)| du,  c the image's centre,
-  // split where the integrand is not smooth: knots (phi_k), segment joints (|C'|), and the
-  // centre (the tent's kink). Each part gets Gauss-Legendre panels. x is carried from part to part:
-  // exactly linear on lines, integrated spectrally on cubics (kIntegrate8), and reset to c at the
-  // centre. The constant 1/a is dropped: the weights are normalised at the end.
-  const std::uint32_t count = curve.segment_count;
-  assert(count > 0 && std::isfinite(u_hit));
-  // fmax/fmin also send a NaN to the curve's start instead of into an index.
-  u_hit = std::fmin(std::fmax(u_hit, 0.0), static_cast<double>(count));
-  const std::uint32_t hit = std::min(static_cast<std::uint32_t>(u_hit), count - 1);
-  if (!(half_length > 0.0)) {
-    deposit_point(basis, u_hit, out);
-    return;
-  }
-  const SceneSegment* segments = scene.segments.data() + curve.first_segment;
-  const std::vector<double>& start = curve.segment_start;
-  const double a = half_length;
-  const double total = curve.length;
+namespace {
 
+// Where a footprint may spread along the receiver: [x0, x1] in arc-length offsets from the hit,
+// and whether the run of tangent-continuous segments (or a wall) cut it short at either end, so
+// that the cut-off mass is reflected back about that end.
+struct FootprintRun {
+  double x0 = 0.0;
+  double x1 = 0.0;
+  bool cut_low = false;
+  bool cut_high = false;
+  bool flat = false;  // a closed smooth curve the footprint would wrap round many times
+};
+
+// One footprint deposit (footprint_weights): the hit and the curve it lies on, and the steps of
+// its integration, each a method. Offsets x = s - s_hit run along the receiver's arc length; the
+// spread is k(x / a) / a on [-a, a].
+class FootprintSpread {
+ public:
+  FootprintSpread(const Scene& scene, const Curve& curve, const SplineBasis& basis, double u_hit, double a,
+                  RayProfile profile, std::vector<FootprintWeight>& out, const FootprintTable* table)
+      : curve_(curve),
+        basis_(basis),
+        knots_(basis.knots()),
+        segments_(scene.segments.data() + curve.first_segment),
+        start_(curve.segment_start),
+        count_(curve.segment_count),
+        total_(curve.length),
+        a_(a),
+        profile_(profile),
+        polynomial_profile_(is_polynomial(profile)),
+        u_hit_(u_hit),
+        hit_(std::min(static_cast<std::uint32_t>(u_hit), curve.segment_count - 1)),
+        out_(out),
+        begin_(out.size()) {
+    // A table serves the polynomial profiles whose powers of y it keeps: the walk then goes by arc
+    // length (integrate_piece_by_arc); any other footprint walks in u with quadrature.
+    use_table_ = polynomial_profile_ && table != nullptr && !table->empty() && table->powers() >= profile_powers(profile);
+    table_ = use_table_ ? table : nullptr;
+    assert(table == nullptr || table->empty() || table->matches(basis));
+    const double t_hit = u_hit - hit_;
+    into_hit_ = std::numeric_limits<double>::quiet_NaN();
+    if (use_table_) {
+      hit_span_ = basis.find_span(u_hit);
+      // On a cubic the span's s(u) series gives the hit's arc length without quadrature.
+      if (segments_[hit_].geometry.kind != SegmentKind::Line)
+        into_hit_ = std::clamp(table_->arc_length_in_span(hit_span_, u_hit) - start_[hit_], 0.0, segments_[hit_].length);
+    }
+    if (std::isnan(into_hit_)) into_hit_ = length_in(hit_, t_hit);
+    s_hit_ = start_[hit_] + into_hit_;
+    hit_is_line_ = segments_[hit_].geometry.kind == SegmentKind::Line;
+  }
+
+  FootprintRun run(const Scene& scene, std::span<const double> walls);
+  // Integrates the image of the spread centred at offset c over [xa, xb], cut into laps of the
+  // curve: pieces end where s_hit + x crosses a multiple of the length (only on a closed run).
+  void integrate_image(double xa, double xb, double c);
+  // Merges the pieces' weights and normalises them (a point deposit when nothing was spread).
+  void finish();
+  void set_flat(bool flat) { inverse_a_ = flat ? 0.0 : 1.0 / a_; }
+
+ private:
   // Arc length within segment j at parameter t, and its inverse: closed form on lines.
-  auto length_in = [segments](std::uint32_t j, double t) {
-    const SceneSegment& segment = segments[j];
-    return segment.geometry.kind == SegmentKind::Line
-               ? t * segment.length
-               : segment.arc_length.length_at(segment.geometry.shape, t);
-  };
-  auto parameter_in = [segments](std::uint32_t j, double s) {
-    const SceneSegment& segment = segments[j];
-    return segment.geometry.kind == SegmentKind::Line
-               ? std::clamp(s / segment.length, 0.0, 1.0)
-               : segment.arc_length.parameter_at(segment.geometry.shape, s);
-  };
-
-  const bool polynomial_profile = is_polynomial(profile);
-  // A table serves the polynomial profiles whose powers of y it keeps: the walk then goes by arc
-  // length (integrate_piece_by_arc); any other footprint walks in u with quadrature.
-  const bool use_table = polynomial_profile && table != nullptr && !table->empty() &&
-                         table->powers() >= profile_powers(profile);
-  assert(table == nullptr || table->empty() || table->matches(basis));
-  const std::vector<double>& knots = basis.knots();
-
-  const double t_hit = u_hit - hit;
-  double into_hit = std::numeric_limits<double>::quiet_NaN();  // from the hit segment's start
-  std::size_t hit_span = 0;  // with a table: the knot span holding u_hit (the one that starts there)
-  if (use_table) {
-    hit_span = basis.find_span(u_hit);
-    // On a cubic the span's s(u) series gives the hit's arc length without quadrature.
-    if (segments[hit].geometry.kind != SegmentKind::Line)
-      into_hit = std::clamp(table->arc_length_in_span(hit_span, u_hit) - start[hit], 0.0,
-                            segments[hit].length);
+  double length_in(std::uint32_t j, double t) const {
+    const SceneSegment& segment = segments_[j];
+    return segment.geometry.kind == SegmentKind::Line ? t * segment.length
+                                                      : segment.arc_length.length_at(segment.geometry.shape, t);
   }
-  if (std::isnan(into_hit)) into_hit = length_in(hit, t_hit);
-  const double s_hit = start[hit] + into_hit;
+  double parameter_in(std::uint32_t j, double s) const {
+    const SceneSegment& segment = segments_[j];
+    return segment.geometry.kind == SegmentKind::Line ? std::clamp(s / segment.length, 0.0, 1.0)
+                                                      : segment.arc_length.parameter_at(segment.geometry.shape, s);
+  }
+  double u_at(double x, bool at_end, double n) const;
+  int profile_panels(double x_width) const;
+  std::array<double, 3> profile_in_y(double x_mid, double beta, bool below) const;
+  void integrate_part(Accumulator& accumulate, std::uint32_t j, double ua, double ub, double& delta_a) const;
+  void integrate_piece(double xa, double xb, double c, double n);
+  void integrate_piece_by_arc(double xa, double xb, double c, double n);
+  void integrate_span_part(Accumulator& accumulate, std::size_t span, double pa, double pb, double s0, double s1,
+                           double s_centre) const;
 
+  const Curve& curve_;
+  const SplineBasis& basis_;
+  const std::vector<double>& knots_;
+  const SceneSegment* segments_;
+  const std::vector<double>& start_;
+  const std::uint32_t count_;
+  const double total_;
+  const double a_;
+  const RayProfile profile_;
+  const bool polynomial_profile_;
+  const double u_hit_;
+  const std::uint32_t hit_;
+  std::vector<FootprintWeight>& out_;
+  const std::size_t begin_;
+  bool use_table_ = false;
+  const FootprintTable* table_ = nullptr;
+  std::size_t hit_span_ = 0;  // with a table: the knot span holding u_hit (the one that starts there)
+  double into_hit_ = 0.0;     // from the hit segment's start
+  double s_hit_ = 0.0;
+  bool hit_is_line_ = false;
+  double inverse_a_ = 0.0;  // 0 for a flat spread
+  bool several_ = false;    // more than one piece appended: merge before normalising
+};
+
+FootprintRun FootprintSpread::run(const Scene& scene, std::span<const double> walls) {
   // The run, walking over smooth joints (the closing one too, on a closed curve) while the
   // footprint reaches past them. `before` and `after` are the run's lengths on each side of the
   // hit; infinite when the walk comes all the way round.
   auto smooth = [&](std::uint32_t joint) {
-    return use_table ? table->smooth_joint(joint) : is_tangent_continuous(scene, curve, joint);
+    return use_table_ ? table_->smooth_joint(joint) : is_tangent_continuous(scene, curve_, joint);
   };
-  double before = into_hit;
-  double after = segments[hit].length - into_hit;
+  double before = into_hit_;
+  double after = segments_[hit_].length - into_hit_;
   bool endless = false;
   {
-    std::uint32_t j = hit;
+    std::uint32_t j = hit_;
     std::uint32_t steps = 0;
-    while (before < a) {
+    while (before < a_) {
       const bool wraps = j == 0;
-      if (wraps && !curve.closed) break;
-      const std::uint32_t previous = wraps ? count - 1 : j - 1;
+      if (wraps && !curve_.closed) break;
+      const std::uint32_t previous = wraps ? count_ - 1 : j - 1;
       if (!smooth(previous)) break;
-      if (++steps > count) { endless = true; break; }
+      if (++steps > count_) {
+        endless = true;
+        break;
+      }
       j = previous;
-      before += segments[j].length;
+      before += segments_[j].length;
     }
-    j = hit;
+    j = hit_;
     steps = 0;
-    while (!endless && after < a) {
-      const bool wraps = j + 1 == count;
-      if (wraps && !curve.closed) break;
+    while (!endless && after < a_) {
+      const bool wraps = j + 1 == count_;
+      if (wraps && !curve_.closed) break;
       if (!smooth(j)) break;
-      if (++steps > count) { endless = true; break; }
+      if (++steps > count_) {
+        endless = true;
+        break;
+      }
       j = wraps ? 0 : j + 1;
-      after += segments[j].length;
+      after += segments_[j].length;
     }
   }
   // Walls (contacts: another curve stands on this one there) end the run like corners.
@@ -773,11 +814,11 @@ void footprint_weights(const Scene& scene, const Curve& curve, const SplineBasis
       endless = false;
     }
     for (const double wall : walls) {
-      double below = s_hit - wall;  // arc length from the wall up to the hit
-      if (curve.closed) {
-        below -= std::floor(below / total) * total;
+      double below = s_hit_ - wall;  // arc length from the wall up to the hit
+      if (curve_.closed) {
+        below -= std::floor(below / total_) * total_;
         before = std::fmin(before, below);
-        after = std::fmin(after, total - below);
+        after = std::fmin(after, total_ - below);
       } else if (below >= 0.0) {
         before = std::fmin(before, below);
       } else {
@@ -787,273 +828,301 @@ void footprint_weights(const Scene& scene, const Curve& curve, const SplineBasis
   }
   // A closed smooth curve that the footprint would wrap round more than 64 times gets a flat
   // spread (its periodic sum is flat to 2 %), one lap each way.
-  const bool flat = endless && a > 32.0 * total;
-  const double reach = flat ? 0.5 * total : a;
-  const double x0 = endless ? -reach : std::fmax(-before, -a);
-  const double x1 = endless ? reach : std::fmin(after, a);
-  const bool cut_low = !endless && before < a;
-  const bool cut_high = !endless && after < a;
+  FootprintRun run;
+  run.flat = endless && a_ > 32.0 * total_;
+  const double reach = run.flat ? 0.5 * total_ : a_;
+  run.x0 = endless ? -reach : std::fmax(-before, -a_);
+  run.x1 = endless ? reach : std::fmin(after, a_);
+  run.cut_low = !endless && before < a_;
+  run.cut_high = !endless && after < a_;
+  return run;
+}
 
-  // u at offset x from the hit, in lap n of the curve (s = s_hit + x - n length, within the
-  // curve); `at_end` picks the end of the previous segment (or of the curve) for a point on a
-  // joint. On the hit segment of a line u is u_hit + x / L directly, which keeps tiny footprints
-  // accurate.
-  const bool hit_is_line = segments[hit].geometry.kind == SegmentKind::Line;
-  auto u_at = [&](double x, bool at_end, double n) {
-    if (n == 0.0 && hit_is_line && x >= -into_hit && x <= segments[hit].length - into_hit)
-      return std::clamp(u_hit + x / segments[hit].length, static_cast<double>(hit), hit + 1.0);
-    const double s = std::clamp(s_hit + x - n * total, 0.0, total);
-    const auto it = std::upper_bound(start.begin(), start.begin() + count, s);
-    auto j = static_cast<std::uint32_t>(std::max<std::ptrdiff_t>(0, (it - start.begin()) - 1));
-    if (at_end && j > 0 && s == start[j]) --j;  // the end of the previous segment
-    return j + parameter_in(j, s - start[j]);
-  };
+// u at offset x from the hit, in lap n of the curve (s = s_hit + x - n length, within the curve);
+// `at_end` picks the end of the previous segment (or of the curve) for a point on a joint. On the
+// hit segment of a line u is u_hit + x / L directly, which keeps tiny footprints accurate.
+double FootprintSpread::u_at(double x, bool at_end, double n) const {
+  if (n == 0.0 && hit_is_line_ && x >= -into_hit_ && x <= segments_[hit_].length - into_hit_)
+    return std::clamp(u_hit_ + x / segments_[hit_].length, static_cast<double>(hit_), hit_ + 1.0);
+  const double s = std::clamp(s_hit_ + x - n * total_, 0.0, total_);
+  const auto it = std::upper_bound(start_.begin(), start_.begin() + count_, s);
+  auto j = static_cast<std::uint32_t>(std::max<std::ptrdiff_t>(0, (it - start_.begin()) - 1));
+  if (at_end && j > 0 && s == start_[j]) --j;  // the end of the previous segment
+  return j + parameter_in(j, s - start_[j]);
+}
 
-  // 0 for an infinite footprint, or a flat one: a flat spread.
-  const double inverse_a = flat ? 0.0 : 1.0 / a;
-  // The Gaussian changes fastest: its panels span at most half the footprint (x-width 1/2), where
-  // eight points reach about 1e-14 (a whole half, x-width 1, would give about 1e-9).
-  auto profile_panels = [&](double x_width) {
-    return profile == RayProfile::Gauss ? std::max(1, static_cast<int>(std::ceil(2.0 * x_width)))
-                                        : 1;
-  };
-  const std::size_t begin = out.size();
-  bool several = false;  // more than one piece appended: merge before normalising
+// The Gaussian changes fastest: its panels span at most half the footprint (x-width 1/2), where
+// eight points reach about 1e-14 (a whole half, x-width 1, would give about 1e-9).
+int FootprintSpread::profile_panels(double x_width) const {
+  return profile_ == RayProfile::Gauss ? std::max(1, static_cast<int>(std::ceil(2.0 * x_width))) : 1;
+}
 
-  // The polynomial profile in a span's arc-length coordinate y, where the offset from the image's
-  // centre over a is x_mid + beta y, on the side of the centre `below` says: c0 + c1 y + c2 y^2.
-  auto profile_in_y = [&](double x_mid, double beta, bool below) -> std::array<double, 3> {
-    if (profile == RayProfile::Tent) {  // 1 - |x|
-      const double sign = below ? -1.0 : 1.0;
-      return {1.0 - sign * x_mid, -sign * beta, 0.0};
-    }
-    if (profile == RayProfile::Epanechnikov)  // 3/4 (1 - x^2)
-      return {0.75 * (1.0 - x_mid * x_mid), -1.5 * x_mid * beta, -0.75 * beta * beta};
-    return {0.5, 0.0, 0.0};
-  };
+// The polynomial profile in a span's arc-length coordinate y, where the offset from the image's
+// centre over a is x_mid + beta y, on the side of the centre `below` says: c0 + c1 y + c2 y^2.
+std::array<double, 3> FootprintSpread::profile_in_y(double x_mid, double beta, bool below) const {
+  if (profile_ == RayProfile::Tent) {  // 1 - |x|
+    const double sign = below ? -1.0 : 1.0;
+    return {1.0 - sign * x_mid, -sign * beta, 0.0};
+  }
+  if (profile_ == RayProfile::Epanechnikov)  // 3/4 (1 - x^2)
+    return {0.75 * (1.0 - x_mid * x_mid), -1.5 * x_mid * beta, -0.75 * beta * beta};
+  return {0.5, 0.0, 0.0};
+}
 
-  // Integrates the part [ua, ub] of segment j (within one knot span, which the accumulator has
-  // entered, on one side of the centre) by Gauss-Legendre panels; delta_a, the part's start's
-  // offset from the image's centre, advances to its end.
-  auto integrate_part = [&](Accumulator& accumulate, std::uint32_t j, double ua, double ub,
-                            double& delta_a) {
-    const SceneSegment& segment = segments[j];
-    const double jd = j;
-    if (segment.geometry.kind == SegmentKind::Line) {
-      // Constant speed L: delta(u) = delta_a + (u - ua) L exactly.
-      const double speed = segment.length;
-      const int panels = polynomial_profile ? 1 : profile_panels((ub - ua) * speed * inverse_a);
-      const double width = (ub - ua) / panels;
-      const double half = 0.5 * width;
-      for (int panel = 0; panel < panels; ++panel) {
-        const double pa = ua + panel * width;
-        const double mid = pa + half;
-        const double delta_pa = delta_a + panel * width * speed;
-        auto node = [&](double x, double w) {
-          const double delta = delta_pa + half * (1.0 + x) * speed;
-          const double offset = std::clamp(delta * inverse_a, -1.0, 1.0);
-          accumulate.add(mid + half * x, w * half * speed * density_inside(profile, offset));
-        };
-        if (polynomial_profile) {
-          for (std::size_t g = 0; g < 3; ++g) node(kNodes3[g], kWeights3[g]);
-        } else {
-          for (std::size_t g = 0; g < 8; ++g) node(kNodes8[g], kWeights8[g]);
-        }
-      }
-      delta_a += (ub - ua) * speed;
-    } else {
-      const Cubic& shape = segment.geometry.shape;
-      // speed_bound >= |C'|, so the Gaussian's panels are at most half a footprint wide.
-      const int panels =
-          std::max(profile_panels((ub - ua) * segment.speed_bound * inverse_a),
-                   static_cast<int>(std::ceil((ub - ua) / kMaxCubicPanel)));
-      const double width = (ub - ua) / panels;
-      const double half = 0.5 * width;
-      for (int panel = 0; panel < panels; ++panel) {
-        const double mid = ua + (panel + 0.5) * width;
-        std::array<double, 8> speed{};
-        for (std::size_t g = 0; g < 8; ++g)
-          speed[g] = length(derivative(shape, mid + half * kNodes8[g] - jd));
-        double panel_length = 0.0;
-        for (std::size_t g = 0; g < 8; ++g) {
-          double partial = 0.0;
-          for (std::size_t m = 0; m < 8; ++m) partial += kIntegrate8[g][m] * speed[m];
-          const double delta = delta_a + half * partial;
-          const double offset = std::clamp(delta * inverse_a, -1.0, 1.0);
-          accumulate.add(mid + half * kNodes8[g],
-                         kWeights8[g] * half * speed[g] * density_inside(profile, offset));
-          panel_length += kWeights8[g] * speed[g];
-        }
-        delta_a += half * panel_length;
-      }
-    }
-  };
-
-  // Integrates the image centred at c over the piece of offsets [xa, xb] that lies within lap n
-  // of the curve, from u0 to u1.
-  auto integrate_piece = [&](double xa, double xb, double c, double n) {
-    double u0 = u_at(xa, false, n);
-    double u1 = u_at(xb, true, n);
-    const bool has_centre = c > xa && c < xb;
-    const double u_centre = has_centre ? (c == 0.0 && n == 0.0 ? u_hit : u_at(c, false, n)) : -1.0;
-    if (has_centre) {
-      u0 = std::fmin(u0, u_centre);
-      u1 = std::fmax(u1, u_centre);
-    }
-    if (!(u1 > u0)) return;
-    if (out.size() > begin) several = true;
-    Accumulator accumulate(basis, out);
-    auto next_knot = std::upper_bound(knots.begin(), knots.end(), u0);
-    double ua = u0;
-    double delta_a = xa - c;
-    while (ua < u1) {
-      // The part [ua, ub]: up to the next knot, joint, centre or u1, whichever comes first.
-      double ub = u1;
-      if (next_knot != knots.end()) ub = std::min(ub, *next_knot);
-      ub = std::min(ub, std::floor(ua) + 1.0);
-      if (has_centre && ua < u_centre) ub = std::min(ub, u_centre);
-      const std::uint32_t j = std::min(static_cast<std::uint32_t>(ua), count - 1);
-      // The knot span holding the part: knots[span] <= ua < ub <= knots[span + 1] = *next_knot
-      // (clamped to the spans that cover [u_begin, u_end)).
-      const std::size_t span = std::clamp(static_cast<std::size_t>(next_knot - knots.begin()),
-                                          basis.first_span() + 1, basis.end_span()) - 1;
-      accumulate.enter_span(span);
-
-      integrate_part(accumulate, j, ua, ub, delta_a);
-      if (has_centre && ub == u_centre) delta_a = 0.0;
-      ua = ub;
-      while (next_knot != knots.end() && *next_knot <= ua) ++next_knot;
-    }
-  };
-  // The same by arc length, with the table (use_table): the piece is
-  // [sa, sb] = s_hit - n length + [xa, xb], walked span by span from the span holding sa. Whole
-  // spans take the moments, parts of spans the running moments' differences; a span with no
-  // series (near a cusp) takes quadrature in u between the inverted ends of its part.
-  auto integrate_piece_by_arc = [&](double xa, double xb, double c, double n) {
-    const double lap = s_hit - n * total;
-    const double sa = std::clamp(lap + xa, 0.0, total);
-    const double sb = std::clamp(lap + xb, 0.0, total);
-    if (!(sb > sa)) return;
-    if (out.size() > begin) several = true;
-    Accumulator accumulate(basis, out);
-    const double s_centre = lap + c;
-    const std::size_t powers = static_cast<std::size_t>(table->powers());
-    // Parts no longer than a few roundings of the curve's arc length are slivers made by
-    // rounding s_hit + x (one just across a corner, say), not footprint: they are left out, and
-    // a footprint made of nothing else deposits at the point.
-    const double resolution = 4.0 * std::numeric_limits<double>::epsilon() * total;
-    auto part = [&](std::size_t span, double pa, double pb, double s0, double s1) {
-      std::size_t terms = 0;
-      const double* series = table->running(span, terms);
-      // In the span's coordinate the tent and Epanechnikov pieces have coefficients up to
-      // (1 + beta)^2 with beta = h / a, which cancel to the profile's O(1) values: with a
-      // footprint far shorter than the span that cancellation would eat the digits, so beyond
-      // beta = 16 (errors then below 300 roundings) such parts take the quadrature. The box is
-      // a constant and needs no such care.
-      const bool conditioned =
-          profile == RayProfile::Box || 0.5 * (s1 - s0) * inverse_a <= 16.0;
-      if (series != nullptr && conditioned) {
-        const double mid = 0.5 * (s0 + s1);
-        const double inverse_h = 2.0 / (s1 - s0);
-        const double ya = std::clamp((pa - mid) * inverse_h, -1.0, 1.0);
-        const double yb = std::clamp((pb - mid) * inverse_h, -1.0, 1.0);
-        const std::array<double, 3> coefficients = profile_in_y(
-            (mid - s_centre) * inverse_a, 0.5 * (s1 - s0) * inverse_a, 0.5 * (pa + pb) < s_centre);
-        accumulate.add_running(series, terms, powers, ya, yb, coefficients);
-        return;
-      }
-      const double u_begin = knots[span];
-      const double u_end = knots[span + 1];
-      const std::uint32_t j = segment_of_span(u_begin, u_end, count);
-      const double ua = std::clamp(j + parameter_in(j, pa - start[j]), u_begin, u_end);
-      const double ub = std::clamp(j + parameter_in(j, pb - start[j]), u_begin, u_end);
-      double delta_a = pa - s_centre;
-      if (ub > ua) integrate_part(accumulate, j, ua, ub, delta_a);
-    };
-    // The span holding sa: near the hit's for the hit's own lap, else by bisection.
-    std::size_t first_span = hit_span;
-    if (n == 0.0 && std::fabs(sa - s_hit) <= 4.0 * table->length(hit_span)) {
-      while (first_span > basis.first_span() && table->start(first_span) > sa) --first_span;
-      while (first_span + 1 < basis.end_span() && table->start(first_span + 1) <= sa) ++first_span;
-    } else {
-      first_span = table->span_at(sa);
-    }
-    for (std::size_t span = first_span; span < basis.end_span(); ++span) {
-      const double s0 = table->start(span);
-      if (!(s0 < sb)) break;
-      const double s1 = table->start(span + 1);
-      const double pa = std::fmax(sa, s0);
-      const double pb = std::fmin(sb, s1);
-      if (!(pb - pa > resolution)) continue;
-      accumulate.enter_span(span);
-      // The tent and Epanechnikov profiles change their polynomial at the centre; the box's is
-      // the same on both sides, so where the span has its series the part holding the centre is
-      // one part (the quadrature of a span without one, near a cusp, keeps its two halves).
-      const bool one_part = profile == RayProfile::Box && table->has_series(span);
-      if (s_centre > pa && s_centre < pb && !one_part) {
-        part(span, pa, s_centre, s0, s1);
-        part(span, s_centre, pb, s0, s1);
-      } else if (pa == s0 && pb == s1) {
-        const double span_length = table->length(span);
-        const double x_mid = (s0 + 0.5 * span_length - s_centre) * inverse_a;
-        const std::array<double, 3> coefficients =
-            profile_in_y(x_mid, 0.5 * span_length * inverse_a, x_mid < 0.0);
-        accumulate.add_moments(table->moments(span), table->stride(), coefficients[0],
-                               coefficients[1], coefficients[2]);
+// Integrates the part [ua, ub] of segment j (within one knot span, which the accumulator has
+// entered, on one side of the centre) by Gauss-Legendre panels; delta_a, the part's start's offset
+// from the image's centre, advances to its end.
+void FootprintSpread::integrate_part(Accumulator& accumulate, std::uint32_t j, double ua, double ub,
+                                     double& delta_a) const {
+  const SceneSegment& segment = segments_[j];
+  const double jd = j;
+  if (segment.geometry.kind == SegmentKind::Line) {
+    // Constant speed L: delta(u) = delta_a + (u - ua) L exactly.
+    const double speed = segment.length;
+    const int panels = polynomial_profile_ ? 1 : profile_panels((ub - ua) * speed * inverse_a_);
+    const double width = (ub - ua) / panels;
+    const double half = 0.5 * width;
+    for (int panel = 0; panel < panels; ++panel) {
+      const double pa = ua + panel * width;
+      const double mid = pa + half;
+      const double delta_pa = delta_a + panel * width * speed;
+      auto node = [&](double x, double w) {
+        const double delta = delta_pa + half * (1.0 + x) * speed;
+        const double offset = std::clamp(delta * inverse_a_, -1.0, 1.0);
+        accumulate.add(mid + half * x, w * half * speed * density_inside(profile_, offset));
+      };
+      if (polynomial_profile_) {
+        for (std::size_t g = 0; g < 3; ++g) node(kNodes3[g], kWeights3[g]);
       } else {
-        part(span, pa, pb, s0, s1);
+        for (std::size_t g = 0; g < 8; ++g) node(kNodes8[g], kWeights8[g]);
       }
     }
-  };
-  // An image interval [xa, xb] cut into laps of the curve: pieces end where s_hit + x crosses a
-  // multiple of the length (only on a closed run).
-  auto integrate_image = [&](double xa, double xb, double c) {
-    if (!(xb > xa)) return;
-    auto piece = [&](double a0, double a1, double n) {
-      if (use_table) {
-        integrate_piece_by_arc(a0, a1, c, n);
-      } else {
-        integrate_piece(a0, a1, c, n);
-      }
-    };
-    if (!curve.closed) return piece(xa, xb, 0.0);
-    while (xa < xb) {
-      double n = std::floor((s_hit + xa) / total);
-      double lap_end = (n + 1.0) * total - s_hit;
-      if (!(lap_end > xa)) {  // xa rounded onto the lap's end: it starts the next lap
-        n += 1.0;
-        lap_end += total;
-      }
-      const double xe = std::fmin(xb, lap_end);
-      piece(xa, xe, n);
-      xa = xe;
+    delta_a += (ub - ua) * speed;
+    return;
+  }
+  const Cubic& shape = segment.geometry.shape;
+  // speed_bound >= |C'|, so the Gaussian's panels are at most half a footprint wide.
+  const int panels = std::max(profile_panels((ub - ua) * segment.speed_bound * inverse_a_),
+                              static_cast<int>(std::ceil((ub - ua) / kMaxCubicPanel)));
+  const double width = (ub - ua) / panels;
+  const double half = 0.5 * width;
+  for (int panel = 0; panel < panels; ++panel) {
+    const double mid = ua + (panel + 0.5) * width;
+    std::array<double, 8> speed{};
+    for (std::size_t g = 0; g < 8; ++g) speed[g] = length(derivative(shape, mid + half * kNodes8[g] - jd));
+    double panel_length = 0.0;
+    for (std::size_t g = 0; g < 8; ++g) {
+      double partial = 0.0;
+      for (std::size_t m = 0; m < 8; ++m) partial += kIntegrate8[g][m] * speed[m];
+      const double delta = delta_a + half * partial;
+      const double offset = std::clamp(delta * inverse_a_, -1.0, 1.0);
+      accumulate.add(mid + half * kNodes8[g], kWeights8[g] * half * speed[g] * density_inside(profile_, offset));
+      panel_length += kWeights8[g] * speed[g];
     }
-  };
-  integrate_image(x0, x1, 0.0);
-  if (cut_low) integrate_image(x0, std::fmin(2.0 * x0 + a, x1), 2.0 * x0);
-  if (cut_high) integrate_image(std::fmax(2.0 * x1 - a, x0), x1, 2.0 * x1);
+    delta_a += half * panel_length;
+  }
+}
 
+// Integrates the image centred at c over the piece of offsets [xa, xb] that lies within lap n of
+// the curve, from u0 to u1, part by part: each part ends at the next knot, joint, centre or u1.
+void FootprintSpread::integrate_piece(double xa, double xb, double c, double n) {
+  double u0 = u_at(xa, false, n);
+  double u1 = u_at(xb, true, n);
+  const bool has_centre = c > xa && c < xb;
+  const double u_centre = has_centre ? (c == 0.0 && n == 0.0 ? u_hit_ : u_at(c, false, n)) : -1.0;
+  if (has_centre) {
+    u0 = std::fmin(u0, u_centre);
+    u1 = std::fmax(u1, u_centre);
+  }
+  if (!(u1 > u0)) return;
+  if (out_.size() > begin_) several_ = true;
+  Accumulator accumulate(basis_, out_);
+  auto next_knot = std::upper_bound(knots_.begin(), knots_.end(), u0);
+  double ua = u0;
+  double delta_a = xa - c;
+  while (ua < u1) {
+    double ub = u1;
+    if (next_knot != knots_.end()) ub = std::min(ub, *next_knot);
+    ub = std::min(ub, std::floor(ua) + 1.0);
+    if (has_centre && ua < u_centre) ub = std::min(ub, u_centre);
+    const std::uint32_t j = std::min(static_cast<std::uint32_t>(ua), count_ - 1);
+    // The knot span holding the part: knots[span] <= ua < ub <= knots[span + 1] = *next_knot
+    // (clamped to the spans that cover [u_begin, u_end)).
+    const std::size_t span = std::clamp(static_cast<std::size_t>(next_knot - knots_.begin()), basis_.first_span() + 1,
+                                        basis_.end_span()) - 1;
+    accumulate.enter_span(span);
+    integrate_part(accumulate, j, ua, ub, delta_a);
+    if (has_centre && ub == u_centre) delta_a = 0.0;
+    ua = ub;
+    while (next_knot != knots_.end() && *next_knot <= ua) ++next_knot;
+  }
+}
+
+// A part [pa, pb] of span `span` (arc lengths [s0, s1]) by the table's running moments, or, for a
+// span with no series (near a cusp) or one the footprint is far shorter than, by quadrature in u
+// between the inverted ends of the part.
+void FootprintSpread::integrate_span_part(Accumulator& accumulate, std::size_t span, double pa, double pb,
+                                          double s0, double s1, double s_centre) const {
+  std::size_t terms = 0;
+  const double* series = table_->running(span, terms);
+  // In the span's coordinate the tent and Epanechnikov pieces have coefficients up to (1 + beta)^2
+  // with beta = h / a, which cancel to the profile's O(1) values: with a footprint far shorter
+  // than the span that cancellation would eat the digits, so beyond beta = 16 (errors then below
+  // 300 roundings) such parts take the quadrature. The box is a constant and needs no such care.
+  const bool conditioned = profile_ == RayProfile::Box || 0.5 * (s1 - s0) * inverse_a_ <= 16.0;
+  if (series != nullptr && conditioned) {
+    const double mid = 0.5 * (s0 + s1);
+    const double inverse_h = 2.0 / (s1 - s0);
+    const double ya = std::clamp((pa - mid) * inverse_h, -1.0, 1.0);
+    const double yb = std::clamp((pb - mid) * inverse_h, -1.0, 1.0);
+    const std::array<double, 3> coefficients =
+        profile_in_y((mid - s_centre) * inverse_a_, 0.5 * (s1 - s0) * inverse_a_, 0.5 * (pa + pb) < s_centre);
+    accumulate.add_running(series, terms, static_cast<std::size_t>(table_->powers()), ya, yb, coefficients);
+    return;
+  }
+  const double u_begin = knots_[span];
+  const double u_end = knots_[span + 1];
+  const std::uint32_t j = segment_of_span(u_begin, u_end, count_);
+  const double ua = std::clamp(j + parameter_in(j, pa - start_[j]), u_begin, u_end);
+  const double ub = std::clamp(j + parameter_in(j, pb - start_[j]), u_begin, u_end);
+  double delta_a = pa - s_centre;
+  if (ub > ua) integrate_part(accumulate, j, ua, ub, delta_a);
+}
+
+// The same by arc length, with the table: the piece is [sa, sb] = s_hit - n length + [xa, xb],
+// walked span by span from the span holding sa. Whole spans take the moments, parts of spans the
+// running moments' differences.
+void FootprintSpread::integrate_piece_by_arc(double xa, double xb, double c, double n) {
+  const double lap = s_hit_ - n * total_;
+  const double sa = std::clamp(lap + xa, 0.0, total_);
+  const double sb = std::clamp(lap + xb, 0.0, total_);
+  if (!(sb > sa)) return;
+  if (out_.size() > begin_) several_ = true;
+  Accumulator accumulate(basis_, out_);
+  const double s_centre = lap + c;
+  // Parts no longer than a few roundings of the curve's arc length are slivers made by rounding
+  // s_hit + x (one just across a corner, say), not footprint: they are left out, and a footprint
+  // made of nothing else deposits at the point.
+  const double resolution = 4.0 * std::numeric_limits<double>::epsilon() * total_;
+  // The span holding sa: near the hit's for the hit's own lap, else by bisection.
+  std::size_t first_span = hit_span_;
+  if (n == 0.0 && std::fabs(sa - s_hit_) <= 4.0 * table_->length(hit_span_)) {
+    while (first_span > basis_.first_span() && table_->start(first_span) > sa) --first_span;
+    while (first_span + 1 < basis_.end_span() && table_->start(first_span + 1) <= sa) ++first_span;
+  } else {
+    first_span = table_->span_at(sa);
+  }
+  for (std::size_t span = first_span; span < basis_.end_span(); ++span) {
+    const double s0 = table_->start(span);
+    if (!(s0 < sb)) break;
+    const double s1 = table_->start(span + 1);
+    const double pa = std::fmax(sa, s0);
+    const double pb = std::fmin(sb, s1);
+    if (!(pb - pa > resolution)) continue;
+    accumulate.enter_span(span);
+    // The tent and Epanechnikov profiles change their polynomial at the centre; the box's is the
+    // same on both sides, so where the span has its series the part holding the centre is one part
+    // (the quadrature of a span without one, near a cusp, keeps its two halves).
+    const bool one_part = profile_ == RayProfile::Box && table_->has_series(span);
+    if (s_centre > pa && s_centre < pb && !one_part) {
+      integrate_span_part(accumulate, span, pa, s_centre, s0, s1, s_centre);
+      integrate_span_part(accumulate, span, s_centre, pb, s0, s1, s_centre);
+    } else if (pa == s0 && pb == s1) {
+      const double span_length = table_->length(span);
+      const double x_mid = (s0 + 0.5 * span_length - s_centre) * inverse_a_;
+      const std::array<double, 3> coefficients = profile_in_y(x_mid, 0.5 * span_length * inverse_a_, x_mid < 0.0);
+      accumulate.add_moments(table_->moments(span), table_->stride(), coefficients[0], coefficients[1],
+                             coefficients[2]);
+    } else {
+      integrate_span_part(accumulate, span, pa, pb, s0, s1, s_centre);
+    }
+  }
+}
+
+void FootprintSpread::integrate_image(double xa, double xb, double c) {
+  if (!(xb > xa)) return;
+  auto piece = [&](double a0, double a1, double n) {
+    if (use_table_) {
+      integrate_piece_by_arc(a0, a1, c, n);
+    } else {
+      integrate_piece(a0, a1, c, n);
+    }
+  };
+  if (!curve_.closed) return piece(xa, xb, 0.0);
+  while (xa < xb) {
+    double n = std::floor((s_hit_ + xa) / total_);
+    double lap_end = (n + 1.0) * total_ - s_hit_;
+    if (!(lap_end > xa)) {  // xa rounded onto the lap's end: it starts the next lap
+      n += 1.0;
+      lap_end += total_;
+    }
+    const double xe = std::fmin(xb, lap_end);
+    piece(xa, xe, n);
+    xa = xe;
+  }
+}
+
+void FootprintSpread::finish() {
   // Wrapped indices on a periodic basis, and pieces naming the same coefficient, are merged.
   // (One piece on a periodic basis is an increasing run: only one that passes the last index
   // wraps.)
-  if (several || (basis.is_periodic() && out.size() > begin && out.back().coefficient >= basis.size())) {
-    for (std::size_t i = begin; i < out.size(); ++i) out[i].coefficient = basis.index(out[i].coefficient);
-    std::sort(out.begin() + static_cast<std::ptrdiff_t>(begin), out.end(),
+  if (several_ || (basis_.is_periodic() && out_.size() > begin_ && out_.back().coefficient >= basis_.size())) {
+    for (std::size_t i = begin_; i < out_.size(); ++i) out_[i].coefficient = basis_.index(out_[i].coefficient);
+    std::sort(out_.begin() + static_cast<std::ptrdiff_t>(begin_), out_.end(),
               [](const FootprintWeight& p, const FootprintWeight& q) { return p.coefficient < q.coefficient; });
-    std::size_t kept = begin;
-    for (std::size_t i = begin; i < out.size(); ++i) {
-      if (kept > begin && out[kept - 1].coefficient == out[i].coefficient) {
-        out[kept - 1].weight += out[i].weight;
+    std::size_t kept = begin_;
+    for (std::size_t i = begin_; i < out_.size(); ++i) {
+      if (kept > begin_ && out_[kept - 1].coefficient == out_[i].coefficient) {
+        out_[kept - 1].weight += out_[i].weight;
       } else {
-        out[kept++] = out[i];
+        out_[kept++] = out_[i];
       }
     }
-    out.resize(kept);
+    out_.resize(kept);
   }
-  if (!normalise_appended(out, begin)) {
-    out.resize(begin);
+  if (!normalise_appended(out_, begin_)) {
+    out_.resize(begin_);
+    deposit_point(basis_, u_hit_, out_);
+  }
+}
+
+}  // namespace
+
+void footprint_weights(const Scene& scene, const Curve& curve, const SplineBasis& basis, double u_hit,
+                       double half_length, RayProfile profile, std::vector<FootprintWeight>& out,
+                       std::span<const double> walls, const FootprintTable* table) {
+  // The run is the stretch of tangent-continuous segments around the hit, [X0, X1] in x; on a
+  // closed curve it may continue across the closing point (x then runs past the curve's length
+  // and wraps), and a closed curve that is smooth all round has no ends at all. What would fall
+  // beyond an end of the run is reflected about that end (the image k((x - 2 X0) / a) on
+  // [X0, 2 X0 + a], likewise at X1): every image point lies at the same distance from the end as
+  // the mass it replaces, so energy is exact and a uniform incident flux gives a uniform deposit
+  // up to the end (renormalising instead piles the cut-off mass up near it: ln 2 of the truth at
+  // the end for a box). A run shorter than the footprint would need images of images; the one
+  // reflection at each end is then renormalised.
+  //
+  // Each image interval is cut where it wraps into pieces that lie within the curve, and on each
+  // piece, in the curve parameter u (ds = |C'(u)| du),
+  //   w_k += integral k((x(u) - c) / a) phi_k(u) |C'(u)| du,  c the image's centre,
+  // split where the integrand is not smooth: knots (phi_k), segment joints (|C'|), and the centre
+  // (the tent's kink). Each part gets Gauss-Legendre panels. x is carried from part to part:
+  // exactly linear on lines, integrated spectrally on cubics (kIntegrate8), and reset to c at the
+  // centre. The constant 1/a is dropped: the weights are normalised at the end.
+  assert(curve.segment_count > 0 && std::isfinite(u_hit));
+  // fmax/fmin also send a NaN to the curve's start instead of into an index.
+  u_hit = std::fmin(std::fmax(u_hit, 0.0), static_cast<double>(curve.segment_count));
+  if (!(half_length > 0.0)) {
     deposit_point(basis, u_hit, out);
+    return;
   }
+  FootprintSpread spread(scene, curve, basis, u_hit, half_length, profile, out, table);
+  const FootprintRun run = spread.run(scene, walls);
+  spread.set_flat(run.flat);
+  const double a = half_length;
+  spread.integrate_image(run.x0, run.x1, 0.0);
+  if (run.cut_low) spread.integrate_image(run.x0, std::fmin(2.0 * run.x0 + a, run.x1), 2.0 * run.x0);
+  if (run.cut_high) spread.integrate_image(std::fmax(2.0 * run.x1 - a, run.x0), run.x1, 2.0 * run.x1);
+  spread.finish();
 }
 
 }  // namespace flatland
