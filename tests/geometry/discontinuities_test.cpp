@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <numbers>
 #include <string>
 #include <vector>
 
@@ -105,7 +106,7 @@ TEST(Discontinuity, ConvexEnclosureHasNoEvents) {
 using testing::bernstein_point;
 using testing::LongVec;
 
-constexpr double kPi = 3.14159265358979323846;
+constexpr double kPi = std::numbers::pi;
 
 LongVec bernstein_derivative(const Cubic& c, long double t) {
   const long double s = 1.0L - t;

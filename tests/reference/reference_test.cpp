@@ -6,6 +6,7 @@
 #include <cmath>
 #include <complex>
 #include <cstdio>
+#include <numbers>
 #include <string>
 #include <vector>
 
@@ -39,9 +40,9 @@ std::vector<double> samples(const ReferenceSolution& solution, std::uint32_t cur
   return values;
 }
 
-constexpr double kPi = 3.14159265358979323846;
+constexpr double kPi = std::numbers::pi;
 
-// --- Closed forms (DESIGN-independent derivations, each from the scene's own geometry) ---------
+// --- Closed forms (derived independently, each from the scene's own geometry) -----------------
 
 // One bounce onto a flat floor (y = 0, normal up) from a black line lamp at height 2 (E = 1,
 // x in [-0.5, 0.5]) past a black convex occluder: B(x) = rho (1/2) (measure of the lamp's sin(theta)

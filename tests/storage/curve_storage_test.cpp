@@ -6,6 +6,7 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <numbers>
 #include <numeric>
 #include <span>
 #include <random>
@@ -37,7 +38,7 @@ double spline_value(const SplineBasis& basis, const std::vector<double>& c, doub
 // A closed ring of radius 1: eight cubic arcs of 45 degrees (handles (4/3) tan(pi/16)), counter-
 // clockwise from (1, 0), with the given format version (1: the closing point is a seam).
 Scene ring_scene(int version) {
-  const double pi = 3.14159265358979323846;
+  const double pi = std::numbers::pi;
   const double handle = 4.0 / 3.0 * std::tan(pi / 16.0);
   std::string points;
   for (int i = 0; i < 8; ++i) {
@@ -574,7 +575,7 @@ TEST(Basis, GalerkinConservesPowerAndClampKeepsIt) {
   EXPECT_NEAR(power, 2.0, 1e-13);
 }
 
-// Noise-free estimator order (DESIGN: feed exact expected deposits). The deposits
+// Noise-free estimator order (exact expected deposits, no photons). The deposits
 // p_k = integral(phi_k R ds) of a closed-form R, by 16 Gauss panels of 8 points per knot span (far
 // finer than the storage's own quadrature, and R is smooth inside every span), then the largest
 // reconstruction error on a fine grid and at both sides of every node, for h halved four times;

@@ -1407,7 +1407,7 @@ std::vector<std::string> shared_dumps(const Scene& scene, const SolverSettings& 
   return dumps;
 }
 
-// Processes sharing rounds (the MPI path, DESIGN: every process shoots the batches b = rank mod K
+// Processes sharing rounds (the MPI path: every process shoots the batches b = rank mod K
 // and the integer deposits are summed) give the bits of one process, for any K, for shooting and
 // walks, with footprints and in colour.
 TEST(Solver, SharedRoundsGiveTheBitsOfOneProcess) {

@@ -256,8 +256,8 @@ std::uint32_t SegmentAccelerator::collapse(std::uint32_t binary, double pad) {
 // The segments are sorted along each axis once: a node's range of `by[0]` and of `by[1]` holds
 // its segments in x and in y order. The chosen axis's list is already cut into the children's
 // ranges; the other is split stably by membership, which keeps both children's lists sorted. So
-// the build is O(n log n) and makes the tree that sorting both axes at every node made (15 % of
-// setting up 65,536 segments, docs/performance.md). A leaf keeps its parent's chosen order.
+// the build is O(n log n), where sorting both axes at every node would be O(n log^2 n), and the
+// tree is the same. A leaf keeps its parent's chosen order.
 
 std::uint32_t SegmentAccelerator::build_node(std::uint32_t first, std::uint32_t count, int depth,
                                              int parent_axis, Build& build) {

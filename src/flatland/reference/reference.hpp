@@ -1,4 +1,4 @@
-// A deterministic reference solution of the flatland radiosity equation (DESIGN.md sections 1, 8):
+// A deterministic reference solution of the flatland radiosity equation (docs/reference.md):
 //
 //   B(x) = E(x) + rho(x) * integral G(x,y) B(y) ds_y,   G = cos(theta_x) cos(theta_y) / (2 r) V(x,y)
 //

@@ -22,8 +22,8 @@ namespace flatland {
 // The whole result document: scene, settings, stats and K samples per curve at s_j = (j+0.5) L/K.
 nlohmann::json result_to_json(const Solver& solver, int samples_per_curve);
 // json_text(result_to_json(solver, samples_per_curve)), byte for byte, with the curves written
-// one at a time instead of held as one JSON tree: a scene of 65,536 curves spent 6 s building
-// that tree (small allocations, page faults) and 3 s writing it out.
+// one at a time instead of held as one JSON tree, whose many small allocations cost seconds on
+// scenes of tens of thousands of curves (docs/performance.md).
 std::string result_text(const Solver& solver, int samples_per_curve);
 
 // The document `flatland reference --out` writes: the reference's settings and statistics, its

@@ -179,8 +179,8 @@ double BasisSampler::sample_simplex(std::size_t k, const std::array<double, 4>& 
     a = low;
   };
   std::array<double, 4> v = uniforms;
-  // Each degree's sum written out: the same sum as one loop over i <= p (the same roundings) made
-  // random-sampler photons 8-12 % slower (docs/performance.md, "The simplex draw written out").
+  // Each degree's sum written out: the same sums as one loop over i <= p (the same roundings),
+  // which keeps random-sampler photons 8-12 % cheaper (docs/performance.md).
   double u = 0.0;
   switch (degree_) {  // sorting networks of the p + 1 uniforms, then the sum
     case 0: u = t[1] - v[0] * (t[1] - t[0]); break;

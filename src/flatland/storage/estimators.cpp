@@ -147,8 +147,8 @@ void build_local_estimator(const Scene& scene, const Curve& curve, CurveStorage&
   // stands on one side of every joint; the windows are then grown across the joints (`across`),
   // where R(u) is C1 and only its second derivative jumps, by the change of the speed's slope:
   // far less error than the lumped estimate's, and far less than extrapolating from a window
-  // several functions away (which once gave weights in the hundreds and 10-30 % errors on a ring
-  // of 32 arcs at 32 elements). The C0 and C-1 nodes stay breaks either way.
+  // several functions away (whose weights run into the hundreds: 10-30 % errors on a ring of 32
+  // arcs at 32 elements). The C0 and C-1 nodes stay breaks either way.
   std::vector<double> breaks;
   std::vector<double> hard_breaks;
   for (const MeshNode& node : storage.nodes) {

@@ -23,7 +23,7 @@ namespace flatland {
 void galerkin_estimate(const CurveStorage& storage, const double* deposits, double* coefficients,
                        std::size_t stride);
 
-// The local quasi-interpolant (DESIGN: dual functionals): b_k = sum_j w_kj p_j over the 2w + 1
+// The local quasi-interpolant (dual functionals, docs/method.md): b_k = sum_j w_kj p_j over the 2w + 1
 // deposits nearest to k (w = degree + 1; Hermite: 3) inside k's region between discontinuity
 // nodes (C0 and C-1 nodes, the curve's ends), with the weights of least variance, for photons of
 // locally uniform density, among those that are exact when R is a polynomial of degree q on the

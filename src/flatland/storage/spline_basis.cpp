@@ -81,7 +81,7 @@ double SplineBasis::wrap(double u) const {
 }
 
 void SplineBasis::build_span_grid() {
-  // The span holding x by bisection, as find_span did before the grid.
+  // The span holding x by bisection over the knots; the grid caches its answers.
   const std::size_t p = static_cast<std::size_t>(degree_);
   const std::size_t last = end_span();
   auto bisect = [&](double x) {

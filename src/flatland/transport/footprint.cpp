@@ -1,9 +1,5 @@
 #include "flatland/transport/footprint.hpp"
 
-#include "flatland/base/roots.hpp"
-
-#include "flatland/base/quadrature.hpp"
-
 #include <algorithm>
 #include <array>
 #include <cassert>
@@ -13,53 +9,12 @@
 #include <numbers>
 #include <string>
 
+#include "flatland/base/quadrature.hpp"
+#include "flatland/base/roots.hpp"
 #include "flatland/base/text.hpp"
 
 namespace flatland {
 namespace {
-
-
-// The truncated Gaussian: sigma = 1/3, so |x| <= 1 is |z| <= 3. kGaussTail = erfc(3/sqrt 2) is the
-// untruncated mass beyond 3 sigma on both sides (the tests check 1/Z against std::erf); the
-// normaliser is Z = integral over [-1,1] of exp(-x^2/(2 sigma^2)) = sigma sqrt(2 pi) (1 - tail).
-constexpr double kGaussTail = 0.0026997960632601913;
-constexpr double kGaussKept = 1.0 - kGaussTail;
-constexpr double kSqrt2Pi = std::numbers::sqrt2 / std::numbers::inv_sqrtpi;
-constexpr double kGaussNorm = 1.0 / ((1.0 / 3.0) * kSqrt2Pi * kGaussKept);  // 1/Z
-constexpr double kGaussScale = 3.0 / std::numbers::sqrt2;  // x / (sigma sqrt 2)
-
-
-constexpr std::array<const char*, 5> kProfileNames = {"box", "tent", "epanechnikov", "cosine",
-                                                      "gauss"};
-
-// k(x) for x already in [-1, 1].
-inline double density_inside(RayProfile profile, double x) {
-  switch (profile) {
-    case RayProfile::Box: return 0.5;
-    case RayProfile::Tent: return 1.0 - std::fabs(x);
-    case RayProfile::Epanechnikov: return 0.75 * (1.0 - x * x);
-    case RayProfile::Cosine: return 0.25 * std::numbers::pi * std::cos(0.5 * std::numbers::pi * x);
-    case RayProfile::Gauss: return kGaussNorm * std::exp(-4.5 * x * x);
-  }
-  return 0.0;
-}
-
-// An antiderivative of x k(x) on [-1, 1], for the centroids of the quadrature's strata:
-//   box x^2/4; tent x^2/2 - |x|^3/3; Epanechnikov 3/4 (x^2/2 - x^4/4);
-//   cosine (pi/4) (x sin(cx)/c + cos(cx)/c^2) with c = pi/2;
-//   Gauss -sigma^2 exp(-x^2/(2 sigma^2)) / Z.
-double first_moment_antiderivative(RayProfile profile, double x) {
-  const double x2 = x * x;
-  switch (profile) {
-    case RayProfile::Box: return 0.25 * x2;
-    case RayProfile::Tent: return 0.5 * x2 - std::fabs(x) * x2 / 3.0;
-    case RayProfile::Epanechnikov: return 0.375 * x2 - 0.1875 * x2 * x2;
-    case RayProfile::Cosine:
-      return 0.5 * x * std::sin(0.5 * std::numbers::pi * x) + std::cos(0.5 * std::numbers::pi * x) / std::numbers::pi;
-    case RayProfile::Gauss: return -kGaussNorm * std::exp(-4.5 * x2) / 9.0;
-  }
-  return 0.0;
-}
 
 // Gauss-Legendre rules on [-1, 1]. Three points integrate polynomials of degree 5 exactly, which
 // covers a line's integrand for the polynomial profiles (profile piece of degree <= 2 times a
@@ -202,7 +157,6 @@ std::size_t chebyshev_fit_checked(Function&& g, std::size_t count, double tolera
   }
   return 0;
 }
-
 
 // Divides the weights appended after `begin` by their sum, drops zeros, and hands the rounding
 // residual 1 - sum to the largest weight, so the sum is 1 to the last bit or two. False when
@@ -368,107 +322,6 @@ class Accumulator {
 };
 
 }  // namespace
-
-const char* to_string(RayProfile profile) {
-  const auto index = static_cast<std::size_t>(profile);
-  return index < kProfileNames.size() ? kProfileNames[index] : "?";
-}
-
-
-double profile_density(RayProfile profile, double x) {
-  if (!(std::fabs(x) <= 1.0)) return 0.0;
-  return density_inside(profile, x);
-}
-
-double profile_cdf(RayProfile profile, double x) {
-  if (x <= -1.0) return 0.0;
-  if (x >= 1.0) return 1.0;
-  if (std::isnan(x)) return x;
-  switch (profile) {
-    case RayProfile::Box: return 0.5 * (x + 1.0);
-    case RayProfile::Tent: {
-      // (1+x)^2/2 on the rising side, 1 - (1-x)^2/2 on the falling side.
-      if (x < 0.0) return 0.5 * (1.0 + x) * (1.0 + x);
-      return 1.0 - 0.5 * (1.0 - x) * (1.0 - x);
-    }
-    case RayProfile::Epanechnikov: return 0.25 * (2.0 + x * (3.0 - x * x));
-    case RayProfile::Cosine: return 0.5 * (1.0 + std::sin(0.5 * std::numbers::pi * x));
-    case RayProfile::Gauss: {
-      // F(x) = (erf(3x/sqrt 2) + kept) / (2 kept). On the lower half write it with erfc,
-      // F(x) = (erfc(3|x|/sqrt 2) - tail) / (2 kept), which keeps its relative accuracy in the
-      // lower tail; the upper half is 1 - F(-x).
-      const double lower = 0.5 * (std::erfc(kGaussScale * std::fabs(x)) - kGaussTail) / kGaussKept;
-      return x < 0.0 ? lower : 1.0 - lower;
-    }
-  }
-  return 0.0;
-}
-
-double profile_sample(RayProfile profile, double u) {
-  // The ends exactly (the closed forms below round them to within an ulp).
-  if (!(u > 0.0)) return -1.0;
-  if (u >= 1.0) return 1.0;
-  switch (profile) {
-    case RayProfile::Box: return 2.0 * u - 1.0;
-    case RayProfile::Tent:
-      return u < 0.5 ? std::sqrt(2.0 * u) - 1.0 : 1.0 - std::sqrt(2.0 * (1.0 - u));
-    case RayProfile::Epanechnikov: {
-      // Solve (2 + 3x - x^3)/4 = u, i.e. x^3 - 3x + (4u - 2) = 0. With x = 2 sin(theta) the
-      // identity sin(3 theta) = 3 sin(theta) - 4 sin^3(theta) turns it into sin(3 theta) = 2u - 1;
-      // theta = asin(2u - 1)/3 in [-pi/6, pi/6] gives the root in [-1, 1].
-      return 2.0 * std::sin(std::asin(2.0 * u - 1.0) / 3.0);
-    }
-    case RayProfile::Cosine: return std::asin(2.0 * u - 1.0) * (2.0 / std::numbers::pi);
-    case RayProfile::Gauss: {
-      // No closed form (erf has no inverse in the standard library). By symmetry solve on the
-      // lower half, F(x) = v with v = min(u, 1-u) <= 1/2 and x in [-1, 0], where F is convex
-      // (the density increases): Newton from x = 0 then approaches the root monotonically from
-      // above; the bracket [lo, hi] and bisection guard against rounding all the same.
-      const double v = std::min(u, 1.0 - u);
-      if (v <= 0.0) return u < 0.5 ? -1.0 : 1.0;
-      const double x = newton_bisection(
-          [&](double t) { return profile_cdf(profile, t) - v; }, [&](double t) { return density_inside(profile, t); },
-          0.0, -1.0, 0.0, 100, 0.0, [](double at, double next, double low, double high) -> std::optional<double> {
-            if (std::fabs(next - at) <= 1e-16 * (1.0 + std::fabs(at)) || high - low <= 1e-16) return next;
-            return std::nullopt;
-          });
-      return u < 0.5 ? x : -x;
-    }
-  }
-  return 0.0;
-}
-
-void profile_quadrature(RayProfile profile, int count, std::vector<double>& offsets,
-                        std::vector<double>& weights) {
-  assert(count >= 1);
-  const auto n = static_cast<std::size_t>(std::max(count, 1));
-  offsets.resize(n);
-  weights.assign(n, 1.0 / static_cast<double>(n));
-  // Stratum i is [b_i, b_(i+1)] with b_i = F^-1(i/n); its centroid is
-  // n * integral over the stratum of x k(x) dx = n (M(b_(i+1)) - M(b_i)).
-  double lower = -1.0;
-  double lower_moment = first_moment_antiderivative(profile, lower);
-  for (std::size_t i = 0; i < n; ++i) {
-    const double mass = static_cast<double>(i + 1) / static_cast<double>(n);
-    const double upper = i + 1 == n ? 1.0 : profile_sample(profile, mass);
-    const double upper_moment = first_moment_antiderivative(profile, upper);
-    const double centroid = static_cast<double>(n) * (upper_moment - lower_moment);
-    offsets[i] = std::clamp(centroid, lower, upper);
-    lower = upper;
-    lower_moment = upper_moment;
-  }
-  // Exact symmetry (the strata are symmetric; rounding is not): mirror the upper half.
-  for (std::size_t i = 0; i < n / 2; ++i) {
-    const double mirrored = 0.5 * (offsets[n - 1 - i] - offsets[i]);
-    offsets[i] = -mirrored;
-    offsets[n - 1 - i] = mirrored;
-  }
-  if (n % 2 == 1) offsets[n / 2] = 0.0;
-  // 1/n summed n times need not give 1 exactly; put the residual on the middle weight.
-  double sum = 0.0;
-  for (double w : weights) sum += w;
-  weights[n / 2] += 1.0 - sum;
-}
 
 double footprint_half_length(double width, double cos_incidence) {
   return width / (2.0 * std::fmax(std::fabs(cos_incidence), kGrazingCosine));
@@ -889,7 +742,7 @@ void FootprintSpread::integrate_part(Accumulator& accumulate, std::uint32_t j, d
       auto node = [&](double x, double w) {
         const double delta = delta_pa + half * (1.0 + x) * speed;
         const double offset = std::clamp(delta * inverse_a_, -1.0, 1.0);
-        accumulate.add(mid + half * x, w * half * speed * density_inside(profile_, offset));
+        accumulate.add(mid + half * x, w * half * speed * profile_density_inside(profile_, offset));
       };
       if (polynomial_profile_) {
         for (std::size_t g = 0; g < 3; ++g) node(kNodes3[g], kWeights3[g]);
@@ -916,7 +769,7 @@ void FootprintSpread::integrate_part(Accumulator& accumulate, std::uint32_t j, d
       for (std::size_t m = 0; m < 8; ++m) partial += kIntegrate8[g][m] * speed[m];
       const double delta = delta_a + half * partial;
       const double offset = std::clamp(delta * inverse_a_, -1.0, 1.0);
-      accumulate.add(mid + half * kNodes8[g], kWeights8[g] * half * speed[g] * density_inside(profile_, offset));
+      accumulate.add(mid + half * kNodes8[g], kWeights8[g] * half * speed[g] * profile_density_inside(profile_, offset));
       panel_length += kWeights8[g] * speed[g];
     }
     delta_a += half * panel_length;

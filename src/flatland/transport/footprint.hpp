@@ -1,14 +1,5 @@
-// Extended rays (DESIGN.md section 7): the energy profile across a ray of width W, its samplers and
-// quadrature (for the band of sub-rays), and the footprint deposit of a single centre ray.
-//
-// A profile is a density k(x) on x in [-1, 1] (x = offset / (W/2)) integrating to exactly 1:
-//   box           1/2
-//   tent          1 - |x|
-//   epanechnikov  3/4 (1 - x^2)
-//   cosine        pi/4 cos(pi x / 2)
-//   gauss         exp(-x^2 / (2 sigma^2)) / Z with sigma = 1/3, truncated at |x| <= 1 (3 sigma)
-//                 and renormalised: Z = sigma sqrt(2 pi) erf(3 / sqrt 2), so 0.27 % of the
-//                 untruncated mass is cut off and the density jumps to 0.0133 at the ends.
+// The footprint deposit of a single centre ray of width W (docs/method.md): its weights on a
+// curve's storage basis, and the per-span table that serves the polynomial profiles.
 //
 // Footprint mode traces the centre ray only. At a hit with incidence cosine |cos theta_in| the
 // beam covers arc length s_hit +- a on the receiver, a = W / (2 |cos theta_in|), with density
@@ -22,44 +13,12 @@
 #include <string_view>
 #include <vector>
 
-#include "flatland/storage/curve_storage.hpp"
 #include "flatland/base/status.hpp"
 #include "flatland/scene/scene.hpp"
+#include "flatland/storage/curve_storage.hpp"
+#include "flatland/transport/ray_profiles.hpp"
 
 namespace flatland {
-
-enum class RayProfile { Box, Tent, Epanechnikov, Cosine, Gauss };
-
-// "box", "tent", "epanechnikov", "cosine", "gauss" (options.hpp reads them).
-const char* to_string(RayProfile profile);
-
-// Box, tent and Epanechnikov: polynomial on each side of the centre (FootprintTable serves them).
-inline bool is_polynomial(RayProfile profile) {
-  return profile == RayProfile::Box || profile == RayProfile::Tent ||
-         profile == RayProfile::Epanechnikov;
-}
-
-// Sample / Pdf / Invert set of a profile. The density is 0 outside [-1, 1]; the CDF is a closed
-// form (erf for the Gaussian), 0 below -1 and 1 above 1.
-double profile_density(RayProfile profile, double x);
-double profile_cdf(RayProfile profile, double x);
-// Inverse CDF for u in [0, 1] (clamped): closed forms for box, tent, Epanechnikov (trigonometric
-// root of the cubic) and cosine; Newton's method safeguarded by bisection for the Gaussian.
-double profile_sample(RayProfile profile, double u);
-
-// The band of K sub-rays: offsets in [-1, 1] (increasing, symmetric about 0) and weights summing
-// to 1. The profile's mass is cut into K strata of equal mass 1/K (boundaries profile_sample(i/K))
-// and each sub-ray sits at its stratum's centroid with weight 1/K. Equal weights keep every
-// sub-ray at the same power (the premise of the equal-power photons) and give the smallest
-// possible error, one stratum's mass, for the step functions the band actually integrates
-// (partial occlusion, a beam split between curves). Centroids make each stratum's first moment
-// exact, so linear functions are integrated exactly and the second moment falls short by the
-// mean within-stratum variance: 1/(3K^2) for the box, below 1/K^2 for every profile up to K = 64
-// (the wide tail strata of the tent and the Gaussian add a slowly growing factor). A Gauss rule
-// for the weight k would integrate x^2 exactly from K = 2 but with unequal weights, and no better
-// than equal strata for the steps that matter. `count` >= 1.
-void profile_quadrature(RayProfile profile, int count, std::vector<double>& offsets,
-                        std::vector<double>& weights);
 
 // Below this incidence cosine (87.1 degrees from the normal) the footprint stops growing: the
 // half-length a = W / (2 |cos theta_in|) is capped at W / (2 kGrazingCosine) = 10 W. At grazing

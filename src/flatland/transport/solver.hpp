@@ -1,4 +1,4 @@
-// Progressive Monte Carlo shooting (DESIGN.md section 5), as a steppable, observable object that the
+// Progressive Monte Carlo shooting (docs/method.md), as a steppable, observable object that the
 // command line, the viewer and the tests all drive.
 //
 // A round shoots the current unshot power with photons of equal power: it picks a source (a side of
