@@ -572,211 +572,255 @@ void gather_rows(std::vector<std::optional<Row>>& rows) {
   }
 }
 
-int run_converge(ConvergeOptions& o) {
-  // A replot draws what a run wrote: rank 0's work alone.
-  if (o.replot && !speaks_for_the_run()) return kExitOk;
-  Result<Plan> plan = parse_plan(o);
-  Result<Scene> scene = plan ? load_scene(o.scene, &interrupt_flag()) : Result<Scene>(Error{""});
-  std::optional<int> unusable;
-  if (!plan) unusable = usage_error(plan.error().message);
-  else if (!scene) unusable = input_error(scene.error());
-  if (o.replot && unusable) return *unusable;
-  if (!o.replot) {
-    if (const std::optional<int> code = agree(unusable)) return *code;
-    if (const std::optional<int> code = agree_on_digest("scene file", o.scene, scene->source_sha256)) return *code;
-  }
-  std::vector<Method>& methods = plan->methods;
-  const std::vector<double>& budgets = plan->budgets;
-  const bool by_time = plan->by_time;
+namespace {
 
+// `--replot`: the plot of the runs a previous call wrote, drawn again (rank 0 alone).
+int replot(const ConvergeOptions& o, const Scene& scene) {
   const fs::path directory(o.out);
-  if (o.replot) {
-    std::vector<std::string> names;
-    int seeds = 0;
-    int elements = 0;
-    Measured table_measured;
-    Result<std::vector<Row>> rows = read_rows(directory / "convergence.csv", names, seeds, elements, table_measured);
-    if (!rows) return input_error(rows.error());
-    double floor = -1.0;
-    if (!o.reference.empty()) {
-      Result<nlohmann::json> read = read_result_file(o.reference, &interrupt_flag());
-      if (!read) return input_error(read.error());
-      floor = floor_for(*read, estimated_error_of(*read), table_measured);
-    }
-    if (Status status = draw_plot({directory, scene->name, elements, seeds, names, *rows, table_measured, floor});
-        !status) {
-      std::fprintf(stderr, "flatland: error: %s\n", status.error().message.c_str());
-      return kExitFailure;
-    }
-    std::printf("wrote     %s/convergence.png, convergence.svg (%zu runs)\n", o.out.c_str(), rows->size());
-    print_slopes(names, *rows, table_measured);
-    return kExitOk;
-  }
-  // What is measured; a curve is named by its id in the scene file. A curve (or a scene) whose
-  // materials reflect nothing has no B - E: said now, before any work; one that reflects but
-  // receives no light is found in the reference below.
-  const Measured measured{parse_measure(o.measure), o.curve};
-  std::size_t curve_index = 0;
-  nlohmann::json reference;
+  std::vector<std::string> names;
+  int seeds = 0;
+  int elements = 0;
+  Measured table_measured;
+  Result<std::vector<Row>> rows = read_rows(directory / "convergence.csv", names, seeds, elements, table_measured);
+  if (!rows) return input_error(rows.error());
   double floor = -1.0;
-  // Under mpirun every process checks the plan and the scene; rank 0 alone checks the outputs and
-  // reads or computes the reference, which it then hands to the others (processes.hpp).
-  auto prepare = [&]() -> std::optional<int> {
-    const auto reflects = [&scene](const Curve& curve) {
-      const Spectrum& rho = scene->material_of(curve).reflectivity;
-      return std::any_of(rho.begin(), rho.begin() + scene->channels, [](double r) { return r > 0.0; });
-    };
-    if (!o.curve.empty()) {
-      std::vector<std::string> ids;
-      for (const Curve& curve : scene->curves) ids.push_back(curve.id);
-      Result<std::size_t> index = find_curve(ids, o.curve);
-      if (!index) return usage_error(index.error().message + " (in " + o.scene + ")");
-      curve_index = *index;
-      if (measured.measure == Measure::Reflected && !reflects(scene->curves[curve_index]))
-        return usage_error("--curve: '" + o.curve + "' reflects no light (its material's reflectivity is 0), so "
-                           "it has no relative error of B - E; use --measure total");
-    }
-    if (measured.measure == Measure::Reflected && std::none_of(scene->curves.begin(), scene->curves.end(), reflects))
-      return usage_error("--measure reflected: " + o.scene + ": no curve reflects light (every reflectivity is 0), "
-                         "so B - E is zero everywhere and has no relative error; use --measure total");
-    if (!speaks_for_the_run()) return std::nullopt;
-    std::error_code ec;
-    fs::create_directories(o.out, ec);
-    if (ec || !fs::is_directory(o.out)) return usage_error(o.out + ": cannot create the output directory");
-    if (Status status = check_output_file((directory / "convergence.csv").string()); !status)
-      return usage_error(status.error().message);
-    if (Status status = check_result_size(*scene, o.samples); !status) return usage_error(status.error().message);
-
-    // The reference, and an estimate of its own error from solves with elements twice and four
-    // times as long (the order observed from the three; docs/reference.md): the plot's floor.
-    if (!o.reference.empty()) {
-      Result<nlohmann::json> read = read_result_file(o.reference, &interrupt_flag());
-      if (!read) return input_error(read.error());
-      reference = std::move(*read);
-      floor = estimated_error_of(reference);
-      // Of this scene, sampled as the runs will be: said now, not after the first solve.
-      Result<SampledResult> given = sampled_from_json(reference, "the reference");
-      if (!given) return usage_error(o.reference + ": " + given.error().message);
-      if (Status status = check_reference_of(*given, *scene, o.samples); !status)
-        return usage_error(o.reference + ": " + status.error().message +
-                           (check_reference_of(*given, *scene) ? "; pass --samples " + std::to_string(given->curves[0].samples.size())
-                                                               : std::string()));
-    } else {
-      std::fprintf(stderr, "converge: computing the reference of %s\n", o.scene.c_str());
-      ReferenceSettings settings;
-      settings.threads = o.threads;
-      settings.cancel = &interrupt_flag();
-      Result<ReferenceSolution> fine = solve_reference(*scene, settings);
-      if (!fine) return interrupt_flag().load() ? interrupted() : usage_error(fine.error().message);
-      const ReferenceSolution& solution = *fine;
-      const SampledResult sampled = sample_radiosity(
-          *scene, o.samples, [&solution](std::uint32_t c, Side side, double u) { return solution.radiosity(c, side, u); });
-      reference = {{"flatland_result", 1}, {"curves", curves_to_json(sampled)}};
-      Result<ErrorNorms> estimate = estimate_reference_error(*scene, settings, o.samples, sampled);
-      if (interrupt_flag().load()) return interrupted();
-      if (estimate) floor = estimate->l2;
-    }
-    // The reference against itself: whether it has the measured quantity (B - E is zero everywhere
-    // in a scene where nothing reflects, and on a curve that reflects nothing), before any solve.
-    Result<Comparison> self = compare_results(reference, reference, measured.measure);
-    if (!self)
-      return usage_error("--measure " + o.measure + ": " + (o.reference.empty() ? "" : o.reference + ": ") +
-                         self.error().message + (self.error().message == kNothingReflected ? " (--measure total)" : ""));
-    if (!o.curve.empty() && !self->curves[curve_index].measured)
-      return usage_error("--curve: '" + o.curve + "' reflects no light in the reference (B - E is zero along "
-                         "it), so it has no relative error of B - E; use --measure total");
-    floor = floor_for(reference, floor, measured);
-    return std::nullopt;
-  };
-  if (const std::optional<int> code = agree(prepare())) return *code;
-  if (process_count() > 1) {
-    std::string text = speaks_for_the_run() ? reference.dump() : std::string();
-    share_text(text);
-    if (!speaks_for_the_run()) reference = nlohmann::json::parse(text);
+  if (!o.reference.empty()) {
+    Result<nlohmann::json> read = read_result_file(o.reference, &interrupt_flag());
+    if (!read) return input_error(read.error());
+    floor = floor_for(*read, estimated_error_of(*read), table_measured);
   }
-  // The runs compare with the reference as data (rank 0 has already compared it with itself, so it
-  // reads).
-  // (Collective: a reference that another process cannot read stops them all.)
-  Result<SampledResult> sampled_reference = sampled_from_json(reference, "the reference");
-  if (const std::optional<int> code = agree(
-          sampled_reference ? std::nullopt
-                            : std::optional<int>(usage_error("--reference: " + sampled_reference.error().message))))
-    return *code;
+  if (Status status = draw_plot({directory, scene.name, elements, seeds, names, *rows, table_measured, floor});
+      !status) {
+    std::fprintf(stderr, "flatland: error: %s\n", status.error().message.c_str());
+    return kExitFailure;
+  }
+  std::printf("wrote     %s/convergence.png, convergence.svg (%zu runs)\n", o.out.c_str(), rows->size());
+  print_slopes(names, *rows, table_measured);
+  return kExitOk;
+}
 
-  // Every run: one CSV row. Run i (methods, then budgets, then seeds) is done by process i mod K.
-  const std::size_t total = methods.size() * budgets.size() * static_cast<std::size_t>(o.seeds);
+// A convergence study of a checked plan on a loaded scene: its steps, in order. Each returns the
+// exit code when the study stops there; under mpirun every step that can stop is collective
+// (agree), so all processes stop together.
+class ConvergeStudy {
+ public:
+  ConvergeStudy(const ConvergeOptions& o, const Scene& scene, const Plan& plan)
+      : o_(o), scene_(scene), plan_(plan), measured_{parse_measure(o.measure), o.curve} {}
+
+  // Every process checks the curve and the measure; rank 0 alone checks the outputs and reads or
+  // computes the reference (processes.hpp).
+  std::optional<int> prepare();
+  // Rank 0's reference, handed to the others and read as data by every process.
+  std::optional<int> share_reference();
+  // Every run: run i (methods, then budgets, then seeds) is done by process i mod K; the rows
+  // are gathered on every process.
+  std::optional<int> run_all();
+  // Rank 0: the CSV, the plot and the printed summary.
+  int write_outputs() const;
+
+ private:
+  std::optional<int> check_curve_and_measure();
+  std::optional<int> check_outputs() const;
+  std::optional<int> read_reference();
+  std::optional<int> compute_reference();
+  std::optional<int> check_reference_measures();
+  // Photons per second of method m, measured for time budgets.
+  std::optional<int> measure_rate(std::size_t m, double& rate) const;
+  std::optional<int> run_one(std::size_t m, std::size_t b, int seed, double rate);
+  std::string csv() const;
+
+  const ConvergeOptions& o_;
+  const Scene& scene_;
+  const Plan& plan_;
+  // What is measured; a curve is named by its id in the scene file.
+  const Measured measured_;
+  std::size_t curve_index_ = 0;
+  nlohmann::json reference_;
+  std::optional<SampledResult> sampled_reference_;
+  double floor_ = -1.0;
+  std::vector<std::optional<Row>> done_;
+  std::size_t own_total_ = 0;
+  std::size_t own_done_ = 0;
+  std::vector<Row> rows_;
+};
+
+// A curve (or a scene) whose materials reflect nothing has no B - E: said now, before any work;
+// one that reflects but receives no light is found in the reference (check_reference_measures).
+std::optional<int> ConvergeStudy::check_curve_and_measure() {
+  const auto reflects = [this](const Curve& curve) {
+    const Spectrum& rho = scene_.material_of(curve).reflectivity;
+    return std::any_of(rho.begin(), rho.begin() + scene_.channels, [](double r) { return r > 0.0; });
+  };
+  if (!o_.curve.empty()) {
+    std::vector<std::string> ids;
+    for (const Curve& curve : scene_.curves) ids.push_back(curve.id);
+    Result<std::size_t> index = find_curve(ids, o_.curve);
+    if (!index) return usage_error(index.error().message + " (in " + o_.scene + ")");
+    curve_index_ = *index;
+    if (measured_.measure == Measure::Reflected && !reflects(scene_.curves[curve_index_]))
+      return usage_error("--curve: '" + o_.curve + "' reflects no light (its material's reflectivity is 0), so "
+                         "it has no relative error of B - E; use --measure total");
+  }
+  if (measured_.measure == Measure::Reflected && std::none_of(scene_.curves.begin(), scene_.curves.end(), reflects))
+    return usage_error("--measure reflected: " + o_.scene + ": no curve reflects light (every reflectivity is 0), "
+                       "so B - E is zero everywhere and has no relative error; use --measure total");
+  return std::nullopt;
+}
+
+std::optional<int> ConvergeStudy::check_outputs() const {
+  std::error_code ec;
+  fs::create_directories(o_.out, ec);
+  if (ec || !fs::is_directory(o_.out)) return usage_error(o_.out + ": cannot create the output directory");
+  if (Status status = check_output_file((fs::path(o_.out) / "convergence.csv").string()); !status)
+    return usage_error(status.error().message);
+  if (Status status = check_result_size(scene_, o_.samples); !status) return usage_error(status.error().message);
+  return std::nullopt;
+}
+
+std::optional<int> ConvergeStudy::read_reference() {
+  Result<nlohmann::json> read = read_result_file(o_.reference, &interrupt_flag());
+  if (!read) return input_error(read.error());
+  reference_ = std::move(*read);
+  floor_ = estimated_error_of(reference_);
+  // Of this scene, sampled as the runs will be: said now, not after the first solve.
+  Result<SampledResult> given = sampled_from_json(reference_, "the reference");
+  if (!given) return usage_error(o_.reference + ": " + given.error().message);
+  if (Status status = check_reference_of(*given, scene_, o_.samples); !status)
+    return usage_error(o_.reference + ": " + status.error().message +
+                       (check_reference_of(*given, scene_) ? "; pass --samples " + std::to_string(given->curves[0].samples.size())
+                                                           : std::string()));
+  return std::nullopt;
+}
+
+// The reference, and an estimate of its own error from solves with elements twice and four times
+// as long (the order observed from the three; docs/reference.md): the plot's floor.
+std::optional<int> ConvergeStudy::compute_reference() {
+  std::fprintf(stderr, "converge: computing the reference of %s\n", o_.scene.c_str());
+  ReferenceSettings settings;
+  settings.threads = o_.threads;
+  settings.cancel = &interrupt_flag();
+  Result<ReferenceSolution> fine = solve_reference(scene_, settings);
+  if (!fine) return interrupt_flag().load() ? interrupted() : usage_error(fine.error().message);
+  const ReferenceSolution& solution = *fine;
+  const SampledResult sampled = sample_radiosity(
+      scene_, o_.samples, [&solution](std::uint32_t c, Side side, double u) { return solution.radiosity(c, side, u); });
+  reference_ = {{"flatland_result", 1}, {"curves", curves_to_json(sampled)}};
+  Result<ErrorNorms> estimate = estimate_reference_error(scene_, settings, o_.samples, sampled);
+  if (interrupt_flag().load()) return interrupted();
+  if (estimate) floor_ = estimate->l2;
+  return std::nullopt;
+}
+
+// The reference against itself: whether it has the measured quantity (B - E is zero everywhere in
+// a scene where nothing reflects, and on a curve that reflects nothing), before any solve.
+std::optional<int> ConvergeStudy::check_reference_measures() {
+  Result<Comparison> self = compare_results(reference_, reference_, measured_.measure);
+  if (!self)
+    return usage_error("--measure " + o_.measure + ": " + (o_.reference.empty() ? "" : o_.reference + ": ") +
+                       self.error().message + (self.error().message == kNothingReflected ? " (--measure total)" : ""));
+  if (!o_.curve.empty() && !self->curves[curve_index_].measured)
+    return usage_error("--curve: '" + o_.curve + "' reflects no light in the reference (B - E is zero along "
+                       "it), so it has no relative error of B - E; use --measure total");
+  floor_ = floor_for(reference_, floor_, measured_);
+  return std::nullopt;
+}
+
+std::optional<int> ConvergeStudy::prepare() {
+  if (std::optional<int> code = check_curve_and_measure()) return code;
+  if (!speaks_for_the_run()) return std::nullopt;
+  if (std::optional<int> code = check_outputs()) return code;
+  if (std::optional<int> code = o_.reference.empty() ? compute_reference() : read_reference()) return code;
+  return check_reference_measures();
+}
+
+std::optional<int> ConvergeStudy::share_reference() {
+  if (process_count() > 1) {
+    std::string text = speaks_for_the_run() ? reference_.dump() : std::string();
+    share_text(text);
+    if (!speaks_for_the_run()) reference_ = nlohmann::json::parse(text);
+  }
+  // (Collective: a reference that another process cannot read stops them all.)
+  Result<SampledResult> sampled = sampled_from_json(reference_, "the reference");
+  if (sampled) sampled_reference_ = std::move(*sampled);
+  return agree(sampled ? std::nullopt
+                       : std::optional<int>(usage_error("--reference: " + sampled.error().message)));
+}
+
+std::optional<int> ConvergeStudy::measure_rate(std::size_t m, double& rate) const {
+  rate = 0.0;
+  if (!plan_.by_time) return std::nullopt;
+  SolverSettings probe = plan_.methods[m].settings;
+  probe.photons = 100'000;
+  Result<Solver> solver = Solver::create(scene_, probe, &interrupt_flag());
+  if (!solver) return interrupt_flag().load() ? interrupted() : usage_error(solver.error().message);
+  solver->run(&interrupt_flag());
+  rate = static_cast<double>(solver->photons_shot()) / std::max(solver->seconds(), 1e-6);
+  return std::nullopt;
+}
+
+std::optional<int> ConvergeStudy::run_one(std::size_t m, std::size_t b, int seed, double rate) {
+  const std::vector<double>& budgets = plan_.budgets;
+  const std::size_t run = (m * budgets.size() + b) * static_cast<std::size_t>(o_.seeds) + static_cast<std::size_t>(seed - 1);
+  if (run % process_count() != process_rank()) return std::nullopt;
+  SolverSettings settings = plan_.methods[m].settings;
+  const double photons = std::max(1.0, plan_.by_time ? std::floor(budgets[b] * rate) : budgets[b]);
+  if (photons > static_cast<double>(kMaxPhotons))
+    return usage_error("--times: " + std::to_string(budgets[b]) + " s at the measured " + human_count(rate) +
+                       " photons/s is more than the 2^50 photons a solve may shoot");
+  settings.photons = static_cast<std::uint64_t>(photons);
+  settings.seed = static_cast<std::uint64_t>(seed);
+  Result<Row> row = converge_run(scene_, settings, *sampled_reference_, measured_.measure,
+                                 o_.curve.empty() ? std::nullopt : std::optional<std::size_t>(curve_index_),
+                                 o_.samples, &interrupt_flag());
+  if (!row) return interrupt_flag().load() ? interrupted() : usage_error(row.error().message);
+  row->method = m;
+  row->budget = b;
+  done_[run] = *row;
+  ++own_done_;
+  if (::isatty(STDERR_FILENO) == 1 && speaks_for_the_run())
+    std::fprintf(stderr, "\r\033[K  converge: %zu / %zu runs%s (%s, %s photons, seed %d)", own_done_, own_total_,
+                 process_count() > 1 ? " of this process" : "", plan_.methods[m].name.c_str(),
+                 human_count(static_cast<double>(settings.photons)).c_str(), seed);
+  return std::nullopt;
+}
+
+std::optional<int> ConvergeStudy::run_all() {
+  const std::vector<Method>& methods = plan_.methods;
+  const std::size_t total = methods.size() * plan_.budgets.size() * static_cast<std::size_t>(o_.seeds);
   const std::size_t processes = process_count();
-  const std::size_t own_total = total / processes + (process_rank() < total % processes ? 1 : 0);
-  std::vector<std::optional<Row>> done(total);
-  std::size_t own_done = 0;
+  own_total_ = total / processes + (process_rank() < total % processes ? 1 : 0);
+  done_.assign(total, std::nullopt);
   std::optional<int> failure;
   const bool tty = ::isatty(STDERR_FILENO) == 1;
   for (std::size_t m = 0; m < methods.size() && !failure; ++m) {
-    double rate = 0.0;  // photons per second, measured for time budgets
-    if (by_time) {
-      SolverSettings probe = methods[m].settings;
-      probe.photons = 100'000;
-      Result<Solver> solver = Solver::create(*scene, probe, &interrupt_flag());
-      if (!solver) {
-        failure = interrupt_flag().load() ? interrupted() : usage_error(solver.error().message);
-        break;
-      }
-      solver->run(&interrupt_flag());
-      rate = static_cast<double>(solver->photons_shot()) / std::max(solver->seconds(), 1e-6);
-    }
-    for (std::size_t b = 0; b < budgets.size() && !failure; ++b) {
-      for (int seed = 1; seed <= o.seeds && !failure; ++seed) {
-        const std::size_t run = (m * budgets.size() + b) * static_cast<std::size_t>(o.seeds) + (seed - 1);
-        if (run % processes != process_rank()) continue;
-        SolverSettings settings = methods[m].settings;
-        const double photons = std::max(1.0, by_time ? std::floor(budgets[b] * rate) : budgets[b]);
-        if (photons > static_cast<double>(kMaxPhotons)) {
-          failure = usage_error("--times: " + std::to_string(budgets[b]) + " s at the measured " +
-                                human_count(rate) + " photons/s is more than the 2^50 photons a solve may shoot");
-          break;
-        }
-        settings.photons = static_cast<std::uint64_t>(photons);
-        settings.seed = static_cast<std::uint64_t>(seed);
-        Result<Row> row = converge_run(*scene, settings, *sampled_reference, measured.measure,
-                                       o.curve.empty() ? std::nullopt : std::optional<std::size_t>(curve_index),
-                                       o.samples, &interrupt_flag());
-        if (!row) {
-          failure = interrupt_flag().load() ? interrupted() : usage_error(row.error().message);
-          break;
-        }
-        row->method = m;
-        row->budget = b;
-        done[run] = *row;
-        ++own_done;
-        if (tty && speaks_for_the_run())
-          std::fprintf(stderr, "\r\033[K  converge: %zu / %zu runs%s (%s, %s photons, seed %d)", own_done,
-                       own_total, processes > 1 ? " of this process" : "", methods[m].name.c_str(),
-                       human_count(static_cast<double>(settings.photons)).c_str(), seed);
-      }
-    }
-    if (!tty && speaks_for_the_run())
-      std::fprintf(stderr, "converge: method %zu / %zu done (%s), %zu / %zu runs%s\n", m + 1,
-                   methods.size(), methods[m].name.c_str(), own_done, own_total,
-                   processes > 1 ? " of this process" : "");
+    double rate = 0.0;
+    failure = measure_rate(m, rate);
+    for (std::size_t b = 0; b < plan_.budgets.size() && !failure; ++b)
+      for (int seed = 1; seed <= o_.seeds && !failure; ++seed) failure = run_one(m, b, seed, rate);
+    if (!failure && !tty && speaks_for_the_run())
+      std::fprintf(stderr, "converge: method %zu / %zu done (%s), %zu / %zu runs%s\n", m + 1, methods.size(),
+                   methods[m].name.c_str(), own_done_, own_total_, processes > 1 ? " of this process" : "");
   }
   if (tty && speaks_for_the_run()) std::fprintf(stderr, "\r\033[K");
   if (!failure && interrupt_flag().load()) failure = interrupted();
-  if (const std::optional<int> code = agree(failure)) return *code;
-  gather_rows(done);
-  if (!speaks_for_the_run()) return kExitOk;
-  std::vector<Row> rows;
-  for (const std::optional<Row>& row : done) rows.push_back(*row);
+  if (std::optional<int> code = agree(failure)) return code;
+  gather_rows(done_);
+  for (const std::optional<Row>& row : done_) rows_.push_back(*row);
+  return std::nullopt;
+}
 
-  // The CSV, written atomically: converge_fields' columns (measure and curve say what rel_*
-  // measure: "reflected" (B - E) or "total" (B), over the curve with that id, or over the scene
-  // when the curve is empty). The method's name is always quoted, the curve's id where it must be.
+// The CSV: converge_fields' columns (measure and curve say what rel_* measure: "reflected" (B - E)
+// or "total" (B), over the curve with that id, or over the scene when the curve is empty). The
+// method's name is always quoted, the curve's id where it must be.
+std::string ConvergeStudy::csv() const {
   std::string csv;
-  for (const ConvergeField& field : converge_fields({}, {}, {}, measured.measure, {}))
+  for (const ConvergeField& field : converge_fields({}, {}, {}, measured_.measure, {}))
     csv += std::string(csv.empty() ? "" : ",") + field.name;
   csv += "\n";
-  for (const Row& row : rows) {
+  for (const Row& row : rows_) {
+    const Method& method = plan_.methods[row.method];
     const std::vector<ConvergeField> fields =
-        converge_fields(methods[row.method].name, methods[row.method].settings, row, measured.measure, measured.curve);
+        converge_fields(method.name, method.settings, row, measured_.measure, measured_.curve);
     std::string line;
     for (const ConvergeField& field : fields) {
       if (&field != &fields.front()) line += ',';
@@ -794,24 +838,51 @@ int run_converge(ConvergeOptions& o) {
     }
     csv += line + "\n";
   }
-  if (Status status = write_file_atomically((directory / "convergence.csv").string(), csv, &interrupt_flag()); !status)
-    return usage_error(status.error().message);
+  return csv;
+}
 
+int ConvergeStudy::write_outputs() const {
+  const fs::path directory(o_.out);
+  if (Status status = write_file_atomically((directory / "convergence.csv").string(), csv(), &interrupt_flag());
+      !status)
+    return usage_error(status.error().message);
+  const std::vector<Method>& methods = plan_.methods;
   int shared_elements = methods.front().settings.elements;
   for (const Method& method : methods)
     if (method.settings.elements != shared_elements) shared_elements = 0;
-  if (Status status =
-          draw_plot({directory, scene->name, shared_elements, o.seeds, method_names(methods), rows, measured, floor});
+  if (Status status = draw_plot(
+          {directory, scene_.name, shared_elements, o_.seeds, method_names(methods), rows_, measured_, floor_});
       !status) {
     std::fprintf(stderr, "flatland: error: %s; %s/convergence.csv is written, the plot is not\n",
-                 status.error().message.c_str(), o.out.c_str());
+                 status.error().message.c_str(), o_.out.c_str());
     return kExitFailure;
   }
-  std::printf("wrote     %s/convergence.csv, convergence.png, convergence.svg (%zu runs)\n",
-              o.out.c_str(), rows.size());
-  if (floor > 0.0) std::printf("reference error (estimated) %.3g relative L2\n", floor);
-  print_slopes(method_names(methods), rows, measured);
+  std::printf("wrote     %s/convergence.csv, convergence.png, convergence.svg (%zu runs)\n", o_.out.c_str(),
+              rows_.size());
+  if (floor_ > 0.0) std::printf("reference error (estimated) %.3g relative L2\n", floor_);
+  print_slopes(method_names(methods), rows_, measured_);
   return kExitOk;
+}
+
+}  // namespace
+
+int run_converge(ConvergeOptions& o) {
+  // A replot draws what a run wrote: rank 0's work alone.
+  if (o.replot && !speaks_for_the_run()) return kExitOk;
+  Result<Plan> plan = parse_plan(o);
+  Result<Scene> scene = plan ? load_scene(o.scene, &interrupt_flag()) : Result<Scene>(Error{""});
+  std::optional<int> unusable;
+  if (!plan) unusable = usage_error(plan.error().message);
+  else if (!scene) unusable = input_error(scene.error());
+  if (o.replot) return unusable ? *unusable : replot(o, *scene);
+  if (const std::optional<int> code = agree(unusable)) return *code;
+  if (const std::optional<int> code = agree_on_digest("scene file", o.scene, scene->source_sha256)) return *code;
+
+  ConvergeStudy study(o, *scene, *plan);
+  if (const std::optional<int> code = agree(study.prepare())) return *code;
+  if (const std::optional<int> code = study.share_reference()) return *code;
+  if (const std::optional<int> code = study.run_all()) return *code;
+  return speaks_for_the_run() ? study.write_outputs() : kExitOk;
 }
 
 }  // namespace flatland::app

@@ -771,53 +771,104 @@ double reference_element_count(const Scene& scene, const ReferenceSettings& sett
   return count;
 }
 
-Result<ReferenceSolution> solve_reference(const Scene& scene, const ReferenceSettings& settings) {
-  if (Status status = validate(settings); !status) return status.error();
-  for (const Curve& curve : scene.curves) {
-    if (scene.is_emitter(curve) &&
-        scene.material_of(curve).emission.kind != Emission::Kind::Diffuse)
-      return Error{scene.source + ": curve '" + curve.id +
+// solve_reference's steps, each a method; a friend of ReferenceSolution, whose members it fills.
+class ReferenceBuilder {
+ public:
+  ReferenceBuilder(const Scene& scene, const ReferenceSettings& settings, ReferenceSolution& solution)
+      : scene_(scene),
+        settings_(settings),
+        solution_(solution),
+        elements_(solution.elements_),
+        memory_limit_(settings.memory_limit != 0 ? settings.memory_limit : default_memory_budget()) {}
+
+  // Refuses what the reference cannot solve (non-diffuse emitters) or cannot finish (too many
+  // elements, by their count alone), before any work is done.
+  Status check() const;
+  // 1. Elements: the chords of every segment, equal in arc length between contacts.
+  Status build_elements();
+  // Chain neighbours: consecutive elements of a curve that share an end point exactly (joints
+  // share their control point), and the last and first of a closed curve.
+  void link_neighbours();
+  // Patches (element sides) that carry radiosity (reflect or emit) and those that need a row of
+  // F (reflect).
+  void number_patches();
+  // 2-3. The rows of F, by quadrature over the element, with crossed strings where the pair sees
+  // each other whole from every quadrature point and each lies in front of the other; then in
+  // compressed rows.
+  Status form_factors();
+  // 4. Per channel, (I - diag(rho) F) b = e by restarted GMRES, starting from b = e.
+  Status solve_channels();
+
+ private:
+  bool cancelled() const {
+    return settings_.cancel != nullptr && settings_.cancel->load(std::memory_order_relaxed);
+  }
+  double max_length() const {
+    return settings_.max_element_length > 0.0 ? settings_.max_element_length : scene_.scale / 400.0;
+  }
+  std::size_t patch_count() const { return 2 * elements_.size(); }
+  // One worker's share of the rows; `reports` says whether it calls the progress callback.
+  void compute_rows(bool reports);
+  void compress_rows();
+
+  // Bytes of the rows so far (each entry of a row and of the final CSR copy: a column index and
+  // a value); past the memory limit every worker stops.
+  static constexpr double kBytesPerEntry = 2.0 * (sizeof(std::uint32_t) + sizeof(double)) + 4.0;
+
+  const Scene& scene_;
+  const ReferenceSettings& settings_;
+  ReferenceSolution& solution_;
+  std::vector<ReferenceElement>& elements_;
+  // The bytes the rows may take: fixed before any work (the budget left shrinks as threads start).
+  const std::size_t memory_limit_;
+  std::vector<char> carries_;  // per patch
+  // The rows being computed: shared by the workers, each row written by one.
+  std::vector<double> nodes_;
+  std::vector<double> weights_;
+  std::vector<std::vector<std::pair<std::uint32_t, double>>> row_entries_;
+  std::vector<double> row_sums_;
+  std::atomic<std::size_t> next_row_{0};
+  std::atomic<std::size_t> entry_count_{0};
+  std::atomic<bool> out_of_memory_{false};
+  std::atomic<std::size_t> rows_done_{0};
+};
+
+Status ReferenceBuilder::check() const {
+  if (Status status = validate(settings_); !status) return status;
+  for (const Curve& curve : scene_.curves) {
+    if (scene_.is_emitter(curve) &&
+        scene_.material_of(curve).emission.kind != Emission::Kind::Diffuse)
+      return Error{scene_.source + ": curve '" + curve.id +
                    "': the reference solver supports diffuse emitters only"};
   }
-  ReferenceSolution solution;
-  solution.scene_ = scene;
-  solution.settings_ = settings;
-  const double max_length =
-      settings.max_element_length > 0.0 ? settings.max_element_length : scene.scale / 400.0;
-  const auto cancelled = [&settings] {
-    return settings.cancel != nullptr && settings.cancel->load(std::memory_order_relaxed);
-  };
-
-  // The element count first, to refuse work that cannot finish before any of it is done.
-  const double element_total = reference_element_count(scene, settings);
+  const double element_total = reference_element_count(scene_, settings_);
   if (element_total > static_cast<double>(kMaxReferenceElements)) {
     char message[320];
     std::snprintf(message, sizeof message,
                   "%.4g reference elements (elements of length %.3g); at most %zu: form factors "
                   "take time and memory growing as the square of the count; use fewer elements "
                   "(--elements or --max-element-length)",
-                  element_total, max_length, kMaxReferenceElements);
+                  element_total, max_length(), kMaxReferenceElements);
     return Error{message};
   }
-  const std::size_t memory_limit =
-      settings.memory_limit != 0 ? settings.memory_limit : default_memory_budget();
+  return ok_status();
+}
 
-  // 1. Elements: chords of every segment, equal in arc length between contacts.
-  std::vector<ReferenceElement>& elements = solution.elements_;
-  const std::vector<std::vector<double>> boundaries = element_boundaries(scene, max_length);
-  solution.segment_first_.assign(scene.segments.size(), 0);
-  solution.segment_count_.assign(scene.segments.size(), 0);
-  for (std::uint32_t si = 0; si < scene.segments.size(); ++si) {
-    const SceneSegment& segment = scene.segments[si];
-    const Curve& curve = scene.curves[segment.curve];
-    const Material& material = scene.material_of(curve);
+Status ReferenceBuilder::build_elements() {
+  const std::vector<std::vector<double>> boundaries = element_boundaries(scene_, max_length());
+  solution_.segment_first_.assign(scene_.segments.size(), 0);
+  solution_.segment_count_.assign(scene_.segments.size(), 0);
+  for (std::uint32_t si = 0; si < scene_.segments.size(); ++si) {
+    const SceneSegment& segment = scene_.segments[si];
+    const Curve& curve = scene_.curves[segment.curve];
+    const Material& material = scene_.material_of(curve);
     const Cubic& shape = segment.geometry.shape;
     const std::vector<double>& boundary = boundaries[si];
     const auto pieces = static_cast<std::uint32_t>(boundary.size() - 1);
-    solution.segment_first_[si] = static_cast<std::uint32_t>(elements.size());
-    solution.segment_count_[si] = pieces;
+    solution_.segment_first_[si] = static_cast<std::uint32_t>(elements_.size());
+    solution_.segment_count_[si] = pieces;
     // Per segment pieces + 1 boundaries; segment si's start at segment_first_[si] + si.
-    solution.boundary_.insert(solution.boundary_.end(), boundary.begin(), boundary.end());
+    solution_.boundary_.insert(solution_.boundary_.end(), boundary.begin(), boundary.end());
     auto point_at = [&](std::uint32_t k) {
       if (k == 0) return shape.p[0];
       if (k == pieces) return shape.p[3];
@@ -831,7 +882,7 @@ Result<ReferenceSolution> solve_reference(const Scene& scene, const ReferenceSet
       e.b = end;
       e.length = length(end - start);
       if (!(e.length > 0.0))
-        return Error{scene.source + ": curve '" + curve.id + "': a chord of zero length"};
+        return Error{scene_.source + ": curve '" + curve.id + "': a chord of zero length"};
       e.normal = (1.0 / e.length) * perp(end - start);
       e.curve = segment.curve;
       e.segment = si;
@@ -841,199 +892,217 @@ Result<ReferenceSolution> solve_reference(const Scene& scene, const ReferenceSet
       for (const Side side : {Side::Front, Side::Back}) {
         if (!curve.has_side(side)) continue;
         const auto sd = static_cast<std::size_t>(side);
-        for (int c = 0; c < scene.channels; ++c) {
+        for (int c = 0; c < scene_.channels; ++c) {
           const auto ch = static_cast<std::size_t>(c);
           e.reflectivity[sd][ch] = material.reflectivity[ch];
           e.emittance[sd][ch] = curve.emittance[ch] * factor;
         }
       }
-      elements.push_back(e);
+      elements_.push_back(e);
       start = end;
     }
   }
-  const auto element_count = static_cast<std::uint32_t>(elements.size());
-  // Chain neighbours: consecutive elements of a curve that share an end point exactly (joints
-  // share their control point), and the last and first of a closed curve.
+  return ok_status();
+}
+
+void ReferenceBuilder::link_neighbours() {
+  const auto element_count = static_cast<std::uint32_t>(elements_.size());
   for (std::uint32_t k = 0; k + 1 < element_count; ++k) {
-    if (elements[k + 1].curve == elements[k].curve && elements[k + 1].a == elements[k].b) {
-      elements[k].next = k + 1;
-      elements[k + 1].previous = k;
+    if (elements_[k + 1].curve == elements_[k].curve && elements_[k + 1].a == elements_[k].b) {
+      elements_[k].next = k + 1;
+      elements_[k + 1].previous = k;
     }
   }
   for (std::uint32_t first = 0; first < element_count;) {
     std::uint32_t last = first;
-    while (last + 1 < element_count && elements[last + 1].curve == elements[first].curve) ++last;
-    if (last != first && elements[last].b == elements[first].a) {
-      elements[last].next = first;
-      elements[first].previous = last;
+    while (last + 1 < element_count && elements_[last + 1].curve == elements_[first].curve) ++last;
+    if (last != first && elements_[last].b == elements_[first].a) {
+      elements_[last].next = first;
+      elements_[first].previous = last;
     }
     first = last + 1;
   }
-  const std::size_t patch_count = 2 * static_cast<std::size_t>(element_count);
-  // Patches that carry radiosity (reflect or emit) and patches that need a row (reflect).
-  std::vector<char> carries(patch_count, 0);
-  solution.patch_row_.assign(patch_count, kNoElement);
-  for (std::uint32_t j = 0; j < element_count; ++j) {
+}
+
+void ReferenceBuilder::number_patches() {
+  carries_.assign(patch_count(), 0);
+  solution_.patch_row_.assign(patch_count(), kNoElement);
+  for (std::uint32_t j = 0; j < elements_.size(); ++j) {
     for (const Side side : {Side::Front, Side::Back}) {
       const auto sd = static_cast<std::size_t>(side);
-      const bool reflects = any_positive(elements[j].reflectivity[sd], scene.channels);
-      const bool emits = any_positive(elements[j].emittance[sd], scene.channels);
-      carries[patch_index(j, side)] = reflects || emits;
+      const bool reflects = any_positive(elements_[j].reflectivity[sd], scene_.channels);
+      const bool emits = any_positive(elements_[j].emittance[sd], scene_.channels);
+      carries_[patch_index(j, side)] = reflects || emits;
       if (reflects) {
-        solution.patch_row_[patch_index(j, side)] =
-            static_cast<std::uint32_t>(solution.row_patch_.size());
-        solution.row_patch_.push_back(static_cast<std::uint32_t>(patch_index(j, side)));
+        solution_.patch_row_[patch_index(j, side)] =
+            static_cast<std::uint32_t>(solution_.row_patch_.size());
+        solution_.row_patch_.push_back(static_cast<std::uint32_t>(patch_index(j, side)));
       }
     }
   }
+}
 
-  // 2-3. Rows of F by quadrature over the element, crossed strings where the pair sees each other
-  // whole from every quadrature point and each lies in front of the other.
-  const auto clock_start = std::chrono::steady_clock::now();
-  const std::size_t rows = solution.row_patch_.size();
-  std::vector<double> nodes;
-  std::vector<double> weights;
-  gauss::legendre_unit_rule(settings.quadrature, nodes, weights);
-  std::vector<std::vector<std::pair<std::uint32_t, double>>> row_entries(rows);
-  std::vector<double> row_sums(rows, 0.0);
-  std::atomic<std::size_t> next_row{0};
-  // Bytes of the rows so far (each entry of a row and of the final CSR copy: a column index and
-  // a value); past the memory limit every worker stops.
-  constexpr double kBytesPerEntry = 2.0 * (sizeof(std::uint32_t) + sizeof(double)) + 4.0;
-  std::atomic<std::size_t> entry_count{0};
-  std::atomic<bool> out_of_memory{false};
-  std::atomic<std::size_t> rows_done{0};
-  auto worker = [&](bool reports) {
-    auto last_report = std::chrono::steady_clock::now();
-    Sweeper sweeper;
-    PairQuadrature pair_quadrature(elements, nodes, weights);
-    std::vector<VisibleElement> visible;
-    std::vector<double> accumulated(patch_count, 0.0);
-    std::vector<int> whole_count(patch_count, 0);
-    std::vector<std::uint32_t> touched;
-    for (;;) {
-      if (cancelled() || out_of_memory.load(std::memory_order_relaxed)) break;
-      const std::size_t row = next_row.fetch_add(1);
-      if (row >= rows) break;
-      const std::uint32_t patch = solution.row_patch_[row];
-      const std::uint32_t i = patch / 2;
-      const Side side = static_cast<Side>(patch % 2);
-      const ReferenceElement& ei = elements[i];
-      const Vec2 normal = side == Side::Front ? ei.normal : -ei.normal;
-      touched.clear();
-      for (std::size_t q = 0; q < nodes.size(); ++q) {
-        const Vec2 x = lerp(ei.a, ei.b, nodes[q]);
-        sweeper.run(elements, x, normal, i, side, visible);
-        for (const VisibleElement& v : visible) {
-          const std::size_t p = patch_index(v.element, v.side);
-          if (accumulated[p] == 0.0 && whole_count[p] == 0) touched.push_back(static_cast<std::uint32_t>(p));
-          accumulated[p] += weights[q] * v.form_factor;
-          whole_count[p] += v.whole ? 1 : 0;
-        }
-      }
-      std::sort(touched.begin(), touched.end());
-      auto& entries = row_entries[row];
-      double sum = 0.0;
-      for (const std::uint32_t p : touched) {
-        double f = accumulated[p];
-        const std::uint32_t j = p / 2;
-        const Side side_j = static_cast<Side>(p % 2);
-        if (whole_count[p] == settings.quadrature && in_front_of(ei, side, elements[j]) &&
-            in_front_of(elements[j], side_j, ei)) {
-          const ReferenceElement& ej = elements[j];
-          f = crossed_strings(ei.a, ei.b, ej.a, ej.b);
-        } else {
-          // Seen partly (or clipped by i's plane) from some quadrature point: integrate again,
-          // split at the visibility events.
-          f = pair_quadrature.form_factor(i, side, j, side_j);
-        }
-        accumulated[p] = 0.0;
-        whole_count[p] = 0;
-        sum += f;
-        if (carries[p] && f > 0.0) entries.emplace_back(p, f);
-      }
-      row_sums[row] = sum;
-      const std::size_t total = entry_count.fetch_add(entries.size()) + entries.size();
-      if (static_cast<double>(total) * kBytesPerEntry > static_cast<double>(memory_limit))
-        out_of_memory.store(true);
-      const std::size_t done = rows_done.fetch_add(1) + 1;
-      if (reports && settings.progress && seconds_since(last_report) >= 0.25) {
-        last_report = std::chrono::steady_clock::now();
-        settings.progress(done, rows);
+void ReferenceBuilder::compute_rows(bool reports) {
+  const std::size_t rows = solution_.row_patch_.size();
+  auto last_report = std::chrono::steady_clock::now();
+  Sweeper sweeper;
+  PairQuadrature pair_quadrature(elements_, nodes_, weights_);
+  std::vector<VisibleElement> visible;
+  std::vector<double> accumulated(patch_count(), 0.0);
+  std::vector<int> whole_count(patch_count(), 0);
+  std::vector<std::uint32_t> touched;
+  for (;;) {
+    if (cancelled() || out_of_memory_.load(std::memory_order_relaxed)) break;
+    const std::size_t row = next_row_.fetch_add(1);
+    if (row >= rows) break;
+    const std::uint32_t patch = solution_.row_patch_[row];
+    const std::uint32_t i = patch / 2;
+    const Side side = static_cast<Side>(patch % 2);
+    const ReferenceElement& ei = elements_[i];
+    const Vec2 normal = side == Side::Front ? ei.normal : -ei.normal;
+    touched.clear();
+    for (std::size_t q = 0; q < nodes_.size(); ++q) {
+      const Vec2 x = lerp(ei.a, ei.b, nodes_[q]);
+      sweeper.run(elements_, x, normal, i, side, visible);
+      for (const VisibleElement& v : visible) {
+        const std::size_t p = patch_index(v.element, v.side);
+        if (accumulated[p] == 0.0 && whole_count[p] == 0) touched.push_back(static_cast<std::uint32_t>(p));
+        accumulated[p] += weights_[q] * v.form_factor;
+        whole_count[p] += v.whole ? 1 : 0;
       }
     }
-  };
+    std::sort(touched.begin(), touched.end());
+    auto& entries = row_entries_[row];
+    double sum = 0.0;
+    for (const std::uint32_t p : touched) {
+      double f = accumulated[p];
+      const std::uint32_t j = p / 2;
+      const Side side_j = static_cast<Side>(p % 2);
+      if (whole_count[p] == settings_.quadrature && in_front_of(ei, side, elements_[j]) &&
+          in_front_of(elements_[j], side_j, ei)) {
+        const ReferenceElement& ej = elements_[j];
+        f = crossed_strings(ei.a, ei.b, ej.a, ej.b);
+      } else {
+        // Seen partly (or clipped by i's plane) from some quadrature point: integrate again,
+        // split at the visibility events.
+        f = pair_quadrature.form_factor(i, side, j, side_j);
+      }
+      accumulated[p] = 0.0;
+      whole_count[p] = 0;
+      sum += f;
+      if (carries_[p] && f > 0.0) entries.emplace_back(p, f);
+    }
+    row_sums_[row] = sum;
+    const std::size_t total = entry_count_.fetch_add(entries.size()) + entries.size();
+    if (static_cast<double>(total) * kBytesPerEntry > static_cast<double>(memory_limit_))
+      out_of_memory_.store(true);
+    const std::size_t done = rows_done_.fetch_add(1) + 1;
+    if (reports && settings_.progress && seconds_since(last_report) >= 0.25) {
+      last_report = std::chrono::steady_clock::now();
+      settings_.progress(done, rows);
+    }
+  }
+}
+
+Status ReferenceBuilder::form_factors() {
+  const auto clock_start = std::chrono::steady_clock::now();
+  const std::size_t rows = solution_.row_patch_.size();
+  gauss::legendre_unit_rule(settings_.quadrature, nodes_, weights_);
+  row_entries_.assign(rows, {});
+  row_sums_.assign(rows, 0.0);
   {
-    const unsigned threads =
-        static_cast<unsigned>(std::min<std::size_t>(thread_count(settings.threads), std::max<std::size_t>(rows, 1)));
+    const unsigned threads = static_cast<unsigned>(
+        std::min<std::size_t>(thread_count(settings_.threads), std::max<std::size_t>(rows, 1)));
     WorkerPool pool(threads);
-    solution.thread_shortfall_ = pool.shortfall();
-    pool.run(pool.threads(), [&](unsigned w) { worker(w == 0); });
+    solution_.thread_shortfall_ = pool.shortfall();
+    pool.run(pool.threads(), [&](unsigned w) { compute_rows(w == 0); });
   }
   if (cancelled()) return Error{kReferenceCancelled};
-  if (out_of_memory.load()) {
-    const std::size_t done = std::min(next_row.load(), rows);
-    const double projected = static_cast<double>(entry_count.load()) * kBytesPerEntry *
+  if (out_of_memory_.load()) {
+    const std::size_t done = std::min(next_row_.load(), rows);
+    const double projected = static_cast<double>(entry_count_.load()) * kBytesPerEntry *
                              static_cast<double>(rows) / static_cast<double>(std::max<std::size_t>(done, 1));
-    return Error{std::to_string(element_count) + " reference elements: the form factors would need about " +
+    return Error{std::to_string(elements_.size()) + " reference elements: the form factors would need about " +
                  format_bytes(projected) + ", more than the memory limit of " +
-                 format_bytes(static_cast<double>(memory_limit)) +
+                 format_bytes(static_cast<double>(memory_limit_)) +
                  "; use fewer elements (--elements or --max-element-length)"};
   }
-  solution.row_begin_.assign(rows + 1, 0);
-  for (std::size_t r = 0; r < rows; ++r)
-    solution.row_begin_[r + 1] = solution.row_begin_[r] + row_entries[r].size();
-  solution.column_.reserve(solution.row_begin_[rows]);
-  solution.value_.reserve(solution.row_begin_[rows]);
-  for (std::size_t r = 0; r < rows; ++r) {
-    for (const auto& [p, f] : row_entries[r]) {
-      solution.column_.push_back(p);
-      solution.value_.push_back(f);
-    }
-    std::vector<std::pair<std::uint32_t, double>>().swap(row_entries[r]);
-  }
-  solution.row_sums_ = std::move(row_sums);
-  solution.form_factor_seconds_ = seconds_since(clock_start);
+  compress_rows();
+  solution_.form_factor_seconds_ = seconds_since(clock_start);
+  return ok_status();
+}
 
-  // 4. Per channel, (I - diag(rho) F) b = e by restarted GMRES (see gmres above), starting from
-  // b = e. Patches without a row (non-reflecting) are identity rows: they keep b = e.
+void ReferenceBuilder::compress_rows() {
+  const std::size_t rows = row_entries_.size();
+  solution_.row_begin_.assign(rows + 1, 0);
+  for (std::size_t r = 0; r < rows; ++r)
+    solution_.row_begin_[r + 1] = solution_.row_begin_[r] + row_entries_[r].size();
+  solution_.column_.reserve(solution_.row_begin_[rows]);
+  solution_.value_.reserve(solution_.row_begin_[rows]);
+  for (std::size_t r = 0; r < rows; ++r) {
+    for (const auto& [p, f] : row_entries_[r]) {
+      solution_.column_.push_back(p);
+      solution_.value_.push_back(f);
+    }
+    std::vector<std::pair<std::uint32_t, double>>().swap(row_entries_[r]);
+  }
+  solution_.row_sums_ = std::move(row_sums_);
+}
+
+// Patches without a row (non-reflecting) are identity rows: they keep b = e.
+Status ReferenceBuilder::solve_channels() {
   const auto solve_start = std::chrono::steady_clock::now();
-  solution.iterations_ = 0;
-  solution.residual_ = 0.0;
-  solution.error_bound_ = 0.0;
-  for (int c = 0; c < scene.channels; ++c) {
+  const std::size_t rows = solution_.row_patch_.size();
+  solution_.iterations_ = 0;
+  solution_.residual_ = 0.0;
+  solution_.error_bound_ = 0.0;
+  for (int c = 0; c < scene_.channels; ++c) {
     const auto ch = static_cast<std::size_t>(c);
-    std::vector<double> rhs(patch_count, 0.0);
+    std::vector<double> rhs(patch_count(), 0.0);
     std::vector<double> rho(rows, 0.0);
     // The contraction q = max_p rho_p sum_q F_pq bounds ||diag(rho) F||_inf, so
     // ||(I - diag(rho) F)^-1||_inf <= 1 / (1 - q).
     double contraction = 0.0;
-    for (std::size_t p = 0; p < patch_count; ++p) rhs[p] = elements[p / 2].emittance[p % 2][ch];
+    for (std::size_t p = 0; p < patch_count(); ++p) rhs[p] = elements_[p / 2].emittance[p % 2][ch];
     for (std::size_t r = 0; r < rows; ++r) {
-      const std::uint32_t p = solution.row_patch_[r];
-      rho[r] = elements[p / 2].reflectivity[p % 2][ch];
-      contraction = std::max(contraction, rho[r] * solution.row_sums_[r]);
+      const std::uint32_t p = solution_.row_patch_[r];
+      rho[r] = elements_[p / 2].reflectivity[p % 2][ch];
+      contraction = std::max(contraction, rho[r] * solution_.row_sums_[r]);
     }
     const double amplification = 1.0 / std::max(1.0 - contraction, 1e-9);
     auto apply = [&](const std::vector<double>& x, std::vector<double>& y) {
       y = x;
       for (std::size_t r = 0; r < rows; ++r) {
         double gathered = 0.0;
-        for (std::size_t k = solution.row_begin_[r]; k < solution.row_begin_[r + 1]; ++k)
-          gathered += solution.value_[k] * x[solution.column_[k]];
-        y[solution.row_patch_[r]] -= rho[r] * gathered;
+        for (std::size_t k = solution_.row_begin_[r]; k < solution_.row_begin_[r + 1]; ++k)
+          gathered += solution_.value_[k] * x[solution_.column_[k]];
+        y[solution_.row_patch_[r]] -= rho[r] * gathered;
       }
     };
-    std::vector<double>& b = solution.radiosity_[ch];
+    std::vector<double>& b = solution_.radiosity_[ch];
     b = rhs;
     const KrylovOutcome outcome =
-        gmres(apply, rhs, b, settings.tolerance / amplification, settings.max_iterations, settings.cancel);
+        gmres(apply, rhs, b, settings_.tolerance / amplification, settings_.max_iterations, settings_.cancel);
     if (outcome.cancelled) return Error{kReferenceCancelled};
-    solution.iterations_ = std::max(solution.iterations_, outcome.iterations);
-    solution.residual_ = std::max(solution.residual_, outcome.relative_residual);
-    solution.error_bound_ = std::max(solution.error_bound_, outcome.relative_residual * amplification);
+    solution_.iterations_ = std::max(solution_.iterations_, outcome.iterations);
+    solution_.residual_ = std::max(solution_.residual_, outcome.relative_residual);
+    solution_.error_bound_ = std::max(solution_.error_bound_, outcome.relative_residual * amplification);
   }
-  solution.solve_seconds_ = seconds_since(solve_start);
+  solution_.solve_seconds_ = seconds_since(solve_start);
+  return ok_status();
+}
+
+Result<ReferenceSolution> solve_reference(const Scene& scene, const ReferenceSettings& settings) {
+  ReferenceSolution solution;
+  ReferenceBuilder build(scene, settings, solution);
+  if (Status status = build.check(); !status) return status.error();
+  solution.scene_ = scene;
+  solution.settings_ = settings;
+  if (Status status = build.build_elements(); !status) return status.error();
+  build.link_neighbours();
+  build.number_patches();
+  if (Status status = build.form_factors(); !status) return status.error();
+  if (Status status = build.solve_channels(); !status) return status.error();
   return solution;
 }
 

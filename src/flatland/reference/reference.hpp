@@ -164,6 +164,7 @@ class ReferenceSolution {
  private:
   friend Result<ReferenceSolution> solve_reference(const Scene& scene,
                                                    const ReferenceSettings& settings);
+  friend class ReferenceBuilder;  // solve_reference's steps (reference.cpp)
   Scene scene_;
   ReferenceSettings settings_;
   std::vector<ReferenceElement> elements_;
