@@ -4,7 +4,6 @@
 #include <cmath>
 #include <numbers>
 
-#include "flatland/transport/origins.hpp"
 #include "flatland/transport/qmc.hpp"
 
 namespace flatland {
@@ -30,6 +29,114 @@ inline void prefetch(const void* address) {
 #else
   (void)address;
 #endif
+}
+
+
+// A round's sources and its photons' quasi-random points.
+//
+// Randomised quasi-Monte Carlo: photon j of the round takes point j of the round's scrambled
+// Sobol' sequence (named by seed and round), whichever batch, step or thread shoots it; its
+// coordinates (PhotonDimension) and how rejection loops use them are in origins.hpp.
+//
+// With auto storage the round's photons form two halves, even and odd numbers, whose spread
+// measures the estimate's variance (choose_levels): the halves must be independent, so with
+// Sobol' each is a net of its own, scrambled independently (streams 2 round and 2 round + 1),
+// photon i taking point i / 2 of its half's. (Halves of one net are stratified against each
+// other: parity fixes the first digit of the first coordinate, and their difference is far from
+// noise.) A fixed mesh keeps one net per round (stream `round`).
+class RoundPoints {
+ public:
+  RoundPoints(std::uint64_t seed, std::uint32_t round, bool sobol, bool split_halves, const RoundPlan& plan)
+      : qmc(sobol),
+        halves(sobol && split_halves),
+        even(seed, this->halves ? 2 * std::uint64_t{round} : round),
+        odd(seed, 2 * std::uint64_t{round} + 1),
+        key_(source_key(seed, round)),
+        plan_(plan) {}
+  RoundPoints(const RoundPoints&) = delete;  // cursors keep pointers to the nets
+  RoundPoints& operator=(const RoundPoints&) = delete;
+
+  // The cursor of photon `index`'s net, moved to its point.
+  SobolCursor& seek(SobolCursor& even_cursor, SobolCursor& odd_cursor, std::uint32_t index) const {
+    SobolCursor& point = halves && (index & 1u) != 0 ? odd_cursor : even_cursor;
+    point.seek(halves ? index >> 1 : index);
+    return point;
+  }
+  // The source of photon `index`, by unshot power: a side of a curve, or one of its
+  // coefficients. Sobol': from the photon's point (`place` gets what the choice leaves of
+  // dimension kPlace, which places the origin); random: from the round's indexed uniforms, so
+  // that the choice does not depend on how the round is cut into batches and steps either.
+  std::size_t choose_source(SobolCursor& even_cursor, SobolCursor& odd_cursor, std::uint32_t index,
+                            double& place) const {
+    if (!qmc) return plan_.sources.sample(indexed_uniform(key_, index));
+    return plan_.sources.sample(seek(even_cursor, odd_cursor, index).sample(kPlace), place);
+  }
+
+  const bool qmc;
+  const bool halves;
+  const ScrambledSobol even;
+  const ScrambledSobol odd;
+
+ private:
+  const std::uint64_t key_;
+  const RoundPlan& plan_;
+};
+
+// Ahead of photon i: the source's own entries for photon i + 2 kAhead, then (those in cache by
+// now) its basis function's for photon i + kAhead.
+constexpr std::uint64_t kAhead = 4;
+inline void prefetch_sources(const SceneStorage& storage, const RoundPlan& plan,
+                             const std::vector<std::uint32_t>& sources, std::uint64_t i, bool qmc) {
+  const std::uint64_t count = sources.size();
+  if (i + 2 * kAhead < count) {
+    const std::uint32_t later = sources[i + 2 * kAhead];
+    prefetch(&plan.photon_units[later]);
+    prefetch(storage.coefficient_blocks().data() + later);
+  }
+  if (i + kAhead < count) {
+    const std::uint32_t later = sources[i + kAhead];
+    const std::uint32_t block = storage.coefficient_block(later);
+    const CurveStorage& curve_storage = storage.finest(block / 2);
+    const std::size_t k = later - storage.block_offset(block);
+    curve_storage.sampler.prefetch(k, qmc);
+    prefetch(&curve_storage.speed_bound[k]);
+  }
+}
+
+// The direction a photon leaves in: diffuse, except an emitter's own light (`emitted_light`: the
+// first round; every later round shoots reflected light only) when its material says otherwise.
+inline Vec2 leaving_direction(bool emitted_light, const Emission& emission, Vec2 normal, Rng& rng,
+                              const SobolCursor* point) {
+  const bool qmc = point != nullptr;
+  if (!emitted_light || emission.kind == Emission::Kind::Diffuse)
+    return square_to_diffuse(qmc ? point->sample(kDirection) : rng.uniform(), normal);
+  if (emission.kind == Emission::Kind::Lobe) {
+    // Sobol': sample_lobe's first proposal (theta uniform, kept with probability cos^n) from the
+    // point; when it is refused, sample_lobe draws afresh from the stream.
+    const double theta = qmc ? (point->sample(kDirection) - 0.5) * std::numbers::pi : 0.0;
+    const double c = std::cos(theta);
+    if (qmc && point->sample(kAcceptLobe) < std::pow(c, emission.exponent))
+      return std::sin(theta) * Vec2{normal.y, -normal.x} + c * normal;
+    return sample_lobe(rng, emission.exponent, normal);
+  }
+  return square_to_beam(qmc ? point->sample(kDirection) : rng.uniform(), emission.half_angle, normal);
+}
+
+// The path record of a photon leaving `leaves` from side `back` of curve `curve_index` with
+// `units`, while `paths` has room (else null).
+inline PhotonPath* start_path(std::vector<PhotonPath>* paths, std::size_t path_limit, const Origin& leaves,
+                              std::uint32_t curve_index, bool back, const std::array<std::int64_t, 3>& units,
+                              std::size_t channels, double unit_scale, std::uint32_t bounce) {
+  if (paths == nullptr || paths->size() >= path_limit) return nullptr;
+  PhotonPath* path = &paths->emplace_back();
+  path->origin = leaves.position;
+  path->source_curve = curve_index;
+  path->source_side = back ? Side::Back : Side::Front;
+  path->source_segment = leaves.segment;
+  path->source_t = leaves.t;
+  for (std::size_t ch = 0; ch < channels; ++ch) path->power[ch] = static_cast<double>(units[ch]) / unit_scale;
+  path->bounce = bounce;
+  return path;
 }
 
 }  // namespace
@@ -88,6 +195,25 @@ void PhotonShooter::shoot(const RoundView& round, Rng& rng, std::uint64_t first,
   }
 }
 
+// Where the photon leaves (origins.hpp): emitted light of a curve with an emittance profile
+// (first round only, and every walk) where the profile says, reflected light where the unshot
+// density is (a coefficient's basis function or the Hermite reconstruction), or uniformly in arc
+// length.
+// Inlined: one call less per photon in the shooting loop.
+[[gnu::always_inline]] inline Origin PhotonShooter::leave(const RoundView& round, std::uint32_t curve_index, std::uint32_t block, std::size_t source,
+                            OriginDraws& draws) const {
+  const Curve& curve = scene_->curves[curve_index];
+  if (round.emitted_light && !curve.emittance_profile.empty())
+    return sample_profiled_origin(*scene_, curve, segment_choice_[curve_index], draws);
+  if (by_coefficient_) {
+    const SceneStorage& storage = *round.storage;
+    return sample_coefficient_origin(*scene_, curve, storage.finest(curve_index), source - storage.block_offset(block),
+                                     line_tangents_, draws);
+  }
+  if (by_hermite_) return sample_hermite_origin(*scene_, curve, (*round.hermite_unshot)[block], draws);
+  return sample_uniform_origin(*scene_, curve, segment_choice_[curve_index], line_tangents_, draws);
+}
+
 template <PhotonShooter::RayKind kRays>
 void PhotonShooter::shoot_rays(const RoundView& round, Rng& rng, std::uint64_t first, std::uint64_t count,
                                Deposits& acc, std::vector<PhotonPath>* paths, std::size_t path_limit) const {
@@ -96,35 +222,12 @@ void PhotonShooter::shoot_rays(const RoundView& round, Rng& rng, std::uint64_t f
   std::vector<FootprintWeight> footprint;
   if constexpr (kRays == RayKind::Footprint) footprint.reserve(64);
   const auto channels = static_cast<std::size_t>(storage.channels());
-  const double scale = scene_->scale;
-  // Randomised quasi-Monte Carlo: photon j of the round takes point j of the round's scrambled
-  // Sobol' sequence (named by seed and round), whichever batch, step or thread shoots it; its
-  // coordinates (PhotonDimension) and how rejection loops use them are in origins.hpp.
   static_assert(kAcceptLobe < kSobolDimensions);
-  const bool qmc = sobol_;
-  // With auto storage the round's photons form two halves, even and odd numbers, whose spread
-  // measures the estimate's variance (choose_levels): the halves must be independent, so with
-  // Sobol' each is a net of its own, scrambled independently (streams 2 round and 2 round + 1),
-  // photon i taking point i / 2 of its half's. (Halves of one net are stratified against each
-  // other: parity fixes the first digit of the first coordinate, and their difference is far
-  // from noise.) A fixed mesh keeps one net per round (stream `round`).
-  const bool halves = qmc && halves_;
-  const ScrambledSobol sobol(seed_, halves ? 2 * std::uint64_t{round.number} : round.number);
-  const ScrambledSobol sobol_odd(seed_, 2 * std::uint64_t{round.number} + 1);
+  const RoundPoints points(seed_, round.number, sobol_, halves_, plan);
+  const bool qmc = points.qmc;
   // Consecutive photons of a half take consecutive points: one XOR per dimension each.
-  SobolCursor cursor(sobol);
-  SobolCursor cursor_odd(sobol_odd);
-  // The source, by unshot power: a side of a curve, or one of its coefficients. Sobol': from the
-  // photon's point (what the choice leaves of dimension kPlace places the origin); random: from
-  // the round's indexed uniforms, so that the choice does not depend on how the round is cut into
-  // batches and steps either.
-  const std::uint64_t key = source_key(seed_, round.number);
-  auto choose_source = [&](SobolCursor& even_point, SobolCursor& odd_point, std::uint32_t index, double& place) {
-    if (!qmc) return plan.sources.sample(indexed_uniform(key, index));
-    SobolCursor& point = halves && (index & 1u) != 0 ? odd_point : even_point;
-    point.seek(halves ? index >> 1 : index);
-    return plan.sources.sample(point.sample(kPlace), place);
-  };
+  SobolCursor cursor(points.even);
+  SobolCursor cursor_odd(points.odd);
   // With many coefficients (their sampler's pieces, units and blocks far beyond the caches) every
   // photon's source is chosen first, and while photon i is shot the data of photon i + kAhead's
   // are asked for (docs/performance-log.md, "Sources chosen ahead"); the same choices either way.
@@ -135,43 +238,23 @@ void PhotonShooter::shoot_rays(const RoundView& round, Rng& rng, std::uint64_t f
   if (ahead) {
     sources.resize(count);
     places.resize(count);
-    SobolCursor even_point(sobol);
-    SobolCursor odd_point(sobol_odd);
+    SobolCursor even_point(points.even);
+    SobolCursor odd_point(points.odd);
     for (std::uint64_t i = 0; i < count; ++i) {
       double place = 0.0;
-      sources[i] = static_cast<std::uint32_t>(choose_source(even_point, odd_point, static_cast<std::uint32_t>(first + i), place));
+      sources[i] = static_cast<std::uint32_t>(
+          points.choose_source(even_point, odd_point, static_cast<std::uint32_t>(first + i), place));
       places[i] = place;
     }
   }
-  constexpr std::uint64_t kAhead = 4;
   for (std::uint64_t i = 0; i < count; ++i) {
-    if (ahead) {
-      // Two stages: the source's own entries for photon i + 2 kAhead, then (those in cache by
-      // now) its basis function's for photon i + kAhead.
-      if (i + 2 * kAhead < count) {
-        const std::uint32_t later = sources[i + 2 * kAhead];
-        prefetch(&plan.photon_units[later]);
-        prefetch(storage.coefficient_blocks().data() + later);
-      }
-      if (i + kAhead < count) {
-        const std::uint32_t later = sources[i + kAhead];
-        const std::uint32_t block = storage.coefficient_block(later);
-        const CurveStorage& curve_storage = storage.finest(block / 2);
-        const std::size_t k = later - storage.block_offset(block);
-        curve_storage.sampler.prefetch(k, qmc);
-        prefetch(&curve_storage.speed_bound[k]);
-      }
-    }
+    if (ahead) prefetch_sources(storage, plan, sources, i, qmc);
     const auto index = static_cast<std::uint32_t>(first + i);  // < kMaxPhotonsPerRound
     // Auto storage: odd-numbered photons deposit into the accumulator's second half.
     if (halves_) acc.half_offset = (index & 1u) != 0 ? storage.coefficient_count() * static_cast<std::size_t>(storage.channels()) : 0;
-    const bool odd = halves && (index & 1u) != 0;
-    const std::uint32_t net_index = halves ? index >> 1 : index;
-    SobolCursor& net_point = odd ? cursor_odd : cursor;
-    if (qmc) net_point.seek(net_index);
-    auto quasi = [&net_point](int dimension) { return net_point.sample(dimension); };
+    SobolCursor& net_point = qmc ? points.seek(cursor, cursor_odd, index) : cursor;
     double place = ahead ? places[i] : 0.0;
-    const std::size_t source = ahead ? sources[i] : choose_source(cursor, cursor_odd, index, place);
+    const std::size_t source = ahead ? sources[i] : points.choose_source(cursor, cursor_odd, index, place);
     const std::uint32_t block =
         by_coefficient ? storage.coefficient_block(source) : static_cast<std::uint32_t>(source);
     const std::uint32_t curve_index = block / 2;
@@ -180,107 +263,68 @@ void PhotonShooter::shoot_rays(const RoundView& round, Rng& rng, std::uint64_t f
     const std::array<std::int64_t, 3>& units = plan.photon_units[source];
     for (std::size_t ch = 0; ch < channels; ++ch) acc.shot[ch] += units[ch];
 
-    // Where the photon leaves (origins.hpp): emitted light of a curve with an emittance profile
-    // (first round only, and every walk) where the profile says, reflected light where the
-    // unshot density is (a coefficient's basis function or the Hermite reconstruction), or
-    // uniformly in arc length.
-    const bool emitted_light = round.emitted_light;
     OriginDraws draws{rng, qmc ? &net_point : nullptr, place};
-    const Origin leaves =
-        emitted_light && !curve.emittance_profile.empty()
-            ? sample_profiled_origin(*scene_, curve, segment_choice_[curve_index], draws)
-        : by_coefficient
-            ? sample_coefficient_origin(*scene_, curve, storage.finest(curve_index),
-                                        source - storage.block_offset(block), line_tangents_, draws)
-        : by_hermite_
-            ? sample_hermite_origin(*scene_, curve, (*round.hermite_unshot)[block], draws)
-            : sample_uniform_origin(*scene_, curve, segment_choice_[curve_index], line_tangents_, draws);
-    const std::uint32_t segment_index = leaves.segment;
-    const double t = leaves.t;
-    const Vec2 origin = leaves.position;
-    const Vec2 tangent = leaves.tangent;
-    // Directions: diffuse, except an emitter's own light in the first round (every later round
-    // shoots reflected light only) when its material says otherwise.
-    const Vec2 normal = back ? -perp(tangent) : perp(tangent);
-    Vec2 direction;
-    const Emission& emission = scene_->material_of(curve).emission;
-    if (!emitted_light || emission.kind == Emission::Kind::Diffuse) {
-      direction = square_to_diffuse(qmc ? quasi(kDirection) : rng.uniform(), normal);
-    } else if (emission.kind == Emission::Kind::Lobe) {
-      // Sobol': sample_lobe's first proposal (theta uniform, kept with probability cos^n) from
-      // the point; when it is refused, sample_lobe draws afresh from the stream.
-      const double theta = qmc ? (quasi(kDirection) - 0.5) * std::numbers::pi : 0.0;
-      const double c = std::cos(theta);
-      if (qmc && quasi(kAcceptLobe) < std::pow(c, emission.exponent))
-        direction = std::sin(theta) * Vec2{normal.y, -normal.x} + c * normal;
-      else
-        direction = sample_lobe(rng, emission.exponent, normal);
-    } else {
-      direction = square_to_beam(qmc ? quasi(kDirection) : rng.uniform(), emission.half_angle, normal);
-    }
-    const Ray ray{origin, direction};
-
-    PhotonPath* path = nullptr;
-    if (paths != nullptr && paths->size() < path_limit) {
-      path = &paths->emplace_back();
-      path->origin = origin;
-      path->source_curve = curve_index;
-      path->source_side = back ? Side::Back : Side::Front;
-      path->source_segment = segment_index;
-      path->source_t = t;
-      for (std::size_t ch = 0; ch < channels; ++ch)
-        path->power[ch] = static_cast<double>(units[ch]) / plan.scale;
-      path->bounce = round.bounce;
-    }
+    const Origin leaves = leave(round, curve_index, block, source, draws);
+    const Vec2 normal = back ? -perp(leaves.tangent) : perp(leaves.tangent);
+    const Vec2 direction = leaving_direction(round.emitted_light, scene_->material_of(curve).emission, normal, rng,
+                                             qmc ? &net_point : nullptr);
+    PhotonPath* path =
+        start_path(paths, path_limit, leaves, curve_index, back, units, channels, plan.scale, round.bounce);
     if constexpr (kRays == RayKind::Band) {
-      // K parallel sub-rays across the width W. Each starts on the source segment itself, moved
-      // along it by offset * W / (2 cos(theta_out)) so the sub-rays' perpendicular spacing is the
-      // profile's offsets times W/2 (clamped at the segment's ends, so no sub-ray starts outside
-      // the scene). A sub-ray whose start does not face its direction (the source bends away)
-      // leaves from the centre instead. Each carries its share of the units, the last one the
-      // remainder, and deposits where it lands.
-      const SceneSegment& emitter = scene_->segments[segment_index];
-      const Cubic& shape = emitter.geometry.shape;
-      const bool line_source = emitter.geometry.kind == SegmentKind::Line;
-      const double along = 0.5 * ray_width_ /
-                           std::max(dot(direction, normal), kGrazingCosine);
-      const double s0 = line_source ? t * emitter.length : emitter.arc_length.length_at(shape, t);
-      std::array<std::int64_t, 3> left = units;
-      for (std::size_t ray_index = 0; ray_index < band_offsets_.size(); ++ray_index) {
-        const bool last = ray_index + 1 == band_offsets_.size();
-        std::array<std::int64_t, 3> share{};
-        for (std::size_t ch = 0; ch < channels; ++ch) {
-          share[ch] = last ? left[ch]
-                           : static_cast<std::int64_t>(band_weights_[ray_index] *
-                                                           static_cast<double>(units[ch]) + 0.5);
-          left[ch] -= share[ch];
-        }
-        // Strictly inside the segment: from the very end point (a corner of a room) a sub-ray
-        // could leave between the two walls.
-        const double s_i = std::clamp(s0 + band_offsets_[ray_index] * along, 0x1.0p-40 * emitter.length,
-                                      (1.0 - 0x1.0p-40) * emitter.length);
-        double t_i = line_source ? s_i / emitter.length : emitter.arc_length.parameter_at(shape, s_i);
-        Vec2 start = line_source ? lerp(shape.p[0], shape.p[3], t_i) : evaluate(shape, t_i);
-        if (!line_source) {
-          const Vec2 n_i = perp(unit_tangent(shape, t_i, scale));
-          if (!((back ? -dot(n_i, direction) : dot(n_i, direction)) > 0.0)) {
-            t_i = t;
-            start = origin;
-          }
-        }
-        const Ray sub{start, direction};
-        const SceneHit hit = accelerator_.closest_hit(sub, RayOrigin{segment_index, t_i});
-        receive<RayKind::Point>(round, hit, sub, share, acc,
-                                ray_index == band_offsets_.size() / 2 ? path : nullptr, footprint);
-      }
-      acc.rays += band_offsets_.size();
+      shoot_band(round, leaves, back, normal, direction, units, acc, path, footprint);
     } else {
-      const SceneHit hit = accelerator_.closest_hit(ray, RayOrigin{segment_index, t});
+      const Ray ray{leaves.position, direction};
+      const SceneHit hit = accelerator_.closest_hit(ray, RayOrigin{leaves.segment, leaves.t});
       ++acc.rays;
       receive<kRays>(round, hit, ray, units, acc, path, footprint);
       if (round.photons_go_on) walk_on<kRays>(round, rng, hit, ray, units, acc, paths, path_limit, path, footprint);
     }
   }
+}
+
+// K parallel sub-rays across the width W. Each starts on the source segment itself, moved along it
+// by offset * W / (2 cos(theta_out)) so the sub-rays' perpendicular spacing is the profile's offsets
+// times W/2 (clamped at the segment's ends, so no sub-ray starts outside the scene). A sub-ray whose
+// start does not face its direction (the source bends away) leaves from the centre instead. Each
+// carries its share of the units, the last one the remainder, and deposits where it lands; the
+// middle one continues the photon's path.
+void PhotonShooter::shoot_band(const RoundView& round, const Origin& leaves, bool back, Vec2 normal, Vec2 direction,
+                               const std::array<std::int64_t, 3>& units, Deposits& acc, PhotonPath* path,
+                               std::vector<FootprintWeight>& footprint) const {
+  const auto channels = static_cast<std::size_t>(round.storage->channels());
+  const SceneSegment& emitter = scene_->segments[leaves.segment];
+  const Cubic& shape = emitter.geometry.shape;
+  const bool line_source = emitter.geometry.kind == SegmentKind::Line;
+  const double along = 0.5 * ray_width_ / std::max(dot(direction, normal), kGrazingCosine);
+  const double s0 = line_source ? leaves.t * emitter.length : emitter.arc_length.length_at(shape, leaves.t);
+  std::array<std::int64_t, 3> left = units;
+  for (std::size_t ray_index = 0; ray_index < band_offsets_.size(); ++ray_index) {
+    const bool last = ray_index + 1 == band_offsets_.size();
+    std::array<std::int64_t, 3> share{};
+    for (std::size_t ch = 0; ch < channels; ++ch) {
+      share[ch] = last ? left[ch]
+                       : static_cast<std::int64_t>(band_weights_[ray_index] * static_cast<double>(units[ch]) + 0.5);
+      left[ch] -= share[ch];
+    }
+    // Strictly inside the segment: from the very end point (a corner of a room) a sub-ray could
+    // leave between the two walls.
+    const double s_i = std::clamp(s0 + band_offsets_[ray_index] * along, 0x1.0p-40 * emitter.length,
+                                  (1.0 - 0x1.0p-40) * emitter.length);
+    double t_i = line_source ? s_i / emitter.length : emitter.arc_length.parameter_at(shape, s_i);
+    Vec2 start = line_source ? lerp(shape.p[0], shape.p[3], t_i) : evaluate(shape, t_i);
+    if (!line_source) {
+      const Vec2 n_i = perp(unit_tangent(shape, t_i, scene_->scale));
+      if (!((back ? -dot(n_i, direction) : dot(n_i, direction)) > 0.0)) {
+        t_i = leaves.t;
+        start = leaves.position;
+      }
+    }
+    const Ray sub{start, direction};
+    const SceneHit hit = accelerator_.closest_hit(sub, RayOrigin{leaves.segment, t_i});
+    receive<RayKind::Point>(round, hit, sub, share, acc, ray_index == band_offsets_.size() / 2 ? path : nullptr,
+                            footprint);
+  }
+  acc.rays += band_offsets_.size();
 }
 
 Side PhotonShooter::side_hit(const SceneHit& hit, const Ray& ray, Vec2& tangent) const {

@@ -18,6 +18,7 @@
 #include "flatland/geometry/accelerator.hpp"
 #include "flatland/scene/scene.hpp"
 #include "flatland/storage/hermite.hpp"
+#include "flatland/transport/origins.hpp"
 #include "flatland/transport/footprint.hpp"
 #include "flatland/transport/sampling.hpp"
 #include "flatland/transport/scene_storage.hpp"
@@ -129,6 +130,11 @@ class PhotonShooter {
   template <RayKind kRays>
   void shoot_rays(const RoundView& round, Rng& rng, std::uint64_t first, std::uint64_t count, Deposits& deposits,
                   std::vector<PhotonPath>* paths, std::size_t path_limit) const;
+  Origin leave(const RoundView& round, std::uint32_t curve_index, std::uint32_t block, std::size_t source,
+               OriginDraws& draws) const;
+  void shoot_band(const RoundView& round, const Origin& leaves, bool back, Vec2 normal, Vec2 direction,
+                  const std::array<std::int64_t, 3>& units, Deposits& deposits, PhotonPath* path,
+                  std::vector<FootprintWeight>& footprint) const;
   // What a photon (or a band's sub-ray) carrying `units` does where it lands.
   template <RayKind kRays>
   void receive(const RoundView& round, const SceneHit& hit, const Ray& ray, const std::array<std::int64_t, 3>& units,
