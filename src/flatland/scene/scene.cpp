@@ -191,6 +191,135 @@ bool is_tangent_continuous(const Scene& scene, const Curve& curve, std::uint32_t
   return default_joint(a, b, scene.scale) == Continuity::C1;
 }
 
+namespace {
+
+// Pass 1: a curve's structure (its material, its point count) and its points, which must be finite
+// and within range; `bounds` grows by them.
+Status check_curve_points(const Scene& scene, std::size_t i, Box& bounds) {
+  const Curve& c = scene.curves[i];
+  if (c.material >= scene.materials.size()) {
+    return fail(curve_path(i) + ".material", "material index " + std::to_string(c.material) +
+                                                 " is out of range (the scene has " +
+                                                 std::to_string(scene.materials.size()) + ")");
+  }
+  if (expected_segment_count(c) == 0) {
+    return fail(curve_path(i) + "." + geometry_key(c),
+                c.kind == SegmentKind::Line
+                    ? "a line needs at least 2 points, got " + std::to_string(c.points.size())
+                    : "expected 3k+1 points (k >= 1), got " + std::to_string(c.points.size()));
+  }
+  for (std::size_t k = 0; k < c.points.size(); ++k) {
+    const Vec2 p = c.points[k];
+    if (!is_finite(p)) return fail(point_path(c, i, k), "coordinates must be finite");
+    if (std::fmax(std::fabs(p.x), std::fabs(p.y)) > kMaxCoordinate) {
+      return fail(point_path(c, i, k), "coordinate too large: " + point_text(p) +
+                                           "; coordinates must lie within +-1e100");
+    }
+    bounds.extend(p);
+  }
+  return ok_status();
+}
+
+// Segment j of curve i: refused when it has zero length (every control point within zero_length
+// of the first: the hull is a point) or a cusp; else its shape, arc-length table, length and
+// speed bound.
+Result<SceneSegment> make_segment(const Curve& c, std::size_t i, std::size_t j, double size, double zero_length) {
+  const Cubic shape = segment_shape(c, j);
+  const std::size_t first_point = c.kind == SegmentKind::Line ? j : 3 * j;
+  double spread = 0.0;
+  for (const Vec2& p : shape.p) spread = std::fmax(spread, length(p - shape.p[0]));
+  if (spread <= zero_length) {
+    if (c.kind == SegmentKind::Line) {
+      return fail(point_path(c, i, first_point + 1),
+                  "coincides with the previous point, so segment " + std::to_string(j) +
+                      " has zero length; remove one of the two points");
+    }
+    return fail(point_path(c, i, first_point),
+                "segment " + std::to_string(j) + " (control points " + std::to_string(first_point) + " to " +
+                    std::to_string(first_point + 3) + ") has zero length: its control points coincide; remove the segment");
+  }
+  if (c.kind == SegmentKind::Cubic) {
+    if (const auto cusp = find_cusp(shape, size)) {
+      return fail(point_path(c, i, first_point),
+                  "segment " + std::to_string(j) + " has a cusp at t = " + format_number(*cusp, 6) + ", point " +
+                      point_text(evaluate(shape, *cusp)) + ", where the normal flips; split the curve at t = " +
+                      format_number(*cusp, 6) + " into two curves or two segments");
+    }
+  }
+  SceneSegment segment;
+  segment.geometry.kind = c.kind;
+  segment.geometry.shape = shape;
+  segment.curve = static_cast<std::uint32_t>(i);
+  segment.index_in_curve = static_cast<std::uint32_t>(j);
+  segment.arc_length = ArcLengthTable(shape);
+  segment.length = c.kind == SegmentKind::Line ? length(shape.p[3] - shape.p[0]) : segment.arc_length.total();
+  // A line traced by line_as_cubic has constant speed |C'| = its length.
+  segment.speed_bound = c.kind == SegmentKind::Line ? segment.length : speed_bound(shape);
+  if (!(segment.length > zero_length) || !std::isfinite(segment.length)) {
+    return fail(point_path(c, i, first_point), "segment " + std::to_string(j) +
+                                                   " has zero or non-finite length; "
+                                                   "remove it or give it distinct points");
+  }
+  return segment;
+}
+
+// The emittance profile: its size, and its mean over arc length by Gauss-Legendre on each segment
+// (8 panels of 4 points: the cubic profile times the smooth speed).
+Status measure_profile(Curve& c, std::size_t i, const std::vector<Cubic>& shapes) {
+  c.profile_mean = 1.0;
+  c.profile_max = 1.0;
+  if (c.emittance_profile.empty()) return ok_status();
+  if (c.emittance_profile.size() != c.points.size())
+    return fail(curve_path(i) + ".emittance_profile", "expected one factor per point (" +
+                                                          std::to_string(c.points.size()) + "), got " +
+                                                          std::to_string(c.emittance_profile.size()));
+  c.profile_max = *std::max_element(c.emittance_profile.begin(), c.emittance_profile.end());
+  if (!(c.profile_max > 0.0))
+    return fail(curve_path(i) + ".emittance_profile", "every factor is zero; remove the emittance instead");
+  const auto& kNodes = gauss::kNodes4;
+  const auto& kWeights = gauss::kWeights4;
+  double integral = 0.0;
+  for (std::size_t j = 0; j < shapes.size(); ++j) {
+    const Cubic& shape = shapes[j];
+    for (int panel = 0; panel < 8; ++panel) {
+      for (int g = 0; g < 4; ++g) {
+        const double t = (panel + 0.5 + 0.5 * kNodes[g]) / 8.0;
+        integral += kWeights[g] * 0.5 / 8.0 * length(derivative(shape, t)) *
+                    emittance_factor(c, static_cast<double>(j) + t);
+      }
+    }
+  }
+  c.profile_mean = integral / c.length;
+  return ok_status();
+}
+
+// Closed: the chain ends where it starts. Its closing point is a joint too (the last entry of
+// `joints`); version-1 files meant a seam there, so their default is a jump. Joints not given
+// follow the tangents (default_joint).
+Status settle_joints(Curve& c, std::size_t i, const std::vector<Cubic>& shapes, double size, double zero_length,
+                     int format_version) {
+  const std::size_t count = shapes.size();
+  c.closed = length(c.points.back() - c.points.front()) <= zero_length;
+  const std::size_t inner_joints = count - 1;
+  if (c.joints.empty()) {
+    for (std::size_t j = 0; j < inner_joints; ++j) c.joints.push_back(default_joint(shapes[j], shapes[j + 1], size));
+  } else if (c.joints.size() != inner_joints && !(c.closed && c.joints.size() == count)) {
+    return fail(curve_path(i) + ".joints",
+                c.closed ? "expected " + std::to_string(count) + " entries (one per joint of the closed chain of " +
+                               std::to_string(count) + (count == 1 ? " segment" : " segments") +
+                               ", the last at the closing point) or " + std::to_string(inner_joints) +
+                               " (the closing point by its tangents), got " + std::to_string(c.joints.size())
+                         : "expected " + std::to_string(inner_joints) + " entries (one per joint between the " +
+                               std::to_string(count) + " segments), got " + std::to_string(c.joints.size()));
+  }
+  if (c.closed && c.joints.size() == inner_joints) {
+    c.joints.push_back(format_version == 1 ? Continuity::Jump : default_joint(shapes[count - 1], shapes[0], size));
+  }
+  return ok_status();
+}
+
+}  // namespace
+
 Status finalize_scene(Scene& scene) {
   scene.segments.clear();
   scene.bounds = Box{};
@@ -201,29 +330,8 @@ Status finalize_scene(Scene& scene) {
 
   // Pass 1: structure and the size of the scene, which sets every tolerance below.
   Box point_bounds;
-  for (std::size_t i = 0; i < scene.curves.size(); ++i) {
-    const Curve& c = scene.curves[i];
-    if (c.material >= scene.materials.size()) {
-      return fail(curve_path(i) + ".material", "material index " + std::to_string(c.material) +
-                                                   " is out of range (the scene has " +
-                                                   std::to_string(scene.materials.size()) + ")");
-    }
-    if (expected_segment_count(c) == 0) {
-      return fail(curve_path(i) + "." + geometry_key(c),
-                  c.kind == SegmentKind::Line
-                      ? "a line needs at least 2 points, got " + std::to_string(c.points.size())
-                      : "expected 3k+1 points (k >= 1), got " + std::to_string(c.points.size()));
-    }
-    for (std::size_t k = 0; k < c.points.size(); ++k) {
-      const Vec2 p = c.points[k];
-      if (!is_finite(p)) return fail(point_path(c, i, k), "coordinates must be finite");
-      if (std::fmax(std::fabs(p.x), std::fabs(p.y)) > kMaxCoordinate) {
-        return fail(point_path(c, i, k), "coordinate too large: " + point_text(p) +
-                                             "; coordinates must lie within +-1e100");
-      }
-      point_bounds.extend(p);
-    }
-  }
+  for (std::size_t i = 0; i < scene.curves.size(); ++i)
+    if (Status status = check_curve_points(scene, i, point_bounds); !status) return status;
   const double size = point_bounds.diagonal();
   if (size == 0.0) {
     return fail(curve_path(0), "all points of the scene coincide, so every curve has zero length; "
@@ -235,7 +343,7 @@ Status finalize_scene(Scene& scene) {
   }
   const double zero_length = kZeroLength * size;
 
-  // Pass 2: segments, lengths, joints.
+  // Pass 2: segments, lengths, profiles, joints.
   for (std::size_t i = 0; i < scene.curves.size(); ++i) {
     Curve& c = scene.curves[i];
     const std::size_t count = expected_segment_count(c);
@@ -243,107 +351,19 @@ Status finalize_scene(Scene& scene) {
     c.segment_count = static_cast<std::uint32_t>(count);
     c.segment_start.assign(1, 0.0);
     c.length = 0.0;
-
     std::vector<Cubic> shapes;
     shapes.reserve(count);
     for (std::size_t j = 0; j < count; ++j) {
-      const Cubic shape = segment_shape(c, j);
-      const std::size_t first_point = c.kind == SegmentKind::Line ? j : 3 * j;
-      // Zero length: every control point within zero_length of the first (the hull is a point).
-      double spread = 0.0;
-      for (const Vec2& p : shape.p) spread = std::fmax(spread, length(p - shape.p[0]));
-      if (spread <= zero_length) {
-        if (c.kind == SegmentKind::Line) {
-          return fail(point_path(c, i, first_point + 1),
-                      "coincides with the previous point, so segment " + std::to_string(j) +
-                          " has zero length; remove one of the two points");
-        }
-        return fail(point_path(c, i, first_point),
-                    "segment " + std::to_string(j) + " (control points " +
-                        std::to_string(first_point) + " to " + std::to_string(first_point + 3) +
-                        ") has zero length: its control points coincide; remove the segment");
-      }
-      if (c.kind == SegmentKind::Cubic) {
-        if (const auto cusp = find_cusp(shape, size)) {
-          return fail(point_path(c, i, first_point),
-                      "segment " + std::to_string(j) + " has a cusp at t = " +
-                          format_number(*cusp, 6) + ", point " + point_text(evaluate(shape, *cusp)) +
-                          ", where the normal flips; split the curve at t = " +
-                          format_number(*cusp, 6) + " into two curves or two segments");
-        }
-      }
-      SceneSegment segment;
-      segment.geometry.kind = c.kind;
-      segment.geometry.shape = shape;
-      segment.curve = static_cast<std::uint32_t>(i);
-      segment.index_in_curve = static_cast<std::uint32_t>(j);
-      segment.arc_length = ArcLengthTable(shape);
-      segment.length = c.kind == SegmentKind::Line ? length(shape.p[3] - shape.p[0])
-                                                   : segment.arc_length.total();
-      // A line traced by line_as_cubic has constant speed |C'| = its length.
-      segment.speed_bound = c.kind == SegmentKind::Line ? segment.length : speed_bound(shape);
-      if (!(segment.length > zero_length) || !std::isfinite(segment.length)) {
-        return fail(point_path(c, i, first_point),
-                    "segment " + std::to_string(j) + " has zero or non-finite length; "
-                    "remove it or give it distinct points");
-      }
-      scene.bounds.extend(hull_bounds(shape));
-      c.length += segment.length;
+      Result<SceneSegment> segment = make_segment(c, i, j, size, zero_length);
+      if (!segment) return segment.error();
+      scene.bounds.extend(hull_bounds(segment->geometry.shape));
+      c.length += segment->length;
       c.segment_start.push_back(c.length);
-      shapes.push_back(shape);
-      scene.segments.push_back(segment);
+      shapes.push_back(segment->geometry.shape);
+      scene.segments.push_back(std::move(*segment));
     }
-
-    // The emittance profile: its size, and its mean over arc length by Gauss-Legendre on each
-    // segment (8 panels of 4 points: the cubic profile times the smooth speed).
-    c.profile_mean = 1.0;
-    c.profile_max = 1.0;
-    if (!c.emittance_profile.empty()) {
-      if (c.emittance_profile.size() != c.points.size())
-        return fail(curve_path(i) + ".emittance_profile",
-                    "expected one factor per point (" + std::to_string(c.points.size()) + "), got " +
-                        std::to_string(c.emittance_profile.size()));
-      c.profile_max = *std::max_element(c.emittance_profile.begin(), c.emittance_profile.end());
-      if (!(c.profile_max > 0.0))
-        return fail(curve_path(i) + ".emittance_profile",
-                    "every factor is zero; remove the emittance instead");
-      const auto& kNodes = gauss::kNodes4;
-      const auto& kWeights = gauss::kWeights4;
-      double integral = 0.0;
-      for (std::size_t j = 0; j < count; ++j) {
-        const Cubic& shape = shapes[j];
-        for (int panel = 0; panel < 8; ++panel) {
-          for (int g = 0; g < 4; ++g) {
-            const double t = (panel + 0.5 + 0.5 * kNodes[g]) / 8.0;
-            integral += kWeights[g] * 0.5 / 8.0 * length(derivative(shape, t)) *
-                        emittance_factor(c, static_cast<double>(j) + t);
-          }
-        }
-      }
-      c.profile_mean = integral / c.length;
-    }
-
-    // Closed: the chain ends where it starts. Its closing point is a joint too (the last entry
-    // of `joints`); version-1 files meant a seam there, so their default is a jump.
-    c.closed = length(c.points.back() - c.points.front()) <= zero_length;
-    const std::size_t inner_joints = count - 1;
-    if (c.joints.empty()) {
-      for (std::size_t j = 0; j < inner_joints; ++j) {
-        c.joints.push_back(default_joint(shapes[j], shapes[j + 1], size));
-      }
-    } else if (c.joints.size() != inner_joints && !(c.closed && c.joints.size() == count)) {
-      return fail(curve_path(i) + ".joints",
-                  c.closed ? "expected " + std::to_string(count) + " entries (one per joint of the closed chain of " +
-                                 std::to_string(count) + (count == 1 ? " segment" : " segments") +
-                                 ", the last at the closing point) or " + std::to_string(inner_joints) +
-                                 " (the closing point by its tangents), got " + std::to_string(c.joints.size())
-                           : "expected " + std::to_string(inner_joints) + " entries (one per joint between the " +
-                                 std::to_string(count) + " segments), got " + std::to_string(c.joints.size()));
-    }
-    if (c.closed && c.joints.size() == inner_joints) {
-      c.joints.push_back(scene.format_version == 1 ? Continuity::Jump
-                                                   : default_joint(shapes[count - 1], shapes[0], size));
-    }
+    if (Status status = measure_profile(c, i, shapes); !status) return status;
+    if (Status status = settle_joints(c, i, shapes, size, zero_length, scene.format_version); !status) return status;
   }
   scene.scale = scene.bounds.diagonal();
   return check_overlaps(scene);

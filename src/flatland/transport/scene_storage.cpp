@@ -195,27 +195,177 @@ void SceneStorage::estimate_curve(std::uint32_t c, const std::vector<double>& po
   }
 }
 
-void SceneStorage::choose_levels(const std::vector<double>& received, const std::vector<double>& half) {
-  // Per curve, with the reflected power summed over channels (rho times received) on each side:
-  // the estimate f_l at every level l, and f_l^A, f_l^B from the two halves of the photons (odd
-  // and even numbers in their round: independent, with equal means; with Sobol' two independently
-  // scrambled nets, see shoot). Then, in the L2 norm along
-  // the curve (the fine mass matrix),
-  //   variance  V_l = |f_l^A - f_l^B|^2     (its expectation is Var f_l^A + Var f_l^B = Var f_l),
-  //   bias^2    |f_l - f_(l+1)|^2 less its own noise |D^A - D^B|^2 (D^X = f_l^X - f_(l+1)^X),
-  //             times (2^q / (2^q - 1))^2: with the bias shrinking by 2^q per level (q the
-  //             estimator's order), f_l - f_(l+1) is (1 - 2^-q) of level l's bias; the finest
-  //             level's bias is the one below it over 2^q,
-  // and the level kept minimises bias^2 + V (ties: the coarser). Each level's bias comes from its
-  // own step to the next: sums of steps accumulate their noise, and differences to the finest
-  // level carry the finest level's large variance, both of which pushed choices off the best.
+namespace {
+
+// The squared L2 norm along a curve of a level's function, the same for every level: a spline's
+// coefficients prolonged into the fine basis, through the fine mass matrix; or a Hermite curve's
+// values at two Gauss-Legendre points in arc length on every finest span (every level's Hermite
+// curve is a cubic in arc length there; the rule is exact for the squared norm of differences up
+// to linear, an approximation for cubic ones that chose the same levels as four points on the
+// tests' scenes at half the cost). So the level is chosen by the error of what is reconstructed.
+class LevelNorm {
+ public:
+  LevelNorm(const SceneStorage& storage, std::uint32_t curve, bool hermite, std::size_t sides)
+      : storage_(storage), fine_(storage.finest(curve)), curve_(curve), hermite_(hermite), sides_(sides) {
+    if (hermite_) {
+      const double gauss = 1.0 / std::sqrt(3.0);
+      const SplineBasis& basis = fine_.basis;
+      const std::vector<double>& knots = basis.knots();
+      double s1 = storage.arc_length_at(curve, knots[basis.first_span()]);  // each knot's arc length once
+      for (std::size_t span = basis.first_span(); span < basis.end_span(); ++span) {
+        if (!(knots[span + 1] > knots[span])) continue;
+        const double s0 = s1;
+        s1 = storage.arc_length_at(curve, knots[span + 1]);
+        const double half_width = 0.5 * (s1 - s0);
+        for (const double x : {-gauss, gauss}) {
+          at_.push_back(s0 + half_width * (1.0 + x));
+          weights_.push_back(half_width);
+        }
+      }
+    }
+    width_ = hermite_ ? at_.size() : fine_.basis.size();
+  }
+
+  std::size_t width() const { return width_; }  // values per side
+
+  // Level `level`'s estimate from `source` (one side's deposits), as `width()` values.
+  void represent(std::size_t level, const std::vector<double>& source, double* out) const {
+    if (!hermite_) {
+      storage_.estimate_at_level(curve_, static_cast<int>(level), source.data(), out, 1);
+      return;
+    }
+    const std::vector<double> nodal = storage_.estimate_in_level(curve_, static_cast<int>(level), source.data(), 1);
+    storage_.hermite_of(curve_, static_cast<int>(level), nodal.data()).evaluate_increasing(at_, out);
+  }
+
+  // |x|^2 = x^T M x = |L^T x|^2 per side, with M's Cholesky factor L in envelope storage (a Hermite
+  // curve: the Gauss rule on its values); value(i) gives x over all sides.
+  template <typename Value>
+  double operator()(Value value) const {
+    double sum = 0.0;
+    if (hermite_) {
+      for (std::size_t i = 0; i < sides_ * width_; ++i) sum += weights_[i % width_] * value(i) * value(i);
+      return sum;
+    }
+    const std::size_t n = fine_.basis.size();
+    std::vector<double> y(n);
+    for (std::size_t s = 0; s < sides_; ++s) {
+      std::fill(y.begin(), y.end(), 0.0);
+      for (std::size_t row = 0; row < n; ++row) {
+        const double x = value(s * n + row);
+        for (std::size_t col = fine_.mass_first[row]; col <= row; ++col)
+          y[col] += fine_.mass_cholesky[fine_.mass_offset[row] + col - fine_.mass_first[row]] * x;
+      }
+      for (double v : y) sum += v * v;
+    }
+    return sum;
+  }
+
+ private:
+  const SceneStorage& storage_;
+  const CurveStorage& fine_;
+  std::uint32_t curve_;
+  bool hermite_;
+  std::size_t sides_;
+  std::size_t width_ = 0;
+  std::vector<double> at_;       // increasing arc lengths
+  std::vector<double> weights_;  // the quadrature's weight of each
+};
+
+}  // namespace
+
+// One curve's reflected power (rho times received, summed over channels) on each of its storage
+// sides: from all photons, and from the halves A and B.
+struct SceneStorage::ReflectedPower {
+  std::vector<std::array<std::vector<double>, 3>> sides;  // [side][all, A, B][k]
+  double total = 0.0;
+};
+
+SceneStorage::ReflectedPower SceneStorage::reflected_power(std::uint32_t c, const std::vector<double>& received,
+                                             const std::vector<double>& half) const {
   const auto channels = static_cast<std::size_t>(channels_);
+  const std::size_t n = storage_[c].basis.size();
+  ReflectedPower reflected;
+  for (Side side : {Side::Front, Side::Back}) {
+    const std::uint32_t offset = block_offset(c, side);
+    if (offset == kNoBlock) continue;
+    const Spectrum& rho = block_reflectivity_[c * 2 + static_cast<std::uint32_t>(side)];
+    auto& [all, a, b] = reflected.sides.emplace_back();
+    all.assign(n, 0.0);
+    a.assign(n, 0.0);
+    b.assign(n, 0.0);
+    for (std::size_t k = 0; k < n; ++k)
+      for (std::size_t ch = 0; ch < channels; ++ch) {
+        const std::size_t index = (offset + k) * channels + ch;
+        all[k] += rho[ch] * received[index];
+        a[k] += rho[ch] * half[index];
+      }
+    for (std::size_t k = 0; k < n; ++k) {
+      b[k] = all[k] - a[k];
+      reflected.total += all[k];
+    }
+  }
+  return reflected;
+}
+
+// Per curve, with the reflected power on each side: the estimate f_l at every level l, and f_l^A,
+// f_l^B from the two halves of the photons (odd and even numbers in their round: independent, with
+// equal means; with Sobol' two independently scrambled nets, see the shooter). Then, in the L2
+// norm along the curve (LevelNorm),
+//   variance  V_l = |f_l^A - f_l^B|^2     (its expectation is Var f_l^A + Var f_l^B = Var f_l),
+//   bias^2    |f_l - f_(l+1)|^2 less its own noise |D^A - D^B|^2 (D^X = f_l^X - f_(l+1)^X),
+//             times (2^q / (2^q - 1))^2: with the bias shrinking by 2^q per level (q the
+//             estimator's order), f_l - f_(l+1) is (1 - 2^-q) of level l's bias; the finest
+//             level's bias is the one below it over 2^q,
+// and the level kept minimises bias^2 + V (ties: the coarser). Each level's bias comes from its
+// own step to the next: sums of steps accumulate their noise, and differences to the finest level
+// carry the finest level's large variance, both of which push choices off the best.
+int SceneStorage::best_level(std::uint32_t c, const ReflectedPower& reflected) const {
+  const int finest = static_cast<int>(levels_[c].size());
+  const auto count = static_cast<std::size_t>(finest) + 1;
+  const std::size_t sides = reflected.sides.size();
+  const LevelNorm norm2(*this, c, basis_ == BasisKind::Hermite, sides);
+  const std::size_t width = norm2.width();
+  // [level][side][i]: full, A and B estimates.
+  using PerLevel = std::vector<std::vector<double>>;
+  PerLevel full(count, std::vector<double>(sides * width));
+  PerLevel part_a = full;
+  PerLevel part_b = full;
+  const std::array<PerLevel*, 3> targets = {&full, &part_a, &part_b};
+  for (std::size_t level = 0; level < count; ++level)
+    for (std::size_t side = 0; side < sides; ++side)
+      for (std::size_t set = 0; set < 3; ++set)
+        norm2.represent(level, reflected.sides[side][set], (*targets[set])[level].data() + side * width);
+  // The estimator's order q: its bias shrinks by 2^q per level.
+  const int degree = storage_[c].basis.degree();
+  const double order = estimator_ == Estimator::Lumped ? std::min(degree + 1, 2) : degree + 1.0;
+  const double richardson = std::pow(2.0, order) / (std::pow(2.0, order) - 1.0);
+  const std::size_t last = count - 1;
+  double best = std::numeric_limits<double>::infinity();
+  double bias2 = 0.0;
+  int chosen = finest;
+  for (std::size_t l = 0; l < count; ++l) {
+    if (l < last) {
+      const double difference = norm2([&](std::size_t i) { return full[l][i] - full[l + 1][i]; });
+      const double noise = norm2([&](std::size_t i) {
+        return (part_a[l][i] - part_a[l + 1][i]) - (part_b[l][i] - part_b[l + 1][i]);
+      });
+      bias2 = std::max(difference - noise, 0.0) * richardson * richardson;
+    } else {
+      bias2 /= std::pow(2.0, 2.0 * order);  // the finest: the last step's bias, one level on
+    }
+    const double variance = norm2([&](std::size_t i) { return part_a[l][i] - part_b[l][i]; });
+    if (bias2 + variance < best) {
+      best = bias2 + variance;
+      chosen = static_cast<int>(l);
+    }
+  }
+  return chosen;
+}
+
+void SceneStorage::choose_levels(const std::vector<double>& received, const std::vector<double>& half) {
   for (std::uint32_t c = 0; c < scene_->curves.size(); ++c) {
-    const int finest = static_cast<int>(levels_[c].size());
-    if (finest == 0) continue;
-    const CurveStorage& fine = storage_[c];
-    const std::size_t n = fine.basis.size();
-    const auto count = static_cast<std::size_t>(finest) + 1;
+    if (levels_[c].empty()) continue;
     // A curve that received nothing keeps its level (as one whose reflected power is zero does).
     bool received_any = false;
     for (Side side : {Side::Front, Side::Back}) {
@@ -223,120 +373,9 @@ void SceneStorage::choose_levels(const std::vector<double>& received, const std:
       received_any = received_any || (offset != kNoBlock && holds_power(received, c, offset));
     }
     if (!received_any) continue;
-    // Per side, the reflected power summed over channels (rho times received): all photons, and
-    // the halves A and B.
-    std::vector<std::array<std::vector<double>, 3>> reflected;
-    double total = 0.0;
-    for (Side side : {Side::Front, Side::Back}) {
-      const std::uint32_t offset = block_offset(c, side);
-      if (offset == kNoBlock) continue;
-      const Spectrum& rho = block_reflectivity_[c * 2 + static_cast<std::uint32_t>(side)];
-      auto& [all, a, b] = reflected.emplace_back();
-      all.assign(n, 0.0);
-      a.assign(n, 0.0);
-      b.assign(n, 0.0);
-      for (std::size_t k = 0; k < n; ++k)
-        for (std::size_t ch = 0; ch < channels; ++ch) {
-          const std::size_t index = (offset + k) * channels + ch;
-          all[k] += rho[ch] * received[index];
-          a[k] += rho[ch] * half[index];
-        }
-      for (std::size_t k = 0; k < n; ++k) {
-        b[k] = all[k] - a[k];
-        total += all[k];
-      }
-    }
-    const std::size_t sides = reflected.size();
-    if (sides == 0 || !(total > 0.0)) continue;
-    // Each level's function as a vector whose squared norm is its squared L2 norm along the curve:
-    // a spline's coefficients prolonged into the fine basis (the norm through the fine mass
-    // matrix), or a Hermite curve's values at two Gauss-Legendre points in arc length on every
-    // finest span (every level's Hermite curve is a cubic in arc length there; the rule is exact
-    // for the squared norm of differences up to linear, an approximation for cubic ones that chose
-    // the same levels as four points on the tests' scenes at half the cost): the level is chosen by
-    // the error of what is reconstructed.
-    const bool hermite = basis_ == BasisKind::Hermite;
-    std::vector<double> at;       // increasing arc lengths
-    std::vector<double> weights;  // the quadrature's weight of each
-    if (hermite) {
-      const double gauss = 1.0 / std::sqrt(3.0);
-      const std::vector<double>& knots = fine.basis.knots();
-      double s1 = arc_length_at(c, knots[fine.basis.first_span()]);  // each knot's arc length once
-      for (std::size_t span = fine.basis.first_span(); span < fine.basis.end_span(); ++span) {
-        if (!(knots[span + 1] > knots[span])) continue;
-        const double s0 = s1;
-        s1 = arc_length_at(c, knots[span + 1]);
-        const double half_width = 0.5 * (s1 - s0);
-        for (const double x : {-gauss, gauss}) {
-          at.push_back(s0 + half_width * (1.0 + x));
-          weights.push_back(half_width);
-        }
-      }
-    }
-    const std::size_t width = hermite ? at.size() : n;
-    auto represent = [&](std::size_t level, const std::vector<double>& source, double* out) {
-      if (!hermite) {
-        estimate_at_level(c, static_cast<int>(level), source.data(), out, 1);
-        return;
-      }
-      const std::vector<double> nodal = estimate_in_level(c, static_cast<int>(level), source.data(), 1);
-      hermite_of(c, static_cast<int>(level), nodal.data()).evaluate_increasing(at, out);
-    };
-    // [level][side][i]: full, A and B estimates.
-    using PerLevel = std::vector<std::vector<double>>;
-    PerLevel full(count, std::vector<double>(sides * width));
-    PerLevel part_a = full;
-    PerLevel part_b = full;
-    const std::array<PerLevel*, 3> targets = {&full, &part_a, &part_b};
-    for (std::size_t level = 0; level < count; ++level)
-      for (std::size_t side = 0; side < sides; ++side)
-        for (std::size_t set = 0; set < 3; ++set)
-          represent(level, reflected[side][set], (*targets[set])[level].data() + side * width);
-    // |x|^2 = x^T M x = |L^T x|^2 per side, with M's Cholesky factor L in envelope storage (a
-    // Hermite curve: the Gauss rule above on its values).
-    auto norm2 = [&](auto value) {
-      double sum = 0.0;
-      if (hermite) {
-        for (std::size_t i = 0; i < sides * width; ++i) sum += weights[i % width] * value(i) * value(i);
-        return sum;
-      }
-      std::vector<double> y(n);
-      for (std::size_t s = 0; s < sides; ++s) {
-        std::fill(y.begin(), y.end(), 0.0);
-        for (std::size_t row = 0; row < n; ++row) {
-          const double x = value(s * n + row);
-          for (std::size_t col = fine.mass_first[row]; col <= row; ++col)
-            y[col] += fine.mass_cholesky[fine.mass_offset[row] + col - fine.mass_first[row]] * x;
-        }
-        for (double v : y) sum += v * v;
-      }
-      return sum;
-    };
-    // The estimator's order q: its bias shrinks by 2^q per level.
-    const int degree = fine.basis.degree();
-    const double order = estimator_ == Estimator::Lumped ? std::min(degree + 1, 2) : degree + 1.0;
-    const double richardson = std::pow(2.0, order) / (std::pow(2.0, order) - 1.0);
-    const std::size_t last = count - 1;
-    double best = std::numeric_limits<double>::infinity();
-    double bias2 = 0.0;
-    int chosen = finest;
-    for (std::size_t l = 0; l < count; ++l) {
-      if (l < last) {
-        const double difference = norm2([&](std::size_t i) { return full[l][i] - full[l + 1][i]; });
-        const double noise = norm2([&](std::size_t i) {
-          return (part_a[l][i] - part_a[l + 1][i]) - (part_b[l][i] - part_b[l + 1][i]);
-        });
-        bias2 = std::max(difference - noise, 0.0) * richardson * richardson;
-      } else {
-        bias2 /= std::pow(2.0, 2.0 * order);  // the finest: the last step's bias, one level on
-      }
-      const double variance = norm2([&](std::size_t i) { return part_a[l][i] - part_b[l][i]; });
-      if (bias2 + variance < best) {
-        best = bias2 + variance;
-        chosen = static_cast<int>(l);
-      }
-    }
-    chosen_level_[c] = chosen;
+    const ReflectedPower reflected = reflected_power(c, received, half);
+    if (reflected.sides.empty() || !(reflected.total > 0.0)) continue;
+    chosen_level_[c] = best_level(c, reflected);
   }
 }
 

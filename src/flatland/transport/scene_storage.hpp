@@ -107,6 +107,13 @@ class SceneStorage {
   void choose_levels(const std::vector<double>& received, const std::vector<double>& half);
 
  private:
+  // choose_levels' steps: a curve's reflected power from all photons and from each half, and the
+  // level of least estimated error for it.
+  struct ReflectedPower;
+  ReflectedPower reflected_power(std::uint32_t curve, const std::vector<double>& received,
+                                 const std::vector<double>& half) const;
+  int best_level(std::uint32_t curve, const ReflectedPower& reflected) const;
+
   struct Level {
     CurveStorage storage;
     Restriction restriction;  // from the finest level
