@@ -484,54 +484,56 @@ void Viewer::draw_status_panel(const Snapshot& snapshot) {
   ImGui::End();
 }
 
-void Viewer::draw_curve_panel(const Snapshot& snapshot) {
-  const auto c = static_cast<std::size_t>(draw_.selected_curve);
-  const Curve& curve = scene_->curves[c];
-  const Material& material = scene_->material_of(curve);
-  // The rest of the right column, below the status panel.
-  const auto status = panel_rects_.find("Status");
-  const float top = status != panel_rects_.end() ? status->second.y1 : layout_.right.y0;
-  ImGui::SetNextWindowPos(ImVec2(layout_.right.x0, top), ImGuiCond_Always);
-  ImGui::SetNextWindowSize(ImVec2(layout_.right.width(), std::max(layout_.right.y1 - top, 120.0f)), ImGuiCond_Always);
-  ImGui::Begin("Curve", nullptr, kDocked);
-  record_panel("Curve");
+namespace {
+
+// The inspected curve's facts: material, emission, geometry and its share of the reflected power.
+void draw_curve_facts(const Scene& scene, const Snapshot& snapshot, std::size_t c) {
+  const Curve& curve = scene.curves[c];
+  const Material& material = scene.material_of(curve);
   ImGui::Text("curve    %zu '%s'", c, curve.id.c_str());
   ImGui::Text("material %s: rho %.3g %.3g %.3g", material.name.c_str(), material.reflectivity[0],
               material.reflectivity[1], material.reflectivity[2]);
-  if (scene_->is_emitter(curve))
+  if (scene.is_emitter(curve))
     ImGui::Text("emits    %.3g %.3g %.3g per unit length", curve.emittance[0], curve.emittance[1], curve.emittance[2]);
   ImGui::Text("length   %.6g, %u %s segment%s, sides %s", curve.length, curve.segment_count,
               curve.kind == SegmentKind::Line ? "straight" : "cubic", curve.segment_count == 1 ? "" : "s",
               curve.sides == Sides::Both ? "both" : curve.sides == Sides::Front ? "front" : "back");
   if (c < snapshot.received_share.size())
     ImGui::Text("share    %.2f%% of all reflected power", 100.0 * snapshot.received_share[c]);
-  if (c < snapshot.nodes.size() && !snapshot.nodes[c].empty()) {
-    const std::vector<NodeMark>& nodes = snapshot.nodes[c];
-    std::size_t below_c1 = 0;
-    for (const NodeMark& node : nodes) below_c1 += node.continuity == Continuity::C1 ? 0 : 1;
-    char header[96];
-    std::snprintf(header, sizeof header, "%zu storage nodes, %zu below C1###nodes", nodes.size(), below_c1);
-    if (ImGui::CollapsingHeader(header)) {
-      // Every node with its continuity: C1 (smooth), C0 (a kink may form), C-1 (a jump may form);
-      // * marks the C0 nodes that discontinuity meshing placed at visibility events.
-      ImGui::BeginChild("##node list", ImVec2(0, 96), true);
-      for (std::size_t k = 0; k < nodes.size(); ++k)
-        ImGui::Text("%3zu  (%.4g, %.4g)  %s%s", k, nodes[k].position.x, nodes[k].position.y,
-                    continuity_name(nodes[k].continuity), nodes[k].visibility_event ? "  * visibility event" : "");
-      ImGui::EndChild();
-    }
+}
+
+// The storage nodes of curve `c` under a folding header (nothing while it has none).
+void draw_node_list(const Snapshot& snapshot, std::size_t c) {
+  if (c >= snapshot.nodes.size() || snapshot.nodes[c].empty()) return;
+  const std::vector<NodeMark>& nodes = snapshot.nodes[c];
+  std::size_t below_c1 = 0;
+  for (const NodeMark& node : nodes) below_c1 += node.continuity == Continuity::C1 ? 0 : 1;
+  char header[96];
+  std::snprintf(header, sizeof header, "%zu storage nodes, %zu below C1###nodes", nodes.size(), below_c1);
+  if (ImGui::CollapsingHeader(header)) {
+    // Every node with its continuity: C1 (smooth), C0 (a kink may form), C-1 (a jump may form);
+    // * marks the C0 nodes that discontinuity meshing placed at visibility events.
+    ImGui::BeginChild("##node list", ImVec2(0, 96), true);
+    for (std::size_t k = 0; k < nodes.size(); ++k)
+      ImGui::Text("%3zu  (%.4g, %.4g)  %s%s", k, nodes[k].position.x, nodes[k].position.y,
+                  continuity_name(nodes[k].continuity), nodes[k].visibility_event ? "  * visibility event" : "");
+    ImGui::EndChild();
   }
-  // B(s) along the curve with axes in the units of the scene: the sides that emit or reflect
-  // (front orange, back blue, each labelled), the reference's B (green, main side), and the storage
-  // nodes below C1 (C0 grey, C-1 red), where the illumination may kink or jump.
-  const CurveTrace* trace = snapshot.traces && c < snapshot.traces->size() ? &(*snapshot.traces)[c] : nullptr;
-  const int main_side = curve.sides == Sides::Back ? 1 : 0;
-  struct Line {
-    const std::vector<Spectrum>* samples;
-    ImU32 colour;
-    const char* name;
-  };
-  std::vector<Line> lines;
+}
+
+// One side's B in the plot of B(s): a sample at each arc length of the curve's trace.
+struct PlotLine {
+  const std::vector<Spectrum>* samples;
+  ImU32 colour;
+  const char* name;
+};
+
+// The newest journey's hops that landed on a curve: hop number (as on the stage) and record.
+using Landings = std::vector<std::pair<std::size_t, const PathRecord*>>;
+
+// The sides of curve `c` with B at every sample of its trace (none without a trace).
+std::vector<PlotLine> plot_lines(const Snapshot& snapshot, std::size_t c, const CurveTrace* trace) {
+  std::vector<PlotLine> lines;
   for (int side = 0; side < 2; ++side) {
     const std::vector<Spectrum>* samples =
         c < snapshot.radiosity.size() ? &snapshot.radiosity[c][static_cast<std::size_t>(side)] : nullptr;
@@ -539,111 +541,198 @@ void Viewer::draw_curve_panel(const Snapshot& snapshot) {
     lines.push_back({samples, side == 0 ? IM_COL32(255, 190, 70, 255) : IM_COL32(110, 170, 255, 255),
                      side == 0 ? "front" : "back"});
   }
-  if (!lines.empty()) {
-    const std::vector<std::array<double, 2>>* reference =
-        c < snapshot.reference_curves.size() && !snapshot.reference_curves[c].empty() ? &snapshot.reference_curves[c]
-                                                                                     : nullptr;
-    double hi = 0.0;
-    for (const Line& line : lines)
-      for (const Spectrum& b : *line.samples) hi = std::max(hi, luminance(b, scene_->channels));
-    if (reference != nullptr)
-      for (const auto& point : *reference) hi = std::max(hi, point[1]);
-    hi = hi > 0.0 ? 1.1 * hi : 1.0;
-    // Legend.
-    for (std::size_t i = 0; i < lines.size(); ++i) {
-      if (i > 0) ImGui::SameLine();
-      ImGui::TextColored(ImGui::ColorConvertU32ToFloat4(lines[i].colour), "-- %s%s", lines[i].name,
-                         lines.size() == 1 ? " side" : "");
-    }
-    if (reference != nullptr) {
-      ImGui::SameLine();
-      ImGui::TextColored(ImVec4(0.47f, 0.86f, 0.47f, 1.0f), "-- reference (%s)", main_side == 0 ? "front" : "back");
-    }
-    ImGui::SameLine();
-    ImGui::TextColored(ImVec4(0.8f, 0.35f, 0.35f, 1.0f), "| C-1");
-    ImGui::SameLine();
-    ImGui::TextColored(ImVec4(0.6f, 0.6f, 0.6f, 1.0f), "| C0");
-    // Where the newest journey's hops landed on this curve (its deposits): hop number and record.
-    std::vector<std::pair<std::size_t, const PathRecord*>> landings;
-    if (draw_.paths && draw_.journey) {
-      const auto [first, end] = newest_journey(snapshot.paths);
-      for (std::size_t i = first; i < end; ++i)
-        if (!snapshot.paths[i].escaped && snapshot.paths[i].hit_curve == c)
-          landings.emplace_back(i - first + 1, &snapshot.paths[i]);
-    }
-    ImDrawList* draw = ImGui::GetWindowDrawList();
-    const float text = ImGui::GetTextLineHeight();
-    const ImVec2 corner = ImGui::GetCursorScreenPos();
-    const ImVec2 avail = ImGui::GetContentRegionAvail();
-    const float captions = landings.empty() ? 2.5f : 5.5f;  // lines of text under the plot
-    const ImVec2 size(avail.x, std::max(avail.y - captions * text - 8.0f, 80.0f));
-    ImGui::InvisibleButton("##bplot", size);
-    track("B plot");
-    // The plot area, leaving room for the value labels on the left and the arc lengths below.
-    const float left = ImGui::CalcTextSize("0.000e+00").x * 0.8f;
-    const ImVec2 lo(corner.x + left, corner.y + 4.0f);
-    const ImVec2 hi_corner(corner.x + size.x - 4.0f, corner.y + size.y - text - 6.0f);
-    draw->AddRectFilled(lo, hi_corner, IM_COL32(30, 30, 40, 255));
-    auto point = [&](double s, double b) {
-      return ImVec2(lo.x + static_cast<float>(s / curve.length) * (hi_corner.x - lo.x),
-                    hi_corner.y - static_cast<float>(b / hi) * (hi_corner.y - lo.y));
-    };
-    const ImU32 axis = IM_COL32(200, 200, 200, 255);
-    const ImU32 grid = IM_COL32(70, 70, 85, 255);
-    if (!std::isfinite(hi)) hi = 1.0;  // (a sample that is not finite: keep the plot usable)
-    for (const double v : ticks(hi)) {
-      const ImVec2 p = point(0.0, v);
-      draw->AddLine(ImVec2(lo.x, p.y), ImVec2(hi_corner.x, p.y), grid);
-      char label[32];
-      std::snprintf(label, sizeof label, "%.3g", v);
-      draw->AddText(ImVec2(lo.x - ImGui::CalcTextSize(label).x - 4.0f, p.y - 0.5f * text), axis, label);
-    }
-    for (const double v : ticks(curve.length)) {
-      const ImVec2 p = point(v, 0.0);
-      draw->AddLine(ImVec2(p.x, hi_corner.y), ImVec2(p.x, hi_corner.y + 4.0f), axis);
-      char label[32];
-      std::snprintf(label, sizeof label, "%.3g", v);
-      const float w = ImGui::CalcTextSize(label).x;
-      draw->AddText(ImVec2(std::min(p.x - 0.5f * w, hi_corner.x - w), hi_corner.y + 5.0f), axis, label);
-    }
-    draw->AddLine(ImVec2(lo.x, lo.y), ImVec2(lo.x, hi_corner.y), axis);
-    draw->AddLine(ImVec2(lo.x, hi_corner.y), ImVec2(hi_corner.x, hi_corner.y), axis);
-    if (c < snapshot.nodes.size())
-      for (const NodeMark& node : snapshot.nodes[c]) {
-        if (node.continuity == Continuity::C1) continue;
-        const float x = point(node.s, 0.0).x;
-        draw->AddLine(ImVec2(x, lo.y), ImVec2(x, hi_corner.y),
-                      node.continuity == Continuity::Jump ? IM_COL32(200, 90, 90, 200) : IM_COL32(150, 150, 150, 160));
-      }
-    if (reference != nullptr)
-      for (std::size_t i = 1; i < reference->size(); ++i)
-        draw->AddLine(point((*reference)[i - 1][0], (*reference)[i - 1][1]), point((*reference)[i][0], (*reference)[i][1]),
-                      IM_COL32(120, 220, 120, 255), 1.5f);
-    draw->PushClipRect(lo, hi_corner, true);
-    for (const Line& line : lines)
-      for (std::size_t i = 1; i < line.samples->size(); ++i)
-        draw->AddLine(point(trace->s[i - 1], luminance((*line.samples)[i - 1], scene_->channels)),
-                      point(trace->s[i], luminance((*line.samples)[i], scene_->channels)), line.colour, 1.5f);
-    // The newest journey's deposits: numbered as on the stage and coloured by bounce, a triangle
-    // on the axis and a dotted line up the plot.
-    for (const auto& [number, hop] : landings) {
-      const ImU32 colour = to_u32(path_palette(hop->bounce));
-      const float x = point(hop->hit_s, 0.0).x;
-      for (float y = hi_corner.y - 10.0f; y > lo.y; y -= 6.0f) draw->AddLine(ImVec2(x, y), ImVec2(x, y - 3.0f), colour);
-      draw->AddTriangleFilled(ImVec2(x, hi_corner.y - 10.0f), ImVec2(x - 5.0f, hi_corner.y), ImVec2(x + 5.0f, hi_corner.y),
-                              colour);
-      char label[16];
-      std::snprintf(label, sizeof label, "%zu", number);
-      draw->AddText(ImVec2(x + 4.0f, hi_corner.y - 10.0f - text), colour, label);
-    }
-    draw->PopClipRect();
-    if (!landings.empty())
-      ImGui::TextWrapped("Triangles: where the newest journey's hops (numbered as on the stage) landed on this "
-                         "curve and left their deposits.");
-    ImGui::TextWrapped("B (power per unit length) against s (arc length from the first point)%s",
-                       scene_->channels == 3 ? "; mean of r, g, b" : "");
+  return lines;
+}
+
+// The B at the top of the plot: a tenth above the highest B of the lines and the reference, 1 when
+// none is above zero.
+double plot_top(const std::vector<PlotLine>& lines, const std::vector<std::array<double, 2>>* reference,
+                int channels) {
+  double hi = 0.0;
+  for (const PlotLine& line : lines)
+    for (const Spectrum& b : *line.samples) hi = std::max(hi, luminance(b, channels));
+  if (reference != nullptr)
+    for (const auto& point : *reference) hi = std::max(hi, point[1]);
+  hi = hi > 0.0 ? 1.1 * hi : 1.0;
+  if (!std::isfinite(hi)) hi = 1.0;  // (a sample that is not finite: keep the plot usable)
+  return hi;
+}
+
+// Legend: each line's side, the reference's side and the marks of the nodes below C1.
+void draw_plot_legend(const std::vector<PlotLine>& lines, bool reference, int main_side) {
+  for (std::size_t i = 0; i < lines.size(); ++i) {
+    if (i > 0) ImGui::SameLine();
+    ImGui::TextColored(ImGui::ColorConvertU32ToFloat4(lines[i].colour), "-- %s%s", lines[i].name,
+                       lines.size() == 1 ? " side" : "");
   }
+  if (reference) {
+    ImGui::SameLine();
+    ImGui::TextColored(ImVec4(0.47f, 0.86f, 0.47f, 1.0f), "-- reference (%s)", main_side == 0 ? "front" : "back");
+  }
+  ImGui::SameLine();
+  ImGui::TextColored(ImVec4(0.8f, 0.35f, 0.35f, 1.0f), "| C-1");
+  ImGui::SameLine();
+  ImGui::TextColored(ImVec4(0.6f, 0.6f, 0.6f, 1.0f), "| C0");
+}
+
+// Where the newest journey's hops landed on curve `c` (its deposits).
+Landings journey_landings(const Snapshot& snapshot, std::size_t c) {
+  Landings landings;
+  const auto [first, end] = newest_journey(snapshot.paths);
+  for (std::size_t i = first; i < end; ++i)
+    if (!snapshot.paths[i].escaped && snapshot.paths[i].hit_curve == c)
+      landings.emplace_back(i - first + 1, &snapshot.paths[i]);
+  return landings;
+}
+
+// The plot on the window's draw list: s from 0 (left) to the curve's length (right), B from 0
+// (bottom) to `hi` (top), inside the rectangle from `lo` (top left) to `hi_corner` (bottom right).
+struct PlotArea {
+  ImDrawList* draw;
+  ImVec2 lo;
+  ImVec2 hi_corner;
+  double length;
+  double hi;
+  float text;  // the height of a line of text
+
+  ImVec2 point(double s, double b) const {
+    return ImVec2(lo.x + static_cast<float>(s / length) * (hi_corner.x - lo.x),
+                  hi_corner.y - static_cast<float>(b / hi) * (hi_corner.y - lo.y));
+  }
+};
+
+// The plot area in the widget at `corner` of `size`, leaving room for the value labels on the left
+// and the arc lengths below.
+PlotArea plot_area(ImDrawList* draw, ImVec2 corner, ImVec2 size, float text, double length, double hi) {
+  const float left = ImGui::CalcTextSize("0.000e+00").x * 0.8f;
+  const ImVec2 lo(corner.x + left, corner.y + 4.0f);
+  const ImVec2 hi_corner(corner.x + size.x - 4.0f, corner.y + size.y - text - 6.0f);
+  return {draw, lo, hi_corner, length, hi, text};
+}
+
+// The background, the grid with the values of B on the left, the arc lengths below, and the axes.
+void draw_plot_axes(const PlotArea& plot) {
+  ImDrawList* draw = plot.draw;
+  const ImVec2 lo = plot.lo;
+  const ImVec2 hi_corner = plot.hi_corner;
+  draw->AddRectFilled(lo, hi_corner, IM_COL32(30, 30, 40, 255));
+  const ImU32 axis = IM_COL32(200, 200, 200, 255);
+  const ImU32 grid = IM_COL32(70, 70, 85, 255);
+  for (const double v : ticks(plot.hi)) {
+    const ImVec2 p = plot.point(0.0, v);
+    draw->AddLine(ImVec2(lo.x, p.y), ImVec2(hi_corner.x, p.y), grid);
+    char label[32];
+    std::snprintf(label, sizeof label, "%.3g", v);
+    draw->AddText(ImVec2(lo.x - ImGui::CalcTextSize(label).x - 4.0f, p.y - 0.5f * plot.text), axis, label);
+  }
+  for (const double v : ticks(plot.length)) {
+    const ImVec2 p = plot.point(v, 0.0);
+    draw->AddLine(ImVec2(p.x, hi_corner.y), ImVec2(p.x, hi_corner.y + 4.0f), axis);
+    char label[32];
+    std::snprintf(label, sizeof label, "%.3g", v);
+    const float w = ImGui::CalcTextSize(label).x;
+    draw->AddText(ImVec2(std::min(p.x - 0.5f * w, hi_corner.x - w), hi_corner.y + 5.0f), axis, label);
+  }
+  draw->AddLine(ImVec2(lo.x, lo.y), ImVec2(lo.x, hi_corner.y), axis);
+  draw->AddLine(ImVec2(lo.x, hi_corner.y), ImVec2(hi_corner.x, hi_corner.y), axis);
+}
+
+// The storage nodes below C1 (C0 grey, C-1 red), where the illumination may kink or jump.
+void draw_plot_nodes(const PlotArea& plot, const std::vector<NodeMark>& nodes) {
+  for (const NodeMark& node : nodes) {
+    if (node.continuity == Continuity::C1) continue;
+    const float x = plot.point(node.s, 0.0).x;
+    plot.draw->AddLine(ImVec2(x, plot.lo.y), ImVec2(x, plot.hi_corner.y),
+                       node.continuity == Continuity::Jump ? IM_COL32(200, 90, 90, 200) : IM_COL32(150, 150, 150, 160));
+  }
+}
+
+void draw_plot_reference(const PlotArea& plot, const std::vector<std::array<double, 2>>& reference) {
+  for (std::size_t i = 1; i < reference.size(); ++i)
+    plot.draw->AddLine(plot.point(reference[i - 1][0], reference[i - 1][1]),
+                       plot.point(reference[i][0], reference[i][1]), IM_COL32(120, 220, 120, 255), 1.5f);
+}
+
+void draw_plot_lines(const PlotArea& plot, const std::vector<PlotLine>& lines, const CurveTrace& trace, int channels) {
+  for (const PlotLine& line : lines)
+    for (std::size_t i = 1; i < line.samples->size(); ++i)
+      plot.draw->AddLine(plot.point(trace.s[i - 1], luminance((*line.samples)[i - 1], channels)),
+                         plot.point(trace.s[i], luminance((*line.samples)[i], channels)), line.colour, 1.5f);
+}
+
+// The newest journey's deposits: numbered as on the stage and coloured by bounce, a triangle on the
+// axis and a dotted line up the plot.
+void draw_plot_landings(const PlotArea& plot, const Landings& landings) {
+  ImDrawList* draw = plot.draw;
+  const ImVec2 lo = plot.lo;
+  const ImVec2 hi_corner = plot.hi_corner;
+  for (const auto& [number, hop] : landings) {
+    const ImU32 colour = to_u32(path_palette(hop->bounce));
+    const float x = plot.point(hop->hit_s, 0.0).x;
+    for (float y = hi_corner.y - 10.0f; y > lo.y; y -= 6.0f) draw->AddLine(ImVec2(x, y), ImVec2(x, y - 3.0f), colour);
+    draw->AddTriangleFilled(ImVec2(x, hi_corner.y - 10.0f), ImVec2(x - 5.0f, hi_corner.y),
+                            ImVec2(x + 5.0f, hi_corner.y), colour);
+    char label[16];
+    std::snprintf(label, sizeof label, "%zu", number);
+    draw->AddText(ImVec2(x + 4.0f, hi_corner.y - 10.0f - plot.text), colour, label);
+  }
+}
+
+}  // namespace
+
+void Viewer::draw_curve_panel(const Snapshot& snapshot) {
+  const auto c = static_cast<std::size_t>(draw_.selected_curve);
+  // The rest of the right column, below the status panel.
+  const auto status = panel_rects_.find("Status");
+  const float top = status != panel_rects_.end() ? status->second.y1 : layout_.right.y0;
+  ImGui::SetNextWindowPos(ImVec2(layout_.right.x0, top), ImGuiCond_Always);
+  ImGui::SetNextWindowSize(ImVec2(layout_.right.width(), std::max(layout_.right.y1 - top, 120.0f)), ImGuiCond_Always);
+  ImGui::Begin("Curve", nullptr, kDocked);
+  record_panel("Curve");
+  draw_curve_facts(*scene_, snapshot, c);
+  draw_node_list(snapshot, c);
+  draw_curve_plot(snapshot, c);
   ImGui::End();
+}
+
+// B(s) along the curve with axes in the units of the scene: the sides that emit or reflect
+// (front orange, back blue, each labelled), the reference's B (green, main side), and the storage
+// nodes below C1 (C0 grey, C-1 red), where the illumination may kink or jump.
+void Viewer::draw_curve_plot(const Snapshot& snapshot, std::size_t c) {
+  const Curve& curve = scene_->curves[c];
+  const CurveTrace* trace = snapshot.traces && c < snapshot.traces->size() ? &(*snapshot.traces)[c] : nullptr;
+  const int main_side = curve.sides == Sides::Back ? 1 : 0;
+  const std::vector<PlotLine> lines = plot_lines(snapshot, c, trace);
+  if (lines.empty()) return;
+  const std::vector<std::array<double, 2>>* reference =
+      c < snapshot.reference_curves.size() && !snapshot.reference_curves[c].empty() ? &snapshot.reference_curves[c]
+                                                                                   : nullptr;
+  const double hi = plot_top(lines, reference, scene_->channels);
+  draw_plot_legend(lines, reference != nullptr, main_side);
+  // Where the newest journey's hops landed on this curve (its deposits): hop number and record.
+  Landings landings;
+  if (draw_.paths && draw_.journey) landings = journey_landings(snapshot, c);
+  ImDrawList* draw = ImGui::GetWindowDrawList();
+  const float text = ImGui::GetTextLineHeight();
+  const ImVec2 corner = ImGui::GetCursorScreenPos();
+  const ImVec2 avail = ImGui::GetContentRegionAvail();
+  const float captions = landings.empty() ? 2.5f : 5.5f;  // lines of text under the plot
+  const ImVec2 size(avail.x, std::max(avail.y - captions * text - 8.0f, 80.0f));
+  ImGui::InvisibleButton("##bplot", size);
+  track("B plot");
+  const PlotArea plot = plot_area(draw, corner, size, text, curve.length, hi);
+  draw_plot_axes(plot);
+  if (c < snapshot.nodes.size()) draw_plot_nodes(plot, snapshot.nodes[c]);
+  if (reference != nullptr) draw_plot_reference(plot, *reference);
+  draw->PushClipRect(plot.lo, plot.hi_corner, true);
+  draw_plot_lines(plot, lines, *trace, scene_->channels);
+  draw_plot_landings(plot, landings);
+  draw->PopClipRect();
+  if (!landings.empty())
+    ImGui::TextWrapped("Triangles: where the newest journey's hops (numbered as on the stage) landed on this "
+                       "curve and left their deposits.");
+  ImGui::TextWrapped("B (power per unit length) against s (arc length from the first point)%s",
+                     scene_->channels == 3 ? "; mean of r, g, b" : "");
 }
 
 void Viewer::draw_help_panel() {

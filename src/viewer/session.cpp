@@ -236,28 +236,7 @@ void Session::worker() {
       const SolverSettings settings = pending_settings_;
       cancel_.store(false);
       lock.unlock();
-      std::lock_guard solver_lock(solver_mutex_);
-      solver_.reset();
-      paths_.clear();
-      next_serial_ = 0;
-      error_history_.clear();
-      reference_error_.reset();
-      last_error_time_ = -1.0;
-      chunk_ = Solver::kBatchSize;
-      ++generation_;
-      if (scene_ != scene) {
-        scene_ = scene;
-        traces_ = scene_ ? std::make_shared<const std::vector<CurveTrace>>(trace_curves(*scene_)) : nullptr;
-      }
-      error_.clear();
-      if (scene_) {
-        Result<Solver> created = Solver::create(*scene_, settings);
-        if (created) solver_.emplace(std::move(*created));
-        else error_ = created.error().message;
-      }
-      publish(solver_ ? &*solver_ : nullptr, {}, true);
-      std::lock_guard relock(mutex_);
-      can_run_ = solver_ && !solver_->stopped();
+      start_solve(std::move(scene), settings);
       continue;
     }
     if (reference_changed_) {
@@ -265,9 +244,7 @@ void Session::worker() {
       reference_changed_ = false;
       lock.unlock();
       std::lock_guard solver_lock(solver_mutex_);
-      error_history_.clear();
-      reference_error_.reset();
-      last_error_time_ = -1.0;
+      clear_error_history();
       continue;
     }
     if (refresh_pending_ && steps_.empty() && !(running_ && can_run_)) {
@@ -277,74 +254,115 @@ void Session::worker() {
       publish(solver_ ? &*solver_ : nullptr, {}, true);
       continue;
     }
-    // This piece: a part of the first queued step (manual steps are shot in pieces of about 50 ms,
-    // so they publish as they go and a restart or Ctrl+E never waits long), or a running piece.
-    std::uint64_t count = 0;
-    bool stepping = false;
-    std::uint64_t step_id = 0;
-    StepKind kind = StepKind::Photon;
-    if (!steps_.empty()) {
-      stepping = true;
-      step_id = steps_.front().id;
-      kind = steps_.front().kind;
-      if (!can_run_) {
-        steps_.pop_front();
-        continue;
-      }
-      const std::uint64_t done = solver_->round_photons_done();
-      switch (kind) {
-        case StepKind::Photon: count = std::min(steps_.front().count, chunk_); break;
-        case StepKind::Batch: count = Solver::kBatchSize - done % Solver::kBatchSize; break;
-        case StepKind::Round:
-          count = std::min(chunk_, solver_->round_open() ? solver_->round_photons() - done : chunk_);
-          break;
-      }
-    } else {
-      // End on a batch boundary, so every batch of a running piece is shared among the threads.
-      count = chunk_ - solver_->round_photons_done() % Solver::kBatchSize;
-    }
-    refresh_pending_ = false;  // the piece publishes
-    const std::size_t limit = path_limit_;
+    const std::optional<Piece> piece = next_piece();
+    if (!piece) continue;
     lock.unlock();
-
-    std::lock_guard solver_lock(solver_mutex_);
-    if (!solver_) continue;
-    Solver& solver = *solver_;
-    std::vector<PhotonPath> shot_paths;
-    const std::uint32_t round = solver.rounds();
-    const Clock::time_point start = Clock::now();
-    // Paths: all of a manual step (up to the kept number), or the first photons of a running step,
-    // about as many as a frame can draw (a subset of the photons is what the eye can follow anyway).
-    const std::size_t recorded = stepping ? limit : std::min<std::size_t>(limit, kPathsPerStep);
-    const std::uint64_t shot =
-        solver.step_photons(count, &cancel_, recorded > 0 ? &shot_paths : nullptr, recorded);
-    const double seconds = std::chrono::duration<double>(Clock::now() - start).count();
-    if (shot >= Solver::kBatchSize) {
-      // About kPieceSeconds a piece, in whole batches, at least one per thread.
-      const double rate = static_cast<double>(shot) / std::max(seconds, 1e-6);
-      const auto batches =
-          static_cast<std::uint64_t>(std::clamp(rate * kPieceSeconds / Solver::kBatchSize, 1.0, 1024.0));
-      chunk_ = std::max<std::uint64_t>(batches, solver.thread_count()) * Solver::kBatchSize;
-    }
-    solver.include_open_round();
-    std::vector<PathRecord> records;
-    records.reserve(shot_paths.size());
-    for (const PhotonPath& path : shot_paths) records.push_back(path_record(path, *scene_, next_serial_++, round));
-    publish(&solver, records, stepping);
-    std::lock_guard relock(mutex_);
-    can_run_ = !solver.stopped();
-    if (!can_run_) running_ = false;  // run until the solve stops, then it is paused
-    // What is left of the step (unless a restart dropped it meanwhile).
-    if (stepping && !steps_.empty() && steps_.front().id == step_id) {
-      Step& step = steps_.front();
-      const bool boundary = kind == StepKind::Photon  ? true
-                            : kind == StepKind::Batch ? solver.round_photons_done() % Solver::kBatchSize == 0
-                                                      : !solver.round_open();
-      if (kind == StepKind::Photon) step.count -= std::min(step.count, shot);
-      else if (boundary) --step.count;
-      if (shot == 0 || step.count == 0 || !can_run_) steps_.pop_front();
-    }
+    shoot_piece(*piece);
   }
+}
+
+void Session::clear_error_history() {
+  error_history_.clear();
+  reference_error_.reset();
+  last_error_time_ = -1.0;
+}
+
+void Session::start_solve(std::shared_ptr<const Scene> scene, const SolverSettings& settings) {
+  std::lock_guard solver_lock(solver_mutex_);
+  solver_.reset();
+  paths_.clear();
+  next_serial_ = 0;
+  clear_error_history();
+  chunk_ = Solver::kBatchSize;
+  ++generation_;
+  if (scene_ != scene) {
+    scene_ = scene;
+    traces_ = scene_ ? std::make_shared<const std::vector<CurveTrace>>(trace_curves(*scene_)) : nullptr;
+  }
+  error_.clear();
+  if (scene_) {
+    Result<Solver> created = Solver::create(*scene_, settings);
+    if (created) solver_.emplace(std::move(*created));
+    else error_ = created.error().message;
+  }
+  publish(solver_ ? &*solver_ : nullptr, {}, true);
+  std::lock_guard relock(mutex_);
+  can_run_ = solver_ && !solver_->stopped();
+}
+
+std::optional<Session::Piece> Session::next_piece() {
+  // This piece: a part of the first queued step (manual steps are shot in pieces of about 50 ms,
+  // so they publish as they go and a restart or Ctrl+E never waits long), or a running piece.
+  Piece piece;
+  if (!steps_.empty()) {
+    piece.stepping = true;
+    piece.step_id = steps_.front().id;
+    piece.kind = steps_.front().kind;
+    if (!can_run_) {
+      steps_.pop_front();
+      return std::nullopt;
+    }
+    const std::uint64_t done = solver_->round_photons_done();
+    switch (piece.kind) {
+      case StepKind::Photon: piece.count = std::min(steps_.front().count, chunk_); break;
+      case StepKind::Batch: piece.count = Solver::kBatchSize - done % Solver::kBatchSize; break;
+      case StepKind::Round:
+        piece.count = std::min(chunk_, solver_->round_open() ? solver_->round_photons() - done : chunk_);
+        break;
+    }
+  } else {
+    // End on a batch boundary, so every batch of a running piece is shared among the threads.
+    piece.count = chunk_ - solver_->round_photons_done() % Solver::kBatchSize;
+  }
+  refresh_pending_ = false;  // the piece publishes
+  piece.path_limit = path_limit_;
+  return piece;
+}
+
+void Session::shoot_piece(const Piece& piece) {
+  std::lock_guard solver_lock(solver_mutex_);
+  if (!solver_) return;
+  Solver& solver = *solver_;
+  std::vector<PhotonPath> shot_paths;
+  const std::uint32_t round = solver.rounds();
+  const Clock::time_point start = Clock::now();
+  // Paths: all of a manual step (up to the kept number), or the first photons of a running step,
+  // about as many as a frame can draw (a subset of the photons is what the eye can follow anyway).
+  const std::size_t recorded =
+      piece.stepping ? piece.path_limit : std::min<std::size_t>(piece.path_limit, kPathsPerStep);
+  const std::uint64_t shot =
+      solver.step_photons(piece.count, &cancel_, recorded > 0 ? &shot_paths : nullptr, recorded);
+  const double seconds = std::chrono::duration<double>(Clock::now() - start).count();
+  if (shot >= Solver::kBatchSize) adapt_chunk(solver, shot, seconds);
+  solver.include_open_round();
+  std::vector<PathRecord> records;
+  records.reserve(shot_paths.size());
+  for (const PhotonPath& path : shot_paths) records.push_back(path_record(path, *scene_, next_serial_++, round));
+  publish(&solver, records, piece.stepping);
+  std::lock_guard relock(mutex_);
+  can_run_ = !solver.stopped();
+  if (!can_run_) running_ = false;  // run until the solve stops, then it is paused
+  if (piece.stepping) count_step(piece, solver, shot);
+}
+
+void Session::adapt_chunk(const Solver& solver, std::uint64_t shot, double seconds) {
+  // About kPieceSeconds a piece, in whole batches, at least one per thread.
+  const double rate = static_cast<double>(shot) / std::max(seconds, 1e-6);
+  const auto batches =
+      static_cast<std::uint64_t>(std::clamp(rate * kPieceSeconds / Solver::kBatchSize, 1.0, 1024.0));
+  chunk_ = std::max<std::uint64_t>(batches, solver.thread_count()) * Solver::kBatchSize;
+}
+
+void Session::count_step(const Piece& piece, const Solver& solver, std::uint64_t shot) {
+  // What is left of the step (unless a restart dropped it meanwhile).
+  if (steps_.empty() || steps_.front().id != piece.step_id) return;
+  Step& step = steps_.front();
+  const bool boundary = piece.kind == StepKind::Photon  ? true
+                        : piece.kind == StepKind::Batch ? solver.round_photons_done() % Solver::kBatchSize == 0
+                                                        : !solver.round_open();
+  if (piece.kind == StepKind::Photon) step.count -= std::min(step.count, shot);
+  else if (boundary) --step.count;
+  if (shot == 0 || step.count == 0 || !can_run_) steps_.pop_front();
 }
 
 }  // namespace flatland::viewer

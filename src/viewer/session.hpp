@@ -63,7 +63,32 @@ class Session {
   Result<nlohmann::json> result_json(int samples_per_curve);
 
  private:
+  // A piece of shooting: `count` photons of the first queued step (`stepping`: the step `step_id`,
+  // of `kind`) or of the free run, recording at most `path_limit` paths.
+  struct Piece {
+    std::uint64_t count = 0;
+    bool stepping = false;
+    std::uint64_t step_id = 0;
+    StepKind kind = StepKind::Photon;
+    std::size_t path_limit = 0;
+  };
+  // The worker thread: waits for a command, then restarts the solve, republishes or shoots a piece.
   void worker();
+  // Drops the solve, its paths and error history, creates the solver of `scene` (none for a null
+  // scene; one the solver rejects leaves the error) and publishes it. Takes solver_mutex_, then mutex_.
+  void start_solve(std::shared_ptr<const Scene> scene, const SolverSettings& settings);
+  // The error against the reference starts over (under solver_mutex_).
+  void clear_error_history();
+  // Under mutex_: the next piece to shoot; none when the first queued step is dropped because no
+  // solver can run it.
+  std::optional<Piece> next_piece();
+  // Shoots the piece and publishes it, then counts it against its step. Takes solver_mutex_, then
+  // mutex_.
+  void shoot_piece(const Piece& piece);
+  // chunk_ from the rate of the last piece (under solver_mutex_).
+  void adapt_chunk(const Solver& solver, std::uint64_t shot, double seconds);
+  // Under mutex_: what is left of the piece's step after `shot` photons; a finished step is dropped.
+  void count_step(const Piece& piece, const Solver& solver, std::uint64_t shot);
   void publish(const Solver* solver, const std::vector<PathRecord>& new_paths, bool force_error);
 
   mutable std::mutex mutex_;

@@ -110,55 +110,90 @@ std::string default_scene_path() {
 
 Result<std::unique_ptr<Viewer>> Viewer::create(const ViewOptions& options) {
   std::unique_ptr<Viewer> viewer(new Viewer());
-  viewer->options_ = options;
-  viewer->settings_ = options.settings;
-  viewer->draw_.control_points = options.show_control_points;
-  viewer->keep_slider_ = static_cast<double>(options.keep_paths);
-  Result<FrameStep> step = parse_frame_step(options.step);
-  if (!step) return step.error();
-  viewer->frame_step_ = *step;
-  if (Status valid = validate(options.settings); !valid) return valid.error();
+  if (Status applied = viewer->apply_options(options); !applied) return applied.error();
 
   // The scene and the reference first: a bad file is reported before any window opens.
-  viewer->scene_path_ = options.scene.empty() ? default_scene_path() : options.scene;
-  Result<Scene> scene = load_scene(viewer->scene_path_, options.cancel);
+  if (Status loaded = viewer->load_first_scene(options); !loaded) return loaded.error();
+  if (Status styled = viewer->set_path_style(options); !styled) return styled.error();
+  Result<std::shared_ptr<const SampledResult>> reference = viewer->load_reference(options);
+  if (!reference) return reference.error();
+
+  Result<std::unique_ptr<Impl>> opened = viewer->open_window(options);
+  if (!opened) return opened.error();
+  std::unique_ptr<Impl> impl = std::move(*opened);
+  if (Status created = viewer->create_renderer(*impl, options); !created) return created.error();
+  start_imgui(*impl, options.ui_scale);
+  viewer->impl_ = std::move(impl);
+
+  if (Status started = viewer->start_session(options, *reference); !started) return started.error();
+  return viewer;
+}
+
+// The settings, the frame steps and the drawing options that need no file.
+Status Viewer::apply_options(const ViewOptions& options) {
+  options_ = options;
+  settings_ = options.settings;
+  draw_.control_points = options.show_control_points;
+  keep_slider_ = static_cast<double>(options.keep_paths);
+  Result<FrameStep> step = parse_frame_step(options.step);
+  if (!step) return step.error();
+  frame_step_ = *step;
+  return validate(options.settings);
+}
+
+// The scene file (the default scene without one) and the curve that --select names.
+Status Viewer::load_first_scene(const ViewOptions& options) {
+  scene_path_ = options.scene.empty() ? default_scene_path() : options.scene;
+  Result<Scene> scene = load_scene(scene_path_, options.cancel);
   if (!scene) return scene.error();
-  viewer->scene_ = std::make_shared<const Scene>(std::move(*scene));
-  viewer->file_time_ = file_time(viewer->scene_path_);
+  scene_ = std::make_shared<const Scene>(std::move(*scene));
+  file_time_ = file_time(scene_path_);
   if (!options.select.empty()) {
-    const Scene& loaded = *viewer->scene_;
+    const Scene& loaded = *scene_;
     for (std::size_t c = 0; c < loaded.curves.size(); ++c)
       if (loaded.curves[c].id == options.select || std::to_string(c) == options.select)
-        viewer->draw_.selected_curve = static_cast<int>(c);
-    if (viewer->draw_.selected_curve < 0)
+        draw_.selected_curve = static_cast<int>(c);
+    if (draw_.selected_curve < 0)
       return Error{"--select: the scene has no curve '" + options.select + "' (give an id or an index below " +
                    std::to_string(loaded.curves.size()) + ")"};
   }
+  return ok_status();
+}
+
+// How the photon paths are coloured, exposed and faded.
+Status Viewer::set_path_style(const ViewOptions& options) {
   if (options.colour_by != "power" && options.colour_by != "round" && options.colour_by != "bounce")
     return Error{"--colour-by: expected power, round or bounce, got '" + options.colour_by + "'"};
-  viewer->draw_.path_colour = options.colour_by == "round"    ? PathColour::Round
-                              : options.colour_by == "bounce" ? PathColour::Bounce
-                                                              : PathColour::Power;
-  viewer->draw_.path_exposure = options.path_exposure;
-  viewer->draw_.fade = options.path_fade;
-  std::shared_ptr<const SampledResult> reference;
-  if (!options.reference.empty()) {
-    Result<nlohmann::json> read = read_result_file(options.reference, options.cancel);
-    if (!read) return Error{"--reference: " + read.error().message};
-    nlohmann::json document = std::move(*read);
-    if (!document.contains("curves") || !document["curves"].is_array())
-      return Error{options.reference + ": not a flatland result (no \"curves\"; write one with 'flatland reference SCENE --out FILE')"};
-    Result<SampledResult> sampled = sampled_from_json(document, "the reference");
-    if (!sampled) return Error{"--reference: " + options.reference + ": " + sampled.error().message};
-    // The same scene: its curves, by id, in order (compare checks the rest as the solve goes).
-    if (Status status = check_reference_of(*sampled, *viewer->scene_); !status)
-      return Error{options.reference + ": " + status.error().message};
-    reference = std::make_shared<const SampledResult>(std::move(*sampled));
-    viewer->reference_path_ = options.reference;
-  }
+  draw_.path_colour = options.colour_by == "round"    ? PathColour::Round
+                      : options.colour_by == "bounce" ? PathColour::Bounce
+                                                      : PathColour::Power;
+  draw_.path_exposure = options.path_exposure;
+  draw_.fade = options.path_fade;
+  return ok_status();
+}
 
-  // The window. SDL falls back to an offscreen video driver when there is no display; the viewer
-  // needs a real one unless that driver was asked for explicitly.
+// The reference result of --reference (null without one), checked to be of the loaded scene.
+Result<std::shared_ptr<const SampledResult>> Viewer::load_reference(const ViewOptions& options) {
+  if (options.reference.empty()) return std::shared_ptr<const SampledResult>();
+  Result<nlohmann::json> read = read_result_file(options.reference, options.cancel);
+  if (!read) return Error{"--reference: " + read.error().message};
+  nlohmann::json document = std::move(*read);
+  if (!document.contains("curves") || !document["curves"].is_array())
+    return Error{options.reference + ": not a flatland result (no \"curves\"; write one with 'flatland reference SCENE --out FILE')"};
+  Result<SampledResult> sampled = sampled_from_json(document, "the reference");
+  if (!sampled) return Error{"--reference: " + options.reference + ": " + sampled.error().message};
+  // The same scene: its curves, by id, in order (compare checks the rest as the solve goes).
+  if (Status status = check_reference_of(*sampled, *scene_); !status)
+    return Error{options.reference + ": " + status.error().message};
+  auto reference = std::make_shared<const SampledResult>(std::move(*sampled));
+  reference_path_ = options.reference;
+  return reference;
+}
+
+// The window and its OpenGL 3.3 core context, titled with the scene's name. SDL falls back to an
+// offscreen video driver when there is no display; the viewer needs a real one unless that driver
+// was asked for explicitly.
+Result<std::unique_ptr<Viewer::Impl>> Viewer::open_window(const ViewOptions& options) const {
   const char* requested = std::getenv("SDL_VIDEODRIVER");
   const auto set = [](const char* name) { return std::getenv(name) != nullptr && *std::getenv(name) != '\0'; };
   if (!set("DISPLAY") && !set("WAYLAND_DISPLAY") && requested == nullptr)
@@ -187,7 +222,7 @@ Result<std::unique_ptr<Viewer>> Viewer::create(const ViewOptions& options) {
   SDL_GL_SetAttribute(SDL_GL_CONTEXT_MINOR_VERSION, 3);
   SDL_GL_SetAttribute(SDL_GL_CONTEXT_PROFILE_MASK, SDL_GL_CONTEXT_PROFILE_CORE);
   SDL_GL_SetAttribute(SDL_GL_DOUBLEBUFFER, 1);
-  const std::string title = "flatland - " + viewer->scene_->name;
+  const std::string title = "flatland - " + scene_->name;
   impl->window = SDL_CreateWindow(title.c_str(), SDL_WINDOWPOS_CENTERED, SDL_WINDOWPOS_CENTERED,
                                   options.width, options.height,
                                   SDL_WINDOW_OPENGL | SDL_WINDOW_RESIZABLE);
@@ -198,44 +233,55 @@ Result<std::unique_ptr<Viewer>> Viewer::create(const ViewOptions& options) {
     return Error{std::string("cannot create an OpenGL 3.3 core context: ") + SDL_GetError()};
   SDL_GL_MakeCurrent(impl->window, impl->context);
   SDL_GL_SetSwapInterval(options.vsync ? 1 : 0);
+  return impl;
+}
 
+// The renderer on the current GL context, and whether that GL draws in software.
+Status Viewer::create_renderer(Impl& impl, const ViewOptions& options) {
   // Mesa's software rasterisers (llvmpipe, softpipe) share the CPU with the solver.
   const auto* gl_renderer = reinterpret_cast<const char*>(glGetString(GL_RENDERER));
-  viewer->software_renderer_ =
+  software_renderer_ =
       gl_renderer != nullptr && (std::strstr(gl_renderer, "llvmpipe") != nullptr ||
                                  std::strstr(gl_renderer, "softpipe") != nullptr);
   Result<std::unique_ptr<Renderer>> renderer = Renderer::create(options.shader_directory, 0.5f);
   if (!renderer) return renderer.error();
-  impl->renderer = std::move(*renderer);
+  impl.renderer = std::move(*renderer);
+  return ok_status();
+}
 
+// Dear ImGui on the window and its GL context, at the panels' scale.
+void Viewer::start_imgui(Impl& impl, float ui_scale) {
   IMGUI_CHECKVERSION();
   ImGui::CreateContext();
   ImGuiIO& io = ImGui::GetIO();
   io.IniFilename = nullptr;  // no imgui.ini left in the working directory
   ImGui::StyleColorsDark();
   // Projectors: every size and the font scaled alike (the docked columns follow in stage_layout).
-  if (options.ui_scale != 1.0f) {
-    ImGui::GetStyle().ScaleAllSizes(options.ui_scale);
-    io.FontGlobalScale = options.ui_scale;
+  if (ui_scale != 1.0f) {
+    ImGui::GetStyle().ScaleAllSizes(ui_scale);
+    io.FontGlobalScale = ui_scale;
   }
-  ImGui_ImplSDL2_InitForOpenGL(impl->window, impl->context);
+  ImGui_ImplSDL2_InitForOpenGL(impl.window, impl.context);
   ImGui_ImplOpenGL3_Init("#version 330 core");
-  impl->imgui = true;
-  viewer->impl_ = std::move(impl);
+  impl.imgui = true;
+}
 
+// The session on its worker thread, solving the scene: running from the start unless paused or
+// stepped frame by frame.
+Status Viewer::start_session(const ViewOptions& options, const std::shared_ptr<const SampledResult>& reference) {
   try {
-    viewer->session_ = std::make_unique<Session>();
+    session_ = std::make_unique<Session>();
   } catch (const std::system_error& e) {
     return Error{"cannot start the solver's thread: " + e.code().message() + " (see ulimit -u and ulimit -v)"};
   }
-  viewer->session_->set_path_limit(options.keep_paths);
-  viewer->session_->set_reference(reference);
+  session_->set_path_limit(options.keep_paths);
+  session_->set_reference(reference);
   char budget[32];
-  std::snprintf(budget, sizeof budget, "%g", static_cast<double>(viewer->settings_.photons));
-  viewer->budget_text_ = budget;
-  viewer->restart();
-  if (viewer->frame_step_.mode == FrameStep::Mode::Live && !options.paused) viewer->session_->set_running(true);
-  return viewer;
+  std::snprintf(budget, sizeof budget, "%g", static_cast<double>(settings_.photons));
+  budget_text_ = budget;
+  restart();
+  if (frame_step_.mode == FrameStep::Mode::Live && !options.paused) session_->set_running(true);
+  return ok_status();
 }
 
 Viewer::~Viewer() {

@@ -121,6 +121,16 @@ class Viewer {
 
  private:
   Viewer() = default;
+  struct Impl;
+  // The steps of create, in order; each error is what create reports.
+  Status apply_options(const ViewOptions& options);
+  Status load_first_scene(const ViewOptions& options);
+  Status set_path_style(const ViewOptions& options);
+  Result<std::shared_ptr<const SampledResult>> load_reference(const ViewOptions& options);
+  Result<std::unique_ptr<Impl>> open_window(const ViewOptions& options) const;
+  Status create_renderer(Impl& impl, const ViewOptions& options);
+  static void start_imgui(Impl& impl, float ui_scale);
+  Status start_session(const ViewOptions& options, const std::shared_ptr<const SampledResult>& reference);
   void restart();
   void load_scene_file(const std::string& path);
   // The main loop's parts.
@@ -138,6 +148,7 @@ class Viewer {
   void draw_display_panel(const Snapshot& snapshot);
   void draw_status_panel(const Snapshot& snapshot);
   void draw_curve_panel(const Snapshot& snapshot);
+  void draw_curve_plot(const Snapshot& snapshot, std::size_t c);  // B(s) along curve c, in the curve panel
   void draw_colour_key(const Snapshot& snapshot);
   void draw_help_panel();
   void track(const char* label);
@@ -154,7 +165,6 @@ class Viewer {
   void check_file_changed();
   void set_message(std::string text);
 
-  struct Impl;
   std::unique_ptr<Impl> impl_;  // SDL window, GL context, ImGui state, renderer
   ViewOptions options_;
   FrameStep frame_step_;
