@@ -83,48 +83,71 @@ Status check_hermite_input(const HermiteInput& input) {
   return ok_status();
 }
 
-HermiteReconstruction::HermiteReconstruction(const HermiteInput& input) {
-  assert(check_hermite_input(input).ok());
-  const std::size_t n = input.u.size() - 1;  // pieces; piece i spans [u_i, u_(i+1)]
-  // Neighbouring pieces; on a periodic input piece n - 1 is followed by piece 0 (node n is node 0).
-  const bool periodic = input.periodic;
-  const auto before = [&](std::size_t i) { return i == 0 ? n - 1 : i - 1; };
-  const auto after = [&](std::size_t i) { return i + 1 == n ? 0 : i + 1; };
-  // A node whose slope is shared by its two pieces.
-  const auto smooth = [&](std::size_t node) {
-    if (periodic) return input.continuity[node == n ? 0 : node] == Continuity::C1;
-    return node > 0 && node < n && input.continuity[node] == Continuity::C1;
-  };
-  // At the closing node of a periodic input both sides are one value unless it is a jump.
-  const bool closing_joined = periodic && input.continuity[0] != Continuity::Jump;
-  // Values: negative inputs (a noisy estimate, a Galerkin solve) are clamped to zero first, so the
-  // positivity filter below has nonnegative data to work with. At C0 and C1 nodes one value is
-  // used on both sides (the mean, should left and right differ); at a jump each side keeps its own.
-  const auto value_from_right = [&](std::size_t node) {  // the start value of piece `node`
-    const double right = std::max(input.right[node], 0.0);
-    if (node == 0) return closing_joined ? 0.5 * (std::max(input.left[n], 0.0) + right) : right;
-    if (input.continuity[node] == Continuity::Jump) return right;
-    return 0.5 * (std::max(input.left[node], 0.0) + right);
-  };
-  const auto value_from_left = [&](std::size_t node) {  // the end value of piece `node - 1`
-    const double left = std::max(input.left[node], 0.0);
-    if (node == n) return closing_joined ? 0.5 * (left + std::max(input.right[0], 0.0)) : left;
-    if (input.continuity[node] == Continuity::Jump) return left;
-    return 0.5 * (left + std::max(input.right[node], 0.0));
-  };
+namespace {
 
-  std::vector<double> h(n), f0(n), f1(n), secant(n), d0(n), d1(n);
-  for (std::size_t i = 0; i < n; ++i) {
-    h[i] = input.u[i + 1] - input.u[i];
-    f0[i] = value_from_right(i);
-    f1[i] = value_from_left(i + 1);
-    secant[i] = (f1[i] - f0[i]) / h[i];
+// The data of a Hermite reconstruction, piece by piece (piece i spans [u_i, u_(i+1)]): widths,
+// end values, secants and end slopes, brought from the input to the filtered slopes in steps.
+struct HermitePieces {
+  explicit HermitePieces(const HermiteInput& input)
+      : input_(input),
+        n(input.u.size() - 1),
+        periodic_(input.periodic),
+        closing_joined_(periodic_ && input.continuity[0] != Continuity::Jump),
+        h(n),
+        f0(n),
+        f1(n),
+        secant(n),
+        d0(n),
+        d1(n) {
+    for (std::size_t i = 0; i < n; ++i) {
+      h[i] = input.u[i + 1] - input.u[i];
+      f0[i] = value_from_right(i);
+      f1[i] = value_from_left(i + 1);
+      secant[i] = (f1[i] - f0[i]) / h[i];
+    }
   }
 
-  // Slopes before filtering. A piece's start slope: centred at a C1 node; otherwise (curve start,
-  // C0 or jump) one-sided from the data on the right, over this piece and the next if the next
-  // node is C1 (the data there are one smooth function), else the piece's own secant. The end
-  // slope mirrors it. Both sides of a C1 node evaluate the same expression, so they agree exactly.
+  void initial_slopes();
+  void keep_positive();
+  void keep_monotone();
+
+  // Neighbouring pieces; on a periodic input piece n - 1 is followed by piece 0 (node n is node 0).
+  std::size_t before(std::size_t i) const { return i == 0 ? n - 1 : i - 1; }
+  std::size_t after(std::size_t i) const { return i + 1 == n ? 0 : i + 1; }
+  // A node whose slope is shared by its two pieces.
+  bool smooth(std::size_t node) const {
+    if (periodic_) return input_.continuity[node == n ? 0 : node] == Continuity::C1;
+    return node > 0 && node < n && input_.continuity[node] == Continuity::C1;
+  }
+  // Values: negative inputs (a noisy estimate, a Galerkin solve) are clamped to zero first, so the
+  // positivity filter has nonnegative data to work with. At C0 and C1 nodes one value is used on
+  // both sides (the mean, should left and right differ); at a jump each side keeps its own. At the
+  // closing node of a periodic input both sides are one value unless it is a jump.
+  double value_from_right(std::size_t node) const {  // the start value of piece `node`
+    const double right = std::max(input_.right[node], 0.0);
+    if (node == 0) return closing_joined_ ? 0.5 * (std::max(input_.left[n], 0.0) + right) : right;
+    if (input_.continuity[node] == Continuity::Jump) return right;
+    return 0.5 * (std::max(input_.left[node], 0.0) + right);
+  }
+  double value_from_left(std::size_t node) const {  // the end value of piece `node - 1`
+    const double left = std::max(input_.left[node], 0.0);
+    if (node == n) return closing_joined_ ? 0.5 * (left + std::max(input_.right[0], 0.0)) : left;
+    if (input_.continuity[node] == Continuity::Jump) return left;
+    return 0.5 * (left + std::max(input_.right[node], 0.0));
+  }
+
+  const HermiteInput& input_;
+  const std::size_t n;  // pieces
+  const bool periodic_;
+  const bool closing_joined_;
+  std::vector<double> h, f0, f1, secant, d0, d1;
+};
+
+// Slopes before filtering. A piece's start slope: centred at a C1 node; otherwise (curve start, C0
+// or jump) one-sided from the data on the right, over this piece and the next if the next node is
+// C1 (the data there are one smooth function), else the piece's own secant. The end slope mirrors
+// it. Both sides of a C1 node evaluate the same expression, so they agree exactly.
+void HermitePieces::initial_slopes() {
   for (std::size_t i = 0; i < n; ++i) {
     const std::size_t b = before(i);
     const std::size_t a = after(i);
@@ -141,16 +164,18 @@ HermiteReconstruction::HermiteReconstruction(const HermiteInput& input) {
     else
       d1[i] = secant[i];
   }
+}
 
-  // Positivity (Dougherty, Edelman, Hyman, Math. Comp. 52, 1989). In x = (u - u0) / h the piece's
-  // Bernstein coefficients are f0, f0 + h d0 / 3, f1 - h d1 / 3, f1; if all four are >= 0 so is
-  // the cubic (Bernstein polynomials are >= 0 on [0,1]). With f0, f1 >= 0 that asks
-  //   d0 >= -3 f0 / h  at a piece's start,   d1 <= 3 f1 / h  at its end.
-  // At a C1 node with value f between pieces of widths h_(i-1) and h_i the shared slope must meet
-  // both: -3 f / h_i <= d <= 3 f / h_(i-1), an interval containing 0, so clamping keeps C1 and only
-  // ever moves a slope towards zero. For smooth data bounded away from zero the bounds (~1/h) stop
-  // binding as h shrinks and the O(h^3) accuracy is kept; where the data touch zero the clamped
-  // slopes cost accuracy (1 + sin u converges at about second order instead of third).
+// Positivity (Dougherty, Edelman, Hyman, Math. Comp. 52, 1989). In x = (u - u0) / h the piece's
+// Bernstein coefficients are f0, f0 + h d0 / 3, f1 - h d1 / 3, f1; if all four are >= 0 so is the
+// cubic (Bernstein polynomials are >= 0 on [0,1]). With f0, f1 >= 0 that asks
+//   d0 >= -3 f0 / h  at a piece's start,   d1 <= 3 f1 / h  at its end.
+// At a C1 node with value f between pieces of widths h_(i-1) and h_i the shared slope must meet
+// both: -3 f / h_i <= d <= 3 f / h_(i-1), an interval containing 0, so clamping keeps C1 and only
+// ever moves a slope towards zero. For smooth data bounded away from zero the bounds (~1/h) stop
+// binding as h shrinks and the O(h^3) accuracy is kept; where the data touch zero the clamped
+// slopes cost accuracy (1 + sin u converges at about second order instead of third).
+void HermitePieces::keep_positive() {
   for (std::size_t i = 0; i < n; ++i) {
     const double lower = -3.0 * f0[i] / h[i];
     const double upper = 3.0 * f1[i] / h[i];
@@ -162,50 +187,62 @@ HermiteReconstruction::HermiteReconstruction(const HermiteInput& input) {
     }
     if (!smooth(i + 1)) d1[i] = std::min(d1[i], upper);
   }
+}
 
-  // Fritsch-Carlson (SIAM J. Numer. Anal. 17, 1980), on request. With alpha = d0 / secant and
-  // beta = d1 / secant a piece is monotone if alpha, beta >= 0 and alpha^2 + beta^2 <= 9 (a
-  // sufficient region, star-shaped about the origin). A C1 node between secants of different sign
-  // (or a zero one) is an extremum of the data: slope 0. Then per piece: a flat secant gets flat
-  // slopes, a slope against the secant becomes 0, and a pair outside the circle is scaled by
-  // 3 / sqrt(alpha^2 + beta^2). Every step only shrinks slopes towards zero, so pieces already
-  // treated (and the positivity bounds) stay satisfied when a shared slope shrinks later.
-  if (input.monotone) {
-    for (std::size_t node = periodic ? 0 : 1; node < n; ++node)
-      if (smooth(node) && !(secant[before(node)] * secant[node] > 0.0)) d0[node] = d1[before(node)] = 0.0;
-    for (std::size_t i = 0; i < n; ++i) {
-      if (secant[i] == 0.0) {
-        d0[i] = d1[i] = 0.0;
-      } else {
-        if (d0[i] / secant[i] < 0.0) d0[i] = 0.0;
-        if (d1[i] / secant[i] < 0.0) d1[i] = 0.0;
-        const double alpha = d0[i] / secant[i];
-        const double beta = d1[i] / secant[i];
-        const double radius2 = alpha * alpha + beta * beta;
-        if (radius2 > 9.0) {
-          const double tau = 3.0 / std::sqrt(radius2);
-          d0[i] *= tau;
-          d1[i] *= tau;
-        }
+// Fritsch-Carlson (SIAM J. Numer. Anal. 17, 1980), on request. With alpha = d0 / secant and
+// beta = d1 / secant a piece is monotone if alpha, beta >= 0 and alpha^2 + beta^2 <= 9 (a
+// sufficient region, star-shaped about the origin). A C1 node between secants of different sign
+// (or a zero one) is an extremum of the data: slope 0. Then per piece: a flat secant gets flat
+// slopes, a slope against the secant becomes 0, and a pair outside the circle is scaled by
+// 3 / sqrt(alpha^2 + beta^2). Every step only shrinks slopes towards zero, so pieces already
+// treated (and the positivity bounds) stay satisfied when a shared slope shrinks later.
+void HermitePieces::keep_monotone() {
+  for (std::size_t node = periodic_ ? 0 : 1; node < n; ++node)
+    if (smooth(node) && !(secant[before(node)] * secant[node] > 0.0)) d0[node] = d1[before(node)] = 0.0;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (secant[i] == 0.0) {
+      d0[i] = d1[i] = 0.0;
+    } else {
+      if (d0[i] / secant[i] < 0.0) d0[i] = 0.0;
+      if (d1[i] / secant[i] < 0.0) d1[i] = 0.0;
+      const double alpha = d0[i] / secant[i];
+      const double beta = d1[i] / secant[i];
+      const double radius2 = alpha * alpha + beta * beta;
+      if (radius2 > 9.0) {
+        const double tau = 3.0 / std::sqrt(radius2);
+        d0[i] *= tau;
+        d1[i] *= tau;
       }
-      if (smooth(i)) d1[before(i)] = d0[i];
-      if (smooth(i + 1)) d0[after(i)] = d1[i];
     }
+    if (smooth(i)) d1[before(i)] = d0[i];
+    if (smooth(i + 1)) d0[after(i)] = d1[i];
   }
+}
+
+}  // namespace
+
+HermiteReconstruction::HermiteReconstruction(const HermiteInput& input) {
+  assert(check_hermite_input(input).ok());
+  HermitePieces data(input);
+  data.initial_slopes();
+  data.keep_positive();
+  if (input.monotone) data.keep_monotone();
 
   // Bernstein form in x = (u - u0) / h of the Hermite cubic with p(0) = f0, p(1) = f1,
   // p'(0) = h d0, p'(1) = h d1: coefficients f0, f0 + h d0 / 3, f1 - h d1 / 3, f1. The filter made
   // the inner two >= 0 up to one rounding of h d / 3, which is clamped. The piece's integral is
   // h / 4 times their sum, which is h (f0 + f1) / 2 + h^2 (d0 - d1) / 12.
+  const std::size_t n = data.n;
   pieces_.resize(n);
   bernstein_.resize(n);
   piece_integral_.resize(n);
   for (std::size_t i = 0; i < n; ++i) {
-    pieces_[i] = {input.u[i], h[i], f0[i], f1[i], d0[i], d1[i]};
-    const double b1 = std::max(f0[i] + h[i] * d0[i] / 3.0, 0.0);
-    const double b2 = std::max(f1[i] - h[i] * d1[i] / 3.0, 0.0);
-    bernstein_[i] = {f0[i], b1, b2, f1[i]};
-    piece_integral_[i] = h[i] * (((f0[i] + b1) + (b2 + f1[i])) / 4.0);
+    const double h = data.h[i], f0 = data.f0[i], f1 = data.f1[i], d0 = data.d0[i], d1 = data.d1[i];
+    pieces_[i] = {input.u[i], h, f0, f1, d0, d1};
+    const double b1 = std::max(f0 + h * d0 / 3.0, 0.0);
+    const double b2 = std::max(f1 - h * d1 / 3.0, 0.0);
+    bernstein_[i] = {f0, b1, b2, f1};
+    piece_integral_[i] = h * (((f0 + b1) + (b2 + f1)) / 4.0);
   }
   distribution_.assign(piece_integral_);
 }
