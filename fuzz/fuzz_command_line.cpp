@@ -21,17 +21,6 @@
 #include "app/cli.hpp"
 #include "app/commands.hpp"
 
-namespace flatland::app {
-
-// main.cpp defines the interrupt flag its signal handlers set; this program replaces main.cpp and
-// never sets it.
-std::atomic<bool>& interrupt_flag() {
-  static std::atomic<bool> flag{false};
-  return flag;
-}
-
-}  // namespace flatland::app
-
 namespace {
 
 constexpr std::size_t kMaxArguments = 32;

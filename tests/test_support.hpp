@@ -3,19 +3,22 @@
 
 #include <sys/wait.h>
 
+#include <bit>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <span>
 #include <sstream>
+#include <ostream>
 #include <string>
+#include <vector>
 
 #include <gtest/gtest.h>
 
 #include "flatland/geometry/bezier.hpp"
-#include "flatland/results/result_io.hpp"
 #include "flatland/scene/scene.hpp"
 #include "flatland/transport/solver.hpp"
 
@@ -25,14 +28,59 @@ inline std::string source_path(const std::string& relative) {
   return std::string(FLATLAND_SOURCE_DIR) + "/" + relative;
 }
 
-// A solve's result document without what may differ between runs of the same solve: its wall
-// time, its thread count and its process count.
-inline std::string solution_dump(const Solver& solver) {
-  nlohmann::json result = result_to_json(solver, 50);
-  result["stats"].erase("seconds");
-  result["settings"].erase("threads");
-  result["settings"].erase("processes");
-  return result.dump();
+// What a solve computed, as data: every side's radiosity and unshot coefficients, B at seven
+// points of every segment, each curve's storage elements, the energy books, the rounds, photons and
+// rays, and why it stopped. Not what may differ between runs of the same solve (its wall time, its
+// threads, its processes) nor its settings. Compared bit for bit: doubles by their bits, so -0
+// against +0 and NaN count as differences.
+struct SolutionData {
+  std::vector<std::uint64_t> coefficients;
+  std::vector<std::uint64_t> unshot;
+  std::vector<std::uint64_t> radiosity;
+  std::vector<int> elements;
+  std::vector<std::uint64_t> books;
+  std::uint32_t rounds = 0;
+  std::uint64_t photons = 0;
+  std::uint64_t rays = 0;
+  StopReason stop = StopReason::Running;
+  bool operator==(const SolutionData&) const = default;
+};
+
+inline SolutionData solution_data(const Solver& solver) {
+  SolutionData data;
+  auto bits = [](std::vector<std::uint64_t>& out, double value) { out.push_back(std::bit_cast<std::uint64_t>(value)); };
+  const Scene& scene = solver.scene();
+  for (std::uint32_t c = 0; c < scene.curves.size(); ++c) {
+    data.elements.push_back(solver.storage_elements(c));
+    for (Side side : {Side::Front, Side::Back}) {
+      if (!solver.has_side(c, side)) continue;
+      for (double b : solver.radiosity_coefficients(c, side)) bits(data.coefficients, b);
+      for (double b : solver.unshot_coefficients(c, side)) bits(data.unshot, b);
+      const double segments = scene.curves[c].segment_count;
+      for (int j = 0; j < 7 * static_cast<int>(segments); ++j) {
+        const Spectrum b = solver.radiosity(c, side, (j + 0.5) / 7.0);
+        for (int ch = 0; ch < scene.channels; ++ch) bits(data.radiosity, b[static_cast<std::size_t>(ch)]);
+      }
+    }
+  }
+  const EnergyBooks books = solver.books();
+  for (double value : {books.emitted, books.absorbed, books.escaped, books.unshot}) bits(data.books, value);
+  data.rounds = solver.rounds();
+  data.photons = solver.photons_shot();
+  data.rays = solver.rays_traced();
+  data.stop = solver.stop_reason();
+  return data;
+}
+
+// How gtest shows a SolutionData in a failed comparison: its counts and where its parts first
+// differ from nothing in particular, so a summary.
+inline void PrintTo(const SolutionData& data, std::ostream* out) {
+  std::uint64_t hash = 1469598103934665603ull;  // FNV-1a over the doubles' bits
+  for (const auto* part : {&data.coefficients, &data.unshot, &data.radiosity, &data.books})
+    for (std::uint64_t word : *part) hash = (hash ^ word) * 1099511628211ull;
+  *out << "{" << data.rounds << " rounds, " << data.photons << " photons, " << data.rays << " rays, "
+       << data.coefficients.size() << " coefficients, stop " << static_cast<int>(data.stop) << ", bits hash " << std::hex
+       << hash << std::dec << "}";
 }
 
 // The solves on which rounds shared among processes are checked against one process (solver_test,

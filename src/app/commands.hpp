@@ -42,7 +42,7 @@ inline CLI::Validator finite_range(double low, double high) {
       description);
 }
 
-// Set by SIGINT / SIGTERM; long work checks it between batches.
+// Set by SIGINT / SIGTERM (main.cpp installs the handlers); long work checks it between batches.
 std::atomic<bool>& interrupt_flag();
 
 

@@ -19,11 +19,6 @@
 
 namespace flatland::app {
 
-std::atomic<bool>& interrupt_flag() {
-  static std::atomic<bool> flag{false};
-  return flag;
-}
-
 namespace {
 
 extern "C" void handle_interrupt(int) { interrupt_flag().store(true); }

@@ -8,6 +8,11 @@
 
 namespace flatland::app {
 
+std::atomic<bool>& interrupt_flag() {
+  static std::atomic<bool> flag{false};
+  return flag;
+}
+
 namespace {
 
 // Rank 0 prints; the other ranks of an MPI run keep the message for agree().

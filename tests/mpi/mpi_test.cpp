@@ -9,7 +9,6 @@
 
 #include <gtest/gtest.h>
 
-#include "flatland/results/result_io.hpp"
 #include "flatland/transport/solver.hpp"
 #include "test_support.hpp"
 
@@ -36,7 +35,7 @@ TEST(Mpi, SumAddsEveryProcessesIntegersExactly) {
   EXPECT_EQ(large.back(), k * (k + 1) / 2);
 }
 
-std::string dump(const Solver& solver) { return testing::solution_dump(solver); }
+testing::SolutionData dump(const Solver& solver) { return testing::solution_data(solver); }
 
 // Every process solves alone and then with the others sharing the rounds: the shared solve has the
 // bits of the lone one, for shooting (points, footprints, colour) and walks, on any thread count.

@@ -63,7 +63,7 @@ class SegmentAccelerator {
     std::uint32_t count = 0;  // 0 for interior nodes
   };
 
-  struct Build;  // the build's per-segment lists (bvh.cpp)
+  struct Build;  // the build's per-segment lists (accelerator.cpp)
   std::uint32_t build_node(std::uint32_t first, std::uint32_t count, int depth, int parent_axis, Build& build);
 
   // The tree the queries walk: the binary tree collapsed into nodes of up to four children, whose

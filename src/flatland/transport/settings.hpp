@@ -21,8 +21,8 @@ namespace flatland {
 enum class PositionSampling { Uniform, Reconstructed };
 const char* to_string(PositionSampling sampling);
 
-// How coefficients are estimated from deposits (basis.hpp): lumped (b_k = p_k / integral(phi_k ds),
-// the paper's distance-weighted deposit: positive, but it puts each coefficient at its function's
+// How coefficients are estimated from deposits (storage/estimators.hpp): lumped
+// (b_k = p_k / integral(phi_k ds), the paper's distance-weighted deposit: positive, but it puts each coefficient at its function's
 // centroid, a bias of O(h^2) inside and O(h) at ends and discontinuity nodes), Galerkin (the L2
 // projection M b = p) or local (a least-variance local quasi-interpolant; Hermite: nodal values).
 // Galerkin and local have bias O(h^(p+1)) up to ends and nodes and may dip below zero; the density
