@@ -44,11 +44,10 @@ inline std::string chain(Layout layout, const std::vector<Point>& corners, doubl
 // 49 segments in all.
 inline std::string make_scene(Layout layout) {
   const char* key = layout == Layout::Lines ? "line" : "bezier";
-  auto curve = [&](const std::string& id, const char* material, const char* sides,
-                   const std::vector<Point>& corners, double bulge) {
-    return std::string("{\"id\": \"") + id + "\", \"material\": \"" + material +
-           "\", \"sides\": \"" + sides + "\", \"" + key + "\": [" + chain(layout, corners, bulge) +
-           "]}";
+  auto curve = [&](const std::string& id, const char* material, const char* sides, const std::vector<Point>& corners,
+                   double bulge) {
+    return std::string("{\"id\": \"") + id + "\", \"material\": \"" + material + "\", \"sides\": \"" + sides +
+           "\", \"" + key + "\": [" + chain(layout, corners, bulge) + "]}";
   };
   std::vector<Point> ring;
   for (int i = 0; i <= 40; ++i) {

@@ -16,10 +16,10 @@
 #include <benchmark/benchmark.h>
 #include <embree3/rtcore.h>
 
-#include "flatland/geometry/bezier.hpp"
 #include "flatland/geometry/accelerator.hpp"
-#include "flatland/transport/sampling.hpp"
+#include "flatland/geometry/bezier.hpp"
 #include "flatland/scene/scene.hpp"
+#include "flatland/transport/sampling.hpp"
 
 #include "bench_scenes.hpp"
 
@@ -93,8 +93,10 @@ struct Setup {
     std::vector<unsigned> indices;
     for (const SceneSegment& segment : scene.segments) {
       std::vector<Vec2> points{segment.geometry.shape.p[0]};
-      if (segment.geometry.kind == SegmentKind::Line) points.push_back(segment.geometry.shape.p[3]);
-      else tessellate(segment.geometry.shape, tolerance, 0, points);
+      if (segment.geometry.kind == SegmentKind::Line)
+        points.push_back(segment.geometry.shape.p[3]);
+      else
+        tessellate(segment.geometry.shape, tolerance, 0, points);
       for (std::size_t k = 0; k + 1 < points.size(); ++k) {
         const auto base = static_cast<unsigned>(vertices.size() / 3);
         for (const Vec2& p : {points[k], points[k + 1]})
@@ -107,12 +109,11 @@ struct Setup {
     device = rtcNewDevice(nullptr);
     embree = rtcNewScene(device);
     RTCGeometry quad_geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_QUAD);
-    auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(quad_geometry, RTC_BUFFER_TYPE_VERTEX, 0,
-                                                          RTC_FORMAT_FLOAT3, 3 * sizeof(float),
-                                                          vertices.size() / 3));
+    auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(quad_geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
+                                                          3 * sizeof(float), vertices.size() / 3));
     std::copy(vertices.begin(), vertices.end(), v);
-    auto* q = static_cast<unsigned*>(rtcSetNewGeometryBuffer(quad_geometry, RTC_BUFFER_TYPE_INDEX, 0,
-                                                             RTC_FORMAT_UINT4, 4 * sizeof(unsigned), quads));
+    auto* q = static_cast<unsigned*>(rtcSetNewGeometryBuffer(quad_geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT4,
+                                                             4 * sizeof(unsigned), quads));
     std::copy(indices.begin(), indices.end(), q);
     rtcCommitGeometry(quad_geometry);
     rtcAttachGeometry(embree, quad_geometry);
@@ -219,8 +220,7 @@ void Agreement(benchmark::State& state) {
       rtcIntersect1(s.embree, &context, &rh);
       const bool exact_hits = hit.segment != kNoSegment;
       const bool embree_hits = rh.hit.geomID != RTC_INVALID_GEOMETRY_ID;
-      if (exact_hits == embree_hits &&
-          (!exact_hits || std::fabs(hit.distance - rh.ray.tfar) <= 10.0 * s.tnear))
+      if (exact_hits == embree_hits && (!exact_hits || std::fabs(hit.distance - rh.ray.tfar) <= 10.0 * s.tnear))
         ++agree;
     }
   }

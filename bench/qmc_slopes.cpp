@@ -111,7 +111,10 @@ int main(int argc, char** argv) {
               return 1;
             }
             Solver solver = std::move(created).value();
-            if (direct) solver.step_round(); else solver.run();
+            if (direct)
+              solver.step_round();
+            else
+              solver.run();
             const CurveStorage& storage = solver.storage(curve);
             const std::vector<double> b = solver.radiosity_coefficients(curve, Side::Front);
             std::vector<double> expected(b.size(), 0.0);
@@ -145,8 +148,8 @@ int main(int argc, char** argv) {
                       method.name, to_string(sampler), n, errors.back());
           std::fflush(stdout);
         }
-        std::printf("%-9s %-7s %-6s slope %.3f\n", direct ? "penumbra" : "enclosure", method.name,
-                    to_string(sampler), slope(budgets, errors));
+        std::printf("%-9s %-7s %-6s slope %.3f\n", direct ? "penumbra" : "enclosure", method.name, to_string(sampler),
+                    slope(budgets, errors));
       }
     }
   }

@@ -48,8 +48,7 @@ void solve(benchmark::State& state, Layout layout, const SolverSettings& base) {
     photons += solver->photons_shot();
     benchmark::DoNotOptimize(solver->books());
   }
-  state.counters["photons_per_second"] =
-      benchmark::Counter(static_cast<double>(photons), benchmark::Counter::kIsRate);
+  state.counters["photons_per_second"] = benchmark::Counter(static_cast<double>(photons), benchmark::Counter::kIsRate);
   state.counters["segments"] = static_cast<double>(scene->segments.size());
 }
 
@@ -150,8 +149,7 @@ void SetupSolver(benchmark::State& state) {
   SolverSettings settings;
   settings.photons = 1'000'000;
   settings.threads = 2;
-  create_solvers(state, make_large_scene(static_cast<int>(state.range(0)), static_cast<int>(state.range(1))),
-                 settings);
+  create_solvers(state, make_large_scene(static_cast<int>(state.range(0)), static_cast<int>(state.range(1))), settings);
 }
 
 // Arguments: threads, then positions (0 uniform in arc length, 1 reconstructed).

@@ -59,8 +59,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   argv.push_back(nullptr);  // as the kernel passes it: argv[argc] is a null pointer
 
   flatland::app::CommandLine command_line;
-  if (flatland::app::parse_command_line(static_cast<int>(arguments.size()), argv.data(), command_line))
-    return 0;
+  if (flatland::app::parse_command_line(static_cast<int>(arguments.size()), argv.data(), command_line)) return 0;
   (void)flatland::app::validate_command_line(command_line);
   return 0;
 }

@@ -28,7 +28,8 @@ std::vector<nlohmann::json*> numbers_in(nlohmann::json& root, std::size_t limit)
   while (!pending.empty() && numbers.size() < limit) {
     nlohmann::json* value = pending.back();
     pending.pop_back();
-    if (value->is_number()) numbers.push_back(value);
+    if (value->is_number())
+      numbers.push_back(value);
     else if (value->is_structured())
       for (nlohmann::json& child : *value) pending.push_back(&child);
   }

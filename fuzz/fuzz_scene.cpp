@@ -34,12 +34,11 @@ flatland::SolverSettings settings_for(std::string_view text) {
   hash /= 4;
   // Visibility events (Auto) are the costliest and most intricate part of the set-up: half the runs.
   constexpr flatland::DiscontinuityMode kModes[] = {
-      flatland::DiscontinuityMode::Auto, flatland::DiscontinuityMode::Auto,
-      flatland::DiscontinuityMode::Scene, flatland::DiscontinuityMode::None};
+      flatland::DiscontinuityMode::Auto, flatland::DiscontinuityMode::Auto, flatland::DiscontinuityMode::Scene,
+      flatland::DiscontinuityMode::None};
   settings.discontinuities = kModes[hash % 4];
   hash /= 4;
-  settings.sampling = hash % 2 == 0 ? flatland::PositionSampling::Reconstructed
-                                    : flatland::PositionSampling::Uniform;
+  settings.sampling = hash % 2 == 0 ? flatland::PositionSampling::Reconstructed : flatland::PositionSampling::Uniform;
   hash /= 2;
   switch (hash % 3) {
     case 0: break;  // point rays

@@ -10,9 +10,9 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <ostream>
 #include <span>
 #include <sstream>
-#include <ostream>
 #include <string>
 #include <vector>
 
@@ -79,8 +79,8 @@ inline void PrintTo(const SolutionData& data, std::ostream* out) {
   for (const auto* part : {&data.coefficients, &data.unshot, &data.radiosity, &data.books})
     for (std::uint64_t word : *part) hash = (hash ^ word) * 1099511628211ull;
   *out << "{" << data.rounds << " rounds, " << data.photons << " photons, " << data.rays << " rays, "
-       << data.coefficients.size() << " coefficients, stop " << static_cast<int>(data.stop) << ", bits hash " << std::hex
-       << hash << std::dec << "}";
+       << data.coefficients.size() << " coefficients, stop " << static_cast<int>(data.stop) << ", bits hash "
+       << std::hex << hash << std::dec << "}";
 }
 
 // The solves on which rounds shared among processes are checked against one process (solver_test,
@@ -142,8 +142,8 @@ inline CommandRun run_flatland(const std::string& arguments, const std::filesyst
                                const std::string& environment = "") {
   const std::filesystem::path out = directory / "stdout.txt";
   const std::filesystem::path err = directory / "stderr.txt";
-  const std::string command = environment + " " + std::string(FLATLAND_BINARY) + " " + arguments + " >" +
-                              out.string() + " 2>" + err.string() + " </dev/null";
+  const std::string command = environment + " " + std::string(FLATLAND_BINARY) + " " + arguments + " >" + out.string() +
+                              " 2>" + err.string() + " </dev/null";
   const int status = std::system(command.c_str());
   CommandRun result;
   result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;

@@ -8,9 +8,9 @@
 #include <utility>
 #include <vector>
 
-#include "flatland/reference/reference.hpp"
 #include "flatland/base/text.hpp"
 #include "flatland/base/version.hpp"
+#include "flatland/reference/reference.hpp"
 #ifdef FLATLAND_HAVE_VIEWER
 #include "viewer/viewer_app.hpp"
 #endif
@@ -28,8 +28,7 @@ std::vector<std::string> option_names(const CLI::App& command) {
 }
 
 // CLI11's messages name the problem; add a likely intended word and which help to read.
-int report_parse_error(const CLI::App& app, const CLI::ParseError& error, int argc,
-                       const char* const* argv) {
+int report_parse_error(const CLI::App& app, const CLI::ParseError& error, int argc, const char* const* argv) {
   const CLI::App* command = &app;
   std::string where = "flatland";
   for (const CLI::App* sub : app.get_subcommands()) {
@@ -43,7 +42,8 @@ int report_parse_error(const CLI::App& app, const CLI::ParseError& error, int ar
   if (command == &app && argc > 1 && argv[1][0] != '-') {
     // An unknown word where a command belongs: CLI11 only says that a command is required.
     message = "unknown command '" + std::string(argv[1]) + "'";
-    if (const auto hint = closest_match(argv[1], commands)) message += "; did you mean '" + *hint + "'?";
+    if (const auto hint = closest_match(argv[1], commands))
+      message += "; did you mean '" + *hint + "'?";
     else {
       message += "; commands:";
       for (const std::string& name : commands) message += " " + name;
@@ -52,8 +52,7 @@ int report_parse_error(const CLI::App& app, const CLI::ParseError& error, int ar
     const std::vector<std::string> known = option_names(*command);
     for (int i = 1; i < argc; ++i) {
       const std::string word = std::string(argv[i]).substr(0, std::string(argv[i]).find('='));
-      if (word.rfind("--", 0) != 0 || std::find(known.begin(), known.end(), word) != known.end())
-        continue;
+      if (word.rfind("--", 0) != 0 || std::find(known.begin(), known.end(), word) != known.end()) continue;
       if (const auto hint = closest_match(word, known)) {
         message += "; did you mean '" + *hint + "'?";
         break;
@@ -71,8 +70,8 @@ CommandLine::CommandLine()
           "'Cubic Monte Carlo Radiosity' (Elias, Feda, Ferschin, Purgathofer).\n"
           "Scenes are JSON files (docs/scene-format.md); examples are in scenes2d/.",
           "flatland"} {
-  app.set_version_flag("--version", std::string("flatland ") + program_version() + " (commit " +
-                                        program_commit() + ")");
+  app.set_version_flag("--version",
+                       std::string("flatland ") + program_version() + " (commit " + program_commit() + ")");
   app.require_subcommand(1);
   app.fallthrough(false);
   app.footer(
@@ -101,10 +100,9 @@ std::optional<int> parse_command_line(int argc, const char* const* argv, Command
   } catch (const CLI::ParseError& e) {
     return report_parse_error(app, e, argc, argv);
   }
-  const std::pair<const char*, Command> commands[] = {
-      {"solve", Command::Solve},     {"reference", Command::Reference},
-      {"compare", Command::Compare}, {"converge", Command::Converge},
-      {"view", Command::View},       {"render", Command::Render}};
+  const std::pair<const char*, Command> commands[] = {{"solve", Command::Solve},     {"reference", Command::Reference},
+                                                      {"compare", Command::Compare}, {"converge", Command::Converge},
+                                                      {"view", Command::View},       {"render", Command::Render}};
   command_line.command = Command::None;
   for (const CLI::App* sub : app.get_subcommands())
     for (const auto& [name, command] : commands)
@@ -116,30 +114,24 @@ std::optional<int> parse_command_line(int argc, const char* const* argv, Command
 
 Status validate_command_line(CommandLine& command_line) {
   switch (command_line.command) {
-    case Command::Solve:
-      return finish_solver_settings(command_line.solve);
+    case Command::Solve: return finish_solver_settings(command_line.solve);
     case Command::Reference: {
       // The element length that --elements gives depends on the scene; the rest does not.
       ReferenceSettings settings = command_line.reference.settings;
       settings.max_element_length = command_line.reference.max_element_length;
       return validate(settings);
     }
-    case Command::Compare:
-      return ok_status();
-    case Command::Converge:
-      return check_converge_options(command_line.converge);
+    case Command::Compare: return ok_status();
+    case Command::Converge: return check_converge_options(command_line.converge);
     case Command::View: {
       if (Status status = finish_solver_settings(command_line.view.solve); !status) return status;
 #ifdef FLATLAND_HAVE_VIEWER
-      if (Result<viewer::FrameStep> step = viewer::parse_frame_step(command_line.view.step); !step)
-        return step.error();
+      if (Result<viewer::FrameStep> step = viewer::parse_frame_step(command_line.view.step); !step) return step.error();
 #endif
       return ok_status();
     }
-    case Command::Render:
-      return finish_solver_settings(command_line.render.solve);
-    case Command::None:
-      break;
+    case Command::Render: return finish_solver_settings(command_line.render.solve);
+    case Command::None: break;
   }
   return Error{"no command given"};
 }

@@ -36,28 +36,29 @@ nlohmann::json comparison_to_json(const Comparison& comparison, const std::strin
 }
 
 void print_comparison(const Comparison& comparison, bool scene_row) {
-  std::fprintf(report_stream(), "%s\n", comparison.measure == Measure::Reflected
-                          ? "errors of the reflected part B - E (emitted light E is exact in every method)"
-                          : "errors of the radiosity B (emitted + reflected)");
+  std::fprintf(report_stream(), "%s\n",
+               comparison.measure == Measure::Reflected
+                   ? "errors of the reflected part B - E (emitted light E is exact in every method)"
+                   : "errors of the radiosity B (emitted + reflected)");
   std::fprintf(report_stream(), "%-24s %12s %12s %12s\n", "curve", "rel. L1", "rel. L2", "rel. Linf");
   for (const CurveError& curve : comparison.curves) {
     if (curve.measured)
       std::fprintf(report_stream(), "%-24s %12.4e %12.4e %12.4e\n", curve.id.c_str(), curve.norms.l1, curve.norms.l2,
-                  curve.norms.linf);
+                   curve.norms.linf);
     else
       std::fprintf(report_stream(), "%-24s %38s\n", curve.id.c_str(), "(reflects no light in the reference)");
   }
   if (scene_row)
     std::fprintf(report_stream(), "%-24s %12.4e %12.4e %12.4e\n", "(scene)", comparison.scene.l1, comparison.scene.l2,
-                comparison.scene.linf);
+                 comparison.scene.linf);
 }
 
 CLI::App* add_compare_command(CLI::App& parent, CompareOptions& o) {
-  CLI::App* cmd = parent.add_subcommand(
-      "compare",
-      "Relative L1, L2 and L-infinity errors along arc length, of the reflected part B - E by "
-      "default, per curve and for the scene, of RESULT against REFERENCE (both written by "
-      "'flatland solve --out' or 'flatland reference --out' with the same --samples)");
+  CLI::App* cmd =
+      parent.add_subcommand("compare",
+                            "Relative L1, L2 and L-infinity errors along arc length, of the reflected part B - E by "
+                            "default, per curve and for the scene, of RESULT against REFERENCE (both written by "
+                            "'flatland solve --out' or 'flatland reference --out' with the same --samples)");
   cmd->add_option("result", o.result, "The result to judge (JSON)")->required();
   cmd->add_option("reference", o.reference, "The reference result (JSON)")->required();
   cmd->add_option("--measure", o.measure,
@@ -91,14 +92,15 @@ int run_compare(const CompareOptions& o) {
     if (!index) return usage_error(index.error().message);
     const CurveError chosen = comparison->curves[*index];
     if (!chosen.measured)
-      return usage_error("--curve: '" + o.curve + "' reflects no light in the reference (B - E is zero "
+      return usage_error("--curve: '" + o.curve +
+                         "' reflects no light in the reference (B - E is zero "
                          "along it), so it has no relative error of B - E; use --measure total");
     comparison->curves = {chosen};
   }
   if (o.json) {
     std::printf("%s\n", comparison_to_json(*comparison, o.result, o.reference)
-                              .dump(2, ' ', false, nlohmann::json::error_handler_t::replace)
-                              .c_str());
+                            .dump(2, ' ', false, nlohmann::json::error_handler_t::replace)
+                            .c_str());
   } else {
     print_comparison(*comparison, o.curve.empty());
   }

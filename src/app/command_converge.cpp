@@ -6,15 +6,15 @@
 
 #include <algorithm>
 #include <bit>
-#include <climits>
-#include <optional>
-#include <cmath>
 #include <cerrno>
+#include <climits>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <optional>
 #include <sstream>
 
 #include "app/commands.hpp"
@@ -36,7 +36,8 @@ std::vector<std::string> split(const std::string& text) {
   std::vector<std::string> out;
   std::stringstream parts(text);
   std::string part;
-  while (std::getline(parts, part, ',')) if (!part.empty()) out.push_back(part);
+  while (std::getline(parts, part, ','))
+    if (!part.empty()) out.push_back(part);
   return out;
 }
 
@@ -54,9 +55,12 @@ double median(std::vector<double> values) {
 std::string gnuplot_string(const std::string& text) {
   std::string out = "'";
   for (const char c : text) {
-    if (c == '\'') out += "''";
-    else if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) out += ' ';
-    else out += c;
+    if (c == '\'')
+      out += "''";
+    else if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f)
+      out += ' ';
+    else
+      out += c;
   }
   return out + "'";
 }
@@ -91,14 +95,17 @@ Status run_gnuplot(const fs::path& directory, const std::string& script) {
   ::close(pipe_ends[1]);
   if (spawned != 0) {
     ::close(pipe_ends[0]);
-    return Error{std::string("cannot run gnuplot (") + std::strerror(spawned) + "); install it: apt-get install gnuplot-nox"};
+    return Error{std::string("cannot run gnuplot (") + std::strerror(spawned) +
+                 "); install it: apt-get install gnuplot-nox"};
   }
   std::string output;
   char buffer[512];
   for (;;) {
     const ssize_t got = ::read(pipe_ends[0], buffer, sizeof buffer);
-    if (got > 0) output.append(buffer, static_cast<std::size_t>(got));
-    else if (got == 0 || errno != EINTR) break;
+    if (got > 0)
+      output.append(buffer, static_cast<std::size_t>(got));
+    else if (got == 0 || errno != EINTR)
+      break;
   }
   ::close(pipe_ends[0]);
   int status = 0;
@@ -203,8 +210,7 @@ Status draw_plot(const PlotInput& in) {
       if (errors.empty()) continue;
       char line[256];
       std::snprintf(line, sizeof line, "%.9g %.9g %.9g %.9g\n", median(seconds), median(errors),
-                    *std::min_element(errors.begin(), errors.end()),
-                    *std::max_element(errors.begin(), errors.end()));
+                    *std::min_element(errors.begin(), errors.end()), *std::max_element(errors.begin(), errors.end()));
       data += line;
     }
     data += "\n\n";  // a gnuplot data block per method
@@ -215,22 +221,22 @@ Status draw_plot(const PlotInput& in) {
   // gnuplot runs in the directory, so the script names its files without the directory's path;
   // the only text from the user (scene and method names) goes through gnuplot_string.
   const Row& anchor = in.rows.front();
-  const std::string subtitle =
-      (in.elements > 0 ? std::to_string(in.elements) + " elements per curve, " : "") + "median over " +
-      std::to_string(in.seeds) + " seeds, bars from min to max";
+  const std::string subtitle = (in.elements > 0 ? std::to_string(in.elements) + " elements per curve, " : "") +
+                               "median over " + std::to_string(in.seeds) + " seeds, bars from min to max";
   std::string script = "set logscale xy\nset xlabel 'solve time (s)'\nset ylabel " +
-                       gnuplot_string("relative L2 error of " + in.measured.describe()) + " noenhanced\n"
+                       gnuplot_string("relative L2 error of " + in.measured.describe()) +
+                       " noenhanced\n"
                        "set key below\nset grid\n"
-                       "set title " + gnuplot_string(in.scene_name) + ".\"\\n\"." + gnuplot_string(subtitle) +
-                       " noenhanced\n";
+                       "set title " +
+                       gnuplot_string(in.scene_name) + ".\"\\n\"." + gnuplot_string(subtitle) + " noenhanced\n";
   // Each method's legend entry carries its observed slopes (observed_slopes).
   const std::vector<Slopes> slopes = observed_slopes(in.rows, in.methods.size());
   std::string plot = "plot ";
   for (std::size_t m = 0; m < in.methods.size(); ++m) {
     const std::string title = in.methods[m] + ": slope " + slope_text(slopes[m].seconds) + " vs time, " +
                               slope_text(slopes[m].photons) + " vs photons";
-    plot += "'convergence.dat' index " + std::to_string(m) +
-            " using 1:2:3:4 with yerrorlines lw 2 title " + gnuplot_string(title) + " noenhanced, ";
+    plot += "'convergence.dat' index " + std::to_string(m) + " using 1:2:3:4 with yerrorlines lw 2 title " +
+            gnuplot_string(title) + " noenhanced, ";
   }
   char guide[256];
   std::snprintf(guide, sizeof guide, "%.9g * (x / %.9g)**(-0.5) with lines dt 2 lc rgb 'gray40' title 'slope -1/2'",
@@ -241,11 +247,14 @@ Status draw_plot(const PlotInput& in) {
   // A floor far below every error would only stretch the axis: say it in a label instead.
   if (in.floor > 0.0 && in.floor < 0.01 * smallest_error) {
     char line[160];
-    std::snprintf(line, sizeof line, "set label 1 'reference error (estimate) %.2g: below the plot' at graph 0.02, graph 0.04\n", in.floor);
+    std::snprintf(line, sizeof line,
+                  "set label 1 'reference error (estimate) %.2g: below the plot' at graph 0.02, graph 0.04\n",
+                  in.floor);
     script += line;
   } else if (in.floor > 0.0) {
     char line[160];
-    std::snprintf(line, sizeof line, ", %.9g with lines dt 3 lc rgb 'black' title 'reference error (estimate)'", in.floor);
+    std::snprintf(line, sizeof line, ", %.9g with lines dt 3 lc rgb 'black' title 'reference error (estimate)'",
+                  in.floor);
     plot += line;
   }
   plot += "\n";
@@ -253,7 +262,9 @@ Status draw_plot(const PlotInput& in) {
   const fs::path svg_temporary = directory / ".convergence.svg.tmp";
   script += "set terminal pngcairo size 900,720\nset output '.convergence.png.tmp'\n" + plot;
   script += "set terminal svg size 900,720\nset output '.convergence.svg.tmp'\n" + plot;
-  if (Status status = write_file_atomically((directory / "convergence.gp").string(), script, &interrupt_flag()); !status) return status;
+  if (Status status = write_file_atomically((directory / "convergence.gp").string(), script, &interrupt_flag());
+      !status)
+    return status;
   std::error_code ec;
   if (Status status = run_gnuplot(directory, "convergence.gp"); !status) {
     fs::remove(png_temporary, ec);
@@ -283,9 +294,12 @@ std::string csv_field(const std::string& text) {
   std::string out;
   bool quote = false;
   for (const char c : text) {
-    if (c == '"') out += "\"\"";
-    else if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) out += ' ';
-    else out += c;
+    if (c == '"')
+      out += "\"\"";
+    else if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f)
+      out += ' ';
+    else
+      out += c;
     quote = quote || c == ',' || c == '"' || c == ' ' || static_cast<unsigned char>(c) < 0x20;
   }
   return quote ? "\"" + out + "\"" : out;
@@ -311,9 +325,10 @@ std::vector<std::string> csv_fields(const std::string& line) {
   return fields;
 }
 
-Result<std::vector<Row>> read_rows(const fs::path& path, std::vector<std::string>& methods, int& seeds,
-                                   int& elements, Measured& measured) {
-  Result<std::string> table = read_input_file(path.string(), "convergence table", &interrupt_flag(), InputContent::Text);
+Result<std::vector<Row>> read_rows(const fs::path& path, std::vector<std::string>& methods, int& seeds, int& elements,
+                                   Measured& measured) {
+  Result<std::string> table =
+      read_input_file(path.string(), "convergence table", &interrupt_flag(), InputContent::Text);
   if (!table) {
     if (table.error().message == kFileWaitCancelled) return table.error();
     return Error{table.error().message + " (run converge without --replot first)"};
@@ -331,7 +346,8 @@ Result<std::vector<Row>> read_rows(const fs::path& path, std::vector<std::string
             c_linf = column("rel_linf"), c_elements = column("elements"), c_measure = column("measure"),
             c_curve = column("curve");
   if (c_method < 0 || c_seed < 0 || c_photons < 0 || c_seconds < 0 || c_l1 < 0 || c_l2 < 0 || c_linf < 0)
-    return Error{path.string() + ":1: not a convergence table (expected the columns method, seed, "
+    return Error{path.string() +
+                 ":1: not a convergence table (expected the columns method, seed, "
                  "photons, seconds, rel_l1, rel_l2, rel_linf)"};
   struct Parsed {
     std::string method;
@@ -365,7 +381,7 @@ Result<std::vector<Row>> read_rows(const fs::path& path, std::vector<std::string
       return end == text.c_str() || *end != '\0' ? NAN : value;
     };
     const double values[] = {number_at(c_seed), number_at(c_photons), number_at(c_seconds),
-                             number_at(c_l1), number_at(c_l2), number_at(c_linf)};
+                             number_at(c_l1),   number_at(c_l2),      number_at(c_linf)};
     for (const double value : values)
       if (!std::isfinite(value))
         return Error{path.string() + ":" + std::to_string(number) + ": a field that should be a number is not"};
@@ -453,17 +469,16 @@ Status check_converge_options(const ConvergeOptions& o) {
 }
 
 CLI::App* add_converge_command(CLI::App& parent, ConvergeOptions& o) {
-  CLI::App* cmd = parent.add_subcommand(
-      "converge",
-      "Error against run time: solve SCENE with every method over a range of photon budgets (or "
-      "time budgets) and seeds; write DIR/convergence.csv and a log-log plot (PNG and SVG, by "
-      "gnuplot) of the median error against the median time, with the spread over seeds, a guide "
-      "slope of -1/2 and the reference's own error floor; print and plot each method's observed "
-      "slope. The error is that of the reflected part B - E by default (--measure), over the "
-      "scene or on one curve (--curve)");
+  CLI::App* cmd =
+      parent.add_subcommand("converge",
+                            "Error against run time: solve SCENE with every method over a range of photon budgets (or "
+                            "time budgets) and seeds; write DIR/convergence.csv and a log-log plot (PNG and SVG, by "
+                            "gnuplot) of the median error against the median time, with the spread over seeds, a guide "
+                            "slope of -1/2 and the reference's own error floor; print and plot each method's observed "
+                            "slope. The error is that of the reflected part B - E by default (--measure), over the "
+                            "scene or on one curve (--curve)");
   cmd->add_option("scene", o.scene, "Scene file (JSON)")->required();
-  cmd->add_option("--reference", o.reference,
-                  "Reference result (flatland reference --out); computed when not given");
+  cmd->add_option("--reference", o.reference, "Reference result (flatland reference --out); computed when not given");
   std::string keys;  // the solve options a method may set (options.hpp)
   for (const SolveOptionSpec& spec : solve_options())
     if (spec.per_method) keys += (keys.empty() ? "" : ", ") + std::string(spec.flag);
@@ -472,8 +487,7 @@ CLI::App* add_converge_command(CLI::App& parent, ConvergeOptions& o) {
                       "; as solve's options), e.g. constant,cubic,cubic+sampling=uniform,"
                       "cubic+elements=64+sampler=sobol,cubic+transport=walk")
       ->capture_default_str();
-  auto* budgets = cmd->add_option("--budgets", o.budgets, "Comma-separated photon budgets")
-                      ->capture_default_str();
+  auto* budgets = cmd->add_option("--budgets", o.budgets, "Comma-separated photon budgets")->capture_default_str();
   auto* times = cmd->add_option("--times", o.times,
                                 "Comma-separated wall-time budgets in seconds (photons set from "
                                 "each method's measured rate)");
@@ -658,11 +672,13 @@ std::optional<int> ConvergeStudy::check_curve_and_measure() {
     if (!index) return usage_error(index.error().message + " (in " + o_.scene + ")");
     curve_index_ = *index;
     if (measured_.measure == Measure::Reflected && !reflects(scene_.curves[curve_index_]))
-      return usage_error("--curve: '" + o_.curve + "' reflects no light (its material's reflectivity is 0), so "
+      return usage_error("--curve: '" + o_.curve +
+                         "' reflects no light (its material's reflectivity is 0), so "
                          "it has no relative error of B - E; use --measure total");
   }
   if (measured_.measure == Measure::Reflected && std::none_of(scene_.curves.begin(), scene_.curves.end(), reflects))
-    return usage_error("--measure reflected: " + o_.scene + ": no curve reflects light (every reflectivity is 0), "
+    return usage_error("--measure reflected: " + o_.scene +
+                       ": no curve reflects light (every reflectivity is 0), "
                        "so B - E is zero everywhere and has no relative error; use --measure total");
   return std::nullopt;
 }
@@ -687,8 +703,9 @@ std::optional<int> ConvergeStudy::read_reference() {
   if (!given) return usage_error(o_.reference + ": " + given.error().message);
   if (Status status = check_reference_of(*given, scene_, o_.samples); !status)
     return usage_error(o_.reference + ": " + status.error().message +
-                       (check_reference_of(*given, scene_) ? "; pass --samples " + std::to_string(given->curves[0].samples.size())
-                                                           : std::string()));
+                       (check_reference_of(*given, scene_)
+                            ? "; pass --samples " + std::to_string(given->curves[0].samples.size())
+                            : std::string()));
   return std::nullopt;
 }
 
@@ -719,7 +736,8 @@ std::optional<int> ConvergeStudy::check_reference_measures() {
     return usage_error("--measure " + o_.measure + ": " + (o_.reference.empty() ? "" : o_.reference + ": ") +
                        self.error().message + (self.error().message == kNothingReflected ? " (--measure total)" : ""));
   if (!o_.curve.empty() && !self->curves[curve_index_].measured)
-    return usage_error("--curve: '" + o_.curve + "' reflects no light in the reference (B - E is zero along "
+    return usage_error("--curve: '" + o_.curve +
+                       "' reflects no light in the reference (B - E is zero along "
                        "it), so it has no relative error of B - E; use --measure total");
   floor_ = floor_for(reference_, floor_, measured_);
   return std::nullopt;
@@ -742,8 +760,7 @@ std::optional<int> ConvergeStudy::share_reference() {
   // (Collective: a reference that another process cannot read stops them all.)
   Result<SampledResult> sampled = sampled_from_json(reference_, "the reference");
   if (sampled) sampled_reference_ = std::move(*sampled);
-  return agree(sampled ? std::nullopt
-                       : std::optional<int>(usage_error("--reference: " + sampled.error().message)));
+  return agree(sampled ? std::nullopt : std::optional<int>(usage_error("--reference: " + sampled.error().message)));
 }
 
 std::optional<int> ConvergeStudy::measure_rate(std::size_t m, double& rate) const {
@@ -760,7 +777,8 @@ std::optional<int> ConvergeStudy::measure_rate(std::size_t m, double& rate) cons
 
 std::optional<int> ConvergeStudy::run_one(std::size_t m, std::size_t b, int seed, double rate) {
   const std::vector<double>& budgets = plan_.budgets;
-  const std::size_t run = (m * budgets.size() + b) * static_cast<std::size_t>(o_.seeds) + static_cast<std::size_t>(seed - 1);
+  const std::size_t run =
+      (m * budgets.size() + b) * static_cast<std::size_t>(o_.seeds) + static_cast<std::size_t>(seed - 1);
   if (run % process_count() != process_rank()) return std::nullopt;
   SolverSettings settings = plan_.methods[m].settings;
   const double photons = std::max(1.0, plan_.by_time ? std::floor(budgets[b] * rate) : budgets[b]);
@@ -770,8 +788,8 @@ std::optional<int> ConvergeStudy::run_one(std::size_t m, std::size_t b, int seed
   settings.photons = static_cast<std::uint64_t>(photons);
   settings.seed = static_cast<std::uint64_t>(seed);
   Result<Row> row = converge_run(scene_, settings, *sampled_reference_, measured_.measure,
-                                 o_.curve.empty() ? std::nullopt : std::optional<std::size_t>(curve_index_),
-                                 o_.samples, &interrupt_flag());
+                                 o_.curve.empty() ? std::nullopt : std::optional<std::size_t>(curve_index_), o_.samples,
+                                 &interrupt_flag());
   if (!row) return interrupt_flag().load() ? interrupted() : usage_error(row.error().message);
   row->method = m;
   row->budget = b;
@@ -825,7 +843,7 @@ std::string ConvergeStudy::csv() const {
     for (const ConvergeField& field : fields) {
       if (&field != &fields.front()) line += ',';
       if (const auto* text = std::get_if<std::string>(&field.value)) {
-        line += field.name == std::string_view("method") ? "\"" + *text + "\""
+        line += field.name == std::string_view("method")  ? "\"" + *text + "\""
                 : field.name == std::string_view("curve") ? csv_field(*text)
                                                           : *text;
       } else if (const auto* number = std::get_if<std::int64_t>(&field.value)) {
@@ -872,8 +890,10 @@ int run_converge(ConvergeOptions& o) {
   Result<Plan> plan = parse_plan(o);
   Result<Scene> scene = plan ? load_scene(o.scene, &interrupt_flag()) : Result<Scene>(Error{""});
   std::optional<int> unusable;
-  if (!plan) unusable = usage_error(plan.error().message);
-  else if (!scene) unusable = input_error(scene.error());
+  if (!plan)
+    unusable = usage_error(plan.error().message);
+  else if (!scene)
+    unusable = input_error(scene.error());
   if (o.replot) return unusable ? *unusable : replot(o, *scene);
   if (const std::optional<int> code = agree(unusable)) return *code;
   if (const std::optional<int> code = agree_on_digest("scene file", o.scene, scene->source_sha256)) return *code;

@@ -29,8 +29,7 @@ CLI::App* add_reference_command(CLI::App& parent, ReferenceOptions& o) {
                                    "size (bounding-box diagonal) / N")
                        ->check(CLI::Range(1, 1 << 20));
   length->excludes(elements);
-  cmd->add_option("--quadrature", o.settings.quadrature,
-                  "Gauss-Legendre points per element for the form factors")
+  cmd->add_option("--quadrature", o.settings.quadrature, "Gauss-Legendre points per element for the form factors")
       ->capture_default_str()
       ->check(CLI::Range(1, 64));
   cmd->add_option("--tolerance", o.settings.tolerance,
@@ -43,8 +42,7 @@ CLI::App* add_reference_command(CLI::App& parent, ReferenceOptions& o) {
   cmd->add_option("--threads", o.settings.threads, "Worker threads (0: every core)")
       ->capture_default_str()
       ->check(CLI::Range(0u, 1024u));
-  cmd->add_option("--samples", o.samples,
-                  "Radiosity samples per curve in the result, at arc length (j + 0.5) L / K")
+  cmd->add_option("--samples", o.samples, "Radiosity samples per curve in the result, at arc length (j + 0.5) L / K")
       ->capture_default_str()
       ->check(CLI::Range(1, 1000000));
   cmd->add_option("--out", o.out, "Write the result as JSON to this file (docs/result-format.md)");
@@ -73,8 +71,8 @@ void warn_about_reference_size(const Scene& scene, const ReferenceSettings& sett
 
 }  // namespace
 
-Result<ErrorNorms> estimate_reference_error(const Scene& scene, ReferenceSettings settings,
-                                            int samples, const SampledResult& fine) {
+Result<ErrorNorms> estimate_reference_error(const Scene& scene, ReferenceSettings settings, int samples,
+                                            const SampledResult& fine) {
   // Solves at 2h and 4h and extrapolates with the observed order (docs/reference.md).
   Result<ReferenceErrorEstimate> estimate = estimate_discretisation_error(scene, settings, samples, fine);
   if (!estimate) return estimate.error();
@@ -104,11 +102,12 @@ int run_reference(ReferenceOptions& o) {
   auto phase_start = start;
   o.settings.progress = [&](std::size_t done, std::size_t rows) {
     const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - phase_start).count();
-    const double left = elapsed * static_cast<double>(rows - done) / static_cast<double>(std::max<std::size_t>(done, 1));
+    const double left =
+        elapsed * static_cast<double>(rows - done) / static_cast<double>(std::max<std::size_t>(done, 1));
     char text[200];
-    std::snprintf(text, sizeof text, "%s: form factors %.0f%% (%zu / %zu rows), %.0f s, about %s left",
-                  phase.c_str(), 100.0 * static_cast<double>(done) / static_cast<double>(rows), done, rows,
-                  elapsed, human_duration(left).c_str());
+    std::snprintf(text, sizeof text, "%s: form factors %.0f%% (%zu / %zu rows), %.0f s, about %s left", phase.c_str(),
+                  100.0 * static_cast<double>(done) / static_cast<double>(rows), done, rows, elapsed,
+                  human_duration(left).c_str());
     line.show(text);
   };
   Result<ReferenceSolution> solution = solve_reference(*scene, o.settings);
@@ -118,9 +117,9 @@ int run_reference(ReferenceOptions& o) {
     note(solution->thread_shortfall() + "; the reference is the same on any thread count");
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   const ReferenceSolution& reference = *solution;
-  const SampledResult sampled = sample_radiosity(
-      *scene, o.samples,
-      [&reference](std::uint32_t c, Side side, double u) { return reference.radiosity(c, side, u); });
+  const SampledResult sampled = sample_radiosity(*scene, o.samples, [&reference](std::uint32_t c, Side side, double u) {
+    return reference.radiosity(c, side, u);
+  });
   const nlohmann::json curves = curves_to_json(sampled);
   std::optional<ReferenceErrorEstimate> estimated;
   if (o.estimate_error) {
@@ -139,23 +138,23 @@ int run_reference(ReferenceOptions& o) {
   if (!o.quiet) {
     std::FILE* out = report_stream();
     std::fprintf(out, "scene     %s (%s): %zu curves\n", scene->name.c_str(), scene->source.c_str(),
-                scene->curves.size());
+                 scene->curves.size());
     std::fprintf(out, "reference %zu elements, %d GMRES steps, residual %.2g, linear-solve error below %.2g%s\n",
-                solution->elements(), solution->iterations(), solution->residual(),
-                solution->error_bound(),
-                solution->error_bound() > o.settings.tolerance ? " (tolerance not reached: round-off)" : "");
+                 solution->elements(), solution->iterations(), solution->residual(), solution->error_bound(),
+                 solution->error_bound() > o.settings.tolerance ? " (tolerance not reached: round-off)" : "");
     std::fprintf(out, "time      %.3f s (form factors %.3f s, solve %.3f s)\n", seconds,
-                solution->form_factor_seconds(), solution->solve_seconds());
+                 solution->form_factor_seconds(), solution->solve_seconds());
     if (estimated) {
       const ErrorNorms& e = estimated->error;
       if (std::isnan(estimated->order))
-        std::fprintf(out, "accuracy  estimated relative error L1 %.2g, L2 %.2g, Linf %.2g (no order: %s)\n", e.l1,
-                    e.l2, e.linf, estimated->note.c_str());
+        std::fprintf(out, "accuracy  estimated relative error L1 %.2g, L2 %.2g, Linf %.2g (no order: %s)\n", e.l1, e.l2,
+                     e.linf, estimated->note.c_str());
       else
-        std::fprintf(out, "accuracy  estimated relative error L1 %.2g, L2 %.2g, Linf %.2g (observed order %.2f "
-                    "from elements 1, 2 and 4 times as long%s%s)\n",
-                    e.l1, e.l2, e.linf, estimated->order, estimated->note.empty() ? "" : ": ",
-                    estimated->note.c_str());
+        std::fprintf(out,
+                     "accuracy  estimated relative error L1 %.2g, L2 %.2g, Linf %.2g (observed order %.2f "
+                     "from elements 1, 2 and 4 times as long%s%s)\n",
+                     e.l1, e.l2, e.linf, estimated->order, estimated->note.empty() ? "" : ": ",
+                     estimated->note.c_str());
     }
   }
   if (!o.out.empty()) {

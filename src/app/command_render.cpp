@@ -29,7 +29,9 @@ CLI::App* add_render_command(CLI::App& parent, RenderOptions& o) {
       ->capture_default_str()
       ->check(CLI::Range(1, 1000000));
   cmd->add_option("--width", o.width, "Picture width in pixels")->capture_default_str()->check(CLI::Range(16, 16384));
-  cmd->add_option("--height", o.height, "Picture height in pixels")->capture_default_str()->check(CLI::Range(16, 16384));
+  cmd->add_option("--height", o.height, "Picture height in pixels")
+      ->capture_default_str()
+      ->check(CLI::Range(16, 16384));
   cmd->add_option("--paths", o.paths,
                   "Photon paths drawn, spread over the rounds in proportion to their photons (0: none)")
       ->capture_default_str()
@@ -141,9 +143,9 @@ int run_render(RenderOptions& o) {
     std::FILE* out = report_stream();
     if (!o.result.empty()) std::fprintf(out, "wrote     %s\n", o.result.c_str());
     std::fprintf(out, "solved    %llu %s (%llu rays) in %u rounds, %.3f s\n",
-                static_cast<unsigned long long>(solver.photons_shot()),
-                solver.settings().transport == Transport::Walk ? "walks" : "photons",
-                static_cast<unsigned long long>(solver.rays_traced()), solver.rounds(), solver.seconds());
+                 static_cast<unsigned long long>(solver.photons_shot()),
+                 solver.settings().transport == Transport::Walk ? "walks" : "photons",
+                 static_cast<unsigned long long>(solver.rays_traced()), solver.rounds(), solver.seconds());
     std::fprintf(out, "wrote     %s (%dx%d, %zu paths)\n", o.out.c_str(), o.width, o.height, paths.size());
   }
   return kExitOk;

@@ -43,20 +43,16 @@ void add_solver_options(CLI::App* cmd, SolveOptions& o) {
   }
 }
 
-
 CLI::App* add_solve_command(CLI::App& parent, SolveOptions& o) {
   CLI::App* cmd = parent.add_subcommand(
-      "solve",
-      "Solve a scene by progressive Monte Carlo shooting and report the radiosity along every curve.");
+      "solve", "Solve a scene by progressive Monte Carlo shooting and report the radiosity along every curve.");
   cmd->add_option("scene", o.scene, "Scene file (JSON, docs/scene-format.md)")->required();
   add_solver_options(cmd, o);
-  cmd->add_option("--samples", o.samples,
-                  "Radiosity samples per curve in the result, at arc length (j + 0.5) L / K")
+  cmd->add_option("--samples", o.samples, "Radiosity samples per curve in the result, at arc length (j + 0.5) L / K")
       ->capture_default_str()
       ->check(CLI::Range(1, 1000000));
   cmd->add_option("--out", o.out, "Write the result as JSON to this file (docs/result-format.md)");
-  cmd->add_option("--picture", o.picture,
-                  "Write a PNG picture of the curves coloured by their radiosity");
+  cmd->add_option("--picture", o.picture, "Write a PNG picture of the curves coloured by their radiosity");
   cmd->add_option("--reference", o.reference,
                   "A reference result (same scene, same --samples): print the errors against it");
   cmd->add_flag("--quiet", o.quiet, "No progress line and no summary (errors only)");
@@ -72,18 +68,16 @@ void print_summary(const Solver& solver) {
   for (const SceneSegment& segment : scene.segments)
     if (segment.geometry.kind == SegmentKind::Cubic) ++cubic_segments;
   const EnergyBooks books = solver.books();
-  const double rate = solver.seconds() > 0.0
-                          ? static_cast<double>(solver.photons_shot()) / solver.seconds()
-                          : 0.0;
+  const double rate = solver.seconds() > 0.0 ? static_cast<double>(solver.photons_shot()) / solver.seconds() : 0.0;
   std::fprintf(out, "scene     %s (%s): %zu curves, %zu segments (%zu cubic), %s\n", scene.name.c_str(),
-              scene.source.c_str(), scene.curves.size(), scene.segments.size(), cubic_segments,
-              scene.channels == 1 ? "grey" : "colour");
+               scene.source.c_str(), scene.curves.size(), scene.segments.size(), cubic_segments,
+               scene.channels == 1 ? "grey" : "colour");
   const SolverSettings& settings = solver.settings();
   char rays[160] = "point rays";
   if (settings.ray_width > 0.0) {
     if (settings.ray_mode == RayMode::Band)
-      std::snprintf(rays, sizeof rays, "band of %d rays %g wide (%s)", settings.band_rays,
-                    settings.ray_width, to_string(settings.ray_profile));
+      std::snprintf(rays, sizeof rays, "band of %d rays %g wide (%s)", settings.band_rays, settings.ray_width,
+                    to_string(settings.ray_profile));
     else
       std::snprintf(rays, sizeof rays, "footprint rays %g wide (%s)", settings.ray_width,
                     to_string(settings.ray_profile));
@@ -104,20 +98,22 @@ void print_summary(const Solver& solver) {
   } else {
     std::snprintf(storage_text, sizeof storage_text, "%d elements per curve", settings.elements);
   }
-  std::fprintf(out, "method    %s%s basis (%s), %s, %s positions, discontinuities %s, "
-              "%s, %s sampler\n",
-              settings.transport == Transport::Walk ? "random walks, " : "", to_string(settings.basis), to_string(settings.estimator), storage_text,
-              to_string(settings.sampling), to_string(settings.discontinuities), rays,
-              to_string(settings.sampler));
+  std::fprintf(out,
+               "method    %s%s basis (%s), %s, %s positions, discontinuities %s, "
+               "%s, %s sampler\n",
+               settings.transport == Transport::Walk ? "random walks, " : "", to_string(settings.basis),
+               to_string(settings.estimator), storage_text, to_string(settings.sampling),
+               to_string(settings.discontinuities), rays, to_string(settings.sampler));
   // What the scene made the solver use (and so what it left out).
-  std::fprintf(out, "features  %s (%d channel%s), %s, %zu discontinuity nodes (%zu from contacts, %zu "
-              "from visibility events), %zu storage coefficients\n",
-              scene.channels == 1 ? "grey" : "colour", scene.channels, scene.channels == 1 ? "" : "s",
-              cubic_segments == 0 ? "lines only (no cubic solver)"
-              : cubic_segments == scene.segments.size() ? "cubics only"
-                                                        : "lines and cubics",
-              solver.discontinuity_nodes(), solver.contact_nodes(), solver.visibility_event_nodes(),
-              solver.coefficient_count());
+  std::fprintf(out,
+               "features  %s (%d channel%s), %s, %zu discontinuity nodes (%zu from contacts, %zu "
+               "from visibility events), %zu storage coefficients\n",
+               scene.channels == 1 ? "grey" : "colour", scene.channels, scene.channels == 1 ? "" : "s",
+               cubic_segments == 0                       ? "lines only (no cubic solver)"
+               : cubic_segments == scene.segments.size() ? "cubics only"
+                                                         : "lines and cubics",
+               solver.discontinuity_nodes(), solver.contact_nodes(), solver.visibility_event_nodes(),
+               solver.coefficient_count());
   const bool walks = settings.transport == Transport::Walk;
   char workers[64];
   if (process_count() > 1)
@@ -125,22 +121,22 @@ void print_summary(const Solver& solver) {
   else
     std::snprintf(workers, sizeof workers, "%u threads", solver.thread_count());
   std::fprintf(out, "solved    %s %s (%s rays) in %u rounds, %.3f s, %s %s/s on %s\n",
-              human_count(static_cast<double>(solver.photons_shot())).c_str(), walks ? "walks" : "photons",
-              human_count(static_cast<double>(solver.rays_traced())).c_str(), solver.rounds(),
-              solver.seconds(), human_count(rate).c_str(), walks ? "walks" : "photons", workers);
+               human_count(static_cast<double>(solver.photons_shot())).c_str(), walks ? "walks" : "photons",
+               human_count(static_cast<double>(solver.rays_traced())).c_str(), solver.rounds(), solver.seconds(),
+               human_count(rate).c_str(), walks ? "walks" : "photons", workers);
   if (walks)
     std::fprintf(out, "stopped   %s (walks end by themselves: nothing is left unshot)\n",
-                to_string(solver.stop_reason()));
+                 to_string(solver.stop_reason()));
   else
     std::fprintf(out, "stopped   %s: unshot power %.3g%% of emitted (tolerance %.3g%%)\n",
-                to_string(solver.stop_reason()), 100.0 * books.unshot / books.emitted,
-                100.0 * solver.settings().tolerance);
+                 to_string(solver.stop_reason()), 100.0 * books.unshot / books.emitted,
+                 100.0 * solver.settings().tolerance);
   if (const RoundSharing* sharing = solver.round_sharing(); sharing != nullptr && solver.rounds() > 0)
     std::fprintf(out, "shared    %u processes summed %s bytes per round (%s in all, %u rounds)\n", sharing->size(),
-                human_count(static_cast<double>(solver.bytes_shared()) / solver.rounds()).c_str(),
-                human_count(static_cast<double>(solver.bytes_shared())).c_str(), solver.rounds());
+                 human_count(static_cast<double>(solver.bytes_shared()) / solver.rounds()).c_str(),
+                 human_count(static_cast<double>(solver.bytes_shared())).c_str(), solver.rounds());
   std::fprintf(out, "energy    emitted %.6g = absorbed %.6g + escaped %.6g + unshot %.6g (imbalance %.2g)\n",
-              books.emitted, books.absorbed, books.escaped, books.unshot, books.imbalance());
+               books.emitted, books.absorbed, books.escaped, books.unshot, books.imbalance());
 }
 
 }  // namespace
@@ -168,7 +164,8 @@ Status finish_solver_settings(SolveOptions& o) {
   for (const SolveOptionSpec& spec : solve_options())
     if (Status status = set_solve_option(o.settings, spec.option, o.text[spec.option]); !status)
       return Error{spelled(status.error().message, Spelling::CommandLine)};
-  if (Status status = validate(o.settings); !status) return Error{spelled(status.error().message, Spelling::CommandLine)};
+  if (Status status = validate(o.settings); !status)
+    return Error{spelled(status.error().message, Spelling::CommandLine)};
   return ok_status();
 }
 

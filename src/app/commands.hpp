@@ -11,8 +11,8 @@
 
 #include <CLI/CLI.hpp>
 
-#include "flatland/results/metrics.hpp"
 #include "flatland/reference/reference.hpp"
+#include "flatland/results/metrics.hpp"
 #include "flatland/transport/options.hpp"
 #include "flatland/transport/solver.hpp"
 
@@ -45,7 +45,6 @@ inline CLI::Validator finite_range(double low, double high) {
 // Set by SIGINT / SIGTERM (main.cpp installs the handlers); long work checks it between batches.
 std::atomic<bool>& interrupt_flag();
 
-
 struct SolveOptions {
   SolveOptions();
   std::string scene;
@@ -73,8 +72,8 @@ struct ReferenceOptions {
 // The reference's own error, estimated from two more solves with elements twice and four times as
 // long: |R_2h - R_h| / (2^p - 1) with the order p observed from the three (docs/reference.md);
 // `fine` is the samples of R_h (sample_radiosity).
-Result<ErrorNorms> estimate_reference_error(const Scene& scene, ReferenceSettings settings,
-                                            int samples, const SampledResult& fine);
+Result<ErrorNorms> estimate_reference_error(const Scene& scene, ReferenceSettings settings, int samples,
+                                            const SampledResult& fine);
 CLI::App* add_reference_command(CLI::App& parent, ReferenceOptions& options);
 int run_reference(ReferenceOptions& options);
 

@@ -1,8 +1,8 @@
 // flatland: diffuse light transport in 2D after "Cubic Monte Carlo Radiosity".
 #include <csignal>
+#include <cstdio>
 #include <exception>
 #include <new>
-#include <cstdio>
 #include <optional>
 #include <string>
 
@@ -120,9 +120,10 @@ int main(int argc, char** argv) {
   try {
     return run_command(command_line);
   } catch (const std::bad_alloc&) {
-    return stop_alone("error: out of memory: the work does not fit in the memory this process may use (see "
-                      "ulimit -v); ask for less (fewer elements, samples or threads)",
-                      kExitUsage);
+    return stop_alone(
+        "error: out of memory: the work does not fit in the memory this process may use (see "
+        "ulimit -v); ask for less (fewer elements, samples or threads)",
+        kExitUsage);
   } catch (const std::exception& e) {
     return stop_alone(std::string("internal error: ") + e.what(), kExitFailure);
   }

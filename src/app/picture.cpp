@@ -4,8 +4,8 @@
 #include <cmath>
 #include <vector>
 
-#include "png/png_io.hpp"
 #include "flatland/results/result_io.hpp"
+#include "png/png_io.hpp"
 
 namespace flatland::app {
 
@@ -17,8 +17,8 @@ struct Image {
   std::vector<float> rgb;  // linear colour, 3 floats per pixel
 
   void blend(int x, int y, const Spectrum& colour, double coverage) {
-    float* pixel = &rgb[(static_cast<std::size_t>(y) * static_cast<std::size_t>(width) +
-                         static_cast<std::size_t>(x)) * 3];
+    float* pixel =
+        &rgb[(static_cast<std::size_t>(y) * static_cast<std::size_t>(width) + static_cast<std::size_t>(x)) * 3];
     for (int c = 0; c < 3; ++c)
       pixel[c] = static_cast<float>(pixel[c] * (1.0 - coverage) + colour[static_cast<std::size_t>(c)] * coverage);
   }
@@ -123,8 +123,7 @@ PngImage draw_picture(const Solver& solver, int width, int height) {
   }
   auto display = [&](const Spectrum& value) {
     Spectrum colour{};
-    for (std::size_t ch = 0; ch < 3; ++ch)
-      colour[ch] = to_display(exposure * value[scene.channels == 1 ? 0 : ch]);
+    for (std::size_t ch = 0; ch < 3; ++ch) colour[ch] = to_display(exposure * value[scene.channels == 1 ? 0 : ch]);
     return colour;
   };
 
@@ -141,9 +140,7 @@ PngImage draw_picture(const Solver& solver, int width, int height) {
         const double sign = side == 0 ? 1.0 : -1.0;
         const double half = active ? half_band : 0.6;
         const Vec2 offset = (sign * half) * n;
-        const Spectrum colour = !active ? absorber
-                                : side == 0 ? display(band.front[j])
-                                            : display(band.back[j]);
+        const Spectrum colour = !active ? absorber : side == 0 ? display(band.front[j]) : display(band.back[j]);
         draw_segment(image, a + offset, b + offset, half, colour);
       }
     }

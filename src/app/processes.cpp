@@ -42,8 +42,8 @@ std::optional<int> agree(std::optional<int> code) {
   }
   // Its own lines, "flatland: ..." each, as "flatland (process R of K): ...".
   if (processes->rank() != 0 && code && codes[0] == 0) {
-    const std::string prefix = "flatland (process " + std::to_string(processes->rank()) + " of " +
-                               std::to_string(processes->size()) + "): ";
+    const std::string prefix =
+        "flatland (process " + std::to_string(processes->rank()) + " of " + std::to_string(processes->size()) + "): ";
     std::string line;
     for (const char c : deferred_messages()) {
       line += c;
@@ -54,8 +54,8 @@ std::optional<int> agree(std::optional<int> code) {
   }
   deferred_messages().clear();
   if (first && processes->rank() == 0 && first_rank != 0)
-    std::fprintf(stderr, "flatland: error: process %u of %u stopped (its message is above); nothing done\n",
-                 first_rank, processes->size());
+    std::fprintf(stderr, "flatland: error: process %u of %u stopped (its message is above); nothing done\n", first_rank,
+                 processes->size());
   return first;
 }
 
@@ -131,8 +131,9 @@ std::optional<int> agree_on_digest(const std::string& what, const std::string& p
   share_text(first);
   std::optional<int> code;
   if (digest != first && !digest.empty() && !first.empty())
-    code = usage_error(path + ": this process read another " + what + " than process 0 (SHA-256 " + digest.substr(0, 12) +
-                       "... here, " + first.substr(0, 12) + "... there); give every process the same file");
+    code =
+        usage_error(path + ": this process read another " + what + " than process 0 (SHA-256 " + digest.substr(0, 12) +
+                    "... here, " + first.substr(0, 12) + "... there); give every process the same file");
   return agree(code);
 }
 

@@ -27,11 +27,16 @@ std::string human_count(double value) {
 std::string human_duration(double seconds) {
   char text[48];
   if (!(seconds < 1e12)) return "ages";
-  if (seconds < 120.0) std::snprintf(text, sizeof text, "%.0f s", seconds);
-  else if (seconds < 7200.0) std::snprintf(text, sizeof text, "%.0f min", seconds / 60.0);
-  else if (seconds < 2.0 * 86400.0) std::snprintf(text, sizeof text, "%.1f h", seconds / 3600.0);
-  else if (seconds < 2.0 * 365.25 * 86400.0) std::snprintf(text, sizeof text, "%.0f days", seconds / 86400.0);
-  else std::snprintf(text, sizeof text, "%.3g years", seconds / (365.25 * 86400.0));
+  if (seconds < 120.0)
+    std::snprintf(text, sizeof text, "%.0f s", seconds);
+  else if (seconds < 7200.0)
+    std::snprintf(text, sizeof text, "%.0f min", seconds / 60.0);
+  else if (seconds < 2.0 * 86400.0)
+    std::snprintf(text, sizeof text, "%.1f h", seconds / 3600.0);
+  else if (seconds < 2.0 * 365.25 * 86400.0)
+    std::snprintf(text, sizeof text, "%.0f days", seconds / 86400.0);
+  else
+    std::snprintf(text, sizeof text, "%.3g years", seconds / (365.25 * 86400.0));
   return text;
 }
 
@@ -46,9 +51,8 @@ void ProgressLine::update(const SolverProgress& p) {
   const std::string eta = rate > 0.0 ? human_duration(static_cast<double>(p.budget - p.photons) / rate) : "?";
   char text[256];
   std::snprintf(text, sizeof text, "photons %s / %s (%.0f%%)  rounds %u  unshot %.3g%%  %.1f s  at most %s left",
-                human_count(static_cast<double>(p.photons)).c_str(),
-                human_count(static_cast<double>(p.budget)).c_str(), 100.0 * done, p.rounds,
-                100.0 * p.unshot_fraction, p.seconds, eta.c_str());
+                human_count(static_cast<double>(p.photons)).c_str(), human_count(static_cast<double>(p.budget)).c_str(),
+                100.0 * done, p.rounds, 100.0 * p.unshot_fraction, p.seconds, eta.c_str());
   show(text);
 }
 

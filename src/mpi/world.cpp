@@ -52,7 +52,10 @@ World::~World() {
   MPI_Finalize();
 }
 
-void World::abort(int code) { MPI_Abort(MPI_COMM_WORLD, code); std::abort(); }
+void World::abort(int code) {
+  MPI_Abort(MPI_COMM_WORLD, code);
+  std::abort();
+}
 
 void World::sum(std::span<std::int64_t> values) {
   constexpr std::size_t kPiece = std::size_t{1} << 28;

@@ -2,8 +2,8 @@
 // file renamed over the target), so a failure never leaves a partial picture.
 #pragma once
 
-#include <cstdint>
 #include <atomic>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -14,7 +14,7 @@ namespace flatland::png {
 struct PngImage {
   int width = 0;
   int height = 0;
-  int channels = 3;  // 3 (RGB) or 4 (RGBA)
+  int channels = 3;                  // 3 (RGB) or 4 (RGBA)
   std::vector<std::uint8_t> pixels;  // width * height * channels bytes, rows top to bottom
 };
 

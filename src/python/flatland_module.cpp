@@ -20,18 +20,18 @@
 
 #include <nlohmann/json.hpp>
 
-#include "flatland/results/converge.hpp"
+#include "flatland/base/text.hpp"
+#include "flatland/base/version.hpp"
 #include "flatland/geometry/discontinuities.hpp"
-#include "flatland/transport/footprint.hpp"
-#include "flatland/results/metrics.hpp"
 #include "flatland/reference/reference.hpp"
+#include "flatland/results/converge.hpp"
+#include "flatland/results/metrics.hpp"
 #include "flatland/results/result_io.hpp"
 #include "flatland/results/sampled_result.hpp"
 #include "flatland/scene/scene.hpp"
-#include "flatland/base/text.hpp"
+#include "flatland/transport/footprint.hpp"
 #include "flatland/transport/options.hpp"
 #include "flatland/transport/solver.hpp"
-#include "flatland/base/version.hpp"
 
 namespace py = pybind11;
 
@@ -137,7 +137,8 @@ nlohmann::ordered_json json_of(const py::handle& value, const std::string& place
   if (py::isinstance<py::dict>(value)) {
     nlohmann::ordered_json object = nlohmann::ordered_json::object();
     for (const auto& [key, item] : value.cast<py::dict>()) {
-      if (!py::isinstance<py::str>(key)) fail(where() + "keys must be strings, got " + py::repr(key).cast<std::string>());
+      if (!py::isinstance<py::str>(key))
+        fail(where() + "keys must be strings, got " + py::repr(key).cast<std::string>());
       const std::string text = key.cast<std::string>();
       object[text] = json_of(item, place.empty() ? text : place + "." + text, name, depth + 1);
     }
@@ -146,7 +147,8 @@ nlohmann::ordered_json json_of(const py::handle& value, const std::string& place
   if (py::isinstance<py::list>(value) || py::isinstance<py::tuple>(value)) {
     nlohmann::ordered_json array = nlohmann::ordered_json::array();
     std::size_t i = 0;
-    for (const py::handle item : value) array.push_back(json_of(item, place + "[" + std::to_string(i++) + "]", name, depth + 1));
+    for (const py::handle item : value)
+      array.push_back(json_of(item, place + "[" + std::to_string(i++) + "]", name, depth + 1));
     return array;
   }
   if (py::hasattr(value, "tolist")) return json_of(value.attr("tolist")(), place, name, depth + 1);
@@ -261,7 +263,8 @@ class PySolver {
     for (py::ssize_t i = 0; i < values.shape(0); ++i) {
       const double at = values(i);
       if (!(at >= 0.0 && at <= curve.length))
-        fail("s: arc lengths along '" + curve_id + "' run from 0 to " + std::to_string(curve.length) + ", got " + std::to_string(at));
+        fail("s: arc lengths along '" + curve_id + "' run from 0 to " + std::to_string(curve.length) + ", got " +
+             std::to_string(at));
       const Spectrum b = solver_->radiosity(c, side, point_at_arc_length(*scene_.scene, curve, at).u);
       for (int ch = 0; ch < channels; ++ch) data[i * channels + ch] = b[static_cast<std::size_t>(ch)];
     }
@@ -269,7 +272,8 @@ class PySolver {
   }
   py::array_t<double> coefficients(const std::string& curve_id, bool back) const {
     check_idle();
-    const std::vector<double> b = solver_->radiosity_coefficients(scene_.curve_index(curve_id), back ? Side::Back : Side::Front);
+    const std::vector<double> b =
+        solver_->radiosity_coefficients(scene_.curve_index(curve_id), back ? Side::Back : Side::Front);
     return py::array_t<double>(static_cast<py::ssize_t>(b.size()), b.data());
   }
   py::array_t<double> knots(const std::string& curve_id) const {
@@ -309,7 +313,9 @@ class PySolver {
   // A solve runs with the GIL released, so another Python thread (or the progress callback) could
   // reach the solver meanwhile: it is refused rather than left to read half-written storage.
   void check_idle() const {
-    if (busy_) throw std::runtime_error("this Solver is busy: a run or step is in progress (from another thread or its progress callback)");
+    if (busy_)
+      throw std::runtime_error(
+          "this Solver is busy: a run or step is in progress (from another thread or its progress callback)");
   }
 
   template <typename Work>
@@ -416,10 +422,11 @@ std::string reference(const PyScene& scene, int samples, double max_element_leng
 // document's text (JSON only here, at the edge).
 SampledResult sampled_of(const py::object& value, const char* what, int samples = 100) {
   if (py::isinstance<PySolver>(value)) return value.cast<const PySolver&>().sampled(samples);
-  if (!py::isinstance<py::str>(value)) fail(std::string(what) + ": expected a Solver (a solve) or a result's JSON text");
+  if (!py::isinstance<py::str>(value))
+    fail(std::string(what) + ": expected a Solver (a solve) or a result's JSON text");
   const nlohmann::json document = value_or_fail(parse_result(value.cast<std::string>(), what));
-  return value_or_fail(sampled_from_json(document, std::string("the ") + what,
-                                         std::string(what) == "reference" ? " (reference)" : ""));
+  return value_or_fail(
+      sampled_from_json(document, std::string("the ") + what, std::string(what) == "reference" ? " (reference)" : ""));
 }
 
 py::dict norms(const ErrorNorms& e) {
@@ -435,7 +442,8 @@ py::dict compare(const py::object& result, const py::object& reference, const st
   if (measure != "reflected" && measure != "total") fail("measure: expected reflected or total, got '" + measure + "'");
   Result<Comparison> compared = compare_sampled(sampled_of(result, "result"), sampled_of(reference, "reference"),
                                                 measure == "total" ? Measure::Total : Measure::Reflected);
-  if (!compared && compared.error().message == kNothingReflected) fail(compared.error().message + " (measure=\"total\")");
+  if (!compared && compared.error().message == kNothingReflected)
+    fail(compared.error().message + " (measure=\"total\")");
   const Comparison comparison = value_or_fail(std::move(compared));
   py::dict d;
   d["measure"] = measure;
@@ -463,7 +471,8 @@ py::list converge(const PyScene& scene, const std::vector<std::string>& methods,
   SolverSettings defaults;
   defaults.threads = threads;
   defaults.tolerance = tolerance;
-  if (Status status = set_solve_option(defaults, SolveOption::Elements, option_text(elements, spec_of(SolveOption::Elements)));
+  if (Status status =
+          set_solve_option(defaults, SolveOption::Elements, option_text(elements, spec_of(SolveOption::Elements)));
       !status)
     fail(spelled(status.error().message, Spelling::Python));
   if (!curve.is_none() && !py::isinstance<py::str>(curve))
@@ -512,13 +521,15 @@ py::list converge(const PyScene& scene, const std::vector<std::string>& methods,
   // The reference must be of this scene, sampled as the runs will be: said before any run.
   if (Status status = check_reference_of(document, *scene.scene, samples); !status)
     fail("reference: " + status.error().message +
-         (check_reference_of(document, *scene.scene) ? "; pass samples=" + std::to_string(document.curves[0].samples.size())
-                                                     : std::string()));
+         (check_reference_of(document, *scene.scene)
+              ? "; pass samples=" + std::to_string(document.curves[0].samples.size())
+              : std::string()));
   {
     const Comparison self = value_or_fail(compare_sampled(document, document, measured));
     if (curve_index && !self.curves.at(*curve_index).measured)
       fail("curve: '" + curve.cast<std::string>() + "' has no " + (measured == Measure::Reflected ? "B - E" : "B") +
-           " in the reference, so no relative error" + (measured == Measure::Reflected ? "; use measure=\"total\"" : ""));
+           " in the reference, so no relative error" +
+           (measured == Measure::Reflected ? "; use measure=\"total\"" : ""));
   }
 
   py::list rows;
@@ -548,9 +559,8 @@ py::list converge(const PyScene& scene, const std::vector<std::string>& methods,
         ConvergeRow row = value_or_fail(std::move(*run));
         // The columns of the command line's convergence.csv, with Python's types.
         py::dict d;
-        for (const ConvergeField& field :
-             converge_fields(parsed[m].name, settings, row, measured,
-                             curve.is_none() ? std::string() : curve.cast<std::string>()))
+        for (const ConvergeField& field : converge_fields(parsed[m].name, settings, row, measured,
+                                                          curve.is_none() ? std::string() : curve.cast<std::string>()))
           std::visit([&](const auto& value) { d[field.name] = value; }, field.value);
         rows.append(d);
         if (!progress.is_none()) {
@@ -576,18 +586,23 @@ PYBIND11_MODULE(flatland, m) {
   m.attr("__version__") = program_version();
 
   py::class_<PyScene>(m, "Scene", "A scene (docs/scene-format.md), checked as the command line checks it")
-      .def_static("load", &load, py::arg("path"), "Loads a scene file; ValueError with the one-line message if it is bad")
+      .def_static("load", &load, py::arg("path"),
+                  "Loads a scene file; ValueError with the one-line message if it is bad")
       .def_static("from_dict", &from_dict, py::arg("document"), py::arg("name") = "<dict>",
                   "A scene from a dict in the scene format")
       .def_property_readonly("name", [](const PyScene& s) { return s.scene->name; })
       .def_property_readonly("channels", [](const PyScene& s) { return s.scene->channels; })
-      .def_property_readonly("curves", [](const PyScene& s) {
-        std::vector<std::string> ids;
-        for (const Curve& curve : s.scene->curves) ids.push_back(curve.id);
-        return ids;
-      }, "The curves' ids, in order")
-      .def("length", [](const PyScene& s, const std::string& id) { return s.scene->curves[s.curve_index(id)].length; },
-           py::arg("curve"), "Arc length of a curve")
+      .def_property_readonly(
+          "curves",
+          [](const PyScene& s) {
+            std::vector<std::string> ids;
+            for (const Curve& curve : s.scene->curves) ids.push_back(curve.id);
+            return ids;
+          },
+          "The curves' ids, in order")
+      .def(
+          "length", [](const PyScene& s, const std::string& id) { return s.scene->curves[s.curve_index(id)].length; },
+          py::arg("curve"), "Arc length of a curve")
       .def("__repr__", [](const PyScene& s) {
         return "<flatland.Scene '" + s.scene->name + "': " + std::to_string(s.scene->curves.size()) + " curves>";
       });
@@ -615,12 +630,12 @@ PYBIND11_MODULE(flatland, m) {
       .def("knots", &PySolver::knots, py::arg("curve"), "Knots of the curve's storage B-splines, in u")
       .def_property_readonly("stats", &PySolver::stats)
       .def_property_readonly("scene", &PySolver::scene)
-      .def("to_json", &PySolver::to_json, py::arg("samples") = 100,
-           "The document `flatland solve --out` writes");
+      .def("to_json", &PySolver::to_json, py::arg("samples") = 100, "The document `flatland solve --out` writes");
 
   static const std::string solve_help =
       "Solves a scene (as `flatland solve`: the same options, the same bits for the same seed); returns "
-      "the Solver. progress=callable is called about every quarter second with a dict.\n" + keywords_help();
+      "the Solver. progress=callable is called about every quarter second with a dict.\n" +
+      keywords_help();
   m.def(
       "solve",
       [](const PyScene& scene, py::kwargs keywords) {

@@ -94,8 +94,8 @@ std::vector<CurveTrace> trace_curves(const Scene& scene, int samples_per_segment
 }
 
 PathRecord path_record(const PhotonPath& path, const Scene& scene, std::uint64_t serial, std::uint32_t round) {
-  PathRecord record{serial,      path.origin,    path.end,      path.power,     round,     path.bounce,
-                    path.escaped, path.absorbed,  path.cut,      path.hit_curve, path.hit_side, path.hit_s};
+  PathRecord record{serial,       path.origin,   path.end, path.power,     round,         path.bounce,
+                    path.escaped, path.absorbed, path.cut, path.hit_curve, path.hit_side, path.hit_s};
   if (path.escaped) {
     // Exit from the box: the smallest positive slab distance along the direction.
     const Vec2 d = path.end - path.origin;
@@ -155,11 +155,11 @@ double radiosity_range(const Snapshot& snapshot, ChannelView channel) {
 std::array<float, 3> colour_map(double t) {
   // Piecewise-linear through a few stops of a dark-to-bright sequential map (after "inferno").
   static constexpr std::array<std::array<float, 3>, 6> stops{{{0.0f, 0.0f, 0.02f},
-                                                               {0.17f, 0.04f, 0.38f},
-                                                               {0.47f, 0.11f, 0.43f},
-                                                               {0.78f, 0.25f, 0.27f},
-                                                               {0.97f, 0.56f, 0.04f},
-                                                               {0.99f, 1.0f, 0.64f}}};
+                                                              {0.17f, 0.04f, 0.38f},
+                                                              {0.47f, 0.11f, 0.43f},
+                                                              {0.78f, 0.25f, 0.27f},
+                                                              {0.97f, 0.56f, 0.04f},
+                                                              {0.99f, 1.0f, 0.64f}}};
   t = std::clamp(std::isfinite(t) ? t : 0.0, 0.0, 1.0) * (stops.size() - 1);
   const std::size_t i = std::min(static_cast<std::size_t>(t), stops.size() - 2);
   const auto f = static_cast<float>(t - static_cast<double>(i));
@@ -209,8 +209,8 @@ struct OverlayBuilder {
       const double len = length(d);
       const Vec2 across = len > 0.0 ? Vec2{-d.y / len, d.x / len} : Vec2{0.0, 1.0};
       const Vec2 h = across * (0.5 * width);
-      quad(points[i], points[i + 1], offsets[i] - h, offsets[i] + h, offsets[i + 1] - h,
-           offsets[i + 1] + h, colour, colour);
+      quad(points[i], points[i + 1], offsets[i] - h, offsets[i] + h, offsets[i + 1] - h, offsets[i + 1] + h, colour,
+           colour);
     }
   }
   void square(Vec2 p, float half, const std::array<float, 4>& colour) {
@@ -281,7 +281,8 @@ double render_memory_bound(const Scene& scene, std::size_t paths, int samples_pe
   const double overlay = static_cast<double>(overlay_vertex_bound(scene, samples_per_segment)) * sizeof(LineVertex) +
                          2.0 * (std::size_t{3} << 20) * sizeof(LineVertex);
   // A path: as the solver records it, as the viewer keeps it, and its six vertices, twice.
-  const double path_bytes = static_cast<double>(paths) * (sizeof(PhotonPath) + sizeof(PathRecord) + 12.0 * sizeof(LineVertex));
+  const double path_bytes =
+      static_cast<double>(paths) * (sizeof(PhotonPath) + sizeof(PathRecord) + 12.0 * sizeof(LineVertex));
   return traces + overlay + path_bytes;
 }
 
@@ -295,8 +296,8 @@ std::vector<LineVertex> build_overlay(const Snapshot& snapshot, const DrawOption
   std::size_t marks = 0;
   for (const std::vector<NodeMark>& nodes : snapshot.nodes) marks += nodes.size();
   vertices.reserve(overlay_vertex_bound(scene, snapshot.traces->empty() || (*snapshot.traces)[0].points.empty()
-                                                    ? 48
-                                                    : traced_samples_per_segment(scene, *snapshot.traces)) +
+                                                   ? 48
+                                                   : traced_samples_per_segment(scene, *snapshot.traces)) +
                    6 * marks + 6 * 256);
   OverlayBuilder out{vertices};
   const double range = radiosity_range(snapshot, options.channel) / std::max(options.band_exposure, 1e-6f);
@@ -334,15 +335,15 @@ std::vector<LineVertex> build_overlay(const Snapshot& snapshot, const DrawOption
           const double height = 10.0 + options.graph_height * std::clamp(value / range, 0.0, 1.5);
           offsets[i] = trace.normals[i] * (sign * height);
         }
-        const std::array<float, 4> colour = selected ? std::array<float, 4>{1.0f, 0.85f, 0.3f, 1.0f}
-                                                     : std::array<float, 4>{0.55f, 0.85f, 1.0f, 0.85f};
+        const std::array<float, 4> colour =
+            selected ? std::array<float, 4>{1.0f, 0.85f, 0.3f, 1.0f} : std::array<float, 4>{0.55f, 0.85f, 1.0f, 0.85f};
         out.stroke(trace.points, offsets, selected ? 2.0f : 1.5f, colour);
       }
     }
     if (options.curves) {
       std::vector<Vec2> zero(n, Vec2{0.0, 0.0});
-      const std::array<float, 4> colour = selected ? std::array<float, 4>{1.0f, 0.85f, 0.3f, 1.0f}
-                                                   : std::array<float, 4>{0.85f, 0.85f, 0.85f, 1.0f};
+      const std::array<float, 4> colour =
+          selected ? std::array<float, 4>{1.0f, 0.85f, 0.3f, 1.0f} : std::array<float, 4>{0.85f, 0.85f, 0.85f, 1.0f};
       out.stroke(trace.points, zero, selected ? 3.0f : 2.0f, colour);
     }
     if (c < snapshot.nodes.size()) {
@@ -379,8 +380,9 @@ std::vector<LineVertex> build_overlay(const Snapshot& snapshot, const DrawOption
       }
       if (hop.escaped) continue;  // it leaves the scene's box: nothing marks the end
       out.square(hop.to, 4.5f, dark);
-      out.square(hop.to, 3.0f, hop.absorbed ? std::array<float, 4>{1.0f, 0.25f, 0.2f, 1.0f}
-                                            : std::array<float, 4>{1.0f, 1.0f, 1.0f, 1.0f});
+      out.square(
+          hop.to, 3.0f,
+          hop.absorbed ? std::array<float, 4>{1.0f, 0.25f, 0.2f, 1.0f} : std::array<float, 4>{1.0f, 1.0f, 1.0f, 1.0f});
       if (hop.absorbed) {  // a cross where the walk ended
         const std::array<float, 4> red{1.0f, 0.25f, 0.2f, 1.0f};
         // Two bars: quad(a, b, a_lo, a_hi, b_lo, b_hi) takes the lo offsets on one long edge.
@@ -395,8 +397,7 @@ std::vector<LineVertex> build_overlay(const Snapshot& snapshot, const DrawOption
       const bool hovered = static_cast<int>(i) == options.hovered_control_point;
       out.square(points[i].position, hovered ? 6.0f : 4.0f, {0.1f, 0.1f, 0.1f, 1.0f});
       out.square(points[i].position, hovered ? 4.5f : 3.0f,
-                 hovered ? std::array<float, 4>{1.0f, 0.9f, 0.2f, 1.0f}
-                         : std::array<float, 4>{1.0f, 1.0f, 1.0f, 1.0f});
+                 hovered ? std::array<float, 4>{1.0f, 0.9f, 0.2f, 1.0f} : std::array<float, 4>{1.0f, 1.0f, 1.0f, 1.0f});
     }
   }
   return vertices;
@@ -407,11 +408,11 @@ namespace {
 // Saturated, so that a colour survives the tone mapping where many paths of one round overlap:
 // orange, blue, green, magenta, violet, cyan.
 constexpr std::array<std::array<float, 3>, 6> kRoundPalette{{{1.0f, 0.45f, 0.05f},
-                                                           {0.1f, 0.45f, 1.0f},
-                                                           {0.15f, 1.0f, 0.2f},
-                                                           {1.0f, 0.15f, 0.6f},
-                                                           {0.55f, 0.25f, 1.0f},
-                                                           {0.05f, 0.95f, 0.9f}}};
+                                                             {0.1f, 0.45f, 1.0f},
+                                                             {0.15f, 1.0f, 0.2f},
+                                                             {1.0f, 0.15f, 0.6f},
+                                                             {0.55f, 0.25f, 1.0f},
+                                                             {0.05f, 0.95f, 0.9f}}};
 
 }  // namespace
 
@@ -425,8 +426,7 @@ bool same_view(const ViewTransform& a, const ViewTransform& b) {
 
 }  // namespace
 
-PathInstance PathLayer::instance(const Entry& entry, double factor, int channels,
-                                 const DrawOptions& options) const {
+PathInstance PathLayer::instance(const Entry& entry, double factor, int channels, const DrawOptions& options) const {
   const PathRecord& path = entry.path;
   std::array<float, 3> colour{1.0f, 1.0f, 1.0f};
   if (options.path_colour == PathColour::Round) {
@@ -440,8 +440,15 @@ PathInstance PathLayer::instance(const Entry& entry, double factor, int channels
       for (std::size_t k = 0; k < 3; ++k) colour[k] = static_cast<float>(path.power[k] / mean);
   }
   const auto w = static_cast<float>(entry.weight * factor);
-  return {static_cast<float>(path.from.x), static_cast<float>(path.from.y), static_cast<float>(path.to.x),
-          static_cast<float>(path.to.y), colour[0] * w, colour[1] * w, colour[2] * w, 1.0f, 0.0f};
+  return {static_cast<float>(path.from.x),
+          static_cast<float>(path.from.y),
+          static_cast<float>(path.to.x),
+          static_cast<float>(path.to.y),
+          colour[0] * w,
+          colour[1] * w,
+          colour[2] * w,
+          1.0f,
+          0.0f};
 }
 
 PathDraw PathLayer::update(const Snapshot& snapshot, const DrawOptions& options, const ViewTransform& view,
@@ -489,7 +496,8 @@ PathDraw PathLayer::update(const Snapshot& snapshot, const DrawOptions& options,
     any_ = true;
     ++arrived;
   }
-  if (arrived > 0 && rate > 0.0 && !draw.clear) draw.decay = static_cast<float>(std::exp(-rate * static_cast<double>(arrived)));
+  if (arrived > 0 && rate > 0.0 && !draw.clear)
+    draw.decay = static_cast<float>(std::exp(-rate * static_cast<double>(arrived)));
   const std::uint64_t now = arrivals_ == 0 ? 0 : arrivals_ - 1;
   auto factor = [&](const Entry& entry) { return std::exp(-rate * static_cast<double>(now - entry.birth)); };
   // Departures: beyond the last `keep`, subtracted if they were drawn.
@@ -542,8 +550,8 @@ std::vector<ControlPointRef> control_point_list(const Scene& scene) {
   return points;
 }
 
-std::optional<std::uint32_t> pick_curve(const std::vector<CurveTrace>& traces, const ViewTransform& view,
-                                        Vec2 pixel, double radius) {
+std::optional<std::uint32_t> pick_curve(const std::vector<CurveTrace>& traces, const ViewTransform& view, Vec2 pixel,
+                                        double radius) {
   std::optional<std::uint32_t> best;
   double best_distance = radius;
   for (std::uint32_t c = 0; c < traces.size(); ++c) {

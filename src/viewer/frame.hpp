@@ -86,8 +86,8 @@ struct PathRecord {
   std::uint32_t round = 0;
   std::uint32_t bounce = 0;  // reflections before this flight (PhotonPath::bounce)
   bool escaped = false;
-  bool absorbed = false;     // a walk ended where this flight landed
-  bool cut = false;          // the walk went on, unrecorded (the record was full)
+  bool absorbed = false;  // a walk ended where this flight landed
+  bool cut = false;       // the walk went on, unrecorded (the record was full)
   // Where it landed (not escaped): the curve, the side and the arc length along the curve.
   std::uint32_t hit_curve = 0;
   Side hit_side = Side::Front;
@@ -129,7 +129,7 @@ struct Snapshot {
   // Against a loaded reference: the error so far (relative L2 of B over the scene), its history
   // against elapsed solve time, and the reference's B samples per curve (luminance, main side).
   std::optional<double> reference_error;
-  std::vector<std::array<double, 2>> error_history;  // {seconds, rel_l2}
+  std::vector<std::array<double, 2>> error_history;                  // {seconds, rel_l2}
   std::vector<std::vector<std::array<double, 2>>> reference_curves;  // per curve {s, B}
 };
 
@@ -159,7 +159,7 @@ std::array<float, 3> path_palette(std::uint32_t index);
 
 struct DrawOptions {
   bool curves = true;
-  bool band = true;           // colour-mapped band of B along each lit side
+  bool band = true;  // colour-mapped band of B along each lit side
   // B(s) as a graph offset along the normal: off by default (drawn beside the curves it reads as
   // more geometry); the curve panel plots B(s) with axes instead.
   bool graph = false;
@@ -212,11 +212,11 @@ std::pair<std::size_t, std::size_t> newest_journey(const std::vector<PathRecord>
 
 // What the path buffer does this frame (see PathLayer).
 struct PathDraw {
-  bool clear = false;    // start from an empty buffer
-  float decay = 1.0f;    // multiply the accumulated light by this first (fading by age)
+  bool clear = false;                   // start from an empty buffer
+  float decay = 1.0f;                   // multiply the accumulated light by this first (fading by age)
   std::vector<PathInstance> instances;  // then add these; a negative colour removes a path
-  bool lines = true;     // point rays: 1-pixel lines; extended rays: quads as wide as the ray
-  float normalisation = 1.0f;  // exposure factor that makes the average lit pixel about 1
+  bool lines = true;                    // point rays: 1-pixel lines; extended rays: quads as wide as the ray
+  float normalisation = 1.0f;           // exposure factor that makes the average lit pixel about 1
 };
 
 // The photon paths on screen, kept in a floating-point buffer that is updated incrementally: a
@@ -227,8 +227,8 @@ struct PathDraw {
 // from the kept paths over the next frames, newest first.
 class PathLayer {
  public:
-  PathDraw update(const Snapshot& snapshot, const DrawOptions& options, const ViewTransform& view,
-                  std::size_t keep, std::size_t budget);
+  PathDraw update(const Snapshot& snapshot, const DrawOptions& options, const ViewTransform& view, std::size_t keep,
+                  std::size_t budget);
   void invalidate() { valid_ = false; }
   std::size_t drawn() const { return drawn_; }  // paths in the buffer now
 
@@ -263,7 +263,7 @@ struct ControlPointRef {
 std::vector<ControlPointRef> control_point_list(const Scene& scene);
 
 // The curve nearest to `pixel` within `radius` pixels, if any.
-std::optional<std::uint32_t> pick_curve(const std::vector<CurveTrace>& traces, const ViewTransform& view,
-                                        Vec2 pixel, double radius = 6.0);
+std::optional<std::uint32_t> pick_curve(const std::vector<CurveTrace>& traces, const ViewTransform& view, Vec2 pixel,
+                                        double radius = 6.0);
 
 }  // namespace flatland::viewer

@@ -26,19 +26,19 @@ Result<std::unique_ptr<OffscreenContext>> OffscreenContext::create(int width, in
   if (epoxy_has_egl_extension(EGL_NO_DISPLAY, "EGL_MESA_platform_surfaceless"))
     display = eglGetPlatformDisplayEXT(EGL_PLATFORM_SURFACELESS_MESA, EGL_DEFAULT_DISPLAY, nullptr);
   if (display == EGL_NO_DISPLAY)
-    return Error{"no offscreen OpenGL: EGL has no surfaceless platform (install Mesa's libegl-mesa0 "
-                 "and libgl1-mesa-dri)"};
+    return Error{
+        "no offscreen OpenGL: EGL has no surfaceless platform (install Mesa's libegl-mesa0 "
+        "and libgl1-mesa-dri)"};
   EGLint major = 0;
   EGLint minor = 0;
   if (eglInitialize(display, &major, &minor) != EGL_TRUE)
     return Error{"no offscreen OpenGL: eglInitialize failed (" + egl_error() + ")"};
   result->display_ = display;
-  if (!epoxy_has_egl_extension(display, "EGL_KHR_surfaceless_context") ||
-      eglBindAPI(EGL_OPENGL_API) != EGL_TRUE)
+  if (!epoxy_has_egl_extension(display, "EGL_KHR_surfaceless_context") || eglBindAPI(EGL_OPENGL_API) != EGL_TRUE)
     return Error{"no offscreen OpenGL: EGL cannot make a desktop OpenGL context without a surface"};
-  const EGLint attributes[] = {EGL_CONTEXT_MAJOR_VERSION, 3, EGL_CONTEXT_MINOR_VERSION, 3,
-                               EGL_CONTEXT_OPENGL_PROFILE_MASK, EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT,
-                               EGL_NONE};
+  const EGLint attributes[] = {
+      EGL_CONTEXT_MAJOR_VERSION,           3,       EGL_CONTEXT_MINOR_VERSION, 3, EGL_CONTEXT_OPENGL_PROFILE_MASK,
+      EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT, EGL_NONE};
   EGLConfig config = nullptr;  // EGL_NO_CONFIG_KHR: a surfaceless context needs none
   EGLint configs = 0;
   const EGLint wanted[] = {EGL_RENDERABLE_TYPE, EGL_OPENGL_BIT, EGL_NONE};

@@ -17,10 +17,7 @@ namespace flatland::viewer {
 
 namespace {
 
-
-const char* continuity_name(Continuity c) {
-  return c == Continuity::Jump ? "C-1" : c == Continuity::C0 ? "C0" : "C1";
-}
+const char* continuity_name(Continuity c) { return c == Continuity::Jump ? "C-1" : c == Continuity::C0 ? "C0" : "C1"; }
 
 const char* const kHelp[][2] = {
     {"Space", "run / pause"},
@@ -42,8 +39,9 @@ const char* const kHelp[][2] = {
     {"F5", "reload the scene file"},
     {"F1 / H", "this help"},
     {"Esc", "quit"},
-    {"Mouse", "wheel: zoom; right or middle drag, or left drag on empty space: pan; click a "
-              "curve: inspect it"},
+    {"Mouse",
+     "wheel: zoom; right or middle drag, or left drag on empty space: pan; click a "
+     "curve: inspect it"},
 };
 
 }  // namespace
@@ -250,9 +248,10 @@ void Viewer::draw_solve_panel(const Snapshot& snapshot) {
   if (ImGui::Button("First photons")) first_photons();
   track("First photons");
   if (ImGui::IsItemHovered())
-    ImGui::SetTooltip("A lecture preset: random walks, one every %.1f s, coloured by bounce,\n"
-                      "the newest journey on top (Space runs on, '.' steps by hand)",
-                      kFirstPhotonsSeconds);
+    ImGui::SetTooltip(
+        "A lecture preset: random walks, one every %.1f s, coloured by bounce,\n"
+        "the newest journey on top (Space runs on, '.' steps by hand)",
+        kFirstPhotonsSeconds);
   ImGui::Separator();
 
   bool changed = false;
@@ -296,8 +295,9 @@ void Viewer::draw_solve_panel(const Snapshot& snapshot) {
   changed = option_combo(SolveOption::Estimator) || changed;
   changed = option_combo(SolveOption::Transport) || changed;
   if (ImGui::IsItemHovered())
-    ImGui::SetTooltip("shooting: rounds of one hop each (the paper's method)\n"
-                      "walk: each photon a whole random walk, ended by Russian roulette");
+    ImGui::SetTooltip(
+        "shooting: rounds of one hop each (the paper's method)\n"
+        "walk: each photon a whole random walk, ended by Russian roulette");
   // Ray width as a fraction of the scene's size; profile and mode only matter for wide rays.
   float width = static_cast<float>(settings_.ray_width / scene_->scale);
   if (ImGui::SliderFloat("ray width", &width, 0.0f, 0.2f, width == 0.0f ? "point rays" : "%.4f x scale",
@@ -317,13 +317,14 @@ void Viewer::draw_solve_panel(const Snapshot& snapshot) {
     changed = true;
   }
   if (changed) {
-    if (Status valid = validate(settings_); valid) restart();
-    else set_message(valid.error().message);
+    if (Status valid = validate(settings_); valid)
+      restart();
+    else
+      set_message(valid.error().message);
   }
   if (!snapshot.error.empty()) ImGui::TextColored(ImVec4(1, 0.4f, 0.4f, 1), "%s", snapshot.error.c_str());
   ImGui::End();
 }
-
 
 // The key of the band's colours: the colour scale from 0 to the band's range with its values,
 // in the units of B (power per unit length, in the scene's emittance units).
@@ -353,8 +354,9 @@ void Viewer::draw_colour_key(const Snapshot& snapshot) {
     char label[32];
     std::snprintf(label, sizeof label, "%.3g", v);
     const float text_width = ImGui::CalcTextSize(label).x;
-    draw->AddText(ImVec2(std::clamp(x - 0.5f * text_width, origin.x, origin.x + width - text_width), origin.y + height + 4.0f),
-                  IM_COL32(220, 220, 220, 255), label);
+    draw->AddText(
+        ImVec2(std::clamp(x - 0.5f * text_width, origin.x, origin.x + width - text_width), origin.y + height + 4.0f),
+        IM_COL32(220, 220, 220, 255), label);
   }
   ImGui::Dummy(ImVec2(width, ImGui::GetTextLineHeight() + 6.0f));
   ImGui::PushStyleColor(ImGuiCol_Text, ImGui::GetStyle().Colors[ImGuiCol_TextDisabled]);
@@ -375,8 +377,9 @@ void Viewer::draw_display_panel(const Snapshot& snapshot) {
   ImGui::SameLine();
   changed |= ImGui::Checkbox("graph", &draw_.graph);
   if (ImGui::IsItemHovered())
-    ImGui::SetTooltip("B drawn as a graph along each lit side's normal: a side's curve is its\n"
-                      "baseline, the graph's height is proportional to B (graph height = the key's end)");
+    ImGui::SetTooltip(
+        "B drawn as a graph along each lit side's normal: a side's curve is its\n"
+        "baseline, the graph's height is proportional to B (graph height = the key's end)");
   ImGui::SameLine();
   changed |= ImGui::Checkbox("paths", &draw_.paths);
   changed |= ImGui::Checkbox("control points", &draw_.control_points);
@@ -394,9 +397,10 @@ void Viewer::draw_display_panel(const Snapshot& snapshot) {
   if (draw_.paths) {
     changed |= ImGui::Checkbox("newest journey", &draw_.journey);
     if (ImGui::IsItemHovered())
-      ImGui::SetTooltip("The newest photon on top of the kept paths: hops numbered and coloured by\n"
-                        "bounce, an arrow for the direction, a white square where it landed, a red\n"
-                        "cross where a walk was absorbed (--transport walk shows whole journeys)");
+      ImGui::SetTooltip(
+          "The newest photon on top of the kept paths: hops numbered and coloured by\n"
+          "bounce, an arrow for the direction, a white square where it landed, a red\n"
+          "cross where a walk was absorbed (--transport walk shows whole journeys)");
     ImGui::SliderFloat("path exposure", &draw_.path_exposure, 0.05f, 50.0f, "%.2f", ImGuiSliderFlags_Logarithmic);
     float keep = static_cast<float>(keep_slider_);
     if (ImGui::SliderFloat("paths kept", &keep, 0.0f, 200000.0f, "%.0f", ImGuiSliderFlags_Logarithmic)) {
@@ -431,15 +435,14 @@ void Viewer::draw_status_panel(const Snapshot& snapshot) {
   ImGui::Text("scene    %s (%s)", scene_->name.c_str(), scene_->channels == 1 ? "grey" : "colour");
   ImGui::Text("photons  %llu of %llu", static_cast<unsigned long long>(snapshot.progress.photons),
               static_cast<unsigned long long>(settings_.photons));
-  ImGui::Text("rounds   %u%s", snapshot.progress.rounds,
-              snapshot.round_photons > 0 ? " (+ one open)" : "");
+  ImGui::Text("rounds   %u%s", snapshot.progress.rounds, snapshot.round_photons > 0 ? " (+ one open)" : "");
   if (snapshot.round_photons > 0)
     ImGui::ProgressBar(static_cast<float>(snapshot.round_done) / static_cast<float>(snapshot.round_photons),
                        ImVec2(-1, 0), "open round");
   ImGui::Text("rate     %.3g photons/s", snapshot.photons_per_second);
   ImGui::Text("state    %s", snapshot.stop_reason != StopReason::Running ? to_string(snapshot.stop_reason)
-                               : session_->running()                       ? "running"
-                                                                           : "paused");
+                             : session_->running()                       ? "running"
+                                                                         : "paused");
   const EnergyBooks& books = snapshot.books;
   if (books.emitted > 0.0) {
     ImGui::Text("emitted  %.6g", books.emitted);
@@ -497,7 +500,9 @@ void draw_curve_facts(const Scene& scene, const Snapshot& snapshot, std::size_t 
     ImGui::Text("emits    %.3g %.3g %.3g per unit length", curve.emittance[0], curve.emittance[1], curve.emittance[2]);
   ImGui::Text("length   %.6g, %u %s segment%s, sides %s", curve.length, curve.segment_count,
               curve.kind == SegmentKind::Line ? "straight" : "cubic", curve.segment_count == 1 ? "" : "s",
-              curve.sides == Sides::Both ? "both" : curve.sides == Sides::Front ? "front" : "back");
+              curve.sides == Sides::Both    ? "both"
+              : curve.sides == Sides::Front ? "front"
+                                            : "back");
   if (c < snapshot.received_share.size())
     ImGui::Text("share    %.2f%% of all reflected power", 100.0 * snapshot.received_share[c]);
 }
@@ -546,8 +551,7 @@ std::vector<PlotLine> plot_lines(const Snapshot& snapshot, std::size_t c, const 
 
 // The B at the top of the plot: a tenth above the highest B of the lines and the reference, 1 when
 // none is above zero.
-double plot_top(const std::vector<PlotLine>& lines, const std::vector<std::array<double, 2>>* reference,
-                int channels) {
+double plot_top(const std::vector<PlotLine>& lines, const std::vector<std::array<double, 2>>* reference, int channels) {
   double hi = 0.0;
   for (const PlotLine& line : lines)
     for (const Spectrum& b : *line.samples) hi = std::max(hi, luminance(b, channels));
@@ -706,7 +710,7 @@ void Viewer::draw_curve_plot(const Snapshot& snapshot, std::size_t c) {
   if (lines.empty()) return;
   const std::vector<std::array<double, 2>>* reference =
       c < snapshot.reference_curves.size() && !snapshot.reference_curves[c].empty() ? &snapshot.reference_curves[c]
-                                                                                   : nullptr;
+                                                                                    : nullptr;
   const double hi = plot_top(lines, reference, scene_->channels);
   draw_plot_legend(lines, reference != nullptr, main_side);
   // Where the newest journey's hops landed on this curve (its deposits): hop number and record.
@@ -729,8 +733,9 @@ void Viewer::draw_curve_plot(const Snapshot& snapshot, std::size_t c) {
   draw_plot_landings(plot, landings);
   draw->PopClipRect();
   if (!landings.empty())
-    ImGui::TextWrapped("Triangles: where the newest journey's hops (numbered as on the stage) landed on this "
-                       "curve and left their deposits.");
+    ImGui::TextWrapped(
+        "Triangles: where the newest journey's hops (numbered as on the stage) landed on this "
+        "curve and left their deposits.");
   ImGui::TextWrapped("B (power per unit length) against s (arc length from the first point)%s",
                      scene_->channels == 3 ? "; mean of r, g, b" : "");
 }

@@ -6,8 +6,8 @@
 #include <cmath>
 #include <cstddef>
 #include <fstream>
-#include <string>
 #include <sstream>
+#include <string>
 #include <utility>
 
 namespace flatland::viewer {

@@ -64,8 +64,8 @@ void describe_solver(const Solver& solver, const std::vector<CurveTrace>& traces
     total_reflected += snapshot.received_share[c];
     const Curve& curve = scene.curves[c];
     for (const MeshNode& node : solver.storage(c).nodes) {
-      const auto segment = static_cast<std::uint32_t>(
-          std::clamp(std::floor(node.u), 0.0, static_cast<double>(curve.segment_count - 1)));
+      const auto segment =
+          static_cast<std::uint32_t>(std::clamp(std::floor(node.u), 0.0, static_cast<double>(curve.segment_count - 1)));
       const double t = node.u - segment;
       const bool joint = t == 0.0 || t == 1.0;
       const SceneSegment& piece = scene.segments[curve.first_segment + segment];
@@ -76,8 +76,8 @@ void describe_solver(const Solver& solver, const std::vector<CurveTrace>& traces
     // A closed curve is one loop: its closing point is a node too (C1 or C0 where the storage wraps
     // round, C-1 at a corner or a seam).
     if (curve.closed)
-      snapshot.nodes[c].push_back({scene.segments[curve.first_segment].geometry.shape.p[0], curve.length,
-                                   solver.storage(c).closing, false});
+      snapshot.nodes[c].push_back(
+          {scene.segments[curve.first_segment].geometry.shape.p[0], curve.length, solver.storage(c).closing, false});
   }
   if (total_reflected > 0.0)
     for (double& share : snapshot.received_share) share /= total_reflected;
@@ -195,12 +195,11 @@ void Session::publish(const Solver* solver, const std::vector<PathRecord>& new_p
         last_error_time_ = now;
         const int samples = reference_samples(*reference);
         if (samples > 0) {
-          Result<Comparison> comparison =
-              compare_sampled(sample_radiosity(solver->scene(), samples,
-                                               [solver](std::uint32_t c, Side side, double u) {
-                                                 return solver->radiosity(c, side, u);
-                                               }),
-                              *reference);
+          Result<Comparison> comparison = compare_sampled(
+              sample_radiosity(
+                  solver->scene(), samples,
+                  [solver](std::uint32_t c, Side side, double u) { return solver->radiosity(c, side, u); }),
+              *reference);
           if (comparison) {
             reference_error_ = comparison->scene.l2;
             if (error_history_.empty() || error_history_.back()[0] != now)
@@ -282,8 +281,10 @@ void Session::start_solve(std::shared_ptr<const Scene> scene, const SolverSettin
   error_.clear();
   if (scene_) {
     Result<Solver> created = Solver::create(*scene_, settings);
-    if (created) solver_.emplace(std::move(*created));
-    else error_ = created.error().message;
+    if (created)
+      solver_.emplace(std::move(*created));
+    else
+      error_ = created.error().message;
   }
   publish(solver_ ? &*solver_ : nullptr, {}, true);
   std::lock_guard relock(mutex_);
@@ -330,8 +331,7 @@ void Session::shoot_piece(const Piece& piece) {
   // about as many as a frame can draw (a subset of the photons is what the eye can follow anyway).
   const std::size_t recorded =
       piece.stepping ? piece.path_limit : std::min<std::size_t>(piece.path_limit, kPathsPerStep);
-  const std::uint64_t shot =
-      solver.step_photons(piece.count, &cancel_, recorded > 0 ? &shot_paths : nullptr, recorded);
+  const std::uint64_t shot = solver.step_photons(piece.count, &cancel_, recorded > 0 ? &shot_paths : nullptr, recorded);
   const double seconds = std::chrono::duration<double>(Clock::now() - start).count();
   if (shot >= Solver::kBatchSize) adapt_chunk(solver, shot, seconds);
   solver.include_open_round();
@@ -348,8 +348,7 @@ void Session::shoot_piece(const Piece& piece) {
 void Session::adapt_chunk(const Solver& solver, std::uint64_t shot, double seconds) {
   // About kPieceSeconds a piece, in whole batches, at least one per thread.
   const double rate = static_cast<double>(shot) / std::max(seconds, 1e-6);
-  const auto batches =
-      static_cast<std::uint64_t>(std::clamp(rate * kPieceSeconds / Solver::kBatchSize, 1.0, 1024.0));
+  const auto batches = static_cast<std::uint64_t>(std::clamp(rate * kPieceSeconds / Solver::kBatchSize, 1.0, 1024.0));
   chunk_ = std::max<std::uint64_t>(batches, solver.thread_count()) * Solver::kBatchSize;
 }
 
@@ -360,8 +359,10 @@ void Session::count_step(const Piece& piece, const Solver& solver, std::uint64_t
   const bool boundary = piece.kind == StepKind::Photon  ? true
                         : piece.kind == StepKind::Batch ? solver.round_photons_done() % Solver::kBatchSize == 0
                                                         : !solver.round_open();
-  if (piece.kind == StepKind::Photon) step.count -= std::min(step.count, shot);
-  else if (boundary) --step.count;
+  if (piece.kind == StepKind::Photon)
+    step.count -= std::min(step.count, shot);
+  else if (boundary)
+    --step.count;
   if (shot == 0 || step.count == 0 || !can_run_) steps_.pop_front();
 }
 

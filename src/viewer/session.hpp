@@ -108,7 +108,7 @@ class Session {
   std::uint64_t next_step_id_ = 0;
   bool reference_changed_ = false;
   bool running_ = false;
-  bool busy_ = false;  // the worker is executing a command
+  bool busy_ = false;             // the worker is executing a command
   bool refresh_pending_ = false;  // publish again (the reference changed)
   bool can_run_ = false;          // a solver exists and has not stopped
   std::size_t path_limit_ = 20'000;

@@ -17,8 +17,8 @@
 #include <limits>
 #include <thread>
 
-#include "png/png_io.hpp"
 #include "flatland/results/result_io.hpp"
+#include "png/png_io.hpp"
 #include "viewer/renderer.hpp"
 
 namespace flatland::viewer {
@@ -39,7 +39,6 @@ std::int64_t file_time(const std::string& path) {
   if (error) return 0;
   return static_cast<std::int64_t>(time.time_since_epoch().count());
 }
-
 
 }  // namespace
 
@@ -85,12 +84,11 @@ Result<FrameStep> parse_frame_step(const std::string& text) {
   if (text == "live") return step;
   const std::size_t equals = text.find('=');
   const std::string kind = text.substr(0, equals);
-  if (equals == std::string::npos ||
-      (kind != "photons" && kind != "batches" && kind != "rounds"))
+  if (equals == std::string::npos || (kind != "photons" && kind != "batches" && kind != "rounds"))
     return Error{"--step: expected live, photons=N, batches=N or rounds=N, got '" + text + "'"};
   Result<std::uint64_t> count = parse_whole_number(text.substr(equals + 1), "--step " + kind);
   if (!count) return count.error();
-  step.mode = kind == "photons" ? FrameStep::Mode::Photons
+  step.mode = kind == "photons"   ? FrameStep::Mode::Photons
               : kind == "batches" ? FrameStep::Mode::Batches
                                   : FrameStep::Mode::Rounds;
   step.count = *count;
@@ -179,7 +177,8 @@ Result<std::shared_ptr<const SampledResult>> Viewer::load_reference(const ViewOp
   if (!read) return Error{"--reference: " + read.error().message};
   nlohmann::json document = std::move(*read);
   if (!document.contains("curves") || !document["curves"].is_array())
-    return Error{options.reference + ": not a flatland result (no \"curves\"; write one with 'flatland reference SCENE --out FILE')"};
+    return Error{options.reference +
+                 ": not a flatland result (no \"curves\"; write one with 'flatland reference SCENE --out FILE')"};
   Result<SampledResult> sampled = sampled_from_json(document, "the reference");
   if (!sampled) return Error{"--reference: " + options.reference + ": " + sampled.error().message};
   // The same scene: its curves, by id, in order (compare checks the rest as the solve goes).
@@ -197,15 +196,15 @@ Result<std::unique_ptr<Viewer::Impl>> Viewer::open_window(const ViewOptions& opt
   const char* requested = std::getenv("SDL_VIDEODRIVER");
   const auto set = [](const char* name) { return std::getenv(name) != nullptr && *std::getenv(name) != '\0'; };
   if (!set("DISPLAY") && !set("WAYLAND_DISPLAY") && requested == nullptr)
-    return Error{"cannot open a display (DISPLAY and WAYLAND_DISPLAY are not set); use 'flatland "
-                 "render SCENE --out FILE.png' for a picture without one, or run under xvfb-run"};
+    return Error{
+        "cannot open a display (DISPLAY and WAYLAND_DISPLAY are not set); use 'flatland "
+        "render SCENE --out FILE.png' for a picture without one, or run under xvfb-run"};
   // With only DISPLAY set, ask for X11 alone: otherwise SDL also tries Wayland, whose library
   // prints its own complaint about XDG_RUNTIME_DIR, and then falls back to its offscreen driver.
   const std::string display = set("DISPLAY") ? std::getenv("DISPLAY") : "";
   if (requested == nullptr && !set("WAYLAND_DISPLAY")) SDL_SetHint(SDL_HINT_VIDEODRIVER, "x11");
-  const std::string cannot_open =
-      display.empty() ? std::string("cannot open the Wayland display")
-                      : "cannot open the display '" + display + "' (DISPLAY)";
+  const std::string cannot_open = display.empty() ? std::string("cannot open the Wayland display")
+                                                  : "cannot open the display '" + display + "' (DISPLAY)";
   auto impl = std::make_unique<Impl>();
   if (SDL_Init(SDL_INIT_VIDEO) != 0)
     return Error{cannot_open + ": " + SDL_GetError() +
@@ -215,7 +214,8 @@ Result<std::unique_ptr<Viewer::Impl>> Viewer::open_window(const ViewOptions& opt
   if (driver != nullptr && (std::string(driver) == "offscreen" || std::string(driver) == "dummy") &&
       (requested == nullptr || std::string(requested) != driver)) {
     SDL_Quit();
-    return Error{cannot_open + "; use 'flatland render SCENE --out FILE.png' for a picture "
+    return Error{cannot_open +
+                 "; use 'flatland render SCENE --out FILE.png' for a picture "
                  "without one, or run under xvfb-run"};
   }
   SDL_GL_SetAttribute(SDL_GL_CONTEXT_MAJOR_VERSION, 3);
@@ -223,11 +223,9 @@ Result<std::unique_ptr<Viewer::Impl>> Viewer::open_window(const ViewOptions& opt
   SDL_GL_SetAttribute(SDL_GL_CONTEXT_PROFILE_MASK, SDL_GL_CONTEXT_PROFILE_CORE);
   SDL_GL_SetAttribute(SDL_GL_DOUBLEBUFFER, 1);
   const std::string title = "flatland - " + scene_->name;
-  impl->window = SDL_CreateWindow(title.c_str(), SDL_WINDOWPOS_CENTERED, SDL_WINDOWPOS_CENTERED,
-                                  options.width, options.height,
-                                  SDL_WINDOW_OPENGL | SDL_WINDOW_RESIZABLE);
-  if (impl->window == nullptr)
-    return Error{std::string("cannot open a window: ") + SDL_GetError()};
+  impl->window = SDL_CreateWindow(title.c_str(), SDL_WINDOWPOS_CENTERED, SDL_WINDOWPOS_CENTERED, options.width,
+                                  options.height, SDL_WINDOW_OPENGL | SDL_WINDOW_RESIZABLE);
+  if (impl->window == nullptr) return Error{std::string("cannot open a window: ") + SDL_GetError()};
   impl->context = SDL_GL_CreateContext(impl->window);
   if (impl->context == nullptr)
     return Error{std::string("cannot create an OpenGL 3.3 core context: ") + SDL_GetError()};
@@ -240,9 +238,8 @@ Result<std::unique_ptr<Viewer::Impl>> Viewer::open_window(const ViewOptions& opt
 Status Viewer::create_renderer(Impl& impl, const ViewOptions& options) {
   // Mesa's software rasterisers (llvmpipe, softpipe) share the CPU with the solver.
   const auto* gl_renderer = reinterpret_cast<const char*>(glGetString(GL_RENDERER));
-  software_renderer_ =
-      gl_renderer != nullptr && (std::strstr(gl_renderer, "llvmpipe") != nullptr ||
-                                 std::strstr(gl_renderer, "softpipe") != nullptr);
+  software_renderer_ = gl_renderer != nullptr && (std::strstr(gl_renderer, "llvmpipe") != nullptr ||
+                                                  std::strstr(gl_renderer, "softpipe") != nullptr);
   Result<std::unique_ptr<Renderer>> renderer = Renderer::create(options.shader_directory, 0.5f);
   if (!renderer) return renderer.error();
   impl.renderer = std::move(*renderer);
@@ -288,9 +285,7 @@ Viewer::~Viewer() {
   session_.reset();  // stop the worker before the GL context goes
 }
 
-void Viewer::restart() {
-  session_->restart(scene_, settings_);
-}
+void Viewer::restart() { session_->restart(scene_, settings_); }
 
 void Viewer::set_message(std::string text) {
   message_ = std::move(text);
@@ -401,7 +396,8 @@ void Viewer::handle_key(int key, bool ctrl) {
       if (ctrl) {
         const std::string name = "flatland-" + scene_->name + "-result.json";
         Result<nlohmann::json> result = session_->result_json(100);
-        Status saved = result ? write_file_atomically(name, json_text(*result), options_.cancel) : Status(result.error());
+        Status saved =
+            result ? write_file_atomically(name, json_text(*result), options_.cancel) : Status(result.error());
         set_message(saved ? "saved " + name : saved.error().message);
       }
       break;
@@ -476,11 +472,9 @@ void Viewer::render_scene(const Snapshot& snapshot, const ViewTransform& view, c
   }
   // Live, a frame draws at most path_budget new paths (the rest of the kept set follows over the
   // next frames); a deterministic step (--step) draws everything it shot before the frame.
-  const std::size_t budget = frame_step_.mode == FrameStep::Mode::Live
-                                 ? options_.path_budget
-                                 : std::numeric_limits<std::size_t>::max();
-  const PathDraw paths =
-      path_layer_.update(snapshot, draw_, view, static_cast<std::size_t>(keep_slider_), budget);
+  const std::size_t budget =
+      frame_step_.mode == FrameStep::Mode::Live ? options_.path_budget : std::numeric_limits<std::size_t>::max();
+  const PathDraw paths = path_layer_.update(snapshot, draw_, view, static_cast<std::size_t>(keep_slider_), budget);
   if (Status drawn = impl_->renderer->draw(overlay_, paths, view, draw_.path_exposure, stage); !drawn)
     set_message(drawn.error().message);
 }
@@ -522,7 +516,8 @@ void Viewer::handle_events() {
   // The menu bar's height: ImGui's frame height, which it only knows after its first frame (the
   // default font is 13 pixels before it is loaded).
   const ImGuiIO& imgui_io = ImGui::GetIO();
-  const float font = (imgui_io.Fonts->Fonts.empty() ? 13.0f : imgui_io.Fonts->Fonts[0]->FontSize) * imgui_io.FontGlobalScale;
+  const float font =
+      (imgui_io.Fonts->Fonts.empty() ? 13.0f : imgui_io.Fonts->Fonts[0]->FontSize) * imgui_io.FontGlobalScale;
   const float menu = options_.show_ui ? font + 2.0f * ImGui::GetStyle().FramePadding.y : 0.0f;
   const StageLayout layout = stage_layout(width, height, options_.ui_scale, options_.show_ui && panels_visible_, menu);
   if (!(layout.stage == layout_.stage) && view_auto_) view_fitted_ = false;
@@ -671,8 +666,8 @@ Status Viewer::save_screenshot(const std::string& path) {
   int height = 0;
   SDL_GL_GetDrawableSize(impl_->window, &width, &height);
   if (width <= 0 || height <= 0) return Error{path + ": the window has no area to take a picture of"};
-  if (Status made = Renderer::make_colour_framebuffer(width, height, impl_->screenshot_framebuffer,
-                                                      impl_->screenshot_colour);
+  if (Status made =
+          Renderer::make_colour_framebuffer(width, height, impl_->screenshot_framebuffer, impl_->screenshot_colour);
       !made) {
     glBindFramebuffer(GL_FRAMEBUFFER, 0);
     return Error{path + ": " + made.error().message};
@@ -708,8 +703,10 @@ Status Viewer::run() {
     // at most that many seconds' frames follow without a pause, then the pace resumes.
     next_frame += period;
     const double now = seconds_since_start();
-    if (next_frame > now) std::this_thread::sleep_for(std::chrono::duration<double>(next_frame - now));
-    else next_frame = std::max(next_frame, now - kPaceCatchUp);
+    if (next_frame > now)
+      std::this_thread::sleep_for(std::chrono::duration<double>(next_frame - now));
+    else
+      next_frame = std::max(next_frame, now - kPaceCatchUp);
   }
   const double elapsed = seconds_since_start() - start;
   const std::shared_ptr<const Snapshot> snapshot = session_->snapshot();
@@ -720,8 +717,8 @@ Status Viewer::run() {
     std::vector<double> sorted = frame_seconds_;
     std::sort(sorted.begin(), sorted.end());
     const double median = sorted[sorted.size() / 2];
-    std::printf("frames    %d in %.2f s: %.1f frames/s (median frame %.1f ms, slowest %.1f ms)\n",
-                frames_done_, elapsed, frames_done_ / elapsed, 1e3 * median, 1e3 * sorted.back());
+    std::printf("frames    %d in %.2f s: %.1f frames/s (median frame %.1f ms, slowest %.1f ms)\n", frames_done_,
+                elapsed, frames_done_ / elapsed, 1e3 * median, 1e3 * sorted.back());
     std::printf("solve     %llu photons, %u rounds, %.3g photons/s while shooting; %zu paths on screen\n",
                 static_cast<unsigned long long>(snapshot->progress.photons), snapshot->progress.rounds,
                 snapshot->photons_per_second, path_layer_.drawn());

@@ -38,7 +38,7 @@ struct ViewOptions {
   std::size_t keep_paths = 20'000;
   std::size_t path_budget = 600;  // new paths drawn per frame at most (newest first)
   bool show_control_points = false;
-  std::string select;              // a curve to inspect at start: its id or index
+  std::string select;               // a curve to inspect at start: its id or index
   std::string colour_by = "power";  // photon paths coloured by "power", "round" or "bounce"
   float path_exposure = 1.0f;
   float path_fade = 1.0f;  // 0: every kept path equally bright; 1: the oldest fade to about 5 %
@@ -209,9 +209,9 @@ class Viewer {
   std::string message_;
   double message_time_ = 0.0;
   bool show_help_ = false;
-  bool slow_stepping_ = false;     // the first-photons preset's timed steps
+  bool slow_stepping_ = false;  // the first-photons preset's timed steps
   double last_slow_step_ = -1e9;
-  std::string window_picture_;     // Ctrl+S: the whole window, legends included, after this frame
+  std::string window_picture_;                // Ctrl+S: the whole window, legends included, after this frame
   Status screenshot_ui_saved_ = ok_status();  // how writing --screenshot-ui went
   bool quit_ = false;
   bool software_renderer_ = false;  // GL_RENDERER is llvmpipe or softpipe

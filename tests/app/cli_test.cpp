@@ -59,15 +59,14 @@ TEST_F(Cli, HelpListsCommandsAndOptions) {
   for (const char* command : {"view", "render"}) EXPECT_NE(top.out.find(command), std::string::npos) << command;
   const CommandRun view = run("view --help");
   EXPECT_EQ(view.exit_code, 0);
-  for (const char* option : {"--frames", "--screenshot", "--step", "--reference", "--photons", "--basis",
-                             "--ray-width", "--keep-paths", "--shaders"})
+  for (const char* option : {"--frames", "--screenshot", "--step", "--reference", "--photons", "--basis", "--ray-width",
+                             "--keep-paths", "--shaders"})
     EXPECT_NE(view.out.find(option), std::string::npos) << option;
 #endif
   const CommandRun solve = run("solve --help");
   EXPECT_EQ(solve.exit_code, 0);
-  for (const char* option : {"--photons", "--seed", "--threads", "--basis", "--elements",
-                             "--tolerance", "--samples", "--out", "--picture", "--sampling",
-                             "--discontinuities", "--estimator"})
+  for (const char* option : {"--photons", "--seed", "--threads", "--basis", "--elements", "--tolerance", "--samples",
+                             "--out", "--picture", "--sampling", "--discontinuities", "--estimator"})
     EXPECT_NE(solve.out.find(option), std::string::npos) << option;
 }
 
@@ -112,8 +111,10 @@ TEST_F(Cli, CompareAgainstAReference) {
   const fs::path a = directory_ / "a.json";
   const fs::path b = directory_ / "b.json";
   const std::string scene_path = scene("penumbra.json");
-  ASSERT_EQ(run("solve " + scene_path + " --photons 50000 --seed 1 --samples 40 --quiet --out " + a.string()).exit_code, 0);
-  ASSERT_EQ(run("solve " + scene_path + " --photons 50000 --seed 2 --samples 40 --quiet --out " + b.string()).exit_code, 0);
+  ASSERT_EQ(run("solve " + scene_path + " --photons 50000 --seed 1 --samples 40 --quiet --out " + a.string()).exit_code,
+            0);
+  ASSERT_EQ(run("solve " + scene_path + " --photons 50000 --seed 2 --samples 40 --quiet --out " + b.string()).exit_code,
+            0);
   const CommandRun same = run("compare " + a.string() + " " + a.string());
   EXPECT_EQ(same.exit_code, 0) << same.err;
   EXPECT_NE(same.out.find("(scene)"), std::string::npos);
@@ -122,7 +123,8 @@ TEST_F(Cli, CompareAgainstAReference) {
   EXPECT_EQ(differ.exit_code, 0);
   EXPECT_NE(differ.out.find("receiver"), std::string::npos);
   // solve --reference prints the same table.
-  const CommandRun with_reference = run("solve " + scene_path + " --photons 50000 --samples 40 --reference " + b.string());
+  const CommandRun with_reference =
+      run("solve " + scene_path + " --photons 50000 --samples 40 --reference " + b.string());
   EXPECT_EQ(with_reference.exit_code, 0) << with_reference.err;
   EXPECT_NE(with_reference.out.find("rel. L2"), std::string::npos);
   // Different sampling: a clear error, exit 2.
@@ -160,8 +162,10 @@ TEST_F(Cli, ResultsCarryProvenanceAndCompareSpeaksJson) {
   const fs::path b = directory_ / "b.json";
   const fs::path r = directory_ / "r.json";
   const std::string scene_path = scene("penumbra.json");
-  ASSERT_EQ(run("solve " + scene_path + " --photons 50000 --seed 1 --samples 40 --quiet --out " + a.string()).exit_code, 0);
-  ASSERT_EQ(run("solve " + scene_path + " --photons 50000 --seed 2 --samples 40 --quiet --out " + b.string()).exit_code, 0);
+  ASSERT_EQ(run("solve " + scene_path + " --photons 50000 --seed 1 --samples 40 --quiet --out " + a.string()).exit_code,
+            0);
+  ASSERT_EQ(run("solve " + scene_path + " --photons 50000 --seed 2 --samples 40 --quiet --out " + b.string()).exit_code,
+            0);
   ASSERT_EQ(run("reference " + scene_path + " --samples 40 --quiet --out " + r.string()).exit_code, 0);
   const std::string version = run("--version").out;
   for (const fs::path& file : {a, r}) {
@@ -170,10 +174,9 @@ TEST_F(Cli, ResultsCarryProvenanceAndCompareSpeaksJson) {
     EXPECT_EQ(result["program"]["name"], "flatland");
     const std::string commit = result["program"]["commit"].get<std::string>();
     const std::string program_version = result["program"]["version"].get<std::string>();
-    EXPECT_NE(version.find("flatland " + program_version + " (commit " + commit + ")"), std::string::npos)
-        << version;
-    const bool hex = commit.size() >= 40 &&
-                     commit.find_first_not_of("0123456789abcdef") >= 40;  // 40 hex digits (+ "-dirty")
+    EXPECT_NE(version.find("flatland " + program_version + " (commit " + commit + ")"), std::string::npos) << version;
+    const bool hex =
+        commit.size() >= 40 && commit.find_first_not_of("0123456789abcdef") >= 40;  // 40 hex digits (+ "-dirty")
     EXPECT_TRUE(hex || commit == "unknown") << commit;
     EXPECT_EQ(result["scene"]["sha256"], sha256_hex(read_file(scene_path))) << file;
     EXPECT_EQ(result["scene"]["file"], scene_path);
@@ -212,8 +215,10 @@ TEST_F(Cli, CompareMeasuresTheReflectedPartByDefault) {
   const fs::path a = directory_ / "a.json";
   const fs::path b = directory_ / "b.json";
   const std::string scene_path = scene("penumbra.json");
-  ASSERT_EQ(run("solve " + scene_path + " --photons 50000 --seed 1 --samples 40 --quiet --out " + a.string()).exit_code, 0);
-  ASSERT_EQ(run("solve " + scene_path + " --photons 50000 --seed 2 --samples 40 --quiet --out " + b.string()).exit_code, 0);
+  ASSERT_EQ(run("solve " + scene_path + " --photons 50000 --seed 1 --samples 40 --quiet --out " + a.string()).exit_code,
+            0);
+  ASSERT_EQ(run("solve " + scene_path + " --photons 50000 --seed 2 --samples 40 --quiet --out " + b.string()).exit_code,
+            0);
   // The emitter's samples carry E (= its emittance 1, no profile); the others emit nothing.
   const nlohmann::json reference = nlohmann::json::parse(read_file(b));
   double square_b = 0.0, square_reflected = 0.0;
@@ -273,7 +278,8 @@ TEST_F(Cli, CompareMeasuresTheReflectedPartByDefault) {
   const fs::path dark_file = directory_ / "dark.json";
   std::ofstream(dark_file) << dark_scene.dump();
   const fs::path c = directory_ / "c.json";
-  ASSERT_EQ(run("solve " + dark_file.string() + " --photons 20000 --samples 10 --quiet --out " + c.string()).exit_code, 0);
+  ASSERT_EQ(run("solve " + dark_file.string() + " --photons 20000 --samples 10 --quiet --out " + c.string()).exit_code,
+            0);
   const CommandRun nothing = run("compare " + c.string() + " " + c.string());
   EXPECT_EQ(nothing.exit_code, 2);
   EXPECT_EQ(lines(nothing.err), 1) << nothing.err;
@@ -284,7 +290,8 @@ TEST_F(Cli, CompareMeasuresTheReflectedPartByDefault) {
 
 TEST_F(Cli, ReferenceWritesTheResultFormat) {
   const fs::path ref = directory_ / "ref.json";
-  const CommandRun r = run("reference " + scene("penumbra.json") + " --elements 200 --samples 30 --out " + ref.string());
+  const CommandRun r =
+      run("reference " + scene("penumbra.json") + " --elements 200 --samples 30 --out " + ref.string());
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const nlohmann::json result = nlohmann::json::parse(read_file(ref));
   EXPECT_EQ(result["settings"]["method"], "reference");
@@ -301,7 +308,8 @@ TEST_F(Cli, ReferenceWritesTheResultFormat) {
   ASSERT_EQ(converge.exit_code, 0) << converge.err;
   EXPECT_NE(read_file(out / "convergence.gp").find("reference error (estimate)"), std::string::npos);
   // A solve with the same samples compares against it.
-  const CommandRun solve = run("solve " + scene("penumbra.json") + " --photons 20000 --samples 30 --reference " + ref.string());
+  const CommandRun solve =
+      run("solve " + scene("penumbra.json") + " --photons 20000 --samples 30 --reference " + ref.string());
   EXPECT_EQ(solve.exit_code, 0) << solve.err;
   EXPECT_NE(solve.out.find("receiver"), std::string::npos);
   const CommandRun bad = run("reference " + scene("penumbra.json") + " --elements 10 --max-element-length 0.1");
@@ -311,9 +319,9 @@ TEST_F(Cli, ReferenceWritesTheResultFormat) {
 
 TEST_F(Cli, ConvergeWritesTableAndPlots) {
   const fs::path out = directory_ / "convergence";
-  const CommandRun r = run("converge " + scene("penumbra.json") +
-                           " --methods constant,cubic+sampling=uniform --budgets 2000,8000 --seeds 2 --samples 20 --out " +
-                           out.string());
+  const CommandRun r = run(
+      "converge " + scene("penumbra.json") +
+      " --methods constant,cubic+sampling=uniform --budgets 2000,8000 --seeds 2 --samples 20 --out " + out.string());
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const std::string csv = read_file(out / "convergence.csv");
   EXPECT_EQ(csv.substr(0, csv.find('\n')),
@@ -332,14 +340,17 @@ TEST_F(Cli, ConvergeWritesTableAndPlots) {
   EXPECT_EQ(replot.exit_code, 0) << replot.err;
   EXPECT_EQ(read_file(out / "convergence.png").substr(1, 3), "PNG");
   EXPECT_NE(read_file(out / "convergence.gp").find("2 seeds"), std::string::npos);
-  const CommandRun nothing = run("converge " + scene("penumbra.json") + " --replot --out " + (directory_ / "empty").string());
+  const CommandRun nothing =
+      run("converge " + scene("penumbra.json") + " --replot --out " + (directory_ / "empty").string());
   EXPECT_EQ(nothing.exit_code, 2);
   EXPECT_EQ(lines(nothing.err), 1) << nothing.err;
-  const CommandRun bad = run("converge " + scene("penumbra.json") + " --methods cubic+basis=quintic --out " + out.string());
+  const CommandRun bad =
+      run("converge " + scene("penumbra.json") + " --methods cubic+basis=quintic --out " + out.string());
   EXPECT_EQ(bad.exit_code, 2);
   EXPECT_NE(bad.err.find("--methods"), std::string::npos) << bad.err;
   for (const char* count : {"elements=16x", "elements=99999999999", "band-rays=", "elements=1e3"}) {
-    const CommandRun wrong = run("converge " + scene("penumbra.json") + " --methods cubic+" + count + " --out " + out.string());
+    const CommandRun wrong =
+        run("converge " + scene("penumbra.json") + " --methods cubic+" + count + " --out " + out.string());
     EXPECT_EQ(wrong.exit_code, 2) << count;
     EXPECT_NE(wrong.err.find("whole number"), std::string::npos) << wrong.err;
   }
@@ -372,7 +383,8 @@ std::vector<std::map<std::string, std::string>> csv_rows(const std::string& csv,
     std::map<std::string, std::string> row;
     std::stringstream parts(line);
     std::size_t column = 0;
-    for (std::string field; std::getline(parts, field, ',') && column < header.size(); ++column) row[header[column]] = field;
+    for (std::string field; std::getline(parts, field, ',') && column < header.size(); ++column)
+      row[header[column]] = field;
     if (line.back() == ',' && column < header.size()) row[header[column]] = "";
     if (row["method"] == "\"" + method + "\"") rows.push_back(row);
   }
@@ -435,8 +447,9 @@ TEST_F(Cli, ConvergeMeasuresTheReflectedPartAndPrintsSlopes) {
   for (std::size_t i = 0; i < errors.size(); ++i) EXPECT_NEAR(receiver_errors[i], errors[i], 1e-6 * errors[i]) << i;
   EXPECT_NE(read_file(receiver / "convergence.gp").find("on curve ''receiver''"), std::string::npos);
   const fs::path total = directory_ / "total";
-  const CommandRun b = run("converge " + scene("penumbra.json") +
-                           " --methods linear --budgets 2000 --seeds 1 --samples 20 --measure total --out " + total.string());
+  const CommandRun b =
+      run("converge " + scene("penumbra.json") +
+          " --methods linear --budgets 2000 --seeds 1 --samples 20 --measure total --out " + total.string());
   ASSERT_EQ(b.exit_code, 0) << b.err;
   const auto total_rows = csv_rows(read_file(total / "convergence.csv"), "linear");
   ASSERT_EQ(total_rows.size(), 1u);
@@ -445,16 +458,20 @@ TEST_F(Cli, ConvergeMeasuresTheReflectedPartAndPrintsSlopes) {
 
   // A bad id: one line, exit 2, naming the option and the valid ids, before any work.
   for (const std::string& id : {std::string("floor"), std::string("emitter")}) {
-    const CommandRun bad = run("converge " + scene("penumbra.json") + " --methods linear --budgets 2000 --seeds 1 "
-                               "--samples 20 --curve " + id + " --out " + (directory_ / "bad").string());
+    const CommandRun bad = run("converge " + scene("penumbra.json") +
+                               " --methods linear --budgets 2000 --seeds 1 "
+                               "--samples 20 --curve " +
+                               id + " --out " + (directory_ / "bad").string());
     EXPECT_EQ(bad.exit_code, 2) << id;
     EXPECT_EQ(lines(bad.err), 1) << bad.err;
     EXPECT_NE(bad.err.find("--curve"), std::string::npos) << bad.err;
     EXPECT_FALSE(fs::exists(directory_ / "bad" / "convergence.csv"));
   }
-  const CommandRun bad = run("converge " + scene("penumbra.json") + " --curve floor --out " + (directory_ / "bad").string());
+  const CommandRun bad =
+      run("converge " + scene("penumbra.json") + " --curve floor --out " + (directory_ / "bad").string());
   EXPECT_NE(bad.err.find("emitter, occluder, receiver"), std::string::npos) << bad.err;
-  const CommandRun measure = run("converge " + scene("penumbra.json") + " --measure emitted --out " + (directory_ / "bad").string());
+  const CommandRun measure =
+      run("converge " + scene("penumbra.json") + " --measure emitted --out " + (directory_ / "bad").string());
   EXPECT_EQ(measure.exit_code, 2);
   EXPECT_EQ(lines(measure.err), 1) << measure.err;
   EXPECT_NE(measure.err.find("--measure"), std::string::npos) << measure.err;
@@ -472,7 +489,7 @@ TEST_F(Cli, SolveWritesResultAndPicture) {
   const fs::path out = directory_ / "result.json";
   const fs::path picture = directory_ / "result.png";
   const CommandRun r = run("solve " + scene("mixed.json") + " --photons 100000 --samples 7 --seed 5 --out " +
-                    out.string() + " --picture " + picture.string());
+                           out.string() + " --picture " + picture.string());
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.out.find("photons/s"), std::string::npos);
   EXPECT_NE(r.out.find("emitted"), std::string::npos);
@@ -480,8 +497,8 @@ TEST_F(Cli, SolveWritesResultAndPicture) {
   EXPECT_EQ(result["flatland_result"], 1);
   EXPECT_EQ(result["settings"]["photons"], 100000);
   EXPECT_EQ(result["settings"]["seed"], 5);
-  for (const char* key : {"photons", "rounds", "seconds", "emitted_power", "absorbed_power",
-                          "escaped_power", "unshot_power"})
+  for (const char* key :
+       {"photons", "rounds", "seconds", "emitted_power", "absorbed_power", "escaped_power", "unshot_power"})
     EXPECT_TRUE(result["stats"].contains(key)) << key;
   const auto& stats = result["stats"];
   EXPECT_NEAR(stats["emitted_power"].get<double>(),
@@ -544,15 +561,15 @@ TEST_F(Cli, ConvergeNeverRunsCommandsFromScenesOrPaths) {
   std::ofstream(stem) << scene_json.dump();
   const fs::path out = directory_ / ("x'$(" + touch + ")'y it's");
   for (const fs::path& scene_file : {named, stem}) {
-    const CommandRun r = run("converge " + shell_quoted(scene_file.string()) +
-                             " --methods constant --budgets 2000 --seeds 1 --samples 10 --out " +
-                             shell_quoted(out.string()));
+    const CommandRun r =
+        run("converge " + shell_quoted(scene_file.string()) +
+            " --methods constant --budgets 2000 --seeds 1 --samples 10 --out " + shell_quoted(out.string()));
     ASSERT_EQ(r.exit_code, 0) << r.err;
     EXPECT_FALSE(fs::exists(marker)) << "a planted command ran: " << scene_file;
     EXPECT_FALSE(fs::exists(out / "ran") || fs::exists("ran")) << "a planted command ran: " << scene_file;
     EXPECT_EQ(read_file(out / "convergence.png").substr(1, 3), "PNG") << r.err;
-    const CommandRun replot = run("converge " + shell_quoted(scene_file.string()) + " --replot --out " +
-                                  shell_quoted(out.string()));
+    const CommandRun replot =
+        run("converge " + shell_quoted(scene_file.string()) + " --replot --out " + shell_quoted(out.string()));
     EXPECT_EQ(replot.exit_code, 0) << replot.err;
     EXPECT_FALSE(fs::exists(marker)) << "a planted command ran in --replot: " << scene_file;
   }
@@ -560,7 +577,8 @@ TEST_F(Cli, ConvergeNeverRunsCommandsFromScenesOrPaths) {
   std::string csv = read_file(out / "convergence.csv");
   csv.replace(csv.find("\"constant\""), 10, "\"k`" + touch + "`' system('" + touch + "')\"");
   std::ofstream(out / "convergence.csv") << csv;
-  const CommandRun replot = run("converge " + shell_quoted(named.string()) + " --replot --out " + shell_quoted(out.string()));
+  const CommandRun replot =
+      run("converge " + shell_quoted(named.string()) + " --replot --out " + shell_quoted(out.string()));
   EXPECT_EQ(replot.exit_code, 0) << replot.err;
   EXPECT_FALSE(fs::exists(marker)) << "a planted method name ran";
 }
@@ -569,21 +587,25 @@ TEST_F(Cli, ConvergeNeverRunsCommandsFromScenesOrPaths) {
 // 1e15 photons would take months).
 TEST_F(Cli, ConvergeChecksItsReferenceBeforeAnyRun) {
   const fs::path reference = directory_ / "reference.json";
-  ASSERT_EQ(run("solve " + scene("penumbra.json") + " --photons 20000 --samples 40 --quiet --out " + reference.string()).exit_code, 0);
+  ASSERT_EQ(run("solve " + scene("penumbra.json") + " --photons 20000 --samples 40 --quiet --out " + reference.string())
+                .exit_code,
+            0);
   const std::string out = " --out " + (directory_ / "c").string();
-  const CommandRun samples = run("converge " + scene("penumbra.json") + " --budgets 1e15 --reference " + reference.string() + out);
+  const CommandRun samples =
+      run("converge " + scene("penumbra.json") + " --budgets 1e15 --reference " + reference.string() + out);
   EXPECT_EQ(samples.exit_code, 2);
   EXPECT_EQ(lines(samples.err), 1) << samples.err;
   EXPECT_NE(samples.err.find("pass --samples 40"), std::string::npos) << samples.err;
-  const CommandRun other = run("converge " + scene("default.json") + " --budgets 1e15 --samples 40 --reference " +
-                               reference.string() + out);
+  const CommandRun other =
+      run("converge " + scene("default.json") + " --budgets 1e15 --samples 40 --reference " + reference.string() + out);
   EXPECT_EQ(other.exit_code, 2);
   EXPECT_NE(other.err.find("another scene"), std::string::npos) << other.err;
 }
 
 TEST_F(Cli, NumbersBeyondADoubleInAResultAreOneLineErrors) {
   const fs::path a = directory_ / "a.json";
-  ASSERT_EQ(run("solve " + scene("penumbra.json") + " --photons 20000 --samples 5 --quiet --out " + a.string()).exit_code, 0);
+  ASSERT_EQ(
+      run("solve " + scene("penumbra.json") + " --photons 20000 --samples 5 --quiet --out " + a.string()).exit_code, 0);
   std::string text = read_file(a);
   const std::size_t at = text.find("\"emitted_power\": ") + 17;
   text.replace(at, text.find(',', at) - at, "1e400");
@@ -629,7 +651,8 @@ Stopped run_and_signal(const std::vector<std::string>& arguments, int signal, do
   for (int tries = 0; !opened.empty() && tries < 2000; ++tries) {
     bool found = false;
     std::error_code ec;
-    for (fs::directory_iterator it("/proc/" + std::to_string(child) + "/fd", ec), end; !ec && it != end; it.increment(ec))
+    for (fs::directory_iterator it("/proc/" + std::to_string(child) + "/fd", ec), end; !ec && it != end;
+         it.increment(ec))
       found = found || fs::read_symlink(it->path(), ec) == opened;
     if (found) break;
     ::usleep(10'000);
@@ -658,7 +681,8 @@ TEST_F(Cli, OutputPathsAreCheckedBeforeAnyWork) {
     EXPECT_EQ(lines(r.err), 1) << r.err;
   }
   std::ofstream(directory_ / "file") << "x";
-  const CommandRun converge = run("converge " + scene("penumbra.json") + " --budgets 1e15 --out " + (directory_ / "file").string());
+  const CommandRun converge =
+      run("converge " + scene("penumbra.json") + " --budgets 1e15 --out " + (directory_ / "file").string());
   EXPECT_EQ(converge.exit_code, 2) << converge.err;
 #ifdef FLATLAND_HAVE_VIEWER
   // The viewer's pictures are written after its last frame: checked before the first (no window
@@ -684,9 +708,9 @@ TEST_F(Cli, AnotherUsersFileInAStickyDirectoryIsRefusedBeforeTheWork) {
   fs::permissions(sticky / "scene.json", fs::perms(0644));
   std::ofstream(sticky / "theirs.json") << "{}";  // root's
   const auto start = std::chrono::steady_clock::now();
-  const CommandRun r = run("solve " + (sticky / "scene.json").string() + " --photons 1e15 --out " +
-                               (sticky / "theirs.json").string(),
-                           "setpriv --reuid=65534 --regid=65534 --clear-groups");
+  const CommandRun r =
+      run("solve " + (sticky / "scene.json").string() + " --photons 1e15 --out " + (sticky / "theirs.json").string(),
+          "setpriv --reuid=65534 --regid=65534 --clear-groups");
   EXPECT_EQ(r.exit_code, 2) << r.err;
   EXPECT_EQ(lines(r.err), 1) << r.err;
   EXPECT_NE(r.err.find("belongs to another user"), std::string::npos) << r.err;
@@ -788,8 +812,8 @@ TEST_F(Cli, OutputsToStandardOutputDevicesAndPipesAreWrittenThrough) {
         << name;
   }
   // The null device takes two outputs at once.
-  const CommandRun both = run("solve " + penumbra + " --photons 20000 --quiet --out " + null.string() + " --picture " +
-                              null.string());
+  const CommandRun both =
+      run("solve " + penumbra + " --photons 20000 --quiet --out " + null.string() + " --picture " + null.string());
   EXPECT_EQ(both.exit_code, 0) << both.err;
 }
 
@@ -809,7 +833,8 @@ TEST_F(Cli, OutputsThatAreInputsOrEachOtherAreRefused) {
       {"reference " + copy.string() + " --elements 30000 --out " + copy.string(), "scene file"},
   };
 #ifdef FLATLAND_HAVE_VIEWER
-  cases.push_back({"render " + copy.string() + " --photons 1e15 --out " + out + " --result " + out_again, "also --out"});
+  cases.push_back(
+      {"render " + copy.string() + " --photons 1e15 --out " + out + " --result " + out_again, "also --out"});
   cases.push_back({"view " + copy.string() + " --frames 100000 --screenshot " + out + " --screenshot-ui " + out_again,
                    "also --screenshot"});
 #endif
@@ -857,8 +882,8 @@ TEST_F(Cli, ThreadsTheSystemRefusesAreDoneWithout) {
   const std::string penumbra = scene("penumbra.json");
   const fs::path many = directory_ / "many.json";
   const fs::path one = directory_ / "one.json";
-  const CommandRun limited = run("solve " + penumbra + " --photons 100000 --threads 1000 --out " + many.string(),
-                                 "ulimit -v 1500000;");
+  const CommandRun limited =
+      run("solve " + penumbra + " --photons 100000 --threads 1000 --out " + many.string(), "ulimit -v 1500000;");
   ASSERT_EQ(limited.exit_code, 0) << limited.err;
   EXPECT_NE(limited.err.find("of the 1000 threads asked for"), std::string::npos) << limited.err;
   ASSERT_EQ(run("solve " + penumbra + " --photons 100000 --threads 1 --quiet --out " + one.string()).exit_code, 0);
@@ -869,8 +894,8 @@ TEST_F(Cli, ThreadsTheSystemRefusesAreDoneWithout) {
     return result.dump();
   };
   EXPECT_EQ(solution(many), solution(one));
-  const CommandRun reference = run("reference " + penumbra + " --elements 2000 --no-error-estimate --threads 1000",
-                                   "ulimit -v 1500000;");
+  const CommandRun reference =
+      run("reference " + penumbra + " --elements 2000 --no-error-estimate --threads 1000", "ulimit -v 1500000;");
   EXPECT_EQ(reference.exit_code, 0) << reference.err;
   EXPECT_NE(reference.err.find("threads asked for"), std::string::npos) << reference.err;
 }
@@ -885,8 +910,11 @@ TEST_F(Cli, OptionValuesOutsideTheirMeaningAreRefused) {
     EXPECT_NE(r.err.find("--seed"), std::string::npos) << r.err;
   }
   const fs::path largest = directory_ / "largest.json";
-  ASSERT_EQ(run("solve " + penumbra + " --photons 1000 --quiet --seed 18446744073709551615 --out " + largest.string()).exit_code, 0);
-  EXPECT_EQ(nlohmann::json::parse(read_file(largest))["settings"]["seed"].get<std::uint64_t>(), 18446744073709551615ull);
+  ASSERT_EQ(run("solve " + penumbra + " --photons 1000 --quiet --seed 18446744073709551615 --out " + largest.string())
+                .exit_code,
+            0);
+  EXPECT_EQ(nlohmann::json::parse(read_file(largest))["settings"]["seed"].get<std::uint64_t>(),
+            18446744073709551615ull);
 
   const CommandRun wide = run("solve " + penumbra + " --photons 1000 --ray-width 1e300");
   EXPECT_EQ(wide.exit_code, 2);
@@ -922,7 +950,9 @@ TEST_F(Cli, ResultsOfDifferentSceneFilesAreNotCompared) {
   std::ofstream(bright) << changed.dump(1);
   const fs::path a = directory_ / "a.json";
   const fs::path b = directory_ / "b.json";
-  ASSERT_EQ(run("solve " + scene("penumbra.json") + " --photons 20000 --samples 10 --quiet --out " + a.string()).exit_code, 0);
+  ASSERT_EQ(
+      run("solve " + scene("penumbra.json") + " --photons 20000 --samples 10 --quiet --out " + a.string()).exit_code,
+      0);
   ASSERT_EQ(run("solve " + bright.string() + " --photons 20000 --samples 10 --quiet --out " + b.string()).exit_code, 0);
   for (const std::string& command :
        {"compare " + a.string() + " " + b.string(),
@@ -953,7 +983,8 @@ TEST_F(Cli, AScenePathThatIsNotUtf8IsWritten) {
   const fs::path odd = directory_ / "bad\xff.json";
   fs::copy_file(scene("penumbra.json"), odd);
   const fs::path out = directory_ / "r.json";
-  const CommandRun r = run("solve " + shell_quoted(odd.string()) + " --photons 20000 --samples 5 --quiet --out " + out.string());
+  const CommandRun r =
+      run("solve " + shell_quoted(odd.string()) + " --photons 20000 --samples 5 --quiet --out " + out.string());
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const nlohmann::json result = nlohmann::json::parse(read_file(out));
   EXPECT_NE(result["scene"]["file"].get<std::string>().find("bad\xEF\xBF\xBD.json"), std::string::npos);
@@ -962,14 +993,14 @@ TEST_F(Cli, AScenePathThatIsNotUtf8IsWritten) {
 TEST_F(Cli, ResultsTooLargeAndStorageBeyondMemoryAreRefusedAtOnce) {
   // 40 curves x 1e6 samples, hundreds of bytes each, would be a result of several GB, more than
   // flatland reads back: refused before the (1e15-photon) solve, with a count that fits.
-  nlohmann::json many = {{"flatland", 1}, {"materials", {{"lamp", {{"emittance", 1}}}}}, {"curves", nlohmann::json::array()}};
+  nlohmann::json many = {
+      {"flatland", 1}, {"materials", {{"lamp", {{"emittance", 1}}}}}, {"curves", nlohmann::json::array()}};
   for (int i = 0; i < 40; ++i)
-    many["curves"].push_back({{"id", "c" + std::to_string(i)}, {"material", "lamp"},
-                              {"line", {{i, 0}, {i, 1}}}});
+    many["curves"].push_back({{"id", "c" + std::to_string(i)}, {"material", "lamp"}, {"line", {{i, 0}, {i, 1}}}});
   const fs::path file = directory_ / "many.json";
   std::ofstream(file) << many.dump();
-  const CommandRun samples = run("solve " + file.string() + " --photons 1e15 --samples 1000000 --out " +
-                                 (directory_ / "r.json").string());
+  const CommandRun samples =
+      run("solve " + file.string() + " --photons 1e15 --samples 1000000 --out " + (directory_ / "r.json").string());
   EXPECT_EQ(samples.exit_code, 2);
   const std::size_t at = samples.err.find("give at most ");
   ASSERT_NE(at, std::string::npos) << samples.err;
@@ -977,7 +1008,6 @@ TEST_F(Cli, ResultsTooLargeAndStorageBeyondMemoryAreRefusedAtOnce) {
   EXPECT_GT(fits, 0) << samples.err;
   EXPECT_LT(fits, 1'000'000) << samples.err;
 }
-
 
 // Ctrl-C and SIGTERM stop long work within about a second, with exit code 130 and nothing
 // written: the reference (which used to ignore both and run for hours) and a solve.
@@ -1044,15 +1074,15 @@ TEST_F(Cli, MpiSolveWritesTheResultOfOneProcess) {
 TEST_F(Cli, MpiBadInputIsReportedOnceWithExitCode2) {
   const std::string missing = (directory_ / "missing" / "r.json").string();
   for (const std::string& command :
-       {"solve " + (directory_ / "no-such-scene.json").string(),
-        "solve " + scene("penumbra.json") + " --photons many",
+       {"solve " + (directory_ / "no-such-scene.json").string(), "solve " + scene("penumbra.json") + " --photons many",
         "solve " + scene("penumbra.json") + " --photons 1e15 --out " + missing,
         "converge " + scene("penumbra.json") + " --methods cubic:nonsense --out " + directory_.string(),
         "reference " + scene("penumbra.json")}) {
     const CommandRun r = testing::run_flatland(command, directory_, mpirun(2));
     EXPECT_EQ(r.exit_code, 2) << command;
     std::size_t errors = 0;
-    for (std::size_t at = r.err.find("flatland: error"); at != std::string::npos; at = r.err.find("flatland: error", at + 1))
+    for (std::size_t at = r.err.find("flatland: error"); at != std::string::npos;
+         at = r.err.find("flatland: error", at + 1))
       ++errors;
     EXPECT_EQ(errors, 1u) << command << "\n" << r.err;
   }
@@ -1062,10 +1092,11 @@ TEST_F(Cli, MpiBadInputIsReportedOnceWithExitCode2) {
 // own mpirun arguments (a working directory, say).
 CommandRun mpmd(const std::string& first, const std::string& second, const fs::path& directory,
                 const std::string& first_place = "", const std::string& second_place = "") {
-  const std::string launcher = "OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 "
-                               "ASAN_OPTIONS=${ASAN_OPTIONS:+$ASAN_OPTIONS:}detect_leaks=0 " +
-                               std::string(FLATLAND_MPIRUN) + " --oversubscribe -np 1 " + first_place + " " +
-                               FLATLAND_BINARY + " " + first + " : -np 1 " + second_place;
+  const std::string launcher =
+      "OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 "
+      "ASAN_OPTIONS=${ASAN_OPTIONS:+$ASAN_OPTIONS:}detect_leaks=0 " +
+      std::string(FLATLAND_MPIRUN) + " --oversubscribe -np 1 " + first_place + " " + FLATLAND_BINARY + " " + first +
+      " : -np 1 " + second_place;
   return testing::run_flatland(second, directory, launcher);
 }
 
@@ -1112,11 +1143,11 @@ TEST_F(Cli, MpiProcessesMustAgreeOnTheCommandAndTheScene) {
 // of the round first).
 TEST_F(Cli, MpiInterruptOfOneProcessStopsThemAll) {
   const fs::path out = directory_ / "r.json";
-  const std::string command = "exec env OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 "
-                              "ASAN_OPTIONS=${ASAN_OPTIONS:+$ASAN_OPTIONS:}detect_leaks=0 " +
-                              std::string(FLATLAND_MPIRUN) + " --oversubscribe -np 2 " + FLATLAND_BINARY + " solve " +
-                              scene("default.json") + " --photons 1e12 --threads 1 --out " + out.string() +
-                              " >/dev/null 2>" + (directory_ / "mpirun.log").string();
+  const std::string command =
+      "exec env OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 "
+      "ASAN_OPTIONS=${ASAN_OPTIONS:+$ASAN_OPTIONS:}detect_leaks=0 " +
+      std::string(FLATLAND_MPIRUN) + " --oversubscribe -np 2 " + FLATLAND_BINARY + " solve " + scene("default.json") +
+      " --photons 1e12 --threads 1 --out " + out.string() + " >/dev/null 2>" + (directory_ / "mpirun.log").string();
   const pid_t launcher = ::fork();
   if (launcher == 0) {
     ::execl("/bin/sh", "sh", "-c", command.c_str(), static_cast<char*>(nullptr));
@@ -1155,8 +1186,8 @@ TEST_F(Cli, MpiInterruptOfOneProcessStopsThemAll) {
 }
 
 TEST_F(Cli, MpiConvergeDealsRunsOutAndWritesOneTable) {
-  const std::string arguments = "converge " + scene("penumbra.json") +
-                                " --methods linear,cubic --budgets 1e4,3e4 --seeds 2 --threads 1 --out ";
+  const std::string arguments =
+      "converge " + scene("penumbra.json") + " --methods linear,cubic --budgets 1e4,3e4 --seeds 2 --threads 1 --out ";
   const CommandRun alone = run(arguments + (directory_ / "alone").string());
   ASSERT_EQ(alone.exit_code, 0) << alone.err;
   const CommandRun shared = testing::run_flatland(arguments + (directory_ / "shared").string(), directory_, mpirun(3));

@@ -141,8 +141,8 @@ TEST(CommandLine, HelpVersionAndParseErrorsDecideTheExitCode) {
 TEST(CommandLine, ConvergeChecksItsPlanBeforeAnyWork) {
   {
     CommandLine command_line;
-    ASSERT_EQ(parse(command_line, {"converge", "s.json", "--methods", "cubic,linear", "--budgets", "1000,4000",
-                                   "--out", "dir"}),
+    ASSERT_EQ(parse(command_line,
+                    {"converge", "s.json", "--methods", "cubic,linear", "--budgets", "1000,4000", "--out", "dir"}),
               std::nullopt);
     EXPECT_TRUE(validate_command_line(command_line));
   }

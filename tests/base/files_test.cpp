@@ -87,7 +87,8 @@ TEST_F(Files, MissingDirectoryAndTooLargeInputsAreOneLineErrors) {
   EXPECT_NE(directory.error().message.find("is a directory, not a result file"), std::string::npos);
   // A regular file past the limit is refused from its size, before it is read.
   std::ofstream(path("big.json")) << std::string(2000, ' ');
-  const Result<std::string> big = read_input_file(path("big.json"), "scene file", nullptr, InputContent::JsonObject, 1000);
+  const Result<std::string> big =
+      read_input_file(path("big.json"), "scene file", nullptr, InputContent::JsonObject, 1000);
   ASSERT_FALSE(big.ok());
   EXPECT_NE(big.error().message.find("larger than"), std::string::npos) << big.error().message;
   EXPECT_TRUE(read_input_file(path("big.json"), "scene file", nullptr, InputContent::JsonObject, 2000).ok());

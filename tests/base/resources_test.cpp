@@ -30,8 +30,10 @@ TEST(Resources, BudgetAndStacksFollowTheMachineAndItsLimits) {
   EXPECT_GT(default_memory_budget(), 0u);
   rlimit stack{};
   ASSERT_EQ(::getrlimit(RLIMIT_STACK, &stack), 0);
-  if (stack.rlim_cur == RLIM_INFINITY) EXPECT_EQ(thread_stack_bytes(), std::size_t{8} << 20);
-  else EXPECT_EQ(thread_stack_bytes(), std::max<std::size_t>(stack.rlim_cur, std::size_t{64} << 10));
+  if (stack.rlim_cur == RLIM_INFINITY)
+    EXPECT_EQ(thread_stack_bytes(), std::size_t{8} << 20);
+  else
+    EXPECT_EQ(thread_stack_bytes(), std::max<std::size_t>(stack.rlim_cur, std::size_t{64} << 10));
 }
 
 // Under an address-space limit what is left is the limit less what is mapped, and the budget is at

@@ -34,8 +34,8 @@ TEST(Roots, ABadSlopeFallsBackToBisection) {
                        });
   EXPECT_NEAR(bisected, 0.3, 1e-16);
   // A wildly wrong slope (a hundred times too small) throws each step out of the bracket.
-  const double guarded = newton_bisection([](double x) { return std::atan(x - 0.7); },
-                                          [](double) { return 0.01; }, 0.0, -5.0, 5.0, 200, 1e-15, go_on);
+  const double guarded = newton_bisection([](double x) { return std::atan(x - 0.7); }, [](double) { return 0.01; }, 0.0,
+                                          -5.0, 5.0, 200, 1e-15, go_on);
   EXPECT_NEAR(guarded, 0.7, 1e-14);
 }
 

@@ -17,8 +17,8 @@ TEST(Text, EditDistanceCountsInsertionsDeletionsSubstitutionsAndTranspositions) 
   EXPECT_EQ(edit_distance("kitten", "sitting"), 3u);
   EXPECT_EQ(edit_distance("sitting", "kitten"), 3u);  // symmetric, whichever is longer
   EXPECT_EQ(edit_distance("emittance", "emitance"), 1u);
-  EXPECT_EQ(edit_distance("ab", "ba"), 1u);          // one transposition
-  EXPECT_EQ(edit_distance("Lamp", "lamp"), 0u);      // case-insensitive
+  EXPECT_EQ(edit_distance("ab", "ba"), 1u);      // one transposition
+  EXPECT_EQ(edit_distance("Lamp", "lamp"), 0u);  // case-insensitive
   EXPECT_EQ(edit_distance("receiver", "reciever"), 1u);
 }
 

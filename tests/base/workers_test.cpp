@@ -24,7 +24,8 @@ TEST(WorkerPool, EachWorkerRunsOncePerRun) {
       std::vector<std::atomic<int>> calls(threads + 2);
       pool.run(workers, [&](unsigned w) { ++calls[w]; });
       const unsigned expected = std::min(workers, threads);  // clamped to the pool's size
-      for (unsigned w = 0; w < calls.size(); ++w) EXPECT_EQ(calls[w].load(), w < expected ? 1 : 0) << threads << " " << workers << " " << w;
+      for (unsigned w = 0; w < calls.size(); ++w)
+        EXPECT_EQ(calls[w].load(), w < expected ? 1 : 0) << threads << " " << workers << " " << w;
     }
   }
 }
@@ -36,8 +37,10 @@ TEST(WorkerPool, WorkerZeroIsTheCaller) {
   std::mutex mutex;
   pool.run(3, [&](unsigned w) {
     std::lock_guard lock(mutex);
-    if (w == 0) zero = std::this_thread::get_id();
-    else others.insert(std::this_thread::get_id());
+    if (w == 0)
+      zero = std::this_thread::get_id();
+    else
+      others.insert(std::this_thread::get_id());
   });
   EXPECT_EQ(zero, std::this_thread::get_id());
   EXPECT_EQ(others.size(), 2u);
@@ -71,8 +74,16 @@ TEST(WorkerPool, ManyShortRunsInARow) {
 
 TEST(WorkerPool, FailureReachesTheCallerAndThePoolGoesOn) {
   WorkerPool pool(2);
-  EXPECT_THROW(pool.run(2, [](unsigned w) { if (w == 1) throw std::runtime_error("helper"); }), std::runtime_error);
-  EXPECT_THROW(pool.run(2, [](unsigned w) { if (w == 0) throw std::runtime_error("caller"); }), std::runtime_error);
+  EXPECT_THROW(pool.run(2,
+                        [](unsigned w) {
+                          if (w == 1) throw std::runtime_error("helper");
+                        }),
+               std::runtime_error);
+  EXPECT_THROW(pool.run(2,
+                        [](unsigned w) {
+                          if (w == 0) throw std::runtime_error("caller");
+                        }),
+               std::runtime_error);
   std::atomic<int> calls{0};
   pool.run(2, [&](unsigned) { ++calls; });
   EXPECT_EQ(calls.load(), 2);

@@ -13,14 +13,11 @@ namespace flatland {
 namespace {
 
 SegmentGeometry line(Vec2 a, Vec2 b) { return {SegmentKind::Line, line_as_cubic(a, b)}; }
-SegmentGeometry cubic(Vec2 p0, Vec2 p1, Vec2 p2, Vec2 p3) {
-  return {SegmentKind::Cubic, Cubic{{p0, p1, p2, p3}}};
-}
+SegmentGeometry cubic(Vec2 p0, Vec2 p1, Vec2 p2, Vec2 p3) { return {SegmentKind::Cubic, Cubic{{p0, p1, p2, p3}}}; }
 
 // A random scene of about `count` segments inside [-1,1]^2 (then scaled and moved): chains of
 // lines and cubics that share their joints, closed loops, and loose segments.
-std::vector<SegmentGeometry> random_scene(std::mt19937_64& rng, int count, double scale = 1.0,
-                                          Vec2 offset = {0, 0}) {
+std::vector<SegmentGeometry> random_scene(std::mt19937_64& rng, int count, double scale = 1.0, Vec2 offset = {0, 0}) {
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   auto near = [&](Vec2 p, double r) { return p + Vec2{r * u(rng), r * u(rng)}; };
@@ -79,8 +76,7 @@ struct Query {
   RayOrigin from;
 };
 
-Query random_query(std::mt19937_64& rng, const std::vector<SegmentGeometry>& scene, double scale,
-                   Vec2 offset) {
+Query random_query(std::mt19937_64& rng, const std::vector<SegmentGeometry>& scene, double scale, Vec2 offset) {
   std::uniform_real_distribution<double> u(-1.2, 1.2);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   Query q;
@@ -89,12 +85,7 @@ Query random_query(std::mt19937_64& rng, const std::vector<SegmentGeometry>& sce
   const double kind = unit(rng);
   if (kind < 0.1) {  // axis-aligned directions: zero components in the slab test
     const int axis = static_cast<int>(unit(rng) * 4);
-    q.ray.direction = Vec2{axis == 0   ? 1.0
-                           : axis == 1 ? -1.0
-                                       : 0.0,
-                           axis == 2   ? 1.0
-                           : axis == 3 ? -1.0
-                                       : 0.0};
+    q.ray.direction = Vec2{axis == 0 ? 1.0 : axis == 1 ? -1.0 : 0.0, axis == 2 ? 1.0 : axis == 3 ? -1.0 : 0.0};
   }
   if (unit(rng) < 0.5) {  // from free space
     q.ray.origin = scale * Vec2{u(rng), u(rng)} + offset;
@@ -125,8 +116,7 @@ TEST(Bvh, ClosestHitEqualsBruteForceOnRandomScenes) {
   for (const Setting& setting : settings) {
     for (int scene_index = 0; scene_index < 3; ++scene_index) {
       std::mt19937_64 rng(seed++);
-      const std::vector<SegmentGeometry> scene =
-          random_scene(rng, 200, setting.scale, setting.offset);
+      const std::vector<SegmentGeometry> scene = random_scene(rng, 200, setting.scale, setting.offset);
       const SegmentAccelerator accelerator(scene);
       ASSERT_TRUE(accelerator.uses_hierarchy());
       ASSERT_TRUE(accelerator.has_cubics());
@@ -165,8 +155,9 @@ TEST(Bvh, FarAndAxisParallelRaysEqualBruteForce) {
     const Vec2 target{unit(rng), unit(rng)};
     const Vec2 origin = target + distance * Vec2{std::cos(angle), std::sin(angle)};
     Vec2 direction = normalized(target - origin);
-    if (i % 7 == 0) direction = std::fabs(direction.x) > std::fabs(direction.y) ? Vec2{direction.x > 0 ? 1.0 : -1.0, 0.0}
-                                                                                : Vec2{0.0, direction.y > 0 ? 1.0 : -1.0};
+    if (i % 7 == 0)
+      direction = std::fabs(direction.x) > std::fabs(direction.y) ? Vec2{direction.x > 0 ? 1.0 : -1.0, 0.0}
+                                                                  : Vec2{0.0, direction.y > 0 ? 1.0 : -1.0};
     const Ray ray{origin, direction};
     const SceneHit fast = accelerator.closest_hit(ray, RayOrigin{});
     expect_same(fast, accelerator.closest_hit_brute_force(ray, RayOrigin{}), i);
@@ -188,8 +179,7 @@ TEST(Bvh, BruteForceIsTheNearestOfAllSegmentTests) {
       SegmentHit h;
       bool hit = false;
       if (scene[k].kind == SegmentKind::Line) {
-        hit = k != q.from.segment &&
-              intersect_line(scene[k].shape.p[0], scene[k].shape.p[3], q.ray, best * 2 + 1, &h);
+        hit = k != q.from.segment && intersect_line(scene[k].shape.p[0], scene[k].shape.p[3], q.ray, best * 2 + 1, &h);
       } else if (k == q.from.segment) {
         hit = intersect_cubic_from(scene[k].shape, q.from.t, q.ray, best * 2 + 1, &h);
       } else {
@@ -215,8 +205,7 @@ TEST(Bvh, ClosedRoomGivesAnalyticDistances) {
   for (int side = 0; side < 4; ++side) {
     const Vec2 a = corners[side];
     const Vec2 b = corners[(side + 1) % 4];
-    for (int k = 0; k < 3; ++k)
-      room.push_back(line(lerp(a, b, k / 3.0), lerp(a, b, (k + 1) / 3.0)));
+    for (int k = 0; k < 3; ++k) room.push_back(line(lerp(a, b, k / 3.0), lerp(a, b, (k + 1) / 3.0)));
   }
   const SegmentAccelerator accelerator(room);
   ASSERT_TRUE(accelerator.uses_hierarchy());
@@ -282,8 +271,7 @@ TEST(Bvh, LineOriginNeverSeesItselfCubicOriginDoes) {
   ASSERT_TRUE(accelerator.uses_hierarchy());
   const Vec2 from = evaluate(scene[arch].shape, 0.2);
   const Vec2 to = evaluate(scene[arch].shape, 0.7);
-  const SceneHit hit =
-      accelerator.closest_hit(Ray{from, normalized(to - from)}, RayOrigin{arch, 0.2});
+  const SceneHit hit = accelerator.closest_hit(Ray{from, normalized(to - from)}, RayOrigin{arch, 0.2});
   ASSERT_EQ(hit.segment, arch);
   EXPECT_NEAR(hit.t, 0.7, 1e-14);
   EXPECT_NEAR(hit.distance, length(to - from), 1e-14);
@@ -292,14 +280,12 @@ TEST(Bvh, LineOriginNeverSeesItselfCubicOriginDoes) {
 TEST(Bvh, SmallScenesUseTheLinearScan) {
   std::mt19937_64 rng(302);
   for (int n : {0, 1, 5, 8, 9, 17, 64, 1000}) {
-    const std::vector<SegmentGeometry> scene =
-        n ? random_scene(rng, n) : std::vector<SegmentGeometry>{};
+    const std::vector<SegmentGeometry> scene = n ? random_scene(rng, n) : std::vector<SegmentGeometry>{};
     const SegmentAccelerator accelerator(scene);
     EXPECT_EQ(accelerator.uses_hierarchy(), scene.size() > 8) << n;
     for (int i = 0; i < 1000 && !scene.empty(); ++i) {
       const Query q = random_query(rng, scene, 1.0, {0, 0});
-      expect_same(accelerator.closest_hit(q.ray, q.from),
-                  accelerator.closest_hit_brute_force(q.ray, q.from), i);
+      expect_same(accelerator.closest_hit(q.ray, q.from), accelerator.closest_hit_brute_force(q.ray, q.from), i);
     }
   }
   const SegmentAccelerator empty;
@@ -332,8 +318,7 @@ TEST(Bvh, DegenerateLayouts) {
       const double angle = 2.0 * std::numbers::pi * unit(rng);
       ray.direction = {std::cos(angle), std::sin(angle)};
     }
-    expect_same(accelerator.closest_hit(ray, RayOrigin{}),
-                accelerator.closest_hit_brute_force(ray, RayOrigin{}), i);
+    expect_same(accelerator.closest_hit(ray, RayOrigin{}), accelerator.closest_hit_brute_force(ray, RayOrigin{}), i);
   }
 }
 

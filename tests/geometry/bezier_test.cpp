@@ -131,8 +131,7 @@ TEST(Bezier, SplitHalvesReproduceTheCurve) {
     for (int k = 0; k <= 20; ++k) {
       const double u = k / 20.0;
       EXPECT_LT(distance(bernstein_point(c, at * u), evaluate(left, u)), 1e-14 * size);
-      EXPECT_LT(distance(bernstein_point(c, at + (1.0 - at) * u), evaluate(right, u)),
-                1e-14 * size);
+      EXPECT_LT(distance(bernstein_point(c, at + (1.0 - at) * u), evaluate(right, u)), 1e-14 * size);
     }
   }
 }
@@ -322,7 +321,8 @@ long double exact_speed(const Cubic& c, long double t) {
 // The largest |C'| at n + 1 even steps over [t0, t1].
 double sampled_max_speed(const Cubic& c, double t0, double t1, int n) {
   long double max_speed = 0.0L;
-  for (int i = 0; i <= n; ++i) max_speed = std::max(max_speed, exact_speed(c, t0 + (t1 - t0) * (static_cast<long double>(i) / n)));
+  for (int i = 0; i <= n; ++i)
+    max_speed = std::max(max_speed, exact_speed(c, t0 + (t1 - t0) * (static_cast<long double>(i) / n)));
   return static_cast<double>(max_speed);
 }
 

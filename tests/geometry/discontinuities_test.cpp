@@ -32,8 +32,8 @@ TEST(Discontinuity, PenumbraEventsSitWhereEmitterAndOccluderEndsLineUp) {
     EXPECT_EQ(node.continuity, Continuity::C0);
     floor_x.push_back(-3.0 + 6.0 * node.u);
   }
-  const std::vector<double> expected = {0.5 + 2 * (-0.1 - 0.5), -0.5 + 2 * (-0.1 + 0.5),
-                                        0.5 + 2 * (0.7 - 0.5), -0.5 + 2 * (0.7 + 0.5)};
+  const std::vector<double> expected = {0.5 + 2 * (-0.1 - 0.5), -0.5 + 2 * (-0.1 + 0.5), 0.5 + 2 * (0.7 - 0.5),
+                                        -0.5 + 2 * (0.7 + 0.5)};
   ASSERT_EQ(floor_x.size(), 4u);
   std::vector<double> sorted = expected;
   std::sort(sorted.begin(), sorted.end());
@@ -98,7 +98,6 @@ TEST(Discontinuity, ConvexEnclosureHasNoEvents) {
   EXPECT_TRUE(find_visibility_events(scene, accelerator).empty());
 }
 
-
 // ---------------------------------------------------------------------------------------------
 // Independent geometry for the expected answers: long double Bernstein evaluation, tangent points
 // by dense sampling of the sign of cross(C(t) - P, C'(t)) and bisection.
@@ -162,9 +161,7 @@ std::vector<Cubic> chain_of(const Scene& scene, const std::string& id) {
 }
 
 // Where the line from a through b meets y = 0.
-double floor_crossing(LongVec a, LongVec b) {
-  return static_cast<double>(a.x + (b.x - a.x) * a.y / (a.y - b.y));
-}
+double floor_crossing(LongVec a, LongVec b) { return static_cast<double>(a.x + (b.x - a.x) * a.y / (a.y - b.y)); }
 
 // A circle of 8 cubic arcs of 45 degrees (handles (4/3) tan(pi/16) r), from angle 0,
 // counter-clockwise (front inward) or clockwise (front outward), as a JSON point list. The last
@@ -196,8 +193,8 @@ std::string circle_points(double cx, double cy, double r, bool clockwise) {
 }
 
 // The x of the C0 nodes on a straight floor from (x0, y) to (x1, y), sorted.
-std::vector<double> floor_nodes(const Scene& scene, const std::vector<DiscontinuityNode>& nodes,
-                                const std::string& id, double x0, double x1) {
+std::vector<double> floor_nodes(const Scene& scene, const std::vector<DiscontinuityNode>& nodes, const std::string& id,
+                                double x0, double x1) {
   std::vector<double> xs;
   for (const DiscontinuityNode& node : nodes) {
     if (scene.curves[node.curve].id != id) continue;
@@ -211,8 +208,7 @@ std::vector<double> floor_nodes(const Scene& scene, const std::vector<Discontinu
 void expect_same_positions(std::vector<double> actual, std::vector<double> expected, double tolerance) {
   std::sort(expected.begin(), expected.end());
   ASSERT_EQ(actual.size(), expected.size());
-  for (std::size_t i = 0; i < expected.size(); ++i)
-    EXPECT_NEAR(actual[i], expected[i], tolerance) << "event " << i;
+  for (std::size_t i = 0; i < expected.size(); ++i) EXPECT_NEAR(actual[i], expected[i], tolerance) << "event " << i;
 }
 
 std::vector<std::string> curves_with_nodes(const Scene& scene, const std::vector<DiscontinuityNode>& nodes) {
@@ -231,7 +227,8 @@ TEST(Discontinuity, LinesFromLampEndsTangentToARoundOccluderMarkTheFloor) {
     "materials": {"lamp": {"emittance": 1}, "black": {}, "grey": {"reflectivity": 0.5}},
     "curves": [
       {"id": "lamp", "material": "lamp", "sides": "back", "line": [[-0.5,2],[0.5,2]]},
-      {"id": "ball", "material": "black", "bezier": )" + circle_points(0.0, 1.0, 0.3, false) + R"(},
+      {"id": "ball", "material": "black", "bezier": )" +
+                                               circle_points(0.0, 1.0, 0.3, false) + R"(},
       {"id": "shade", "material": "black", "line": [[-0.2,2.5],[0.2,2.5]]},
       {"id": "ceiling", "material": "grey", "line": [[2,3],[-2,3]]},
       {"id": "floor", "material": "grey", "line": [[-2,0],[2,0]]}]})");
@@ -255,7 +252,8 @@ TEST(Discontinuity, SilhouettesOfARoundLampPastAnOccluderEdgeMarkTheFloor) {
     "flatland": 2,
     "materials": {"lamp": {"emittance": 1}, "black": {}, "grey": {"reflectivity": 0.5}},
     "curves": [
-      {"id": "lamp", "material": "lamp", "bezier": )" + circle_points(0.0, 2.5, 0.3, true) + R"(},
+      {"id": "lamp", "material": "lamp", "bezier": )" +
+                                               circle_points(0.0, 2.5, 0.3, true) + R"(},
       {"id": "edge", "material": "black", "line": [[-0.1,1.2],[0.6,1.2]]},
       {"id": "floor", "material": "grey", "line": [[-5,0],[5,0]]}]})");
   const SegmentAccelerator accelerator(geometry_of(scene));
@@ -273,7 +271,8 @@ TEST(Discontinuity, SilhouettesOfARoundLampPastAnOccluderEdgeMarkTheFloor) {
     "flatland": 2,
     "materials": {"lamp": {"emittance": 1}, "black": {}, "grey": {"reflectivity": 0.5}},
     "curves": [
-      {"id": "lamp", "material": "lamp", "bezier": )" + circle_points(0.0, 2.5, 0.3, false) + R"(},
+      {"id": "lamp", "material": "lamp", "bezier": )" +
+                                                circle_points(0.0, 2.5, 0.3, false) + R"(},
       {"id": "edge", "material": "black", "line": [[-0.1,1.2],[0.6,1.2]]},
       {"id": "floor", "material": "grey", "line": [[-5,0],[5,0]]}]})");
   EXPECT_TRUE(find_visibility_events(inward, SegmentAccelerator(geometry_of(inward))).empty());
@@ -285,8 +284,10 @@ TEST(Discontinuity, BitangentsOfARoundLampAndARoundOccluderMarkTheFloor) {
     "flatland": 2,
     "materials": {"lamp": {"emittance": 1}, "black": {}, "grey": {"reflectivity": 0.5}},
     "curves": [
-      {"id": "lamp", "material": "lamp", "bezier": )" + circle_points(0.0, 2.5, 0.3, true) + R"(},
-      {"id": "ball", "material": "black", "bezier": )" + circle_points(0.3, 1.2, 0.2, false) + R"(},
+      {"id": "lamp", "material": "lamp", "bezier": )" +
+                                               circle_points(0.0, 2.5, 0.3, true) + R"(},
+      {"id": "ball", "material": "black", "bezier": )" +
+                                               circle_points(0.3, 1.2, 0.2, false) + R"(},
       {"id": "floor", "material": "grey", "line": [[-6,0],[6,0]]}]})");
   const std::vector<Cubic> lamp = chain_of(scene, "lamp");
   const std::vector<Cubic> ball = chain_of(scene, "ball");
@@ -389,8 +390,7 @@ TEST(Discontinuity, MergingJoinsCloseEvents) {
   // fraction of 0.5 (0.75 in arc length), 0.3 and 0.9 become one node at their mean.
   const Scene scene = testing::scene_from_file("scenes2d/penumbra.json");
   const SegmentAccelerator accelerator(geometry_of(scene));
-  const std::vector<DiscontinuityNode> nodes =
-      find_visibility_events(scene, accelerator, EventOptions{4, 0.5});
+  const std::vector<DiscontinuityNode> nodes = find_visibility_events(scene, accelerator, EventOptions{4, 0.5});
   expect_same_positions(floor_nodes(scene, nodes, "receiver", -3.0, 3.0), {-0.7, 0.6, 1.9}, 1e-12);
 }
 
@@ -431,7 +431,8 @@ TEST(Discontinuity, CrossingsCutBothCurves) {
       {"id": "b", "material": "m", "line": [[-1,1],[1,-1]]},
       {"id": "arch", "material": "m", "bezier": [[2,0],[2,1.5],[4,1.5],[4,0]]},
       {"id": "bar", "material": "m", "line": [[1.5,0.5],[4.5,0.5]]},
-      {"id": "ball", "material": "m", "bezier": )" + circle_points(0.0, 3.0, 0.3, false) + R"(},
+      {"id": "ball", "material": "m", "bezier": )" +
+                                               circle_points(0.0, 3.0, 0.3, false) + R"(},
       {"id": "rod", "material": "m", "line": [[-1,3],[1,3]]}]})");
   const std::vector<DiscontinuityNode> nodes = find_contacts(scene);
   expect_same_positions(contact_parameters(scene, nodes, "a"), {0.5}, 1e-12);
@@ -444,8 +445,8 @@ TEST(Discontinuity, CrossingsCutBothCurves) {
     const double s = 1.0 - t;
     return 2.0 * s * s * s + 3.0 * 2.0 * s * s * t + 3.0 * 4.0 * s * t * t + 4.0 * t * t * t;
   };
-  expect_same_positions(contact_parameters(scene, nodes, "bar"),
-                        {(arch_x(t0) - 1.5) / 3.0, (arch_x(t1) - 1.5) / 3.0}, 1e-12);
+  expect_same_positions(contact_parameters(scene, nodes, "bar"), {(arch_x(t0) - 1.5) / 3.0, (arch_x(t1) - 1.5) / 3.0},
+                        1e-12);
   expect_same_positions(contact_parameters(scene, nodes, "ball"), {0.0, 4.0}, 1e-12);
   expect_same_positions(contact_parameters(scene, nodes, "rod"), {0.35, 0.65}, 1e-12);
 }
@@ -463,7 +464,8 @@ TEST(Discontinuity, TJunctionsCutTheReceivingCurveOnly) {
       {"id": "ell", "material": "m", "line": [[4,1],[3,0.5],[4,0]]},
       {"id": "floor", "material": "m", "line": [[5,0],[9,0]]},
       {"id": "square", "material": "m", "line": [[7,0],[8,1],[7,2],[6,1],[7,0]]},
-      {"id": "ball", "material": "m", "bezier": )" + circle_points(0.0, 5.0, 0.3, false) + R"(},
+      {"id": "ball", "material": "m", "bezier": )" +
+                                               circle_points(0.0, 5.0, 0.3, false) + R"(},
       {"id": "tangent", "material": "m", "line": [[0.3,4],[0.3,6]]}]})");
   const std::vector<DiscontinuityNode> nodes = find_contacts(scene);
   expect_same_positions(contact_parameters(scene, nodes, "beam"), {0.5}, 1e-12);
@@ -483,7 +485,8 @@ TEST(Discontinuity, CurveTouchingItselfIsCut) {
     "curves": [
       {"id": "lamp", "material": "lamp", "line": [[20,20],[21,20]]},
       {"id": "hook", "material": "m", "line": [[0,0],[4,0],[4,2],[1,2],[1,0]]},
-      {"id": "ring", "material": "m", "bezier": )" + circle_points(0.0, 5.0, 0.3, false) + R"(}]})");
+      {"id": "ring", "material": "m", "bezier": )" +
+                                               circle_points(0.0, 5.0, 0.3, false) + R"(}]})");
   const std::vector<DiscontinuityNode> nodes = find_contacts(scene);
   expect_same_positions(contact_parameters(scene, nodes, "hook"), {0.25}, 1e-12);
   EXPECT_TRUE(contact_parameters(scene, nodes, "ring").empty());

@@ -60,8 +60,8 @@ class Polyline {
       const long double side = dx * y - dy * x;
       const long double along = dx * x + dy * y;
       if (i > 0 && ((side > 0 && previous_side < 0) || (side < 0 && previous_side > 0))) {
-        out.push_back({std::min(along, previous_along) - sagitta_,
-                       std::max(along, previous_along) + sagitta_, t_[i - 1], t_[i]});
+        out.push_back(
+            {std::min(along, previous_along) - sagitta_, std::max(along, previous_along) + sagitta_, t_[i - 1], t_[i]});
       }
       previous_side = side;
       previous_along = along;
@@ -87,8 +87,8 @@ double query_size(const Cubic& c, const Ray& ray) {
 // Checks one answer of intersect_cubic (or _from) against the polyline. `exclude_below` drops
 // proven crossings that may lie closer than that (used for rays that leave the curve itself).
 // Returns whether the reference proves a crossing, for statistics.
-bool check_against_polyline(const Cubic& c, const Ray& ray, const Polyline& poly, bool hit,
-                            const SegmentHit& h, double exclude_below = 0.0) {
+bool check_against_polyline(const Cubic& c, const Ray& ray, const Polyline& poly, bool hit, const SegmentHit& h,
+                            double exclude_below = 0.0) {
   const double size = query_size(c, ray);
   const std::vector<Crossing> proven = poly.crossings(ray);
   long double nearest_upper = kInfinity;
@@ -128,17 +128,10 @@ Cubic random_shape(std::mt19937_64& rng, Shape shape) {
   auto point = [&] { return Vec2{u(rng), u(rng)}; };
   Cubic c{{point(), point(), point(), point()}};
   switch (shape) {
-    case Shape::Generic:
-      break;
-    case Shape::FirstDouble:
-      c.p[1] = c.p[0];
-      break;
-    case Shape::LastDouble:
-      c.p[2] = c.p[3];
-      break;
-    case Shape::MiddleDouble:
-      c.p[2] = c.p[1];
-      break;
+    case Shape::Generic: break;
+    case Shape::FirstDouble: c.p[1] = c.p[0]; break;
+    case Shape::LastDouble: c.p[2] = c.p[3]; break;
+    case Shape::MiddleDouble: c.p[2] = c.p[1]; break;
     case Shape::Collinear: {
       const Vec2 a = point();
       const Vec2 b = point();
@@ -177,9 +170,8 @@ Ray random_ray(std::mt19937_64& rng, const Cubic& c, bool aimed) {
 
 TEST(Intersect, RandomCubicsMatchDensePolyline) {
   std::mt19937_64 rng(101);
-  const Shape shapes[] = {Shape::Generic,      Shape::FirstDouble, Shape::LastDouble,
-                          Shape::MiddleDouble, Shape::Collinear,   Shape::Quadratic,
-                          Shape::Tiny};
+  const Shape shapes[] = {Shape::Generic,   Shape::FirstDouble, Shape::LastDouble, Shape::MiddleDouble,
+                          Shape::Collinear, Shape::Quadratic,   Shape::Tiny};
   int hits = 0;
   int proven = 0;
   int queries = 0;
@@ -254,8 +246,7 @@ TEST(Intersect, AimedRaysNearTheEndsFindPointsOnTheRay) {
     SegmentHit h;
     ASSERT_TRUE(intersect_cubic(c, ray, kInfinity, &h)) << trial;
     const LongVec p = bernstein_point(c, h.t);
-    const long double side =
-        ray.direction.x * (p.y - ray.origin.y) - ray.direction.y * (p.x - ray.origin.x);
+    const long double side = ray.direction.x * (p.y - ray.origin.y) - ray.direction.y * (p.x - ray.origin.x);
     EXPECT_LT(std::abs(double(side)), 1e-13 * size) << trial << " t " << h.t;
     EXPECT_LE(h.distance, length(target - ray.origin) + 1e-13 * size) << trial;
     ++checked;
@@ -319,8 +310,7 @@ struct Chain {
 };
 
 bool intersect_piece(const Cubic& c, bool is_line, const Ray& ray, SegmentHit* h) {
-  return is_line ? intersect_line(c.p[0], c.p[3], ray, kInfinity, h)
-                 : intersect_cubic(c, ray, kInfinity, h);
+  return is_line ? intersect_line(c.p[0], c.p[3], ray, kInfinity, h) : intersect_cubic(c, ray, kInfinity, h);
 }
 
 TEST(Intersect, RaysThroughRandomJointsAreNeverLost) {
@@ -334,10 +324,8 @@ TEST(Intersect, RaysThroughRandomJointsAreNeverLost) {
     Chain chain{};
     chain.first_is_line = trial % 4 == 1;
     chain.second_is_line = trial % 4 == 2;
-    chain.first = chain.first_is_line ? line_as_cubic(point(), joint)
-                                      : bezier(point(), point(), point(), joint);
-    chain.second = chain.second_is_line ? line_as_cubic(joint, point())
-                                        : bezier(joint, point(), point(), point());
+    chain.first = chain.first_is_line ? line_as_cubic(point(), joint) : bezier(point(), point(), point(), joint);
+    chain.second = chain.second_is_line ? line_as_cubic(joint, point()) : bezier(joint, point(), point(), point());
     const Vec2 origin = 2.0 * point();
     // Half the rays aim at the joint as well as rounding allows (the side value there is often
     // exactly 0); the others pass it at 1e-17..1e-13 on a random side.
@@ -370,8 +358,8 @@ TEST(Intersect, RaysThroughRandomJointsAreNeverLost) {
     const bool hit2 = intersect_piece(chain.second, chain.second_is_line, ray, &h2);
     const bool near1 = hit1 && std::abs(h1.distance - to_joint) < 1e-9;
     const bool near2 = hit2 && std::abs(h2.distance - to_joint) < 1e-9;
-    ASSERT_TRUE(near1 || near2) << "lost at trial " << trial << ": " << hit1 << " " << h1.t << " "
-                                << hit2 << " " << h2.t;
+    ASSERT_TRUE(near1 || near2) << "lost at trial " << trial << ": " << hit1 << " " << h1.t << " " << hit2 << " "
+                                << h2.t;
     if (near1 && near2) {
       // Both only if the joint itself lies on the ray's line: then it is the same point.
       EXPECT_EQ(h1.t, 1.0);
@@ -457,8 +445,7 @@ TEST(Intersect, QuadraticCubicsMatchClosedForm) {
       for (long double t : {(-beta - r) / (2 * alpha), (-beta + r) / (2 * alpha)}) {
         if (!(t >= 0.0L && t <= 1.0L) || std::min(t, 1.0L - t) < 1e-9L) continue;
         const LongVec p = bernstein_point(c, t);
-        const long double sigma =
-            ray.direction.x * (p.x - ray.origin.x) + ray.direction.y * (p.y - ray.origin.y);
+        const long double sigma = ray.direction.x * (p.x - ray.origin.x) + ray.direction.y * (p.y - ray.origin.y);
         if (sigma > 1e-9L && sigma < best) {
           best = sigma;
           best_t = t;
@@ -511,8 +498,7 @@ TEST(Intersect, CollinearCubicsHitWhereTheLineDoes) {
     const bool line_hit = intersect_line(lerp(a, b, s_min), lerp(a, b, s_max), ray, kInfinity, &hl);
     if (line_hit && std::min(hl.t, 1.0 - hl.t) > 1e-4 && hl.distance > 1e-6) {
       ASSERT_TRUE(cubic_hit) << trial;
-      EXPECT_NEAR(hc.distance, hl.distance,
-                  1e-12 * (1.0 + 1.0 / std::abs(cross(ray.direction, normalized(b - a)))));
+      EXPECT_NEAR(hc.distance, hl.distance, 1e-12 * (1.0 + 1.0 / std::abs(cross(ray.direction, normalized(b - a)))));
       ++hits;
     }
     if (!line_hit && cubic_hit && hc.distance > 1e-6) {
@@ -562,8 +548,7 @@ TEST(Intersect, ConcaveCubicLightsItself) {
     const Vec2 tangent = unit_tangent(arch, t0, 1.0);
     const Vec2 front = perp(tangent);
     // Angle from the tangent in (0, pi), on the front side or the back side.
-    const double angle =
-        trial % 3 == 0 ? std::pow(10.0, -12.0 * unit(rng)) : std::numbers::pi * unit(rng);
+    const double angle = trial % 3 == 0 ? std::pow(10.0, -12.0 * unit(rng)) : std::numbers::pi * unit(rng);
     const double along = std::cos(angle);
     const double across = std::sin(angle);
     SegmentHit h;
@@ -651,8 +636,7 @@ TEST(Intersect, ScaledAndTranslatedScenesGiveTheSameAnswers) {
     std::mt19937_64 local = rng;  // the same cases for every transform
     int compared = 0;
     // Coordinates far from the origin carry rounding of |offset| eps relative to the scene.
-    const double noise =
-        1e-13 + 64.0 * std::numeric_limits<double>::epsilon() * length(tf.offset) / tf.scale;
+    const double noise = 1e-13 + 64.0 * std::numeric_limits<double>::epsilon() * length(tf.offset) / tf.scale;
     for (int trial = 0; trial < 3000; ++trial) {
       const Cubic c = random_shape(local, trial % 2 ? Shape::Generic : Shape::LastDouble);
       const Ray ray = random_ray(local, c, trial % 3 != 0);

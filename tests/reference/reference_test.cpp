@@ -12,9 +12,9 @@
 
 #include <gtest/gtest.h>
 
+#include "flatland/base/quadrature.hpp"
 #include "flatland/geometry/bezier.hpp"
 #include "flatland/results/metrics.hpp"
-#include "flatland/base/quadrature.hpp"
 #include "flatland/results/result_io.hpp"
 #include "test_support.hpp"
 
@@ -28,8 +28,7 @@ ReferenceSolution solve(const Scene& scene, const ReferenceSettings& settings) {
 }
 
 // Radiosity at K points s_j = (j + 0.5) L / K along a curve, plus the curve's ends and middle.
-std::vector<double> samples(const ReferenceSolution& solution, std::uint32_t curve, Side side,
-                            int count) {
+std::vector<double> samples(const ReferenceSolution& solution, std::uint32_t curve, Side side, int count) {
   const Scene& scene = solution.scene();
   const Curve& c = scene.curves[curve];
   std::vector<double> values;
@@ -153,9 +152,8 @@ class RingClosedForm {
 // (sample_radiosity, compare_sampled: the norms `flatland compare` reports).
 ErrorNorms true_error(const Scene& scene, const ReferenceSolution& solution, int samples,
                       const RadiosityFunction& exact) {
-  const SampledResult computed = sample_radiosity(scene, samples, [&solution](std::uint32_t c, Side side, double u) {
-    return solution.radiosity(c, side, u);
-  });
+  const SampledResult computed = sample_radiosity(
+      scene, samples, [&solution](std::uint32_t c, Side side, double u) { return solution.radiosity(c, side, u); });
   Result<Comparison> comparison = compare_sampled(computed, sample_radiosity(scene, samples, exact));
   EXPECT_TRUE(comparison.ok());
   return comparison->scene;
@@ -316,8 +314,8 @@ TEST(Reference, ReciprocityAndRowSums) {
           if (solution.row_sum(j, sj) < 0.0) continue;
           const double forward = elements[i].length * solution.form_factor(i, si, j, sj);
           const double backward = elements[j].length * solution.form_factor(j, sj, i, si);
-          worst_reciprocity = std::max(worst_reciprocity, std::fabs(forward - backward) /
-                                                              std::min(elements[i].length, elements[j].length));
+          worst_reciprocity = std::max(
+              worst_reciprocity, std::fabs(forward - backward) / std::min(elements[i].length, elements[j].length));
         }
       }
     }
@@ -566,9 +564,9 @@ TEST(Reference, SplitQuadratureConvergesWhereTheUnsplitRuleDoesNot) {
     e.normal = (1.0 / e.length) * perp(b - a);
     return e;
   };
-  elements[0] = element({-0.5, 0.0}, {0.5, 0.0});   // receiver, front up
-  elements[1] = element({0.4, 1.0}, {-0.4, 1.0});   // lamp, front down
-  elements[2] = element({-0.05, 0.5}, {0.3, 0.55}); // occluder
+  elements[0] = element({-0.5, 0.0}, {0.5, 0.0});    // receiver, front up
+  elements[1] = element({0.4, 1.0}, {-0.4, 1.0});    // lamp, front down
+  elements[2] = element({-0.05, 0.5}, {0.3, 0.55});  // occluder
   const int n = 400'000;
   double brute = 0.0;
   for (int k = 0; k < n; ++k) {
@@ -580,10 +578,12 @@ TEST(Reference, SplitQuadratureConvergesWhereTheUnsplitRuleDoesNot) {
   std::vector<double> plain_errors;
   std::size_t pieces = 0;
   for (const int points : {2, 4, 8, 16}) {
-    split_errors.push_back(std::fabs(pair_form_factor(elements, 0, Side::Front, 1, Side::Front, points, true, &pieces) - brute));
-    plain_errors.push_back(std::fabs(pair_form_factor(elements, 0, Side::Front, 1, Side::Front, points, false) - brute));
-    std::printf("%2d points: split (%zu pieces) error %.3g, unsplit error %.3g\n", points, pieces,
-                split_errors.back(), plain_errors.back());
+    split_errors.push_back(
+        std::fabs(pair_form_factor(elements, 0, Side::Front, 1, Side::Front, points, true, &pieces) - brute));
+    plain_errors.push_back(
+        std::fabs(pair_form_factor(elements, 0, Side::Front, 1, Side::Front, points, false) - brute));
+    std::printf("%2d points: split (%zu pieces) error %.3g, unsplit error %.3g\n", points, pieces, split_errors.back(),
+                plain_errors.back());
   }
   EXPECT_GE(pieces, 3u);  // cut where the penumbra lines cross the receiver
   // Split: each halving of the spacing gains far more than the unsplit rule's factor of about 4.
@@ -602,7 +602,8 @@ ErrorNorms closed_form_error(const Scene& scene, const ReferenceSolution& soluti
     const RingClosedForm ring(scene, 0.5, 400);
     return true_error(scene, solution, samples, ring_exact(scene, ring));
   }
-  if (scene.name == "reference_round_occluder") return true_error(scene, solution, samples, round_occluder_exact(scene));
+  if (scene.name == "reference_round_occluder")
+    return true_error(scene, solution, samples, round_occluder_exact(scene));
   // penumbra.json: the same one bounce with a straight occluder (see Penumbra above).
   return true_error(scene, solution, samples, [&scene](std::uint32_t k, Side side, double u) {
     Spectrum b{0.0, 0.0, 0.0};
@@ -655,19 +656,18 @@ TEST(Reference, EstimateIsWithinAFactorTwoOfTheTrueError) {
     const char* file;
     double divisor;
   };
-  for (const Case& c : {Case{"scenes2d/tests/reference_round_occluder.json", 400.0},
-                        Case{"scenes2d/tests/reference_ring_profile.json", 100.0},
-                        Case{"scenes2d/penumbra.json", 200.0}}) {
+  for (const Case& c :
+       {Case{"scenes2d/tests/reference_round_occluder.json", 400.0},
+        Case{"scenes2d/tests/reference_ring_profile.json", 100.0}, Case{"scenes2d/penumbra.json", 200.0}}) {
     const Scene scene = testing::scene_from_file(c.file);
     ReferenceSettings settings;
     settings.max_element_length = scene.scale / c.divisor;
     const ReferenceSolution solution = solve(scene, settings);
     std::vector<int> levels;
-    const SampledResult fine = sample_radiosity(scene, samples, [&solution](std::uint32_t k, Side side, double u) {
-      return solution.radiosity(k, side, u);
-    });
-    Result<ReferenceErrorEstimate> estimate =
-        estimate_discretisation_error(scene, settings, samples, fine, [&levels](int level) { levels.push_back(level); });
+    const SampledResult fine = sample_radiosity(
+        scene, samples, [&solution](std::uint32_t k, Side side, double u) { return solution.radiosity(k, side, u); });
+    Result<ReferenceErrorEstimate> estimate = estimate_discretisation_error(
+        scene, settings, samples, fine, [&levels](int level) { levels.push_back(level); });
     ASSERT_TRUE(estimate.ok()) << estimate.error().message;
     EXPECT_EQ(levels, (std::vector<int>{1, 2}));
     const ErrorNorms truth = closed_form_error(scene, solution, samples);
@@ -696,9 +696,8 @@ TEST(Reference, DISABLED_EstimatedAgainstTrueErrorTable) {
       ReferenceSettings settings;
       settings.max_element_length = scene.scale / divisor;
       const ReferenceSolution solution = solve(scene, settings);
-      const SampledResult fine = sample_radiosity(scene, 100, [&solution](std::uint32_t k, Side side, double u) {
-        return solution.radiosity(k, side, u);
-      });
+      const SampledResult fine = sample_radiosity(
+          scene, 100, [&solution](std::uint32_t k, Side side, double u) { return solution.radiosity(k, side, u); });
       Result<ReferenceErrorEstimate> estimate = estimate_discretisation_error(scene, settings, 100, fine);
       ASSERT_TRUE(estimate.ok());
       const ErrorNorms truth = closed_form_error(scene, solution, 100);
@@ -718,11 +717,9 @@ TEST(Reference, DISABLED_Timing) {
     settings.max_element_length = scene.scale / divisor;
     const auto start = std::chrono::steady_clock::now();
     const ReferenceSolution solution = solve(scene, settings);
-    const double seconds =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    std::printf("%zu elements: %.2f s (form factors %.2f s, solve %.2f s, %d sweeps)\n",
-                solution.elements(), seconds, solution.form_factor_seconds(),
-                solution.solve_seconds(), solution.iterations());
+    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    std::printf("%zu elements: %.2f s (form factors %.2f s, solve %.2f s, %d sweeps)\n", solution.elements(), seconds,
+                solution.form_factor_seconds(), solution.solve_seconds(), solution.iterations());
   }
 }
 

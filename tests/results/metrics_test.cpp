@@ -12,8 +12,8 @@ namespace {
 nlohmann::json document(const std::vector<double>& b, const std::string& id = "floor") {
   nlohmann::json samples = nlohmann::json::array();
   for (std::size_t j = 0; j < b.size(); ++j)
-    samples.push_back({{"s", (static_cast<double>(j) + 0.5) * 2.0 / static_cast<double>(b.size())},
-                       {"x", 0}, {"y", 0}, {"B", b[j]}});
+    samples.push_back(
+        {{"s", (static_cast<double>(j) + 0.5) * 2.0 / static_cast<double>(b.size())}, {"x", 0}, {"y", 0}, {"B", b[j]}});
   return {{"flatland_result", 1}, {"curves", {{{"id", id}, {"length", 2.0}, {"samples", samples}}}}};
 }
 
@@ -74,8 +74,8 @@ nlohmann::json curve(const std::string& id, const std::vector<double>& b, const 
                      double emittance = 0.0) {
   nlohmann::json samples = nlohmann::json::array();
   for (std::size_t j = 0; j < b.size(); ++j) {
-    samples.push_back({{"s", (static_cast<double>(j) + 0.5) * 2.0 / static_cast<double>(b.size())},
-                       {"x", 0}, {"y", 0}, {"B", b[j]}});
+    samples.push_back(
+        {{"s", (static_cast<double>(j) + 0.5) * 2.0 / static_cast<double>(b.size())}, {"x", 0}, {"y", 0}, {"B", b[j]}});
     if (!e.empty()) samples.back()["E"] = e[j];
   }
   return {{"id", id}, {"length", 2.0}, {"emittance", emittance}, {"samples", samples}};
@@ -179,7 +179,8 @@ TEST(Metrics, EmittersNeedTheirE) {
   const Result<Comparison> mixed = compare_results(old, with_e, Measure::Reflected);
   ASSERT_TRUE(mixed.ok()) << mixed.error().message;
   EXPECT_EQ(mixed->scene.l2, 0.0);
-  const Result<Comparison> plain = compare_results(document({1.1, 1.9, 3, 4.2}), document({1, 2, 3, 4}), Measure::Reflected);
+  const Result<Comparison> plain =
+      compare_results(document({1.1, 1.9, 3, 4.2}), document({1, 2, 3, 4}), Measure::Reflected);
   ASSERT_TRUE(plain.ok()) << plain.error().message;
   EXPECT_NEAR(plain->scene.l2, std::sqrt(0.06 / 30.0), 1e-15);
 }

@@ -9,8 +9,8 @@
 #include <atomic>
 #include <filesystem>
 #include <fstream>
-#include <vector>
 #include <string>
+#include <vector>
 
 #include <gtest/gtest.h>
 

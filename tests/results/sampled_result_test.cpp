@@ -59,7 +59,8 @@ TEST(SampledResult, SolverResultsHoldTheSolversNumbers) {
       }
       ASSERT_TRUE(out.spline.has_value());
       EXPECT_EQ(out.spline->knots, solver.storage(c).basis.knots());
-      EXPECT_EQ(out.spline->coefficients, solver.radiosity_coefficients(c, curve.sides == Sides::Back ? Side::Back : Side::Front));
+      EXPECT_EQ(out.spline->coefficients,
+                solver.radiosity_coefficients(c, curve.sides == Sides::Back ? Side::Back : Side::Front));
     }
     ASSERT_TRUE(result.stats.has_value());
     EXPECT_EQ(result.stats->photons, solver.photons_shot());
@@ -145,14 +146,16 @@ TEST(SampledResult, MalformedDocumentsAreErrors) {
   EXPECT_NE(error_of(no_length).find("malformed result"), std::string::npos);
   nlohmann::json mixed = good;
   mixed["curves"][0]["samples"].push_back({{"s", 0.7}, {"B", {1.0, 2.0, 3.0}}});
-  EXPECT_NE(error_of(mixed).find("curves[0] (\"floor\").samples[1].B (reference): a colour value in a grey result"), std::string::npos)
+  EXPECT_NE(error_of(mixed).find("curves[0] (\"floor\").samples[1].B (reference): a colour value in a grey result"),
+            std::string::npos)
       << error_of(mixed);
   nlohmann::json text = good;
   text["curves"][0]["samples"][0]["B"] = "bright";
   EXPECT_NE(error_of(text).find("expected a number or [r, g, b]"), std::string::npos);
   // Found by fuzz_result (fuzz/corpus/result/regression-segments-beyond-int.json): a segment count
   // beyond an int was converted anyway (undefined behaviour).
-  for (const nlohmann::json& count : {nlohmann::json(11e100), nlohmann::json(-1), nlohmann::json(2.5), nlohmann::json("4")}) {
+  for (const nlohmann::json& count :
+       {nlohmann::json(11e100), nlohmann::json(-1), nlohmann::json(2.5), nlohmann::json("4")}) {
     nlohmann::json segments = good;
     segments["curves"][0]["segments"] = count;
     EXPECT_NE(error_of(segments).find(".segments: expected a whole number"), std::string::npos) << error_of(segments);

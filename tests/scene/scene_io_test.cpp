@@ -54,11 +54,11 @@ std::string error_of(std::string_view text) {
   return message;
 }
 
-#define EXPECT_CONTAINS(haystack, needle)                                             \
-  do {                                                                                \
-    const std::string haystack_ = (haystack);                                         \
-    EXPECT_NE(haystack_.find(needle), std::string::npos)                              \
-        << "message: " << haystack_ << "\nexpected to contain: " << (needle);         \
+#define EXPECT_CONTAINS(haystack, needle)                                     \
+  do {                                                                        \
+    const std::string haystack_ = (haystack);                                 \
+    EXPECT_NE(haystack_.find(needle), std::string::npos)                      \
+        << "message: " << haystack_ << "\nexpected to contain: " << (needle); \
   } while (false)
 
 // Lengths by brute force: the sum of many chords converges to the arc length as O(h^2).
@@ -157,17 +157,14 @@ TEST(SceneIo, Sides) {
 TEST(SceneIo, DefaultJointsFollowTangentContinuity) {
   // A polyline: collinear vertices join with C1, corners (right and acute) with a jump. (A
   // reversal would fold the line back over itself, an overlap the reader refuses.)
-  const Result<Scene> r = parse(edited([](Json& j) {
-    j["curves"][1]["line"] = Json::parse("[[0,0],[1,0],[2,0],[2,1],[1.5,0.5]]");
-  }));
+  const Result<Scene> r =
+      parse(edited([](Json& j) { j["curves"][1]["line"] = Json::parse("[[0,0],[1,0],[2,0],[2,1],[1.5,0.5]]"); }));
   ASSERT_TRUE(r.ok()) << r.error().message;
-  EXPECT_EQ(r->curves[1].joints,
-            (std::vector<Continuity>{Continuity::C1, Continuity::Jump, Continuity::Jump}));
+  EXPECT_EQ(r->curves[1].joints, (std::vector<Continuity>{Continuity::C1, Continuity::Jump, Continuity::Jump}));
   // A Bezier chain: the joint is C1 where the handles are collinear, a jump at a corner.
   const Result<Scene> b = parse(edited([](Json& j) {
     j["curves"][1].erase("line");
-    j["curves"][1]["bezier"] = Json::parse(
-        "[[0,0],[1,0],[2,1],[3,1], [4,1],[5,0],[6,0], [6,1],[7,1],[8,1]]");
+    j["curves"][1]["bezier"] = Json::parse("[[0,0],[1,0],[2,1],[3,1], [4,1],[5,0],[6,0], [6,1],[7,1],[8,1]]");
   }));
   ASSERT_TRUE(b.ok()) << b.error().message;
   EXPECT_EQ(b->curves[1].joints, (std::vector<Continuity>{Continuity::C1, Continuity::Jump}));
@@ -203,9 +200,7 @@ TEST(SceneIo, ExplicitJoints) {
 // Derived data (finalize_scene), checked against independent answers
 
 TEST(Scene, PolylineSegmentsLengthsAndBounds) {
-  const Result<Scene> r = parse(edited([](Json& j) {
-    j["curves"][1]["line"] = Json::parse("[[0,0],[3,0],[3,4]]");
-  }));
+  const Result<Scene> r = parse(edited([](Json& j) { j["curves"][1]["line"] = Json::parse("[[0,0],[3,0],[3,4]]"); }));
   ASSERT_TRUE(r.ok());
   const Scene& s = *r;
   ASSERT_EQ(s.segments.size(), 3u);
@@ -279,9 +274,7 @@ TEST(Scene, EmittedPowerCountsLengthSidesAndChannels) {
   EXPECT_FALSE(grey->is_emitter(grey->curves[1]));
   EXPECT_DOUBLE_EQ(grey->emitted_power(), 6.0);
   // Colour: E = [1, 2, 3] on a unit line, one side: 1 + 2 + 3 = 6.
-  const Result<Scene> colour = parse(edited([](Json& j) {
-    j["materials"]["lamp"]["emittance"] = {1, 2, 3};
-  }));
+  const Result<Scene> colour = parse(edited([](Json& j) { j["materials"]["lamp"]["emittance"] = {1, 2, 3}; }));
   ASSERT_TRUE(colour.ok());
   EXPECT_EQ(colour->channels, 3);
   EXPECT_DOUBLE_EQ(colour->emitted_power(), 6.0);
@@ -417,14 +410,18 @@ TEST(SceneIoErrors, WrongTypes) {
                   "materials.wall: expected a material object");
   EXPECT_CONTAINS(error_of(edited([](Json& j) { j["materials"]["wall"]["reflectivity"] = "0.5"; })),
                   "materials.wall.reflectivity: expected a number (grey) or [r, g, b] (colour), got a string");
-  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["materials"]["wall"]["reflectivity"] = {0.5, 0.5}; })),
-                  "materials.wall.reflectivity: expected a number (grey) or [r, g, b] (colour), got an array of 2 elements");
-  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["materials"]["wall"]["reflectivity"] = {0.5, nullptr, 0.5}; })),
+  EXPECT_CONTAINS(
+      error_of(edited([](Json& j) {
+        j["materials"]["wall"]["reflectivity"] = {0.5, 0.5};
+      })),
+      "materials.wall.reflectivity: expected a number (grey) or [r, g, b] (colour), got an array of 2 elements");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) {
+                    j["materials"]["wall"]["reflectivity"] = {0.5, nullptr, 0.5};
+                  })),
                   "materials.wall.reflectivity[1]: expected a number, got null");
   EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"] = Json::object(); })),
                   "curves: expected an array of curves, got an object");
-  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"][1] = "floor"; })),
-                  "curves[1]: expected a curve object");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"][1] = "floor"; })), "curves[1]: expected a curve object");
   EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"][1]["id"] = 7; })),
                   "curves[1].id: expected an id (a string), got a number");
   EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"][1]["material"] = true; })),
@@ -433,9 +430,13 @@ TEST(SceneIoErrors, WrongTypes) {
                   "curves[1].line: expected an array of points [[x, y], ...], got a number");
   EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"][1]["line"][1] = "x"; })),
                   "curves[1].line[1]: expected a point [x, y], got a string");
-  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"][1]["line"][1] = {1, 2, 3}; })),
+  EXPECT_CONTAINS(error_of(edited([](Json& j) {
+                    j["curves"][1]["line"][1] = {1, 2, 3};
+                  })),
                   "curves[1].line[1]: expected a point [x, y], got an array of 3 elements");
-  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"][1]["line"][1] = {1, "2"}; })),
+  EXPECT_CONTAINS(error_of(edited([](Json& j) {
+                    j["curves"][1]["line"][1] = {1, "2"};
+                  })),
                   "curves[1].line[1][1]: expected a number, got a string");
   EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"][1]["sides"] = 2; })),
                   "curves[1].sides: expected \"front\", \"back\" or \"both\" (a string), got a number");
@@ -454,8 +455,9 @@ TEST(SceneIoErrors, MissingFields) {
                   "curves[1]: missing \"material\"");
   EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"][1].erase("line"); })),
                   "curves[1]: missing geometry; give \"line\"");
-  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"][1]["bezier"] = Json::parse("[[0,0],[1,0],[2,0],[3,0]]"); })),
-                  "curves[1]: has both \"line\" and \"bezier\"; give exactly one");
+  EXPECT_CONTAINS(
+      error_of(edited([](Json& j) { j["curves"][1]["bezier"] = Json::parse("[[0,0],[1,0],[2,0],[3,0]]"); })),
+      "curves[1]: has both \"line\" and \"bezier\"; give exactly one");
 }
 
 TEST(SceneIoErrors, EmptyCollectionsAndNames) {
@@ -478,8 +480,7 @@ TEST(SceneIoErrors, UnknownMaterialSuggestsTheClosest) {
   EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"][1]["material"] = "wal"; })),
                   "curves[1].material: unknown material \"wal\"; did you mean \"wall\"? (defined: \"lamp\", \"wall\")");
   // Transpositions count as one edit.
-  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"][1]["material"] = "lmap"; })),
-                  "did you mean \"lamp\"?");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"][1]["material"] = "lmap"; })), "did you mean \"lamp\"?");
   const std::string far = error_of(edited([](Json& j) { j["curves"][1]["material"] = "concrete"; }));
   EXPECT_EQ(far.find("did you mean"), std::string::npos) << far;
   EXPECT_CONTAINS(far, "unknown material \"concrete\" (defined: \"lamp\", \"wall\")");
@@ -489,13 +490,17 @@ TEST(SceneIoErrors, ReflectivityAndEmittanceRanges) {
   EXPECT_CONTAINS(error_of(edited([](Json& j) { j["materials"]["wall"]["reflectivity"] = 1; })),
                   "materials.wall.reflectivity: must be below 1: a surface that reflects everything "
                   "never converges (got 1); use at most 0.99");
-  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["materials"]["wall"]["reflectivity"] = {0.5, 1.25, 0.5}; })),
+  EXPECT_CONTAINS(error_of(edited([](Json& j) {
+                    j["materials"]["wall"]["reflectivity"] = {0.5, 1.25, 0.5};
+                  })),
                   "materials.wall.reflectivity[1]: must be below 1");
   EXPECT_CONTAINS(error_of(edited([](Json& j) { j["materials"]["wall"]["reflectivity"] = -0.1; })),
                   "materials.wall.reflectivity: must be in [0, 1), got -0.1");
   EXPECT_CONTAINS(error_of(edited([](Json& j) { j["materials"]["lamp"]["emittance"] = -1; })),
                   "materials.lamp.emittance: must be >= 0 (power per unit length), got -1");
-  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"][0]["emittance"] = {1, -2, 1}; })),
+  EXPECT_CONTAINS(error_of(edited([](Json& j) {
+                    j["curves"][0]["emittance"] = {1, -2, 1};
+                  })),
                   "curves[0].emittance[1]: must be >= 0");
   // Just below 1 is accepted.
   EXPECT_TRUE(parse(edited([](Json& j) { j["materials"]["wall"]["reflectivity"] = 0.999999; })).ok());
@@ -504,8 +509,9 @@ TEST(SceneIoErrors, ReflectivityAndEmittanceRanges) {
 TEST(SceneIoErrors, NumbersThatOverflowAreRejectedWithTheirPlace) {
   const std::string text = R"({"flatland": 1, "materials": {"lamp": {"emittance": 1}},
   "curves": [{"id": "a", "material": "lamp", "line": [[0, 0], [1e999, 0]]}]})";
-  EXPECT_CONTAINS(error_of(text), "test.json:2:64: curves[0].line[1][0]: the number 1e999 is too large "
-                                  "for a double (it overflows to infinity); use a finite value");
+  EXPECT_CONTAINS(error_of(text),
+                  "test.json:2:64: curves[0].line[1][0]: the number 1e999 is too large "
+                  "for a double (it overflows to infinity); use a finite value");
   EXPECT_CONTAINS(error_of(R"({"flatland": 1, "materials": {"lamp": {"emittance": -12.5e400}}})"),
                   "materials.lamp.emittance: the number -12.5e400 is too large");
   // Underflow is harmless: it reads as 0.
@@ -561,31 +567,32 @@ TEST(SceneIoErrors, JointsAndSides) {
                   "curves[1].joints: expected 1 entry (one per joint between the 2 segments), got 2");
   EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"][1]["joints"] = {"C1"}; })),
                   "curves[1].joints: expected 0 entries (one per joint between the 1 segment), got 1");
-  EXPECT_CONTAINS(error_of(edited([](Json& j) {
-                    j["curves"][1]["line"] = Json::parse("[[0,0],[1,0],[2,0]]");
-                    j["curves"][1]["joints"] = {"c1"};
-                  })),
-                  "curves[1].joints[0]: unknown continuity \"c1\"; did you mean \"C1\"? (accepted: \"C1\", \"C0\", \"C-1\")");
+  EXPECT_CONTAINS(
+      error_of(edited([](Json& j) {
+        j["curves"][1]["line"] = Json::parse("[[0,0],[1,0],[2,0]]");
+        j["curves"][1]["joints"] = {"c1"};
+      })),
+      "curves[1].joints[0]: unknown continuity \"c1\"; did you mean \"C1\"? (accepted: \"C1\", \"C0\", \"C-1\")");
   EXPECT_CONTAINS(error_of(edited([](Json& j) {
                     j["curves"][1]["line"] = Json::parse("[[0,0],[1,0],[2,0]]");
                     j["curves"][1]["joints"] = {3};
                   })),
                   "curves[1].joints[0]: expected \"C1\", \"C0\" or \"C-1\" (a string), got a number");
-  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"][1]["sides"] = "fornt"; })),
-                  "curves[1].sides: unknown value \"fornt\"; did you mean \"front\"? (accepted: \"front\", \"back\", \"both\")");
+  EXPECT_CONTAINS(
+      error_of(edited([](Json& j) { j["curves"][1]["sides"] = "fornt"; })),
+      "curves[1].sides: unknown value \"fornt\"; did you mean \"front\"? (accepted: \"front\", \"back\", \"both\")");
 }
 
 TEST(SceneIoErrors, NoEmitter) {
   EXPECT_CONTAINS(error_of(edited([](Json& j) { j["materials"]["lamp"]["emittance"] = 0; })),
                   "curves: no curve emits light, so nothing would be lit");
   // An emitting material that no curve uses does not count.
-  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"][0]["material"] = "wall"; })),
-                  "nothing would be lit");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"][0]["material"] = "wall"; })), "nothing would be lit");
   // A per-curve override can make an emitter out of a non-emitting material.
   EXPECT_TRUE(parse(edited([](Json& j) {
-                      j["materials"]["lamp"]["emittance"] = 0;
-                      j["curves"][1]["emittance"] = 0.5;
-                    })).ok());
+                j["materials"]["lamp"]["emittance"] = 0;
+                j["curves"][1]["emittance"] = 0.5;
+              })).ok());
 }
 
 TEST(SceneIoErrors, ValidationErrorsPointAtTheValue) {
@@ -618,8 +625,7 @@ TEST(SceneIoErrors, KeysThatNeedQuotingInPaths) {
 }
 
 TEST(SceneIoErrors, DeepNestingIsRejectedWithoutCrashing) {
-  const std::string deep = "{\"flatland\": 1, \"x\": " + std::string(100000, '[') +
-                           std::string(100000, ']') + "}";
+  const std::string deep = "{\"flatland\": 1, \"x\": " + std::string(100000, '[') + std::string(100000, ']') + "}";
   EXPECT_CONTAINS(error_of(deep), "nested more than 64 deep");
 }
 
@@ -809,10 +815,27 @@ TEST(SceneIoFuzz, MutatedValuesNeverCrash) {
       for (std::size_t k = 0; k < value->size(); ++k) todo.push_back({pointer / k, &(*value)[k]});
     }
   }
-  const std::vector<Json> replacements = {
-      nullptr, true, 0, -1, 1, 0.5, 1e308, -1e308, 1e-320, "", "C1", "both", "lamp", "x",
-      Json::array(), Json::object(), Json::parse("[0, 0]"), Json::parse("[[0, 0], [0, 0]]"),
-      Json::parse("[1, 2, 3]"), Json::parse("[[0,0],[1,1],[0,1],[1,0]]"), Json::parse("{\"a\": 1}")};
+  const std::vector<Json> replacements = {nullptr,
+                                          true,
+                                          0,
+                                          -1,
+                                          1,
+                                          0.5,
+                                          1e308,
+                                          -1e308,
+                                          1e-320,
+                                          "",
+                                          "C1",
+                                          "both",
+                                          "lamp",
+                                          "x",
+                                          Json::array(),
+                                          Json::object(),
+                                          Json::parse("[0, 0]"),
+                                          Json::parse("[[0, 0], [0, 0]]"),
+                                          Json::parse("[1, 2, 3]"),
+                                          Json::parse("[[0,0],[1,1],[0,1],[1,0]]"),
+                                          Json::parse("{\"a\": 1}")};
   std::mt19937_64 rng(7);
   auto pick = [&](std::size_t n) { return std::uniform_int_distribution<std::size_t>(0, n - 1)(rng); };
   for (int trial = 0; trial < 3000; ++trial) {
@@ -822,8 +845,10 @@ TEST(SceneIoFuzz, MutatedValuesNeverCrash) {
       if (!j.contains(pointer)) continue;
       if (pick(4) == 0 && !pointer.empty()) {
         Json& parent = j[pointer.parent_pointer()];
-        if (parent.is_object()) parent.erase(pointer.back());
-        else if (parent.is_array() && !parent.empty()) parent.erase(parent.size() - 1);
+        if (parent.is_object())
+          parent.erase(pointer.back());
+        else if (parent.is_array() && !parent.empty())
+          parent.erase(parent.size() - 1);
       } else {
         j[pointer] = replacements[pick(replacements.size())];
       }
@@ -859,15 +884,25 @@ TEST(SceneIo, EmissionForms) {
 TEST(SceneIoErrors, EmissionForms) {
   EXPECT_CONTAINS(error_of(edited([](Json& j) { j["materials"]["lamp"]["emission"] = "laser"; })),
                   "materials.lamp.emission: unknown emission");
-  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["materials"]["lamp"]["emission"] = {{"beam", 0}}; })),
+  EXPECT_CONTAINS(error_of(edited([](Json& j) {
+                    j["materials"]["lamp"]["emission"] = {{"beam", 0}};
+                  })),
                   "materials.lamp.emission.beam: the half-angle must be in (0, 90] degrees");
-  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["materials"]["lamp"]["emission"] = {{"beam", 120}}; })),
+  EXPECT_CONTAINS(error_of(edited([](Json& j) {
+                    j["materials"]["lamp"]["emission"] = {{"beam", 120}};
+                  })),
                   "materials.lamp.emission.beam");
-  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["materials"]["lamp"]["emission"] = {{"lobe", -1}}; })),
+  EXPECT_CONTAINS(error_of(edited([](Json& j) {
+                    j["materials"]["lamp"]["emission"] = {{"lobe", -1}};
+                  })),
                   "materials.lamp.emission.lobe: the exponent must be in [0, 1000]");
-  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["materials"]["lamp"]["emission"] = {{"lobe", 2}, {"beam", 3}}; })),
+  EXPECT_CONTAINS(error_of(edited([](Json& j) {
+                    j["materials"]["lamp"]["emission"] = {{"lobe", 2}, {"beam", 3}};
+                  })),
                   "materials.lamp.emission: expected one emission form");
-  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["materials"]["lamp"]["emission"] = {{"lobes", 2}}; })),
+  EXPECT_CONTAINS(error_of(edited([](Json& j) {
+                    j["materials"]["lamp"]["emission"] = {{"lobes", 2}};
+                  })),
                   "did you mean \"lobe\"?");
 }
 
@@ -888,11 +923,17 @@ TEST(SceneIo, EmittanceProfile) {
 }
 
 TEST(SceneIoErrors, EmittanceProfile) {
-  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"][0]["emittance_profile"] = {1, 2, 3}; })),
+  EXPECT_CONTAINS(error_of(edited([](Json& j) {
+                    j["curves"][0]["emittance_profile"] = {1, 2, 3};
+                  })),
                   "curves[0].emittance_profile: expected 2 factors (one per point), got 3");
-  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"][0]["emittance_profile"] = {1, -2}; })),
+  EXPECT_CONTAINS(error_of(edited([](Json& j) {
+                    j["curves"][0]["emittance_profile"] = {1, -2};
+                  })),
                   "curves[0].emittance_profile[1]: must be between 0 and 1e100");
-  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"][0]["emittance_profile"] = {0, 0}; })),
+  EXPECT_CONTAINS(error_of(edited([](Json& j) {
+                    j["curves"][0]["emittance_profile"] = {0, 0};
+                  })),
                   "every factor is zero");
   EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"][0]["emittance_profile"] = 2; })),
                   "expected an array of factors");
@@ -909,7 +950,9 @@ TEST(SceneIoErrors, EmittanceOutsideItsRange) {
     EXPECT_CONTAINS(error_of(edited([&](Json& j) { j["materials"]["lamp"]["emittance"] = refused; })),
                     "materials.lamp.emittance: must be 0 or between 1e-100 and 1e100");
   }
-  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["curves"][0]["emittance_profile"] = {1, 1e101}; })),
+  EXPECT_CONTAINS(error_of(edited([](Json& j) {
+                    j["curves"][0]["emittance_profile"] = {1, 1e101};
+                  })),
                   "curves[0].emittance_profile[1]: must be between 0 and 1e100");
 }
 
@@ -938,10 +981,11 @@ TEST(SceneIoErrors, OverlappingCurvesAreRefused) {
   char same[256], reversed[256], part[256];
   std::snprintf(same, sizeof same, R"({"id": "copy", "material": "%s", "line": [[%.17g, %.17g], [%.17g, %.17g]]})",
                 base.materials[first.material].name.c_str(), a.x, a.y, b.x, b.y);
-  std::snprintf(reversed, sizeof reversed,
-                R"({"id": "copy", "material": "%s", "bezier": [[%.17g, %.17g], [%.17g, %.17g], [%.17g, %.17g], [%.17g, %.17g]]})",
-                base.materials[first.material].name.c_str(), b.x, b.y, (2 * b.x + a.x) / 3, (2 * b.y + a.y) / 3,
-                (b.x + 2 * a.x) / 3, (b.y + 2 * a.y) / 3, a.x, a.y);
+  std::snprintf(
+      reversed, sizeof reversed,
+      R"({"id": "copy", "material": "%s", "bezier": [[%.17g, %.17g], [%.17g, %.17g], [%.17g, %.17g], [%.17g, %.17g]]})",
+      base.materials[first.material].name.c_str(), b.x, b.y, (2 * b.x + a.x) / 3, (2 * b.y + a.y) / 3,
+      (b.x + 2 * a.x) / 3, (b.y + 2 * a.y) / 3, a.x, a.y);
   std::snprintf(part, sizeof part, R"({"id": "copy", "material": "%s", "line": [[%.17g, %.17g], [%.17g, %.17g]]})",
                 base.materials[first.material].name.c_str(), 0.7 * a.x + 0.3 * b.x, 0.7 * a.y + 0.3 * b.y,
                 0.4 * a.x + 0.6 * b.x, 0.4 * a.y + 0.6 * b.y);
@@ -997,7 +1041,7 @@ TEST(SceneIoClosedCurves, TheClosingPointIsAJointInVersionTwo) {
   EXPECT_FALSE(square.periodic());
   EXPECT_EQ(loop.joints, (std::vector<Continuity>{Continuity::C1, Continuity::C1}));
   EXPECT_TRUE(loop.periodic());
-  EXPECT_TRUE(is_tangent_continuous(*v2, loop, 1));     // the closing joint
+  EXPECT_TRUE(is_tangent_continuous(*v2, loop, 1));  // the closing joint
   EXPECT_FALSE(is_tangent_continuous(*v2, square, 3));
   // Version 1: the same loop keeps its seam.
   const Result<Scene> v1 = parse(closed_curves(1, ""));

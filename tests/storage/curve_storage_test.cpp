@@ -8,8 +8,8 @@
 #include <cstdio>
 #include <numbers>
 #include <numeric>
-#include <span>
 #include <random>
+#include <span>
 #include <string>
 #include <utility>
 #include <vector>
@@ -52,11 +52,15 @@ Scene ring_scene(int version) {
     if (i == 0) add(1.0, 0.0);
     add(std::cos(a) - handle * std::sin(a), std::sin(a) + handle * std::cos(a));
     add(std::cos(b) + handle * std::sin(b), std::sin(b) - handle * std::cos(b));
-    if (i == 7) points += "[1,0]"; else add(std::cos(b), std::sin(b));
+    if (i == 7)
+      points += "[1,0]";
+    else
+      add(std::cos(b), std::sin(b));
   }
   return testing::scene_from_text("{\"flatland\": " + std::to_string(version) + R"(,
     "materials": {"wall": {"reflectivity": 0.5, "emittance": 1}},
-    "curves": [{"id": "ring", "material": "wall", "bezier": [)" + points + "]}]}");
+    "curves": [{"id": "ring", "material": "wall", "bezier": [)" +
+                                  points + "]}]}");
 }
 
 // A smooth R on ring_scene's ring at curve parameter u: 2 + cos(angle) + sin(2 angle) / 2.
@@ -137,8 +141,10 @@ TEST(Basis, PeriodicBasisWrapsRoundTheClosingPoint) {
   // and keeps the closing point's continuity: with C1 there, value and slope agree across it.
   std::mt19937_64 random(11);
   std::uniform_real_distribution<double> uniform(0.0, 1.0);
-  const std::vector<MeshNode> nodes = {{0.4, Continuity::C1}, {0.9, Continuity::C0},
-                                       {1.5, Continuity::C1}, {2.1, Continuity::C1},
+  const std::vector<MeshNode> nodes = {{0.4, Continuity::C1},
+                                       {0.9, Continuity::C0},
+                                       {1.5, Continuity::C1},
+                                       {2.1, Continuity::C1},
                                        {2.6, Continuity::Jump}};
   for (int degree : {1, 3}) {
     for (Continuity closing : {Continuity::C1, Continuity::C0}) {
@@ -197,8 +203,7 @@ TEST(Basis, ClosedCurvesGetPeriodicStorageByFormatVersion) {
   EXPECT_EQ(clamped.basis.size(), 4u + 2u * 15u);
   // A C-1 node asked for at the closing point (a contact there) makes the storage clamped.
   const std::vector<MeshNode> contact = {{0.0, Continuity::Jump}};
-  EXPECT_FALSE(build_curve_storage(ring, ring.curves[0], BasisKind::Cubic, 16, false, contact)
-                   .basis.is_periodic());
+  EXPECT_FALSE(build_curve_storage(ring, ring.curves[0], BasisKind::Cubic, 16, false, contact).basis.is_periodic());
   // Few elements are refined until no function meets itself round the loop.
   for (BasisKind kind : {BasisKind::Linear, BasisKind::Cubic}) {
     const CurveStorage few = build_curve_storage(ring, ring.curves[0], kind, 1);
@@ -227,8 +232,7 @@ TEST(Basis, PeriodicStorageHasNoSeamBias) {
       const Vec2 p = evaluate(shape, u - j);
       const double ds = length(derivative(shape, u - j)) * ring.segment_count / steps;
       const std::size_t first = storage.basis.evaluate(u, phi.data());
-      for (int r = 0; r <= 3; ++r)
-        deposits[storage.basis.index(first + r)] += b_of(std::atan2(p.y, p.x)) * phi[r] * ds;
+      for (int r = 0; r <= 3; ++r) deposits[storage.basis.index(first + r)] += b_of(std::atan2(p.y, p.x)) * phi[r] * ds;
     }
     std::vector<double> c(n);
     if (galerkin) {
@@ -285,8 +289,8 @@ TEST(Basis, PeriodicSamplerWrapsAndFollowsTheFunction) {
   // A function straddling the closing point: samples lie in [u_begin, u_end) and follow phi_k,
   // checked by a chi-square against midpoint integrals of SplineBasis::evaluate over the support
   // [knots[k], knots[k + 4]] (which starts before 0: samples there come back a period later).
-  const std::vector<MeshNode> nodes = {{0.5, Continuity::C1}, {1.2, Continuity::C1},
-                                       {2.0, Continuity::C1}, {2.5, Continuity::C1}};
+  const std::vector<MeshNode> nodes = {
+      {0.5, Continuity::C1}, {1.2, Continuity::C1}, {2.0, Continuity::C1}, {2.5, Continuity::C1}};
   const SplineBasis basis = SplineBasis::periodic(3, 0.0, 3.0, nodes, Continuity::C1);
   const BasisSampler sampler(basis);
   std::size_t k = 0;  // the function whose support contains the closing point
@@ -411,8 +415,7 @@ Limits limits_at(const SplineBasis& basis, const std::vector<double>& c, double 
 TEST(Basis, SelectedContinuityHoldsAtNodes) {
   std::mt19937_64 random(11);
   std::uniform_real_distribution<double> coefficient(0.0, 1.0);
-  const std::vector<MeshNode> nodes = {
-      {1.0, Continuity::C1}, {2.0, Continuity::C0}, {3.0, Continuity::Jump}};
+  const std::vector<MeshNode> nodes = {{1.0, Continuity::C1}, {2.0, Continuity::C0}, {3.0, Continuity::Jump}};
   const SplineBasis basis(3, 0.0, 4.0, nodes);
   std::vector<double> c(basis.size());
   for (double& v : c) v = coefficient(random);
@@ -607,8 +610,7 @@ double worst_error(const Scene& scene, const Curve& curve, BasisKind kind, int e
         const double u = pa + half * (1.0 + gauss::kNodes8[g]);
         const double wrapped = basis.wrap(u);
         basis.evaluate_in_span(span, u, phi.data());
-        const double weight =
-            gauss::kWeights8[g] * half * speed(wrapped) * exact(wrapped, basis.wrap(0.5 * (a + b)));
+        const double weight = gauss::kWeights8[g] * half * speed(wrapped) * exact(wrapped, basis.wrap(0.5 * (a + b)));
         for (std::size_t j = 0; j <= p; ++j) deposits[basis.index(span - p + j)] += weight * phi[j];
       }
     }
@@ -644,8 +646,8 @@ double worst_error(const Scene& scene, const Curve& curve, BasisKind kind, int e
 
 // Least-squares slope of log(error) against log(h) for `coarsest` elements halved four times.
 template <typename Exact>
-double observed_order(const Scene& scene, BasisKind kind, std::span<const MeshNode> extra,
-                      Estimator estimator, Exact exact, int coarsest = 8) {
+double observed_order(const Scene& scene, BasisKind kind, std::span<const MeshNode> extra, Estimator estimator,
+                      Exact exact, int coarsest = 8) {
   std::vector<double> x;
   std::vector<double> y;
   // h halved four times by subdivision (auto storage's nested levels): every element, also those
@@ -774,8 +776,7 @@ TEST(Basis, LocalNodalValuesAreFourthOrder) {
         for (std::size_t g = 0; g < gauss::kNodes8.size(); ++g) {
           const double u = a + (b - a) * panel / 16 + half * (1.0 + gauss::kNodes8[g]);
           storage.basis.evaluate_in_span(span, u, phi.data());
-          const double weight = gauss::kWeights8[g] * half * length(derivative(shape, u)) *
-                                exact(u, 0.5 * (a + b));
+          const double weight = gauss::kWeights8[g] * half * length(derivative(shape, u)) * exact(u, 0.5 * (a + b));
           deposits[span - 1] += weight * phi[0];
           deposits[span] += weight * phi[1];
         }
@@ -808,23 +809,21 @@ TEST(Basis, LocalNodalValuesAreFourthOrder) {
 TEST(Basis, RegionsBetweenNodesAreSplitEvenlyWithoutSlivers) {
   // A curve of two cubics (the second straight, with uneven speed) with extra nodes: one 1e-4 (in
   // u) past the first segment's arc-length midpoint, where an even split of the segment puts an
-  // element boundary at every level, two 2e-6 apart, and one on the second segment. At every subdivision every element is at most the level's element length (its
-  // segment's length over its elements), and one shorter than half of that is a whole region
-  // between fixed nodes: no sliver next to a node. The levels nest node for node, and a region
-  // splits evenly in arc length.
+  // element boundary at every level, two 2e-6 apart, and one on the second segment. At every subdivision every element
+  // is at most the level's element length (its segment's length over its elements), and one shorter than half of that
+  // is a whole region between fixed nodes: no sliver next to a node. The levels nest node for node, and a region splits
+  // evenly in arc length.
   const Scene scene = testing::scene_from_text(R"({"flatland": 2,
     "materials": {"wall": {"reflectivity": 0.5, "emittance": 1}},
     "curves": [{"id": "s", "material": "wall", "bezier": [[0,0],[1,2],[3,-1],[4,1],[4.5,1],[5.5,1],[6,1]]}]})");
   const Curve& curve = scene.curves[0];
   ASSERT_EQ(curve.segment_count, 2u);
   // The arc-length midpoint of the first segment: an element boundary of every even split.
-  const double middle = scene.segments[0].arc_length.parameter_at(scene.segments[0].geometry.shape,
-                                                                  0.5 * scene.segments[0].length);
+  const double middle =
+      scene.segments[0].arc_length.parameter_at(scene.segments[0].geometry.shape, 0.5 * scene.segments[0].length);
   ASSERT_LT(middle + 1e-4, 0.8);
-  const std::vector<MeshNode> extra = {{middle + 1e-4, Continuity::C0},
-                                       {0.8, Continuity::Jump},
-                                       {0.800002, Continuity::C0},
-                                       {1.3, Continuity::C0}};
+  const std::vector<MeshNode> extra = {
+      {middle + 1e-4, Continuity::C0}, {0.8, Continuity::Jump}, {0.800002, Continuity::C0}, {1.3, Continuity::C0}};
   auto arc_length = [&](double u) { return arc_length_at(scene, curve, u); };
   auto is_fixed = [&](double u) {
     if (u == 0.0 || u == 1.0 || u == 2.0) return true;
@@ -836,7 +835,8 @@ TEST(Basis, RegionsBetweenNodesAreSplitEvenlyWithoutSlivers) {
   std::vector<double> previous;
   for (int subdivisions = 0; subdivisions <= 6; ++subdivisions) {
     SCOPED_TRACE("subdivisions " + std::to_string(subdivisions));
-    const CurveStorage storage = build_curve_storage(scene, curve, BasisKind::Cubic, elements, false, extra, subdivisions);
+    const CurveStorage storage =
+        build_curve_storage(scene, curve, BasisKind::Cubic, elements, false, extra, subdivisions);
     std::vector<double> knots;
     for (double u : storage.basis.knots())
       if (knots.empty() || u > knots.back()) knots.push_back(u);
@@ -875,7 +875,8 @@ TEST(Basis, NestedLevelsRestrictAndProlongExactly) {
   std::uniform_real_distribution<double> uniform(0.0, 1.0);
   for (const Scene* scene : {&curved, &ring}) {
     const Curve& curve = scene->curves[0];
-    const std::span<const MeshNode> extra = scene == &curved ? std::span<const MeshNode>(nodes) : std::span<const MeshNode>();
+    const std::span<const MeshNode> extra =
+        scene == &curved ? std::span<const MeshNode>(nodes) : std::span<const MeshNode>();
     for (BasisKind kind : {BasisKind::Constant, BasisKind::Linear, BasisKind::Cubic}) {
       SCOPED_TRACE(to_string(kind));
       const CurveStorage fine = build_curve_storage(*scene, curve, kind, 4, false, extra, 3);
@@ -892,8 +893,8 @@ TEST(Basis, NestedLevelsRestrictAndProlongExactly) {
         double worst_deposit = 0.0;
         for (int i = 0; i < 500; ++i) {
           const double u = curve.segment_count * uniform(random);
-          worst_function = std::max(worst_function, std::fabs(spline_value(coarse.basis, b, u) -
-                                                              spline_value(fine.basis, prolonged, u)));
+          worst_function = std::max(
+              worst_function, std::fabs(spline_value(coarse.basis, b, u) - spline_value(fine.basis, prolonged, u)));
           // One photon at u: fine deposits phi_fine(u), restricted, against phi_coarse(u).
           std::vector<double> deposit(fine.basis.size(), 0.0);
           Values phi{};
@@ -921,9 +922,8 @@ TEST(Basis, SamplerInvertsThePieceCdfToRounding) {
   // jump nodes and uneven spans: pieces rising, falling, humped and vanishing at an end to third
   // order. The iteration must finish, not stop near the root: stopped after two Newton steps it
   // errs by 3e-3.
-  const std::vector<MeshNode> nodes = {{0.3, Continuity::C1},  {0.45, Continuity::C1},
-                                       {1.0, Continuity::Jump}, {1.6, Continuity::C0},
-                                       {2.5, Continuity::C1},  {2.9, Continuity::C1}};
+  const std::vector<MeshNode> nodes = {{0.3, Continuity::C1}, {0.45, Continuity::C1}, {1.0, Continuity::Jump},
+                                       {1.6, Continuity::C0}, {2.5, Continuity::C1},  {2.9, Continuity::C1}};
   const SplineBasis basis(3, 0.0, 3.0, nodes);
   const BasisSampler sampler(basis);
   const std::vector<double>& knots = basis.knots();

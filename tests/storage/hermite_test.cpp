@@ -44,8 +44,7 @@ HermiteInput random_input(Rng& rng, const std::vector<double>& u, double low = 0
 }
 
 // Samples f at the nodes: left == right everywhere (a jump node then has equal sides).
-HermiteInput sampled(const std::vector<double>& u, const Function& f,
-                     std::vector<Continuity> continuity) {
+HermiteInput sampled(const std::vector<double>& u, const Function& f, std::vector<Continuity> continuity) {
   HermiteInput input;
   input.u = u;
   for (double x : u) {
@@ -57,8 +56,7 @@ HermiteInput sampled(const std::vector<double>& u, const Function& f,
 }
 
 // Largest |reconstruction - f| at `per_piece` points inside each piece (ends included).
-double max_error(const HermiteReconstruction& r, const std::vector<double>& u, const Function& f,
-                 int per_piece = 50) {
+double max_error(const HermiteReconstruction& r, const std::vector<double>& u, const Function& f, int per_piece = 50) {
   double error = 0.0;
   for (std::size_t i = 0; i + 1 < u.size(); ++i)
     for (int j = 0; j <= per_piece; ++j) {
@@ -70,8 +68,7 @@ double max_error(const HermiteReconstruction& r, const std::vector<double>& u, c
 
 // Second-order one-sided differences (error O(eps^2 f''')), left and right of x.
 double slope_from_left(const HermiteReconstruction& r, double x, double eps) {
-  return (3.0 * r.evaluate(x) - 4.0 * r.evaluate(x - eps) + r.evaluate(x - 2.0 * eps)) /
-         (2.0 * eps);
+  return (3.0 * r.evaluate(x) - 4.0 * r.evaluate(x - eps) + r.evaluate(x - 2.0 * eps)) / (2.0 * eps);
 }
 double slope_from_right(const HermiteReconstruction& r, double x, double eps) {
   return (-3.0 * r.evaluate(x) + 4.0 * r.evaluate(x + eps) - r.evaluate(x + 2.0 * eps)) / (2.0 * eps);
@@ -111,7 +108,8 @@ TEST(Hermite, ConstantIsReproducedExactly) {
   for (int trial = 0; trial < 20; ++trial) {
     const auto u = random_nodes(rng, 1 + rng.next() % 9);
     const double c = 0.1 + 10.0 * rng.uniform();
-    HermiteInput input = sampled(u, [c](double) { return c; }, random_continuity(rng, u.size()));
+    HermiteInput input = sampled(
+        u, [c](double) { return c; }, random_continuity(rng, u.size()));
     input.monotone = trial % 2 == 1;
     const HermiteReconstruction r(input);
     ASSERT_EQ(r.pieces(), u.size() - 1);
@@ -147,8 +145,7 @@ TEST(Hermite, LinearIsReproducedWhateverTheContinuity) {
     input.left.push_back(x <= 1.0 ? before(x) : after(x));
     input.right.push_back(x < 1.0 ? before(x) : after(x));
   }
-  input.continuity = {Continuity::C1, Continuity::C1, Continuity::Jump, Continuity::C1,
-                      Continuity::C1, Continuity::C1};
+  input.continuity = {Continuity::C1, Continuity::C1, Continuity::Jump, Continuity::C1, Continuity::C1, Continuity::C1};
   const HermiteReconstruction r(input);
   for (int j = 0; j < 1000; ++j) {
     const double x = 2.5 * j / 1000.0;
@@ -267,8 +264,7 @@ TEST(Hermite, DataBeyondAC0OrJumpNodeDoNotReachAcross) {
       input.continuity[4] = kind;
       for (std::size_t i = 0; i < u.size(); ++i) {
         input.left.push_back(rng.uniform());
-        input.right.push_back(input.continuity[i] == Continuity::Jump ? rng.uniform()
-                                                                      : input.left.back());
+        input.right.push_back(input.continuity[i] == Continuity::Jump ? rng.uniform() : input.left.back());
       }
       HermiteInput changed = input;
       for (std::size_t i = 0; i < 4; ++i) changed.left[i] = changed.right[i] = 3.0 * rng.uniform();
@@ -308,8 +304,10 @@ TEST(Hermite, StaysNonnegativeOnSpikesAndZeros) {
     for (std::size_t i = 0; i < u.size(); ++i) {
       for (int side = 0; side < 2; ++side) {
         const double kind = rng.uniform();
-        double value = kind < 0.4 ? 0.0 : kind < 0.55 ? 1e3 * rng.uniform() : kind < 0.65 ? -rng.uniform()
-                                                                                          : rng.uniform();
+        double value = kind < 0.4    ? 0.0
+                       : kind < 0.55 ? 1e3 * rng.uniform()
+                       : kind < 0.65 ? -rng.uniform()
+                                     : rng.uniform();
         if (side == 1 && input.continuity[i] != Continuity::Jump) value = input.left.back();
         (side == 0 ? input.left : input.right).push_back(value);
         largest = std::max(largest, value);
@@ -397,8 +395,7 @@ TEST(Hermite, IntegralMatchesMidpointRule) {
     input.continuity = random_continuity(rng, u.size());
     for (std::size_t i = 0; i < u.size(); ++i) {
       input.left.push_back(rng.uniform() < 0.3 ? 0.0 : 5.0 * rng.uniform());
-      input.right.push_back(input.continuity[i] == Continuity::Jump ? 5.0 * rng.uniform()
-                                                                    : input.left.back());
+      input.right.push_back(input.continuity[i] == Continuity::Jump ? 5.0 * rng.uniform() : input.left.back());
     }
     input.monotone = trial % 2 == 1;
     const HermiteReconstruction r(input);
@@ -456,8 +453,7 @@ TEST(Hermite, SamplesFollowTheReconstruction) {
       ASSERT_GE(x, r.u_begin());
       ASSERT_LE(x, r.u_end());
       const std::size_t i = std::min<std::size_t>(
-          static_cast<std::size_t>(std::upper_bound(c.u.begin(), c.u.end(), x) - c.u.begin()) - 1,
-          r.pieces() - 1);
+          static_cast<std::size_t>(std::upper_bound(c.u.begin(), c.u.end(), x) - c.u.begin()) - 1, r.pieces() - 1);
       const HermitePiece& p = r.piece(i);
       const int b = std::min(kBins - 1, static_cast<int>((x - p.u0) / p.width * kBins));
       observed[i * kBins + static_cast<std::size_t>(b)] += 1.0;

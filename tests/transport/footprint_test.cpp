@@ -61,9 +61,8 @@ std::vector<double> checked_dense(const std::vector<FootprintWeight>& weights, s
   return dense;
 }
 
-std::vector<double> footprint_dense(const Curve& curve, const SplineBasis& basis, double u_hit,
-                                    double a, RayProfile profile,
-                                    const FootprintTable* table = nullptr) {
+std::vector<double> footprint_dense(const Curve& curve, const SplineBasis& basis, double u_hit, double a,
+                                    RayProfile profile, const FootprintTable* table = nullptr) {
   std::vector<FootprintWeight> out;
   footprint_weights(scene(), curve, basis, u_hit, a, profile, out, {}, table);
   return checked_dense(out, basis.size());
@@ -75,9 +74,8 @@ std::vector<double> footprint_dense(const Curve& curve, const SplineBasis& basis
 // (the cut-off mass reflected back). The run is cut at the arc lengths of the knots, at the centres
 // and at the edges of the spread and its images, so every cell sees a smooth integrand (error
 // O(h^2)).
-std::vector<double> midpoint_weights(const Curve& curve, const SplineBasis& basis, double s_lo,
-                                     double s_hi, double s_hit, double a, RayProfile profile,
-                                     int cells) {
+std::vector<double> midpoint_weights(const Curve& curve, const SplineBasis& basis, double s_lo, double s_hi,
+                                     double s_hit, double a, RayProfile profile, int cells) {
   std::vector<double> centres = {s_hit};
   if (s_hit - a < s_lo) centres.push_back(2.0 * s_lo - s_hit);
   if (s_hit + a > s_hi) centres.push_back(2.0 * s_hi - s_hit);
@@ -113,10 +111,9 @@ std::vector<double> midpoint_weights(const Curve& curve, const SplineBasis& basi
 
 // The midpoint rule with 500 and 1000 cells per smooth piece, extrapolated (Richardson): the h^2
 // terms cancel, leaving errors below 1e-12 here (1000 cells alone: 3e-7).
-std::vector<double> brute_force(const Curve& curve, const SplineBasis& basis, double s_lo,
-                                double s_hi, double s_hit, double a, RayProfile profile) {
-  const std::vector<double> coarse =
-      midpoint_weights(curve, basis, s_lo, s_hi, s_hit, a, profile, 500);
+std::vector<double> brute_force(const Curve& curve, const SplineBasis& basis, double s_lo, double s_hi, double s_hit,
+                                double a, RayProfile profile) {
+  const std::vector<double> coarse = midpoint_weights(curve, basis, s_lo, s_hi, s_hit, a, profile, 500);
   std::vector<double> fine = midpoint_weights(curve, basis, s_lo, s_hi, s_hit, a, profile, 1000);
   for (std::size_t k = 0; k < fine.size(); ++k) fine[k] = (4.0 * fine[k] - coarse[k]) / 3.0;
   return fine;
@@ -125,10 +122,8 @@ std::vector<double> brute_force(const Curve& curve, const SplineBasis& basis, do
 void expect_close(const std::vector<double>& got, const std::vector<double>& want, double tolerance,
                   const std::string& what) {
   ASSERT_EQ(got.size(), want.size());
-  for (std::size_t k = 0; k < got.size(); ++k)
-    EXPECT_NEAR(got[k], want[k], tolerance) << what << " coefficient " << k;
+  for (std::size_t k = 0; k < got.size(); ++k) EXPECT_NEAR(got[k], want[k], tolerance) << what << " coefficient " << k;
 }
-
 
 TEST(Footprint, HalfLengthIsCappedAtGrazingIncidence) {
   EXPECT_DOUBLE_EQ(footprint_half_length(0.1, 1.0), 0.05);
@@ -160,23 +155,21 @@ TEST(Footprint, BoxOnALineGivesTheOverlapOfConstantElements) {
   struct Case {
     double s_hit, a;
   };
-  for (const Case& c : {Case{3.3, 0.45}, Case{5.5, 2.2}, Case{0.3, 0.8}, Case{9.9, 0.6},
-                        Case{6.0, 0.25}, Case{4.7, 1.0}, Case{0.0, 0.5}, Case{10.0, 1.5}}) {
-    const std::vector<double> got =
-        footprint_dense(line, storage.basis, c.s_hit / 10.0, c.a, RayProfile::Box);
-    expect_close(got, overlap_weights(c.s_hit - c.a, c.s_hit + c.a), 1e-14,
-                 "s_hit " + std::to_string(c.s_hit));
+  for (const Case& c : {Case{3.3, 0.45}, Case{5.5, 2.2}, Case{0.3, 0.8}, Case{9.9, 0.6}, Case{6.0, 0.25},
+                        Case{4.7, 1.0}, Case{0.0, 0.5}, Case{10.0, 1.5}}) {
+    const std::vector<double> got = footprint_dense(line, storage.basis, c.s_hit / 10.0, c.a, RayProfile::Box);
+    expect_close(got, overlap_weights(c.s_hit - c.a, c.s_hit + c.a), 1e-14, "s_hit " + std::to_string(c.s_hit));
   }
   // Grazing incidence: W = 0.3 at cos = 1e-6 is capped at a = 10 W = 3.
   const double a = footprint_half_length(0.3, 1e-6);
   EXPECT_DOUBLE_EQ(a, 3.0);
-  expect_close(footprint_dense(line, storage.basis, 0.45, a, RayProfile::Box),
-               overlap_weights(1.5, 7.5), 1e-14, "grazing");
+  expect_close(footprint_dense(line, storage.basis, 0.45, a, RayProfile::Box), overlap_weights(1.5, 7.5), 1e-14,
+               "grazing");
   // A footprint longer than the curve, or infinite, spreads uniformly over it.
   for (double huge : {1e6, 1e300, kInfinity}) {
     for (RayProfile profile : kRayProfiles) {
-      expect_close(footprint_dense(line, storage.basis, 0.37, huge, profile),
-                   std::vector<double>(10, 0.1), huge > 1e100 ? 1e-14 : 1e-6, to_string(profile));
+      expect_close(footprint_dense(line, storage.basis, 0.37, huge, profile), std::vector<double>(10, 0.1),
+                   huge > 1e100 ? 1e-14 : 1e-6, to_string(profile));
     }
   }
 }
@@ -190,13 +183,12 @@ TEST(Footprint, SpillsAcrossATangentContinuousJointOnly) {
   std::vector<double> want(10, 0.0);
   want[3] = 0.75;
   want[4] = 0.25;
-  expect_close(footprint_dense(collinear, straight.basis, 3.7 / 4.0, 0.6, RayProfile::Box), want,
-               1e-14, "collinear");
+  expect_close(footprint_dense(collinear, straight.basis, 3.7 / 4.0, 0.6, RayProfile::Box), want, 1e-14, "collinear");
   // From the other side (u = 1 + 0.3/6, s = 4.3) over [3.7, 4.9]: 0.3/1.2 and 0.9/1.2.
   want[3] = 0.25;
   want[4] = 0.75;
-  expect_close(footprint_dense(collinear, straight.basis, 1.0 + 0.3 / 6.0, 0.6, RayProfile::Box),
-               want, 1e-14, "collinear, from the right");
+  expect_close(footprint_dense(collinear, straight.basis, 1.0 + 0.3 / 6.0, 0.6, RayProfile::Box), want, 1e-14,
+               "collinear, from the right");
   // Around a corner: [2.8, 4.4] is cut at 4, leaving 0.2/1.2 and 1.0/1.2 on the hit side.
   const Curve& corner = scene().curves[kCorner];
   const CurveStorage bent = build_curve_storage(scene(), corner, BasisKind::Constant, 10);
@@ -204,20 +196,17 @@ TEST(Footprint, SpillsAcrossATangentContinuousJointOnly) {
   want.assign(10, 0.0);
   want[2] = 0.2 / 1.2;
   want[3] = 1.0 / 1.2;
-  expect_close(footprint_dense(corner, bent.basis, 3.4 / 4.0, 0.6, RayProfile::Box), want, 1e-14,
-               "corner");
+  expect_close(footprint_dense(corner, bent.basis, 3.4 / 4.0, 0.6, RayProfile::Box), want, 1e-14, "corner");
   // A hit exactly on the corner belongs to the segment that starts there: [4, 4.5] only.
   want.assign(10, 0.0);
   want[4] = 1.0;
-  expect_close(footprint_dense(corner, bent.basis, 1.0, 0.5, RayProfile::Box), want, 1e-14,
-               "on the corner");
+  expect_close(footprint_dense(corner, bent.basis, 1.0, 0.5, RayProfile::Box), want, 1e-14, "on the corner");
   // Infinite footprint: uniform over the run, the whole collinear curve or the corner's first leg.
   expect_close(footprint_dense(collinear, straight.basis, 0.5, kInfinity, RayProfile::Tent),
                std::vector<double>(10, 0.1), 1e-14, "collinear, infinite");
   want.assign(10, 0.0);
   for (int k = 0; k < 4; ++k) want[k] = 0.25;
-  expect_close(footprint_dense(corner, bent.basis, 0.5, kInfinity, RayProfile::Tent), want, 1e-14,
-               "corner, infinite");
+  expect_close(footprint_dense(corner, bent.basis, 0.5, kInfinity, RayProfile::Tent), want, 1e-14, "corner, infinite");
 }
 
 TEST(Footprint, CubicsMatchABruteForceIntegralAcrossJointsAndEnds) {
@@ -383,17 +372,17 @@ TEST(Footprint, TinyFootprintApproachesThePointDeposit) {
         for (RayProfile profile : kRayProfiles) {
           const std::string what = curve.id + " " + to_string(kind) + " " + to_string(profile);
           for (double a : {1e-7, 1e-10}) {
-            expect_close(footprint_dense(curve, storage.basis, u_hit, a * curve.length, profile),
-                         point, 1e4 * a, what + " a " + std::to_string(a));
+            expect_close(footprint_dense(curve, storage.basis, u_hit, a * curve.length, profile), point, 1e4 * a,
+                         what + " a " + std::to_string(a));
             if (is_polynomial(profile))
-              expect_close(footprint_dense(curve, storage.basis, u_hit, a * curve.length, profile, &table),
-                           point, 1e4 * a, what + " table, a " + std::to_string(a));
+              expect_close(footprint_dense(curve, storage.basis, u_hit, a * curve.length, profile, &table), point,
+                           1e4 * a, what + " table, a " + std::to_string(a));
           }
         }
         // No footprint at all (or a NaN one): exactly the point deposit.
         for (double a : {0.0, -1.0, std::nan("")}) {
-          expect_close(footprint_dense(curve, storage.basis, u_hit, a, RayProfile::Tent), point,
-                       1e-15, curve.id + " degenerate");
+          expect_close(footprint_dense(curve, storage.basis, u_hit, a, RayProfile::Tent), point, 1e-15,
+                       curve.id + " degenerate");
         }
       }
     }
@@ -407,9 +396,12 @@ TEST(Footprint, SpanTableHoldsTheBasisIntegralsAndLengths) {
   // in y = (s - s_mid) / h vanish for a function symmetric about the span's middle (a constant
   // element), and the second moments of a constant element are its length / 3.
   const Scene ring = testing::scene_from_text(testing::circle_enclosure(0.5, 1.0));
-  struct Case { const Scene* scene; std::uint32_t curve; };
-  for (const Case& c : {Case{&scene(), kLine}, Case{&scene(), kCorner}, Case{&scene(), kArch},
-                        Case{&scene(), kKink}, Case{&ring, 0}}) {
+  struct Case {
+    const Scene* scene;
+    std::uint32_t curve;
+  };
+  for (const Case& c :
+       {Case{&scene(), kLine}, Case{&scene(), kCorner}, Case{&scene(), kArch}, Case{&scene(), kKink}, Case{&ring, 0}}) {
     const Curve& curve = c.scene->curves[c.curve];
     for (BasisKind kind : {BasisKind::Constant, BasisKind::Linear, BasisKind::Cubic}) {
       const std::string what = curve.id + " " + to_string(kind);
@@ -438,8 +430,8 @@ TEST(Footprint, SpanTableHoldsTheBasisIntegralsAndLengths) {
       // span's moments, and the span starts step by the spans' lengths.
       EXPECT_EQ(table.start(basis.end_span()), curve.length) << what;
       for (std::size_t span = basis.first_span(); span < basis.end_span(); ++span) {
-        EXPECT_NEAR(table.start(span + 1) - table.start(span), table.length(span),
-                    1e-13 * curve.length) << what << " span " << span;
+        EXPECT_NEAR(table.start(span + 1) - table.start(span), table.length(span), 1e-13 * curve.length)
+            << what << " span " << span;
         std::size_t terms = 0;
         const double* running = table.running(span, terms);
         if (table.length(span) == 0.0) {
@@ -469,7 +461,10 @@ TEST(Footprint, SpanTableGivesTheQuadraturesWeightsEverywhere) {
   // a periodic ring, with walls, and footprints from a fraction of a span to many spans and the
   // whole curve (flat).
   const Scene ring = testing::scene_from_text(testing::circle_enclosure(0.5, 1.0));
-  struct Case { const Scene* scene; std::uint32_t curve; };
+  struct Case {
+    const Scene* scene;
+    std::uint32_t curve;
+  };
   Rng rng(7, 1, 2);
   for (const Case& c : {Case{&scene(), kLine}, Case{&scene(), kCollinear}, Case{&scene(), kCorner},
                         Case{&scene(), kArch}, Case{&scene(), kKink}, Case{&ring, 0}}) {
@@ -482,15 +477,15 @@ TEST(Footprint, SpanTableGivesTheQuadraturesWeightsEverywhere) {
         const double u_hit = curve.segment_count * rng.uniform();
         const double a = trial == 0 ? kInfinity : curve.length * std::pow(10.0, -3.0 + 3.5 * rng.uniform());
         const auto profile = static_cast<RayProfile>(trial % 3);  // box, tent, Epanechnikov
-        const std::span<const double> wall = trial % 4 == 1 ? std::span<const double>(walls) : std::span<const double>();
+        const std::span<const double> wall =
+            trial % 4 == 1 ? std::span<const double>(walls) : std::span<const double>();
         std::vector<FootprintWeight> plain;
         std::vector<FootprintWeight> tabled;
         footprint_weights(*c.scene, curve, storage.basis, u_hit, a, profile, plain, wall);
         footprint_weights(*c.scene, curve, storage.basis, u_hit, a, profile, tabled, wall, &table);
         const std::vector<double> want = checked_dense(plain, storage.basis.size());
         expect_close(checked_dense(tabled, storage.basis.size()), want, 1e-12,
-                     curve.id + " " + to_string(kind) + " " + to_string(profile) + " trial " +
-                         std::to_string(trial));
+                     curve.id + " " + to_string(kind) + " " + to_string(profile) + " trial " + std::to_string(trial));
       }
     }
   }
@@ -498,9 +493,9 @@ TEST(Footprint, SpanTableGivesTheQuadraturesWeightsEverywhere) {
 
 TEST(Footprint, SpanTableFallsBackToQuadratureNearACusp) {
   // Where the speed nearly vanishes, u(s) is nearly a square root (a singularity just off the real
-  // axis) and no Chebyshev series of 33 points fits phi_r(u(s)): that span keeps none, and parts of it take the footprint's own
-  // quadrature in u between the inverted ends. So the tabled weights equal the plain ones there,
-  // and elsewhere on the curve the series serve.
+  // axis) and no Chebyshev series of 33 points fits phi_r(u(s)): that span keeps none, and parts of it take the
+  // footprint's own quadrature in u between the inverted ends. So the tabled weights equal the plain ones there, and
+  // elsewhere on the curve the series serve.
   const Curve& cusp = scene().curves[kCusp];
   for (BasisKind kind : {BasisKind::Constant, BasisKind::Linear, BasisKind::Cubic}) {
     const CurveStorage storage = build_curve_storage(scene(), cusp, kind, 3);
@@ -520,8 +515,8 @@ TEST(Footprint, SpanTableFallsBackToQuadratureNearACusp) {
     for (RayProfile profile : {RayProfile::Box, RayProfile::Tent, RayProfile::Epanechnikov}) {
       for (double u_hit : {0.45, 0.5, 0.55, 0.2, 0.9}) {
         for (double a : {0.01, 0.1, 0.5}) {
-          const std::string what = std::string(to_string(kind)) + " " + to_string(profile) +
-                                   " u " + std::to_string(u_hit) + " a " + std::to_string(a);
+          const std::string what = std::string(to_string(kind)) + " " + to_string(profile) + " u " +
+                                   std::to_string(u_hit) + " a " + std::to_string(a);
           expect_close(footprint_dense(cusp, basis, u_hit, a, profile, &table),
                        footprint_dense(cusp, basis, u_hit, a, profile), 1e-12, what);
         }

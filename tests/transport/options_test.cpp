@@ -82,13 +82,20 @@ TEST(Options, ValuesReadBackAndErrorsNameTheOption) {
     const char* text;
     const char* core;
   } bad[] = {
-      {SolveOption::RayWidth, "-1", "ray width: "},         {SolveOption::RayWidth, "nan", "ray width: "},
-      {SolveOption::Photons, "0", "photons: "},             {SolveOption::Photons, "1.5", "photons: "},
-      {SolveOption::Photons, "1e16", "photons: "},          {SolveOption::Seed, "-1", "seed: "},
-      {SolveOption::Seed, "18446744073709551616", "seed: "}, {SolveOption::Seed, "1e3", "seed: "},
-      {SolveOption::Threads, "1025", "threads: "},          {SolveOption::Elements, "0", "elements: "},
-      {SolveOption::Elements, "65537", "elements: "},       {SolveOption::BandRays, "257", "band rays: "},
-      {SolveOption::Tolerance, "1", "tolerance: "},         {SolveOption::Basis, "cubik", "basis: "},
+      {SolveOption::RayWidth, "-1", "ray width: "},
+      {SolveOption::RayWidth, "nan", "ray width: "},
+      {SolveOption::Photons, "0", "photons: "},
+      {SolveOption::Photons, "1.5", "photons: "},
+      {SolveOption::Photons, "1e16", "photons: "},
+      {SolveOption::Seed, "-1", "seed: "},
+      {SolveOption::Seed, "18446744073709551616", "seed: "},
+      {SolveOption::Seed, "1e3", "seed: "},
+      {SolveOption::Threads, "1025", "threads: "},
+      {SolveOption::Elements, "0", "elements: "},
+      {SolveOption::Elements, "65537", "elements: "},
+      {SolveOption::BandRays, "257", "band rays: "},
+      {SolveOption::Tolerance, "1", "tolerance: "},
+      {SolveOption::Basis, "cubik", "basis: "},
   };
   for (const auto& b : bad) {
     const Status status = set_solve_option(s, b.option, b.text);

@@ -140,9 +140,12 @@ TEST(Origins, UniformFollowsArcLength) {
     const Curve& curve = f.scene.curves[c];
     const std::vector<double> expected = bin_probabilities(curve.length, 40, [](double) { return 1.0; });
     for (bool quasi : {false, true}) {
-      expect_follows(f.scene, curve, expected, [&](OriginDraws& draws) {
-        return sample_uniform_origin(f.scene, curve, f.segment_choice[c], f.line_tangents, draws);
-      }, quasi, curve.id.c_str());
+      expect_follows(
+          f.scene, curve, expected,
+          [&](OriginDraws& draws) {
+            return sample_uniform_origin(f.scene, curve, f.segment_choice[c], f.line_tangents, draws);
+          },
+          quasi, curve.id.c_str());
     }
     EXPECT_DOUBLE_EQ(uniform_origin_pdf(curve) * curve.length, 1.0);
   }
@@ -154,9 +157,10 @@ TEST(Origins, ProfiledFollowsTheEmittance) {
   auto emittance = [&](double s) { return emittance_factor(curve, parameter_at(f.scene, curve, s)); };
   const std::vector<double> expected = bin_probabilities(curve.length, 40, emittance);
   for (bool quasi : {false, true}) {
-    expect_follows(f.scene, curve, expected, [&](OriginDraws& draws) {
-      return sample_profiled_origin(f.scene, curve, f.segment_choice[0], draws);
-    }, quasi, "profile");
+    expect_follows(
+        f.scene, curve, expected,
+        [&](OriginDraws& draws) { return sample_profiled_origin(f.scene, curve, f.segment_choice[0], draws); }, quasi,
+        "profile");
   }
   // The Pdf: E(u) over the integral of E ds, here by Simpson's rule on 4096 panels.
   const int panels = 4096;
@@ -167,7 +171,9 @@ TEST(Origins, ProfiledFollowsTheEmittance) {
   }
   integral *= curve.length / panels / 3.0;
   for (double u : {0.1, 0.7, 1.3, 1.9})
-    EXPECT_NEAR(profiled_origin_pdf(curve, u), emittance_factor(curve, u) / integral, 1e-6 * emittance_factor(curve, u) / integral) << u;
+    EXPECT_NEAR(profiled_origin_pdf(curve, u), emittance_factor(curve, u) / integral,
+                1e-6 * emittance_factor(curve, u) / integral)
+        << u;
 }
 
 TEST(Origins, CoefficientFollowsItsBasisFunctionInArcLength) {
@@ -185,9 +191,12 @@ TEST(Origins, CoefficientFollowsItsBasisFunctionInArcLength) {
     // 120 bins: 20 over the shortest support (one element of six).
     const std::vector<double> expected = bin_probabilities(curve.length, 120, phi);
     for (bool quasi : {false, true}) {
-      expect_follows(f.scene, curve, expected, [&](OriginDraws& draws) {
-        return sample_coefficient_origin(f.scene, curve, storage, k, f.line_tangents, draws);
-      }, quasi, "coefficient");
+      expect_follows(
+          f.scene, curve, expected,
+          [&](OriginDraws& draws) {
+            return sample_coefficient_origin(f.scene, curve, storage, k, f.line_tangents, draws);
+          },
+          quasi, "coefficient");
     }
     // The Pdf: phi_k per unit arc length over its integral (basis_length, checked against the
     // quadrature here).
@@ -202,7 +211,8 @@ TEST(Origins, CoefficientFollowsItsBasisFunctionInArcLength) {
     for (double s : {0.3, 1.1, 2.0, 3.2}) {
       if (s >= curve.length) continue;
       EXPECT_NEAR(coefficient_origin_pdf(storage, k, parameter_at(f.scene, curve, s)), phi(s) / integral,
-                  1e-5 * (1.0 + phi(s) / integral)) << k << " " << s;
+                  1e-5 * (1.0 + phi(s) / integral))
+          << k << " " << s;
     }
   }
 }
@@ -220,9 +230,9 @@ TEST(Origins, HermiteFollowsTheReconstruction) {
   const std::vector<double> expected =
       bin_probabilities(L, 40, [&](double s) { return density.evaluate(std::min(s, L)); });
   for (bool quasi : {false, true}) {
-    expect_follows(f.scene, curve, expected, [&](OriginDraws& draws) {
-      return sample_hermite_origin(f.scene, curve, density, draws);
-    }, quasi, "hermite");
+    expect_follows(
+        f.scene, curve, expected,
+        [&](OriginDraws& draws) { return sample_hermite_origin(f.scene, curve, density, draws); }, quasi, "hermite");
   }
   for (double s : {0.1 * L, 0.4 * L, 0.9 * L})
     EXPECT_NEAR(hermite_origin_pdf(density, s), density.evaluate(s) / density.integral(), 1e-12) << s;

@@ -145,8 +145,8 @@ TEST(Qmc, CursorWalksThePointsBitForBit) {
   SobolCursor cursor(sobol);
   std::vector<std::uint32_t> indices;
   for (std::uint32_t i = 0; i < 5000; ++i) indices.push_back(i);
-  for (std::uint32_t i : {70000u, 70001u, 65535u, 65536u, 65537u, 3u, 0u, 1u, 0x7fffffffu,
-                          0x80000000u, 0xfffffffeu, 0xffffffffu, 0u, 12u, 12u, 13u})
+  for (std::uint32_t i : {70000u, 70001u, 65535u, 65536u, 65537u, 3u, 0u, 1u, 0x7fffffffu, 0x80000000u, 0xfffffffeu,
+                          0xffffffffu, 0u, 12u, 12u, 13u})
     indices.push_back(i);
   for (std::uint32_t index : indices) {
     cursor.seek(index);
@@ -163,7 +163,8 @@ TEST(Qmc, EachScrambledPointIsUniformOverSeeds) {
       const int n = 32'000;
       std::vector<double> observed(32, 0.0);
       for (int seed = 0; seed < n; ++seed)
-        observed[static_cast<std::size_t>(ScrambledSobol(static_cast<std::uint64_t>(seed), 0).sample(index, d) * 32)] += 1;
+        observed[static_cast<std::size_t>(ScrambledSobol(static_cast<std::uint64_t>(seed), 0).sample(index, d) * 32)] +=
+            1;
       const std::vector<double> expected(32, n / 32.0);
       EXPECT_LT(testing::chi_square(observed, expected), testing::chi_square_critical(31))
           << "point " << index << ", dimension " << d;
@@ -196,8 +197,7 @@ TEST(Qmc, VarianceFallsFasterThanMonteCarloAcrossAJump) {
   // 64^1.5 = 512. With 200 seeds each variance is known to about 10% (chi-square, 200 degrees).
   const double coarse = quarter_disc_variance(256, 200);
   const double fine = quarter_disc_variance(16384, 200);
-  std::printf("quarter disc: variance %.3g at 256 points, %.3g at 16384, ratio %.0f\n", coarse,
-              fine, coarse / fine);
+  std::printf("quarter disc: variance %.3g at 256 points, %.3g at 16384, ratio %.0f\n", coarse, fine, coarse / fine);
   EXPECT_GT(coarse / fine, 181.0);
   // And at 256 points it already beats Monte Carlo's (pi/4)(1 - pi/4) / n.
   const double p = std::acos(-1.0) / 4.0;

@@ -66,8 +66,7 @@ TEST(RayProfiles, ProfilesIntegrateToOneWithTheirMomentsAndCdf) {
   }
   // The Gaussian's normaliser against std::erf: k(0) = 1 / (sigma sqrt(2 pi) erf(3 / sqrt 2)).
   EXPECT_NEAR(profile_density(RayProfile::Gauss, 0.0),
-              3.0 / (std::sqrt(2.0 * std::numbers::pi) * std::erf(3.0 / std::numbers::sqrt2)),
-              1e-15);
+              3.0 / (std::sqrt(2.0 * std::numbers::pi) * std::erf(3.0 / std::numbers::sqrt2)), 1e-15);
   // Its lower tail keeps relative accuracy: F(-1 + d) ~ k(-1) d for small d.
   const double d = 1e-9;
   const double edge_density = profile_density(RayProfile::Gauss, -1.0);
@@ -108,8 +107,7 @@ TEST(RayProfiles, SampleFollowsTheDensityByChiSquare) {
       expected[b] = n * (profile_cdf(profile, hi) - profile_cdf(profile, lo));
       ASSERT_GT(expected[b], 50.0);  // no bin needs merging
     }
-    EXPECT_LT(testing::chi_square(observed, expected), testing::chi_square_critical(bins - 1))
-        << to_string(profile);
+    EXPECT_LT(testing::chi_square(observed, expected), testing::chi_square_critical(bins - 1)) << to_string(profile);
   }
 }
 

@@ -201,7 +201,7 @@ TEST(Sampling, BeamStaysInsideItsCone) {
           EXPECT_GE(dot(d, normal), std::cos(a) - 1e-15);  // never outside the cone
           return d;
         },
-                  [&](Vec2 normal, Vec2 d) { return square_to_beam_pdf(a, normal, d); }, 200'000);
+        [&](Vec2 normal, Vec2 d) { return square_to_beam_pdf(a, normal, d); }, 200'000);
   }
 }
 
@@ -211,8 +211,7 @@ TEST(Sampling, DiscreteDistributionFollowsWeightsAndSkipsZeros) {
   EXPECT_DOUBLE_EQ(distribution.total(), 10.0);
   EXPECT_DOUBLE_EQ(distribution.pmf(4), 0.6);
   // No u, the extremes included, gives an index of zero weight.
-  for (double u : {0.0, 1e-300, 0.5, std::nextafter(1.0, 0.0)})
-    EXPECT_GT(weights[distribution.sample(u)], 0.0) << u;
+  for (double u : {0.0, 1e-300, 0.5, std::nextafter(1.0, 0.0)}) EXPECT_GT(weights[distribution.sample(u)], 0.0) << u;
   for (int i = 0; i < 6000; ++i) EXPECT_GT(weights[distribution.sample(i / 6000.0)], 0.0);
   Rng rng(3, 0, 0);
   const int n = 200'000;

@@ -3,15 +3,15 @@
 #include <algorithm>
 #include <atomic>
 #include <barrier>
-#include <mutex>
-#include <span>
-#include <thread>
 #include <cmath>
 #include <cstdio>
-#include <string>
 #include <filesystem>
 #include <functional>
+#include <mutex>
 #include <numbers>
+#include <span>
+#include <string>
+#include <thread>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -121,15 +121,16 @@ struct PenumbraSetup {
     std::snprintf(curves, sizeof curves,
                   R"({"id": "lamp", "material": "lamp", "line": [[%.17g,%.17g],[%.17g,%.17g]]},
                      {"id": "floor", "material": "floor", "line": [[%.17g,0],[%.17g,0]]})",
-                  emitter_right, emitter_height, emitter_left, emitter_height, floor_left,
-                  floor_right);
+                  emitter_right, emitter_height, emitter_left, emitter_height, floor_left, floor_right);
     std::string text = R"({"flatland": 1, "materials": {"lamp": {"emittance": 1}, "black": {},
-                           "floor": {"reflectivity": )" + std::to_string(rho) + R"(}}, "curves": [)" + curves;
+                           "floor": {"reflectivity": )" +
+                       std::to_string(rho) + R"(}}, "curves": [)" + curves;
     if (occluded) {
       char occluder[256];
-      std::snprintf(occluder, sizeof occluder,
-                    R"(, {"id": "occluder", "material": "black", "sides": "both", "line": [[%.17g,%.17g],[%.17g,%.17g]]})",
-                    occluder_left, occluder_height, occluder_right, occluder_height);
+      std::snprintf(
+          occluder, sizeof occluder,
+          R"(, {"id": "occluder", "material": "black", "sides": "both", "line": [[%.17g,%.17g],[%.17g,%.17g]]})",
+          occluder_left, occluder_height, occluder_right, occluder_height);
       text += occluder;
     }
     return text + "]}";
@@ -221,8 +222,8 @@ TEST(Solver, OneBouncePenumbraMatchesClosedForm) {
 }
 
 // Relative L2 error of B along the floor against the closed form, for one solve.
-double penumbra_error(const PenumbraSetup& setup, BasisKind basis, DiscontinuityMode mode,
-                      std::uint64_t seed, std::uint64_t photons) {
+double penumbra_error(const PenumbraSetup& setup, BasisKind basis, DiscontinuityMode mode, std::uint64_t seed,
+                      std::uint64_t photons) {
   const Scene scene = testing::scene_from_text(setup.scene_text());
   SolverSettings settings;
   settings.photons = photons;
@@ -257,8 +258,7 @@ ErrorStats penumbra_errors(BasisKind basis, DiscontinuityMode mode) {
   const PenumbraSetup setup;
   const int seeds = 6;
   std::vector<double> errors;
-  for (int seed = 1; seed <= seeds; ++seed)
-    errors.push_back(penumbra_error(setup, basis, mode, seed, 400'000));
+  for (int seed = 1; seed <= seeds; ++seed) errors.push_back(penumbra_error(setup, basis, mode, seed, 400'000));
   ErrorStats stats;
   for (double e : errors) stats.mean += e / seeds;
   for (double e : errors) stats.variance_of_mean += (e - stats.mean) * (e - stats.mean) / (seeds - 1) / seeds;
@@ -335,8 +335,8 @@ TEST(Solver, CubicWithAutomaticDiscontinuitiesBeatsConstantAndLinearOnThePenumbr
     const double margin = 3.0 * std::sqrt(cubic.variance_of_mean + other.variance_of_mean);
     EXPECT_LT(cubic.mean + margin, other.mean)
         << "cubic " << cubic.mean << " vs " << to_string(baseline) << " " << other.mean;
-    std::printf("penumbra relative L2: cubic %.4g, %s %.4g (3 sigma of the difference %.2g)\n",
-                cubic.mean, to_string(baseline), other.mean, margin);
+    std::printf("penumbra relative L2: cubic %.4g, %s %.4g (3 sigma of the difference %.2g)\n", cubic.mean,
+                to_string(baseline), other.mean, margin);
   }
   const ErrorStats smooth = penumbra_errors(BasisKind::Cubic, DiscontinuityMode::Scene);
   std::printf("penumbra relative L2: cubic without visibility nodes %.4g\n", smooth.mean);
@@ -357,8 +357,7 @@ void expect_books_balance_on_every_example_scene(
     for (const SolverSettings& settings : variants(scene)) {
       Solver solver = make_solver(scene, settings);
       solver.run();
-      EXPECT_TRUE(solver.stop_reason() == StopReason::Converged ||
-                  solver.stop_reason() == StopReason::BudgetSpent)
+      EXPECT_TRUE(solver.stop_reason() == StopReason::Converged || solver.stop_reason() == StopReason::BudgetSpent)
           << entry.path() << ": " << to_string(solver.stop_reason()) << " " << solver.books_error();
       const EnergyBooks books = solver.books();
       EXPECT_NEAR(books.imbalance(), 0.0, 1e-9 * books.emitted) << entry.path() << " variant " << variant;
@@ -481,7 +480,7 @@ TEST(Solver, StepsOfAnySizeGiveTheSameResultAsWholeRounds) {
   settings.threads = 2;
   settings.seed = 7;
   settings.ray_width = 0.02 * scene.scale;  // extended rays draw more random numbers per photon
-  settings.sampler = SamplerKind::Random;  // Sobol': SobolGivesIdenticalResultsOnAnyThreadCountAndStep
+  settings.sampler = SamplerKind::Random;   // Sobol': SobolGivesIdenticalResultsOnAnyThreadCountAndStep
   Solver whole = make_solver(scene, settings);
   whole.record_paths(5000);
   ASSERT_TRUE(whole.step_round());
@@ -497,8 +496,8 @@ TEST(Solver, StepsOfAnySizeGiveTheSameResultAsWholeRounds) {
   while (!stepped.stopped()) {
     const bool in_first_round = stepped.rounds() == 0;
     const std::uint64_t before = stepped.photons_shot();
-    const std::uint64_t shot = stepped.step_photons(sizes[step++ % std::size(sizes)], nullptr,
-                                                    in_first_round ? &paths : nullptr, 5000);
+    const std::uint64_t shot =
+        stepped.step_photons(sizes[step++ % std::size(sizes)], nullptr, in_first_round ? &paths : nullptr, 5000);
     EXPECT_EQ(stepped.photons_shot(), before + shot);
     total += shot;
     if (stepped.round_open() && !previewed) {
@@ -606,8 +605,10 @@ TEST(Solver, FineStorageSharesItsRoundsWorkWithTheSameBits) {
         ASSERT_GE(coefficients, 8192u);  // the choice ahead is in use
       }
       solver.run();
-      if (threads == 1) first = testing::solution_data(solver);
-      else EXPECT_EQ(testing::solution_data(solver), first) << threads << " threads, " << to_string(sampler);
+      if (threads == 1)
+        first = testing::solution_data(solver);
+      else
+        EXPECT_EQ(testing::solution_data(solver), first) << threads << " threads, " << to_string(sampler);
     }
     SolverSettings settings;
     settings.photons = 100'000;
@@ -792,8 +793,7 @@ TEST(Solver, EmittanceProfileShapesWherePhotonsStart) {
   for (double& e : expected) e *= static_cast<double>(solver.paths().size()) / total;
   EXPECT_LT(testing::chi_square(observed, expected), testing::chi_square_critical(bins - 1));
   // Emitted power: 2 * integral of the profile over arc length (midpoint rule above).
-  EXPECT_NEAR(solver.books().emitted, 2.0 * total / (bins * 400) * lamp.length,
-              1e-5 * solver.books().emitted);
+  EXPECT_NEAR(solver.books().emitted, 2.0 * total / (bins * 400) * lamp.length, 1e-5 * solver.books().emitted);
   // The radiosity a black emitter reports is its emittance there.
   const CurvePoint middle = point_at_arc_length(scene, lamp, 0.5 * lamp.length);
   EXPECT_NEAR(solver.radiosity(0, Side::Front, middle.u)[0], 2.0 * profile(middle.t), 1e-12);
@@ -991,7 +991,12 @@ TEST(Solver, CancelledRoundsCountTheirPhotons) {
   settings.threads = 1;
   Solver solver = make_solver(scene, settings);
   std::atomic<bool> cancel{false};
-  solver.run(&cancel, [&](const SolverProgress& p) { if (p.photons > 0) cancel.store(true); }, 0.0);
+  solver.run(
+      &cancel,
+      [&](const SolverProgress& p) {
+        if (p.photons > 0) cancel.store(true);
+      },
+      0.0);
   EXPECT_EQ(solver.stop_reason(), StopReason::Cancelled);
   EXPECT_EQ(solver.photons_shot(), 0u);
   EXPECT_GE(solver.photons_traced(), Solver::kBatchSize);
@@ -1048,15 +1053,18 @@ std::string ring_with_profile(int version) {
     }
     add(points, std::cos(a) - handle * std::sin(a), std::sin(a) + handle * std::cos(a), true);
     add(points, std::cos(b) + handle * std::sin(b), std::sin(b) - handle * std::cos(b), true);
-    if (i == 7) add(points, 1.0, 0.0, true); else add(points, std::cos(b), std::sin(b), true);
+    if (i == 7)
+      add(points, 1.0, 0.0, true);
+    else
+      add(points, std::cos(b), std::sin(b), true);
     add(factors, profile(a) + d * 0.8 * std::cos(a), 0, false);
     add(factors, profile(b) - d * 0.8 * std::cos(b), 0, false);
     add(factors, i == 7 ? profile(0.0) : profile(b), 0, false);
   }
   return "{\"flatland\": " + std::to_string(version) +
          R"(, "materials": {"wall": {"reflectivity": 0.5, "emittance": 1}},
-    "curves": [{"id": "ring", "material": "wall", "bezier": [)" + points +
-         "], \"emittance_profile\": [" + factors + "]}]}";
+    "curves": [{"id": "ring", "material": "wall", "bezier": [)" +
+         points + "], \"emittance_profile\": [" + factors + "]}]}";
 }
 
 // B(phi) on a ring of uniform rho: the kernel per unit angle is k(psi) = |sin(psi/2)| / 4, so the
@@ -1126,8 +1134,7 @@ TEST(Solver, ClosedRingHasNoSeamAtItsClosingPoint) {
       double near2 = 0.0, away2 = 0.0;
       int near_count = 0, away_count = 0;
       for (int j = 0; j < 200; ++j) {
-        const CurvePoint point =
-            point_at_arc_length(scene, scene.curves[0], (j + 0.5) * scene.curves[0].length / 200);
+        const CurvePoint point = point_at_arc_length(scene, scene.curves[0], (j + 0.5) * scene.curves[0].length / 200);
         const double phi = std::atan2(point.position.y, point.position.x);
         const double error = solver.radiosity(0, Side::Front, point.u)[0] - exact(phi);
         if (std::fabs(phi) < 0.4) {
@@ -1162,8 +1169,8 @@ TEST(Solver, ArchOnALitFloorLeaksNoLight) {
   // emittance, 0. Contacts put C-1 nodes on the floor where the arch stands, so no basis function
   // straddles them and no photon starts inside. Without them (discontinuities none) light leaks.
   const Scene scene = testing::scene_from_text(kArchOnAFloor);
-  auto under_the_arch = [&](DiscontinuityMode mode, double width,
-                            Estimator estimator = SolverSettings{}.estimator, int elements = kAutoElements) {
+  auto under_the_arch = [&](DiscontinuityMode mode, double width, Estimator estimator = SolverSettings{}.estimator,
+                            int elements = kAutoElements) {
     SolverSettings settings;
     settings.photons = 400'000;
     settings.estimator = estimator;
@@ -1174,7 +1181,7 @@ TEST(Solver, ArchOnALitFloorLeaksNoLight) {
     solver.run();
     double worst = 0.0;
     for (int j = 1; j < 40; ++j) {
-      const double x = -1.0 + 2.0 * j / 40.0;       // floor: u = (x + 4) / 8
+      const double x = -1.0 + 2.0 * j / 40.0;  // floor: u = (x + 4) / 8
       worst = std::max(worst, solver.radiosity(1, Side::Front, (x + 4.0) / 8.0)[0]);
       worst = std::max(worst, solver.radiosity(2, Side::Back, j / 40.0)[0]);  // the arch's inside
     }
@@ -1286,8 +1293,10 @@ TEST(Solver, AutoStorageKeepsConvergingWithoutAFloor) {
     return total;
   };
   auto penumbra_exact = [&](double x) { return setup.rho * setup.irradiance(x); };
-  const double pen6 = floor_error(penumbra, 1, penumbra_exact, setup.floor_left, setup.floor_right, 1'000'000, kAutoElements);
-  const double pen7 = floor_error(penumbra, 1, penumbra_exact, setup.floor_left, setup.floor_right, 10'000'000, kAutoElements);
+  const double pen6 =
+      floor_error(penumbra, 1, penumbra_exact, setup.floor_left, setup.floor_right, 1'000'000, kAutoElements);
+  const double pen7 =
+      floor_error(penumbra, 1, penumbra_exact, setup.floor_left, setup.floor_right, 10'000'000, kAutoElements);
   const double round6 = floor_error(round, 2, round_occluder_floor, -2.0, 2.0, 1'000'000, kAutoElements);
   const double round7 = floor_error(round, 2, round_occluder_floor, -2.0, 2.0, 10'000'000, kAutoElements);
   // One seed is enough for the contrast (its ratio is about 1, far from the bound).
@@ -1295,18 +1304,18 @@ TEST(Solver, AutoStorageKeepsConvergingWithoutAFloor) {
                                     SamplerKind::Random, 1);
   const double fixed7 = floor_error(penumbra, 1, penumbra_exact, setup.floor_left, setup.floor_right, 10'000'000, 16,
                                     SamplerKind::Random, 1);
-  std::printf("auto storage: penumbra %.4g -> %.4g, round occluder %.4g -> %.4g; fixed 16: %.4g -> %.4g\n",
-              pen6, pen7, round6, round7, fixed6, fixed7);
+  std::printf("auto storage: penumbra %.4g -> %.4g, round occluder %.4g -> %.4g; fixed 16: %.4g -> %.4g\n", pen6, pen7,
+              round6, round7, fixed6, fixed7);
   EXPECT_LT(pen7, 0.5 * pen6);
   EXPECT_LT(round7, 0.5 * round6);
   EXPECT_GT(fixed7, 0.7 * fixed6);
   // With Sobol' points the halves that measure the variance are independently scrambled nets:
   // halves of one net made auto storage stall on its coarsest level (0.12 % -> 0.10 %). One seed:
   // measured 0.00136 -> 0.00036 (ratio 0.26, far below the bound).
-  const double sobol6 = floor_error(penumbra, 1, penumbra_exact, setup.floor_left, setup.floor_right,
-                                    1'000'000, kAutoElements, SamplerKind::Sobol, 1);
-  const double sobol7 = floor_error(penumbra, 1, penumbra_exact, setup.floor_left, setup.floor_right,
-                                    10'000'000, kAutoElements, SamplerKind::Sobol, 1);
+  const double sobol6 = floor_error(penumbra, 1, penumbra_exact, setup.floor_left, setup.floor_right, 1'000'000,
+                                    kAutoElements, SamplerKind::Sobol, 1);
+  const double sobol7 = floor_error(penumbra, 1, penumbra_exact, setup.floor_left, setup.floor_right, 10'000'000,
+                                    kAutoElements, SamplerKind::Sobol, 1);
   std::printf("auto storage with sobol: penumbra %.4g -> %.4g\n", sobol6, sobol7);
   EXPECT_LT(sobol7, 0.5 * sobol6);
   // Hermite storage interpolates the nodal values of a level's hats on that level's nodes, the
@@ -1377,7 +1386,8 @@ class ThreadSharing final : public RoundSharing {
 // Every participant's dump(), each having solved `scene` with `settings` as one of `k` sharing
 // the rounds; `cancel_after` (rounds), when set, cancels participant k - 1 alone after that many.
 std::vector<testing::SolutionData> shared_dumps(const Scene& scene, const SolverSettings& settings, unsigned k,
-                                      std::vector<StopReason>* stops = nullptr, std::uint32_t cancel_after = 0) {
+                                                std::vector<StopReason>* stops = nullptr,
+                                                std::uint32_t cancel_after = 0) {
   ThreadSharing::Shared shared(k);
   std::vector<testing::SolutionData> dumps(k);
   std::vector<StopReason> reasons(k);
@@ -1559,8 +1569,8 @@ TEST(Solver, SobolIsUnbiasedOnThePenumbraClosedForm) {
       sobol_variance += sobol.variance[k];
       random_variance += random.variance[k];
     }
-    std::printf("penumbra, %s basis: variance of the coefficients, random / sobol = %.3g\n",
-                to_string(settings.basis), random_variance / sobol_variance);
+    std::printf("penumbra, %s basis: variance of the coefficients, random / sobol = %.3g\n", to_string(settings.basis),
+                random_variance / sobol_variance);
     EXPECT_LT(sobol_variance, random_variance) << "variant " << variant;
   }
 }

@@ -44,7 +44,8 @@ TEST(Frame, DockedLayoutKeepsTheStageClearOfThePanelColumns) {
       EXPECT_EQ(layout.stage.y0, 20.0f);
       EXPECT_EQ(layout.stage.y1, static_cast<float>(height));
       // Any scene fitted to the stage stays inside it: wide, tall, and a single point.
-      for (const auto& [lower, upper] : {std::pair{Vec2{-3, -1}, Vec2{5, 2}}, {Vec2{0, 0}, Vec2{0.1, 7}}, {Vec2{1, 1}, Vec2{1, 1}}}) {
+      for (const auto& [lower, upper] :
+           {std::pair{Vec2{-3, -1}, Vec2{5, 2}}, {Vec2{0, 0}, Vec2{0.1, 7}}, {Vec2{1, 1}, Vec2{1, 1}}}) {
         Box bounds;
         bounds.extend(lower);
         bounds.extend(upper);
@@ -80,8 +81,8 @@ TEST(Frame, NewestJourneyIsTheLastRunOfConnectedBounces) {
   };
   EXPECT_EQ(newest_journey({}), (std::pair<std::size_t, std::size_t>{0, 0}));
   // An earlier walk that escaped, then a walk of three hops (the last absorbed).
-  std::vector<PathRecord> paths{hop({0, 0}, {1, 0}, 0), hop({1, 0}, {5, 5}, 1, true),
-                                hop({0, 1}, {2, 2}, 0), hop({2, 2}, {3, 0}, 1), hop({3, 0}, {0, 0}, 2, false, true)};
+  std::vector<PathRecord> paths{hop({0, 0}, {1, 0}, 0), hop({1, 0}, {5, 5}, 1, true), hop({0, 1}, {2, 2}, 0),
+                                hop({2, 2}, {3, 0}, 1), hop({3, 0}, {0, 0}, 2, false, true)};
   EXPECT_EQ(newest_journey(paths), (std::pair<std::size_t, std::size_t>{2, 5}));
   // A hop that does not start where the last one landed begins a new journey.
   paths[4].from = {3.5, 0};

@@ -23,10 +23,10 @@ TEST(Session, SteppedRoundsGiveTheSolversResult) {
   settings.threads = 2;
   Session session;
   session.restart(scene, settings);
-  session.step(StepKind::Photon);        // one photon
-  session.step(StepKind::Photon, 999);   // a partial batch
-  session.step(StepKind::Batch);         // to the batch's end
-  session.step(StepKind::Round, 3);      // the rest of round 0, then rounds 1 and 2
+  session.step(StepKind::Photon);       // one photon
+  session.step(StepKind::Photon, 999);  // a partial batch
+  session.step(StepKind::Batch);        // to the batch's end
+  session.step(StepKind::Round, 3);     // the rest of round 0, then rounds 1 and 2
   session.wait_idle();
   const std::shared_ptr<const Snapshot> snapshot = session.snapshot();
   EXPECT_EQ(snapshot->progress.rounds, 3u);

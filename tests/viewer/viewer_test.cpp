@@ -54,13 +54,12 @@ struct Rgb {
   int r = 0, g = 0, b = 0;
 };
 Rgb pixel(const png::PngImage& image, int x, int y) {
-  const std::size_t i = (static_cast<std::size_t>(y) * static_cast<std::size_t>(image.width) + static_cast<std::size_t>(x)) * 4;
+  const std::size_t i =
+      (static_cast<std::size_t>(y) * static_cast<std::size_t>(image.width) + static_cast<std::size_t>(x)) * 4;
   return {image.pixels[i], image.pixels[i + 1], image.pixels[i + 2]};
 }
 // The background colour the renderer clears to, as 8-bit values.
-bool is_background(Rgb c) {
-  return std::abs(c.r - 18) <= 3 && std::abs(c.g - 19) <= 3 && std::abs(c.b - 23) <= 3;
-}
+bool is_background(Rgb c) { return std::abs(c.r - 18) <= 3 && std::abs(c.g - 19) <= 3 && std::abs(c.b - 23) <= 3; }
 // Whether any pixel within `radius` of (x, y) satisfies `test`.
 template <typename Test>
 bool near(const png::PngImage& image, Vec2 p, int radius, Test test) {
@@ -113,7 +112,8 @@ TEST_F(Viewer, HeadlessViewWritesTheSceneWithCurvesLightAndPaths) {
   const fs::path whole = directory_ / "window.png";
   const CommandRun result = run("view " + scene("penumbra.json") +
                                 " --frames 4 --step rounds=1 --width 640 --height 640 --photons 2e5 "
-                                "--screenshot " + shot.string() + " --screenshot-ui " + whole.string());
+                                "--screenshot " +
+                                shot.string() + " --screenshot-ui " + whole.string());
   ASSERT_EQ(result.exit_code, 0) << result.err;
   Result<png::PngImage> image = png::read_png(shot.string());
   ASSERT_TRUE(image) << image.error().message;
@@ -154,8 +154,8 @@ TEST_F(Viewer, NoDisplayIsOneLineAndExitTwo) {
   EXPECT_NE(result.err.find("flatland render"), std::string::npos) << result.err;
   // A display that is named but cannot be reached: the message names it, still one line (no
   // Wayland library complaining about XDG_RUNTIME_DIR on the side).
-  const CommandRun unreachable = run("view " + scene("penumbra.json") + " --frames 1",
-                                     "env -u WAYLAND_DISPLAY -u XDG_RUNTIME_DIR DISPLAY=:9731");
+  const CommandRun unreachable =
+      run("view " + scene("penumbra.json") + " --frames 1", "env -u WAYLAND_DISPLAY -u XDG_RUNTIME_DIR DISPLAY=:9731");
   EXPECT_EQ(unreachable.exit_code, 2);
   EXPECT_EQ(std::count(unreachable.err.begin(), unreachable.err.end(), '\n'), 1) << unreachable.err;
   EXPECT_NE(unreachable.err.find("':9731'"), std::string::npos) << unreachable.err;
@@ -169,8 +169,8 @@ TEST_F(Viewer, ShaderErrorsPrintTheGlLogAndExitTwo) {
     broken << "#version 330 core\nout vec4 o_colour;\nvoid main() { o_colour = undefined_thing; }\n";
   }
   const fs::path out = directory_ / "never.png";
-  CommandRun result = run("render " + scene("penumbra.json") + " --photons 1e4 --out " + out.string() +
-                          " --shaders " + shaders.string());
+  CommandRun result = run("render " + scene("penumbra.json") + " --photons 1e4 --out " + out.string() + " --shaders " +
+                          shaders.string());
   EXPECT_EQ(result.exit_code, 2);
   EXPECT_NE(result.err.find("paths.frag"), std::string::npos) << result.err;
   EXPECT_NE(result.err.find("undefined_thing"), std::string::npos) << result.err;  // the GL log
@@ -182,10 +182,10 @@ TEST_F(Viewer, ShaderErrorsPrintTheGlLogAndExitTwo) {
 }
 
 TEST_F(Viewer, BadOptionsAreOneLineErrors) {
-  for (const char* arguments : {"view --step sometimes --frames 1", "view --frames 2 --photons -5",
-                                "view no-such-scene.json --frames 1", "render --out x.png",
-                                "view --exposure nan --frames 1", "render --exposure nan --out x.png",
-                                "view --max-fps -5 --frames 1", "view --fade 2 --frames 1"}) {
+  for (const char* arguments :
+       {"view --step sometimes --frames 1", "view --frames 2 --photons -5", "view no-such-scene.json --frames 1",
+        "render --out x.png", "view --exposure nan --frames 1", "render --exposure nan --out x.png",
+        "view --max-fps -5 --frames 1", "view --fade 2 --frames 1"}) {
     const CommandRun result = run(arguments);
     EXPECT_EQ(result.exit_code, 2) << arguments;
     EXPECT_EQ(std::count(result.err.begin(), result.err.end(), '\n'), 1) << arguments << ": " << result.err;
@@ -210,7 +210,8 @@ TEST_F(Viewer, UiControlsDriveTheSolve) {
   Result<std::unique_ptr<viewer::Viewer>> created = viewer::Viewer::create(options);
   ASSERT_TRUE(created) << created.error().message;
   viewer::Viewer& viewer = **created;
-  frames_until(viewer, [] { return false; }, 3);
+  frames_until(
+      viewer, [] { return false; }, 3);
   EXPECT_EQ(viewer.settings().basis, BasisKind::Cubic);
 
   // Change the basis through its combo box: the solve restarts with it.
@@ -239,7 +240,8 @@ TEST_F(Viewer, UiControlsDriveTheSolve) {
   // Click the receiver (curve 2): the curve panel opens on it.
   const Vec2 at = viewer.view().to_pixels({2.5, 0.0});
   viewer.queue_click(static_cast<float>(at.x), static_cast<float>(at.y));
-  frames_until(viewer, [&] { return viewer.selected_curve() == 2; }, 6);
+  frames_until(
+      viewer, [&] { return viewer.selected_curve() == 2; }, 6);
   EXPECT_EQ(viewer.selected_curve(), 2);
   EXPECT_TRUE(viewer.widget_rect("Run").has_value());
 
@@ -247,7 +249,8 @@ TEST_F(Viewer, UiControlsDriveTheSolve) {
   const std::uint64_t generation = viewer.session().snapshot()->generation;
   viewer.queue_key(SDLK_SPACE);
   viewer.queue_key(SDLK_BACKSPACE);
-  frames_until(viewer, [] { return false; }, 3);
+  frames_until(
+      viewer, [] { return false; }, 3);
   viewer.session().wait_idle();
   EXPECT_FALSE(viewer.session().running());
   EXPECT_NE(viewer.session().snapshot()->generation, generation);
@@ -272,8 +275,10 @@ TEST_F(Viewer, PanelsNeverCoverTheScene) {
     viewer.select_curve(0);
     for (const auto& [width, height] : {std::pair{1280, 800}, {1024, 768}, {1366, 768}, {1200, 900}}) {
       viewer.resize_window(width, height);
-      frames_until(viewer, [&] { return viewer.view().width == width && viewer.view().height == height; }, 50);
-      frames_until(viewer, [] { return false; }, 3);
+      frames_until(
+          viewer, [&] { return viewer.view().width == width && viewer.view().height == height; }, 50);
+      frames_until(
+          viewer, [] { return false; }, 3);
       ASSERT_EQ(viewer.view().width, width) << name;
       ASSERT_EQ(viewer.view().height, height) << name;
       const Box& bounds = viewer.scene().bounds;
@@ -293,7 +298,8 @@ TEST_F(Viewer, PanelsNeverCoverTheScene) {
     }
   }
   viewer.queue_key(SDLK_TAB);
-  frames_until(viewer, [] { return false; }, 3);
+  frames_until(
+      viewer, [] { return false; }, 3);
   EXPECT_FALSE(viewer.panel_rect("Solve").has_value());
   EXPECT_EQ(viewer.layout().stage.width(), static_cast<float>(viewer.view().width));
 }
@@ -306,7 +312,8 @@ TEST_F(Viewer, WalkTransportStepsWholeJourneys) {
   Result<std::unique_ptr<viewer::Viewer>> created = viewer::Viewer::create(options);
   ASSERT_TRUE(created) << created.error().message;
   viewer::Viewer& viewer = **created;
-  frames_until(viewer, [] { return false; }, 3);
+  frames_until(
+      viewer, [] { return false; }, 3);
   click(viewer, "transport");
   click(viewer, "transport:walk");
   EXPECT_EQ(viewer.settings().transport, Transport::Walk);
@@ -344,13 +351,15 @@ TEST_F(Viewer, FirstPhotonsPresetStepsWalksSlowly) {
   Result<std::unique_ptr<viewer::Viewer>> created = viewer::Viewer::create(options);
   ASSERT_TRUE(created) << created.error().message;
   viewer::Viewer& viewer = **created;
-  frames_until(viewer, [] { return false; }, 3);
+  frames_until(
+      viewer, [] { return false; }, 3);
   click(viewer, "First photons");
   EXPECT_EQ(viewer.settings().transport, Transport::Walk);
   EXPECT_EQ(viewer.path_colour(), PathColour::Bounce);
   EXPECT_TRUE(viewer.slow_stepping());
   const auto start = std::chrono::steady_clock::now();
-  frames_until(viewer, [&] { return viewer.session().snapshot()->progress.photons >= 2; }, 100'000);
+  frames_until(
+      viewer, [&] { return viewer.session().snapshot()->progress.photons >= 2; }, 100'000);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   EXPECT_GE(viewer.session().snapshot()->progress.photons, 2u);
   EXPECT_GE(seconds, viewer::Viewer::kFirstPhotonsSeconds * 0.9);  // slowly: two photons take a step's wait
@@ -393,10 +402,14 @@ TEST_F(Viewer, SteppedWalksDrawTheNewestJourney) {
     const PathRecord& hop = paths[i];
     const std::array<float, 3> expected = path_palette(hop.bounce);
     const Vec2 at = view.to_pixels(hop.from + (1.0 / 3.0) * (hop.to - hop.from));
-    EXPECT_TRUE(near(*image, at, 1, [&](Rgb c) {
-      auto close = [](int value, float wanted) { return std::fabs(static_cast<float>(value) - wanted * 255.0f) < 60.0f; };
-      return close(c.r, expected[0]) && close(c.g, expected[1]) && close(c.b, expected[2]);
-    })) << "hop " << i - journey.first << " (bounce " << hop.bounce << ") not drawn in its colour";
+    EXPECT_TRUE(near(*image, at, 1,
+                     [&](Rgb c) {
+                       auto close = [](int value, float wanted) {
+                         return std::fabs(static_cast<float>(value) - wanted * 255.0f) < 60.0f;
+                       };
+                       return close(c.r, expected[0]) && close(c.g, expected[1]) && close(c.b, expected[2]);
+                     }))
+        << "hop " << i - journey.first << " (bounce " << hop.bounce << ") not drawn in its colour";
   }
 }
 
@@ -442,7 +455,8 @@ TEST_F(Viewer, DraggingAControlPointEditsTheSceneAndRestarts) {
   const Vec2 to = view.to_pixels({1.2, 1.1});
   viewer.queue_drag(static_cast<float>(from.x), static_cast<float>(from.y), static_cast<float>(to.x),
                     static_cast<float>(to.y));
-  frames_until(viewer, [] { return false; }, 10);
+  frames_until(
+      viewer, [] { return false; }, 10);
   const Vec2 moved = viewer.scene().curves[1].points[1];
   EXPECT_NEAR(moved.x, 1.2, 2.0 / view.scale);  // to within a pixel or two
   EXPECT_NEAR(moved.y, 1.1, 2.0 / view.scale);
@@ -504,12 +518,14 @@ TEST_F(Viewer, ReloadsTheSceneWhenItsFileChangesAndSavesResults) {
 
 TEST_F(Viewer, HeadlessViewShowsTheErrorAgainstAReference) {
   const fs::path reference = directory_ / "reference.json";
-  ASSERT_EQ(run("reference " + scene("penumbra.json") + " --elements 100 --samples 50 --quiet --out " +
-                reference.string()).exit_code, 0);
+  ASSERT_EQ(
+      run("reference " + scene("penumbra.json") + " --elements 100 --samples 50 --quiet --out " + reference.string())
+          .exit_code,
+      0);
   const fs::path whole = directory_ / "window.png";
-  const CommandRun result = run("view " + scene("penumbra.json") + " --reference " + reference.string() +
-                                " --frames 3 --step rounds=1 --select receiver --report --screenshot-ui " +
-                                whole.string());
+  const CommandRun result =
+      run("view " + scene("penumbra.json") + " --reference " + reference.string() +
+          " --frames 3 --step rounds=1 --select receiver --report --screenshot-ui " + whole.string());
   ASSERT_EQ(result.exit_code, 0) << result.err;
   EXPECT_TRUE(png::read_png(whole.string()).ok());
   // --report prints the error against the reference: a few per cent after three rounds of 1e6.
@@ -519,8 +535,8 @@ TEST_F(Viewer, HeadlessViewShowsTheErrorAgainstAReference) {
   EXPECT_GT(error, 0.0);
   EXPECT_LT(error, 0.1);
   // A reference of another scene is refused before any window opens.
-  const CommandRun wrong = run("view " + scene("enclosure.json") + " --reference " + reference.string() +
-                               " --frames 2 --step rounds=1");
+  const CommandRun wrong =
+      run("view " + scene("enclosure.json") + " --reference " + reference.string() + " --frames 2 --step rounds=1");
   EXPECT_EQ(wrong.exit_code, 2);
   EXPECT_EQ(std::count(wrong.err.begin(), wrong.err.end(), '\n'), 1) << wrong.err;
   EXPECT_NE(wrong.err.find("another scene"), std::string::npos) << wrong.err;

@@ -79,13 +79,14 @@ fs::path directory_of(const fs::path& target) {
 }
 
 // Whether this process may write to `path` (by its effective user, as the kernel decides).
-bool may_access(const std::string& path, int mode) { return ::faccessat(AT_FDCWD, path.c_str(), mode, AT_EACCESS) == 0; }
+bool may_access(const std::string& path, int mode) {
+  return ::faccessat(AT_FDCWD, path.c_str(), mode, AT_EACCESS) == 0;
+}
 
 }  // namespace
 
-Result<std::string> read_input_file(const std::string& path, const std::string& what,
-                                    const std::atomic<bool>* cancel, InputContent content,
-                                    std::uint64_t limit) {
+Result<std::string> read_input_file(const std::string& path, const std::string& what, const std::atomic<bool>* cancel,
+                                    InputContent content, std::uint64_t limit) {
   if (path.empty()) return Error{"an empty path names no " + what + "; give the path of a .json file"};
   // The system reads a path up to its first NUL: "a.json\0junk" would open a.json.
   if (path.find('\0') != std::string::npos) return Error{printable(path) + ": a file name cannot hold a NUL character"};
@@ -161,7 +162,8 @@ Result<OutputTarget> examine_output(const std::string& path) {
     const fs::path directory = directory_of(given);
     struct stat folder {};
     if (::stat(directory.c_str(), &folder) != 0) {
-      if (errno == ENOENT) return Error{path + ": directory " + directory.string() + " does not exist; create it first"};
+      if (errno == ENOENT)
+        return Error{path + ": directory " + directory.string() + " does not exist; create it first"};
       return Error{path + ": cannot reach directory " + directory.string() + ": " + reason(errno)};
     }
     if (!S_ISDIR(folder.st_mode)) return Error{path + ": " + directory.string() + " is not a directory"};
@@ -203,12 +205,14 @@ Result<OutputTarget> examine_output(const std::string& path) {
     const fs::path directory = directory_of(target.real_path);
     struct stat folder {};
     if (::stat(directory.c_str(), &folder) != 0 || !may_access(directory.string(), W_OK | X_OK))
-      return Error{path + ": cannot replace it: cannot write in directory " + directory.string() + ": " + reason(errno)};
+      return Error{path + ": cannot replace it: cannot write in directory " + directory.string() + ": " +
+                   reason(errno)};
     // In a sticky directory (as /tmp) only the file's owner, the directory's owner or root may
     // rename over a file: rename() would refuse it after the work.
     const uid_t user = ::geteuid();
     if ((folder.st_mode & S_ISVTX) != 0 && user != 0 && info.st_uid != user && folder.st_uid != user)
-      return Error{path + ": cannot replace it: it belongs to another user, in a directory where only a "
+      return Error{path +
+                   ": cannot replace it: it belongs to another user, in a directory where only a "
                    "file's owner may replace it (sticky, as /tmp); give another name"};
     target.kind = OutputKind::ReplacedFile;
     return target;
@@ -223,7 +227,8 @@ Result<OutputTarget> examine_output(const std::string& path) {
     return target;
   }
   if (S_ISBLK(info.st_mode))
-    return Error{path + ": is a block device (a disk); flatland writes files, devices such as /dev/null, "
+    return Error{path +
+                 ": is a block device (a disk); flatland writes files, devices such as /dev/null, "
                  "FIFOs and - (the standard output)"};
   return Error{path + ": is a socket; give a file name, a FIFO or - (the standard output)"};
 }
@@ -394,8 +399,10 @@ Status OutputFiles::commit() {
     if (is_renamed(file.target.kind)) {
       std::error_code ec;
       fs::rename(file.temporary, file.target.real_path, ec);
-      if (ec) done = Error{file.target.path + ": cannot replace the file: " + ec.message()};
-      else file.temporary.clear();
+      if (ec)
+        done = Error{file.target.path + ": cannot replace the file: " + ec.message()};
+      else
+        file.temporary.clear();
     } else {
       done = write_through(file.target, file.contents, cancel_);
     }

@@ -63,7 +63,7 @@ enum class OutputKind {
 };
 
 struct OutputTarget {
-  std::string path;       // as the user gave it
+  std::string path;  // as the user gave it
   OutputKind kind = OutputKind::NewFile;
   std::string real_path;  // the file renamed over or opened (symbolic links resolved)
   FileIdentity identity;  // of the file that will hold the output

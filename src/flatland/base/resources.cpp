@@ -33,8 +33,9 @@ std::size_t thread_stack_bytes() {
 std::size_t default_memory_budget() {
   const long pages = ::sysconf(_SC_PHYS_PAGES);
   const long page_size = ::sysconf(_SC_PAGESIZE);
-  std::size_t budget = pages <= 0 || page_size <= 0 ? std::size_t{4} << 30
-                                                    : static_cast<std::size_t>(pages) / 4 * 3 * static_cast<std::size_t>(page_size);
+  std::size_t budget = pages <= 0 || page_size <= 0
+                           ? std::size_t{4} << 30
+                           : static_cast<std::size_t>(pages) / 4 * 3 * static_cast<std::size_t>(page_size);
   const std::size_t left = address_space_left();
   if (left != SIZE_MAX) budget = std::min(budget, left / 2);
   rlimit data{};
@@ -45,10 +46,14 @@ std::size_t default_memory_budget() {
 
 std::string format_bytes(double bytes) {
   char text[32];
-  if (bytes >= 1e12) std::snprintf(text, sizeof text, "%.3g TB", bytes / 1e12);
-  else if (bytes >= 1e9) std::snprintf(text, sizeof text, "%.3g GB", bytes / 1e9);
-  else if (bytes >= 1e6) std::snprintf(text, sizeof text, "%.3g MB", bytes / 1e6);
-  else std::snprintf(text, sizeof text, "%.3g kB", bytes / 1e3);
+  if (bytes >= 1e12)
+    std::snprintf(text, sizeof text, "%.3g TB", bytes / 1e12);
+  else if (bytes >= 1e9)
+    std::snprintf(text, sizeof text, "%.3g GB", bytes / 1e9);
+  else if (bytes >= 1e6)
+    std::snprintf(text, sizeof text, "%.3g MB", bytes / 1e6);
+  else
+    std::snprintf(text, sizeof text, "%.3g kB", bytes / 1e3);
   return text;
 }
 

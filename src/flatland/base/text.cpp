@@ -33,8 +33,7 @@ std::size_t edit_distance(std::string_view a, std::string_view b) {
   return previous[m];
 }
 
-std::optional<std::string> closest_match(std::string_view word,
-                                         const std::vector<std::string>& candidates) {
+std::optional<std::string> closest_match(std::string_view word, const std::vector<std::string>& candidates) {
   std::optional<std::string> best;
   std::size_t best_distance = std::numeric_limits<std::size_t>::max();
   if (word.size() > kMaxHintLength) return best;  // not a typo; keeps the quadratic distance cheap
@@ -95,9 +94,8 @@ std::optional<std::size_t> find_overflowing_number(std::string_view text) {
     }
     if (c == '-' || (c >= '0' && c <= '9')) {
       std::size_t end = i + 1;
-      while (end < text.size() && (std::isdigit(static_cast<unsigned char>(text[end])) != 0 ||
-                                   text[end] == '.' || text[end] == 'e' || text[end] == 'E' ||
-                                   text[end] == '+' || text[end] == '-'))
+      while (end < text.size() && (std::isdigit(static_cast<unsigned char>(text[end])) != 0 || text[end] == '.' ||
+                                   text[end] == 'e' || text[end] == 'E' || text[end] == '+' || text[end] == '-'))
         ++end;
       const std::string token(text.substr(i, end - i));
       if (std::isinf(std::strtod(token.c_str(), nullptr))) return i;

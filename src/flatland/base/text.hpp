@@ -18,8 +18,7 @@ std::size_t edit_distance(std::string_view a, std::string_view b);
 // kMaxHintLength are never typos of each other and are skipped, so the cost is bounded whatever
 // the input holds.
 inline constexpr std::size_t kMaxHintLength = 200;
-std::optional<std::string> closest_match(std::string_view word,
-                                         const std::vector<std::string>& candidates);
+std::optional<std::string> closest_match(std::string_view word, const std::vector<std::string>& candidates);
 
 // Line and column (in UTF-8 code points, both from 1) of a byte offset in a text.
 struct TextPosition {

@@ -17,9 +17,9 @@ namespace flatland {
 namespace {
 
 constexpr double kInfinity = std::numeric_limits<double>::infinity();
-constexpr std::uint32_t kLeafSize = 2;  // measured against 1 and 4 with the wide tree (docs/performance.md)
+constexpr std::uint32_t kLeafSize = 2;       // measured against 1 and 4 with the wide tree (docs/performance.md)
 constexpr std::size_t kLinearScanLimit = 8;  // up to this many segments a scan beats the tree
-constexpr int kMaxSahDepth = 32;  // below it median splits: depth <= 32 + log2(n) + 1
+constexpr int kMaxSahDepth = 32;             // below it median splits: depth <= 32 + log2(n) + 1
 constexpr int kStackSize = 72;
 
 // One segment against the ray. The origin segment is special: a straight line cannot see itself,
@@ -41,8 +41,7 @@ struct Nearest {
   SceneHit hit;
   double limit = kInfinity;
 
-  void consider(std::uint32_t index, const SegmentGeometry& g, const Ray& ray,
-                const RayOrigin& from) {
+  void consider(std::uint32_t index, const SegmentGeometry& g, const Ray& ray, const RayOrigin& from) {
     SegmentHit h;
     if (!test_geometry(g, index == from.segment, from.t, ray, limit, &h)) return;
     if (h.distance < hit.distance || (h.distance == hit.distance && index < hit.segment)) {
@@ -113,8 +112,6 @@ bool resume(const Pending* stack, int& top, Distance bound, std::uint32_t& node)
 
 }  // namespace
 
-
-
 // The build's lists (build_node).
 struct SegmentAccelerator::Build {
   std::vector<Box> boxes;
@@ -124,8 +121,7 @@ struct SegmentAccelerator::Build {
   std::vector<std::uint8_t> left;                // per segment: in the left child
 };
 
-SegmentAccelerator::SegmentAccelerator(std::vector<SegmentGeometry> segments)
-    : segments_(std::move(segments)) {
+SegmentAccelerator::SegmentAccelerator(std::vector<SegmentGeometry> segments) : segments_(std::move(segments)) {
   has_cubics_ = std::any_of(segments_.begin(), segments_.end(),
                             [](const SegmentGeometry& g) { return g.kind == SegmentKind::Cubic; });
   boxes_.reserve(segments_.size());
@@ -142,8 +138,8 @@ SegmentAccelerator::SegmentAccelerator(std::vector<SegmentGeometry> segments)
   }
   // Padding of every box: far above the rounding of the slab test and of the segment tests (a few
   // ulps of the coordinates), far below anything that costs culling.
-  const double magnitude = std::max({std::abs(scene.lower.x), std::abs(scene.lower.y),
-                                     std::abs(scene.upper.x), std::abs(scene.upper.y)});
+  const double magnitude =
+      std::max({std::abs(scene.lower.x), std::abs(scene.lower.y), std::abs(scene.upper.x), std::abs(scene.upper.y)});
   const double margin = 1e-10 * (magnitude + scene.diagonal());
 
   Build build;
@@ -259,8 +255,8 @@ std::uint32_t SegmentAccelerator::collapse(std::uint32_t binary, double pad) {
 // the build is O(n log n), where sorting both axes at every node would be O(n log^2 n), and the
 // tree is the same. A leaf keeps its parent's chosen order.
 
-std::uint32_t SegmentAccelerator::build_node(std::uint32_t first, std::uint32_t count, int depth,
-                                             int parent_axis, Build& build) {
+std::uint32_t SegmentAccelerator::build_node(std::uint32_t first, std::uint32_t count, int depth, int parent_axis,
+                                             Build& build) {
   const auto index = static_cast<std::uint32_t>(nodes_.size());
   nodes_.push_back({});
   const std::vector<Box>& boxes = build.boxes;

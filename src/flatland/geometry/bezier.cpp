@@ -76,15 +76,13 @@ double gauss_length(const Cubic& c, double a, double b) {
 // with it to `tolerance` (the difference estimates the error of `whole`, and the halves are much
 // more accurate still). The speed is smooth except at cusps (a kink of |C'|), where only the
 // interval holding the kink keeps splitting.
-double adaptive_length(const Cubic& c, double a, double b, double whole, double tolerance,
-                       int depth) {
+double adaptive_length(const Cubic& c, double a, double b, double whole, double tolerance, int depth) {
   const double m = 0.5 * (a + b);
   const double left = gauss_length(c, a, m);
   const double right = gauss_length(c, m, b);
   const double sum = left + right;
   if (depth <= 0 || std::abs(sum - whole) <= tolerance || !(m > a && m < b)) return sum;
-  return adaptive_length(c, a, m, left, tolerance, depth - 1) +
-         adaptive_length(c, m, b, right, tolerance, depth - 1);
+  return adaptive_length(c, a, m, left, tolerance, depth - 1) + adaptive_length(c, m, b, right, tolerance, depth - 1);
 }
 
 // Extrema of one coordinate: the roots in (0,1) of the derivative of the Bezier polynomial with
@@ -99,9 +97,7 @@ int coordinate_extrema(double k0, double k1, double k2, double k3, double roots[
 
 }  // namespace
 
-Cubic line_as_cubic(Vec2 a, Vec2 b) {
-  return Cubic{{a, mix(a, b, 1.0 / 3.0), mix(a, b, 2.0 / 3.0), b}};
-}
+Cubic line_as_cubic(Vec2 a, Vec2 b) { return Cubic{{a, mix(a, b, 1.0 / 3.0), mix(a, b, 2.0 / 3.0), b}}; }
 
 Vec2 evaluate(const Cubic& c, double t) { return blossom(c, t, t, t); }
 
@@ -152,8 +148,7 @@ std::pair<Cubic, Cubic> split(const Cubic& c, double t) {
 }
 
 Cubic subsegment(const Cubic& c, double t0, double t1) {
-  return Cubic{{blossom(c, t0, t0, t0), blossom(c, t0, t0, t1), blossom(c, t0, t1, t1),
-                blossom(c, t1, t1, t1)}};
+  return Cubic{{blossom(c, t0, t0, t0), blossom(c, t0, t0, t1), blossom(c, t0, t1, t1), blossom(c, t1, t1, t1)}};
 }
 
 Box hull_bounds(const Cubic& c) {
@@ -288,9 +283,8 @@ ArcLengthTable::ArcLengthTable(const Cubic& c) {
     const double a = k / double(kIntervals);
     const double b = (k + 1) / double(kIntervals);
     const double m = 0.5 * (a + b);
-    bool smooth =
-        std::abs(gauss_length(c, a, b) - pieces[k]) <= 1e-15 * total &&
-        std::abs(gauss_length(c, a, m) + gauss_length(c, m, b) - pieces[k]) <= 1e-15 * total;
+    bool smooth = std::abs(gauss_length(c, a, b) - pieces[k]) <= 1e-15 * total &&
+                  std::abs(gauss_length(c, a, m) + gauss_length(c, m, b) - pieces[k]) <= 1e-15 * total;
     for (int i = 0; i < n; ++i) {
       if (extrema[i] > a && extrema[i] < b && speed(c, extrema[i]) < 1e-3 * fast) smooth = false;
     }

@@ -23,7 +23,6 @@ const char* to_string(DiscontinuityMode mode) {
   return "?";
 }
 
-
 namespace {
 
 constexpr double kEpsilon = std::numeric_limits<double>::epsilon();
@@ -44,8 +43,8 @@ constexpr double kAlongSine = 1e-9;
 // end point (found by the vertex and joint rules).
 constexpr double kInteriorMargin = 1e-10;
 
-constexpr double kBinomial[6][6] = {{1, 0, 0, 0, 0, 0},  {1, 1, 0, 0, 0, 0},   {1, 2, 1, 0, 0, 0},
-                                    {1, 3, 3, 1, 0, 0},  {1, 4, 6, 4, 1, 0},   {1, 5, 10, 10, 5, 1}};
+constexpr double kBinomial[6][6] = {{1, 0, 0, 0, 0, 0}, {1, 1, 0, 0, 0, 0}, {1, 2, 1, 0, 0, 0},
+                                    {1, 3, 3, 1, 0, 0}, {1, 4, 6, 4, 1, 0}, {1, 5, 10, 10, 5, 1}};
 
 // ---------------------------------------------------------------------------------------------
 // Bernstein polynomials of degree <= 5 on an interval: subdivision and root isolation.
@@ -83,8 +82,8 @@ template <class F>
 double bisect(const F& f, double lo, double hi, bool rising) {
   // Newton-bisection without a slope is bisection: each point the bracket's middle, until the
   // middle is no longer strictly inside (the bracket is two adjacent doubles).
-  return newton_bisection([&](double x) { return rising ? f(x) : -f(x); }, [](double) { return 0.0; },
-                          0.5 * (lo + hi), lo, hi, 200, 0.0,
+  return newton_bisection([&](double x) { return rising ? f(x) : -f(x); }, [](double) { return 0.0; }, 0.5 * (lo + hi),
+                          lo, hi, 200, 0.0,
                           [](double, double next, double low, double high) -> std::optional<double> {
                             if (!(next > low && next < high)) return 0.5 * (low + high);
                             return std::nullopt;
@@ -155,7 +154,6 @@ std::pair<double, double> closest_parameter(const SegmentGeometry& g, Vec2 p) {
   return {nearest.t, nearest.distance};
 }
 
-
 // ---------------------------------------------------------------------------------------------
 // Vertices: end points of open curves and corners (the closing point of a closed curve only if it
 // is a corner).
@@ -163,9 +161,9 @@ std::pair<double, double> closest_parameter(const SegmentGeometry& g, Vec2 p) {
 struct Vertex {
   Vec2 position;
   std::uint32_t curve = 0;
-  double u = 0.0;                        // curve parameter (0 for a closing corner)
-  std::uint32_t before = kNoSegment;     // segment ending here (t = 1)
-  std::uint32_t after = kNoSegment;      // segment starting here (t = 0)
+  double u = 0.0;                     // curve parameter (0 for a closing corner)
+  std::uint32_t before = kNoSegment;  // segment ending here (t = 1)
+  std::uint32_t after = kNoSegment;   // segment starting here (t = 0)
   std::uint32_t segment() const { return after != kNoSegment ? after : before; }
   double t() const { return after != kNoSegment ? 0.0 : 1.0; }
 };
@@ -184,8 +182,8 @@ std::vector<Vertex> vertices_of(const Scene& scene, std::uint32_t c) {
     out.push_back({start_of(after), c, closing ? 0.0 : j + 1.0, first + j, after});
   }
   if (!curve.closed) {
-    out.push_back({scene.segments[last].geometry.shape.p[3], c, static_cast<double>(curve.segment_count),
-                   last, kNoSegment});
+    out.push_back(
+        {scene.segments[last].geometry.shape.p[3], c, static_cast<double>(curve.segment_count), last, kNoSegment});
   }
   return out;
 }
@@ -263,7 +261,8 @@ void segment_tangent_points(const Cubic& c, Vec2 p, std::vector<double>& roots) 
   double b[6];
   double noise = 0.0;
   tangent_coefficients(c, p, b, &noise);
-  isolate_roots(b, 5, 0.0, 1.0, noise, [&](double t) { return tangent_function(c, p, t); }, 0, roots);
+  isolate_roots(
+      b, 5, 0.0, 1.0, noise, [&](double t) { return tangent_function(c, p, t); }, 0, roots);
 }
 
 // A point of a curve where a critical line touches it.
@@ -325,8 +324,7 @@ std::vector<Feature> curve_tangent_points(const Scene& scene, std::uint32_t c, V
     if (!unique.empty() && f.u - unique.back().u <= kSameParameter) continue;
     unique.push_back(f);
   }
-  if (curve.closed && unique.size() >= 2 &&
-      unique.front().u + curve.segment_count - unique.back().u <= kSameParameter)
+  if (curve.closed && unique.size() >= 2 && unique.front().u + curve.segment_count - unique.back().u <= kSameParameter)
     unique.pop_back();
   return unique;
 }
@@ -461,8 +459,8 @@ std::vector<std::pair<double, double>> segment_bitangents(const Cubic& a, const 
     if (wt <= 1.0 / 32 && wu <= 1.0 / 32) {
       double t = 0.5 * (box.t0 + box.t1);
       double u = 0.5 * (box.u0 + box.u1);
-      if (bitangent_newton(a, b, t, u) && t >= box.t0 - 0.1 * wt && t <= box.t1 + 0.1 * wt &&
-          u >= box.u0 - 0.1 * wu && u <= box.u1 + 0.1 * wu && t >= 0.0 && t <= 1.0 && u >= 0.0 && u <= 1.0) {
+      if (bitangent_newton(a, b, t, u) && t >= box.t0 - 0.1 * wt && t <= box.t1 + 0.1 * wt && u >= box.u0 - 0.1 * wu &&
+          u <= box.u1 + 0.1 * wu && t >= 0.0 && t <= 1.0 && u >= 0.0 && u <= 1.0) {
         if (length(evaluate(a, t) - evaluate(b, u)) > kTouch * scale) found.emplace_back(t, u);
         continue;
       }
@@ -487,7 +485,8 @@ std::vector<std::pair<double, double>> segment_bitangents(const Cubic& a, const 
   for (const auto& s : found) {
     bool seen = false;
     for (const auto& q : unique)
-      seen = seen || (std::fabs(q.first - s.first) <= kSameParameter && std::fabs(q.second - s.second) <= kSameParameter);
+      seen =
+          seen || (std::fabs(q.first - s.first) <= kSameParameter && std::fabs(q.second - s.second) <= kSameParameter);
     if (!seen) unique.push_back(s);
   }
   return unique;
@@ -597,8 +596,7 @@ bool source_allows(const Scene& scene, const Feature& a, Vec2 d) {
   if (a.vertex != nullptr) {
     const Vertex& v = *a.vertex;
     // (A reflector reflects diffusely: a secondary source is diffuse whatever its emission.)
-    const bool diffuse = !scene.is_emitter(curve) ||
-                         scene.material_of(curve).emission.kind == Emission::Kind::Diffuse;
+    const bool diffuse = !scene.is_emitter(curve) || scene.material_of(curve).emission.kind == Emission::Kind::Diffuse;
     if (line_crosses_at(scene, v, d) && diffuse) return false;
     for (const std::uint32_t s : {v.before, v.after}) {
       if (s == kNoSegment) continue;
@@ -627,9 +625,7 @@ bool occluder_allows(const Scene& scene, const Feature& b, Vec2 d) {
   return b.vertex == nullptr || !line_crosses_at(scene, *b.vertex, d);
 }
 
-Feature vertex_feature(const Vertex& v) {
-  return Feature{v.position, v.curve, v.segment(), v.t(), v.u, &v};
-}
+Feature vertex_feature(const Vertex& v) { return Feature{v.position, v.curve, v.segment(), v.t(), v.u, &v}; }
 
 // ---------------------------------------------------------------------------------------------
 
@@ -666,8 +662,7 @@ struct EventFinder {
     const SceneHit blocker = cast(a, d);
     if (blocker.segment != kNoSegment && blocker.distance < distance - kTouch * scene.scale) {
       const Vec2 where = a.position + blocker.distance * d;
-      if (scene.segments[blocker.segment].curve != b.curve || length(where - b.position) > kGraze * scene.scale)
-        return;
+      if (scene.segments[blocker.segment].curve != b.curve || length(where - b.position) > kGraze * scene.scale) return;
     }
     // A surface touching B (a contact there) blocks the line at B: its node is the contact's.
     const SceneHit hit = cast(b, d);
@@ -779,8 +774,9 @@ void segment_crossings(const SegmentGeometry& a, const SegmentGeometry& b, doubl
       magnitude = std::max(magnitude, length(c.p[i] - l0));
     }
     std::vector<double> roots;
-    isolate_roots(k, 3, 0.0, 1.0, 16.0 * kEpsilon * magnitude,
-                  [&](double t) { return cross(e, evaluate(c, t) - l0) / e_length; }, 0, roots);
+    isolate_roots(
+        k, 3, 0.0, 1.0, 16.0 * kEpsilon * magnitude, [&](double t) { return cross(e, evaluate(c, t) - l0) / e_length; },
+        0, roots);
     for (const double t : roots) {
       const double s = dot(evaluate(c, t) - l0, e) / (e_length * e_length);
       if (!interior(t) || !interior(s)) continue;
@@ -852,7 +848,8 @@ void segment_crossings(const SegmentGeometry& a, const SegmentGeometry& b, doubl
   for (const auto& s : found) {
     bool seen = false;
     for (const auto& q : out)
-      seen = seen || (std::fabs(q.first - s.first) <= kSameParameter && std::fabs(q.second - s.second) <= kSameParameter);
+      seen =
+          seen || (std::fabs(q.first - s.first) <= kSameParameter && std::fabs(q.second - s.second) <= kSameParameter);
     if (!seen) out.push_back(s);
   }
 }
@@ -876,8 +873,7 @@ std::vector<double> tangent_points(const Scene& scene, std::uint32_t curve, Vec2
   return out;
 }
 
-std::vector<std::pair<double, double>> bitangents(const Scene& scene, std::uint32_t curve_a,
-                                                  std::uint32_t curve_b) {
+std::vector<std::pair<double, double>> bitangents(const Scene& scene, std::uint32_t curve_a, std::uint32_t curve_b) {
   std::vector<std::pair<double, double>> out;
   for (const auto& [a, b] :
        curve_bitangents(scene, curve_a, curve_b, vertices_of(scene, curve_a), vertices_of(scene, curve_b)))
@@ -886,8 +882,7 @@ std::vector<std::pair<double, double>> bitangents(const Scene& scene, std::uint3
   return out;
 }
 
-std::vector<DiscontinuityNode> find_visibility_events(const Scene& scene,
-                                                      const SegmentAccelerator& accelerator,
+std::vector<DiscontinuityNode> find_visibility_events(const Scene& scene, const SegmentAccelerator& accelerator,
                                                       const EventOptions& options) {
   const auto curve_count = static_cast<std::uint32_t>(scene.curves.size());
   std::vector<std::vector<Vertex>> vertices(curve_count);

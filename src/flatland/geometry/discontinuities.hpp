@@ -69,8 +69,7 @@ struct EventOptions {
 //  - have an unoccluded touching segment A-B (a ray cast);
 // get a C0 node where the line, continued past B, first hits a curve, if the side it hits reflects.
 // Events are merged per EventOptions. Sorted by curve, then u.
-std::vector<DiscontinuityNode> find_visibility_events(const Scene& scene,
-                                                      const SegmentAccelerator& accelerator,
+std::vector<DiscontinuityNode> find_visibility_events(const Scene& scene, const SegmentAccelerator& accelerator,
                                                       const EventOptions& options = {});
 
 // The tangent points of curve `curve` seen from p: the parameters u (sorted) of its curved pieces
@@ -84,7 +83,6 @@ std::vector<double> tangent_points(const Scene& scene, std::uint32_t curve, Vec2
 // (u_a, u_b) of curve parameters where one line touches curve a at u_a and curve b at u_b, the
 // solutions of cross(C_a(t) - C_b(u), C_a'(t)) = 0 = cross(C_a(t) - C_b(u), C_b'(u)) with the two
 // points apart. Curved pieces only, not at vertices. Sorted by u_a, then u_b.
-std::vector<std::pair<double, double>> bitangents(const Scene& scene, std::uint32_t curve_a,
-                                                  std::uint32_t curve_b);
+std::vector<std::pair<double, double>> bitangents(const Scene& scene, std::uint32_t curve_a, std::uint32_t curve_b);
 
 }  // namespace flatland

@@ -44,8 +44,7 @@ struct Power {
   double a0, a1, a2, a3;
 };
 inline Power to_power(const double k[4]) {
-  return {k[0], 3.0 * (k[1] - k[0]), 3.0 * ((k[0] + k[2]) - 2.0 * k[1]),
-          (k[3] - k[0]) + 3.0 * (k[1] - k[2])};
+  return {k[0], 3.0 * (k[1] - k[0]), 3.0 * ((k[0] + k[2]) - 2.0 * k[1]), (k[3] - k[0]) + 3.0 * (k[1] - k[2])};
 }
 inline double value(const Power& f, double t) { return ((f.a3 * t + f.a2) * t + f.a1) * t + f.a0; }
 inline double slope(const Power& f, double t) { return (3.0 * f.a3 * t + 2.0 * f.a2) * t + f.a1; }
@@ -135,8 +134,7 @@ double bracketed_root(const Power& f, double u, double v, double fu, double fv, 
     const double size = std::abs(step);
     const double next = t - step;
     if (size <= 2.0 * kEpsilon * std::abs(t) || std::abs(ft) <= noise ||
-        (size <= 1e-3 * moved &&
-         size * size * size * size <= 0.5 * kEpsilon * std::abs(t) * moved * moved * moved)) {
+        (size <= 1e-3 * moved && size * size * size * size <= 0.5 * kEpsilon * std::abs(t) * moved * moved * moved)) {
       return std::clamp(next, lo, hi);  // the root is inside the bracket
     }
     if (next > lo && next < hi) {
@@ -180,26 +178,23 @@ bool intersect_line(Vec2 a, Vec2 b, const Ray& ray, double max_distance, Segment
 // f(1) = c_3 are used as they are, so a joint shared with a neighbour is judged by the same number
 // on both sides, and an end point on the ray's line is a hit (as for lines).
 bool intersect_cubic(const Cubic& c, const Ray& ray, double max_distance, SegmentHit* hit) {
-  const double k[4] = {side_of(c.p[0], ray), side_of(c.p[1], ray), side_of(c.p[2], ray),
-                       side_of(c.p[3], ray)};
+  const double k[4] = {side_of(c.p[0], ray), side_of(c.p[1], ray), side_of(c.p[2], ray), side_of(c.p[3], ray)};
   if (k[0] > 0.0 && k[1] > 0.0 && k[2] > 0.0 && k[3] > 0.0) return false;
   if (k[0] < 0.0 && k[1] < 0.0 && k[2] < 0.0 && k[3] < 0.0) return false;
   if (k[0] == 0.0 && k[1] == 0.0 && k[2] == 0.0 && k[3] == 0.0) return false;  // along the ray
-  const double e[4] = {along(c.p[0], ray), along(c.p[1], ray), along(c.p[2], ray),
-                       along(c.p[3], ray)};
+  const double e[4] = {along(c.p[0], ray), along(c.p[1], ray), along(c.p[2], ray), along(c.p[3], ray)};
   if (e[0] <= 0.0 && e[1] <= 0.0 && e[2] <= 0.0 && e[3] <= 0.0) return false;
   if (std::min(std::min(e[0], e[1]), std::min(e[2], e[3])) >= max_distance) return false;
 
   const Power f = to_power(k);
   // Rounding of f evaluated in power form on [0,1]: a few ulps of the coefficients' magnitudes.
-  const double noise =
-      8.0 * kEpsilon * (std::abs(f.a0) + std::abs(f.a1) + std::abs(f.a2) + std::abs(f.a3));
+  const double noise = 8.0 * kEpsilon * (std::abs(f.a0) + std::abs(f.a1) + std::abs(f.a2) + std::abs(f.a3));
   // The common case: all c_i nonzero with exactly one sign change. By Descartes' rule of signs for
   // the Bernstein basis f then has exactly one root in (0,1) (and f(0), f(1) differ in sign), so
   // no cut into monotone pieces is needed: the safeguarded iteration runs on [0,1] directly.
   if (k[0] != 0.0 && k[1] != 0.0 && k[2] != 0.0 && k[3] != 0.0) {
-    const int changes = ((k[0] < 0.0) != (k[1] < 0.0)) + ((k[1] < 0.0) != (k[2] < 0.0)) +
-                        ((k[2] < 0.0) != (k[3] < 0.0));
+    const int changes =
+        ((k[0] < 0.0) != (k[1] < 0.0)) + ((k[1] < 0.0) != (k[2] < 0.0)) + ((k[2] < 0.0) != (k[3] < 0.0));
     if (changes == 1) {
       const double t = bracketed_root(f, 0.0, 1.0, k[0], k[3], noise);
       const double distance = bernstein(e, t);
@@ -216,8 +211,7 @@ bool intersect_cubic(const Cubic& c, const Ray& ray, double max_distance, Segmen
   const double b2 = k[3] - k[2];
   double cuts[4];
   cuts[0] = 0.0;
-  const int n_roots =
-      quadratic_roots((b0 + b2) - 2.0 * b1, 2.0 * (b1 - b0), b0, false, false, cuts + 1);
+  const int n_roots = quadratic_roots((b0 + b2) - 2.0 * b1, 2.0 * (b1 - b0), b0, false, false, cuts + 1);
   const int n_cuts = n_roots + 2;
   cuts[n_cuts - 1] = 1.0;
 
@@ -244,8 +238,7 @@ bool intersect_cubic(const Cubic& c, const Ray& ray, double max_distance, Segmen
       // A root exactly on a cut. End points are inclusive (as for lines); at an interior cut (an
       // extremum of f) it is a crossing only if f changes sign across it, otherwise a tangency.
       const bool end = i == 0 || i == n_cuts - 1;
-      if (end || (values[i - 1] < 0.0 && values[i + 1] > 0.0) ||
-          (values[i - 1] > 0.0 && values[i + 1] < 0.0)) {
+      if (end || (values[i - 1] < 0.0 && values[i + 1] > 0.0) || (values[i - 1] > 0.0 && values[i + 1] < 0.0)) {
         consider(cuts[i]);
       }
       continue;
@@ -266,14 +259,11 @@ bool intersect_cubic(const Cubic& c, const Ray& ray, double max_distance, Segmen
 // tangent) has distance 0. The distance is deflated the same way, sigma(t) = (t - t0) h(t) with
 // d . (C(t) - o) = (t - t0) h(t) + r', so its sign and size are accurate even for a hit just next
 // to the origin (a ray that leaves a concave curve at a grazing angle).
-bool intersect_cubic_from(const Cubic& c, double t_origin, const Ray& ray, double max_distance,
-                          SegmentHit* hit) {
+bool intersect_cubic_from(const Cubic& c, double t_origin, const Ray& ray, double max_distance, SegmentHit* hit) {
   const double t0 = std::clamp(t_origin, 0.0, 1.0);
-  const double e[4] = {along(c.p[0], ray), along(c.p[1], ray), along(c.p[2], ray),
-                       along(c.p[3], ray)};
+  const double e[4] = {along(c.p[0], ray), along(c.p[1], ray), along(c.p[2], ray), along(c.p[3], ray)};
   if (e[0] <= 0.0 && e[1] <= 0.0 && e[2] <= 0.0 && e[3] <= 0.0) return false;
-  const double k[4] = {side_of(c.p[0], ray), side_of(c.p[1], ray), side_of(c.p[2], ray),
-                       side_of(c.p[3], ray)};
+  const double k[4] = {side_of(c.p[0], ray), side_of(c.p[1], ray), side_of(c.p[2], ray), side_of(c.p[3], ray)};
   const Power f = to_power(k);
   // g = g2 t^2 + g1 t + g0 with f = (t - t0) g + r.
   const double g2 = f.a3;

@@ -8,8 +8,8 @@
 
 #include <cstdint>
 
-#include "flatland/geometry/bezier.hpp"
 #include "flatland/base/vec2.hpp"
+#include "flatland/geometry/bezier.hpp"
 
 namespace flatland {
 
@@ -35,7 +35,6 @@ bool intersect_cubic(const Cubic& c, const Ray& ray, double max_distance, Segmen
 // origin is C(t_origin)): the root at t_origin is deflated away exactly, f(t) = (t - t_origin) g(t),
 // and only the roots of the quadratic g count, so a concave cubic can light itself without any
 // fixed epsilon.
-bool intersect_cubic_from(const Cubic& c, double t_origin, const Ray& ray, double max_distance,
-                          SegmentHit* hit);
+bool intersect_cubic_from(const Cubic& c, double t_origin, const Ray& ray, double max_distance, SegmentHit* hit);
 
 }  // namespace flatland

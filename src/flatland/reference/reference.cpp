@@ -11,10 +11,10 @@
 #include <thread>
 
 #include "flatland/base/quadrature.hpp"
-#include "flatland/geometry/discontinuities.hpp"
 #include "flatland/base/resources.hpp"
-#include "flatland/results/result_io.hpp"
 #include "flatland/base/workers.hpp"
+#include "flatland/geometry/discontinuities.hpp"
+#include "flatland/results/result_io.hpp"
 #include "flatland/results/sampled_result.hpp"
 
 namespace flatland {
@@ -48,8 +48,8 @@ bool any_positive(const Spectrum& s, int channels) {
 // (the quadrature points of the form factors) has its chord's ends at depth 0: no such range.
 class Sweeper {
  public:
-  void run(const std::vector<ReferenceElement>& elements, Vec2 x, Vec2 normal, std::uint32_t self,
-           Side self_side, std::vector<VisibleElement>& out) {
+  void run(const std::vector<ReferenceElement>& elements, Vec2 x, Vec2 normal, std::uint32_t self, Side self_side,
+           std::vector<VisibleElement>& out) {
     out.clear();
     events_.clear();
     pieces_.clear();
@@ -213,8 +213,8 @@ class Sweeper {
 // sees the other side of j than `side_j`, or sees j edge-on.
 class PairVisibility {
  public:
-  double factor(const std::vector<ReferenceElement>& elements, const std::vector<std::uint32_t>& occluders,
-                Vec2 x, Vec2 normal, std::uint32_t j, Side side_j) {
+  double factor(const std::vector<ReferenceElement>& elements, const std::vector<std::uint32_t>& occluders, Vec2 x,
+                Vec2 normal, std::uint32_t j, Side side_j) {
     const Vec2 lateral_axis{normal.y, -normal.x};
     Span target;
     const ReferenceElement& e = elements[j];
@@ -313,8 +313,8 @@ class PairQuadrature {
       : elements_(elements), nodes_(nodes), weights_(weights) {
     bounds_.reserve(elements.size());
     for (const ReferenceElement& e : elements)
-      bounds_.push_back({std::min(e.a.x, e.b.x), std::min(e.a.y, e.b.y), std::max(e.a.x, e.b.x),
-                         std::max(e.a.y, e.b.y)});
+      bounds_.push_back(
+          {std::min(e.a.x, e.b.x), std::min(e.a.y, e.b.y), std::max(e.a.x, e.b.x), std::max(e.a.y, e.b.y)});
   }
 
   // (1/L_i) integral over element i of F(x -> j, side_j), x on the chord, normal of side_i.
@@ -362,8 +362,7 @@ class PairQuadrature {
 
   // Counter-clockwise convex hull of four points (Andrew's monotone chain), into hull_.
   void convex_hull(std::array<Vec2, 4> points) {
-    std::sort(points.begin(), points.end(),
-              [](Vec2 p, Vec2 q) { return p.x < q.x || (p.x == q.x && p.y < q.y); });
+    std::sort(points.begin(), points.end(), [](Vec2 p, Vec2 q) { return p.x < q.x || (p.x == q.x && p.y < q.y); });
     hull_.clear();
     for (int pass = 0; pass < 2; ++pass) {
       const std::size_t start = hull_.size();
@@ -419,8 +418,7 @@ class PairQuadrature {
       for (int end = 0; end < 2; ++end) {
         const Vec2 v = end == 0 ? e.a : e.b;
         const std::uint32_t neighbour = end == 0 ? e.previous : e.next;
-        if (end == 1 && neighbour != kNoElement &&
-            std::binary_search(occluders_.begin(), occluders_.end(), neighbour))
+        if (end == 1 && neighbour != kNoElement && std::binary_search(occluders_.begin(), occluders_.end(), neighbour))
           continue;  // the neighbour adds it as its start
         if (v == ej.a || v == ej.b || !inside_hull(v)) continue;
         const Vec2 other = end == 0 ? e.b : e.a;
@@ -520,8 +518,8 @@ struct KrylovOutcome {
 };
 
 template <class Apply>
-KrylovOutcome gmres(const Apply& apply, const std::vector<double>& rhs, std::vector<double>& x,
-                    double threshold, int max_iterations, const std::atomic<bool>* cancel) {
+KrylovOutcome gmres(const Apply& apply, const std::vector<double>& rhs, std::vector<double>& x, double threshold,
+                    int max_iterations, const std::atomic<bool>* cancel) {
   constexpr int kRestart = 60;
   const std::size_t n = rhs.size();
   KrylovOutcome outcome;
@@ -552,9 +550,7 @@ KrylovOutcome gmres(const Apply& apply, const std::vector<double>& rhs, std::vec
     const double scale = inf_norm(x);
     const double r_inf = inf_norm(r);
     outcome.relative_residual = scale > 0.0 ? r_inf / scale : 0.0;
-    if (r_inf <= threshold * scale || outcome.iterations >= max_iterations ||
-        !(r_inf < 0.5 * previous))
-      break;
+    if (r_inf <= threshold * scale || outcome.iterations >= max_iterations || !(r_inf < 0.5 * previous)) break;
     previous = r_inf;
     const double target = threshold * scale;
     const double beta = std::sqrt(dot_product(r, r));
@@ -665,8 +661,8 @@ Status validate(const ReferenceSettings& settings) {
   return ok_status();
 }
 
-std::vector<VisibleElement> visible_elements(const std::vector<ReferenceElement>& elements, Vec2 x,
-                                             Vec2 normal, std::uint32_t self) {
+std::vector<VisibleElement> visible_elements(const std::vector<ReferenceElement>& elements, Vec2 x, Vec2 normal,
+                                             std::uint32_t self) {
   Sweeper sweeper;
   std::vector<VisibleElement> out;
   Side side = Side::Front;
@@ -675,8 +671,8 @@ std::vector<VisibleElement> visible_elements(const std::vector<ReferenceElement>
   return out;
 }
 
-double pair_form_factor(const std::vector<ReferenceElement>& elements, std::uint32_t i, Side si,
-                        std::uint32_t j, Side sj, int points, bool split, std::size_t* pieces) {
+double pair_form_factor(const std::vector<ReferenceElement>& elements, std::uint32_t i, Side si, std::uint32_t j,
+                        Side sj, int points, bool split, std::size_t* pieces) {
   std::vector<double> nodes;
   std::vector<double> weights;
   gauss::legendre_unit_rule(points, nodes, weights);
@@ -723,8 +719,8 @@ Spectrum ReferenceSolution::radiosity(std::uint32_t curve_index, Side side, doub
   const Curve& curve = scene_.curves[curve_index];
   if (!curve.has_side(side)) return result;
   const double clamped = std::clamp(u, 0.0, static_cast<double>(curve.segment_count));
-  const auto local = static_cast<std::uint32_t>(
-      std::min(std::floor(clamped), static_cast<double>(curve.segment_count) - 1.0));
+  const auto local =
+      static_cast<std::uint32_t>(std::min(std::floor(clamped), static_cast<double>(curve.segment_count) - 1.0));
   const double t = clamped - local;
   const std::uint32_t segment_index = curve.first_segment + local;
   const SceneSegment& segment = scene_.segments[segment_index];
@@ -753,16 +749,14 @@ Spectrum ReferenceSolution::radiosity(std::uint32_t curve_index, Side side, doub
   for (int c = 0; c < scene_.channels; ++c) {
     const auto k = static_cast<std::size_t>(c);
     double gathered = 0.0;
-    for (const VisibleElement& v : visible)
-      gathered += v.form_factor * radiosity_[k][patch_index(v.element, v.side)];
+    for (const VisibleElement& v : visible) gathered += v.form_factor * radiosity_[k][patch_index(v.element, v.side)];
     result[k] += material.reflectivity[k] * gathered;
   }
   return result;
 }
 
 double reference_element_count(const Scene& scene, const ReferenceSettings& settings) {
-  const double max_length =
-      settings.max_element_length > 0.0 ? settings.max_element_length : scene.scale / 400.0;
+  const double max_length = settings.max_element_length > 0.0 ? settings.max_element_length : scene.scale / 400.0;
   double count = 0.0;
   for (const std::vector<double>& b : element_boundaries(scene, max_length)) {
     if (!std::isfinite(b.back())) return INFINITY;
@@ -800,9 +794,7 @@ class ReferenceBuilder {
   Status solve_channels();
 
  private:
-  bool cancelled() const {
-    return settings_.cancel != nullptr && settings_.cancel->load(std::memory_order_relaxed);
-  }
+  bool cancelled() const { return settings_.cancel != nullptr && settings_.cancel->load(std::memory_order_relaxed); }
   double max_length() const {
     return settings_.max_element_length > 0.0 ? settings_.max_element_length : scene_.scale / 400.0;
   }
@@ -836,10 +828,8 @@ class ReferenceBuilder {
 Status ReferenceBuilder::check() const {
   if (Status status = validate(settings_); !status) return status;
   for (const Curve& curve : scene_.curves) {
-    if (scene_.is_emitter(curve) &&
-        scene_.material_of(curve).emission.kind != Emission::Kind::Diffuse)
-      return Error{scene_.source + ": curve '" + curve.id +
-                   "': the reference solver supports diffuse emitters only"};
+    if (scene_.is_emitter(curve) && scene_.material_of(curve).emission.kind != Emission::Kind::Diffuse)
+      return Error{scene_.source + ": curve '" + curve.id + "': the reference solver supports diffuse emitters only"};
   }
   const double element_total = reference_element_count(scene_, settings_);
   if (element_total > static_cast<double>(kMaxReferenceElements)) {
@@ -881,13 +871,11 @@ Status ReferenceBuilder::build_elements() {
       e.a = start;
       e.b = end;
       e.length = length(end - start);
-      if (!(e.length > 0.0))
-        return Error{scene_.source + ": curve '" + curve.id + "': a chord of zero length"};
+      if (!(e.length > 0.0)) return Error{scene_.source + ": curve '" + curve.id + "': a chord of zero length"};
       e.normal = (1.0 / e.length) * perp(end - start);
       e.curve = segment.curve;
       e.segment = si;
-      e.u_mid = segment.index_in_curve +
-                segment.arc_length.parameter_at(shape, 0.5 * (boundary[k] + boundary[k + 1]));
+      e.u_mid = segment.index_in_curve + segment.arc_length.parameter_at(shape, 0.5 * (boundary[k] + boundary[k + 1]));
       const double factor = emittance_factor(curve, e.u_mid);
       for (const Side side : {Side::Front, Side::Back}) {
         if (!curve.has_side(side)) continue;
@@ -934,8 +922,7 @@ void ReferenceBuilder::number_patches() {
       const bool emits = any_positive(elements_[j].emittance[sd], scene_.channels);
       carries_[patch_index(j, side)] = reflects || emits;
       if (reflects) {
-        solution_.patch_row_[patch_index(j, side)] =
-            static_cast<std::uint32_t>(solution_.row_patch_.size());
+        solution_.patch_row_[patch_index(j, side)] = static_cast<std::uint32_t>(solution_.row_patch_.size());
         solution_.row_patch_.push_back(static_cast<std::uint32_t>(patch_index(j, side)));
       }
     }
@@ -994,8 +981,7 @@ void ReferenceBuilder::compute_rows(bool reports) {
     }
     row_sums_[row] = sum;
     const std::size_t total = entry_count_.fetch_add(entries.size()) + entries.size();
-    if (static_cast<double>(total) * kBytesPerEntry > static_cast<double>(memory_limit_))
-      out_of_memory_.store(true);
+    if (static_cast<double>(total) * kBytesPerEntry > static_cast<double>(memory_limit_)) out_of_memory_.store(true);
     const std::size_t done = rows_done_.fetch_add(1) + 1;
     if (reports && settings_.progress && seconds_since(last_report) >= 0.25) {
       last_report = std::chrono::steady_clock::now();
@@ -1011,8 +997,8 @@ Status ReferenceBuilder::form_factors() {
   row_entries_.assign(rows, {});
   row_sums_.assign(rows, 0.0);
   {
-    const unsigned threads = static_cast<unsigned>(
-        std::min<std::size_t>(thread_count(settings_.threads), std::max<std::size_t>(rows, 1)));
+    const unsigned threads =
+        static_cast<unsigned>(std::min<std::size_t>(thread_count(settings_.threads), std::max<std::size_t>(rows, 1)));
     WorkerPool pool(threads);
     solution_.thread_shortfall_ = pool.shortfall();
     pool.run(pool.threads(), [&](unsigned w) { compute_rows(w == 0); });
@@ -1020,8 +1006,8 @@ Status ReferenceBuilder::form_factors() {
   if (cancelled()) return Error{kReferenceCancelled};
   if (out_of_memory_.load()) {
     const std::size_t done = std::min(next_row_.load(), rows);
-    const double projected = static_cast<double>(entry_count_.load()) * kBytesPerEntry *
-                             static_cast<double>(rows) / static_cast<double>(std::max<std::size_t>(done, 1));
+    const double projected = static_cast<double>(entry_count_.load()) * kBytesPerEntry * static_cast<double>(rows) /
+                             static_cast<double>(std::max<std::size_t>(done, 1));
     return Error{std::to_string(elements_.size()) + " reference elements: the form factors would need about " +
                  format_bytes(projected) + ", more than the memory limit of " +
                  format_bytes(static_cast<double>(memory_limit_)) +
@@ -1035,8 +1021,7 @@ Status ReferenceBuilder::form_factors() {
 void ReferenceBuilder::compress_rows() {
   const std::size_t rows = row_entries_.size();
   solution_.row_begin_.assign(rows + 1, 0);
-  for (std::size_t r = 0; r < rows; ++r)
-    solution_.row_begin_[r + 1] = solution_.row_begin_[r] + row_entries_[r].size();
+  for (std::size_t r = 0; r < rows; ++r) solution_.row_begin_[r + 1] = solution_.row_begin_[r] + row_entries_[r].size();
   solution_.column_.reserve(solution_.row_begin_[rows]);
   solution_.value_.reserve(solution_.row_begin_[rows]);
   for (std::size_t r = 0; r < rows; ++r) {
@@ -1106,8 +1091,7 @@ Result<ReferenceSolution> solve_reference(const Scene& scene, const ReferenceSet
   return solution;
 }
 
-ReferenceErrorEstimate estimate_from_differences(const ErrorNorms& fine, const ErrorNorms& coarse,
-                                                 double round_off) {
+ReferenceErrorEstimate estimate_from_differences(const ErrorNorms& fine, const ErrorNorms& coarse, double round_off) {
   ReferenceErrorEstimate estimate;
   estimate.fine_difference = fine;
   estimate.coarse_difference = coarse;
@@ -1135,8 +1119,7 @@ ReferenceErrorEstimate estimate_from_differences(const ErrorNorms& fine, const E
     estimate.observed_order = std::log2(coarse.l2 / fine.l2);
     estimate.order = std::clamp(estimate.observed_order, kMinimumOrder, kMaximumOrder);
     if (estimate.order != estimate.observed_order) {
-      std::snprintf(text, sizeof text, "observed order %.2f clamped to %.2g", estimate.observed_order,
-                    estimate.order);
+      std::snprintf(text, sizeof text, "observed order %.2f clamped to %.2g", estimate.observed_order, estimate.order);
       estimate.note = text;
     }
   }
@@ -1145,12 +1128,10 @@ ReferenceErrorEstimate estimate_from_differences(const ErrorNorms& fine, const E
   return estimate;
 }
 
-Result<ReferenceErrorEstimate> estimate_discretisation_error(const Scene& scene,
-                                                              const ReferenceSettings& settings,
-                                                              int samples, const SampledResult& fine,
-                                                              const std::function<void(int level)>& starting) {
-  const double length =
-      settings.max_element_length > 0.0 ? settings.max_element_length : scene.scale / 400.0;
+Result<ReferenceErrorEstimate> estimate_discretisation_error(const Scene& scene, const ReferenceSettings& settings,
+                                                             int samples, const SampledResult& fine,
+                                                             const std::function<void(int level)>& starting) {
+  const double length = settings.max_element_length > 0.0 ? settings.max_element_length : scene.scale / 400.0;
   SampledResult previous = fine;
   std::array<ErrorNorms, 2> differences;
   double largest_bound = 0.0;
@@ -1162,9 +1143,8 @@ Result<ReferenceErrorEstimate> estimate_discretisation_error(const Scene& scene,
     if (!solved) return solved.error();
     const ReferenceSolution& solution = *solved;
     largest_bound = std::max(largest_bound, solution.error_bound());
-    SampledResult sampled = sample_radiosity(scene, samples, [&solution](std::uint32_t c, Side side, double u) {
-      return solution.radiosity(c, side, u);
-    });
+    SampledResult sampled = sample_radiosity(
+        scene, samples, [&solution](std::uint32_t c, Side side, double u) { return solution.radiosity(c, side, u); });
     Result<Comparison> difference = compare_sampled(sampled, previous);
     if (!difference) return difference.error();
     differences[static_cast<std::size_t>(level - 1)] = difference->scene;

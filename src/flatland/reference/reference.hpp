@@ -4,8 +4,8 @@
 //
 // 1. Every segment is flattened into chords of equal arc length (at most max_element_length; the
 //    chord ends lie on the curve), cut first at contacts (find_contacts: another curve's end
-//    point or corner on it, a crossing), so that no element straddles one. Each chord is a constant element with two sides; the front
-//    normal is perp(chord direction). A side the scene names reflects (rho = the material's
+//    point or corner on it, a crossing), so that no element straddles one. Each chord is a constant element with two
+//    sides; the front normal is perp(chord direction). A side the scene names reflects (rho = the material's
 //    reflectivity) and emits (the curve's emittance times the profile factor at the element's
 //    arc-length midpoint); the other side absorbs and emits nothing.
 // 2. Exact point-to-elements visibility by an angular sweep around the point (all elements are
@@ -40,10 +40,10 @@
 
 #include <nlohmann/json.hpp>
 
-#include "flatland/results/metrics.hpp"
 #include "flatland/base/status.hpp"
-#include "flatland/scene/scene.hpp"
 #include "flatland/base/vec2.hpp"
+#include "flatland/results/metrics.hpp"
+#include "flatland/scene/scene.hpp"
 
 namespace flatland {
 
@@ -79,8 +79,8 @@ inline constexpr std::uint32_t kNoElement = 0xffffffffu;
 
 // A constant element: a chord of a segment.
 struct ReferenceElement {
-  Vec2 a;  // start (on the curve)
-  Vec2 b;  // end (on the curve)
+  Vec2 a;       // start (on the curve)
+  Vec2 b;       // end (on the curve)
   Vec2 normal;  // front normal: perp(b - a) / |b - a|
   double length = 0.0;
   std::uint32_t curve = 0;
@@ -112,8 +112,8 @@ struct VisibleElement {
 // ends); those directions go to `self`, and likewise for elements with an end point at x.
 // Elements seen edge-on (x on their line) are skipped. Results are in increasing element order,
 // one entry per (element, side).
-std::vector<VisibleElement> visible_elements(const std::vector<ReferenceElement>& elements, Vec2 x,
-                                             Vec2 normal, std::uint32_t self);
+std::vector<VisibleElement> visible_elements(const std::vector<ReferenceElement>& elements, Vec2 x, Vec2 normal,
+                                             std::uint32_t self);
 
 // The form factor F from (element i, side si) to (element j, side sj) of a pair that sees each
 // other partly: (1/L_i) integral over i of F(x -> j), with every other element that meets the
@@ -123,9 +123,8 @@ std::vector<VisibleElement> visible_elements(const std::vector<ReferenceElement>
 // solve_reference does for every pair that some quadrature point does not see whole; otherwise
 // one `points`-point rule over the whole element (the rule before the split, for comparison).
 // `pieces`, if given, receives the number of pieces.
-double pair_form_factor(const std::vector<ReferenceElement>& elements, std::uint32_t i, Side si,
-                        std::uint32_t j, Side sj, int points, bool split = true,
-                        std::size_t* pieces = nullptr);
+double pair_form_factor(const std::vector<ReferenceElement>& elements, std::uint32_t i, Side si, std::uint32_t j,
+                        Side sj, int points, bool split = true, std::size_t* pieces = nullptr);
 
 // Hottel's crossed strings for two straight segments that see each other whole:
 // F_12 = (crossed - uncrossed) / (2 L_1), crossed = |a1 b2| + |b1 a2|, uncrossed = |a1 a2| + |b1 b2|
@@ -150,8 +149,8 @@ class ReferenceSolution {
   // closed enclosure); -1 if the row was not computed (a non-reflecting patch).
   double row_sum(std::uint32_t i, Side si) const;
 
-  int iterations() const { return iterations_; }   // GMRES steps (largest over channels)
-  double residual() const { return residual_; }    // relative residual |r|_inf / |b|_inf reached
+  int iterations() const { return iterations_; }  // GMRES steps (largest over channels)
+  double residual() const { return residual_; }   // relative residual |r|_inf / |b|_inf reached
   // The guaranteed relative error of the element solve: residual / (1 - q) (largest over
   // channels). It is the linear solve's error only, not the discretisation's.
   double error_bound() const { return error_bound_; }
@@ -162,8 +161,7 @@ class ReferenceSolution {
   const Scene& scene() const { return scene_; }
 
  private:
-  friend Result<ReferenceSolution> solve_reference(const Scene& scene,
-                                                   const ReferenceSettings& settings);
+  friend Result<ReferenceSolution> solve_reference(const Scene& scene, const ReferenceSettings& settings);
   friend class ReferenceBuilder;  // solve_reference's steps (reference.cpp)
   Scene scene_;
   ReferenceSettings settings_;
@@ -174,13 +172,13 @@ class ReferenceSolution {
   // Element boundaries as arc lengths from each segment's start (segment_count_ + 1 per segment).
   std::vector<double> boundary_;
   // Rows of F for reflecting patches (sparse: receiving patch, value); patch = 2 element + side.
-  std::vector<std::uint32_t> row_patch_;             // patch of each row
-  std::vector<std::uint32_t> patch_row_;             // row of each patch, or kNoElement
-  std::vector<std::size_t> row_begin_;               // CSR offsets (rows + 1)
-  std::vector<std::uint32_t> column_;                // receiving patch
-  std::vector<double> value_;                        // F
-  std::vector<double> row_sums_;                     // including absorbing receivers
-  std::array<std::vector<double>, 3> radiosity_;     // per channel, per patch
+  std::vector<std::uint32_t> row_patch_;          // patch of each row
+  std::vector<std::uint32_t> patch_row_;          // row of each patch, or kNoElement
+  std::vector<std::size_t> row_begin_;            // CSR offsets (rows + 1)
+  std::vector<std::uint32_t> column_;             // receiving patch
+  std::vector<double> value_;                     // F
+  std::vector<double> row_sums_;                  // including absorbing receivers
+  std::array<std::vector<double>, 3> radiosity_;  // per channel, per patch
   int iterations_ = 0;
   double residual_ = 0.0;
   double error_bound_ = 0.0;
@@ -217,15 +215,14 @@ struct ReferenceErrorEstimate {
 
 // The estimate from the two differences; the L2 differences decide the order, whose factor
 // 1 / (2^p - 1) then scales all three norms of d1.
-ReferenceErrorEstimate estimate_from_differences(const ErrorNorms& fine, const ErrorNorms& coarse,
-                                                 double round_off);
+ReferenceErrorEstimate estimate_from_differences(const ErrorNorms& fine, const ErrorNorms& coarse, double round_off);
 
 // Solves at 2h and 4h (h = settings' element length; the settings' progress and cancel apply to
 // both), samples them like `fine` (the samples of R_h, sample_radiosity with `samples` per curve)
 // and estimates R_h's error. `starting(level)` is called before the solve at 2^level h (level 1,
 // 2). Returns kReferenceCancelled when cancelled.
-Result<ReferenceErrorEstimate> estimate_discretisation_error(
-    const Scene& scene, const ReferenceSettings& settings, int samples, const SampledResult& fine,
-    const std::function<void(int level)>& starting = {});
+Result<ReferenceErrorEstimate> estimate_discretisation_error(const Scene& scene, const ReferenceSettings& settings,
+                                                             int samples, const SampledResult& fine,
+                                                             const std::function<void(int level)>& starting = {});
 
 }  // namespace flatland

@@ -2,12 +2,12 @@
 
 #include <algorithm>
 #include <cstdlib>
-#include <vector>
 #include <sstream>
+#include <vector>
 
+#include "flatland/base/text.hpp"
 #include "flatland/transport/footprint.hpp"
 #include "flatland/transport/options.hpp"
-#include "flatland/base/text.hpp"
 
 namespace flatland {
 
@@ -52,7 +52,8 @@ Result<ConvergeRow> converge_run(const Scene& scene, const SolverSettings& setti
   solver->run(cancel, progress);
   if (solver->stop_reason() == StopReason::Cancelled) return Error{kConvergeCancelled};
   Result<Comparison> comparison = compare_sampled(
-      sample_radiosity(scene, samples, [&](std::uint32_t c, Side side, double u) { return solver->radiosity(c, side, u); }),
+      sample_radiosity(scene, samples,
+                       [&](std::uint32_t c, Side side, double u) { return solver->radiosity(c, side, u); }),
       reference, measure);
   if (!comparison) return Error{"reference: " + comparison.error().message};
   if (curve && *curve >= comparison->curves.size()) return Error{"curve: no such curve in the reference"};

@@ -9,8 +9,8 @@
 #include <variant>
 #include <vector>
 
-#include "flatland/results/metrics.hpp"
 #include "flatland/base/status.hpp"
+#include "flatland/results/metrics.hpp"
 #include "flatland/results/sampled_result.hpp"
 #include "flatland/scene/scene.hpp"
 #include "flatland/transport/solver.hpp"

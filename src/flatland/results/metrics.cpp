@@ -59,7 +59,8 @@ Result<Spectrum> emitted_at(const ResultSample& result_sample, const ResultSampl
     if (!curve->emittance) continue;
     for (const double value : *curve->emittance)
       if (value != 0.0)
-        return Error{where + ": the curve emits but its samples carry no \"E\" (a result written by an "
+        return Error{where +
+                     ": the curve emits but its samples carry no \"E\" (a result written by an "
                      "older flatland); solve it again, or measure the total B"};
   }
   return Spectrum{};
@@ -165,8 +166,10 @@ Result<Comparison> compare_sampled(const SampledResult& result, const SampledRes
       for (const auto& pair : pairs) {
         if (pair[0] == nullptr || pair[1] == nullptr) continue;
         for (std::size_t ch = 0; ch < channels; ++ch) {
-          const double mine_value = measure == Measure::Reflected ? reflected_part((*pair[0])[ch], emitted[ch]) : (*pair[0])[ch];
-          const double their_value = measure == Measure::Reflected ? reflected_part((*pair[1])[ch], emitted[ch]) : (*pair[1])[ch];
+          const double mine_value =
+              measure == Measure::Reflected ? reflected_part((*pair[0])[ch], emitted[ch]) : (*pair[0])[ch];
+          const double their_value =
+              measure == Measure::Reflected ? reflected_part((*pair[1])[ch], emitted[ch]) : (*pair[1])[ch];
           curve.push_back({mine_value, their_value, ds});
           value_scale = std::max({value_scale, std::fabs(mine_value), std::fabs(their_value)});
         }
@@ -189,8 +192,7 @@ Result<Comparison> compare_sampled(const SampledResult& result, const SampledRes
       comparison.curves.push_back({id, curve.norms(), true});
     scene.add(curve);
   }
-  if (measure == Measure::Reflected && scene.max_reference == 0.0)
-    return Error{kNothingReflected};
+  if (measure == Measure::Reflected && scene.max_reference == 0.0) return Error{kNothingReflected};
   comparison.scene = scene.norms();
   comparison.reference_l2 = value_scale * std::sqrt(scene.square_reference * length_scale);
   return comparison;

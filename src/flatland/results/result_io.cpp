@@ -3,8 +3,8 @@
 #include "flatland/base/version.hpp"
 
 #include <algorithm>
-#include <cmath>
 #include <cerrno>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
@@ -22,7 +22,9 @@
 namespace flatland {
 
 nlohmann::json scene_to_json(const Scene& scene) {
-  return {{"name", scene.name}, {"file", scene.source}, {"sha256", scene.source_sha256},
+  return {{"name", scene.name},
+          {"file", scene.source},
+          {"sha256", scene.source_sha256},
           {"content_sha256", scene.content_sha256},
           {"channels", scene.channels}};
 }
@@ -129,19 +131,18 @@ nlohmann::json stats_to_json(const ResultStats& stats) {
 }
 
 nlohmann::json reference_result_to_json(const Scene& scene, const ReferenceSettings& settings,
-                                        const ReferenceSolution& solution, int samples_per_curve,
-                                        double seconds, const ReferenceErrorEstimate* estimate,
-                                        const nlohmann::json& curves) {
+                                        const ReferenceSolution& solution, int samples_per_curve, double seconds,
+                                        const ReferenceErrorEstimate* estimate, const nlohmann::json& curves) {
   nlohmann::json result;
   result["flatland_result"] = 1;
   result["program"] = program_to_json();
   result["scene"] = scene_to_json(scene);
-  result["settings"] = {{"method", "reference"},
-                        {"max_element_length",
-                         settings.max_element_length > 0.0 ? settings.max_element_length : scene.scale / 400.0},
-                        {"quadrature", settings.quadrature},
-                        {"tolerance", settings.tolerance},
-                        {"samples", samples_per_curve}};
+  result["settings"] = {
+      {"method", "reference"},
+      {"max_element_length", settings.max_element_length > 0.0 ? settings.max_element_length : scene.scale / 400.0},
+      {"quadrature", settings.quadrature},
+      {"tolerance", settings.tolerance},
+      {"samples", samples_per_curve}};
   result["stats"] = {{"elements", solution.elements()},
                      {"iterations", solution.iterations()},
                      {"residual", solution.residual()},
@@ -153,7 +154,9 @@ nlohmann::json reference_result_to_json(const Scene& scene, const ReferenceSetti
     const ErrorNorms& e = estimate->error;
     result["stats"]["estimated_error"] = {{"l1", e.l1}, {"l2", e.l2}, {"linf", e.linf}};
     // null where no order could be observed (differences at round-off).
-    auto number_or_null = [](double value) { return std::isnan(value) ? nlohmann::json(nullptr) : nlohmann::json(value); };
+    auto number_or_null = [](double value) {
+      return std::isnan(value) ? nlohmann::json(nullptr) : nlohmann::json(value);
+    };
     result["stats"]["observed_order"] = number_or_null(estimate->observed_order);
     result["stats"]["estimate_order"] = number_or_null(estimate->order);
     if (!estimate->note.empty()) result["stats"]["estimate_note"] = estimate->note;
@@ -171,7 +174,8 @@ Result<nlohmann::json> parse_result(std::string_view text, const std::string& so
   try {
     document = nlohmann::json::parse(text.begin(), text.end());
   } catch (const nlohmann::json::parse_error& e) {
-    return Error{at(e.byte > 0 ? e.byte - 1 : 0) + "not valid JSON; is this a result written by "
+    return Error{at(e.byte > 0 ? e.byte - 1 : 0) +
+                 "not valid JSON; is this a result written by "
                  "'flatland solve --out'?"};
   } catch (const nlohmann::json::out_of_range&) {
     const std::optional<std::size_t> offset = find_overflowing_number(text);
@@ -181,7 +185,8 @@ Result<nlohmann::json> parse_result(std::string_view text, const std::string& so
     return Error{source + ": cannot read the result: " + e.what()};
   }
   if (!document.is_object() || !document.contains("flatland_result"))
-    return Error{source + ": not a flatland result (no \"flatland_result\" key); write one with "
+    return Error{source +
+                 ": not a flatland result (no \"flatland_result\" key); write one with "
                  "'flatland solve --out' or 'flatland reference --out'"};
   if (document["flatland_result"] != 1)
     return Error{source + ": unsupported result version " + document["flatland_result"].dump() +

@@ -11,13 +11,12 @@
 
 #include "flatland/base/files.hpp"
 #include "flatland/base/status.hpp"
-#include "flatland/scene/scene.hpp"
-#include "flatland/transport/solver.hpp"
 #include "flatland/reference/reference.hpp"
 #include "flatland/results/sampled_result.hpp"
+#include "flatland/scene/scene.hpp"
+#include "flatland/transport/solver.hpp"
 
 namespace flatland {
-
 
 // The whole result document: scene, settings, stats and K samples per curve at s_j = (j+0.5) L/K.
 nlohmann::json result_to_json(const Solver& solver, int samples_per_curve);
@@ -29,9 +28,8 @@ std::string result_text(const Solver& solver, int samples_per_curve);
 // The document `flatland reference --out` writes: the reference's settings and statistics, its
 // estimated error when `estimate` is given, and `curves` (curves_to_json of its samples).
 nlohmann::json reference_result_to_json(const Scene& scene, const ReferenceSettings& settings,
-                                        const ReferenceSolution& solution, int samples_per_curve,
-                                        double seconds, const ReferenceErrorEstimate* estimate,
-                                        const nlohmann::json& curves);
+                                        const ReferenceSolution& solution, int samples_per_curve, double seconds,
+                                        const ReferenceErrorEstimate* estimate, const nlohmann::json& curves);
 
 // The "stats" entry of a solver's result.
 nlohmann::json stats_to_json(const ResultStats& stats);

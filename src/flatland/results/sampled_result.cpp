@@ -10,9 +10,7 @@ namespace flatland {
 
 namespace {
 
-const char* sides_name(Sides sides) {
-  return sides == Sides::Both ? "both" : sides == Sides::Back ? "back" : "front";
-}
+const char* sides_name(Sides sides) { return sides == Sides::Both ? "both" : sides == Sides::Back ? "back" : "front"; }
 
 const char* continuity_name(Continuity continuity) {
   return continuity == Continuity::C1 ? "C1" : continuity == Continuity::C0 ? "C0" : "C-1";
@@ -24,7 +22,8 @@ Result<double> number_at(const nlohmann::json& object, const char* key, const st
   if (!object.is_object()) return Error{"malformed result: " + place + " is not an object"};
   const auto it = object.find(key);
   if (it == object.end()) return Error{"malformed result: " + place + " has no \"" + key + "\""};
-  if (!it->is_number()) return Error{"malformed result: " + place + "." + key + ": expected a number, got " + it->dump()};
+  if (!it->is_number())
+    return Error{"malformed result: " + place + "." + key + ": expected a number, got " + it->dump()};
   return it->get<double>();
 }
 
@@ -35,7 +34,8 @@ Result<Spectrum> spectrum_of(const nlohmann::json& value, int channels, const st
       std::all_of(value.begin(), value.end(), [](const nlohmann::json& v) { return v.is_number(); }))
     return Spectrum{value[0].get<double>(), value[1].get<double>(), value[2].get<double>()};
   if (value.is_number()) return Error{where + ": a grey value in a colour result (expected [r, g, b])"};
-  if (value.is_array() && value.size() == 3) return Error{where + ": a colour value in a grey result (expected a number)"};
+  if (value.is_array() && value.size() == 3)
+    return Error{where + ": a colour value in a grey result (expected a number)"};
   return Error{where + ": expected a number or [r, g, b]"};
 }
 
@@ -92,8 +92,9 @@ SampledResult sample_radiosity(const Scene& scene, int samples_per_curve, const 
 
 SampledResult sample_solver(const Solver& solver, int samples_per_curve) {
   const Scene& scene = solver.scene();
-  SampledResult result = sample_radiosity(
-      scene, samples_per_curve, [&solver](std::uint32_t c, Side side, double u) { return solver.radiosity(c, side, u); });
+  SampledResult result = sample_radiosity(scene, samples_per_curve, [&solver](std::uint32_t c, Side side, double u) {
+    return solver.radiosity(c, side, u);
+  });
   for (std::uint32_t c = 0; c < scene.curves.size(); ++c) {
     const Curve& curve = scene.curves[c];
     const CurveStorage& storage = solver.storage(c);
@@ -122,7 +123,8 @@ SampledResult sample_solver(const Solver& solver, int samples_per_curve) {
 nlohmann::json curve_to_json(const ResultCurve& curve, int channels) {
   nlohmann::json samples = nlohmann::json::array();
   for (const ResultSample& sample : curve.samples) {
-    nlohmann::json entry = {{"s", sample.s}, {"x", sample.x}, {"y", sample.y}, {"B", spectrum_to_json(sample.B, channels)}};
+    nlohmann::json entry = {
+        {"s", sample.s}, {"x", sample.x}, {"y", sample.y}, {"B", spectrum_to_json(sample.B, channels)}};
     if (sample.B_back) entry["B_back"] = spectrum_to_json(*sample.B_back, channels);
     if (sample.E) entry["E"] = spectrum_to_json(*sample.E, channels);
     samples.push_back(std::move(entry));
@@ -171,7 +173,8 @@ nlohmann::json curves_to_json(const SampledResult& result) {
 }
 
 Status check_reference_of(const SampledResult& reference, const Scene& scene, int samples) {
-  if (!reference.scene_sha256.empty() && !scene.content_sha256.empty() && reference.scene_sha256 != scene.content_sha256)
+  if (!reference.scene_sha256.empty() && !scene.content_sha256.empty() &&
+      reference.scene_sha256 != scene.content_sha256)
     return Error{"the reference was made from another scene than " + scene.source + " (content SHA-256 " +
                  reference.scene_sha256.substr(0, 12) + "... against " + scene.content_sha256.substr(0, 12) +
                  "...); solve the reference from the same scene file"};
@@ -180,9 +183,10 @@ Status check_reference_of(const SampledResult& reference, const Scene& scene, in
   if (!same)
     return Error{"the reference describes another scene than " + scene.source +
                  " (its curves differ); solve the reference from the same scene file"};
-  if (samples > 0 && !reference.curves.empty() && reference.curves[0].samples.size() != static_cast<std::size_t>(samples))
-    return Error{"the reference has " + std::to_string(reference.curves[0].samples.size()) + " samples per curve, the runs " +
-                 std::to_string(samples)};
+  if (samples > 0 && !reference.curves.empty() &&
+      reference.curves[0].samples.size() != static_cast<std::size_t>(samples))
+    return Error{"the reference has " + std::to_string(reference.curves[0].samples.size()) +
+                 " samples per curve, the runs " + std::to_string(samples)};
   return ok_status();
 }
 
@@ -209,7 +213,8 @@ Result<SampledResult> sampled_from_json(const nlohmann::json& document, const st
       if (!length) return length.error();
       curve.length = *length;
       const auto sides_entry = in.find("sides");
-      const std::string sides = sides_entry != in.end() && sides_entry->is_string() ? sides_entry->get<std::string>() : "front";
+      const std::string sides =
+          sides_entry != in.end() && sides_entry->is_string() ? sides_entry->get<std::string>() : "front";
       curve.sides = sides == "both" ? Sides::Both : sides == "back" ? Sides::Back : Sides::Front;
       // (A whole number that fits: a JSON number such as 1e100 would not convert to an int.)
       const nlohmann::json segments = in.value("segments", nlohmann::json(0));

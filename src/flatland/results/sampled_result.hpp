@@ -12,9 +12,9 @@
 
 #include <nlohmann/json.hpp>
 
-#include "flatland/storage/curve_storage.hpp"
 #include "flatland/base/status.hpp"
 #include "flatland/scene/scene.hpp"
+#include "flatland/storage/curve_storage.hpp"
 #include "flatland/transport/solver.hpp"
 
 namespace flatland {
@@ -23,7 +23,7 @@ struct ResultSample {
   double s = 0.0;  // arc length from the curve's start
   double x = 0.0;
   double y = 0.0;
-  Spectrum B{};                   // the main side (front, or back on a back-only curve)
+  Spectrum B{};                    // the main side (front, or back on a back-only curve)
   std::optional<Spectrum> B_back;  // two-sided curves
   std::optional<Spectrum> E;       // the emitted part, on emitters
 };
@@ -36,7 +36,7 @@ struct StoredSpline {
   bool periodic = false;
   std::optional<Continuity> closing;  // closed curves
   std::vector<double> knots;
-  std::vector<MeshNode> continuity;  // nodes below C1
+  std::vector<MeshNode> continuity;       // nodes below C1
   std::vector<double> coefficients;       // main side; empty when it reflects nothing
   std::vector<double> coefficients_back;  // two-sided curves
 };
@@ -46,8 +46,8 @@ struct ResultCurve {
   double length = 0.0;
   Sides sides = Sides::Front;
   int segments = 0;
-  std::optional<Spectrum> emittance;  // absent in documents that do not say
-  std::vector<ResultSample> samples;  // at s_j = (j + 0.5) L / K
+  std::optional<Spectrum> emittance;   // absent in documents that do not say
+  std::vector<ResultSample> samples;   // at s_j = (j + 0.5) L / K
   std::optional<StoredSpline> spline;  // results of a solver
 };
 

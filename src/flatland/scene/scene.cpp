@@ -28,7 +28,6 @@ constexpr double kMinExtent = 1e-100;
 // Two unit tangents within this angle (radians) make a tangent-continuous joint.
 constexpr double kTangentAngle = 1e-9;
 
-
 std::string point_text(Vec2 p) {
   // Appended piece by piece: GCC 12 warns falsely (-Wrestrict) about "(" + std::string.
   std::string text = "(";
@@ -70,7 +69,6 @@ Continuity default_joint(const Cubic& a, const Cubic& b, double scale) {
   return angle <= kTangentAngle ? Continuity::C1 : Continuity::Jump;
 }
 
-
 // Distance from p to a scene segment: closed form for a line, distance_to_cubic otherwise.
 double distance_to_segment(const SceneSegment& segment, Vec2 p) {
   const Cubic& c = segment.geometry.shape;
@@ -87,8 +85,7 @@ double distance_to_segment(const SceneSegment& segment, Vec2 p) {
 // isolated points only, so they never give three in a row.
 // A point outside b's control-point box grown by the tolerance is farther than that from b; the
 // box test spares the closest-point search for most samples of neighbouring segments.
-std::optional<Vec2> runs_along(const SceneSegment& a, const SceneSegment& b, const Box& b_box,
-                               double tolerance) {
+std::optional<Vec2> runs_along(const SceneSegment& a, const SceneSegment& b, const Box& b_box, double tolerance) {
   constexpr int kSamples = 16;
   int run = 0;
   for (int k = 0; k < kSamples; ++k) {
@@ -118,7 +115,8 @@ Status check_overlaps(const Scene& scene) {
   const double rounding = 64.0 * std::numeric_limits<double>::epsilon() * magnitude;
   std::vector<std::uint32_t> order(segments.size());
   for (std::uint32_t i = 0; i < order.size(); ++i) order[i] = i;
-  std::sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) { return boxes[a].lower.x < boxes[b].lower.x; });
+  std::sort(order.begin(), order.end(),
+            [&](std::uint32_t a, std::uint32_t b) { return boxes[a].lower.x < boxes[b].lower.x; });
   std::vector<std::uint32_t> active;
   for (const std::uint32_t i : order) {
     const Box& box = boxes[i];
@@ -136,11 +134,11 @@ Status check_overlaps(const Scene& scene) {
       if (!where) continue;
       const Curve& ca = scene.curves[a.curve];
       const Curve& cb = scene.curves[b.curve];
-      const std::string first = curve_path(a.curve) + " (\"" + ca.id + "\") segment " + std::to_string(a.index_in_curve);
-      const std::string second = a.curve == b.curve
-                                     ? "its own segment " + std::to_string(b.index_in_curve)
-                                     : curve_path(b.curve) + " (\"" + cb.id + "\") segment " +
-                                           std::to_string(b.index_in_curve);
+      const std::string first =
+          curve_path(a.curve) + " (\"" + ca.id + "\") segment " + std::to_string(a.index_in_curve);
+      const std::string second =
+          a.curve == b.curve ? "its own segment " + std::to_string(b.index_in_curve)
+                             : curve_path(b.curve) + " (\"" + cb.id + "\") segment " + std::to_string(b.index_in_curve);
       return fail(curve_path(b.curve),
                   first + " and " + second + " lie on top of each other near " + point_text(*where) +
                       ": light between coincident surfaces is undefined; remove one of them or move it apart");
@@ -204,16 +202,15 @@ Status check_curve_points(const Scene& scene, std::size_t i, Box& bounds) {
   }
   if (expected_segment_count(c) == 0) {
     return fail(curve_path(i) + "." + geometry_key(c),
-                c.kind == SegmentKind::Line
-                    ? "a line needs at least 2 points, got " + std::to_string(c.points.size())
-                    : "expected 3k+1 points (k >= 1), got " + std::to_string(c.points.size()));
+                c.kind == SegmentKind::Line ? "a line needs at least 2 points, got " + std::to_string(c.points.size())
+                                            : "expected 3k+1 points (k >= 1), got " + std::to_string(c.points.size()));
   }
   for (std::size_t k = 0; k < c.points.size(); ++k) {
     const Vec2 p = c.points[k];
     if (!is_finite(p)) return fail(point_path(c, i, k), "coordinates must be finite");
     if (std::fmax(std::fabs(p.x), std::fabs(p.y)) > kMaxCoordinate) {
-      return fail(point_path(c, i, k), "coordinate too large: " + point_text(p) +
-                                           "; coordinates must lie within +-1e100");
+      return fail(point_path(c, i, k),
+                  "coordinate too large: " + point_text(p) + "; coordinates must lie within +-1e100");
     }
     bounds.extend(p);
   }
@@ -230,13 +227,14 @@ Result<SceneSegment> make_segment(const Curve& c, std::size_t i, std::size_t j, 
   for (const Vec2& p : shape.p) spread = std::fmax(spread, length(p - shape.p[0]));
   if (spread <= zero_length) {
     if (c.kind == SegmentKind::Line) {
-      return fail(point_path(c, i, first_point + 1),
-                  "coincides with the previous point, so segment " + std::to_string(j) +
-                      " has zero length; remove one of the two points");
+      return fail(point_path(c, i, first_point + 1), "coincides with the previous point, so segment " +
+                                                         std::to_string(j) +
+                                                         " has zero length; remove one of the two points");
     }
     return fail(point_path(c, i, first_point),
                 "segment " + std::to_string(j) + " (control points " + std::to_string(first_point) + " to " +
-                    std::to_string(first_point + 3) + ") has zero length: its control points coincide; remove the segment");
+                    std::to_string(first_point + 3) +
+                    ") has zero length: its control points coincide; remove the segment");
   }
   if (c.kind == SegmentKind::Cubic) {
     if (const auto cusp = find_cusp(shape, size)) {
@@ -284,8 +282,8 @@ Status measure_profile(Curve& c, std::size_t i, const std::vector<Cubic>& shapes
     for (int panel = 0; panel < 8; ++panel) {
       for (int g = 0; g < 4; ++g) {
         const double t = (panel + 0.5 + 0.5 * kNodes[g]) / 8.0;
-        integral += kWeights[g] * 0.5 / 8.0 * length(derivative(shape, t)) *
-                    emittance_factor(c, static_cast<double>(j) + t);
+        integral +=
+            kWeights[g] * 0.5 / 8.0 * length(derivative(shape, t)) * emittance_factor(c, static_cast<double>(j) + t);
       }
     }
   }
@@ -334,8 +332,9 @@ Status finalize_scene(Scene& scene) {
     if (Status status = check_curve_points(scene, i, point_bounds); !status) return status;
   const double size = point_bounds.diagonal();
   if (size == 0.0) {
-    return fail(curve_path(0), "all points of the scene coincide, so every curve has zero length; "
-                               "give the curves distinct points");
+    return fail(curve_path(0),
+                "all points of the scene coincide, so every curve has zero length; "
+                "give the curves distinct points");
   }
   if (size < kMinExtent) {
     return fail("curves", "the scene is only " + format_number(size, 6) +

@@ -9,10 +9,10 @@
 #include <string_view>
 #include <vector>
 
-#include "flatland/geometry/bezier.hpp"
-#include "flatland/geometry/segments.hpp"
 #include "flatland/base/status.hpp"
 #include "flatland/base/vec2.hpp"
+#include "flatland/geometry/bezier.hpp"
+#include "flatland/geometry/segments.hpp"
 
 namespace flatland {
 
@@ -37,7 +37,7 @@ enum class Side : std::uint8_t { Front = 0, Back = 1 };
 struct Emission {
   enum class Kind : std::uint8_t { Diffuse, Lobe, Beam };
   Kind kind = Kind::Diffuse;
-  double exponent = 1.0;      // Lobe
+  double exponent = 1.0;                   // Lobe
   double half_angle = 1.5707963267948966;  // Beam, radians, in (0, pi/2]
 };
 
@@ -71,9 +71,9 @@ struct Curve {
   // the Bernstein polynomial of its four control points' factors, along a straight segment the
   // linear interpolation of its ends'. Empty: uniform emittance.
   std::vector<double> emittance_profile;
-  double profile_mean = 1.0;  // the profile's mean over arc length (1 without a profile)
-  double profile_max = 1.0;   // an upper bound of the profile (its largest factor)
-  std::uint32_t first_segment = 0;    // index into Scene::segments
+  double profile_mean = 1.0;        // the profile's mean over arc length (1 without a profile)
+  double profile_max = 1.0;         // an upper bound of the profile (its largest factor)
+  std::uint32_t first_segment = 0;  // index into Scene::segments
   std::uint32_t segment_count = 0;
   double length = 0.0;
   std::vector<double> segment_start;  // cumulative arc length at each segment start (+ total)
@@ -99,14 +99,14 @@ struct SceneSegment {
 
 struct Scene {
   std::string name;
-  std::string description;  // free text from the file ("description"), for people; may be empty
-  std::string source;  // file the scene came from, for messages
+  std::string description;    // free text from the file ("description"), for people; may be empty
+  std::string source;         // file the scene came from, for messages
   std::string source_sha256;  // SHA-256 of the text it was parsed from (results' provenance)
   // SHA-256 of the scene's JSON in one canonical form (keys sorted, no white space, numbers as the
   // parser read them): the same for a file reformatted, or for the same scene built in Python from
   // a dict. Results of scenes whose content differs are never compared.
   std::string content_sha256;
-  int channels = 1;    // 1 (grey) or 3 (colour)
+  int channels = 1;  // 1 (grey) or 3 (colour)
   std::vector<Material> materials;
   std::vector<Curve> curves;
   std::vector<SceneSegment> segments;
@@ -158,8 +158,8 @@ Result<Scene> load_scene(const std::string& path, const std::atomic<bool>* cance
 // already filled in and valid; used by the parser and by code that edits a scene (the viewer).
 // Empty Curve::joints are filled with the default (C1 where the chain is tangent-continuous, a jump
 // at corners); a closed curve given one joint fewer than its segments gets its closing joint's
-// default (by the tangent test; a jump when format_version is 1). Fails on zero-length segments and interior cusps; its messages start with the field
-// path as in a scene file ("curves[1].bezier[3]: segment 1 has a cusp at t = 0.5, ...").
+// default (by the tangent test; a jump when format_version is 1). Fails on zero-length segments and interior cusps; its
+// messages start with the field path as in a scene file ("curves[1].bezier[3]: segment 1 has a cusp at t = 0.5, ...").
 Status finalize_scene(Scene& scene);
 
 }  // namespace flatland

@@ -29,9 +29,9 @@
 #include <nlohmann/json.hpp>
 
 #include "flatland/base/files.hpp"
-#include "flatland/scene/scene.hpp"
 #include "flatland/base/sha256.hpp"
 #include "flatland/base/text.hpp"
+#include "flatland/scene/scene.hpp"
 
 namespace flatland {
 namespace {
@@ -45,7 +45,6 @@ constexpr std::size_t kMaxListedNames = 12;
 
 // ---------------------------------------------------------------------------------------------
 // Small text helpers
-
 
 // A user's string quoted for a one-line message: JSON escapes (so a newline in a key cannot break
 // the line) and long strings cut short.
@@ -76,8 +75,7 @@ std::string type_name(const Json& v) {
 bool is_plain_key(std::string_view key) {
   if (key.empty()) return false;
   return std::all_of(key.begin(), key.end(), [](char ch) {
-    return (ch >= 'a' && ch <= 'z') || (ch >= 'A' && ch <= 'Z') || (ch >= '0' && ch <= '9') ||
-           ch == '_' || ch == '-';
+    return (ch >= 'a' && ch <= 'z') || (ch >= 'A' && ch <= 'Z') || (ch >= '0' && ch <= '9') || ch == '_' || ch == '-';
   });
 }
 
@@ -202,7 +200,7 @@ class TextScanner {
 
   TextMap scan() {
     if (text_.substr(0, 3) == "\xEF\xBB\xBF") pos_ = 3;  // a UTF-8 byte order mark
-    std::string path;  // of the value about to be read
+    std::string path;                                    // of the value about to be read
     bool expect_value = true;
     while (true) {
       skip_space();
@@ -233,8 +231,8 @@ class TextScanner {
           read_string();
         } else {
           const std::size_t start = pos_;
-          while (pos_ < text_.size() && !is_space(text_[pos_]) && text_[pos_] != ',' &&
-                 text_[pos_] != ']' && text_[pos_] != '}') {
+          while (pos_ < text_.size() && !is_space(text_[pos_]) && text_[pos_] != ',' && text_[pos_] != ']' &&
+                 text_[pos_] != '}') {
             ++pos_;
           }
           const std::string_view token = text_.substr(start, pos_ - start);
@@ -269,7 +267,7 @@ class TextScanner {
   struct Frame {
     std::string path;
     bool object = false;
-    std::size_t count = 0;  // index of the current array element
+    std::size_t count = 0;                              // index of the current array element
     std::unordered_map<std::string, std::size_t> seen;  // keys of an object -> offset
   };
 
@@ -340,9 +338,12 @@ class TextScanner {
     for (int k = 0; k < 4 && pos_ < text_.size(); ++k, ++pos_) {
       const char ch = text_[pos_];
       std::uint32_t digit = 0;
-      if (ch >= '0' && ch <= '9') digit = static_cast<std::uint32_t>(ch - '0');
-      else if (ch >= 'a' && ch <= 'f') digit = static_cast<std::uint32_t>(ch - 'a' + 10);
-      else if (ch >= 'A' && ch <= 'F') digit = static_cast<std::uint32_t>(ch - 'A' + 10);
+      if (ch >= '0' && ch <= '9')
+        digit = static_cast<std::uint32_t>(ch - '0');
+      else if (ch >= 'a' && ch <= 'f')
+        digit = static_cast<std::uint32_t>(ch - 'a' + 10);
+      else if (ch >= 'A' && ch <= 'F')
+        digit = static_cast<std::uint32_t>(ch - 'A' + 10);
       code = code * 16 + digit;
     }
     return code;
@@ -377,15 +378,14 @@ class SceneReader {
     try {
       root = Json::parse(text_.begin(), text_.end());
     } catch (const Json::parse_error& e) {
-      throw ParseFailure{at_offset(e.byte > 0 ? e.byte - 1 : 0) + "parse error: " +
-                         strip_library_prefix(e.what())};
+      throw ParseFailure{at_offset(e.byte > 0 ? e.byte - 1 : 0) + "parse error: " + strip_library_prefix(e.what())};
     } catch (const Json::out_of_range&) {
       // nlohmann refuses numbers beyond double's range (id 406) without a position: find it.
       map_ = TextScanner(text_, true).scan();
       if (map_->overflow) {
         fail(map_->overflow->path, "the number " + map_->overflow->token +
-                                      " is too large for a double (it overflows to infinity); "
-                                      "use a finite value");
+                                       " is too large for a double (it overflows to infinity); "
+                                       "use a finite value");
       }
       throw ParseFailure{source_ + ": a number is too large for a double; use finite values"};
     }
@@ -394,16 +394,15 @@ class SceneReader {
       if (check.too_deep || check.duplicate) map_ = TextScanner(text_, true).scan();
     }
     if (map_ && map_->too_deep) {
-      throw ParseFailure{at_offset(*map_->too_deep) + "values nested more than " +
-                         std::to_string(kMaxDepth) + " deep; a scene file needs four levels"};
+      throw ParseFailure{at_offset(*map_->too_deep) + "values nested more than " + std::to_string(kMaxDepth) +
+                         " deep; a scene file needs four levels"};
     }
     if (map_ && map_->duplicate) {
       const DuplicateKey& d = *map_->duplicate;
       const TextPosition first = position_of(text_, d.first_offset);
-      throw ParseFailure{at_offset(d.offset) + (d.object_path.empty() ? "" : d.object_path + ": ") +
-                         "duplicate key " + quote(d.key) + " (first at line " +
-                         std::to_string(first.line) + ", column " + std::to_string(first.column) +
-                         "); each key may appear once in an object, remove one of them"};
+      throw ParseFailure{at_offset(d.offset) + (d.object_path.empty() ? "" : d.object_path + ": ") + "duplicate key " +
+                         quote(d.key) + " (first at line " + std::to_string(first.line) + ", column " +
+                         std::to_string(first.column) + "); each key may appear once in an object, remove one of them"};
     }
     Scene scene = read_scene(root);
     scene.content_sha256 = sha256_hex(nlohmann::json(root).dump());
@@ -451,8 +450,7 @@ class SceneReader {
 
   // ---- generic checks
 
-  void check_keys(const Json& object, const std::string& path,
-                  std::initializer_list<std::string_view> allowed) const {
+  void check_keys(const Json& object, const std::string& path, std::initializer_list<std::string_view> allowed) const {
     const std::vector<std::string> names(allowed.begin(), allowed.end());
     for (const auto& item : object.items()) {
       const std::string& key = item.key();
@@ -504,8 +502,7 @@ class SceneReader {
     } else {
       const double degrees = number(v.at("beam"), append_key(path, "beam"));
       if (!(degrees > 0.0 && degrees <= 90.0))
-        fail(append_key(path, "beam"),
-             "the half-angle must be in (0, 90] degrees, got " + format_number(degrees));
+        fail(append_key(path, "beam"), "the half-angle must be in (0, 90] degrees, got " + format_number(degrees));
       result.kind = Emission::Kind::Beam;
       result.half_angle = degrees * std::numbers::pi / 180.0;
     }
@@ -530,8 +527,8 @@ class SceneReader {
       fail(path, "expected a number (grey) or [r, g, b] (colour), got " + type_name(v));
     }
     if (v.size() != 3) {
-      fail(path, "expected a number (grey) or [r, g, b] (colour), got an array of " +
-                     std::to_string(v.size()) + (v.size() == 1 ? " element" : " elements"));
+      fail(path, "expected a number (grey) or [r, g, b] (colour), got an array of " + std::to_string(v.size()) +
+                     (v.size() == 1 ? " element" : " elements"));
     }
     for (std::size_t k = 0; k < 3; ++k) {
       const std::string element = append_index(path, k);
@@ -546,8 +543,8 @@ class SceneReader {
     if (quantity == Quantity::Reflectivity) {
       if (x < 0.0) fail(path, "must be in [0, 1), got " + format_number(x) + "; use 0 for black");
       if (x >= 1.0) {
-        fail(path, "must be below 1: a surface that reflects everything never converges (got " +
-                       format_number(x) + "); use at most 0.99");
+        fail(path, "must be below 1: a surface that reflects everything never converges (got " + format_number(x) +
+                       "); use at most 0.99");
       }
     } else if (x < 0.0) {
       fail(path, "must be >= 0 (power per unit length), got " + format_number(x) +
@@ -555,8 +552,8 @@ class SceneReader {
     } else if (x > kMaxEmittance || (x > 0.0 && x < kMinEmittance)) {
       // Emitted power E x length must stay far inside a double's range (and its fixed-point
       // units representable) for every scene size the format allows.
-      fail(path, "must be 0 or between 1e-100 and 1e100 (power per unit length), got " +
-                     format_number(x) + "; choose the unit of power so that it is");
+      fail(path, "must be 0 or between 1e-100 and 1e100 (power per unit length), got " + format_number(x) +
+                     "; choose the unit of power so that it is");
     }
   }
 
@@ -610,11 +607,12 @@ class SceneReader {
     if (const Status status = finalize_scene(scene); !status) {
       throw ParseFailure{locate(status.error().message)};
     }
-    const bool lit = std::any_of(scene.curves.begin(), scene.curves.end(),
-                                 [&](const Curve& c) { return scene.is_emitter(c); });
+    const bool lit =
+        std::any_of(scene.curves.begin(), scene.curves.end(), [&](const Curve& c) { return scene.is_emitter(c); });
     if (!lit) {
-      fail("curves", "no curve emits light, so nothing would be lit; give a material (or a curve) "
-                     "a positive \"emittance\"");
+      fail("curves",
+           "no curve emits light, so nothing would be lit; give a material (or a curve) "
+           "a positive \"emittance\"");
     }
     return scene;
   }
@@ -622,8 +620,9 @@ class SceneReader {
   int read_version(const Json& root) const {
     const auto it = root.find("flatland");
     if (it == root.end()) {
-      fail("", "missing \"flatland\": 2, the format version; this program reads versions 1 and 2 "
-               "(docs/scene-format.md)");
+      fail("",
+           "missing \"flatland\": 2, the format version; this program reads versions 1 and 2 "
+           "(docs/scene-format.md)");
     }
     if (!it->is_number()) {
       fail("flatland", "expected the format version as a number (1), got " + type_name(*it));
@@ -637,30 +636,28 @@ class SceneReader {
   }
 
   void read_materials(const Json& root, Scene& scene, bool& colour) {
-    const Json& materials = require(root, "", "materials",
-                                    "add \"materials\": {\"name\": {\"reflectivity\": 0.5}, ...}");
+    const Json& materials =
+        require(root, "", "materials", "add \"materials\": {\"name\": {\"reflectivity\": 0.5}, ...}");
     if (!materials.is_object()) {
-      fail("materials", "expected an object of named materials {\"name\": {...}}, got " +
-                            type_name(materials));
+      fail("materials", "expected an object of named materials {\"name\": {...}}, got " + type_name(materials));
     }
     if (materials.empty()) {
-      fail("materials", "no materials defined; define at least one, e.g. "
-                        "{\"lamp\": {\"emittance\": 1}}");
+      fail("materials",
+           "no materials defined; define at least one, e.g. "
+           "{\"lamp\": {\"emittance\": 1}}");
     }
     for (const auto& item : materials.items()) {
       const std::string path = append_key("materials", item.key());
       if (item.key().empty()) fail(path, "a material name must not be empty; give it a name");
       const Json& m = item.value();
       if (!m.is_object()) {
-        fail(path, "expected a material object {\"reflectivity\": ..., \"emittance\": ...}, got " +
-                       type_name(m));
+        fail(path, "expected a material object {\"reflectivity\": ..., \"emittance\": ...}, got " + type_name(m));
       }
       check_keys(m, path, {"reflectivity", "emittance", "emission"});
       Material material;
       material.name = item.key();
       if (const auto it = m.find("reflectivity"); it != m.end()) {
-        material.reflectivity =
-            spectrum(*it, append_key(path, "reflectivity"), Quantity::Reflectivity, colour);
+        material.reflectivity = spectrum(*it, append_key(path, "reflectivity"), Quantity::Reflectivity, colour);
       }
       if (const auto it = m.find("emittance"); it != m.end()) {
         material.emittance = spectrum(*it, append_key(path, "emittance"), Quantity::Emittance, colour);
@@ -674,8 +671,8 @@ class SceneReader {
   }
 
   void read_curves(const Json& root, Scene& scene, bool& colour) {
-    const Json& curves = require(root, "", "curves",
-                                 "add \"curves\": [{\"id\": ..., \"material\": ..., \"line\": ...}]");
+    const Json& curves =
+        require(root, "", "curves", "add \"curves\": [{\"id\": ..., \"material\": ..., \"line\": ...}]");
     if (!curves.is_array()) fail("curves", "expected an array of curves, got " + type_name(curves));
     if (curves.empty()) fail("curves", "the scene has no curves; add at least one");
     std::unordered_map<std::string, std::size_t> ids;
@@ -684,9 +681,8 @@ class SceneReader {
       Curve curve = read_curve(curves[i], path, scene, colour);
       const auto [where, inserted] = ids.emplace(curve.id, i);
       if (!inserted) {
-        fail(path + ".id", "duplicate id " + quote(curve.id) + " (curves[" +
-                               std::to_string(where->second) + "] and curves[" + std::to_string(i) +
-                               "]); give each curve its own id");
+        fail(path + ".id", "duplicate id " + quote(curve.id) + " (curves[" + std::to_string(where->second) +
+                               "] and curves[" + std::to_string(i) + "]); give each curve its own id");
       }
       scene.curves.push_back(std::move(curve));
     }
@@ -694,19 +690,19 @@ class SceneReader {
 
   Curve read_curve(const Json& v, const std::string& path, const Scene& scene, bool& colour) const {
     if (!v.is_object()) {
-      fail(path, "expected a curve object {\"id\": ..., \"material\": ..., \"line\" or \"bezier\": "
-                 "...}, got " + type_name(v));
+      fail(path,
+           "expected a curve object {\"id\": ..., \"material\": ..., \"line\" or \"bezier\": "
+           "...}, got " +
+               type_name(v));
     }
-    check_keys(v, path, {"id", "material", "line", "bezier", "joints", "sides", "emittance",
-                         "emittance_profile"});
+    check_keys(v, path, {"id", "material", "line", "bezier", "joints", "sides", "emittance", "emittance_profile"});
     Curve curve;
     curve.id = text_value(require(v, path, "id", "give the curve a unique \"id\""), path + ".id", "an id");
     if (curve.id.empty()) fail(path + ".id", "the id must not be empty; give the curve a name");
 
     const std::string material_path = path + ".material";
     const std::string material =
-        text_value(require(v, path, "material", "name one of the scene's materials"), material_path,
-               "a material name");
+        text_value(require(v, path, "material", "name one of the scene's materials"), material_path, "a material name");
     const auto found = material_index_.find(material);
     if (found == material_index_.end()) {
       std::string what = "unknown material " + quote(material);
@@ -741,9 +737,9 @@ class SceneReader {
       }
       for (std::size_t k = 1; k < curve.points.size(); ++k) {
         if (curve.points[k] == curve.points[k - 1]) {
-          fail(append_index(points_path, k),
-               "coincides with the previous point (" + std::string(key) + "[" + std::to_string(k - 1) +
-                   "]), which would make a zero-length segment; remove one of them");
+          fail(append_index(points_path, k), "coincides with the previous point (" + std::string(key) + "[" +
+                                                 std::to_string(k - 1) +
+                                                 "]), which would make a zero-length segment; remove one of them");
         }
       }
       segments = curve.points.size() - 1;
@@ -756,8 +752,7 @@ class SceneReader {
       }
       segments = (n - 1) / 3;
     }
-    if (std::all_of(curve.points.begin(), curve.points.end(),
-                    [&](Vec2 p) { return p == curve.points.front(); })) {
+    if (std::all_of(curve.points.begin(), curve.points.end(), [&](Vec2 p) { return p == curve.points.front(); })) {
       fail(points_path, "all points coincide, so the curve has zero length; give distinct points");
     }
 
@@ -765,8 +760,7 @@ class SceneReader {
       // A closed chain (last point = first, exactly as written) may also name its closing joint;
       // finalize_scene checks the count against the closure it finds.
       // Version 1 had no closing joint (the closing point was a seam).
-      const bool closed = version_ >= 2 && curve.points.size() > 1 &&
-                          curve.points.back() == curve.points.front();
+      const bool closed = version_ >= 2 && curve.points.size() > 1 && curve.points.back() == curve.points.front();
       curve.joints = read_joints(*it, path + ".joints", segments, closed);
     }
     if (const auto it = v.find("sides"); it != v.end()) {
@@ -777,11 +771,10 @@ class SceneReader {
     }
     if (const auto it = v.find("emittance_profile"); it != v.end()) {
       const std::string profile_path = path + ".emittance_profile";
-      if (!it->is_array())
-        fail(profile_path, "expected an array of factors, one per point, got " + type_name(*it));
+      if (!it->is_array()) fail(profile_path, "expected an array of factors, one per point, got " + type_name(*it));
       if (it->size() != curve.points.size())
-        fail(profile_path, "expected " + std::to_string(curve.points.size()) +
-                               " factors (one per point), got " + std::to_string(it->size()));
+        fail(profile_path, "expected " + std::to_string(curve.points.size()) + " factors (one per point), got " +
+                               std::to_string(it->size()));
       for (std::size_t k = 0; k < it->size(); ++k) {
         const double factor = number((*it)[k], append_index(profile_path, k));
         if (factor < 0.0 || factor > kMaxEmittance)
@@ -792,16 +785,17 @@ class SceneReader {
     return curve;
   }
 
-  std::vector<Continuity> read_joints(const Json& v, const std::string& path,
-                                      std::size_t segments, bool closed) const {
+  std::vector<Continuity> read_joints(const Json& v, const std::string& path, std::size_t segments, bool closed) const {
     const std::size_t joints = segments - 1;
     if (v.is_string()) {
       // One value for every joint, the closing point of a closed chain included.
       return std::vector<Continuity>(closed ? segments : joints, continuity(v, path));
     }
     if (!v.is_array()) {
-      fail(path, "expected \"C1\", \"C0\" or \"C-1\" for every joint, or an array with one of them "
-                 "per joint, got " + type_name(v));
+      fail(path,
+           "expected \"C1\", \"C0\" or \"C-1\" for every joint, or an array with one of them "
+           "per joint, got " +
+               type_name(v));
     }
     if (v.size() != joints && !(closed && v.size() == segments)) {
       if (closed) {
@@ -812,8 +806,7 @@ class SceneReader {
       }
       fail(path, "expected " + std::to_string(joints) + (joints == 1 ? " entry" : " entries") +
                      " (one per joint between the " + std::to_string(segments) +
-                     (segments == 1 ? " segment" : " segments") + "), got " +
-                     std::to_string(v.size()));
+                     (segments == 1 ? " segment" : " segments") + "), got " + std::to_string(v.size()));
     }
     std::vector<Continuity> out;
     for (std::size_t k = 0; k < v.size(); ++k) out.push_back(continuity(v[k], append_index(path, k)));
@@ -846,7 +839,7 @@ class SceneReader {
 
   std::string_view text_;
   std::string source_;
-  int version_ = kSceneFormatVersion;  // of the file being read
+  int version_ = kSceneFormatVersion;   // of the file being read
   mutable std::optional<TextMap> map_;  // positions, recorded when a message needs one
   std::unordered_map<std::string, std::uint32_t> material_index_;
   std::vector<std::string> material_names_;

@@ -23,8 +23,7 @@ namespace flatland::storage_detail {
 // support starts at knots[k - degree + j]). Integrals of phi_k times smooth functions along arc
 // length are sums over these points.
 template <typename Visit>
-void for_each_quadrature_point(const Scene& scene, const Curve& curve, const SplineBasis& basis,
-                               Visit visit) {
+void for_each_quadrature_point(const Scene& scene, const Curve& curve, const SplineBasis& basis, Visit visit) {
   constexpr int kPanels = 4;
   const std::vector<double>& knots = basis.knots();
   const int p = basis.degree();
@@ -34,8 +33,8 @@ void for_each_quadrature_point(const Scene& scene, const Curve& curve, const Spl
     const double a = knots[k];
     const double b = knots[k + 1];
     if (!(b > a)) continue;
-    const auto segment_index = static_cast<std::uint32_t>(
-        std::min<double>(std::floor(0.5 * (a + b)), curve.segment_count - 1));
+    const auto segment_index =
+        static_cast<std::uint32_t>(std::min<double>(std::floor(0.5 * (a + b)), curve.segment_count - 1));
     const SceneSegment& segment = scene.segments[curve.first_segment + segment_index];
     for (int j = 0; j <= p; ++j)
       index[static_cast<std::size_t>(j)] = basis.index(k - static_cast<std::size_t>(p) + static_cast<std::size_t>(j));
@@ -53,6 +52,5 @@ void for_each_quadrature_point(const Scene& scene, const Curve& curve, const Spl
     }
   }
 }
-
 
 }  // namespace flatland::storage_detail

@@ -54,7 +54,7 @@ class BasisSampler {
   int degree_ = 0;
   double u_begin_ = 0.0;
   double u_end_ = 1.0;
-  std::vector<double> knots_;  // the basis's (function k on knots_[k] .. knots_[k + degree + 1])
+  std::vector<double> knots_;               // the basis's (function k on knots_[k] .. knots_[k + degree + 1])
   std::vector<std::uint32_t> first_piece_;  // pieces of k: [first_piece_[k], first_piece_[k+1])
   std::vector<Piece> pieces_;
   // Per piece, the mass of its function's pieces up to and including it: apart from the pieces,

@@ -31,13 +31,10 @@ namespace {
 // same while a short region waits), and s = start + length j / pieces is the same double for
 // (j, pieces) and (2 j, 2 pieces), so the meshes nest. A segment without extra nodes is one
 // region, split exactly as an even split of the segment.
-Continuity place_nodes(const Scene& scene, const Curve& curve, int wanted, int subdivisions,
-                       bool smooth_joints, std::span<const MeshNode> extra,
-                       std::vector<MeshNode>& nodes) {
+Continuity place_nodes(const Scene& scene, const Curve& curve, int wanted, int subdivisions, bool smooth_joints,
+                       std::span<const MeshNode> extra, std::vector<MeshNode>& nodes) {
   const std::uint32_t segment_count = curve.segment_count;
-  Continuity closing = !curve.closed ? Continuity::Jump
-                       : smooth_joints ? Continuity::C1
-                                       : curve.joints.back();
+  Continuity closing = !curve.closed ? Continuity::Jump : smooth_joints ? Continuity::C1 : curve.joints.back();
   // The fixed nodes: joints, then the extra nodes merged in (one within 1e-9 of a fixed node
   // lowers its continuity; one at the closing point of a closed curve lowers the closing joint's).
   std::vector<MeshNode> fixed;
@@ -49,8 +46,8 @@ Continuity place_nodes(const Scene& scene, const Curve& curve, int wanted, int s
       continue;
     }
     if (!(node.u > 0.0 && node.u < segment_count)) continue;
-    const auto at = std::lower_bound(fixed.begin(), fixed.end(), node.u,
-                                     [](const MeshNode& a, double u) { return a.u < u; });
+    const auto at =
+        std::lower_bound(fixed.begin(), fixed.end(), node.u, [](const MeshNode& a, double u) { return a.u < u; });
     auto merge = [&](std::vector<MeshNode>::iterator existing) {
       if (existing == fixed.end() || std::fabs(existing->u - node.u) > 1e-9) return false;
       existing->continuity = std::min(existing->continuity, node.continuity);
@@ -67,24 +64,22 @@ Continuity place_nodes(const Scene& scene, const Curve& curve, int wanted, int s
     const Cubic& shape = segment.geometry.shape;
     const double segment_pieces = segment_elements(wanted, segment.length, curve.length);
     const double element = segment.length / segment_pieces;  // at subdivision 0
-    if (i > 0) nodes.push_back(fixed[next_fixed++]);  // the joint
-    double region_start = 0.0;  // arc length from the segment's start
+    if (i > 0) nodes.push_back(fixed[next_fixed++]);         // the joint
+    double region_start = 0.0;                               // arc length from the segment's start
     for (;;) {
       const bool inside = next_fixed < fixed.size() && fixed[next_fixed].u < i + 1.0;
-      const double region_end =
-          inside ? std::clamp(segment.arc_length.length_at(shape, fixed[next_fixed].u - i), region_start, segment.length)
-                 : segment.length;
+      const double region_end = inside ? std::clamp(segment.arc_length.length_at(shape, fixed[next_fixed].u - i),
+                                                    region_start, segment.length)
+                                       : segment.length;
       const double region = region_end - region_start;
       // As many elements as keep them no longer than the segment's (its share of the segment's
       // elements, rounded up), and the levels that pass before a region shorter than half an
       // element is split at all: its elements are then between half and all of the level's
       // element length, never a sliver of it. (The tolerances keep a region that is the whole
       // segment at exactly the segment's elements.)
-      const int share =
-          std::max(1, static_cast<int>(std::ceil(segment_pieces * region / segment.length - 1e-9)));
+      const int share = std::max(1, static_cast<int>(std::ceil(segment_pieces * region / segment.length - 1e-9)));
       int delay = 0;
-      while (delay < subdivisions && region / share * std::ldexp(1.0, delay + 1) <= element * (1.0 + 1e-9))
-        ++delay;
+      while (delay < subdivisions && region / share * std::ldexp(1.0, delay + 1) <= element * (1.0 + 1e-9)) ++delay;
       const int pieces = share << (subdivisions - delay);
       for (int j = 1; j < pieces; ++j) {
         const double s = region_start + region * j / pieces;
@@ -114,9 +109,8 @@ double longest_element(const Scene& scene, const Curve& curve, int elements, boo
   return std::max(longest, curve.length - previous);
 }
 
-CurveStorage build_curve_storage(const Scene& scene, const Curve& curve, BasisKind kind,
-                                 int elements, bool smooth_joints, std::span<const MeshNode> extra,
-                                 int subdivisions) {
+CurveStorage build_curve_storage(const Scene& scene, const Curve& curve, BasisKind kind, int elements,
+                                 bool smooth_joints, std::span<const MeshNode> extra, int subdivisions) {
   CurveStorage storage;
   const std::uint32_t segment_count = curve.segment_count;
   const int degree = degree_of(kind);
@@ -137,8 +131,8 @@ CurveStorage build_curve_storage(const Scene& scene, const Curve& curve, BasisKi
       ++subdivisions;
       storage.closing = place_nodes(scene, curve, wanted, subdivisions, smooth_joints, extra, storage.nodes);
     }
-    storage.basis = SplineBasis::periodic(degree, 0.0, static_cast<double>(segment_count),
-                                          storage.nodes, storage.closing);
+    storage.basis =
+        SplineBasis::periodic(degree, 0.0, static_cast<double>(segment_count), storage.nodes, storage.closing);
   }
 
   // Integrals of phi_k |C'(u)| du and the mass matrix, in one pass of the quadrature: four
@@ -166,11 +160,11 @@ CurveStorage build_curve_storage(const Scene& scene, const Curve& curve, BasisKi
   storage.basis_length.assign(n, 0.0);
   for_each_quadrature_point(scene, curve, storage.basis,
                             [&](double, double weight, const auto& index, const auto& values, std::size_t) {
-                              for (std::size_t j = 0; j <= pu; ++j) storage.basis_length[index[j]] += weight * values[j];
+                              for (std::size_t j = 0; j <= pu; ++j)
+                                storage.basis_length[index[j]] += weight * values[j];
                               for (std::size_t i = 0; i <= pu; ++i)
                                 for (std::size_t j = 0; j <= pu; ++j)
-                                  if (index[j] <= index[i])
-                                    entry(index[i], index[j]) += weight * values[i] * values[j];
+                                  if (index[j] <= index[i]) entry(index[i], index[j]) += weight * values[i] * values[j];
                             });
   storage.sampler = BasisSampler(storage.basis);
   // Envelope Cholesky: L_kk = sqrt(M_kk - sum L_kj^2), L_ik = (M_ik - sum L_ij L_kj) / L_kk, the
@@ -192,9 +186,7 @@ CurveStorage build_curve_storage(const Scene& scene, const Curve& curve, BasisKi
   const double period = static_cast<double>(segment_count);
   // Only the segments under a support (a few, with one more on each side against rounding), not
   // all of the curve's: that was quadratic in the segments of a long curve.
-  const auto near = [&](double at) {
-    return static_cast<std::uint32_t>(std::clamp(at, 0.0, period));
-  };
+  const auto near = [&](double at) { return static_cast<std::uint32_t>(std::clamp(at, 0.0, period)); };
   for (std::size_t k = 0; k < n; ++k) {
     const double begin = knots[k];
     const double end = knots[k + pu + 1];
@@ -216,8 +208,7 @@ CurveStorage build_curve_storage(const Scene& scene, const Curve& curve, BasisKi
   return storage;
 }
 
-std::vector<double> project_emittance_profile(const Scene& scene, const Curve& curve,
-                                              const CurveStorage& storage) {
+std::vector<double> project_emittance_profile(const Scene& scene, const Curve& curve, const CurveStorage& storage) {
   if (curve.emittance_profile.empty()) return storage.basis_length;
   // The same quadrature as basis_length, with the profile (a cubic in t) in the integrand.
   std::vector<double> result(storage.basis.size(), 0.0);

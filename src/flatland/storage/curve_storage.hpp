@@ -44,8 +44,7 @@ struct CurveStorage {
 
 // integral(phi_k(u) E(u) ds) for every k, with E the curve's emittance profile factor (one
 // without a profile, which gives basis_length): the emitted power each basis function starts with.
-std::vector<double> project_emittance_profile(const Scene& scene, const Curve& curve,
-                                              const CurveStorage& storage);
+std::vector<double> project_emittance_profile(const Scene& scene, const Curve& curve, const CurveStorage& storage);
 
 // How many elements build_curve_storage gives a segment of arc length `segment_length` on a curve
 // of length `curve_length` for `elements` per curve, before the 2^subdivisions split: its share of
@@ -68,9 +67,9 @@ int segment_elements(int elements, double segment_length, double curve_length);
 // than half the segment's elements at that split stays whole until they are as short as it is):
 // storages of one curve built with the same elements and extra nodes and increasing subdivisions
 // nest (each coarse basis function is a combination of fine ones; see Restriction).
-CurveStorage build_curve_storage(const Scene& scene, const Curve& curve, BasisKind kind,
-                                 int elements, bool smooth_joints = false,
-                                 std::span<const MeshNode> extra = {}, int subdivisions = 0);
+CurveStorage build_curve_storage(const Scene& scene, const Curve& curve, BasisKind kind, int elements,
+                                 bool smooth_joints = false, std::span<const MeshNode> extra = {},
+                                 int subdivisions = 0);
 
 // The arc length of the longest element build_curve_storage makes with these arguments.
 double longest_element(const Scene& scene, const Curve& curve, int elements, bool smooth_joints,

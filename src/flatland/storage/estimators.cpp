@@ -13,8 +13,7 @@ namespace flatland {
 
 using storage_detail::for_each_quadrature_point;
 
-void galerkin_estimate(const CurveStorage& storage, const double* deposits, double* coefficients,
-                       std::size_t stride) {
+void galerkin_estimate(const CurveStorage& storage, const double* deposits, double* coefficients, std::size_t stride) {
   const std::size_t n = storage.basis.size();
   // Forward substitution L y = d by rows, then back substitution L^T b = y by columns of L, both
   // in the output (a scratch vector of the storage's size was allocated, and its pages faulted
@@ -37,8 +36,7 @@ void galerkin_estimate(const CurveStorage& storage, const double* deposits, doub
   }
 }
 
-bool clamp_keeping_power(const CurveStorage& storage, double* coefficients, std::size_t stride,
-                         double power) {
+bool clamp_keeping_power(const CurveStorage& storage, double* coefficients, std::size_t stride, double power) {
   double kept = 0.0;
   const std::size_t n = storage.basis.size();
   for (std::size_t k = 0; k < n; ++k) {
@@ -111,9 +109,7 @@ class LocalEstimatorBuilder {
   void find_breaks(const CurveStorage& storage);
   std::ptrdiff_t lap_of(std::ptrdiff_t e) const { return e >= 0 ? e / count_ : -((-e + count_ - 1) / count_); }
   double start(std::ptrdiff_t e) const { return knots_[local(e)] + static_cast<double>(lap_of(e)) * period_; }
-  double end(std::ptrdiff_t e) const {
-    return knots_[local(e) + pu_ + 1] + static_cast<double>(lap_of(e)) * period_;
-  }
+  double end(std::ptrdiff_t e) const { return knots_[local(e) + pu_ + 1] + static_cast<double>(lap_of(e)) * period_; }
   bool exists(std::ptrdiff_t e) const { return periodic_ || (e >= 0 && e < count_); }
   bool straddles(std::ptrdiff_t e) const;
   // Consecutive functions with supports that only touch are split by a C-1 node (p + 1 knots).
@@ -167,19 +163,19 @@ LocalEstimatorBuilder::LocalEstimatorBuilder(const Scene& scene, const Curve& cu
 void LocalEstimatorBuilder::integrate_moments(const Scene& scene, const Curve& curve) {
   moment_.assign(n_, std::array<double, 4>{});
   gram_.assign(n_, std::array<double, SplineBasis::kMaxDegree + 1>{});
-  for_each_quadrature_point(
-      scene, curve, basis_,
-      [&](double u, double weight, const auto& index, const auto& values, std::size_t span) {
-        for (std::size_t j = 0; j <= pu_; ++j) {
-          const double x = u - knots_[span - pu_ + j];
-          double term = weight * values[j];
-          for (double& m : moment_[index[j]]) {
-            m += term;
-            term *= x;
-          }
-          for (std::size_t i = j; i <= pu_; ++i) gram_[index[j]][i - j] += weight * values[j] * values[i];
-        }
-      });
+  for_each_quadrature_point(scene, curve, basis_,
+                            [&](double u, double weight, const auto& index, const auto& values, std::size_t span) {
+                              for (std::size_t j = 0; j <= pu_; ++j) {
+                                const double x = u - knots_[span - pu_ + j];
+                                double term = weight * values[j];
+                                for (double& m : moment_[index[j]]) {
+                                  m += term;
+                                  term *= x;
+                                }
+                                for (std::size_t i = j; i <= pu_; ++i)
+                                  gram_[index[j]][i - j] += weight * values[j] * values[i];
+                              }
+                            });
 }
 
 // Where R(u) may stop being smooth: the C0 and C-1 nodes, and every joint between segments (R is
@@ -256,7 +252,8 @@ std::array<double, 4> LocalEstimatorBuilder::target(std::size_t k, double centre
     }
     for (std::size_t m = 0; m < terms; ++m) {
       double binomial = 1.0;
-      for (std::size_t r = 1; r <= m; ++r) binomial = binomial * static_cast<double>(pu_ - r + 1) / static_cast<double>(r);
+      for (std::size_t r = 1; r <= m; ++r)
+        binomial = binomial * static_cast<double>(pu_ - r + 1) / static_cast<double>(r);
       target[m] = symmetric[m] / binomial;
     }
   }
@@ -362,8 +359,7 @@ LocalWindow LocalEstimatorBuilder::window(std::size_t k) {
 
 }  // namespace
 
-void build_local_estimator(const Scene& scene, const Curve& curve, CurveStorage& storage,
-                           bool nodal_values) {
+void build_local_estimator(const Scene& scene, const Curve& curve, CurveStorage& storage, bool nodal_values) {
   LocalEstimatorBuilder builder(scene, curve, storage, nodal_values);
   const std::size_t n = storage.basis.size();
   storage.local_first.assign(n + 1, 0);
@@ -386,8 +382,7 @@ void build_local_estimator(const Scene& scene, const Curve& curve, CurveStorage&
   }
 }
 
-void local_estimate(const CurveStorage& storage, const double* deposits, double* coefficients,
-                    std::size_t stride) {
+void local_estimate(const CurveStorage& storage, const double* deposits, double* coefficients, std::size_t stride) {
   const std::size_t n = storage.basis.size();
   for (std::size_t k = 0; k < n; ++k) {
     double sum = 0.0;

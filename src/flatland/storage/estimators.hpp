@@ -20,8 +20,7 @@ namespace flatland {
 // curve's ends and its discontinuity nodes, and sum_k b_k integral(phi_k ds) = sum_k p_k exactly
 // (the functions sum to one). It can dip below zero next to sharp features and by noise; it is not
 // clamped (see clamp_keeping_power).
-void galerkin_estimate(const CurveStorage& storage, const double* deposits, double* coefficients,
-                       std::size_t stride);
+void galerkin_estimate(const CurveStorage& storage, const double* deposits, double* coefficients, std::size_t stride);
 
 // The local quasi-interpolant (dual functionals, docs/method.md): b_k = sum_j w_kj p_j over the 2w + 1
 // deposits nearest to k (w = degree + 1; Hermite: 3) inside k's region between discontinuity
@@ -36,15 +35,12 @@ void galerkin_estimate(const CurveStorage& storage, const double* deposits, doub
 // is estimated from each side and the two combined by inverse variance; one-sided windows near
 // ends and nodes keep the window's size where the region allows, and a region too short for q + 1
 // functions lowers q there.
-void build_local_estimator(const Scene& scene, const Curve& curve, CurveStorage& storage,
-                           bool nodal_values);
-void local_estimate(const CurveStorage& storage, const double* deposits, double* coefficients,
-                    std::size_t stride);
+void build_local_estimator(const Scene& scene, const Curve& curve, CurveStorage& storage, bool nodal_values);
+void local_estimate(const CurveStorage& storage, const double* deposits, double* coefficients, std::size_t stride);
 
 // Negative coefficients set to zero and the rest scaled so that sum_k b_k integral(phi_k ds) equals
 // `power`: a nonnegative density holding a given power (the photon origins' sampling density).
 // False, with every coefficient zero, when nothing positive is left to scale.
-bool clamp_keeping_power(const CurveStorage& storage, double* coefficients, std::size_t stride,
-                         double power);
+bool clamp_keeping_power(const CurveStorage& storage, double* coefficients, std::size_t stride, double power);
 
 }  // namespace flatland

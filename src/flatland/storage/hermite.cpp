@@ -29,13 +29,9 @@ std::string describe(const char* field, std::size_t i, double value) {
 // Each is exact for quadratic data (and so for constant and linear data): with values and slopes
 // exact, a cubic Hermite piece reproduces quadratics, and in general the slopes are O(h^2) and the
 // reconstruction O(h^3) (de Boor, A Practical Guide to Splines, ch. IV).
-double slope_at_start(double a, double b, double p, double q) {
-  return ((2.0 * a + b) * p - a * q) / (a + b);
-}
+double slope_at_start(double a, double b, double p, double q) { return ((2.0 * a + b) * p - a * q) / (a + b); }
 double slope_centred(double a, double b, double p, double q) { return (b * p + a * q) / (a + b); }
-double slope_at_end(double a, double b, double p, double q) {
-  return ((a + 2.0 * b) * q - b * p) / (a + b);
-}
+double slope_at_end(double a, double b, double p, double q) { return ((a + 2.0 * b) * q - b * p) / (a + b); }
 
 // Linear interpolation written so that it returns a exactly when a == b (constant data stay
 // exactly constant) and never leaves [min(a,b), max(a,b)] under rounding: for b < a,
@@ -59,24 +55,19 @@ double de_casteljau(std::array<double, N> b, double x, double* derivative = null
 
 Status check_hermite_input(const HermiteInput& input) {
   const std::size_t count = input.u.size();
-  const auto fail = [](const std::string& what) -> Status {
-    return Error{"hermite reconstruction: " + what};
-  };
-  if (count < 2)
-    return fail("u has " + std::to_string(count) + " nodes; at least 2 (the two curve ends) are needed");
+  const auto fail = [](const std::string& what) -> Status { return Error{"hermite reconstruction: " + what}; };
+  if (count < 2) return fail("u has " + std::to_string(count) + " nodes; at least 2 (the two curve ends) are needed");
   if (input.left.size() != count || input.right.size() != count || input.continuity.size() != count)
-    return fail("u, left, right and continuity need one entry per node; they have " +
-                std::to_string(count) + ", " + std::to_string(input.left.size()) + ", " +
-                std::to_string(input.right.size()) + " and " +
+    return fail("u, left, right and continuity need one entry per node; they have " + std::to_string(count) + ", " +
+                std::to_string(input.left.size()) + ", " + std::to_string(input.right.size()) + " and " +
                 std::to_string(input.continuity.size()));
   for (std::size_t i = 0; i < count; ++i) {
     if (!std::isfinite(input.u[i])) return fail(describe("u", i, input.u[i]) + " is not finite");
     if (i > 0 && !(input.u[i] > input.u[i - 1]))
-      return fail(describe("u", i, input.u[i]) + " does not exceed " +
-                  describe("u", i - 1, input.u[i - 1]) + "; nodes must increase strictly");
+      return fail(describe("u", i, input.u[i]) + " does not exceed " + describe("u", i - 1, input.u[i - 1]) +
+                  "; nodes must increase strictly");
     // left[0] and right[n] are never read.
-    if (i > 0 && !std::isfinite(input.left[i]))
-      return fail(describe("left", i, input.left[i]) + " is not finite");
+    if (i > 0 && !std::isfinite(input.left[i])) return fail(describe("left", i, input.left[i]) + " is not finite");
     if (i + 1 < count && !std::isfinite(input.right[i]))
       return fail(describe("right", i, input.right[i]) + " is not finite");
   }
@@ -299,12 +290,12 @@ double HermiteReconstruction::sample(double u1, double u2) const {
   const double v = u2 * 0.5 * (b[0] + b[3]);
   const double denominator = b[0] + std::sqrt(std::max(0.0, b[0] * b[0] + 2.0 * (b[3] - b[0]) * v));
   const double start = denominator > 0.0 ? std::clamp(2.0 * v / denominator, 0.0, 1.0) : u2;
-  const double x = newton_bisection([&](double t) { return cdf(t) - goal; }, density, start, 0.0, 1.0, 100,
-                                    4e-16 * total,
-                                    [](double at, double next, double low, double high) -> std::optional<double> {
-                                      if (std::fabs(next - at) <= 1e-15 || high - low <= 1e-15) return next;
-                                      return std::nullopt;
-                                    });
+  const double x =
+      newton_bisection([&](double t) { return cdf(t) - goal; }, density, start, 0.0, 1.0, 100, 4e-16 * total,
+                       [](double at, double next, double low, double high) -> std::optional<double> {
+                         if (std::fabs(next - at) <= 1e-15 || high - low <= 1e-15) return next;
+                         return std::nullopt;
+                       });
   const HermitePiece& piece = pieces_[i];
   return piece.u0 + std::clamp(x, 0.0, 1.0) * piece.width;
 }

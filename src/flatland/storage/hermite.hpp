@@ -18,8 +18,8 @@
 #include <vector>
 
 #include "flatland/base/status.hpp"
-#include "flatland/transport/sampling.hpp"
 #include "flatland/scene/scene.hpp"
+#include "flatland/transport/sampling.hpp"
 
 namespace flatland {
 
@@ -97,7 +97,7 @@ class HermiteReconstruction {
   std::vector<HermitePiece> pieces_;
   std::vector<std::array<double, 4>> bernstein_;  // piece i in x = (u - u0) / width in [0,1]
   std::vector<double> piece_integral_;
-  DiscreteDistribution distribution_;         // over piece_integral_
+  DiscreteDistribution distribution_;  // over piece_integral_
 };
 
 }  // namespace flatland

@@ -64,8 +64,8 @@ Restriction restriction_between(const SplineBasis& coarse, const SplineBasis& fi
         // first few: two short searches keep this linear.
         const auto reach = static_cast<std::ptrdiff_t>(std::min(row.size(), 2 * terms));
         auto same = [&](const auto& e) { return e.first == column; };
-        const bool known = std::any_of(row.end() - reach, row.end(), same) ||
-                           std::any_of(row.begin(), row.begin() + reach, same);
+        const bool known =
+            std::any_of(row.end() - reach, row.end(), same) || std::any_of(row.begin(), row.begin() + reach, same);
         if (!known) row.emplace_back(column, rhs[f][r]);
       }
     }

@@ -17,7 +17,6 @@ const char* to_string(BasisKind kind) {
   return "?";
 }
 
-
 int SplineBasis::multiplicity(int degree, Continuity continuity) {
   // Multiplicity m at a knot leaves C^(degree - m) continuity: m = degree - c, clamped to what a
   // spline of this degree can express (a constant spline jumps at every knot).
@@ -25,22 +24,20 @@ int SplineBasis::multiplicity(int degree, Continuity continuity) {
   return std::clamp(degree - c, 1, degree + 1);
 }
 
-SplineBasis::SplineBasis(int degree, double u_begin, double u_end, std::span<const MeshNode> nodes)
-    : degree_(degree) {
+SplineBasis::SplineBasis(int degree, double u_begin, double u_end, std::span<const MeshNode> nodes) : degree_(degree) {
   assert(degree >= 0 && degree <= kMaxDegree && u_begin < u_end);
   knots_.assign(static_cast<std::size_t>(degree + 1), u_begin);
   for (const MeshNode& node : nodes) {
     assert(node.u > u_begin && node.u < u_end);
-    knots_.insert(knots_.end(), static_cast<std::size_t>(multiplicity(degree, node.continuity)),
-                  node.u);
+    knots_.insert(knots_.end(), static_cast<std::size_t>(multiplicity(degree, node.continuity)), node.u);
   }
   knots_.insert(knots_.end(), static_cast<std::size_t>(degree + 1), u_end);
   size_ = knots_.size() - static_cast<std::size_t>(degree) - 1;
   build_span_grid();
 }
 
-SplineBasis SplineBasis::periodic(int degree, double u_begin, double u_end,
-                                  std::span<const MeshNode> nodes, Continuity closing) {
+SplineBasis SplineBasis::periodic(int degree, double u_begin, double u_end, std::span<const MeshNode> nodes,
+                                  Continuity closing) {
   assert(degree >= 0 && degree <= kMaxDegree && u_begin < u_end && closing != Continuity::Jump);
   // One period of knots: the closing knot u_begin with its multiplicity, then the nodes.
   std::vector<double> period(static_cast<std::size_t>(multiplicity(degree, closing)), u_begin);
@@ -103,8 +100,8 @@ void SplineBasis::build_span_grid() {
     const std::size_t cells = 2 * spans;
     unit_cells_[m] = static_cast<std::uint32_t>(cell_spans_.size());
     for (std::size_t c = 0; c < cells; ++c)
-      cell_spans_.push_back(static_cast<std::uint32_t>(
-          bisect(lo + static_cast<double>(c) / static_cast<double>(cells))));
+      cell_spans_.push_back(
+          static_cast<std::uint32_t>(bisect(lo + static_cast<double>(c) / static_cast<double>(cells))));
   }
   unit_cells_[units] = static_cast<std::uint32_t>(cell_spans_.size());
 }

@@ -26,9 +26,7 @@ namespace flatland {
 enum class BasisKind { Constant, Linear, Cubic, Hermite };
 
 const char* to_string(BasisKind kind);
-inline int degree_of(BasisKind kind) {
-  return kind == BasisKind::Constant ? 0 : kind == BasisKind::Cubic ? 3 : 1;
-}
+inline int degree_of(BasisKind kind) { return kind == BasisKind::Constant ? 0 : kind == BasisKind::Cubic ? 3 : 1; }
 
 // A node of the storage mesh: an interior breakpoint in u and the continuity wanted there.
 struct MeshNode {
@@ -51,8 +49,8 @@ class SplineBasis {
   // continuity `closing` there (not Jump: that is the clamped basis). With K knots in a period
   // (the closing knot and the nodes, counted with multiplicity) there are K functions; those of
   // the first `degree` spans straddle the closing point. Needs K >= degree + 1.
-  static SplineBasis periodic(int degree, double u_begin, double u_end,
-                              std::span<const MeshNode> nodes, Continuity closing);
+  static SplineBasis periodic(int degree, double u_begin, double u_end, std::span<const MeshNode> nodes,
+                              Continuity closing);
 
   int degree() const { return degree_; }
   std::size_t size() const { return size_; }

@@ -59,8 +59,7 @@ constexpr double kMaxCubicPanel = 0.25;
 // The segment (of `count`) holding the knot span [ua, ub]; joints are knots, so a non-empty span
 // lies within one segment (an empty one is given the segment starting at ua).
 std::uint32_t segment_of_span(double ua, double ub, std::uint32_t count) {
-  return static_cast<std::uint32_t>(
-      std::min<double>(std::floor(ub > ua ? 0.5 * (ua + ub) : ua), count - 1));
+  return static_cast<std::uint32_t>(std::min<double>(std::floor(ub > ua ? 0.5 * (ua + ub) : ua), count - 1));
 }
 
 // Chebyshev series on [-1, 1], f(y) = sum_k c_k T_k(y), for the span table's partial spans.
@@ -134,7 +133,8 @@ std::size_t chebyshev_fit_checked(Function&& g, std::size_t count, double tolera
                                   std::vector<double>& coefficients) {
   std::vector<double> values;
   std::vector<double> at(count);
-  for (const std::size_t n : {std::size_t{7}, std::size_t{9}, std::size_t{11}, std::size_t{13}, std::size_t{17}, std::size_t{25}, std::size_t{33}}) {
+  for (const std::size_t n : {std::size_t{7}, std::size_t{9}, std::size_t{11}, std::size_t{13}, std::size_t{17},
+                              std::size_t{25}, std::size_t{33}}) {
     values.assign(count * n, 0.0);
     for (std::size_t i = 0; i < n; ++i) {
       g(lobatto_point(i, n), at.data());
@@ -241,8 +241,8 @@ class Accumulator {
   // The differences D_k = T_k(yb) - T_k(ya) come from their own recurrence,
   // D_(k+1) = 2 yb D_k + 2 (yb - ya) T_k(ya) - D_(k-1), so they keep their relative accuracy
   // however short the part is (subtracting the two values would leave only rounding).
-  void add_running(const double* series, std::size_t terms, std::size_t powers, double ya,
-                   double yb, const std::array<double, 3>& c) {
+  void add_running(const double* series, std::size_t terms, std::size_t powers, double ya, double yb,
+                   const std::array<double, 3>& c) {
     static_assert(SplineBasis::kMaxDegree == 3);
     switch (degree_) {
       case 0: return add_running<1>(series, terms, powers, ya, yb, c);
@@ -256,8 +256,7 @@ class Accumulator {
   void add(double u, double weight) {
     if (!inverses_ready_) {
       for (std::size_t j = 1; j <= degree_; ++j)
-        for (std::size_t r = 0; r < j; ++r)
-          inverse_[j][r] = 1.0 / (knots_[span_ + r + 1] - knots_[span_ + 1 - j + r]);
+        for (std::size_t r = 0; r < j; ++r) inverse_[j][r] = 1.0 / (knots_[span_ + r + 1] - knots_[span_ + 1 - j + r]);
       inverses_ready_ = true;
     }
     std::array<double, SplineBasis::kMaxDegree + 1> phi{};
@@ -284,8 +283,8 @@ class Accumulator {
  private:
   // add_running for a basis of Stride = degree + 1 functions per span: the sums stay in registers.
   template <std::size_t Stride>
-  void add_running(const double* series, std::size_t terms, std::size_t powers, double ya,
-                   double yb, const std::array<double, 3>& c) {
+  void add_running(const double* series, std::size_t terms, std::size_t powers, double ya, double yb,
+                   const std::array<double, 3>& c) {
     const double delta = yb - ya;
     double d_previous = 0.0;  // D_0
     double d = delta;         // D_1
@@ -336,8 +335,7 @@ int profile_powers(RayProfile profile) {
   }
 }
 
-FootprintTable::FootprintTable(const Scene& scene, const Curve& curve, const SplineBasis& basis,
-                               int powers)
+FootprintTable::FootprintTable(const Scene& scene, const Curve& curve, const SplineBasis& basis, int powers)
     : first_(basis.first_span()),
       stride_(static_cast<std::size_t>(basis.degree()) + 1),
       powers_(std::clamp(powers, 1, 3)) {
@@ -366,8 +364,8 @@ FootprintTable::FootprintTable(const Scene& scene, const Curve& curve, const Spl
       const double mid = ua + (panel + 0.5) * width;
       std::array<double, 8> speed{};
       for (std::size_t g = 0; g < 8; ++g)
-        speed[g] = line ? segment.length
-                        : flatland::length(derivative(segment.geometry.shape, mid + half * kNodes8[g] - j));
+        speed[g] =
+            line ? segment.length : flatland::length(derivative(segment.geometry.shape, mid + half * kNodes8[g] - j));
       double panel_length = 0.0;
       for (std::size_t g = 0; g < 8; ++g) {
         double partial = 0.0;
@@ -393,8 +391,7 @@ FootprintTable::FootprintTable(const Scene& scene, const Curve& curve, const Spl
     for (std::size_t r = 0; r < stride_; ++r) {
       m[r] = raw[0][r];
       m[stride_ + r] = raw[1][r] * inverse_h - raw[0][r];
-      m[2 * stride_ + r] =
-          (raw[2][r] * inverse_h - 2.0 * raw[1][r]) * inverse_h + raw[0][r];
+      m[2 * stride_ + r] = (raw[2][r] * inverse_h - 2.0 * raw[1][r]) * inverse_h + raw[0][r];
     }
   }
   build_series(scene, curve, basis);
@@ -409,9 +406,9 @@ void FootprintTable::build_series(const Scene& scene, const Curve& curve, const 
   const std::size_t block = powers * stride_;
   start_.assign(spans + 1, curve.length);
   series_.assign(spans, Series{});
-  std::vector<double> g;         // phi_r(u(y)) fits, function-major
-  std::vector<double> sigma;     // s(v) - s0 fit
-  std::vector<double> running;   // one (j, r) series while it is built
+  std::vector<double> g;        // phi_r(u(y)) fits, function-major
+  std::vector<double> sigma;    // s(v) - s0 fit
+  std::vector<double> running;  // one (j, r) series while it is built
   smooth_joints_.assign(curve.segment_count, false);
   for (std::uint32_t joint = 0; joint < curve.joint_count(); ++joint)
     smooth_joints_[joint] = is_tangent_continuous(scene, curve, joint);
@@ -439,8 +436,7 @@ void FootprintTable::build_series(const Scene& scene, const Curve& curve, const 
     // u at y in [-1, 1] (s = mid + h y within the segment), within the span.
     auto u_at = [&](double y) {
       if (line) return std::clamp(ua + 0.5 * (y + 1.0) * (ub - ua), ua, ub);
-      return std::clamp(j + segment.arc_length.parameter_at(segment.geometry.shape, mid + h * y),
-                        ua, ub);
+      return std::clamp(j + segment.arc_length.parameter_at(segment.geometry.shape, mid + h * y), ua, ub);
     };
     auto basis_at = [&](double y, double* values) {
       basis.evaluate_in_span(k, u_at(y), phi.data());
@@ -465,9 +461,8 @@ void FootprintTable::build_series(const Scene& scene, const Curve& curve, const 
       if (n == 0) continue;  // no series: quadrature on this span
       const double u_mid = 0.5 * (ua + ub);
       const double half_u = 0.5 * (ub - ua);
-      n_length = chebyshev_fit_checked(
-          [&](double v, double* value) { value[0] = arc(u_mid + half_u * v) - z0; }, 1,
-          1e-14 * segment.length, sigma);
+      n_length = chebyshev_fit_checked([&](double v, double* value) { value[0] = arc(u_mid + half_u * v) - z0; }, 1,
+                                       1e-14 * segment.length, sigma);
       if (n_length == 0) continue;
     }
     // K_j,r = h * integral of y^j g_r from -1: terms n + powers for every j (zeros beyond).
@@ -552,7 +547,8 @@ class FootprintSpread {
         begin_(out.size()) {
     // A table serves the polynomial profiles whose powers of y it keeps: the walk then goes by arc
     // length (integrate_piece_by_arc); any other footprint walks in u with quadrature.
-    use_table_ = polynomial_profile_ && table != nullptr && !table->empty() && table->powers() >= profile_powers(profile);
+    use_table_ =
+        polynomial_profile_ && table != nullptr && !table->empty() && table->powers() >= profile_powers(profile);
     table_ = use_table_ ? table : nullptr;
     assert(table == nullptr || table->empty() || table->matches(basis));
     const double t_hit = u_hit - hit_;
@@ -561,7 +557,8 @@ class FootprintSpread {
       hit_span_ = basis.find_span(u_hit);
       // On a cubic the span's s(u) series gives the hit's arc length without quadrature.
       if (segments_[hit_].geometry.kind != SegmentKind::Line)
-        into_hit_ = std::clamp(table_->arc_length_in_span(hit_span_, u_hit) - start_[hit_], 0.0, segments_[hit_].length);
+        into_hit_ =
+            std::clamp(table_->arc_length_in_span(hit_span_, u_hit) - start_[hit_], 0.0, segments_[hit_].length);
     }
     if (std::isnan(into_hit_)) into_hit_ = length_in(hit_, t_hit);
     s_hit_ = start_[hit_] + into_hit_;
@@ -769,7 +766,8 @@ void FootprintSpread::integrate_part(Accumulator& accumulate, std::uint32_t j, d
       for (std::size_t m = 0; m < 8; ++m) partial += kIntegrate8[g][m] * speed[m];
       const double delta = delta_a + half * partial;
       const double offset = std::clamp(delta * inverse_a_, -1.0, 1.0);
-      accumulate.add(mid + half * kNodes8[g], kWeights8[g] * half * speed[g] * profile_density_inside(profile_, offset));
+      accumulate.add(mid + half * kNodes8[g],
+                     kWeights8[g] * half * speed[g] * profile_density_inside(profile_, offset));
       panel_length += kWeights8[g] * speed[g];
     }
     delta_a += half * panel_length;
@@ -801,8 +799,9 @@ void FootprintSpread::integrate_piece(double xa, double xb, double c, double n) 
     const std::uint32_t j = std::min(static_cast<std::uint32_t>(ua), count_ - 1);
     // The knot span holding the part: knots[span] <= ua < ub <= knots[span + 1] = *next_knot
     // (clamped to the spans that cover [u_begin, u_end)).
-    const std::size_t span = std::clamp(static_cast<std::size_t>(next_knot - knots_.begin()), basis_.first_span() + 1,
-                                        basis_.end_span()) - 1;
+    const std::size_t span =
+        std::clamp(static_cast<std::size_t>(next_knot - knots_.begin()), basis_.first_span() + 1, basis_.end_span()) -
+        1;
     accumulate.enter_span(span);
     integrate_part(accumulate, j, ua, ub, delta_a);
     if (has_centre && ub == u_centre) delta_a = 0.0;
@@ -814,8 +813,8 @@ void FootprintSpread::integrate_piece(double xa, double xb, double c, double n) 
 // A part [pa, pb] of span `span` (arc lengths [s0, s1]) by the table's running moments, or, for a
 // span with no series (near a cusp) or one the footprint is far shorter than, by quadrature in u
 // between the inverted ends of the part.
-void FootprintSpread::integrate_span_part(Accumulator& accumulate, std::size_t span, double pa, double pb,
-                                          double s0, double s1, double s_centre) const {
+void FootprintSpread::integrate_span_part(Accumulator& accumulate, std::size_t span, double pa, double pb, double s0,
+                                          double s1, double s_centre) const {
   std::size_t terms = 0;
   const double* series = table_->running(span, terms);
   // In the span's coordinate the tent and Epanechnikov pieces have coefficients up to (1 + beta)^2

@@ -67,9 +67,7 @@ class FootprintTable {
   bool empty() const { return length_.empty(); }
   // Span `span` (first_span() <= span < end_span() of the basis it was built for).
   double length(std::size_t span) const { return length_[span - first_]; }
-  const double* moments(std::size_t span) const {
-    return moments_.data() + (span - first_) * 3 * stride_;
-  }
+  const double* moments(std::size_t span) const { return moments_.data() + (span - first_) * 3 * stride_; }
   std::size_t stride() const { return stride_; }  // degree + 1: M_j[r] is moments(span)[j * stride + r]
   // Whether it was built for a basis of this shape (its spans and degree).
   bool matches(const SplineBasis& basis) const {
@@ -101,8 +99,8 @@ class FootprintTable {
 
  private:
   struct Series {
-    std::size_t offset = 0;  // into coefficients_: the running moments, then s(v)
-    std::uint32_t terms = 0;   // per running moment; 0: no series
+    std::size_t offset = 0;   // into coefficients_: the running moments, then s(v)
+    std::uint32_t terms = 0;  // per running moment; 0: no series
     std::uint32_t length_terms = 0;
     double u_mid = 0.0;
     double inverse_half_u = 0.0;
@@ -145,9 +143,8 @@ class FootprintTable {
 // `table` (optional; built for `basis`) serves the polynomial profiles whose powers it keeps
 // (profile_powers): whole and partial knot spans then cost no quadrature. Other profiles, or a
 // table with too few powers, take the quadrature everywhere.
-void footprint_weights(const Scene& scene, const Curve& curve, const SplineBasis& basis,
-                       double u_hit, double half_length, RayProfile profile,
-                       std::vector<FootprintWeight>& out, std::span<const double> walls = {},
-                       const FootprintTable* table = nullptr);
+void footprint_weights(const Scene& scene, const Curve& curve, const SplineBasis& basis, double u_hit,
+                       double half_length, RayProfile profile, std::vector<FootprintWeight>& out,
+                       std::span<const double> walls = {}, const FootprintTable* table = nullptr);
 
 }  // namespace flatland

@@ -11,6 +11,8 @@ namespace {
 
 const std::vector<SolveOptionSpec>& table() {
   static const std::string elements_value = "auto|1.." + std::to_string(kMaxElements);
+  // One option a row: option, name, flag, keyword, choices, value, help, per_method.
+  // clang-format off
   static const std::vector<SolveOptionSpec> options = {
       {SolveOption::Photons, "photons", "photons", "photons", {}, "N",
        "Total photon budget over all rounds, e.g. 250000 or 1e6", false},
@@ -61,6 +63,7 @@ const std::vector<SolveOptionSpec>& table() {
       {SolveOption::Tolerance, "tolerance", "tolerance", "tolerance", {}, "X",
        "Stop when the unshot power falls below this fraction of the emitted power"},
   };
+  // clang-format on
   return options;
 }
 
@@ -178,7 +181,8 @@ Status set_solve_option(SolverSettings& s, SolveOption option, std::string_view 
         s.elements = kAutoElements;
         return ok_status();
       }
-      Result<int> elements = whole(1, kMaxElements, ("auto or a whole number from 1 to " + std::to_string(kMaxElements)).c_str());
+      Result<int> elements =
+          whole(1, kMaxElements, ("auto or a whole number from 1 to " + std::to_string(kMaxElements)).c_str());
       if (!elements) return elements.error();
       s.elements = *elements;
       return ok_status();
@@ -192,7 +196,8 @@ Status set_solve_option(SolverSettings& s, SolveOption option, std::string_view 
     case SolveOption::RayWidth: {
       const std::optional<double> width = real_number(text);
       if (!width || *width < 0.0)
-        return option_error(spec, "expected a width >= 0 in scene units (0: point rays), got '" + std::string(text) + "'");
+        return option_error(spec,
+                            "expected a width >= 0 in scene units (0: point rays), got '" + std::string(text) + "'");
       s.ray_width = *width;
       return ok_status();
     }
@@ -255,10 +260,14 @@ std::string spelled(std::string_view message, Spelling spelling) {
     std::string_view name, flag, keyword;
   };
   static const Names kOthers[] = {
-      {"samples", "samples", "samples"},       {"methods", "methods", "methods"},
-      {"budgets", "budgets", "budgets"},       {"seeds", "seeds", "seeds"},
-      {"reference", "reference", "reference"}, {"curve", "curve", "curve"},
-      {"measure", "measure", "measure"},       {"quadrature", "quadrature", "quadrature"},
+      {"samples", "samples", "samples"},
+      {"methods", "methods", "methods"},
+      {"budgets", "budgets", "budgets"},
+      {"seeds", "seeds", "seeds"},
+      {"reference", "reference", "reference"},
+      {"curve", "curve", "curve"},
+      {"measure", "measure", "measure"},
+      {"quadrature", "quadrature", "quadrature"},
       {"max element length", "max-element-length", "max_element_length"},
       {"max iterations", "max-iterations", "max_iterations"},
   };

@@ -31,16 +31,15 @@ std::vector<Vec2> line_tangents(const Scene& scene) {
   return tangents;
 }
 
-Origin sample_uniform_origin(const Scene& scene, const Curve& curve,
-                             const DiscreteDistribution& segment_choice,
+Origin sample_uniform_origin(const Scene& scene, const Curve& curve, const DiscreteDistribution& segment_choice,
                              std::span<const Vec2> line_tangents, OriginDraws& draws) {
   // Sobol': the segment and then t from what is left of kPlace, so the origin is one stratified
   // coordinate along the whole source.
   Origin origin;
   double along = 0.0;
-  origin.segment = curve.first_segment +
-                   static_cast<std::uint32_t>(draws.quasi() ? segment_choice.sample(draws.place, along)
-                                                            : segment_choice.sample(draws.rng.uniform()));
+  origin.segment =
+      curve.first_segment + static_cast<std::uint32_t>(draws.quasi() ? segment_choice.sample(draws.place, along)
+                                                                     : segment_choice.sample(draws.rng.uniform()));
   const SceneSegment& segment = scene.segments[origin.segment];
   const Cubic& shape = segment.geometry.shape;
   if (segment.geometry.kind == SegmentKind::Line) {
@@ -65,8 +64,8 @@ Origin sample_uniform_origin(const Scene& scene, const Curve& curve,
 
 double uniform_origin_pdf(const Curve& curve) { return 1.0 / curve.length; }
 
-Origin sample_profiled_origin(const Scene& scene, const Curve& curve,
-                              const DiscreteDistribution& segment_choice, OriginDraws& draws) {
+Origin sample_profiled_origin(const Scene& scene, const Curve& curve, const DiscreteDistribution& segment_choice,
+                              OriginDraws& draws) {
   // The proposal is uniform in arc length (a segment by length, then t against the segment's
   // speed bound until accepted, on that segment); only the profile's test starts afresh. (A speed
   // rejection that chose the segment again would weight segment i by length_i^2 / bound_i: right
@@ -75,9 +74,9 @@ Origin sample_profiled_origin(const Scene& scene, const Curve& curve,
   for (int attempt = 0;; ++attempt) {
     const bool from_point = draws.quasi() && attempt == 0;
     double along = 0.0;
-    origin.segment = curve.first_segment +
-                     static_cast<std::uint32_t>(from_point ? segment_choice.sample(draws.place, along)
-                                                           : segment_choice.sample(draws.rng.uniform()));
+    origin.segment =
+        curve.first_segment + static_cast<std::uint32_t>(from_point ? segment_choice.sample(draws.place, along)
+                                                                    : segment_choice.sample(draws.rng.uniform()));
     const SceneSegment& segment = scene.segments[origin.segment];
     const Cubic& shape = segment.geometry.shape;
     Vec2 velocity;
@@ -87,8 +86,7 @@ Origin sample_profiled_origin(const Scene& scene, const Curve& curve,
       origin.t = point_proposal ? open(along) : draws.rng.uniform_open();
       velocity = derivative(shape, origin.t);
       speed = length(velocity);
-      if ((point_proposal ? draws.coordinate(kAcceptSpeed) : draws.rng.uniform()) * segment.speed_bound < speed)
-        break;
+      if ((point_proposal ? draws.coordinate(kAcceptSpeed) : draws.rng.uniform()) * segment.speed_bound < speed) break;
     }
     const double u = (origin.segment - curve.first_segment) + origin.t;
     if (!((from_point ? draws.coordinate(kAcceptProfile) : draws.rng.uniform()) * curve.profile_max <
@@ -104,9 +102,8 @@ double profiled_origin_pdf(const Curve& curve, double u) {
   return emittance_factor(curve, u) / (curve.profile_mean * curve.length);
 }
 
-Origin sample_coefficient_origin(const Scene& scene, const Curve& curve, const CurveStorage& storage,
-                                 std::size_t k, std::span<const Vec2> line_tangents,
-                                 OriginDraws& draws) {
+Origin sample_coefficient_origin(const Scene& scene, const Curve& curve, const CurveStorage& storage, std::size_t k,
+                                 std::span<const Vec2> line_tangents, OriginDraws& draws) {
   Origin origin;
   for (int attempt = 0;; ++attempt) {
     // Sobol': the place inside the piece from kPlace (for constant storage, whose basis functions
@@ -121,8 +118,7 @@ Origin sample_coefficient_origin(const Scene& scene, const Curve& curve, const C
       for (int i = 0; i <= storage.sampler.degree(); ++i) uniforms[static_cast<std::size_t>(i)] = draws.rng.uniform();
       u = storage.sampler.sample_simplex(k, uniforms);
     }
-    const auto local =
-        static_cast<std::uint32_t>(std::min<double>(std::floor(u), curve.segment_count - 1.0));
+    const auto local = static_cast<std::uint32_t>(std::min<double>(std::floor(u), curve.segment_count - 1.0));
     origin.segment = curve.first_segment + local;
     origin.t = u - local;
     // A line's speed |C'| is its length (no derivative to evaluate; its tangent is tabled).
@@ -145,8 +141,8 @@ double coefficient_origin_pdf(const CurveStorage& storage, std::size_t k, double
   return storage.sampler.pdf(k, u) * storage.sampler.mass(k) / storage.basis_length[k];
 }
 
-Origin sample_hermite_origin(const Scene& scene, const Curve& curve,
-                             const HermiteReconstruction& density, OriginDraws& draws) {
+Origin sample_hermite_origin(const Scene& scene, const Curve& curve, const HermiteReconstruction& density,
+                             OriginDraws& draws) {
   double s = 0.0;
   if (draws.quasi()) {
     s = density.sample(draws.coordinate(kPiece), draws.place);

@@ -11,11 +11,11 @@
 #include <span>
 #include <vector>
 
+#include "flatland/scene/scene.hpp"
 #include "flatland/storage/curve_storage.hpp"
 #include "flatland/storage/hermite.hpp"
 #include "flatland/transport/qmc.hpp"
 #include "flatland/transport/sampling.hpp"
-#include "flatland/scene/scene.hpp"
 
 namespace flatland {
 
@@ -60,16 +60,15 @@ std::vector<Vec2> line_tangents(const Scene& scene);
 // Uniform in arc length: a segment by its length (segment_choice over the curve's segments),
 // then t with density |C'(t)| / length by rejection against the segment's speed bound (a line's
 // speed is constant: no rejection). line_tangents[i] is segment i's unit tangent if it is a line.
-Origin sample_uniform_origin(const Scene& scene, const Curve& curve,
-                             const DiscreteDistribution& segment_choice,
+Origin sample_uniform_origin(const Scene& scene, const Curve& curve, const DiscreteDistribution& segment_choice,
                              std::span<const Vec2> line_tangents, OriginDraws& draws);
 // 1 / length.
 double uniform_origin_pdf(const Curve& curve);
 
 // An emitter with an emittance profile: uniform in arc length, accepted with probability
 // E(u) / max E, so the density is E(u) / integral(E ds).
-Origin sample_profiled_origin(const Scene& scene, const Curve& curve,
-                              const DiscreteDistribution& segment_choice, OriginDraws& draws);
+Origin sample_profiled_origin(const Scene& scene, const Curve& curve, const DiscreteDistribution& segment_choice,
+                              OriginDraws& draws);
 // E(u) / integral(E ds) at the curve parameter u.
 double profiled_origin_pdf(const Curve& curve, double u);
 
@@ -77,15 +76,14 @@ double profiled_origin_pdf(const Curve& curve, double u);
 // so its photons leave with density phi_k(u) |C'(u)| du / integral(phi_k ds), i.e. phi_k per unit
 // arc length: u from phi_k in the curve parameter (BasisSampler), accepted with |C'(u)| over the
 // speed bound of phi_k's support.
-Origin sample_coefficient_origin(const Scene& scene, const Curve& curve, const CurveStorage& storage,
-                                 std::size_t k, std::span<const Vec2> line_tangents,
-                                 OriginDraws& draws);
+Origin sample_coefficient_origin(const Scene& scene, const Curve& curve, const CurveStorage& storage, std::size_t k,
+                                 std::span<const Vec2> line_tangents, OriginDraws& draws);
 // phi_k(u) / integral(phi_k ds) at the curve parameter u.
 double coefficient_origin_pdf(const CurveStorage& storage, std::size_t k, double u);
 
 // A Hermite reconstruction lives in arc length already: s by inversion, no Jacobian.
-Origin sample_hermite_origin(const Scene& scene, const Curve& curve,
-                             const HermiteReconstruction& density, OriginDraws& draws);
+Origin sample_hermite_origin(const Scene& scene, const Curve& curve, const HermiteReconstruction& density,
+                             OriginDraws& draws);
 // The reconstruction's own density at arc length s.
 double hermite_origin_pdf(const HermiteReconstruction& density, double s);
 

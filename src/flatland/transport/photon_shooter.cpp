@@ -31,7 +31,6 @@ inline void prefetch(const void* address) {
 #endif
 }
 
-
 // A round's sources and its photons' quasi-random points.
 //
 // Randomised quasi-Monte Carlo: photon j of the round takes point j of the round's scrambled
@@ -168,7 +167,8 @@ PhotonShooter::PhotonShooter(const Scene& scene, const SolverSettings& settings,
   for (const Curve& curve : scene.curves) segment_choice_.push_back(segment_choice(scene, curve));
   if (settings.ray_width > 0.0) {
     ray_kind_ = settings.ray_mode == RayMode::Band ? RayKind::Band : RayKind::Footprint;
-    if (ray_kind_ == RayKind::Band) profile_quadrature(settings.ray_profile, settings.band_rays, band_offsets_, band_weights_);
+    if (ray_kind_ == RayKind::Band)
+      profile_quadrature(settings.ray_profile, settings.band_rays, band_offsets_, band_weights_);
   }
 }
 
@@ -189,8 +189,7 @@ void PhotonShooter::shoot(const RoundView& round, Rng& rng, std::uint64_t first,
   // footprint or band code at all.
   switch (ray_kind_) {
     case RayKind::Point: return shoot_rays<RayKind::Point>(round, rng, first, count, acc, paths, path_limit);
-    case RayKind::Footprint:
-      return shoot_rays<RayKind::Footprint>(round, rng, first, count, acc, paths, path_limit);
+    case RayKind::Footprint: return shoot_rays<RayKind::Footprint>(round, rng, first, count, acc, paths, path_limit);
     case RayKind::Band: return shoot_rays<RayKind::Band>(round, rng, first, count, acc, paths, path_limit);
   }
 }
@@ -200,8 +199,9 @@ void PhotonShooter::shoot(const RoundView& round, Rng& rng, std::uint64_t first,
 // density is (a coefficient's basis function or the Hermite reconstruction), or uniformly in arc
 // length.
 // Inlined: one call less per photon in the shooting loop.
-[[gnu::always_inline]] inline Origin PhotonShooter::leave(const RoundView& round, std::uint32_t curve_index, std::uint32_t block, std::size_t source,
-                            OriginDraws& draws) const {
+[[gnu::always_inline]] inline Origin PhotonShooter::leave(const RoundView& round, std::uint32_t curve_index,
+                                                          std::uint32_t block, std::size_t source,
+                                                          OriginDraws& draws) const {
   const Curve& curve = scene_->curves[curve_index];
   if (round.emitted_light && !curve.emittance_profile.empty())
     return sample_profiled_origin(*scene_, curve, segment_choice_[curve_index], draws);
@@ -251,12 +251,13 @@ void PhotonShooter::shoot_rays(const RoundView& round, Rng& rng, std::uint64_t f
     if (ahead) prefetch_sources(storage, plan, sources, i, qmc);
     const auto index = static_cast<std::uint32_t>(first + i);  // < kMaxPhotonsPerRound
     // Auto storage: odd-numbered photons deposit into the accumulator's second half.
-    if (halves_) acc.half_offset = (index & 1u) != 0 ? storage.coefficient_count() * static_cast<std::size_t>(storage.channels()) : 0;
+    if (halves_)
+      acc.half_offset =
+          (index & 1u) != 0 ? storage.coefficient_count() * static_cast<std::size_t>(storage.channels()) : 0;
     SobolCursor& net_point = qmc ? points.seek(cursor, cursor_odd, index) : cursor;
     double place = ahead ? places[i] : 0.0;
     const std::size_t source = ahead ? sources[i] : points.choose_source(cursor, cursor_odd, index, place);
-    const std::uint32_t block =
-        by_coefficient ? storage.coefficient_block(source) : static_cast<std::uint32_t>(source);
+    const std::uint32_t block = by_coefficient ? storage.coefficient_block(source) : static_cast<std::uint32_t>(source);
     const std::uint32_t curve_index = block / 2;
     const bool back = (block & 1u) != 0;
     const Curve& curve = scene_->curves[curve_index];
@@ -302,8 +303,8 @@ void PhotonShooter::shoot_band(const RoundView& round, const Origin& leaves, boo
     const bool last = ray_index + 1 == band_offsets_.size();
     std::array<std::int64_t, 3> share{};
     for (std::size_t ch = 0; ch < channels; ++ch) {
-      share[ch] = last ? left[ch]
-                       : static_cast<std::int64_t>(band_weights_[ray_index] * static_cast<double>(units[ch]) + 0.5);
+      share[ch] =
+          last ? left[ch] : static_cast<std::int64_t>(band_weights_[ray_index] * static_cast<double>(units[ch]) + 0.5);
       left[ch] -= share[ch];
     }
     // Strictly inside the segment: from the very end point (a corner of a room) a sub-ray could
@@ -356,7 +357,8 @@ void PhotonShooter::walk_on(const RoundView& round, Rng& rng, SceneHit hit, Ray 
     const Side side = side_hit(hit, ray, tangent);
     const std::uint32_t curve = segment_info_[hit.segment].curve;
     const std::uint32_t block = curve * 2 + static_cast<std::uint32_t>(side);
-    if (storage.block_offset(block) == SceneStorage::kNoBlock || storage.block_black(block)) {  // absorbed (receive booked it)
+    if (storage.block_offset(block) == SceneStorage::kNoBlock ||
+        storage.block_black(block)) {  // absorbed (receive booked it)
       if (last != nullptr) last->absorbed = true;
       return;
     }
@@ -386,8 +388,8 @@ void PhotonShooter::walk_on(const RoundView& round, Rng& rng, SceneHit hit, Ray 
     // A diffuse bounce from the side that was hit, starting on the curve itself.
     const SceneSegment& segment = scene_->segments[hit.segment];
     const Cubic& shape = segment.geometry.shape;
-    const Vec2 point = segment.geometry.kind == SegmentKind::Line ? lerp(shape.p[0], shape.p[3], hit.t)
-                                                                  : evaluate(shape, hit.t);
+    const Vec2 point =
+        segment.geometry.kind == SegmentKind::Line ? lerp(shape.p[0], shape.p[3], hit.t) : evaluate(shape, hit.t);
     const Vec2 front = perp(normalized(tangent));
     const Vec2 normal = side == Side::Front ? front : -front;
     ray = Ray{point, square_to_diffuse(rng.uniform(), normal)};
@@ -403,8 +405,7 @@ void PhotonShooter::walk_on(const RoundView& round, Rng& rng, SceneHit hit, Ray 
       path->source_side = side;
       path->source_segment = origin.segment;
       path->source_t = origin.t;
-      for (std::size_t ch = 0; ch < channels; ++ch)
-        path->power[ch] = static_cast<double>(units[ch]) / plan.scale;
+      for (std::size_t ch = 0; ch < channels; ++ch) path->power[ch] = static_cast<double>(units[ch]) / plan.scale;
       path->bounce = bounce;
     }
     last = path;
@@ -449,8 +450,7 @@ void PhotonShooter::receive(const RoundView& round, const SceneHit& hit, const R
     const double cos_incidence = std::fabs(cross(hit_tangent, ray.direction)) / length(hit_tangent);
     footprint.clear();
     footprint_weights(*scene_, scene_->curves[info.curve], storage.finest(info.curve).basis, u,
-                      footprint_half_length(ray_width_, cos_incidence),
-                      ray_profile_, footprint, walls_[info.curve],
+                      footprint_half_length(ray_width_, cos_incidence), ray_profile_, footprint, walls_[info.curve],
                       footprint_tables_.empty() ? nullptr : &footprint_tables_[info.curve]);
     std::size_t largest = 0;
     for (std::size_t i = 1; i < footprint.size(); ++i)

@@ -18,8 +18,8 @@
 #include "flatland/geometry/accelerator.hpp"
 #include "flatland/scene/scene.hpp"
 #include "flatland/storage/hermite.hpp"
-#include "flatland/transport/origins.hpp"
 #include "flatland/transport/footprint.hpp"
+#include "flatland/transport/origins.hpp"
 #include "flatland/transport/sampling.hpp"
 #include "flatland/transport/scene_storage.hpp"
 #include "flatland/transport/settings.hpp"
@@ -29,16 +29,16 @@ namespace flatland {
 // One photon's flight, kept for inspection (the viewer draws these; tests check the samplers).
 struct PhotonPath {
   Vec2 origin;
-  Vec2 end;          // the hit point, or origin + direction for a photon that escaped
+  Vec2 end;  // the hit point, or origin + direction for a photon that escaped
   bool escaped = false;
   std::uint32_t source_curve = 0;
   Side source_side = Side::Front;
   std::uint32_t source_segment = 0;  // index into Scene::segments
   double source_t = 0.0;
-  std::uint32_t hit_curve = 0;       // meaningless when escaped
+  std::uint32_t hit_curve = 0;  // meaningless when escaped
   Side hit_side = Side::Front;
-  double hit_s = 0.0;                // arc length along the hit curve from its start
-  Spectrum power{};                  // power carried (channels as in the scene)
+  double hit_s = 0.0;  // arc length along the hit curve from its start
+  Spectrum power{};    // power carried (channels as in the scene)
   // Times the light carried has been reflected before this flight: shooting's round number, or
   // the hop's number in its walk (0: straight from an emitter). A walk's hops are consecutive
   // paths, its first with bounce 0.
@@ -153,7 +153,7 @@ class PhotonShooter {
   const Scene* scene_ = nullptr;
   std::uint64_t seed_ = 1;
   bool sobol_ = true;
-  bool halves_ = false;  // automatic storage: odd-numbered photons deposit into the second half
+  bool halves_ = false;          // automatic storage: odd-numbered photons deposit into the second half
   bool by_coefficient_ = false;  // reconstructed origins on a B-spline basis
   bool by_hermite_ = false;      // reconstructed origins on the Hermite reconstruction
   double ray_width_ = 0.0;

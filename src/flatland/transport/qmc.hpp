@@ -68,12 +68,9 @@ class ScrambledSobol {
 
   // Coordinate `dimension` of point `index`, in (0, 1): the 32 scrambled digits and half a unit
   // of the last (so never exactly 0 or 1, and the average over a net is exactly 1/2).
-  double sample(std::uint32_t index, int dimension) const {
-    return fraction_to_unit(scrambled_bits(index, dimension));
-  }
+  double sample(std::uint32_t index, int dimension) const { return fraction_to_unit(scrambled_bits(index, dimension)); }
   std::uint32_t scrambled_bits(std::uint32_t index, int dimension) const {
-    return nested_uniform_scramble(sobol_bits(index, dimension),
-                                   seeds_[static_cast<std::size_t>(dimension)]);
+    return nested_uniform_scramble(sobol_bits(index, dimension), seeds_[static_cast<std::size_t>(dimension)]);
   }
   std::uint32_t seed(int dimension) const { return seeds_[static_cast<std::size_t>(dimension)]; }
 
@@ -87,8 +84,7 @@ class ScrambledSobol {
 // a few operations per coordinate instead of a loop over the index's bits.
 class SobolCursor {
  public:
-  explicit SobolCursor(const ScrambledSobol& sobol)
-      : sobol_(&sobol), steps_(&sobol_mirrored_steps()) {}
+  explicit SobolCursor(const ScrambledSobol& sobol) : sobol_(&sobol), steps_(&sobol_mirrored_steps()) {}
   SobolCursor(const ScrambledSobol&&) = delete;  // it keeps a pointer: no temporaries
 
   void seek(std::uint32_t index) {
@@ -104,8 +100,8 @@ class SobolCursor {
   }
   // Coordinate `dimension` of the current point, as ScrambledSobol::sample.
   double sample(int dimension) const {
-    return fraction_to_unit(nested_uniform_scramble_mirrored(
-        mirrored_[static_cast<std::size_t>(dimension)], sobol_->seed(dimension)));
+    return fraction_to_unit(
+        nested_uniform_scramble_mirrored(mirrored_[static_cast<std::size_t>(dimension)], sobol_->seed(dimension)));
   }
 
  private:

@@ -17,8 +17,7 @@ using profile_detail::kGaussNorm;
 using profile_detail::kGaussScale;
 using profile_detail::kGaussTail;
 
-constexpr std::array<const char*, 5> kProfileNames = {"box", "tent", "epanechnikov", "cosine",
-                                                      "gauss"};
+constexpr std::array<const char*, 5> kProfileNames = {"box", "tent", "epanechnikov", "cosine", "gauss"};
 
 // An antiderivative of x k(x) on [-1, 1], for the centroids of the quadrature's strata:
 //   box x^2/4; tent x^2/2 - |x|^3/3; Epanechnikov 3/4 (x^2/2 - x^4/4);
@@ -43,7 +42,6 @@ const char* to_string(RayProfile profile) {
   const auto index = static_cast<std::size_t>(profile);
   return index < kProfileNames.size() ? kProfileNames[index] : "?";
 }
-
 
 double profile_density(RayProfile profile, double x) {
   if (!(std::fabs(x) <= 1.0)) return 0.0;
@@ -80,8 +78,7 @@ double profile_sample(RayProfile profile, double u) {
   if (u >= 1.0) return 1.0;
   switch (profile) {
     case RayProfile::Box: return 2.0 * u - 1.0;
-    case RayProfile::Tent:
-      return u < 0.5 ? std::sqrt(2.0 * u) - 1.0 : 1.0 - std::sqrt(2.0 * (1.0 - u));
+    case RayProfile::Tent: return u < 0.5 ? std::sqrt(2.0 * u) - 1.0 : 1.0 - std::sqrt(2.0 * (1.0 - u));
     case RayProfile::Epanechnikov: {
       // Solve (2 + 3x - x^3)/4 = u, i.e. x^3 - 3x + (4u - 2) = 0. With x = 2 sin(theta) the
       // identity sin(3 theta) = 3 sin(theta) - 4 sin^3(theta) turns it into sin(3 theta) = 2u - 1;
@@ -96,20 +93,21 @@ double profile_sample(RayProfile profile, double u) {
       // above; the bracket [lo, hi] and bisection guard against rounding all the same.
       const double v = std::min(u, 1.0 - u);
       if (v <= 0.0) return u < 0.5 ? -1.0 : 1.0;
-      const double x = newton_bisection(
-          [&](double t) { return profile_cdf(profile, t) - v; }, [&](double t) { return profile_density_inside(profile, t); },
-          0.0, -1.0, 0.0, 100, 0.0, [](double at, double next, double low, double high) -> std::optional<double> {
-            if (std::fabs(next - at) <= 1e-16 * (1.0 + std::fabs(at)) || high - low <= 1e-16) return next;
-            return std::nullopt;
-          });
+      const double x =
+          newton_bisection([&](double t) { return profile_cdf(profile, t) - v; },
+                           [&](double t) { return profile_density_inside(profile, t); }, 0.0, -1.0, 0.0, 100, 0.0,
+                           [](double at, double next, double low, double high) -> std::optional<double> {
+                             if (std::fabs(next - at) <= 1e-16 * (1.0 + std::fabs(at)) || high - low <= 1e-16)
+                               return next;
+                             return std::nullopt;
+                           });
       return u < 0.5 ? x : -x;
     }
   }
   return 0.0;
 }
 
-void profile_quadrature(RayProfile profile, int count, std::vector<double>& offsets,
-                        std::vector<double>& weights) {
+void profile_quadrature(RayProfile profile, int count, std::vector<double>& offsets, std::vector<double>& weights) {
   assert(count >= 1);
   const auto n = static_cast<std::size_t>(std::max(count, 1));
   offsets.resize(n);

@@ -26,20 +26,19 @@ inline constexpr double kGaussTail = 0.0026997960632601913;
 inline constexpr double kGaussKept = 1.0 - kGaussTail;
 inline constexpr double kSqrt2Pi = std::numbers::sqrt2 / std::numbers::inv_sqrtpi;
 inline constexpr double kGaussNorm = 1.0 / ((1.0 / 3.0) * kSqrt2Pi * kGaussKept);  // 1/Z
-inline constexpr double kGaussScale = 3.0 / std::numbers::sqrt2;  // x / (sigma sqrt 2)
+inline constexpr double kGaussScale = 3.0 / std::numbers::sqrt2;                   // x / (sigma sqrt 2)
 }  // namespace profile_detail
 
 enum class RayProfile { Box, Tent, Epanechnikov, Cosine, Gauss };
-inline constexpr std::array<RayProfile, 5> kRayProfiles = {
-    RayProfile::Box, RayProfile::Tent, RayProfile::Epanechnikov, RayProfile::Cosine, RayProfile::Gauss};
+inline constexpr std::array<RayProfile, 5> kRayProfiles = {RayProfile::Box, RayProfile::Tent, RayProfile::Epanechnikov,
+                                                           RayProfile::Cosine, RayProfile::Gauss};
 
 // "box", "tent", "epanechnikov", "cosine", "gauss" (options.hpp reads them).
 const char* to_string(RayProfile profile);
 
 // Box, tent and Epanechnikov: polynomial on each side of the centre (FootprintTable serves them).
 inline bool is_polynomial(RayProfile profile) {
-  return profile == RayProfile::Box || profile == RayProfile::Tent ||
-         profile == RayProfile::Epanechnikov;
+  return profile == RayProfile::Box || profile == RayProfile::Tent || profile == RayProfile::Epanechnikov;
 }
 
 // Sample / Pdf / Invert set of a profile. The density is 0 outside [-1, 1]; the CDF is a closed
@@ -61,8 +60,7 @@ double profile_sample(RayProfile profile, double u);
 // (the wide tail strata of the tent and the Gaussian add a slowly growing factor). A Gauss rule
 // for the weight k would integrate x^2 exactly from K = 2 but with unequal weights, and no better
 // than equal strata for the steps that matter. `count` >= 1.
-void profile_quadrature(RayProfile profile, int count, std::vector<double>& offsets,
-                        std::vector<double>& weights);
+void profile_quadrature(RayProfile profile, int count, std::vector<double>& offsets, std::vector<double>& weights);
 
 // k(x) for x already in [-1, 1] (profile_density without the range check), inline for the
 // footprint's inner loops.

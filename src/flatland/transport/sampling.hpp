@@ -99,8 +99,8 @@ inline Vec2 sample_lobe(Rng& rng, double exponent, Vec2 normal) {
 inline double sample_lobe_pdf(double exponent, Vec2 normal, Vec2 direction) {
   const double c = dot(normal, direction);
   if (!(c > 0.0)) return 0.0;
-  const double norm = std::sqrt(std::numbers::pi) * std::exp(std::lgamma(0.5 * (exponent + 1.0)) -
-                                                                   std::lgamma(0.5 * exponent + 1.0));
+  const double norm =
+      std::sqrt(std::numbers::pi) * std::exp(std::lgamma(0.5 * (exponent + 1.0)) - std::lgamma(0.5 * exponent + 1.0));
   return std::pow(c, exponent) / norm;
 }
 

@@ -9,7 +9,9 @@ namespace flatland {
 
 namespace {
 
-bool is_cancelled(const std::atomic<bool>* cancel) { return cancel != nullptr && cancel->load(std::memory_order_relaxed); }
+bool is_cancelled(const std::atomic<bool>* cancel) {
+  return cancel != nullptr && cancel->load(std::memory_order_relaxed);
+}
 
 // The finest level of one curve under `plan`: footprints spread every deposit over the ray's
 // width, so the deposited density is smooth on that scale; elements shorter than
@@ -128,7 +130,7 @@ double SceneStorage::arc_length_at(std::uint32_t curve, double u) const {
 }
 
 void SceneStorage::estimate_on(const CurveStorage& storage, const double* power, double* coefficients,
-                         std::size_t stride) const {
+                               std::size_t stride) const {
   if (estimator_ == Estimator::Galerkin) {
     galerkin_estimate(storage, power, coefficients, stride);
   } else if (estimator_ == Estimator::Local) {
@@ -140,7 +142,7 @@ void SceneStorage::estimate_on(const CurveStorage& storage, const double* power,
 }
 
 std::vector<double> SceneStorage::estimate_in_level(std::uint32_t curve, int level, const double* power,
-                                              std::size_t stride) const {
+                                                    std::size_t stride) const {
   const std::vector<Level>& levels = levels_[curve];
   const std::size_t n = at_level(curve, level).basis.size();
   std::vector<double> deposits(n);
@@ -157,8 +159,8 @@ std::vector<double> SceneStorage::estimate_in_level(std::uint32_t curve, int lev
   return estimate;
 }
 
-void SceneStorage::estimate_at_level(std::uint32_t curve, int level, const double* power,
-                               double* coefficients, std::size_t stride) const {
+void SceneStorage::estimate_at_level(std::uint32_t curve, int level, const double* power, double* coefficients,
+                                     std::size_t stride) const {
   if (level >= static_cast<int>(levels_[curve].size())) {
     estimate_on(storage_[curve], power, coefficients, stride);
     return;
@@ -180,7 +182,8 @@ void SceneStorage::estimate(const std::vector<double>& power, std::vector<double
   for (std::uint32_t c = 0; c < scene_->curves.size(); ++c) estimate_curve(c, power, coefficients);
 }
 
-void SceneStorage::estimate_curve(std::uint32_t c, const std::vector<double>& power, std::vector<double>& coefficients) const {
+void SceneStorage::estimate_curve(std::uint32_t c, const std::vector<double>& power,
+                                  std::vector<double>& coefficients) const {
   const auto channels = static_cast<std::size_t>(channels_);
   for (Side side : {Side::Front, Side::Back}) {
     const std::uint32_t offset = block_offset(c, side);
@@ -282,7 +285,7 @@ struct SceneStorage::ReflectedPower {
 };
 
 SceneStorage::ReflectedPower SceneStorage::reflected_power(std::uint32_t c, const std::vector<double>& received,
-                                             const std::vector<double>& half) const {
+                                                           const std::vector<double>& half) const {
   const auto channels = static_cast<std::size_t>(channels_);
   const std::size_t n = storage_[c].basis.size();
   ReflectedPower reflected;
@@ -347,9 +350,8 @@ int SceneStorage::best_level(std::uint32_t c, const ReflectedPower& reflected) c
   for (std::size_t l = 0; l < count; ++l) {
     if (l < last) {
       const double difference = norm2([&](std::size_t i) { return full[l][i] - full[l + 1][i]; });
-      const double noise = norm2([&](std::size_t i) {
-        return (part_a[l][i] - part_a[l + 1][i]) - (part_b[l][i] - part_b[l + 1][i]);
-      });
+      const double noise =
+          norm2([&](std::size_t i) { return (part_a[l][i] - part_a[l + 1][i]) - (part_b[l][i] - part_b[l + 1][i]); });
       bias2 = std::max(difference - noise, 0.0) * richardson * richardson;
     } else {
       bias2 /= std::pow(2.0, 2.0 * order);  // the finest: the last step's bias, one level on
@@ -394,10 +396,9 @@ HermiteReconstruction SceneStorage::hermite_of(std::uint32_t curve, int level, c
       continue;
     }
     while (next_node < storage.nodes.size() && storage.nodes[next_node].u < u) ++next_node;
-    const Continuity continuity =
-        next_node < storage.nodes.size() && storage.nodes[next_node].u == u
-            ? storage.nodes[next_node].continuity
-            : Continuity::C1;
+    const Continuity continuity = next_node < storage.nodes.size() && storage.nodes[next_node].u == u
+                                      ? storage.nodes[next_node].continuity
+                                      : Continuity::C1;
     input.u.push_back(arc_length_at(curve, u));
     input.left.push_back(value);
     input.right.push_back(value);

@@ -127,7 +127,7 @@ class SceneStorage {
   BasisKind basis_ = BasisKind::Cubic;
   Estimator estimator_ = Estimator::Galerkin;
   int channels_ = 1;
-  std::vector<CurveStorage> storage_;      // the finest level of each curve
+  std::vector<CurveStorage> storage_;       // the finest level of each curve
   std::vector<std::vector<Level>> levels_;  // each curve's coarser levels, coarse to fine
   std::vector<int> chosen_level_;           // levels_[c].size() for the finest
   std::vector<std::uint32_t> block_offset_;

@@ -8,13 +8,7 @@ namespace flatland {
 
 const char* to_string(RayMode mode) { return mode == RayMode::Footprint ? "footprint" : "band"; }
 
-const char* to_string(SamplerKind sampler) {
-  return sampler == SamplerKind::Random ? "random" : "sobol";
-}
-
-
-
-
+const char* to_string(SamplerKind sampler) { return sampler == SamplerKind::Random ? "random" : "sobol"; }
 
 const char* to_string(Estimator estimator) {
   switch (estimator) {
@@ -26,17 +20,12 @@ const char* to_string(Estimator estimator) {
   return "?";
 }
 
-
 Estimator resolve_estimator(Estimator estimator, BasisKind basis) {
   if (estimator != Estimator::Auto) return estimator;
   return basis == BasisKind::Hermite ? Estimator::Local : Estimator::Galerkin;
 }
 
-const char* to_string(Transport transport) {
-  return transport == Transport::Shooting ? "shooting" : "walk";
-}
-
-
+const char* to_string(Transport transport) { return transport == Transport::Shooting ? "shooting" : "walk"; }
 
 const char* to_string(PositionSampling sampling) {
   return sampling == PositionSampling::Uniform ? "uniform" : "reconstructed";
@@ -55,8 +44,9 @@ Status validate(const SolverSettings& settings) {
     return Error{"ray width: must be a finite width >= 0 in scene units (0: point rays)"};
   if (settings.band_rays < 1 || settings.band_rays > 256) return Error{"band rays: must be between 1 and 256"};
   if (settings.transport == Transport::Walk && settings.ray_width > 0.0 && settings.ray_mode == RayMode::Band)
-    return Error{"transport: a walk goes on from where its photon lands, and a band's sub-rays land in many "
-                 "places; use ray mode footprint with walks (or transport shooting with bands)"};
+    return Error{
+        "transport: a walk goes on from where its photon lands, and a band's sub-rays land in many "
+        "places; use ray mode footprint with walks (or transport shooting with bands)"};
   return ok_status();
 }
 

@@ -22,13 +22,12 @@ enum class PositionSampling { Uniform, Reconstructed };
 const char* to_string(PositionSampling sampling);
 
 // How coefficients are estimated from deposits (storage/estimators.hpp): lumped
-// (b_k = p_k / integral(phi_k ds), the paper's distance-weighted deposit: positive, but it puts each coefficient at its function's
-// centroid, a bias of O(h^2) inside and O(h) at ends and discontinuity nodes), Galerkin (the L2
-// projection M b = p) or local (a least-variance local quasi-interpolant; Hermite: nodal values).
-// Galerkin and local have bias O(h^(p+1)) up to ends and nodes and may dip below zero; the density
-// that photon origins are drawn from is clamped at zero with its power kept. Auto (the default)
-// is local for Hermite storage, whose interpolation wants nodal values (1.4-2x less error than
-// Galerkin's hat projections on the five time-to-accuracy scenes, docs/method.md), and Galerkin
+// (b_k = p_k / integral(phi_k ds), the paper's distance-weighted deposit: positive, but it puts each coefficient at its
+// function's centroid, a bias of O(h^2) inside and O(h) at ends and discontinuity nodes), Galerkin (the L2 projection M
+// b = p) or local (a least-variance local quasi-interpolant; Hermite: nodal values). Galerkin and local have bias
+// O(h^(p+1)) up to ends and nodes and may dip below zero; the density that photon origins are drawn from is clamped at
+// zero with its power kept. Auto (the default) is local for Hermite storage, whose interpolation wants nodal values
+// (1.4-2x less error than Galerkin's hat projections on the five time-to-accuracy scenes, docs/method.md), and Galerkin
 // for the B-splines (better than local on four of those five).
 enum class Estimator { Lumped, Galerkin, Local, Auto };
 const char* to_string(Estimator estimator);

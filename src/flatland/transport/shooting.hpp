@@ -36,7 +36,8 @@ class ProgressiveShooting final : public LightTransport {
   const std::vector<double>& pool() const override { return unshot_; }
   const std::vector<double>& unshot() const override { return unshot_; }
   bool converged(double pool_power) const override { return !(pool_power > tolerance_ * emitted_); }
-  std::uint64_t round_photons(double pool_power, std::uint64_t shot, std::uint64_t budget, std::uint32_t rounds) const override;
+  std::uint64_t round_photons(double pool_power, std::uint64_t shot, std::uint64_t budget,
+                              std::uint32_t rounds) const override;
   int headroom_bits(std::uint64_t) override { return 0; }
   int most_headroom_bits() const override { return 0; }
   void end_round(const SceneStorage& storage, const RoundTotals& round, std::vector<double>& received,
@@ -47,7 +48,7 @@ class ProgressiveShooting final : public LightTransport {
   void add_books(EnergyBooks& books, int channels, std::uint32_t rounds) const override;
 
  private:
-  std::vector<double> unshot_;  // the pool, per coefficient and channel
+  std::vector<double> unshot_;                // the pool, per coefficient and channel
   std::array<CompensatedSum, 3> absorbed_{};  // over all rounds
   std::array<CompensatedSum, 3> escaped_{};
   double emitted_ = 0.0;

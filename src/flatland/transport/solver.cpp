@@ -17,9 +17,7 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-double seconds_since(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
+double seconds_since(Clock::time_point start) { return std::chrono::duration<double>(Clock::now() - start).count(); }
 
 // The storage's memory, estimated from above before anything is allocated. Per coefficient and
 // channel: the received, unshot and reflected totals (doubles), one fixed-point deposit per worker
@@ -90,7 +88,8 @@ StoragePlan Solver::plan_storage(const Scene& scene, const SolverSettings& setti
     const Spectrum& rho = scene.material_of(curve).reflectivity;
     reflecting += rho[0] + rho[1] + rho[2] > 0.0;
   }
-  const double share = static_cast<double>(settings.photons) / static_cast<double>(std::max<std::size_t>(reflecting, 1));
+  const double share =
+      static_cast<double>(settings.photons) / static_cast<double>(std::max<std::size_t>(reflecting, 1));
   plan.room = std::max(share / kAutoPhotonsPerElement,
                        std::min(share / kAutoSmallBudgetPhotonsPerElement, kAutoSmallBudgetElements));
   while (plan.finest_level + 1 < kAutoMaxLevels && (kAutoBaseElements << (plan.finest_level + 1)) <= plan.room)
@@ -113,7 +112,8 @@ std::vector<std::vector<MeshNode>> Solver::find_events(const SegmentAccelerator&
     }
     for (std::vector<double>& curve_walls : walls) std::sort(curve_walls.begin(), curve_walls.end());
   }
-  if (settings_.discontinuities == DiscontinuityMode::Auto || settings_.discontinuities == DiscontinuityMode::Secondary) {
+  if (settings_.discontinuities == DiscontinuityMode::Auto ||
+      settings_.discontinuities == DiscontinuityMode::Secondary) {
     EventOptions options;
     options.elements = plan.elements << plan.finest_level;
     options.secondary = settings_.discontinuities == DiscontinuityMode::Secondary;
@@ -141,8 +141,10 @@ Status Solver::start_transport() {
       const std::uint32_t offset = storage_.block_offset(c, side);
       if (offset == SceneStorage::kNoBlock) continue;
       for (std::size_t k = 0; k < storage.basis.size(); ++k)
-        for (std::size_t ch = 0; ch < channels; ++ch) emission[(offset + k) * channels + ch] = curve.emittance[ch] * emitted[k];
-      for (std::size_t ch = 0; ch < channels; ++ch) emitted_[ch] += curve.emittance[ch] * curve.length * curve.profile_mean;
+        for (std::size_t ch = 0; ch < channels; ++ch)
+          emission[(offset + k) * channels + ch] = curve.emittance[ch] * emitted[k];
+      for (std::size_t ch = 0; ch < channels; ++ch)
+        emitted_[ch] += curve.emittance[ch] * curve.length * curve.profile_mean;
     }
   }
   for (std::size_t ch = 0; ch < channels; ++ch) emitted_total_ += emitted_[ch];
@@ -211,7 +213,8 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
   const std::vector<std::vector<MeshNode>> events = solver.find_events(accelerator, plan, walls);
   solver.shooter_ = PhotonShooter(scene, solver.settings_, std::move(accelerator), std::move(walls));
   // 3. Every curve's storage, its levels and the coefficients' layout.
-  Result<SceneStorage> storage = SceneStorage::build(scene, solver.settings_, plan, events, solver.worker_pool(), cancel);
+  Result<SceneStorage> storage =
+      SceneStorage::build(scene, solver.settings_, plan, events, solver.worker_pool(), cancel);
   if (!storage || cancelled()) return Error{kSolverCancelled};
   solver.storage_ = std::move(*storage);
   // 4. The transport, starting from the emitted power, and the footprints' tables.
@@ -317,7 +320,8 @@ void Solver::plan_sources(const std::vector<double>& pool, const std::vector<Spe
           for (std::size_t k = 0; k < storage.basis.size(); ++k) power += pool[(offset + k) * channels + ch];
           if (!clamp_keeping_power(storage, &density_power[offset * channels + ch], channels, power))
             for (std::size_t k = 0; k < storage.basis.size(); ++k)
-              density_power[(offset + k) * channels + ch] = pool[(offset + k) * channels + ch] / storage.basis_length[k];
+              density_power[(offset + k) * channels + ch] =
+                  pool[(offset + k) * channels + ch] / storage.basis_length[k];
         }
         for (std::size_t k = 0; k < storage.basis.size(); ++k)
           for (std::size_t ch = 0; ch < channels; ++ch)
@@ -362,8 +366,8 @@ void Solver::check_books() {
   // and channel, 2^-61 of the round's power each (walks: 2^(H-61), H the headroom given up);
   // allow that plus double round-off.
   const EnergyBooks totals = books();
-  const double allowed =
-      emitted_total_ * (1e-12 + static_cast<double>(photons_shot_) * 3.0 * std::ldexp(1.0, transport().most_headroom_bits() - 60));
+  const double allowed = emitted_total_ * (1e-12 + static_cast<double>(photons_shot_) * 3.0 *
+                                                       std::ldexp(1.0, transport().most_headroom_bits() - 60));
   if (!(std::fabs(totals.imbalance()) <= allowed)) {
     char message[256];
     std::snprintf(message, sizeof message,
@@ -380,8 +384,8 @@ void Solver::choose_final_levels() {
     update_reflected(received_, received_half_, LevelChoice::Final);
 }
 
-void Solver::update_reflected(const std::vector<double>& received,
-                              const std::vector<double>& received_half, LevelChoice choice) {
+void Solver::update_reflected(const std::vector<double>& received, const std::vector<double>& received_half,
+                              LevelChoice choice) {
   if (auto_storage_) {
     const bool due = scheduled_level_.empty() ||
                      static_cast<double>(photons_shot_) >= kLevelChoiceGrowth * static_cast<double>(photons_at_choice_);
@@ -435,7 +439,8 @@ void Solver::update_hermite(const std::vector<double>& power, bool reflected) {
       // Each channel's estimate at the chosen level, in that level's hats.
       std::vector<std::vector<double>> values;
       for (std::size_t ch = 0; ch < channels; ++ch)
-        values.push_back(storage_.estimate_in_level(c, storage_.chosen_level(c), &power[offset * channels + ch], channels));
+        values.push_back(
+            storage_.estimate_in_level(c, storage_.chosen_level(c), &power[offset * channels + ch], channels));
       if (reflected) {
         const Spectrum& rho = storage_.block_reflectivity(block);
         hermite_reflected_[block].clear();
@@ -510,8 +515,7 @@ std::uint64_t Solver::step_photons(std::uint64_t max_photons, const std::atomic<
         all_batches > share_rank ? (all_batches - share_rank + share_size - 1) / share_size : 0;
     const unsigned workers = static_cast<unsigned>(std::min<std::uint64_t>(threads_, batches));
     const std::size_t path_room = room();
-    const std::uint64_t path_batches =
-        std::min<std::uint64_t>(batches, (path_room + kBatchSize - 1) / kBatchSize);
+    const std::uint64_t path_batches = std::min<std::uint64_t>(batches, (path_room + kBatchSize - 1) / kBatchSize);
     std::vector<std::vector<PhotonPath>> batch_paths(path_batches);
     std::atomic<std::uint64_t> next_batch{0};
     std::atomic<std::uint64_t> photons_done{0};
@@ -635,20 +639,18 @@ void Solver::include_open_round() {
   update_reflected(received, received_half, LevelChoice::View);
 }
 
-bool Solver::step_round(const std::atomic<bool>* cancel, const ProgressCallback& progress,
-                        double progress_interval) {
+bool Solver::step_round(const std::atomic<bool>* cancel, const ProgressCallback& progress, double progress_interval) {
   if (stopped()) return false;
   std::vector<PhotonPath> paths;
-  const std::uint64_t shot = step_photons(std::numeric_limits<std::uint64_t>::max(), cancel, &paths,
-                                          path_limit_, progress, progress_interval);
+  const std::uint64_t shot =
+      step_photons(std::numeric_limits<std::uint64_t>::max(), cancel, &paths, path_limit_, progress, progress_interval);
   if (shot == 0) return false;
   paths_ = std::move(paths);
   if (progress) progress(this->progress());
   return true;
 }
 
-void Solver::run(const std::atomic<bool>* cancel, const ProgressCallback& progress,
-                 double progress_interval) {
+void Solver::run(const std::atomic<bool>* cancel, const ProgressCallback& progress, double progress_interval) {
   // Nobody reads the radiosity between run's rounds (its progress reports carry counts only), so
   // the reflected estimate, a solve per curve side and channel, is made once at the end instead
   // of after every round: from the same received power, so with the same result.
@@ -715,8 +717,7 @@ Spectrum Solver::radiosity(std::uint32_t curve, Side side, double u) const {
     for (int j = 0; j <= storage.basis.degree(); ++j)
       reflected += phi[static_cast<std::size_t>(j)] *
                    reflected_[(offset + storage.basis.index(first + static_cast<std::size_t>(j))) * channels + ch];
-    result[ch] =
-        scene_->curves[curve].emittance[ch] * emittance_factor(scene_->curves[curve], u) + reflected;
+    result[ch] = scene_->curves[curve].emittance[ch] * emittance_factor(scene_->curves[curve], u) + reflected;
   }
   return result;
 }

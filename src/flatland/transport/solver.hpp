@@ -10,9 +10,9 @@
 //
 // Determinism: photon i of a round belongs to batch i / kBatchSize, whose random stream is named
 // by (seed, round, batch); with the Sobol' sampler its uniforms come first from point i of the
-// round's scrambled sequence, named by (seed, round). Deposits are accumulated in 64-bit fixed point (units of 2^-k of the
-// round's power, k chosen so the round cannot overflow), and integer addition does not depend on
-// order, so any number of threads gives bit-identical results.
+// round's scrambled sequence, named by (seed, round). Deposits are accumulated in 64-bit fixed point (units of 2^-k of
+// the round's power, k chosen so the round cannot overflow), and integer addition does not depend on order, so any
+// number of threads gives bit-identical results.
 #pragma once
 
 #include <atomic>
@@ -39,14 +39,13 @@
 
 namespace flatland {
 
-
 enum class StopReason { Running, Converged, BudgetSpent, Cancelled, BooksUnbalanced };
 const char* to_string(StopReason reason);
 
 struct SolverProgress {
   std::uint64_t photons = 0;  // shot so far
   std::uint64_t budget = 0;
-  std::uint32_t rounds = 0;   // completed
+  std::uint32_t rounds = 0;      // completed
   double unshot_fraction = 1.0;  // unshot / emitted at the start of the current round
   double seconds = 0.0;          // wall time spent shooting
 };
@@ -103,7 +102,9 @@ class Solver {
   // The worker threads that run: those asked for, or fewer once the system refused to start some
   // (results are the same bits on any count); thread_shortfall() then says so, else it is empty.
   unsigned thread_count() const { return pool_.started() != nullptr ? pool_.started()->threads() : threads_; }
-  std::string thread_shortfall() const { return pool_.started() != nullptr ? pool_.started()->shortfall() : std::string(); }
+  std::string thread_shortfall() const {
+    return pool_.started() != nullptr ? pool_.started()->shortfall() : std::string();
+  }
   std::uint64_t photons_shot() const { return photons_shot_; }
   // Rays cast in finished rounds: one per photon when shooting point rays or footprints, a band's
   // sub-rays each, and every hop of a walk.
@@ -173,7 +174,9 @@ class Solver {
   // books, and the transport that starts from it.
   Status start_transport();
 
-  LightTransport& transport() { return std::visit([](auto& t) -> LightTransport& { return t; }, transport_); }
+  LightTransport& transport() {
+    return std::visit([](auto& t) -> LightTransport& { return t; }, transport_);
+  }
   const LightTransport& transport() const {
     return std::visit([](const auto& t) -> const LightTransport& { return t; }, transport_);
   }

@@ -32,7 +32,8 @@ class RandomWalks final : public LightTransport {
   const std::vector<double>& pool() const override { return emission_; }
   const std::vector<double>& unshot() const override { return nothing_; }
   bool converged(double) const override { return false; }
-  std::uint64_t round_photons(double pool_power, std::uint64_t shot, std::uint64_t budget, std::uint32_t rounds) const override;
+  std::uint64_t round_photons(double pool_power, std::uint64_t shot, std::uint64_t budget,
+                              std::uint32_t rounds) const override;
   int headroom_bits(std::uint64_t photons) override;
   int most_headroom_bits() const override { return most_headroom_bits_; }
   void end_round(const SceneStorage& storage, const RoundTotals& round, std::vector<double>& received,
