@@ -454,20 +454,11 @@ py::dict compare(const py::object& result, const py::object& reference, const st
   return d;
 }
 
-// flatland.converge: every method at every budget and seed against one reference, as `flatland
-// converge` runs them; one dict per run with the keys of its CSV's columns.
-py::list converge(const PyScene& scene, const std::vector<std::string>& methods, const std::vector<double>& budgets,
-                  int seeds, const py::object& reference, const std::string& measure, const py::object& curve,
-                  int samples, unsigned threads, const py::object& elements, double tolerance,
-                  const py::object& progress) {
-  if (measure != "reflected" && measure != "total") fail("measure: expected reflected or total, got '" + measure + "'");
-  if (samples < 1 || samples > 1'000'000) fail("samples: must be between 1 and 1000000");
-  if (seeds < 1 || seeds > kMaxSeeds) fail("seeds: must be between 1 and " + std::to_string(kMaxSeeds));
+// converge's methods, checked and parsed as `flatland converge --methods` parses them, with the
+// study's elements, tolerance and threads as their defaults.
+std::vector<ConvergeMethod> converge_methods(const std::vector<std::string>& methods, unsigned threads,
+                                             const py::object& elements, double tolerance) {
   if (methods.empty()) fail("methods: give at least one method");
-  if (budgets.empty()) fail("budgets: give at least one budget");
-  for (const double budget : budgets)
-    if (!(budget >= 1.0 && budget <= static_cast<double>(kMaxPhotons)) || budget != std::floor(budget))
-      fail("budgets: each must be a whole photon count from 1 to 2^50 (about 1.1e15), got " + std::to_string(budget));
   SolverSettings defaults;
   defaults.threads = threads;
   defaults.tolerance = tolerance;
@@ -475,8 +466,6 @@ py::list converge(const PyScene& scene, const std::vector<std::string>& methods,
           set_solve_option(defaults, SolveOption::Elements, option_text(elements, spec_of(SolveOption::Elements)));
       !status)
     fail(spelled(status.error().message, Spelling::Python));
-  if (!curve.is_none() && !py::isinstance<py::str>(curve))
-    fail("curve: expected a curve's id (a string), got " + py::repr(curve).cast<std::string>());
   for (std::size_t m = 0; m < methods.size(); ++m)
     for (std::size_t earlier = 0; earlier < m; ++earlier)
       if (methods[m] == methods[earlier]) fail("methods: '" + methods[m] + "' is given twice; give each method once");
@@ -486,82 +475,100 @@ py::list converge(const PyScene& scene, const std::vector<std::string>& methods,
     if (!method) fail(spelled(method.error().message, Spelling::Python));
     parsed.push_back(std::move(*method));
   }
-  std::optional<std::size_t> curve_index;
-  if (!curve.is_none()) curve_index = scene.curve_index(curve.cast<std::string>());
-  const Measure measured = measure == "total" ? Measure::Total : Measure::Reflected;
+  return parsed;
+}
 
-  // The reference: given (a Solver or a result's JSON text), or computed as converge computes it.
+// converge's reference: given (a Solver or a result's JSON text), or computed as converge computes
+// it on `threads` threads (Ctrl-C stops it within a row). It must be of this scene, sampled as the
+// runs will be, and have the measured quantity on the curve measured: said before any run.
+SampledResult converge_reference(const PyScene& scene, const py::object& reference, int samples, unsigned threads,
+                                 Measure measured, const std::optional<std::size_t>& curve_index,
+                                 const py::object& curve) {
   SampledResult document;
   if (!reference.is_none()) {
     document = sampled_of(reference, "reference", samples);
   } else {
-    // On `threads` threads; Ctrl-C (checked about every quarter second) stops it.
-    ReferenceSettings settings;
-    settings.threads = threads;
-    std::atomic<bool> cancel{false};
-    std::optional<py::error_already_set> raised;
-    settings.cancel = &cancel;
-    settings.progress = [&](std::size_t, std::size_t) {
-      py::gil_scoped_acquire gil;
-      if (!raised && PyErr_CheckSignals() != 0) {
-        raised.emplace();
-        cancel.store(true);
-      }
-    };
     std::optional<Result<ReferenceSolution>> solved;
-    {
-      py::gil_scoped_release release;
+    run_watching_signals([&](const std::atomic<bool>* cancel) {
+      ReferenceSettings settings;
+      settings.threads = threads;
+      settings.cancel = cancel;
       solved.emplace(solve_reference(*scene.scene, settings));
-    }
-    if (raised) throw *raised;
+    });
     const ReferenceSolution& r = value_or_fail(std::move(*solved));
     document = sample_radiosity(*scene.scene, samples,
                                 [&r](std::uint32_t c, Side side, double u) { return r.radiosity(c, side, u); });
   }
-  // The reference must be of this scene, sampled as the runs will be: said before any run.
   if (Status status = check_reference_of(document, *scene.scene, samples); !status)
     fail("reference: " + status.error().message +
          (check_reference_of(document, *scene.scene)
               ? "; pass samples=" + std::to_string(document.curves[0].samples.size())
               : std::string()));
+  const Comparison self = value_or_fail(compare_sampled(document, document, measured));
+  if (curve_index && !self.curves.at(*curve_index).measured)
+    fail("curve: '" + curve.cast<std::string>() + "' has no " + (measured == Measure::Reflected ? "B - E" : "B") +
+         " in the reference, so no relative error" + (measured == Measure::Reflected ? "; use measure=\"total\"" : ""));
+  return document;
+}
+
+// One converge run, Ctrl-C (checked about every 0.1 s) stopping it with KeyboardInterrupt: the
+// columns of the command line's convergence.csv as a dict, with Python's types.
+py::dict converge_row(const PyScene& scene, const ConvergeMethod& method, const SolverSettings& settings,
+                      const SampledResult& document, Measure measured, const std::optional<std::size_t>& curve_index,
+                      const py::object& curve, int samples) {
+  std::atomic<bool> cancel{false};
+  std::optional<py::error_already_set> raised;
+  const ProgressCallback poll = [&](const SolverProgress&) {
+    py::gil_scoped_acquire gil;
+    if (!raised && PyErr_CheckSignals() != 0) {
+      raised.emplace();
+      cancel.store(true);
+    }
+  };
+  std::optional<Result<ConvergeRow>> run;
   {
-    const Comparison self = value_or_fail(compare_sampled(document, document, measured));
-    if (curve_index && !self.curves.at(*curve_index).measured)
-      fail("curve: '" + curve.cast<std::string>() + "' has no " + (measured == Measure::Reflected ? "B - E" : "B") +
-           " in the reference, so no relative error" +
-           (measured == Measure::Reflected ? "; use measure=\"total\"" : ""));
+    py::gil_scoped_release release;
+    run.emplace(converge_run(*scene.scene, settings, document, measured, curve_index, samples, &cancel, poll));
   }
+  if (raised) throw *raised;
+  const ConvergeRow row = value_or_fail(std::move(*run));
+  py::dict d;
+  for (const ConvergeField& field : converge_fields(method.name, settings, row, measured,
+                                                    curve.is_none() ? std::string() : curve.cast<std::string>()))
+    std::visit([&](const auto& value) { d[field.name] = value; }, field.value);
+  return d;
+}
+
+// flatland.converge: every method at every budget and seed against one reference, as `flatland
+// converge` runs them; one dict per run with the keys of its CSV's columns.
+py::list converge(const PyScene& scene, const std::vector<std::string>& methods, const std::vector<double>& budgets,
+                  int seeds, const py::object& reference, const std::string& measure, const py::object& curve,
+                  int samples, unsigned threads, const py::object& elements, double tolerance,
+                  const py::object& progress) {
+  if (measure != "reflected" && measure != "total") fail("measure: expected reflected or total, got '" + measure + "'");
+  if (samples < 1 || samples > 1'000'000) fail("samples: must be between 1 and 1000000");
+  if (seeds < 1 || seeds > kMaxSeeds) fail("seeds: must be between 1 and " + std::to_string(kMaxSeeds));
+  if (budgets.empty()) fail("budgets: give at least one budget");
+  for (const double budget : budgets)
+    if (!(budget >= 1.0 && budget <= static_cast<double>(kMaxPhotons)) || budget != std::floor(budget))
+      fail("budgets: each must be a whole photon count from 1 to 2^50 (about 1.1e15), got " + std::to_string(budget));
+  if (!curve.is_none() && !py::isinstance<py::str>(curve))
+    fail("curve: expected a curve's id (a string), got " + py::repr(curve).cast<std::string>());
+  const std::vector<ConvergeMethod> parsed = converge_methods(methods, threads, elements, tolerance);
+  std::optional<std::size_t> curve_index;
+  if (!curve.is_none()) curve_index = scene.curve_index(curve.cast<std::string>());
+  const Measure measured = measure == "total" ? Measure::Total : Measure::Reflected;
+  const SampledResult document = converge_reference(scene, reference, samples, threads, measured, curve_index, curve);
 
   py::list rows;
   const std::size_t total = parsed.size() * budgets.size() * static_cast<std::size_t>(seeds);
-  for (std::size_t m = 0; m < parsed.size(); ++m) {
-    for (std::size_t b = 0; b < budgets.size(); ++b) {
+  for (const ConvergeMethod& method : parsed) {
+    for (const double budget : budgets) {
       for (int seed = 1; seed <= seeds; ++seed) {
-        SolverSettings settings = parsed[m].settings;
-        settings.photons = static_cast<std::uint64_t>(budgets[b]);
+        SolverSettings settings = method.settings;
+        settings.photons = static_cast<std::uint64_t>(budget);
         settings.seed = static_cast<std::uint64_t>(seed);
-        std::atomic<bool> cancel{false};
-        std::optional<py::error_already_set> raised;
-        // Ctrl-C (checked about every 0.1 s) stops the run; KeyboardInterrupt once it has.
-        const ProgressCallback poll = [&](const SolverProgress&) {
-          py::gil_scoped_acquire gil;
-          if (!raised && PyErr_CheckSignals() != 0) {
-            raised.emplace();
-            cancel.store(true);
-          }
-        };
-        std::optional<Result<ConvergeRow>> run;
-        {
-          py::gil_scoped_release release;
-          run.emplace(converge_run(*scene.scene, settings, document, measured, curve_index, samples, &cancel, poll));
-        }
-        if (raised) throw *raised;
-        ConvergeRow row = value_or_fail(std::move(*run));
-        // The columns of the command line's convergence.csv, with Python's types.
-        py::dict d;
-        for (const ConvergeField& field : converge_fields(parsed[m].name, settings, row, measured,
-                                                          curve.is_none() ? std::string() : curve.cast<std::string>()))
-          std::visit([&](const auto& value) { d[field.name] = value; }, field.value);
+        const py::dict d = converge_row(scene, method, settings, document, measured, curve_index, curve, samples);
         rows.append(d);
         if (!progress.is_none()) {
           py::dict p;

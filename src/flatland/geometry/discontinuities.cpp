@@ -33,6 +33,20 @@ constexpr double kTouch = 1e-9;
 constexpr double kStraight = 1e-9;
 // Curve parameters closer than this are the same node.
 constexpr double kSameParameter = 1e-9;
+
+// Appends to `out` each pair of `found` (parameters on two curves) that is not within
+// kSameParameter in both of a pair already there: one crossing found twice (from both sides of a
+// split, or at a shared end) is kept once.
+void append_new_pairs(const std::vector<std::pair<double, double>>& found,
+                      std::vector<std::pair<double, double>>& out) {
+  for (const auto& s : found) {
+    bool seen = false;
+    for (const auto& q : out)
+      seen =
+          seen || (std::fabs(q.first - s.first) <= kSameParameter && std::fabs(q.second - s.second) <= kSameParameter);
+    if (!seen) out.push_back(s);
+  }
+}
 // A line through a tangent point grazes the curve there; rounding splits the double root into two
 // crossings about sqrt(2 rounding / curvature) apart. Crossings of the point's own curve closer than
 // kGraze * scale to it are that graze, not a hit.
@@ -482,13 +496,7 @@ std::vector<std::pair<double, double>> segment_bitangents(const Cubic& a, const 
   }
   std::sort(found.begin(), found.end());
   std::vector<std::pair<double, double>> unique;
-  for (const auto& s : found) {
-    bool seen = false;
-    for (const auto& q : unique)
-      seen =
-          seen || (std::fabs(q.first - s.first) <= kSameParameter && std::fabs(q.second - s.second) <= kSameParameter);
-    if (!seen) unique.push_back(s);
-  }
+  append_new_pairs(found, unique);
   return unique;
 }
 
@@ -845,13 +853,7 @@ void segment_crossings(const SegmentGeometry& a, const SegmentGeometry& b, doubl
       stack.push_back({pair.t0, pair.t1, pair.u0, middle, pair.a, left});
     }
   }
-  for (const auto& s : found) {
-    bool seen = false;
-    for (const auto& q : out)
-      seen =
-          seen || (std::fabs(q.first - s.first) <= kSameParameter && std::fabs(q.second - s.second) <= kSameParameter);
-    if (!seen) out.push_back(s);
-  }
+  append_new_pairs(found, out);
 }
 
 // Whether segments i and j of one curve share an end point (neighbours, also across the closing
