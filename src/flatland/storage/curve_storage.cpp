@@ -185,7 +185,7 @@ CurveStorage build_curve_storage(const Scene& scene, const Curve& curve, BasisKi
   const std::vector<double>& knots = storage.basis.knots();
   const double period = static_cast<double>(segment_count);
   // Only the segments under a support (a few, with one more on each side against rounding), not
-  // all of the curve's: that was quadratic in the segments of a long curve.
+  // all of the curve's, which would be quadratic in the segments of a long curve.
   const auto near = [&](double at) { return static_cast<std::uint32_t>(std::clamp(at, 0.0, period)); };
   for (std::size_t k = 0; k < n; ++k) {
     const double begin = knots[k];

@@ -16,9 +16,8 @@ using storage_detail::for_each_quadrature_point;
 void galerkin_estimate(const CurveStorage& storage, const double* deposits, double* coefficients, std::size_t stride) {
   const std::size_t n = storage.basis.size();
   // Forward substitution L y = d by rows, then back substitution L^T b = y by columns of L, both
-  // in the output (a scratch vector of the storage's size was allocated, and its pages faulted
-  // in, on every call). Row k reads deposit k before writing coefficient k, so the two may be
-  // the same array.
+  // in the output, so no call allocates a scratch vector of the storage's size (and faults its
+  // pages in). Row k reads deposit k before writing coefficient k, so the two may be the same array.
   double* x = coefficients;
   for (std::size_t row = 0; row < n; ++row) {
     const std::size_t first = storage.mass_first[row];

@@ -16,8 +16,8 @@ class ProgressiveShooting final : public LightTransport {
  public:
   // Every round shoots at least this many photons (or what is left of the budget): a round of a
   // few photons estimates the pool so coarsely that one photon landing on an absorber could empty
-  // it and stop the solve as "converged" far from the answer (a room of rho = 0.9999999 with a
-  // black lamp did). Not a whole batch (4096): the reserve for the rounds still expected starved
+  // it and stop the solve as "converged" far from the answer (as in a room of rho = 0.9999999 with a
+  // black lamp). Not a whole batch (4096): the reserve for the rounds still expected would starve
   // the first rounds of small budgets (docs/method.md, Progressive shooting).
   static constexpr std::uint64_t kMinPhotonsPerRound = 256;
   // And at most this many: the fixed-point deposits quantise each photon's power to 2^-60 of the
