@@ -923,13 +923,16 @@ std::vector<DiscontinuityNode> find_visibility_events(const Scene& scene, const 
 }
 
 std::vector<DiscontinuityNode> find_contacts(const Scene& scene) {
-  const double touch = kTouch * scene.scale;
-  // The segments near a place: those whose box comes within `touch` of it (the caster's tree
-  // answers that as well as rays).
   std::vector<SegmentGeometry> geometry;
   geometry.reserve(scene.segments.size());
   for (const SceneSegment& segment : scene.segments) geometry.push_back(segment.geometry);
-  const SegmentAccelerator tree(std::move(geometry));
+  return find_contacts(scene, SegmentAccelerator(std::move(geometry)));
+}
+
+std::vector<DiscontinuityNode> find_contacts(const Scene& scene, const SegmentAccelerator& tree) {
+  const double touch = kTouch * scene.scale;
+  // The segments near a place: those whose box comes within `touch` of it (the caster's tree
+  // answers that as well as rays).
   std::vector<DiscontinuityNode> nodes;
   auto add = [&](std::uint32_t c, double u) {
     const Curve& curve = scene.curves[c];

@@ -42,8 +42,10 @@ struct DiscontinuityNode {
 // contact (light is continuous there). Never a node at the ends (u = 0, u = segment_count) of an
 // open curve; on a closed curve a contact at the closing point is reported as u = 0. Nodes within
 // 1e-9 in u are one. Candidate pairs come from a box tree over the segments: O(n log n) for
-// scenes whose segments do not all overlap.
+// scenes whose segments do not all overlap. The second form reuses a tree over scene.segments
+// (in their order) that the caller already has.
 std::vector<DiscontinuityNode> find_contacts(const Scene& scene);
+std::vector<DiscontinuityNode> find_contacts(const Scene& scene, const SegmentAccelerator& tree);
 
 // How events are merged. The element length of a curve is curve.length / elements; events on one
 // curve closer than merge_fraction of it (in arc length) become one node at their mean, and events

@@ -105,7 +105,7 @@ std::vector<std::vector<MeshNode>> Solver::find_events(const SegmentAccelerator&
   if (settings_.discontinuities != DiscontinuityMode::None) {
     // Contacts are part of the geometry (light on the two sides is unrelated): a value jump there
     // whenever the scene's joints are honoured.
-    for (const DiscontinuityNode& node : find_contacts(scene)) {
+    for (const DiscontinuityNode& node : find_contacts(scene, accelerator)) {
       events[node.curve].push_back({node.u, node.continuity});
       walls[node.curve].push_back(arc_length_at(scene, scene.curves[node.curve], node.u));
       ++contact_nodes_;
