@@ -5,7 +5,6 @@
 #include <unistd.h>
 
 #include <algorithm>
-#include <bit>
 #include <cerrno>
 #include <climits>
 #include <cmath>
@@ -16,6 +15,7 @@
 #include <map>
 #include <optional>
 #include <sstream>
+#include "flatland/base/bits.hpp"
 
 #include "app/commands.hpp"
 #include "app/output.hpp"
@@ -554,11 +554,11 @@ void gather_rows(std::vector<std::optional<Row>>& rows) {
     out[3] = static_cast<std::int64_t>(row.seed);
     out[4] = static_cast<std::int64_t>(row.photons);
     out[5] = row.rounds;
-    out[6] = std::bit_cast<std::int64_t>(row.unshot);
-    out[7] = std::bit_cast<std::int64_t>(row.seconds);
-    out[8] = std::bit_cast<std::int64_t>(row.error.l1);
-    out[9] = std::bit_cast<std::int64_t>(row.error.l2);
-    out[10] = std::bit_cast<std::int64_t>(row.error.linf);
+    out[6] = bit_cast<std::int64_t>(row.unshot);
+    out[7] = bit_cast<std::int64_t>(row.seconds);
+    out[8] = bit_cast<std::int64_t>(row.error.l1);
+    out[9] = bit_cast<std::int64_t>(row.error.l2);
+    out[10] = bit_cast<std::int64_t>(row.error.linf);
   }
   std::vector<std::int64_t> rays(rows.size(), 0);
   for (std::size_t i = 0; i < rows.size(); ++i)
@@ -569,17 +569,17 @@ void gather_rows(std::vector<std::optional<Row>>& rows) {
     const std::int64_t* in = &values[i * kFields];
     if (in[0] != 1) continue;  // cannot happen once every process agreed that it finished
     ErrorNorms error;
-    error.l1 = std::bit_cast<double>(in[8]);
-    error.l2 = std::bit_cast<double>(in[9]);
-    error.linf = std::bit_cast<double>(in[10]);
+    error.l1 = bit_cast<double>(in[8]);
+    error.l2 = bit_cast<double>(in[9]);
+    error.linf = bit_cast<double>(in[10]);
     Row row;
     row.method = static_cast<std::size_t>(in[1]);
     row.budget = static_cast<std::size_t>(in[2]);
     row.seed = static_cast<std::uint64_t>(in[3]);
     row.photons = static_cast<std::uint64_t>(in[4]);
     row.rounds = static_cast<std::uint32_t>(in[5]);
-    row.unshot = std::bit_cast<double>(in[6]);
-    row.seconds = std::bit_cast<double>(in[7]);
+    row.unshot = bit_cast<double>(in[6]);
+    row.seconds = bit_cast<double>(in[7]);
     row.error = error;
     row.rays = static_cast<std::uint64_t>(rays[i]);
     rows[i] = row;

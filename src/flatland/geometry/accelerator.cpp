@@ -4,10 +4,11 @@
 
 #include <algorithm>
 #include <array>
-#include <bit>
 #include <cmath>
 #include <limits>
 #include <utility>
+
+#include "flatland/base/bits.hpp"
 
 #if defined(__SSE2__)
 #include <emmintrin.h>
@@ -50,7 +51,7 @@ struct Nearest {
       hit.distance = h.distance;
       // The next double up: h.distance is positive and finite, so that is its bits plus one
       // (std::nextafter is a library call, once per accepted hit).
-      limit = std::bit_cast<double>(std::bit_cast<std::uint64_t>(h.distance) + 1);
+      limit = bit_cast<double>(bit_cast<std::uint64_t>(h.distance) + 1);
     }
   }
 };

@@ -11,9 +11,9 @@
 // ParseFailure and caught at the top, as is anything else (allocation failure, a library exception).
 #include <algorithm>
 #include <cerrno>
-#include <charconv>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <initializer_list>
@@ -133,47 +133,12 @@ struct TextMap {
 };
 
 // Whether a JSON number token lies beyond the largest double (as opposed to rounding to zero or
-// parsing normally). from_chars reports both overflow and underflow as out of range; the decimal
-// exponent of the leading significant digit tells them apart.
+// parsing normally): strtod returns +-HUGE_VAL (infinity) for exactly those. The program never changes the C locale, so
+// '.' is the decimal point.
 bool overflows(std::string_view token) {
-  double value = 0.0;
-  const auto result = std::from_chars(token.data(), token.data() + token.size(), value);
-  if (result.ec == std::errc()) return std::isinf(value);
-  if (result.ec != std::errc::result_out_of_range) return false;
-  long long leading = 0;  // decimal exponent of the first nonzero digit, before the exponent part
-  bool found = false;
-  std::size_t i = token.empty() || token[0] != '-' ? 0 : 1;
-  long long integer_digits = 0;
-  for (; i < token.size() && token[i] >= '0' && token[i] <= '9'; ++i) {
-    if (!found && token[i] != '0') {
-      found = true;
-      integer_digits = 0;
-    }
-    if (found) ++integer_digits;
-  }
-  if (found) leading = integer_digits - 1;
-  if (i < token.size() && token[i] == '.') {
-    ++i;
-    long long place = -1;
-    for (; i < token.size() && token[i] >= '0' && token[i] <= '9'; ++i, --place) {
-      if (!found && token[i] != '0') {
-        found = true;
-        leading = place;
-      }
-    }
-  }
-  if (!found) return false;
-  long long exponent = 0;
-  if (i < token.size() && (token[i] == 'e' || token[i] == 'E')) {
-    ++i;
-    bool negative = false;
-    if (i < token.size() && (token[i] == '+' || token[i] == '-')) negative = token[i++] == '-';
-    for (; i < token.size() && token[i] >= '0' && token[i] <= '9'; ++i) {
-      exponent = std::min<long long>(exponent * 10 + (token[i] - '0'), 1'000'000'000);
-    }
-    if (negative) exponent = -exponent;
-  }
-  return leading + exponent > 0;
+  const std::string text(token);
+  const double value = std::strtod(text.c_str(), nullptr);
+  return std::isinf(value);
 }
 
 void append_utf8(std::string& out, std::uint32_t code) {

@@ -234,6 +234,10 @@ std::vector<std::ptrdiff_t> LocalEstimatorBuilder::grow(std::ptrdiff_t seed, boo
   return window;
 }
 
+// x^0 .. x^3 by products: the same bits on every platform (a library's pow need not be correctly
+// rounded, and libraries differ).
+std::array<double, 4> powers(double x) { return {1.0, x, x * x, x * x * x}; }
+
 // Target functional of x^m, x = (u - centre) / scale: the blossom of x^m at the interior knots of
 // function k (the B-spline coefficient of x^m: the elementary symmetric polynomial over the
 // binomial), or x^m at the hat's peak.
@@ -241,8 +245,8 @@ std::array<double, 4> LocalEstimatorBuilder::target(std::size_t k, double centre
                                                     std::size_t terms) const {
   std::array<double, 4> target{};
   if (nodal_values_) {
-    const double x = (knots_[k + 1] - centre) / scale;
-    for (std::size_t m = 0; m < terms; ++m) target[m] = std::pow(x, static_cast<double>(m));
+    const std::array<double, 4> x = powers((knots_[k + 1] - centre) / scale);
+    for (std::size_t m = 0; m < terms; ++m) target[m] = x[m];
   } else {
     std::array<double, 4> symmetric{1.0, 0.0, 0.0, 0.0};  // e_m of the knots so far
     for (std::size_t i = 1; i <= pu_; ++i) {
@@ -276,15 +280,16 @@ LocalWindow LocalEstimatorBuilder::solve(std::size_t k, std::vector<std::ptrdiff
   std::vector<double> v(size * terms);
   for (std::size_t a = 0; a < size; ++a) {
     const std::array<double, 4>& raw = moment_[local(functions[a])];
-    const double offset = start(functions[a]) - centre;
+    const std::array<double, 4> offset = powers(start(functions[a]) - centre);
+    const std::array<double, 4> scale_power = powers(scale);
     for (std::size_t m = 0; m < terms; ++m) {
       double sum = 0.0;
       double binomial = 1.0;  // C(m, r)
       for (std::size_t r = 0; r <= m; ++r) {
-        sum += binomial * raw[r] * std::pow(offset, static_cast<double>(m - r));
+        sum += binomial * raw[r] * offset[m - r];
         binomial = binomial * static_cast<double>(m - r) / static_cast<double>(r + 1);
       }
-      v[a * terms + m] = sum / std::pow(scale, static_cast<double>(m));
+      v[a * terms + m] = sum / scale_power[m];
     }
   }
   std::vector<double> g(size * size, 0.0);
