@@ -1,6 +1,5 @@
 // The tone-mapped paths (premultiplied by their coverage, at the path buffer's resolution) laid
 // over the background: bilinear upsampling of premultiplied colour, blended (one, one minus alpha).
-#version 330 core
 
 in vec2 v_uv;
 out vec4 o_colour;

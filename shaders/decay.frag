@@ -1,6 +1,5 @@
 // Fading by age: drawn with blending (zero, constant colour), which multiplies the accumulated
 // path light by the blend constant; the shader's own output is ignored.
-#version 330 core
 
 out vec4 o_colour;
 

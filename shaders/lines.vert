@@ -1,6 +1,5 @@
 // Curves, radiosity bands, graphs and markers: triangles whose vertices sit at a scene point plus
 // an offset in pixels, so strokes keep their on-screen width at any zoom.
-#version 330 core
 
 layout(location = 0) in vec2 a_position;  // scene units
 layout(location = 1) in vec2 a_offset;    // pixels, y up

@@ -1,6 +1,5 @@
 // Additive accumulation of path power into a floating-point (HDR) target; a point ray's power
 // weighted by the tent across its line (paths.vert).
-#version 330 core
 
 in vec3 v_colour;
 in float v_across;

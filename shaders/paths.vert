@@ -6,7 +6,6 @@
 // staircase, no density bias). Extended rays are quads as wide as the ray, carrying their power
 // divided by their width in pixels: the same light per unit length at any angle.
 // A negative colour removes a path drawn earlier (it has left the set of kept paths).
-#version 330 core
 
 layout(location = 0) in vec4 a_ends;    // from.xy, to.xy in scene units
 layout(location = 1) in vec4 a_colour;  // rgb power (weighted), a unused

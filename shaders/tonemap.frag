@@ -3,7 +3,6 @@
 // coverage (alpha) so that dark parts of the buffer leave the background visible, and written
 // premultiplied by that coverage for composite.frag to lay over the background.
 // Removing paths by subtraction can leave tiny negative round-off: clamped.
-#version 330 core
 
 in vec2 v_uv;
 out vec4 o_colour;

@@ -1,5 +1,4 @@
 // A full-screen triangle; the fragment shader reads the HDR path buffer.
-#version 330 core
 
 out vec2 v_uv;
 

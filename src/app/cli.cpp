@@ -83,6 +83,8 @@ CommandLine::CommandLine()
   add_compare_command(app, compare);
 #ifdef FLATLAND_HAVE_VIEWER
   add_view_command(app, view);
+#endif
+#ifdef FLATLAND_HAVE_RENDER
   add_render_command(app, render);
 #endif
 }

@@ -72,7 +72,7 @@ CLI::App* add_view_command(CLI::App& parent, ViewCommandOptions& o) {
   return cmd;
 }
 
-int run_view(ViewCommandOptions& o) {
+std::optional<int> make_view_options(ViewCommandOptions& o, viewer::ViewOptions& options) {
   // The budget of an interactive solve defaults higher than solve's: it runs until paused.
   if (Status status = finish_solver_settings(o.solve); !status) {
     std::fprintf(stderr, "flatland: error: %s\n", status.error().message.c_str());
@@ -91,7 +91,6 @@ int run_view(ViewCommandOptions& o) {
           check_outputs({{"--screenshot", o.screenshot}, {"--screenshot-ui", o.screenshot_ui}},
                         {{"scene file", o.solve.scene}, {"--reference", o.reference}}))
     return *code;
-  viewer::ViewOptions options;
   options.scene = o.solve.scene;
   options.reference = o.reference;
   options.settings = o.solve.settings;
@@ -116,6 +115,12 @@ int run_view(ViewCommandOptions& o) {
   options.max_fps = o.max_fps;
   options.report = o.report;
   options.cancel = &interrupt_flag();
+  return std::nullopt;
+}
+
+int run_view(ViewCommandOptions& o) {
+  viewer::ViewOptions options;
+  if (const std::optional<int> code = make_view_options(o, options)) return *code;
   Result<std::unique_ptr<viewer::Viewer>> viewer = viewer::Viewer::create(options);
   if (!viewer) return input_error(viewer.error());
   if (Status status = (*viewer)->run(); !status) {

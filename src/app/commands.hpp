@@ -16,6 +16,10 @@
 #include "flatland/transport/options.hpp"
 #include "flatland/transport/solver.hpp"
 
+namespace flatland::viewer {
+struct ViewOptions;
+}
+
 namespace flatland::app {
 
 inline constexpr int kExitOk = 0;
@@ -153,6 +157,10 @@ struct ViewCommandOptions {
 };
 CLI::App* add_view_command(CLI::App& parent, ViewCommandOptions& options);
 int run_view(ViewCommandOptions& options);
+// The viewer's options from view's, after every check view makes before it opens a window. A bad
+// option: its one-line message printed, and the exit code returned (the web page's start uses
+// this, then runs the viewer frame by frame).
+std::optional<int> make_view_options(ViewCommandOptions& o, viewer::ViewOptions& options);
 
 struct RenderOptions {
   SolveOptions solve;  // scene and solver options

@@ -58,6 +58,8 @@ int run_command(CommandLine& command_line) {
     case Command::Converge: return run_converge(command_line.converge);
 #ifdef FLATLAND_HAVE_VIEWER
     case Command::View: return run_view(command_line.view);
+#endif
+#ifdef FLATLAND_HAVE_RENDER
     case Command::Render: return run_render(command_line.render);
 #endif
     default: break;

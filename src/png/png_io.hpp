@@ -1,5 +1,6 @@
-// PNG files through libpng: 8-bit RGB or RGBA rows, top row first. Writing is atomic (a temporary
-// file renamed over the target), so a failure never leaves a partial picture.
+// PNG files through libpng (without it: stored, uncompressed, and write-only; png_io_stored.cpp): 8-bit RGB or RGBA
+// rows, top row first. Writing is atomic (a temporary file renamed over the target), so a failure never leaves a
+// partial picture.
 #pragma once
 
 #include <atomic>
@@ -19,6 +20,8 @@ struct PngImage {
 };
 
 Result<std::string> encode_png(const PngImage& image);
+// The same picture without compression (no libpng needed; png_io_stored.cpp).
+Result<std::string> encode_png_stored(const PngImage& image);
 // Written as every output is (files.hpp): `cancel` ends a wait for a FIFO's reader.
 Status write_png(const std::string& path, const PngImage& image, const std::atomic<bool>* cancel = nullptr);
 // Any PNG, converted to 8-bit RGBA.

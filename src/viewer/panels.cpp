@@ -1,7 +1,6 @@
 // The viewer's panels (Dear ImGui): menu, solve controls, display options, status, the inspected
 // curve, help. They read the snapshot and change the viewer's settings; the main loop is in
 // viewer_app.cpp.
-#include <SDL.h>
 #include <imgui.h>
 
 #include <algorithm>
@@ -12,6 +11,7 @@
 #include <vector>
 
 #include "viewer/viewer_app.hpp"
+#include "viewer/window.hpp"
 
 namespace flatland::viewer {
 
@@ -193,14 +193,15 @@ void Viewer::draw_menu(const Snapshot& snapshot) {
       ImGui::EndMenu();
     }
     if (ImGui::MenuItem("Reload scene", "F5")) load_scene_file(scene_path_);
-    if (ImGui::MenuItem("Save screenshot", "Ctrl+S")) handle_key(SDLK_s, true);
+    if (ImGui::MenuItem("Save screenshot", "Ctrl+S")) handle_key('s', true);
     if (ImGui::MenuItem("Save scene picture (no panels)")) {
       const std::string name = "flatland-" + scene_->name + "-scene.png";
       const Status saved = save_screenshot(name);
       set_message(saved ? "saved " + name : saved.error().message);
+      if (saved) deliver(name);
     }
-    if (ImGui::MenuItem("Save result", "Ctrl+E")) handle_key(SDLK_e, true);
-    if (ImGui::MenuItem("Quit", "Esc")) quit_ = true;
+    if (ImGui::MenuItem("Save result", "Ctrl+E")) handle_key('e', true);
+    if (Window::closable() && ImGui::MenuItem("Quit", "Esc")) quit_ = true;
     ImGui::EndMenu();
   }
   if (ImGui::BeginMenu("View")) {

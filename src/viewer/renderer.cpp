@@ -1,6 +1,6 @@
 #include "viewer/renderer.hpp"
 
-#include <epoxy/gl.h>
+#include "viewer/gl.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -28,8 +28,13 @@ constexpr EmbeddedShader kEmbeddedShaders[] = {
 Result<unsigned> compile(GLenum type, const std::string& name, const std::string& directory) {
   Result<std::string> source = shader_source(name, directory);
   if (!source) return source.error();
+  // The context's GLSL version first (a #version line of a shader from --shaders gives way to it).
+  std::string code = kGlslHeader;
+  std::istringstream lines(*source);
+  for (std::string line; std::getline(lines, line);)
+    if (line.rfind("#version", 0) != 0) code += line + "\n";
   const GLuint shader = glCreateShader(type);
-  const char* text = source->c_str();
+  const char* text = code.c_str();
   glShaderSource(shader, 1, &text, nullptr);
   glCompileShader(shader);
   GLint ok = GL_FALSE;
@@ -191,7 +196,7 @@ bool attach_texture(int width, int height, GLint format, GLenum type, unsigned& 
 Status Renderer::ensure_hdr_target(int width, int height) {
   if (hdr_framebuffer_ != 0 && width == hdr_width_ && height == hdr_height_) return ok_status();
   mapped_valid_ = false;
-  if (!attach_texture(width, height, GL_RGBA32F, GL_FLOAT, hdr_framebuffer_, hdr_texture_) ||
+  if (!attach_texture(width, height, path_buffer_format(), GL_FLOAT, hdr_framebuffer_, hdr_texture_) ||
       !attach_texture(width, height, GL_RGBA8, GL_UNSIGNED_BYTE, mapped_framebuffer_, mapped_texture_)) {
     hdr_width_ = 0;
     hdr_height_ = 0;

@@ -83,8 +83,12 @@ void describe_solver(const Solver& solver, const std::vector<CurveTrace>& traces
     for (double& share : snapshot.received_share) share /= total_reflected;
 }
 
-Session::Session() {
+Session::Session(Threading threading) : threading_(threading) {
   snapshot_ = std::make_shared<const Snapshot>();
+  if (threading_ == Threading::Inline) {
+    piece_seconds_ = kInlinePieceSeconds;
+    return;
+  }
   // (A thread that the system refuses throws std::system_error, which Viewer::create reports.)
   thread_ = std::thread([this] { worker(); });
 }
@@ -96,7 +100,7 @@ Session::~Session() {
     cancel_.store(true);
   }
   wake_.notify_all();
-  thread_.join();
+  if (thread_.joinable()) thread_.join();
 }
 
 void Session::restart(std::shared_ptr<const Scene> scene, const SolverSettings& settings) {
@@ -156,6 +160,11 @@ std::shared_ptr<const Snapshot> Session::snapshot() const {
 }
 
 void Session::wait_idle() {
+  if (threading_ == Threading::Inline) {
+    while (work_once()) {
+    }
+    return;
+  }
   std::unique_lock lock(mutex_);
   idle_.wait(lock, [&] {
     return !busy_ && !restart_pending_ && !refresh_pending_ && steps_.empty() && !(running_ && can_run_);
@@ -219,45 +228,67 @@ void Session::publish(const Solver* solver, const std::vector<PathRecord>& new_p
   snapshot_ = std::move(snapshot);
 }
 
+void Session::pump(double seconds) {
+  if (threading_ != Threading::Inline) return;
+  const Clock::time_point end =
+      Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(seconds));
+  while (work_once() && Clock::now() < end) {
+  }
+}
+
+bool Session::has_work() const {
+  return restart_pending_ || refresh_pending_ || reference_changed_ || !steps_.empty() || (running_ && can_run_);
+}
+
 void Session::worker() {
   for (;;) {
-    std::unique_lock lock(mutex_);
-    busy_ = false;
-    idle_.notify_all();
-    wake_.wait(lock, [&] {
-      return quit_ || restart_pending_ || refresh_pending_ || !steps_.empty() || (running_ && can_run_);
-    });
-    if (quit_) return;
-    busy_ = true;
-    if (restart_pending_) {
-      restart_pending_ = false;
-      std::shared_ptr<const Scene> scene = std::move(pending_scene_);
-      const SolverSettings settings = pending_settings_;
-      cancel_.store(false);
-      lock.unlock();
-      start_solve(std::move(scene), settings);
-      continue;
+    {
+      std::unique_lock lock(mutex_);
+      busy_ = false;
+      idle_.notify_all();
+      wake_.wait(lock, [&] { return quit_ || has_work(); });
+      if (quit_) return;
     }
-    if (reference_changed_) {
-      // Only the worker touches the history; it starts over with the new reference.
-      reference_changed_ = false;
-      lock.unlock();
-      std::lock_guard solver_lock(solver_mutex_);
-      clear_error_history();
-      continue;
-    }
-    if (refresh_pending_ && steps_.empty() && !(running_ && can_run_)) {
-      refresh_pending_ = false;
-      lock.unlock();
-      std::lock_guard solver_lock(solver_mutex_);
-      publish(solver_ ? &*solver_ : nullptr, {}, true);
-      continue;
-    }
-    const std::optional<Piece> piece = next_piece();
-    if (!piece) continue;
-    lock.unlock();
-    shoot_piece(*piece);
+    work_once();
   }
+}
+
+bool Session::work_once() {
+  std::unique_lock lock(mutex_);
+  if (quit_ || !has_work()) {
+    busy_ = false;
+    return false;
+  }
+  busy_ = true;
+  if (restart_pending_) {
+    restart_pending_ = false;
+    std::shared_ptr<const Scene> scene = std::move(pending_scene_);
+    const SolverSettings settings = pending_settings_;
+    cancel_.store(false);
+    lock.unlock();
+    start_solve(std::move(scene), settings);
+    return true;
+  }
+  if (reference_changed_) {
+    // Only the worker touches the history; it starts over with the new reference.
+    reference_changed_ = false;
+    lock.unlock();
+    std::lock_guard solver_lock(solver_mutex_);
+    clear_error_history();
+    return true;
+  }
+  if (refresh_pending_ && steps_.empty() && !(running_ && can_run_)) {
+    refresh_pending_ = false;
+    lock.unlock();
+    std::lock_guard solver_lock(solver_mutex_);
+    publish(solver_ ? &*solver_ : nullptr, {}, true);
+    return true;
+  }
+  const std::optional<Piece> piece = next_piece();
+  if (!piece) return true;
+  lock.unlock();
+  shoot_piece(*piece);
+  return true;
 }
 
 void Session::clear_error_history() {
@@ -346,9 +377,9 @@ void Session::shoot_piece(const Piece& piece) {
 }
 
 void Session::adapt_chunk(const Solver& solver, std::uint64_t shot, double seconds) {
-  // About kPieceSeconds a piece, in whole batches, at least one per thread.
+  // About piece_seconds_ a piece, in whole batches, at least one per thread.
   const double rate = static_cast<double>(shot) / std::max(seconds, 1e-6);
-  const auto batches = static_cast<std::uint64_t>(std::clamp(rate * kPieceSeconds / Solver::kBatchSize, 1.0, 1024.0));
+  const auto batches = static_cast<std::uint64_t>(std::clamp(rate * piece_seconds_ / Solver::kBatchSize, 1.0, 1024.0));
   chunk_ = std::max<std::uint64_t>(batches, solver.thread_count()) * Solver::kBatchSize;
 }
 

@@ -1,7 +1,8 @@
 // The viewer's solve: a Solver driven on a worker thread, so the window stays responsive, and
-// published as immutable snapshots that the drawing thread picks up each frame. No GL, no SDL:
-// the tests drive it directly. All physics is the core's Solver; this only steps it and copies out
-// what is drawn.
+// published as immutable snapshots that the drawing thread picks up each frame. Where no thread can
+// be started (the single-threaded web build), the same commands run on the caller's thread in
+// short pieces between frames (Threading::Inline, pump). No GL, no SDL: the tests drive it directly. All physics is the
+// core's Solver; this only steps it and copies out what is drawn.
 #pragma once
 
 #include <atomic>
@@ -34,7 +35,11 @@ void describe_solver(const Solver& solver, const std::vector<CurveTrace>& traces
 
 class Session {
  public:
-  Session();
+  enum class Threading {
+    Worker,  // a worker thread runs the commands
+    Inline,  // the caller runs them: pump() between frames, wait_idle() to finish them
+  };
+  explicit Session(Threading threading = Threading::Worker);
   ~Session();
   Session(const Session&) = delete;
   Session& operator=(const Session&) = delete;
@@ -57,8 +62,13 @@ class Session {
 
   // The latest published snapshot (never null after construction).
   std::shared_ptr<const Snapshot> snapshot() const;
-  // Blocks until every queued command is done and the worker is paused or stopped.
+  // Blocks until every queued command is done and the worker is paused or stopped (Inline: runs
+  // them to that point on the calling thread).
   void wait_idle();
+  // Inline: runs queued commands and the free run for about `seconds` (at least one piece when
+  // there is work), then returns; the next call goes on. Worker: does nothing.
+  void pump(double seconds);
+  Threading threading() const { return threading_; }
   // The current result in the format of `flatland solve --out` (docs/result-format.md).
   Result<nlohmann::json> result_json(int samples_per_curve);
 
@@ -72,8 +82,13 @@ class Session {
     StepKind kind = StepKind::Photon;
     std::size_t path_limit = 0;
   };
-  // The worker thread: waits for a command, then restarts the solve, republishes or shoots a piece.
+  // The worker thread: waits for a command, then runs it (work_once).
   void worker();
+  // Under mutex_: whether a command waits (or the free run goes on).
+  bool has_work() const;
+  // Runs one command, if one waits: restarts the solve, takes a new reference, republishes or
+  // shoots a piece. False when there was nothing to do (the session is then idle).
+  bool work_once();
   // Drops the solve, its paths and error history, creates the solver of `scene` (none for a null
   // scene; one the solver rejects leaves the error) and publishes it. Takes solver_mutex_, then mutex_.
   void start_solve(std::shared_ptr<const Scene> scene, const SolverSettings& settings);
@@ -129,6 +144,10 @@ class Session {
   // in 300 frames, with 50 ms 13.6 M; docs/performance-log.md), short enough for a prompt pause and
   // paths that arrive every other frame.
   static constexpr double kPieceSeconds = 0.05;
+  // Inline, a piece shares the frame with drawing (a 60 Hz frame is 17 ms).
+  static constexpr double kInlinePieceSeconds = 0.012;
+  Threading threading_ = Threading::Worker;
+  double piece_seconds_ = kPieceSeconds;
   // Paths recorded per running piece (frames are paced to 25 ms and draw at most 600 new paths):
   // the display keeps up with what is recorded.
   static constexpr std::size_t kPathsPerStep = 768;
@@ -137,7 +156,7 @@ class Session {
   double last_error_time_ = -1.0;
   std::uint64_t chunk_ = Solver::kBatchSize;  // photons per piece, adapted to about kPieceSeconds
   std::atomic<bool> cancel_{false};
-  std::thread thread_;
+  std::thread thread_;  // Worker only
 };
 
 }  // namespace flatland::viewer

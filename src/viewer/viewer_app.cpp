@@ -1,10 +1,6 @@
 #include "viewer/viewer_app.hpp"
 
-#include <SDL.h>
-#include <epoxy/gl.h>
 #include <imgui.h>
-#include <imgui_impl_opengl3.h>
-#include <imgui_impl_sdl.h>
 
 #include <algorithm>
 #include <chrono>
@@ -19,7 +15,9 @@
 
 #include "flatland/results/result_io.hpp"
 #include "png/png_io.hpp"
+#include "viewer/gl.hpp"
 #include "viewer/renderer.hpp"
+#include "viewer/window.hpp"
 
 namespace flatland::viewer {
 
@@ -43,9 +41,7 @@ std::int64_t file_time(const std::string& path) {
 }  // namespace
 
 struct Viewer::Impl {
-  SDL_Window* window = nullptr;
-  SDL_GLContext context = nullptr;
-  bool imgui = false;
+  std::unique_ptr<Window> window;  // goes last: the GL objects below live in its context
   std::unique_ptr<Renderer> renderer;
   GLuint screenshot_framebuffer = 0;
   GLuint screenshot_colour = 0;
@@ -54,14 +50,7 @@ struct Viewer::Impl {
     renderer.reset();
     if (screenshot_framebuffer != 0) glDeleteFramebuffers(1, &screenshot_framebuffer);
     if (screenshot_colour != 0) glDeleteRenderbuffers(1, &screenshot_colour);
-    if (imgui) {
-      ImGui_ImplOpenGL3_Shutdown();
-      ImGui_ImplSDL2_Shutdown();
-      ImGui::DestroyContext();
-    }
-    if (context != nullptr) SDL_GL_DeleteContext(context);
-    if (window != nullptr) SDL_DestroyWindow(window);
-    SDL_Quit();
+    window.reset();
   }
 };
 
@@ -189,48 +178,13 @@ Result<std::shared_ptr<const SampledResult>> Viewer::load_reference(const ViewOp
   return reference;
 }
 
-// The window and its OpenGL 3.3 core context, titled with the scene's name. SDL falls back to an
-// offscreen video driver when there is no display; the viewer needs a real one unless that driver
-// was asked for explicitly.
+// The window and its GL context, titled with the scene's name.
 Result<std::unique_ptr<Viewer::Impl>> Viewer::open_window(const ViewOptions& options) const {
-  const char* requested = std::getenv("SDL_VIDEODRIVER");
-  const auto set = [](const char* name) { return std::getenv(name) != nullptr && *std::getenv(name) != '\0'; };
-  if (!set("DISPLAY") && !set("WAYLAND_DISPLAY") && requested == nullptr)
-    return Error{
-        "cannot open a display (DISPLAY and WAYLAND_DISPLAY are not set); use 'flatland "
-        "render SCENE --out FILE.png' for a picture without one, or run under xvfb-run"};
-  // With only DISPLAY set, ask for X11 alone: otherwise SDL also tries Wayland, whose library
-  // prints its own complaint about XDG_RUNTIME_DIR, and then falls back to its offscreen driver.
-  const std::string display = set("DISPLAY") ? std::getenv("DISPLAY") : "";
-  if (requested == nullptr && !set("WAYLAND_DISPLAY")) SDL_SetHint(SDL_HINT_VIDEODRIVER, "x11");
-  const std::string cannot_open = display.empty() ? std::string("cannot open the Wayland display")
-                                                  : "cannot open the display '" + display + "' (DISPLAY)";
+  Result<std::unique_ptr<Window>> window =
+      Window::open("flatland - " + scene_->name, options.width, options.height, options.vsync);
+  if (!window) return window.error();
   auto impl = std::make_unique<Impl>();
-  if (SDL_Init(SDL_INIT_VIDEO) != 0)
-    return Error{cannot_open + ": " + SDL_GetError() +
-                 "; use 'flatland render SCENE --out FILE.png' for a picture without one, or run "
-                 "under xvfb-run"};
-  const char* driver = SDL_GetCurrentVideoDriver();
-  if (driver != nullptr && (std::string(driver) == "offscreen" || std::string(driver) == "dummy") &&
-      (requested == nullptr || std::string(requested) != driver)) {
-    SDL_Quit();
-    return Error{cannot_open +
-                 "; use 'flatland render SCENE --out FILE.png' for a picture "
-                 "without one, or run under xvfb-run"};
-  }
-  SDL_GL_SetAttribute(SDL_GL_CONTEXT_MAJOR_VERSION, 3);
-  SDL_GL_SetAttribute(SDL_GL_CONTEXT_MINOR_VERSION, 3);
-  SDL_GL_SetAttribute(SDL_GL_CONTEXT_PROFILE_MASK, SDL_GL_CONTEXT_PROFILE_CORE);
-  SDL_GL_SetAttribute(SDL_GL_DOUBLEBUFFER, 1);
-  const std::string title = "flatland - " + scene_->name;
-  impl->window = SDL_CreateWindow(title.c_str(), SDL_WINDOWPOS_CENTERED, SDL_WINDOWPOS_CENTERED, options.width,
-                                  options.height, SDL_WINDOW_OPENGL | SDL_WINDOW_RESIZABLE);
-  if (impl->window == nullptr) return Error{std::string("cannot open a window: ") + SDL_GetError()};
-  impl->context = SDL_GL_CreateContext(impl->window);
-  if (impl->context == nullptr)
-    return Error{std::string("cannot create an OpenGL 3.3 core context: ") + SDL_GetError()};
-  SDL_GL_MakeCurrent(impl->window, impl->context);
-  SDL_GL_SetSwapInterval(options.vsync ? 1 : 0);
+  impl->window = std::move(*window);
   return impl;
 }
 
@@ -258,16 +212,15 @@ void Viewer::start_imgui(Impl& impl, float ui_scale) {
     ImGui::GetStyle().ScaleAllSizes(ui_scale);
     io.FontGlobalScale = ui_scale;
   }
-  ImGui_ImplSDL2_InitForOpenGL(impl.window, impl.context);
-  ImGui_ImplOpenGL3_Init("#version 330 core");
-  impl.imgui = true;
+  impl.window->start_imgui();
 }
 
 // The session on its worker thread, solving the scene: running from the start unless paused or
 // stepped frame by frame.
 Status Viewer::start_session(const ViewOptions& options, const std::shared_ptr<const SampledResult>& reference) {
   try {
-    session_ = std::make_unique<Session>();
+    session_ =
+        std::make_unique<Session>(options.inline_solve ? Session::Threading::Inline : Session::Threading::Worker);
   } catch (const std::system_error& e) {
     return Error{"cannot start the solver's thread: " + e.code().message() + " (see ulimit -u and ulimit -v)"};
   }
@@ -287,16 +240,18 @@ Viewer::~Viewer() {
 
 void Viewer::restart() { session_->restart(scene_, settings_); }
 
+void Viewer::deliver(const std::string& path) { impl_->window->deliver(path); }
+
 void Viewer::set_message(std::string text) {
   message_ = std::move(text);
   message_time_ = seconds_since_start();
 }
 
-void Viewer::load_scene_file(const std::string& path) {
+Status Viewer::open_scene(const std::string& path) {
   Result<Scene> scene = load_scene(path, options_.cancel);
   if (!scene) {
     set_message(scene.error().message);
-    return;
+    return scene.error();
   }
   const bool same_file = path == scene_path_;
   scene_ = std::make_shared<const Scene>(std::move(*scene));
@@ -308,9 +263,10 @@ void Viewer::load_scene_file(const std::string& path) {
   }
   drop_reference("the scene changed");  // a reference belongs to one scene, as it was
   if (draw_.selected_curve >= static_cast<int>(scene_->curves.size())) draw_.selected_curve = -1;
-  SDL_SetWindowTitle(impl_->window, ("flatland - " + scene_->name).c_str());
+  impl_->window->set_title("flatland - " + scene_->name);
   set_message("loaded " + path);
   restart();
+  return ok_status();
 }
 
 void Viewer::check_file_changed() {
@@ -346,43 +302,43 @@ void Viewer::queue_drag(float from_x, float from_y, float to_x, float to_y) {
   queued_.push_back({to_x, to_y, false, 0});
 }
 
-void Viewer::resize_window(int width, int height) { SDL_SetWindowSize(impl_->window, width, height); }
+void Viewer::resize_window(int width, int height) { impl_->window->set_size(width, height); }
 
-void Viewer::queue_key(int sdl_keycode, bool ctrl) { queued_.push_back({0.0f, 0.0f, false, sdl_keycode, ctrl}); }
+void Viewer::queue_key(int key, bool ctrl) { queued_.push_back({0.0f, 0.0f, false, key, ctrl}); }
 
 void Viewer::handle_key(int key, bool ctrl) {
   overlay_generation_ = ~0ull;  // a display toggle shows at once, also while paused
   switch (key) {
-    case SDLK_SPACE:
+    case ' ':
       if (session_->snapshot()->stop_reason != StopReason::Running)
         set_message("the solve has stopped; Backspace (Reset) starts it again");
       else
         session_->set_running(!session_->running());
       break;
-    case SDLK_PERIOD:
+    case '.':
       slow_stepping_ = false;
       session_->step(StepKind::Photon);
       break;
-    case SDLK_b: session_->step(StepKind::Batch); break;
-    case SDLK_r: session_->step(StepKind::Round); break;
-    case SDLK_BACKSPACE: restart(); break;
-    case SDLK_f: view_fitted_ = false; break;
-    case SDLK_TAB: panels_visible_ = !panels_visible_; break;
-    case SDLK_c: draw_.control_points = !draw_.control_points; break;
-    case SDLK_n: draw_.storage_nodes = !draw_.storage_nodes; break;
-    case SDLK_g: draw_.graph = !draw_.graph; break;
-    case SDLK_k: draw_.band = !draw_.band; break;
-    case SDLK_p: draw_.paths = !draw_.paths; break;
-    case SDLK_PLUS:
-    case SDLK_EQUALS:
-    case SDLK_KP_PLUS: draw_.path_exposure *= 1.5f; break;
-    case SDLK_MINUS:
-    case SDLK_KP_MINUS: draw_.path_exposure /= 1.5f; break;
-    case SDLK_F1:
-    case SDLK_h: show_help_ = !show_help_; break;
-    case SDLK_F5: load_scene_file(scene_path_); break;
-    case SDLK_ESCAPE: quit_ = true; break;
-    case SDLK_s:
+    case 'b': session_->step(StepKind::Batch); break;
+    case 'r': session_->step(StepKind::Round); break;
+    case keys::kBackspace: restart(); break;
+    case 'f': view_fitted_ = false; break;
+    case keys::kTab: panels_visible_ = !panels_visible_; break;
+    case 'c': draw_.control_points = !draw_.control_points; break;
+    case 'n': draw_.storage_nodes = !draw_.storage_nodes; break;
+    case 'g': draw_.graph = !draw_.graph; break;
+    case 'k': draw_.band = !draw_.band; break;
+    case 'p': draw_.paths = !draw_.paths; break;
+    case '+':
+    case '=': draw_.path_exposure *= 1.5f; break;
+    case '-': draw_.path_exposure /= 1.5f; break;
+    case keys::kF1:
+    case 'h': show_help_ = !show_help_; break;
+    case keys::kF5: load_scene_file(scene_path_); break;
+    case keys::kEscape:
+      if (Window::closable()) quit_ = true;
+      break;
+    case 's':
       if (ctrl) {
         // The whole window as drawn at the end of this frame: the scene with the panels, so the
         // picture carries its colour key, the bounce colours and the B(s) plot's axes.
@@ -391,43 +347,35 @@ void Viewer::handle_key(int key, bool ctrl) {
         window_picture_ = name;
       }
       break;
-    case SDLK_1: first_photons(); break;
-    case SDLK_e:
+    case '1': first_photons(); break;
+    case 'e':
       if (ctrl) {
         const std::string name = "flatland-" + scene_->name + "-result.json";
         Result<nlohmann::json> result = session_->result_json(100);
         Status saved =
             result ? write_file_atomically(name, json_text(*result), options_.cancel) : Status(result.error());
         set_message(saved ? "saved " + name : saved.error().message);
+        if (saved) deliver(name);
       }
       break;
     default: break;
   }
 }
 
-void Viewer::handle_event(const void* raw) {
-  const SDL_Event& event = *static_cast<const SDL_Event*>(raw);
-  ImGui_ImplSDL2_ProcessEvent(&event);
+void Viewer::handle_event(const WindowEvent& event) {
   const ImGuiIO& io = ImGui::GetIO();
   switch (event.type) {
-    case SDL_QUIT: quit_ = true; break;
-    case SDL_WINDOWEVENT:
-      if (event.window.event == SDL_WINDOWEVENT_CLOSE) quit_ = true;
+    case WindowEvent::Type::Close: quit_ = true; break;
+    case WindowEvent::Type::Key:
+      if (!io.WantCaptureKeyboard || event.key == keys::kEscape) handle_key(event.key, event.ctrl);
       break;
-    case SDL_KEYDOWN:
-      if (!io.WantCaptureKeyboard || event.key.keysym.sym == SDLK_ESCAPE)
-        handle_key(event.key.keysym.sym, (event.key.keysym.mod & KMOD_CTRL) != 0);
-      break;
-    case SDL_MOUSEWHEEL:
-      if (!io.WantCaptureMouse && event.wheel.y != 0) {
-        int x = 0;
-        int y = 0;
-        SDL_GetMouseState(&x, &y);
-        view_.zoom_about({static_cast<double>(x), static_cast<double>(y)}, std::pow(1.15, event.wheel.y));
+    case WindowEvent::Type::Wheel:
+      if (!io.WantCaptureMouse) {
+        view_.zoom_about({event.x, event.y}, std::pow(1.15, event.wheel));
         view_auto_ = false;
       }
       break;
-    default: break;
+    case WindowEvent::Type::Drop: load_scene_file(event.path); break;
   }
 }
 
@@ -484,6 +432,7 @@ bool Viewer::frame() {
   const double frame_start = seconds_since_start();
   handle_events();
   step_solve();
+  session_->pump(kInlineSolveSeconds);  // an inline session solves between frames (a worker: no-op)
   const std::shared_ptr<const Snapshot> snapshot = session_->snapshot();
   handle_scene_mouse(*snapshot);
   panel_rects_.clear();
@@ -497,20 +446,18 @@ bool Viewer::frame() {
   if (!window_picture_.empty()) {
     const Status saved = save_window_picture(window_picture_);
     set_message(saved ? "saved " + window_picture_ : saved.error().message);
+    if (saved) deliver(window_picture_);
     window_picture_.clear();
   }
-  SDL_GL_SwapWindow(impl_->window);
+  impl_->window->swap();
   frame_seconds_.push_back(seconds_since_start() - frame_start);
   return !quit_;
 }
 
 void Viewer::handle_events() {
-  SDL_Event event;
-  while (SDL_PollEvent(&event)) handle_event(&event);
+  for (const WindowEvent& event : impl_->window->poll_events()) handle_event(event);
   check_file_changed();  // a scene file changed on disk is an event too
-  int width = 0;
-  int height = 0;
-  SDL_GL_GetDrawableSize(impl_->window, &width, &height);
+  const auto [width, height] = impl_->window->drawable_size();
   // The docked layout: panels in the side columns, the scene fitted to the stage between them
   // (again whenever the stage changes, unless the user has zoomed or panned since the last fit).
   // The menu bar's height: ImGui's frame height, which it only knows after its first frame (the
@@ -530,8 +477,7 @@ void Viewer::handle_events() {
   view_.width = width;
   view_.height = height;
 
-  ImGui_ImplOpenGL3_NewFrame();
-  ImGui_ImplSDL2_NewFrame();
+  impl_->window->new_imgui_frame();
   // Queued input (tests) replaces the device's for this frame.
   if (!queued_.empty()) {
     const QueuedInput input = queued_.front();
@@ -652,7 +598,7 @@ void Viewer::draw(const std::shared_ptr<const Snapshot>& snapshot) {
   glBindFramebuffer(GL_FRAMEBUFFER, 0);
   // The window: the scene drawn on the stage only (the docked panels cover the rest).
   if (view_.width > 0 && view_.height > 0) render_scene(*snapshot, view_, &layout_.stage);
-  ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
+  impl_->window->render_imgui();
 }
 
 Status Viewer::save_window_picture(const std::string& path) {
@@ -662,9 +608,7 @@ Status Viewer::save_window_picture(const std::string& path) {
 }
 
 Status Viewer::save_screenshot(const std::string& path) {
-  int width = 0;
-  int height = 0;
-  SDL_GL_GetDrawableSize(impl_->window, &width, &height);
+  const auto [width, height] = impl_->window->drawable_size();
   if (width <= 0 || height <= 0) return Error{path + ": the window has no area to take a picture of"};
   if (Status made =
           Renderer::make_colour_framebuffer(width, height, impl_->screenshot_framebuffer, impl_->screenshot_colour);

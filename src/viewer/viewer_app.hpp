@@ -1,6 +1,7 @@
-// `flatland view`: the interactive viewer (SDL2 window, OpenGL 3.3 core, Dear ImGui panels). It
-// drives a Session (the core's Solver on a worker thread) and draws each frame from the latest
-// snapshot with the Renderer. Headless runs (--frames N --screenshot FILE) and the UI tests use
+// `flatland view`: the interactive viewer (a window of window.hpp: SDL2 and OpenGL 3.3 core on the
+// desktop, GLFW and WebGL2 in the browser; Dear ImGui panels). It drives a Session (the core's
+// Solver on a worker thread, or between frames) and draws each frame from the latest snapshot with
+// the Renderer. Headless runs (--frames N --screenshot FILE) and the UI tests use
 // the same object.
 #pragma once
 
@@ -50,6 +51,9 @@ struct ViewOptions {
   // solver's cores) and no limit otherwise (vsync paces the frames); negative is no limit.
   int max_fps = 0;
   bool report = false;  // print frame and photon rates at the end
+  // Solve between frames on the drawing thread instead of on a worker thread (the web build has
+  // one thread): each frame spends about kInlineSolveSeconds on it.
+  bool inline_solve = false;
   // Ends a wait for the scene or reference file (a FIFO with no writer yet) when set: Ctrl-C.
   const std::atomic<bool>* cancel = nullptr;
 };
@@ -69,8 +73,12 @@ Result<std::uint64_t> parse_whole_number(const std::string& text, const std::str
 // The default scene: scenes2d/default.json beside the source tree or the working directory.
 std::string default_scene_path();
 
+struct WindowEvent;
+
 class Viewer {
  public:
+  // An inline solve's share of a frame (ViewOptions::inline_solve).
+  static constexpr double kInlineSolveSeconds = 0.012;
   // Opens the window and the GL context. Errors: no display (one line: what to do instead),
   // shader compile or link errors (with the GL log), a bad scene or reference file.
   static Result<std::unique_ptr<Viewer>> create(const ViewOptions& options);
@@ -103,7 +111,7 @@ class Viewer {
   std::optional<std::array<float, 4>> widget_rect(const std::string& label) const;
   void queue_click(float x, float y);
   void queue_drag(float from_x, float from_y, float to_x, float to_y);
-  void queue_key(int sdl_keycode, bool ctrl = false);
+  void queue_key(int key, bool ctrl = false);  // a key of window.hpp (keys::)
   // Resizes the window (as a user dragging its border would); the next frames lay out again.
   void resize_window(int width, int height);
   // The "first photons" preset for a lecture: random walks, paths coloured by bounce, a few kept,
@@ -112,8 +120,10 @@ class Viewer {
   void first_photons();
   static constexpr double kFirstPhotonsSeconds = 0.8;
   bool slow_stepping() const { return slow_stepping_; }
-  // Opens another scene file (as File > Open scene does) and inspects curve `curve` (-1: none).
-  void open_scene(const std::string& path) { load_scene_file(path); }
+  // Opens another scene file (as File > Open scene does); a file that does not load leaves the
+  // scene as it was, and its one-line error is the result (and the status panel's message).
+  Status open_scene(const std::string& path);
+  const std::string& scene_path() const { return scene_path_; }
   void select_curve(int curve) { draw_.selected_curve = curve; }
 
   // The scene view without panels, as a PNG (--screenshot-ui takes the whole window).
@@ -132,14 +142,15 @@ class Viewer {
   static void start_imgui(Impl& impl, float ui_scale);
   Status start_session(const ViewOptions& options, const std::shared_ptr<const SampledResult>& reference);
   void restart();
-  void load_scene_file(const std::string& path);
+  // open_scene from the viewer's own controls (the status panel shows an error).
+  void load_scene_file(const std::string& path) { static_cast<void>(open_scene(path)); }
   // The main loop's parts.
   void handle_events();
   void step_solve();
   void handle_scene_mouse(const Snapshot& snapshot);
   void draw(const std::shared_ptr<const Snapshot>& snapshot);
   Status save_window_picture(const std::string& path);
-  void handle_event(const void* sdl_event);
+  void handle_event(const WindowEvent& event);
   void handle_key(int key, bool ctrl);
   // Panels (panels.cpp).
   void draw_ui(const Snapshot& snapshot);
@@ -164,8 +175,10 @@ class Viewer {
   void drop_reference(const std::string& why);
   void check_file_changed();
   void set_message(std::string text);
+  // A file written for the user (Window::deliver: a download in the browser).
+  void deliver(const std::string& path);
 
-  std::unique_ptr<Impl> impl_;  // SDL window, GL context, ImGui state, renderer
+  std::unique_ptr<Impl> impl_;  // window, GL context, ImGui state, renderer
   ViewOptions options_;
   FrameStep frame_step_;
   std::unique_ptr<Session> session_;

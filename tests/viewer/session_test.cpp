@@ -149,6 +149,38 @@ TEST(Session, RunningSpendsTheBudgetAndKeepsTheNewestPaths) {
   EXPECT_NEAR(shares, 1.0, 1e-12);
 }
 
+TEST(Session, AnInlineSessionPumpedBetweenFramesMatchesTheSolver) {
+  // The web page's session: no worker thread; the caller pumps it in short slices (as frames do),
+  // with a step and a restart queued in between. The free run ends where the solver's run does.
+  auto scene = std::make_shared<const Scene>(testing::scene_from_file("scenes2d/room_reflector.json"));
+  SolverSettings settings;
+  settings.photons = 200'000;
+  settings.seed = 3;
+  settings.threads = 1;
+  Session session(Session::Threading::Inline);
+  EXPECT_EQ(session.threading(), Session::Threading::Inline);
+  session.restart(scene, settings);
+  session.step(StepKind::Photon, 777);
+  session.pump(0.0);  // one command per call at the least: the restart
+  EXPECT_EQ(session.snapshot()->progress.photons, 0u);
+  session.wait_idle();
+  EXPECT_EQ(session.snapshot()->progress.photons, 777u);
+  settings.seed = 4;
+  session.restart(scene, settings);  // the new seed, from the start
+  session.set_running(true);
+  int slices = 0;
+  while (session.running() || slices == 0) {
+    session.pump(0.005);
+    ++slices;
+    ASSERT_LT(slices, 100'000);
+  }
+  EXPECT_GT(slices, 1);  // it took several frames, each returning
+  Solver solver = *Solver::create(*scene, settings);
+  solver.run();
+  EXPECT_EQ(session.snapshot()->progress.photons, solver.photons_shot());
+  EXPECT_EQ(without_timing(*session.result_json(30)), without_timing(result_to_json(solver, 30)));
+}
+
 TEST(Session, RestartTakesNewSettingsAndReportsRejectedOnes) {
   auto scene = std::make_shared<const Scene>(testing::scene_from_file("scenes2d/penumbra.json"));
   SolverSettings settings;

@@ -3,6 +3,7 @@
 // and checks that the solve follows. This executable re-runs itself under xvfb-run when no display
 // is set.
 #include "viewer/viewer_app.hpp"
+#include "viewer/window.hpp"
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -12,8 +13,6 @@
 #include <filesystem>
 #include <fstream>
 #include <sstream>
-
-#include <SDL.h>
 
 #include <nlohmann/json.hpp>
 
@@ -247,8 +246,8 @@ TEST_F(Viewer, UiControlsDriveTheSolve) {
 
   // Keyboard: Space pauses, Backspace restarts the solve.
   const std::uint64_t generation = viewer.session().snapshot()->generation;
-  viewer.queue_key(SDLK_SPACE);
-  viewer.queue_key(SDLK_BACKSPACE);
+  viewer.queue_key(' ');
+  viewer.queue_key(viewer::keys::kBackspace);
   frames_until(
       viewer, [] { return false; }, 3);
   viewer.session().wait_idle();
@@ -271,7 +270,7 @@ TEST_F(Viewer, PanelsNeverCoverTheScene) {
   ASSERT_TRUE(created) << created.error().message;
   viewer::Viewer& viewer = **created;
   for (const char* name : {"room_reflector.json", "syndrome.json", "curved_room.json", "penumbra.json"}) {
-    viewer.open_scene(scene(name));
+    ASSERT_TRUE(viewer.open_scene(scene(name))) << name;
     viewer.select_curve(0);
     for (const auto& [width, height] : {std::pair{1280, 800}, {1024, 768}, {1366, 768}, {1200, 900}}) {
       viewer.resize_window(width, height);
@@ -297,7 +296,7 @@ TEST_F(Viewer, PanelsNeverCoverTheScene) {
       }
     }
   }
-  viewer.queue_key(SDLK_TAB);
+  viewer.queue_key(viewer::keys::kTab);
   frames_until(
       viewer, [] { return false; }, 3);
   EXPECT_FALSE(viewer.panel_rect("Solve").has_value());
@@ -501,11 +500,11 @@ TEST_F(Viewer, ReloadsTheSceneWhenItsFileChangesAndSavesResults) {
   // Ctrl+E saves the result, Ctrl+S a screenshot, in the working directory.
   const fs::path previous = fs::current_path();
   fs::current_path(directory_);
-  viewer.queue_key(SDLK_r);
+  viewer.queue_key('r');
   viewer.frame();
   viewer.session().wait_idle();
-  viewer.queue_key(SDLK_e, true);
-  viewer.queue_key(SDLK_s, true);
+  viewer.queue_key('e', true);
+  viewer.queue_key('s', true);
   for (int i = 0; i < 3; ++i) viewer.frame();
   fs::current_path(previous);
   const std::string result = read_file(directory_ / "flatland-penumbra-result.json");
