@@ -1,0 +1,187 @@
+"""The web page (docs/web.md) in headless Chromium, served from 127.0.0.1 as a static site.
+
+The testing hook (report=1) must give what `flatland solve --out` writes for the same scene and
+options, bit for bit but for the timing and the scene file's path; a bad scene or option must give
+the command line's one-line error in the page; the live viewer must show the lit scene.
+
+Needs the built site (.ci/web: build-web/site, or FLATLAND_SITE), chromium and the desktop program
+(FLATLAND_BINARY, default build/flatland); skipped without them. FLATLAND_WEB_FIGURES=DIR keeps the
+screenshots there (docs/figures/web-*.png are made so).
+"""
+import functools
+import html
+import http.server
+import json
+import os
+import re
+import shutil
+import struct
+import subprocess
+import threading
+import zlib
+
+import pytest
+
+SITE = os.path.abspath(os.environ.get("FLATLAND_SITE", "build-web/site"))
+BINARY = os.path.abspath(os.environ.get("FLATLAND_BINARY", "build/flatland"))
+SOURCE = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
+CHROMIUM = shutil.which("chromium")
+
+pytestmark = pytest.mark.skipif(
+    CHROMIUM is None or not os.path.exists(os.path.join(SITE, "flatland.wasm")) or not os.path.exists(BINARY),
+    reason="needs chromium, the web build (.ci/web) and build/flatland")
+
+
+class QuietHandler(http.server.SimpleHTTPRequestHandler):
+    def log_message(self, *args):
+        pass
+
+
+@pytest.fixture(scope="module")
+def page(tmp_path_factory):
+    """The page's address on a local static server whose root also holds a broken scene."""
+    root = tmp_path_factory.mktemp("web")
+    os.symlink(SITE, root / "site")
+    # A scene whose curve names a material that does not exist.
+    (root / "bad.json").write_text(
+        '{"flatland": 2, "materials": {"wall": {"reflectivity": 0.5}},\n'
+        ' "curves": [{"id": "a", "material": "lamp", "line": [[0, 0], [1, 0]]}]}\n')
+    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), functools.partial(QuietHandler, directory=str(root)))
+    threading.Thread(target=server.serve_forever, daemon=True).start()
+    yield {"url": f"http://127.0.0.1:{server.server_address[1]}/site/index.html", "root": root}
+    server.shutdown()
+
+
+def chromium(tmp_path, url, *args, budget=60000):
+    """Runs headless Chromium on the page until the page is idle (virtual time) and returns it."""
+    command = [CHROMIUM, "--headless", "--no-sandbox", "--no-first-run", f"--user-data-dir={tmp_path / 'profile'}",
+               "--enable-unsafe-swiftshader", "--use-angle=swiftshader", f"--virtual-time-budget={budget}", *args, url]
+    run = subprocess.run(command, capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr[-2000:]
+    return run.stdout
+
+
+def element(dom, tag, id):
+    match = re.search(rf'<{tag} id="{id}"[^>]*>(.*?)</{tag}>', dom, re.S)
+    assert match, f"no {tag}#{id} in the page"
+    return html.unescape(match.group(1))
+
+
+def report(tmp_path, url, query):
+    return json.loads(element(chromium(tmp_path, f"{url}?report=1&{query}", "--dump-dom"), "pre", "flatland-report"))
+
+
+def comparable(document):
+    """The result without what differs between runs and places: the timing, the scene file's path."""
+    document["stats"].pop("seconds")
+    document["scene"].pop("file")
+    return document
+
+
+@pytest.mark.parametrize("scene,options", [
+    ("penumbra", {"photons": "200000", "seed": "3", "basis": "linear"}),          # grey
+    ("default", {"photons": "100000", "seed": "2", "estimator": "local"}),       # colour
+    ("enclosure", {"photons": "100000", "transport": "walk", "sampler": "random"}),  # a closed curve
+])
+def test_the_report_is_what_solve_writes(page, tmp_path, scene, options):
+    query = "&".join(f"{key}={value}" for key, value in {"scene": scene, **options}.items())
+    web = report(tmp_path, page["url"], query)
+    out = tmp_path / "native.json"
+    arguments = [f"--{key}={value}" for key, value in options.items()]
+    subprocess.run([BINARY, "solve", os.path.join(SOURCE, "scenes2d", scene + ".json"), *arguments, "--threads", "1",
+                    "--quiet", "--out", str(out)], check=True)
+    native = json.loads(out.read_text())
+    assert web["scene"]["file"] == f"/scenes2d/{scene}.json"
+    assert comparable(web) == comparable(native)
+
+
+def cli_error(*arguments):
+    run = subprocess.run([BINARY, *arguments], capture_output=True, text=True)
+    assert run.returncode == 2
+    return run.stderr.strip()
+
+
+def test_a_bad_scene_gives_the_command_lines_message(page, tmp_path):
+    web = report(tmp_path, page["url"], "scene=../bad.json")
+    native = cli_error("solve", str(page["root"] / "bad.json"), "--threads", "1", "--out", str(tmp_path / "o.json"))
+    assert web == {"error": native.replace(str(page["root"] / "bad.json"), "/fetched/bad.json")}
+    # The viewer says the same in the page, where it would have been.
+    dom = chromium(tmp_path, f"{page['url']}?scene=../bad.json", "--dump-dom")
+    assert element(dom, "div", "status") == web["error"]
+
+
+def test_a_bad_option_gives_the_command_lines_message(page, tmp_path):
+    web = report(tmp_path, page["url"], "scene=default&basis=quintic")
+    scene = os.path.join(SOURCE, "scenes2d", "default.json")
+    assert web == {"error": cli_error("solve", scene, "--basis", "quintic", "--threads", "1", "--out",
+                                      str(tmp_path / "o.json"))}
+    web = report(tmp_path, page["url"], "scene=no_such_scene")
+    assert web["error"].startswith("flatland: error: /scenes2d/no_such_scene.json: ")
+
+
+def png_pixels(path):
+    """An 8-bit RGB or RGBA PNG (as Chromium writes them): width, height, rows of (r, g, b)."""
+    data = open(path, "rb").read()
+    assert data[:8] == b"\x89PNG\r\n\x1a\n"
+    at, idat, header = 8, b"", None
+    while at < len(data):
+        length, kind = struct.unpack(">I4s", data[at:at + 8])
+        body = data[at + 8:at + 8 + length]
+        if kind == b"IHDR":
+            header = struct.unpack(">IIBBBBB", body)
+        elif kind == b"IDAT":
+            idat += body
+        at += 12 + length
+    width, height, depth, colour, _, _, interlace = header
+    assert depth == 8 and colour in (2, 6) and interlace == 0
+    channels = 3 if colour == 2 else 4
+    raw = zlib.decompress(idat)
+    stride = width * channels
+    rows, previous = [], bytearray(stride)
+    for y in range(height):
+        kind, line = raw[y * (stride + 1)], bytearray(raw[y * (stride + 1) + 1:(y + 1) * (stride + 1)])
+        for i in range(stride):
+            left = line[i - channels] if i >= channels else 0
+            up = previous[i]
+            corner = previous[i - channels] if i >= channels else 0
+            if kind == 1:
+                line[i] = (line[i] + left) & 255
+            elif kind == 2:
+                line[i] = (line[i] + up) & 255
+            elif kind == 3:
+                line[i] = (line[i] + (left + up) // 2) & 255
+            elif kind == 4:
+                p = left + up - corner
+                pa, pb, pc = abs(p - left), abs(p - up), abs(p - corner)
+                line[i] = (line[i] + (left if pa <= pb and pa <= pc else up if pb <= pc else corner)) & 255
+        rows.append([tuple(line[x * channels:x * channels + 3]) for x in range(width)])
+        previous = line
+    return width, height, rows
+
+
+def lit_fraction(rows, x0, x1, y0, y1):
+    """The share of pixels in the box (fractions of the picture) that are clearly lit."""
+    height, width = len(rows), len(rows[0])
+    box = [rows[y][x] for y in range(int(y0 * height), int(y1 * height), 2)
+           for x in range(int(x0 * width), int(x1 * width), 2)]
+    return sum(1 for pixel in box if max(pixel) > 60) / len(box)
+
+
+def screenshot(page, tmp_path, query, width, height, name):
+    shot = tmp_path / f"{name}.png"
+    chromium(tmp_path, f"{page['url']}?{query}", f"--window-size={width},{height}", f"--screenshot={shot}",
+             budget=8000)
+    figures = os.environ.get("FLATLAND_WEB_FIGURES")
+    if figures:
+        shutil.copy(shot, os.path.join(figures, f"{name}.png"))
+    found_width, found_height, rows = png_pixels(shot)
+    assert (found_width, found_height) == (width, height)
+    return rows
+
+
+def test_the_live_viewer_shows_the_lit_scene(page, tmp_path):
+    rows = screenshot(page, tmp_path, "scene=default&seed=1", 1280, 720, "web-viewer")
+    # The stage lies between the panels' columns: photon paths light most of it.
+    assert lit_fraction(rows, 0.35, 0.65, 0.35, 0.65) > 0.3
+    # The panels are drawn (their text is light on dark).
+    assert lit_fraction(rows, 0.0, 0.25, 0.05, 0.5) > 0.02
