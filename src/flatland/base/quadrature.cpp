@@ -4,13 +4,15 @@
 #include <cstddef>
 #include <numbers>
 
+#include "flatland/base/portable_math.hpp"
+
 namespace flatland::gauss {
 
 void legendre_unit_rule(int n, std::vector<double>& nodes, std::vector<double>& weights) {
   nodes.assign(static_cast<std::size_t>(n), 0.0);
   weights.assign(static_cast<std::size_t>(n), 0.0);
   for (int k = 0; k < n; ++k) {
-    double z = std::cos(std::numbers::pi * (k + 0.75) / (n + 0.5));
+    double z = portable::cos(std::numbers::pi * (k + 0.75) / (n + 0.5));
     double derivative = 1.0;
     for (int iteration = 0; iteration < 100; ++iteration) {
       double p0 = 1.0;

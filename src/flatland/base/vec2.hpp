@@ -1,6 +1,7 @@
 // Two-dimensional vectors in double precision: the only geometric primitive of the core.
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 
 namespace flatland {
@@ -50,7 +51,18 @@ struct Box {
   Vec2 center() const { return 0.5 * (lower + upper); }
   Vec2 extent() const { return upper - lower; }
   // hypot, not sqrt(x^2 + y^2): a scene 1e-300 across has a diagonal, not 0.
-  double diagonal() const { return empty() ? 0.0 : std::hypot(upper.x - lower.x, upper.y - lower.y); }
+  // Scaled by the larger side so that the squares neither overflow nor underflow, with IEEE basic
+  // operations only (hypot's last bit differs between C libraries).
+  double diagonal() const {
+    if (empty()) return 0.0;
+    const double dx = std::fabs(upper.x - lower.x);
+    const double dy = std::fabs(upper.y - lower.y);
+    const double larger = std::max(dx, dy);
+    if (larger == 0.0) return 0.0;
+    const double a = dx / larger;
+    const double b = dy / larger;
+    return larger * std::sqrt(a * a + b * b);
+  }
   // The box grown by `pad` on every side.
   Box padded(double pad) const { return Box{lower - Vec2{pad, pad}, upper + Vec2{pad, pad}}; }
   // Whether the two closed boxes share a point.

@@ -621,7 +621,8 @@ bool source_allows(const Scene& scene, const Feature& a, Vec2 d) {
   const Cubic& c = scene.segments[a.segment].geometry.shape;
   const Vec2 d1 = derivative(c, a.t);
   const double bend = cross(d1, second_derivative(c, a.t));
-  if (std::fabs(bend) <= 1e-9 * std::pow(length(d1), 3) / scene.scale) return false;  // inflection
+  const double speed = length(d1);
+  if (std::fabs(bend) <= 1e-9 * (speed * speed * speed) / scene.scale) return false;  // inflection
   // bend > 0: turning left, the centre of curvature on the front side, the convex side is the back.
   return curve.has_side(bend > 0.0 ? Side::Back : Side::Front);
 }

@@ -60,13 +60,16 @@ Cubic segment_shape(const Curve& c, std::size_t j) {
 }
 
 // The default continuity at the joint between segments a (its end) and b (its start): C1 where the
-// unit tangents agree to kTangentAngle, a jump (C-1) at a corner. The angle between unit vectors u, v
-// is atan2(|u x v|, u . v); for a small angle |u x v| is the angle itself.
+// unit tangents agree to kTangentAngle, a jump (C-1) at a corner. The angle between unit vectors u,
+// v, atan2(|u x v|, u . v), is at most kTangentAngle exactly when u . v > 0 and |u x v| <=
+// tan(kTangentAngle) u . v, with tan(t) = t + t^3/3 to far below an ulp at t = 1e-9 (no library
+// call: its last bit varies between C libraries).
 Continuity default_joint(const Cubic& a, const Cubic& b, double scale) {
   const Vec2 u = unit_tangent(a, 1.0, scale);
   const Vec2 v = unit_tangent(b, 0.0, scale);
-  const double angle = std::atan2(std::fabs(cross(u, v)), dot(u, v));
-  return angle <= kTangentAngle ? Continuity::C1 : Continuity::Jump;
+  constexpr double kTangentTan = kTangentAngle + kTangentAngle * kTangentAngle * kTangentAngle / 3.0;
+  const double along = dot(u, v);
+  return along > 0.0 && std::fabs(cross(u, v)) <= kTangentTan * along ? Continuity::C1 : Continuity::Jump;
 }
 
 // Distance from p to a scene segment: closed form for a line, distance_to_cubic otherwise.

@@ -9,6 +9,7 @@
 #include <numbers>
 #include <string>
 
+#include "flatland/base/portable_math.hpp"
 #include "flatland/base/quadrature.hpp"
 #include "flatland/base/roots.hpp"
 #include "flatland/base/text.hpp"
@@ -66,7 +67,7 @@ std::uint32_t segment_of_span(double ua, double ub, std::uint32_t count) {
 //
 // Point i of the n Chebyshev-Lobatto points (n >= 2), cos(pi i / (n - 1)): from 1 down to -1.
 double lobatto_point(std::size_t i, std::size_t n) {
-  return std::cos(std::numbers::pi * static_cast<double>(i) / static_cast<double>(n - 1));
+  return portable::cos(std::numbers::pi * static_cast<double>(i) / static_cast<double>(n - 1));
 }
 
 // The coefficients of the polynomial of degree n - 1 through values f[i] at the n Lobatto points
@@ -77,7 +78,7 @@ void chebyshev_fit(const double* f, std::size_t n, double* c) {
     double sum = 0.5 * (f[0] + (k % 2 == 0 ? f[m] : -f[m]));
     for (std::size_t i = 1; i < m; ++i) {
       const std::size_t angle = (k * i) % (2 * m);  // cos(pi k i / m), reduced exactly
-      sum += f[i] * std::cos(std::numbers::pi * static_cast<double>(angle) / static_cast<double>(m));
+      sum += f[i] * portable::cos(std::numbers::pi * static_cast<double>(angle) / static_cast<double>(m));
     }
     c[k] = (k == 0 || k == m ? 1.0 : 2.0) * sum / static_cast<double>(m);
   }
@@ -148,7 +149,7 @@ std::size_t chebyshev_fit_checked(Function&& g, std::size_t count, double tolera
       good = std::fabs(c[n - 1]) <= tolerance && std::fabs(c[n - 2]) <= tolerance;
     }
     for (std::size_t i = 0; i + 1 < n && good; ++i) {
-      const double y = std::cos(std::numbers::pi * (static_cast<double>(i) + 0.5) / static_cast<double>(n - 1));
+      const double y = portable::cos(std::numbers::pi * (static_cast<double>(i) + 0.5) / static_cast<double>(n - 1));
       g(y, at.data());
       for (std::size_t f = 0; f < count && good; ++f)
         good = std::fabs(chebyshev_value(coefficients.data() + f * n, n, y) - at[f]) <= 4.0 * tolerance;

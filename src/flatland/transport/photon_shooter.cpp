@@ -4,6 +4,7 @@
 #include <cmath>
 #include <numbers>
 
+#include "flatland/base/portable_math.hpp"
 #include "flatland/transport/qmc.hpp"
 
 namespace flatland {
@@ -113,9 +114,11 @@ inline Vec2 leaving_direction(bool emitted_light, const Emission& emission, Vec2
     // Sobol': sample_lobe's first proposal (theta uniform, kept with probability cos^n) from the
     // point; when it is refused, sample_lobe draws afresh from the stream.
     const double theta = qmc ? (point->sample(kDirection) - 0.5) * std::numbers::pi : 0.0;
-    const double c = std::cos(theta);
-    if (qmc && point->sample(kAcceptLobe) < std::pow(c, emission.exponent))
-      return std::sin(theta) * Vec2{normal.y, -normal.x} + c * normal;
+    double s = 0.0;
+    double c = 0.0;
+    portable::sin_cos(theta, s, c);
+    if (qmc && point->sample(kAcceptLobe) < portable::pow(c, emission.exponent))
+      return s * Vec2{normal.y, -normal.x} + c * normal;
     return sample_lobe(rng, emission.exponent, normal);
   }
   return square_to_beam(qmc ? point->sample(kDirection) : rng.uniform(), emission.half_angle, normal);

@@ -7,6 +7,7 @@
 #include <numbers>
 #include <optional>
 
+#include "flatland/base/portable_math.hpp"
 #include "flatland/base/roots.hpp"
 
 namespace flatland {
@@ -30,8 +31,9 @@ double first_moment_antiderivative(RayProfile profile, double x) {
     case RayProfile::Tent: return 0.5 * x2 - std::fabs(x) * x2 / 3.0;
     case RayProfile::Epanechnikov: return 0.375 * x2 - 0.1875 * x2 * x2;
     case RayProfile::Cosine:
-      return 0.5 * x * std::sin(0.5 * std::numbers::pi * x) + std::cos(0.5 * std::numbers::pi * x) / std::numbers::pi;
-    case RayProfile::Gauss: return -kGaussNorm * std::exp(-4.5 * x2) / 9.0;
+      return 0.5 * x * portable::sin(0.5 * std::numbers::pi * x) +
+             portable::cos(0.5 * std::numbers::pi * x) / std::numbers::pi;
+    case RayProfile::Gauss: return -kGaussNorm * portable::exp(-4.5 * x2) / 9.0;
   }
   return 0.0;
 }
@@ -60,7 +62,7 @@ double profile_cdf(RayProfile profile, double x) {
       return 1.0 - 0.5 * (1.0 - x) * (1.0 - x);
     }
     case RayProfile::Epanechnikov: return 0.25 * (2.0 + x * (3.0 - x * x));
-    case RayProfile::Cosine: return 0.5 * (1.0 + std::sin(0.5 * std::numbers::pi * x));
+    case RayProfile::Cosine: return 0.5 * (1.0 + portable::sin(0.5 * std::numbers::pi * x));
     case RayProfile::Gauss: {
       // F(x) = (erf(3x/sqrt 2) + kept) / (2 kept). On the lower half write it with erfc,
       // F(x) = (erfc(3|x|/sqrt 2) - tail) / (2 kept), which keeps its relative accuracy in the
@@ -83,7 +85,7 @@ double profile_sample(RayProfile profile, double u) {
       // Solve (2 + 3x - x^3)/4 = u, i.e. x^3 - 3x + (4u - 2) = 0. With x = 2 sin(theta) the
       // identity sin(3 theta) = 3 sin(theta) - 4 sin^3(theta) turns it into sin(3 theta) = 2u - 1;
       // theta = asin(2u - 1)/3 in [-pi/6, pi/6] gives the root in [-1, 1].
-      return 2.0 * std::sin(std::asin(2.0 * u - 1.0) / 3.0);
+      return 2.0 * portable::sin(std::asin(2.0 * u - 1.0) / 3.0);
     }
     case RayProfile::Cosine: return std::asin(2.0 * u - 1.0) * (2.0 / std::numbers::pi);
     case RayProfile::Gauss: {

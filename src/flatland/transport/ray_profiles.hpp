@@ -16,6 +16,8 @@
 #include <numbers>
 #include <vector>
 
+#include "flatland/base/portable_math.hpp"
+
 namespace flatland {
 
 namespace profile_detail {
@@ -69,8 +71,8 @@ inline double profile_density_inside(RayProfile profile, double x) {
     case RayProfile::Box: return 0.5;
     case RayProfile::Tent: return 1.0 - std::fabs(x);
     case RayProfile::Epanechnikov: return 0.75 * (1.0 - x * x);
-    case RayProfile::Cosine: return 0.25 * std::numbers::pi * std::cos(0.5 * std::numbers::pi * x);
-    case RayProfile::Gauss: return profile_detail::kGaussNorm * std::exp(-4.5 * x * x);
+    case RayProfile::Cosine: return 0.25 * std::numbers::pi * portable::cos(0.5 * std::numbers::pi * x);
+    case RayProfile::Gauss: return profile_detail::kGaussNorm * portable::exp(-4.5 * x * x);
   }
   return 0.0;
 }

@@ -8,6 +8,7 @@
 #include <utility>
 #include <vector>
 
+#include "flatland/base/portable_math.hpp"
 #include "flatland/base/vec2.hpp"
 
 namespace flatland {
@@ -90,8 +91,10 @@ inline Vec2 sample_lobe(Rng& rng, double exponent, Vec2 normal) {
   const Vec2 tangent{normal.y, -normal.x};
   for (;;) {
     const double theta = (rng.uniform() - 0.5) * std::numbers::pi;
-    const double c = std::cos(theta);
-    if (rng.uniform() < std::pow(c, exponent)) return std::sin(theta) * tangent + c * normal;
+    double s = 0.0;
+    double c = 0.0;
+    portable::sin_cos(theta, s, c);  // portable: the same directions on every platform
+    if (rng.uniform() < portable::pow(c, exponent)) return s * tangent + c * normal;
   }
 }
 // Its density per radian: cos^n / c_n with c_n = integral of cos^n over [-pi/2, pi/2]
@@ -107,14 +110,14 @@ inline double sample_lobe_pdf(double exponent, Vec2 normal, Vec2 direction) {
 // A beam: the diffuse distribution restricted to |theta| <= a, so sin(theta) is uniform in
 // [-sin a, sin a] (pdf cos(theta) / (2 sin a)).
 inline Vec2 square_to_beam(double u, double half_angle, Vec2 normal) {
-  const double s = (2.0 * u - 1.0) * std::sin(half_angle);
+  const double s = (2.0 * u - 1.0) * portable::sin(half_angle);
   const Vec2 tangent{normal.y, -normal.x};
   return s * tangent + std::sqrt(std::fmax(0.0, 1.0 - s * s)) * normal;
 }
 inline double square_to_beam_pdf(double half_angle, Vec2 normal, Vec2 direction) {
   const double c = dot(normal, direction);
-  if (!(c > 0.0) || c < std::cos(half_angle)) return 0.0;
-  return c / (2.0 * std::sin(half_angle));
+  if (!(c > 0.0) || c < portable::cos(half_angle)) return 0.0;
+  return c / (2.0 * portable::sin(half_angle));
 }
 
 // A discrete distribution with O(1) sampling by Walker's alias method (Vose's construction):

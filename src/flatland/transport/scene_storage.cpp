@@ -341,8 +341,8 @@ int SceneStorage::best_level(std::uint32_t c, const ReflectedPower& reflected) c
         norm2.represent(level, reflected.sides[side][set], (*targets[set])[level].data() + side * width);
   // The estimator's order q: its bias shrinks by 2^q per level.
   const int degree = storage_[c].basis.degree();
-  const double order = estimator_ == Estimator::Lumped ? std::min(degree + 1, 2) : degree + 1.0;
-  const double richardson = std::pow(2.0, order) / (std::pow(2.0, order) - 1.0);
+  const int order = estimator_ == Estimator::Lumped ? std::min(degree + 1, 2) : degree + 1;
+  const double richardson = std::ldexp(1.0, order) / (std::ldexp(1.0, order) - 1.0);
   const std::size_t last = count - 1;
   double best = std::numeric_limits<double>::infinity();
   double bias2 = 0.0;
@@ -354,7 +354,7 @@ int SceneStorage::best_level(std::uint32_t c, const ReflectedPower& reflected) c
           norm2([&](std::size_t i) { return (part_a[l][i] - part_a[l + 1][i]) - (part_b[l][i] - part_b[l + 1][i]); });
       bias2 = std::max(difference - noise, 0.0) * richardson * richardson;
     } else {
-      bias2 /= std::pow(2.0, 2.0 * order);  // the finest: the last step's bias, one level on
+      bias2 = std::ldexp(bias2, -2 * order);  // the finest: the last step's bias, one level on
     }
     const double variance = norm2([&](std::size_t i) { return part_a[l][i] - part_b[l][i]; });
     if (bias2 + variance < best) {

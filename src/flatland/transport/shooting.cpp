@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "flatland/base/portable_math.hpp"
+
 namespace flatland {
 
 ProgressiveShooting::ProgressiveShooting(std::vector<double> emission, double emitted, double decay, double tolerance)
@@ -22,7 +24,7 @@ std::uint64_t ProgressiveShooting::round_photons(double unshot, std::uint64_t sh
   const double target = tolerance_ * emitted_;
   double later_rounds = 0.0;
   if (ratio > 0.0 && unshot > target)
-    later_rounds = std::clamp(std::ceil(std::log(target / unshot) / std::log(ratio)) - 1.0, 0.0, 1e15);
+    later_rounds = std::clamp(std::ceil(portable::log(target / unshot) / portable::log(ratio)) - 1.0, 0.0, 1e15);
   const double reserve = later_rounds * static_cast<double>(kMinPhotonsPerRound);
   const double available = std::max(0.0, static_cast<double>(remaining) - reserve);
   auto photons = static_cast<std::uint64_t>(std::llround(available * (1.0 - ratio)));

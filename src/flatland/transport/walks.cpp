@@ -43,7 +43,10 @@ int RandomWalks::headroom_bits(std::uint64_t photons) {
   // 4 R n + 256 R, which for a sum of n geometric counts is rarer than e^-60. With n <= 2^20 and
   // R <= 1e6 a walk still carries at least 2^18 units.
   const double rays = expected_rays_ * (1.0 + 64.0 / static_cast<double>(photons));
-  const int bits = std::max(0, static_cast<int>(std::ceil(std::log2(rays))));
+  // ceil(log2(rays)) from the binary exponent: rays = m 2^e, m in [1/2, 1).
+  int exponent = 0;
+  const double mantissa = std::frexp(rays, &exponent);
+  const int bits = std::max(0, mantissa == 0.5 ? exponent - 1 : exponent);
   most_headroom_bits_ = std::max(most_headroom_bits_, bits);
   return bits;
 }
