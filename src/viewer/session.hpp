@@ -145,7 +145,7 @@ class Session {
   // paths that arrive every other frame.
   static constexpr double kPieceSeconds = 0.05;
   // Inline, a piece shares the frame with drawing (a 60 Hz frame is 17 ms).
-  static constexpr double kInlinePieceSeconds = 0.012;
+  static constexpr double kInlinePieceSeconds = 0.02;
   Threading threading_ = Threading::Worker;
   double piece_seconds_ = kPieceSeconds;
   // Paths recorded per running piece (frames are paced to 25 ms and draw at most 600 new paths):

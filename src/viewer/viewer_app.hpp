@@ -78,7 +78,7 @@ struct WindowEvent;
 class Viewer {
  public:
   // An inline solve's share of a frame (ViewOptions::inline_solve).
-  static constexpr double kInlineSolveSeconds = 0.012;
+  static constexpr double kInlineSolveSeconds = 0.02;
   // Opens the window and the GL context. Errors: no display (one line: what to do instead),
   // shader compile or link errors (with the GL log), a bad scene or reference file.
   static Result<std::unique_ptr<Viewer>> create(const ViewOptions& options);

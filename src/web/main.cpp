@@ -44,6 +44,11 @@ EMSCRIPTEN_KEEPALIVE void flatland_resize(int width, int height) {
   if (the_viewer) the_viewer->resize_window(width, height);
 }
 
+// Photons shot so far in the viewer's solve (the page's measurements read it: bench/web_bench.py).
+EMSCRIPTEN_KEEPALIVE double flatland_photons() {
+  return the_viewer ? static_cast<double>(the_viewer->session().snapshot()->progress.photons) : 0.0;
+}
+
 }  // extern "C"
 
 int main(int argc, char** argv) {
