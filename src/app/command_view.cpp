@@ -56,6 +56,9 @@ CLI::App* add_view_command(CLI::App& parent, ViewCommandOptions& o) {
       ->capture_default_str()
       ->check(finite_range(1e-3, 1e3));
   cmd->add_flag("--no-ui", o.no_ui, "Hide the panels");
+  cmd->add_flag("--present", o.present,
+                "Start in presentation mode (M): the stage fills the window, with the photon counter, the "
+                "inspected curve's B(s) and the colour key on it");
   cmd->add_option("--ui-scale", o.ui_scale,
                   "Size of the panels' text and widgets, and of their columns (1.5-2 for a projector)")
       ->capture_default_str()
@@ -110,6 +113,7 @@ std::optional<int> make_view_options(ViewCommandOptions& o, viewer::ViewOptions&
   options.path_exposure = o.exposure;
   options.path_fade = o.fade;
   options.show_ui = !o.no_ui;
+  options.present = o.present;
   options.ui_scale = o.ui_scale;
   options.vsync = !o.no_vsync;
   options.max_fps = o.max_fps;

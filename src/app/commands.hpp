@@ -150,6 +150,7 @@ struct ViewCommandOptions {
   float exposure = 1.0f;
   float fade = 1.0f;
   bool no_ui = false;
+  bool present = false;
   float ui_scale = 1.0f;
   bool no_vsync = false;
   int max_fps = 0;

@@ -28,13 +28,16 @@ ViewTransform fit_view(const Box& bounds, int width, int height, double margin) 
   return view;
 }
 
-StageLayout stage_layout(int width, int height, float ui_scale, bool panels, float menu_height) {
+StageLayout stage_layout(int width, int height, float ui_scale, bool panels, float menu_height, float key_height) {
   const auto w = static_cast<float>(std::max(width, 1));
   const auto h = static_cast<float>(std::max(height, 1));
   const float top = std::clamp(menu_height, 0.0f, h);
+  // The key's strip takes at most a third of the height under the menu.
+  const float key = std::clamp(key_height, 0.0f, (h - top) / 3.0f);
   StageLayout layout;
   if (!panels) {
-    layout.stage = {0.0f, top, w, h};
+    layout.stage = {0.0f, top, w, h - key};
+    layout.key = {0.0f, h - key, w, h};
     layout.left = {0.0f, top, 0.0f, h};
     layout.right = {w, top, w, h};
     return layout;
@@ -49,7 +52,8 @@ StageLayout stage_layout(int width, int height, float ui_scale, bool panels, flo
   }
   layout.left = {0.0f, top, std::floor(left), h};
   layout.right = {w - std::floor(right), top, w, h};
-  layout.stage = {layout.left.x1, top, layout.right.x0, h};
+  layout.stage = {layout.left.x1, top, layout.right.x0, h - key};
+  layout.key = {layout.left.x1, h - key, layout.right.x0, h};
   return layout;
 }
 

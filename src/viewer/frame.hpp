@@ -60,8 +60,13 @@ struct StageLayout {
   PixelRect left;
   PixelRect right;
   PixelRect stage;
+  PixelRect key;  // under the stage, as wide: the colour key (empty without one)
 };
-StageLayout stage_layout(int width, int height, float ui_scale, bool panels, float menu_height);
+// The window below the menu: the panels' columns at the sides (none without `panels`; together at
+// most 60 % of the width), the stage between them, and a strip `key_height` high under the stage
+// for the colour key, so that the key is always in view.
+StageLayout stage_layout(int width, int height, float ui_scale, bool panels, float menu_height,
+                         float key_height = 0.0f);
 
 // The whole of `bounds` inside `stage` of a width x height window, with a margin of `margin` of the
 // stage's smaller side.

@@ -2,6 +2,7 @@
 // curve, help. They read the snapshot and change the viewer's settings; the main loop is in
 // viewer_app.cpp.
 #include <imgui.h>
+#include <imgui_internal.h>
 
 #include <algorithm>
 #include <cmath>
@@ -27,6 +28,7 @@ const char* const kHelp[][2] = {
     {"Backspace", "reset (restart the solve)"},
     {"F", "fit the scene to the stage (the space between the panels)"},
     {"Tab", "hide or show the panels (the scene takes the whole window)"},
+    {"M", "presentation mode: the stage fills the window, with the counter, B(s) and the key on it"},
     {"C", "show control points (drag them to edit)"},
     {"N", "show storage nodes"},
     {"G", "graph of B along the normals"},
@@ -118,6 +120,9 @@ void Viewer::record_panel(const char* name) {
   const ImVec2 size = ImGui::GetWindowSize();
   panel_rects_[name] = {position.x, position.y, position.x + size.x, position.y + size.y};
   panel_scrolls_[name] = ImGui::GetScrollMaxY() > 0.0f;
+  // Content wider than the panel (as of the last frame) is cut off at its right edge.
+  const ImGuiWindow* window = ImGui::GetCurrentWindow();
+  panel_clips_[name] = window->ContentSize.x > window->ContentRegionRect.GetWidth() + 1.0f;
 }
 
 namespace {
@@ -125,6 +130,15 @@ namespace {
 // Docked panels: placed by the layout every frame, not moved or resized by hand (a title bar
 // click still folds one away).
 constexpr ImGuiWindowFlags kDocked = ImGuiWindowFlags_NoMove | ImGuiWindowFlags_NoResize;
+// Overlays on the stage: no title, not moved by hand.
+constexpr ImGuiWindowFlags kOverlay = ImGuiWindowFlags_NoDecoration | ImGuiWindowFlags_NoMove |
+                                      ImGuiWindowFlags_NoSavedSettings | ImGuiWindowFlags_NoFocusOnAppearing;
+
+// Widgets as wide as the panel leaves beside the longest of its labels, so labels are never cut
+// off at any size or scale (the widgets narrow instead). Pop with ImGui::PopItemWidth.
+void push_width_beside(const char* longest_label) {
+  ImGui::PushItemWidth(-(ImGui::CalcTextSize(longest_label).x + ImGui::GetStyle().ItemInnerSpacing.x + 2.0f));
+}
 
 // The next panel at the top of what is left of `column` below `above` (its y1; the column's top
 // for the first panel), as wide as the column; its height follows its content up to what is left.
@@ -139,13 +153,19 @@ void dock_next(const PixelRect& column, float above) {
 
 void Viewer::draw_ui(const Snapshot& snapshot) {
   draw_menu(snapshot);
-  if (panels_visible_) {
+  const bool selected =
+      draw_.selected_curve >= 0 && static_cast<std::size_t>(draw_.selected_curve) < scene_->curves.size();
+  if (panels_visible_ && !presentation_) {
     draw_solve_panel(snapshot);
-    draw_display_panel(snapshot);
+    draw_display_panel();
     draw_status_panel(snapshot);
-    if (draw_.selected_curve >= 0 && static_cast<std::size_t>(draw_.selected_curve) < scene_->curves.size())
-      draw_curve_panel(snapshot);
+    if (selected) draw_curve_panel(snapshot);
   }
+  if (presentation_) {
+    draw_counter_overlay(snapshot);
+    if (selected) draw_curve_overlay(snapshot);
+  }
+  if (layout_.key.height() > 0.0f) draw_key_strip(snapshot);
   if (show_help_) draw_help_panel();
   // The newest journey's hops, numbered at their middles (the overlay draws the hops themselves).
   if (draw_.paths && draw_.journey) {
@@ -206,6 +226,7 @@ void Viewer::draw_menu(const Snapshot& snapshot) {
   }
   if (ImGui::BeginMenu("View")) {
     if (ImGui::MenuItem("Fit scene", "F")) view_fitted_ = false;
+    if (ImGui::MenuItem("Presentation mode", "M", presentation_)) handle_key('m', false);
     if (ImGui::MenuItem("Panels", "Tab", panels_visible_)) panels_visible_ = !panels_visible_;
     if (ImGui::MenuItem("First photons (lecture preset)", "1")) first_photons();
     ImGui::EndMenu();
@@ -218,6 +239,7 @@ void Viewer::draw_solve_panel(const Snapshot& snapshot) {
   dock_next(layout_.left, layout_.left.y0);
   ImGui::Begin("Solve", nullptr, kDocked | ImGuiWindowFlags_AlwaysAutoResize);
   record_panel("Solve");
+  push_width_beside("discontinuities");
   const bool running = session_->running();
   // A stopped solve (converged, budget spent) cannot run on: Reset or a new setting starts over.
   const bool stopped = snapshot.stop_reason != StopReason::Running;
@@ -324,6 +346,7 @@ void Viewer::draw_solve_panel(const Snapshot& snapshot) {
       set_message(valid.error().message);
   }
   if (!snapshot.error.empty()) ImGui::TextColored(ImVec4(1, 0.4f, 0.4f, 1), "%s", snapshot.error.c_str());
+  ImGui::PopItemWidth();
   ImGui::End();
 }
 
@@ -333,7 +356,6 @@ void Viewer::draw_colour_key(const Snapshot& snapshot) {
   if (!snapshot.scene) return;
   const int channels = snapshot.scene->channels;
   const double range = radiosity_range(snapshot, draw_.channel) / std::max(draw_.band_exposure, 1e-6f);
-  ImGui::Separator();
   ImGui::TextUnformatted("band colour = B, power per unit length");
   ImDrawList* draw = ImGui::GetWindowDrawList();
   const ImVec2 origin = ImGui::GetCursorScreenPos();
@@ -368,11 +390,12 @@ void Viewer::draw_colour_key(const Snapshot& snapshot) {
   ImGui::PopStyleColor();
 }
 
-void Viewer::draw_display_panel(const Snapshot& snapshot) {
+void Viewer::draw_display_panel() {
   const auto solve = panel_rects_.find("Solve");
   dock_next(layout_.left, solve != panel_rects_.end() ? solve->second.y1 : layout_.left.y0);
   ImGui::Begin("Display", nullptr, kDocked | ImGuiWindowFlags_AlwaysAutoResize);
   record_panel("Display");
+  push_width_beside("path exposure");
   bool changed = false;
   changed |= ImGui::Checkbox("band", &draw_.band);
   ImGui::SameLine();
@@ -424,8 +447,49 @@ void Viewer::draw_display_panel(const Snapshot& snapshot) {
     }
     draw_.path_colour = static_cast<PathColour>(colour);
   }
-  if (draw_.band || draw_.graph) draw_colour_key(snapshot);
   if (changed) overlay_generation_ = ~0ull;
+  ImGui::PopItemWidth();
+  ImGui::End();
+}
+
+// The colour key in its strip under the stage (StageLayout::key), in view whatever the panels do.
+void Viewer::draw_key_strip(const Snapshot& snapshot) {
+  ImGui::SetNextWindowPos(ImVec2(layout_.key.x0, layout_.key.y0), ImGuiCond_Always);
+  ImGui::SetNextWindowSize(ImVec2(layout_.key.width(), layout_.key.height()), ImGuiCond_Always);
+  ImGui::Begin("##key", nullptr, kOverlay | ImGuiWindowFlags_NoScrollbar);
+  record_panel("Key");
+  draw_colour_key(snapshot);
+  ImGui::End();
+}
+
+// Presentation mode: the photon counter, large, at the stage's top left.
+void Viewer::draw_counter_overlay(const Snapshot& snapshot) {
+  const float gap = 8.0f * options_.ui_scale;
+  ImGui::SetNextWindowPos(ImVec2(layout_.stage.x0 + gap, layout_.stage.y0 + gap), ImGuiCond_Always);
+  ImGui::SetNextWindowBgAlpha(0.55f);
+  ImGui::Begin("##counter", nullptr, kOverlay | ImGuiWindowFlags_AlwaysAutoResize | ImGuiWindowFlags_NoInputs);
+  record_panel("Counter");
+  ImGui::SetWindowFontScale(1.5f);
+  const char* state = snapshot.stop_reason != StopReason::Running ? "finished"
+                      : session_->running()                       ? "running"
+                                                                  : "paused";
+  ImGui::Text("%s   %.3g photons   round %u   %s", scene_->name.c_str(), static_cast<double>(snapshot.progress.photons),
+              snapshot.progress.rounds + (snapshot.round_photons > 0 ? 1 : 0), state);
+  ImGui::End();
+}
+
+// Presentation mode: the inspected curve's B(s) over the stage's bottom right corner.
+void Viewer::draw_curve_overlay(const Snapshot& snapshot) {
+  const auto c = static_cast<std::size_t>(draw_.selected_curve);
+  const float gap = 8.0f * options_.ui_scale;
+  const ImVec2 size(std::max(0.4f * layout_.stage.width(), 200.0f), std::max(0.42f * layout_.stage.height(), 150.0f));
+  ImGui::SetNextWindowPos(ImVec2(layout_.stage.x1 - size.x - gap, layout_.stage.y1 - size.y - gap), ImGuiCond_Always);
+  ImGui::SetNextWindowSize(size, ImGuiCond_Always);
+  ImGui::SetNextWindowBgAlpha(0.75f);
+  ImGui::Begin("##curve plot", nullptr, kOverlay);
+  record_panel("Curve plot");
+  ImGui::Text("curve %zu '%s': B against arc length", c, scene_->curves[c].id.c_str());
+  draw_curve_plot(snapshot, c, false);
   ImGui::End();
 }
 
@@ -494,18 +558,19 @@ namespace {
 void draw_curve_facts(const Scene& scene, const Snapshot& snapshot, std::size_t c) {
   const Curve& curve = scene.curves[c];
   const Material& material = scene.material_of(curve);
-  ImGui::Text("curve    %zu '%s'", c, curve.id.c_str());
-  ImGui::Text("material %s: rho %.3g %.3g %.3g", material.name.c_str(), material.reflectivity[0],
-              material.reflectivity[1], material.reflectivity[2]);
+  ImGui::TextWrapped("curve    %zu '%s'", c, curve.id.c_str());
+  ImGui::TextWrapped("material %s: rho %.3g %.3g %.3g", material.name.c_str(), material.reflectivity[0],
+                     material.reflectivity[1], material.reflectivity[2]);
   if (scene.is_emitter(curve))
-    ImGui::Text("emits    %.3g %.3g %.3g per unit length", curve.emittance[0], curve.emittance[1], curve.emittance[2]);
-  ImGui::Text("length   %.6g, %u %s segment%s, sides %s", curve.length, curve.segment_count,
-              curve.kind == SegmentKind::Line ? "straight" : "cubic", curve.segment_count == 1 ? "" : "s",
-              curve.sides == Sides::Both    ? "both"
-              : curve.sides == Sides::Front ? "front"
-                                            : "back");
+    ImGui::TextWrapped("emits    %.3g %.3g %.3g per unit length", curve.emittance[0], curve.emittance[1],
+                       curve.emittance[2]);
+  ImGui::TextWrapped("length   %.6g, %u %s segment%s, sides %s", curve.length, curve.segment_count,
+                     curve.kind == SegmentKind::Line ? "straight" : "cubic", curve.segment_count == 1 ? "" : "s",
+                     curve.sides == Sides::Both    ? "both"
+                     : curve.sides == Sides::Front ? "front"
+                                                   : "back");
   if (c < snapshot.received_share.size())
-    ImGui::Text("share    %.2f%% of all reflected power", 100.0 * snapshot.received_share[c]);
+    ImGui::TextWrapped("share    %.2f%% of all reflected power", 100.0 * snapshot.received_share[c]);
 }
 
 // The storage nodes of curve `c` under a folding header (nothing while it has none).
@@ -521,8 +586,8 @@ void draw_node_list(const Snapshot& snapshot, std::size_t c) {
     // * marks the C0 nodes that discontinuity meshing placed at visibility events.
     ImGui::BeginChild("##node list", ImVec2(0, 96), true);
     for (std::size_t k = 0; k < nodes.size(); ++k)
-      ImGui::Text("%3zu  (%.4g, %.4g)  %s%s", k, nodes[k].position.x, nodes[k].position.y,
-                  continuity_name(nodes[k].continuity), nodes[k].visibility_event ? "  * visibility event" : "");
+      ImGui::TextWrapped("%3zu  (%.4g, %.4g)  %s%s", k, nodes[k].position.x, nodes[k].position.y,
+                         continuity_name(nodes[k].continuity), nodes[k].visibility_event ? "  * visibility event" : "");
     ImGui::EndChild();
   }
 }
@@ -703,7 +768,7 @@ void Viewer::draw_curve_panel(const Snapshot& snapshot) {
 // B(s) along the curve with axes in the units of the scene: the sides that emit or reflect
 // (front orange, back blue, each labelled), the reference's B (green, main side), and the storage
 // nodes below C1 (C0 grey, C-1 red), where the illumination may kink or jump.
-void Viewer::draw_curve_plot(const Snapshot& snapshot, std::size_t c) {
+void Viewer::draw_curve_plot(const Snapshot& snapshot, std::size_t c, bool captions) {
   const Curve& curve = scene_->curves[c];
   const CurveTrace* trace = snapshot.traces && c < snapshot.traces->size() ? &(*snapshot.traces)[c] : nullptr;
   const int main_side = curve.sides == Sides::Back ? 1 : 0;
@@ -721,8 +786,8 @@ void Viewer::draw_curve_plot(const Snapshot& snapshot, std::size_t c) {
   const float text = ImGui::GetTextLineHeight();
   const ImVec2 corner = ImGui::GetCursorScreenPos();
   const ImVec2 avail = ImGui::GetContentRegionAvail();
-  const float captions = landings.empty() ? 2.5f : 5.5f;  // lines of text under the plot
-  const ImVec2 size(avail.x, std::max(avail.y - captions * text - 8.0f, 80.0f));
+  const float caption_lines = !captions ? 0.0f : landings.empty() ? 2.5f : 5.5f;  // text under the plot
+  const ImVec2 size(avail.x, std::max(avail.y - caption_lines * text - 8.0f, 80.0f));
   ImGui::InvisibleButton("##bplot", size);
   track("B plot");
   const PlotArea plot = plot_area(draw, corner, size, text, curve.length, hi);
@@ -733,6 +798,7 @@ void Viewer::draw_curve_plot(const Snapshot& snapshot, std::size_t c) {
   draw_plot_lines(plot, lines, *trace, scene_->channels);
   draw_plot_landings(plot, landings);
   draw->PopClipRect();
+  if (!captions) return;
   if (!landings.empty())
     ImGui::TextWrapped(
         "Triangles: where the newest journey's hops (numbered as on the stage) landed on this "

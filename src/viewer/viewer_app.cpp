@@ -121,6 +121,7 @@ Status Viewer::apply_options(const ViewOptions& options) {
   options_ = options;
   settings_ = options.settings;
   draw_.control_points = options.show_control_points;
+  presentation_ = options.present;
   keep_slider_ = static_cast<double>(options.keep_paths);
   Result<FrameStep> step = parse_frame_step(options.step);
   if (!step) return step.error();
@@ -329,6 +330,10 @@ void Viewer::handle_key(int key, bool ctrl) {
     case 'g': draw_.graph = !draw_.graph; break;
     case 'k': draw_.band = !draw_.band; break;
     case 'p': draw_.paths = !draw_.paths; break;
+    case 'm':
+      presentation_ = !presentation_;
+      if (view_auto_) view_fitted_ = false;
+      break;
     case '+':
     case '=': draw_.path_exposure *= 1.5f; break;
     case '-': draw_.path_exposure /= 1.5f; break;
@@ -408,6 +413,11 @@ std::optional<PixelRect> Viewer::panel_rect(const std::string& name) const {
   return it->second;
 }
 
+bool Viewer::panel_clips(const std::string& name) const {
+  const auto it = panel_clips_.find(name);
+  return it != panel_clips_.end() && it->second;
+}
+
 bool Viewer::panel_scrolls(const std::string& name) const {
   const auto it = panel_scrolls_.find(name);
   return it != panel_scrolls_.end() && it->second;
@@ -437,6 +447,7 @@ bool Viewer::frame() {
   handle_scene_mouse(*snapshot);
   panel_rects_.clear();
   panel_scrolls_.clear();
+  panel_clips_.clear();
   if (options_.show_ui) draw_ui(*snapshot);
   ImGui::Render();
   draw(snapshot);
@@ -466,7 +477,12 @@ void Viewer::handle_events() {
   const float font =
       (imgui_io.Fonts->Fonts.empty() ? 13.0f : imgui_io.Fonts->Fonts[0]->FontSize) * imgui_io.FontGlobalScale;
   const float menu = options_.show_ui ? font + 2.0f * ImGui::GetStyle().FramePadding.y : 0.0f;
-  const StageLayout layout = stage_layout(width, height, options_.ui_scale, options_.show_ui && panels_visible_, menu);
+  // The key's strip: its caption, the colour bar with its tick labels, and a note of up to two lines.
+  const float key = options_.show_ui && (draw_.band || draw_.graph)
+                        ? 5.0f * (font + ImGui::GetStyle().ItemSpacing.y) + 2.0f * ImGui::GetStyle().WindowPadding.y
+                        : 0.0f;
+  const StageLayout layout =
+      stage_layout(width, height, options_.ui_scale, options_.show_ui && panels_visible_ && !presentation_, menu, key);
   if (!(layout.stage == layout_.stage) && view_auto_) view_fitted_ = false;
   layout_ = layout;
   if (!view_fitted_) {

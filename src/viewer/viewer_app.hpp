@@ -44,6 +44,7 @@ struct ViewOptions {
   float path_exposure = 1.0f;
   float path_fade = 1.0f;  // 0: every kept path equally bright; 1: the oldest fade to about 5 %
   bool show_ui = true;
+  bool present = false;  // start in presentation mode
   // Size of the panels' text and widgets (and their columns): 1 at a desk, 1.5-2 on a projector.
   float ui_scale = 1.0f;
   bool vsync = true;
@@ -102,8 +103,13 @@ class Viewer {
   const ViewTransform& view() const { return view_; }
   const StageLayout& layout() const { return layout_; }
   std::optional<PixelRect> panel_rect(const std::string& name) const;
-  // Whether that panel's content was taller than the panel (it showed a scroll bar).
+  // Whether that panel's content was taller than the panel (it showed a scroll bar), or wider (cut
+  // off at its right edge).
   bool panel_scrolls(const std::string& name) const;
+  bool panel_clips(const std::string& name) const;
+  // Presentation mode (M): the stage fills the window; the photon counter, the inspected curve's
+  // B(s) and the colour key are overlays on it.
+  bool presentation() const { return presentation_; }
   std::size_t paths_drawn() const;  // photon paths in the path buffer after the last frame
 
   // UI automation for tests: the rectangle (x0, y0, x1, y1, pixels) of the widget drawn last
@@ -156,11 +162,15 @@ class Viewer {
   void draw_ui(const Snapshot& snapshot);
   void draw_menu(const Snapshot& snapshot);
   void draw_solve_panel(const Snapshot& snapshot);
-  void draw_display_panel(const Snapshot& snapshot);
+  void draw_display_panel();
   void draw_status_panel(const Snapshot& snapshot);
   void draw_curve_panel(const Snapshot& snapshot);
-  void draw_curve_plot(const Snapshot& snapshot, std::size_t c);  // B(s) along curve c, in the curve panel
+  // B(s) along curve c, in the curve panel (with the captions that explain it) or an overlay.
+  void draw_curve_plot(const Snapshot& snapshot, std::size_t c, bool captions = true);
   void draw_colour_key(const Snapshot& snapshot);
+  void draw_key_strip(const Snapshot& snapshot);
+  void draw_counter_overlay(const Snapshot& snapshot);
+  void draw_curve_overlay(const Snapshot& snapshot);
   void draw_help_panel();
   void track(const char* label);
   // ImGui::Combo with every item tracked as "label:item" for the UI tests.
@@ -197,6 +207,8 @@ class Viewer {
   bool panels_visible_ = true;
   std::map<std::string, PixelRect> panel_rects_;
   std::map<std::string, bool> panel_scrolls_;
+  std::map<std::string, bool> panel_clips_;
+  bool presentation_ = false;
   std::uint64_t overlay_generation_ = ~0ull;
   std::shared_ptr<const Snapshot> overlay_snapshot_;
   std::vector<LineVertex> overlay_;

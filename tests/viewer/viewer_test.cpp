@@ -13,6 +13,7 @@
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <tuple>
 
 #include <nlohmann/json.hpp>
 
@@ -301,6 +302,56 @@ TEST_F(Viewer, PanelsNeverCoverTheScene) {
       viewer, [] { return false; }, 3);
   EXPECT_FALSE(viewer.panel_rect("Solve").has_value());
   EXPECT_EQ(viewer.layout().stage.width(), static_cast<float>(viewer.view().width));
+}
+
+// The classroom sizes: at 1280x720 and at 1920x1080 with --ui-scale 2 no panel cuts its labels
+// off, the colour key's strip lies inside the window under the stage and beside the columns; in
+// presentation mode (M) the stage spans the window's width, with the counter, the inspected
+// curve's B(s) and the key on it, and M again brings the panels back.
+TEST_F(Viewer, ClassroomSizesKeepLabelsAndTheKeyInView) {
+  std::unique_ptr<viewer::Viewer> last;
+  for (const auto& [width, height, scale] : {std::tuple{1280, 720, 1.0f}, {1920, 1080, 2.0f}}) {
+    ViewOptions options = paused_window("default.json", 10'000);
+    options.width = width;
+    options.height = height;
+    options.ui_scale = scale;
+    last.reset();  // one window at a time
+    Result<std::unique_ptr<viewer::Viewer>> created = viewer::Viewer::create(options);
+    ASSERT_TRUE(created) << created.error().message;
+    last = std::move(*created);
+    viewer::Viewer& viewer = *last;
+    viewer.select_curve(4);
+    frames_until(
+        viewer, [] { return false; }, 4);
+    ASSERT_EQ(viewer.view().width, width);
+    for (const char* panel : {"Solve", "Display", "Status", "Curve", "Key"}) {
+      ASSERT_TRUE(viewer.panel_rect(panel).has_value()) << panel;
+      EXPECT_FALSE(viewer.panel_clips(panel)) << panel << " at " << width << "x" << height << " scale " << scale;
+    }
+    const PixelRect key = *viewer.panel_rect("Key");
+    EXPECT_GE(key.x0, viewer.panel_rect("Solve")->x1 - 0.5f);
+    EXPECT_LE(key.x1, viewer.panel_rect("Status")->x0 + 0.5f);
+    EXPECT_LE(key.y1, static_cast<float>(height) + 0.5f);
+    EXPECT_GE(key.y0, viewer.layout().stage.y1 - 0.5f);
+  }
+  viewer::Viewer& viewer = *last;
+  viewer.queue_key('m');
+  frames_until(
+      viewer, [] { return false; }, 4);
+  EXPECT_TRUE(viewer.presentation());
+  EXPECT_FALSE(viewer.panel_rect("Solve").has_value());
+  EXPECT_EQ(viewer.layout().stage.width(), static_cast<float>(viewer.view().width));
+  for (const char* overlay : {"Counter", "Curve plot", "Key"}) {
+    const std::optional<PixelRect> rect = viewer.panel_rect(overlay);
+    ASSERT_TRUE(rect.has_value()) << overlay;
+    EXPECT_FALSE(viewer.panel_clips(overlay)) << overlay;
+    EXPECT_GE(rect->x0, 0.0f);
+    EXPECT_LE(rect->x1, static_cast<float>(viewer.view().width) + 0.5f);
+  }
+  viewer.queue_key('m');
+  frames_until(
+      viewer, [] { return false; }, 3);
+  EXPECT_TRUE(viewer.panel_rect("Solve").has_value());
 }
 
 // The transport control switches to random walks; stepping photons then keeps whole journeys (a run

@@ -211,3 +211,18 @@ def test_the_live_viewer_shows_the_lit_scene(page, tmp_path):
     assert lit_fraction(rows, 0.35, 0.65, 0.35, 0.65) > 0.3
     # The panels are drawn (their text is light on dark).
     assert lit_fraction(rows, 0.0, 0.25, 0.05, 0.5) > 0.02
+
+
+def test_presentation_mode_fills_a_projector(page, tmp_path):
+    rows = screenshot(page, tmp_path, "scene=default&seed=1&present=1&ui-scale=2&select=sofa", 1920, 1080,
+                      "web-presentation")
+    # The stage is the whole width: light reaches the left quarter, where the panels would be.
+    assert lit_fraction(rows, 0.2, 0.5, 0.3, 0.6) > 0.3
+    # The colour key's strip at the bottom: some row there is a bar from dark to light across the width.
+    width = len(rows[0])
+
+    def ramp(y):
+        bar = [max(rows[y][x]) for x in range(int(0.05 * width), int(0.95 * width), 40)]
+        return bar[-1] > bar[0] + 100 and all(b >= a - 8 for a, b in zip(bar, bar[1:]))
+
+    assert any(ramp(y) for y in range(int(0.75 * len(rows)), len(rows)))
