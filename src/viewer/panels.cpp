@@ -157,8 +157,8 @@ void Viewer::draw_ui(const Snapshot& snapshot) {
       draw_.selected_curve >= 0 && static_cast<std::size_t>(draw_.selected_curve) < scene_->curves.size();
   if (panels_visible_ && !presentation_) {
     draw_solve_panel(snapshot);
-    draw_display_panel();
     draw_status_panel(snapshot);
+    draw_display_panel();  // under Solve, or under Status when only that has room
     if (selected) draw_curve_panel(snapshot);
   }
   if (presentation_) {
@@ -391,10 +391,25 @@ void Viewer::draw_colour_key(const Snapshot& snapshot) {
 }
 
 void Viewer::draw_display_panel() {
+  // Under Solve in the left column; where that leaves too little height for it (large type on a
+  // projector) and the right column has it under Status, there, with the inspected curve below.
   const auto solve = panel_rects_.find("Solve");
-  dock_next(layout_.left, solve != panel_rects_.end() ? solve->second.y1 : layout_.left.y0);
+  const auto status = panel_rects_.find("Status");
+  const float left_top = solve != panel_rects_.end() ? solve->second.y1 : layout_.left.y0;
+  const float right_top = status != panel_rects_.end() ? status->second.y1 : layout_.right.y0;
+  display_on_right_ = display_height_ > 0.0f && left_top + display_height_ > layout_.left.y1 &&
+                      right_top + display_height_ <= layout_.right.y1;
+  if (display_on_right_)
+    dock_next(layout_.right, right_top);
+  else
+    dock_next(layout_.left, left_top);
   ImGui::Begin("Display", nullptr, kDocked | ImGuiWindowFlags_AlwaysAutoResize);
   record_panel("Display");
+  {
+    // Its whole height as of the last frame, for the choice above.
+    const ImGuiWindow* window = ImGui::GetCurrentWindow();
+    display_height_ = window->ContentSize.y + window->TitleBarHeight() + 2.0f * ImGui::GetStyle().WindowPadding.y;
+  }
   push_width_beside("path exposure");
   bool changed = false;
   changed |= ImGui::Checkbox("band", &draw_.band);
@@ -752,11 +767,13 @@ void draw_plot_landings(const PlotArea& plot, const Landings& landings) {
 
 void Viewer::draw_curve_panel(const Snapshot& snapshot) {
   const auto c = static_cast<std::size_t>(draw_.selected_curve);
-  // The rest of the right column, below the status panel.
-  const auto status = panel_rects_.find("Status");
-  const float top = status != panel_rects_.end() ? status->second.y1 : layout_.right.y0;
-  ImGui::SetNextWindowPos(ImVec2(layout_.right.x0, top), ImGuiCond_Always);
-  ImGui::SetNextWindowSize(ImVec2(layout_.right.width(), std::max(layout_.right.y1 - top, 120.0f)), ImGuiCond_Always);
+  // The rest of the right column, below the status panel; when Display has taken that place, the
+  // rest of the left column, below Solve.
+  const auto above = panel_rects_.find(display_on_right_ ? "Solve" : "Status");
+  const PixelRect& column = display_on_right_ ? layout_.left : layout_.right;
+  const float top = above != panel_rects_.end() ? above->second.y1 : column.y0;
+  ImGui::SetNextWindowPos(ImVec2(column.x0, top), ImGuiCond_Always);
+  ImGui::SetNextWindowSize(ImVec2(column.width(), std::max(column.y1 - top, 120.0f)), ImGuiCond_Always);
   ImGui::Begin("Curve", nullptr, kDocked);
   record_panel("Curve");
   draw_curve_facts(*scene_, snapshot, c);

@@ -208,6 +208,8 @@ class Viewer {
   std::map<std::string, PixelRect> panel_rects_;
   std::map<std::string, bool> panel_scrolls_;
   std::map<std::string, bool> panel_clips_;
+  float display_height_ = 0.0f;    // the Display panel's height in the last frame
+  bool display_on_right_ = false;  // it is docked under Status (the left column was too short)
   bool presentation_ = false;
   std::uint64_t overlay_generation_ = ~0ull;
   std::shared_ptr<const Snapshot> overlay_snapshot_;

@@ -12,6 +12,7 @@
 #include "app/cli.hpp"
 #include "app/commands.hpp"
 #include "app/output.hpp"
+#include "flatland/transport/options.hpp"
 #include "viewer/viewer_app.hpp"
 
 namespace {
@@ -42,6 +43,30 @@ EMSCRIPTEN_KEEPALIVE const char* flatland_scene_path() { return the_viewer ? the
 // The canvas's new size in pixels (the page follows the browser window).
 EMSCRIPTEN_KEEPALIVE void flatland_resize(int width, int height) {
   if (the_viewer) the_viewer->resize_window(width, height);
+}
+
+// The viewer's state as URL parameters (Copy link): every solve option that differs from its
+// default, the inspected curve and presentation mode, as "name=value&..." (values URL-safe: the
+// options' texts are names and numbers).
+EMSCRIPTEN_KEEPALIVE const char* flatland_state_query() {
+  static std::string query;
+  query.clear();
+  if (!the_viewer) return "";
+  const SolverSettings defaults;
+  const SolverSettings& settings = the_viewer->settings();
+  for (const SolveOptionSpec& spec : solve_options()) {
+    if (spec.option == SolveOption::Threads) continue;
+    const std::string value = solve_option_text(settings, spec.option);
+    if (value == solve_option_text(defaults, spec.option)) continue;
+    std::string_view flag = spec.flag;
+    while (!flag.empty() && flag.front() == '-') flag.remove_prefix(1);
+    query += (query.empty() ? "" : "&") + std::string(flag) + "=" + value;
+  }
+  const int curve = the_viewer->selected_curve();
+  if (curve >= 0 && static_cast<std::size_t>(curve) < the_viewer->scene().curves.size())
+    query += (query.empty() ? "select=" : "&select=") + std::to_string(curve);
+  if (the_viewer->presentation()) query += query.empty() ? "present=1" : "&present=1";
+  return query.c_str();
 }
 
 // Photons shot so far in the viewer's solve (the page's measurements read it: bench/web_bench.py).

@@ -328,6 +328,10 @@ TEST_F(Viewer, ClassroomSizesKeepLabelsAndTheKeyInView) {
       ASSERT_TRUE(viewer.panel_rect(panel).has_value()) << panel;
       EXPECT_FALSE(viewer.panel_clips(panel)) << panel << " at " << width << "x" << height << " scale " << scale;
     }
+    // Every control in view: Solve and Display need no scroll bar (Display moves to the right
+    // column when the left one is too short for it).
+    EXPECT_FALSE(viewer.panel_scrolls("Solve")) << width << "x" << height;
+    EXPECT_FALSE(viewer.panel_scrolls("Display")) << width << "x" << height;
     const PixelRect key = *viewer.panel_rect("Key");
     EXPECT_GE(key.x0, viewer.panel_rect("Solve")->x1 - 0.5f);
     EXPECT_LE(key.x1, viewer.panel_rect("Status")->x0 + 0.5f);

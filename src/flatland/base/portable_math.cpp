@@ -21,33 +21,30 @@ constexpr double kTwoOverPi = 0.6366197723675814;
 constexpr double kLn2High = 0.6931471803691238;
 constexpr double kLn2Low = 1.9082149292705877e-10;
 
+// p(z) = sum of coefficients[i] z^(n-1-i) by Horner's rule, highest power first.
+double horner(std::initializer_list<double> coefficients, double z) {
+  double p = 0.0;
+  for (const double coefficient : coefficients) p = p * z + coefficient;
+  return p;
+}
+
 // Taylor polynomials on the reduced range |r| <= pi/4 (+ rounding): the first omitted terms,
 // r^21/21! and r^22/22!, are below 1e-21, far under half an ulp of the result.
 double sin_kernel(double r) {
   const double z = r * r;
-  double p = -1.0 / 121645100408832000.0;  // -1/19!
-  p = p * z + 1.0 / 355687428096000.0;     // 1/17!
-  p = p * z - 1.0 / 1307674368000.0;       // -1/15!
-  p = p * z + 1.0 / 6227020800.0;          // 1/13!
-  p = p * z - 1.0 / 39916800.0;            // -1/11!
-  p = p * z + 1.0 / 362880.0;              // 1/9!
-  p = p * z - 1.0 / 5040.0;                // -1/7!
-  p = p * z + 1.0 / 120.0;                 // 1/5!
-  p = p * z - 1.0 / 6.0;                   // -1/3!
+  const double p =
+      horner({-1.0 / 121645100408832000.0, 1.0 / 355687428096000.0, -1.0 / 1307674368000.0, 1.0 / 6227020800.0,
+              -1.0 / 39916800.0, 1.0 / 362880.0, -1.0 / 5040.0, 1.0 / 120.0, -1.0 / 6.0},  // -1/19!, 1/17!, ..., -1/3!
+             z);
   return r + r * z * p;
 }
 
 double cos_kernel(double r) {
   const double z = r * r;
-  double p = 1.0 / 2432902008176640000.0;  // 1/20!
-  p = p * z - 1.0 / 6402373705728000.0;    // -1/18!
-  p = p * z + 1.0 / 20922789888000.0;      // 1/16!
-  p = p * z - 1.0 / 87178291200.0;         // -1/14!
-  p = p * z + 1.0 / 479001600.0;           // 1/12!
-  p = p * z - 1.0 / 3628800.0;             // -1/10!
-  p = p * z + 1.0 / 40320.0;               // 1/8!
-  p = p * z - 1.0 / 720.0;                 // -1/6!
-  p = p * z + 1.0 / 24.0;                  // 1/4!
+  const double p = horner(
+      {1.0 / 2432902008176640000.0, -1.0 / 6402373705728000.0, 1.0 / 20922789888000.0, -1.0 / 87178291200.0,
+       1.0 / 479001600.0, -1.0 / 3628800.0, 1.0 / 40320.0, -1.0 / 720.0, 1.0 / 24.0},  // 1/20!, -1/18!, ..., 1/4!
+      z);
   // 1 - z/2 + z^2 p, with the large terms added last.
   const double half = 0.5 * z;
   return (1.0 - half) + z * z * p;
@@ -118,10 +115,9 @@ double log(double x) {
   }
   const double s = (m - 1.0) / (m + 1.0);
   const double z = s * s;
-  double p = 1.0 / 25.0;
-  for (const double coefficient : {1.0 / 23.0, 1.0 / 21.0, 1.0 / 19.0, 1.0 / 17.0, 1.0 / 15.0, 1.0 / 13.0, 1.0 / 11.0,
-                                   1.0 / 9.0, 1.0 / 7.0, 1.0 / 5.0, 1.0 / 3.0})
-    p = p * z + coefficient;
+  const double p = horner({1.0 / 25.0, 1.0 / 23.0, 1.0 / 21.0, 1.0 / 19.0, 1.0 / 17.0, 1.0 / 15.0, 1.0 / 13.0,
+                           1.0 / 11.0, 1.0 / 9.0, 1.0 / 7.0, 1.0 / 5.0, 1.0 / 3.0},
+                          z);
   const double log_m = 2.0 * s + 2.0 * s * z * p;
   const double k = static_cast<double>(e);
   return k * kLn2High + (log_m + k * kLn2Low);
