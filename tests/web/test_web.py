@@ -145,6 +145,13 @@ def test_a_bad_option_gives_the_command_lines_message(page, tmp_path):
     assert web["error"].startswith("flatland: error: /scenes2d/no_such_scene.json: ")
 
 
+def test_a_result_too_large_for_the_page_is_refused_not_crashed(page, tmp_path):
+    # 65,536 elements on each of six curves: a result document of about 124 MB.
+    web = report(tmp_path, page["url"], "scene=default&elements=65536&photons=10000")
+    assert web["error"].startswith("flatland: error: the result is ")
+    assert "more than the page shows in its report (32 MB)" in web["error"]
+
+
 def png_pixels(path):
     """An 8-bit RGB or RGBA PNG (as Chromium writes them): width, height, rows of (r, g, b)."""
     data = open(path, "rb").read()
