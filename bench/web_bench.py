@@ -30,9 +30,6 @@ import time
 import urllib.request
 
 
-LIVE_EXTRA = os.environ.get("LIVE_EXTRA", "")
-
-
 class Quiet(http.server.SimpleHTTPRequestHandler):
     def log_message(self, *args):
         pass
@@ -157,7 +154,7 @@ def native_solve(binary, scene, query):
 def live_viewer(tools, url):
     """Seconds from navigation to the first photons; then frames/s and photons/s over 5 s."""
     # A budget the 5 s cannot spend, so the rate is the shooting rate.
-    tools.call("Page.navigate", url=f"{url}?scene=default&photons=1e9&tolerance=1e-12{LIVE_EXTRA}")
+    tools.call("Page.navigate", url=f"{url}?scene=default&photons=1e9&tolerance=1e-12")
     first = wait_for(tools, "document.body.dataset.ready === '1' && Module._flatland_photons() > 0")
     measured = tools.evaluate("""new Promise((resolve) => {
         let frames = 0;

@@ -27,8 +27,8 @@ void frame(void*) { the_viewer->frame(); }
 
 extern "C" {
 
-// Opens a scene file the page has written into the file system (a file picked, dropped or edited):
-// "" when it loaded, else the one-line error (the scene stays as it was).
+// Opens a scene file that the page has written (a file picked, dropped or edited) into the
+// page's in-memory files: "" when it loaded, else the one-line error (the scene stays as it was).
 EMSCRIPTEN_KEEPALIVE const char* flatland_open_scene(const char* path) {
   static std::string error;
   error.clear();
