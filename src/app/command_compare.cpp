@@ -19,8 +19,38 @@ Result<std::size_t> find_curve(const std::vector<std::string>& ids, const std::s
   return Error{"--curve: no curve with id '" + id + "'; the curves are: " + choices};
 }
 
-nlohmann::json comparison_to_json(const Comparison& comparison, const std::string& result,
-                                  const std::string& reference) {
+namespace {
+
+// The result's estimated error (its stats' "estimated_error") where it has one that measures
+// what the comparison does; null otherwise.
+const nlohmann::json* estimated_error_of(const nlohmann::json* result, Measure measure) {
+  if (result == nullptr || measure != Measure::Reflected || !result->contains("stats")) return nullptr;
+  const nlohmann::json& stats = (*result)["stats"];
+  if (!stats.is_object() || !stats.contains("estimated_error")) return nullptr;
+  const nlohmann::json& estimate = stats["estimated_error"];
+  if (!estimate.is_object() || !estimate.value("available", false)) return nullptr;
+  return &estimate;
+}
+
+// " 1.2345e-03" for a number, "   unbounded" for null (an estimate as large as B - E), blank else.
+std::string bound_text(const nlohmann::json& errors, const char* key) {
+  char text[32];
+  if (errors.is_object() && errors.contains(key) && errors[key].is_number()) {
+    std::snprintf(text, sizeof text, " %12.4e", errors[key].get<double>());
+    return text;
+  }
+  return errors.is_object() && errors.contains(key) && errors[key].is_null() ? "    unbounded" : "             ";
+}
+
+std::string bounds_text(const nlohmann::json* errors) {
+  if (errors == nullptr) return {};
+  return bound_text(*errors, "l1") + bound_text(*errors, "l2") + bound_text(*errors, "linf");
+}
+
+}  // namespace
+
+nlohmann::json comparison_to_json(const Comparison& comparison, const std::string& result, const std::string& reference,
+                                  const nlohmann::json* result_document) {
   auto norms = [](const ErrorNorms& n) { return nlohmann::json{{"l1", n.l1}, {"l2", n.l2}, {"linf", n.linf}}; };
   nlohmann::json curves = nlohmann::json::array();
   for (const CurveError& curve : comparison.curves) {
@@ -28,29 +58,42 @@ nlohmann::json comparison_to_json(const Comparison& comparison, const std::strin
     if (curve.measured) entry.update(norms(curve.norms));
     curves.push_back(std::move(entry));
   }
-  return {{"measure", comparison.measure == Measure::Reflected ? "reflected" : "total"},
-          {"result", result},
-          {"reference", reference},
-          {"curves", std::move(curves)},
-          {"scene", norms(comparison.scene)}};
+  nlohmann::json document = {{"measure", comparison.measure == Measure::Reflected ? "reflected" : "total"},
+                             {"result", result},
+                             {"reference", reference},
+                             {"curves", std::move(curves)},
+                             {"scene", norms(comparison.scene)}};
+  if (const nlohmann::json* estimate = estimated_error_of(result_document, comparison.measure))
+    document["estimated_error"] = *estimate;
+  return document;
 }
 
-void print_comparison(const Comparison& comparison, bool scene_row) {
+void print_comparison(const Comparison& comparison, bool scene_row, const nlohmann::json* result) {
+  const nlohmann::json* estimate = estimated_error_of(result, comparison.measure);
   std::fprintf(report_stream(), "%s\n",
                comparison.measure == Measure::Reflected
                    ? "errors of the reflected part B - E (emitted light E is exact in every method)"
                    : "errors of the radiosity B (emitted + reflected)");
-  std::fprintf(report_stream(), "%-24s %12s %12s %12s\n", "curve", "rel. L1", "rel. L2", "rel. Linf");
+  if (estimate != nullptr)
+    std::fprintf(report_stream(), "%-24s %12s %12s %12s   estimated bound at %g %% confidence:\n", "", "", "", "",
+                 100.0 * estimate->value("confidence", 0.0));
+  std::fprintf(report_stream(), "%-24s %12s %12s %12s%s\n", "curve", "rel. L1", "rel. L2", "rel. Linf",
+               estimate != nullptr ? "      est. L1      est. L2    est. Linf" : "");
+  auto curve_bounds = [&](const std::string& id) -> std::string {
+    if (estimate == nullptr || !estimate->contains("curves") || !(*estimate)["curves"].is_object()) return {};
+    const nlohmann::json& curves = (*estimate)["curves"];
+    return curves.contains(id) ? bounds_text(&curves[id]) : std::string();
+  };
   for (const CurveError& curve : comparison.curves) {
     if (curve.measured)
-      std::fprintf(report_stream(), "%-24s %12.4e %12.4e %12.4e\n", curve.id.c_str(), curve.norms.l1, curve.norms.l2,
-                   curve.norms.linf);
+      std::fprintf(report_stream(), "%-24s %12.4e %12.4e %12.4e%s\n", curve.id.c_str(), curve.norms.l1, curve.norms.l2,
+                   curve.norms.linf, curve_bounds(curve.id).c_str());
     else
       std::fprintf(report_stream(), "%-24s %38s\n", curve.id.c_str(), "(reflects no light in the reference)");
   }
   if (scene_row)
-    std::fprintf(report_stream(), "%-24s %12.4e %12.4e %12.4e\n", "(scene)", comparison.scene.l1, comparison.scene.l2,
-                 comparison.scene.linf);
+    std::fprintf(report_stream(), "%-24s %12.4e %12.4e %12.4e%s\n", "(scene)", comparison.scene.l1, comparison.scene.l2,
+                 comparison.scene.linf, bounds_text(estimate).c_str());
 }
 
 CLI::App* add_compare_command(CLI::App& parent, CompareOptions& o) {
@@ -98,11 +141,11 @@ int run_compare(const CompareOptions& o) {
     comparison->curves = {chosen};
   }
   if (o.json) {
-    std::printf("%s\n", comparison_to_json(*comparison, o.result, o.reference)
+    std::printf("%s\n", comparison_to_json(*comparison, o.result, o.reference, &*result)
                             .dump(2, ' ', false, nlohmann::json::error_handler_t::replace)
                             .c_str());
   } else {
-    print_comparison(*comparison, o.curve.empty());
+    print_comparison(*comparison, o.curve.empty(), &*result);
   }
   return kExitOk;
 }

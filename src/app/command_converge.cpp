@@ -542,7 +542,7 @@ double floor_for(const nlohmann::json& reference, double floor, const Measured& 
 // A row travels as integers (its doubles bit for bit), zero where another process did the run.
 void gather_rows(std::vector<std::optional<Row>>& rows) {
   if (process_count() == 1) return;
-  constexpr std::size_t kFields = 11;
+  constexpr std::size_t kFields = 14;
   std::vector<std::int64_t> values(rows.size() * kFields, 0);
   for (std::size_t i = 0; i < rows.size(); ++i) {
     if (!rows[i]) continue;
@@ -559,6 +559,9 @@ void gather_rows(std::vector<std::optional<Row>>& rows) {
     out[8] = bit_cast<std::int64_t>(row.error.l1);
     out[9] = bit_cast<std::int64_t>(row.error.l2);
     out[10] = bit_cast<std::int64_t>(row.error.linf);
+    out[11] = bit_cast<std::int64_t>(row.estimated.l1);
+    out[12] = bit_cast<std::int64_t>(row.estimated.l2);
+    out[13] = bit_cast<std::int64_t>(row.estimated.linf);
   }
   std::vector<std::int64_t> rays(rows.size(), 0);
   for (std::size_t i = 0; i < rows.size(); ++i)
@@ -581,6 +584,7 @@ void gather_rows(std::vector<std::optional<Row>>& rows) {
     row.unshot = bit_cast<double>(in[6]);
     row.seconds = bit_cast<double>(in[7]);
     row.error = error;
+    row.estimated = {bit_cast<double>(in[11]), bit_cast<double>(in[12]), bit_cast<double>(in[13])};
     row.rays = static_cast<std::uint64_t>(rays[i]);
     rows[i] = row;
   }

@@ -15,6 +15,7 @@
 #include "app/picture.hpp"
 #include "app/processes.hpp"
 #include "app/progress.hpp"
+#include "flatland/base/text.hpp"
 #include "flatland/results/result_io.hpp"
 #include "flatland/scene/scene.hpp"
 
@@ -61,7 +62,28 @@ CLI::App* add_solve_command(CLI::App& parent, SolveOptions& o) {
 
 namespace {
 
-void print_summary(const Solver& solver) {
+// "error     ~ 0.042 % (L1 of B - E, at most, 95 % confidence; L2 0.05 %, Linf 0.2 %)", or why there
+// is none; its caveat on a line of its own.
+void print_estimated_error(std::FILE* out, const ErrorEstimate& estimate) {
+  if (!estimate.available) {
+    std::fprintf(out, "error     not estimated: %s\n", estimate.unavailable.c_str());
+    return;
+  }
+  if (estimate.bounded)
+    std::fprintf(
+        out,
+        "error     ~ %.2g %% or less (relative L1 of B - E at %g %% confidence; L2 %.2g %%, Linf %.2g %%; "
+        "noise %.2g %%, storage %s, unshot %.2g %%)\n",
+        100.0 * estimate.bound.l1, 100.0 * estimate.confidence, 100.0 * estimate.bound.l2, 100.0 * estimate.bound.linf,
+        100.0 * estimate.noise.l1,
+        estimate.storage_estimated ? (format_number(100.0 * estimate.storage.l1, 2) + " %").c_str() : "not estimated",
+        100.0 * estimate.unshot.l1);
+  else
+    std::fprintf(out, "error     unbounded at %g %% confidence\n", 100.0 * estimate.confidence);
+  if (!estimate.caveat.empty()) std::fprintf(out, "          (%s)\n", estimate.caveat.c_str());
+}
+
+void print_summary(const Solver& solver, const ErrorEstimate& estimate) {
   std::FILE* out = report_stream();
   const Scene& scene = solver.scene();
   std::size_t cubic_segments = 0;
@@ -137,6 +159,7 @@ void print_summary(const Solver& solver) {
                  human_count(static_cast<double>(solver.bytes_shared())).c_str(), solver.rounds());
   std::fprintf(out, "energy    emitted %.6g = absorbed %.6g + escaped %.6g + unshot %.6g (imbalance %.2g)\n",
                books.emitted, books.absorbed, books.escaped, books.unshot, books.imbalance());
+  print_estimated_error(out, estimate);
 }
 
 }  // namespace
@@ -223,19 +246,20 @@ int run_solve(SolveOptions& o) {
   if (!speaks_for_the_run()) return kExitOk;
   if (!o.quiet && !solver.thread_shortfall().empty())
     note(solver.thread_shortfall() + "; the results are the same bits on any thread count");
-  if (!o.quiet) print_summary(solver);
+  const ErrorEstimate estimate = estimate_error(solver, {solver.settings().confidence, o.samples});
+  if (!o.quiet) print_summary(solver, estimate);
 
   OutputFiles files(&interrupt_flag());
   if (reference) {
-    const nlohmann::json document = result_to_json(solver, o.samples);
+    const nlohmann::json document = result_to_json(solver, o.samples, &estimate);
     Result<Comparison> comparison = compare_results(document, *reference);
     if (!comparison) return usage_error("--reference " + o.reference + ": " + comparison.error().message);
-    if (!o.quiet) print_comparison(*comparison);
+    if (!o.quiet) print_comparison(*comparison, true, &document);
     if (!o.out.empty())
       if (Status status = files.stage(o.out, json_text(document)); !status) return usage_error(status.error().message);
   } else if (!o.out.empty()) {
     // The same text, without holding the whole document as a JSON tree (result_io.hpp).
-    if (Status status = files.stage(o.out, result_text(solver, o.samples)); !status)
+    if (Status status = files.stage(o.out, result_text(solver, o.samples, &estimate)); !status)
       return usage_error(status.error().message);
   }
   if (!o.picture.empty()) {

@@ -114,7 +114,8 @@ int run_compare(const CompareOptions& options);
 
 // Prints what `comparison` measures and its per-curve errors as a table, with a last row for the
 // whole scene unless `scene_row` is false.
-void print_comparison(const Comparison& comparison, bool scene_row = true);
+// With `result` (the judged result's document), the result's estimated error beside the errors.
+void print_comparison(const Comparison& comparison, bool scene_row = true, const nlohmann::json* result = nullptr);
 // The measure named by --measure: "reflected" (B - E) or "total" (B).
 Measure parse_measure(const std::string& text);
 // The index of the curve with id `id` among `ids`, or a one-line error for --curve that names the

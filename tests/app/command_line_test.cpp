@@ -39,6 +39,8 @@ std::string other_value(const SolveOptionSpec& spec, const SolverSettings& defau
     case SolveOption::RayWidth: return "0.125";
     case SolveOption::BandRays: return "5";
     case SolveOption::Tolerance: return "0.0625";
+    case SolveOption::Replicates: return "4";
+    case SolveOption::Confidence: return "0.9";
     default: break;
   }
   ADD_FAILURE() << "no other value for --" << spec.flag;

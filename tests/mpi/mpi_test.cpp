@@ -56,12 +56,12 @@ TEST(Mpi, SharedSolveHasTheBitsOfOneProcess) {
     EXPECT_GT(shared->rounds(), 1u);
     EXPECT_EQ(dump(*shared), dump(*alone));
     EXPECT_EQ(shared->photons_shot(), alone->photons_shot());
-    // One message per round: the deposits (twice over with auto storage) and 12 counters (escaped, absorbed and shot
-    // per channel, rays, photons, cancel).
-    const std::uint64_t per_round =
-        (shared->coefficient_count() * static_cast<std::uint64_t>(scene.channels) * (shared->auto_storage() ? 2 : 1) +
-         12) *
-        8;
+    // One message per round: the deposits (once per replicate) and 12 counters (escaped, absorbed and shot per
+    // channel, rays, photons, cancel).
+    const std::uint64_t per_round = (shared->coefficient_count() * static_cast<std::uint64_t>(scene.channels) *
+                                         static_cast<std::uint64_t>(settings.replicates) +
+                                     12) *
+                                    8;
     EXPECT_EQ(world->bytes_summed() - bytes_before, per_round * shared->rounds());
     EXPECT_EQ(shared->bytes_shared(), per_round * shared->rounds());
   }

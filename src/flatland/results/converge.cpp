@@ -66,6 +66,13 @@ Result<ConvergeRow> converge_run(const Scene& scene, const SolverSettings& setti
   row.seconds = solver->seconds();
   row.error = curve ? comparison->curves[*curve].norms : comparison->scene;
   row.rays = solver->rays_traced();
+  if (measure == Measure::Reflected) {
+    const ErrorEstimate estimate = estimate_error(*solver, {settings.confidence, samples});
+    if (estimate.available) {
+      const RelativeErrors& bound = curve ? estimate.curves[*curve].bound : estimate.bound;
+      row.estimated = {bound.l1, bound.l2, bound.linf};
+    }
+  }
   return row;
 }
 
@@ -99,6 +106,9 @@ std::vector<ConvergeField> converge_fields(const std::string& method, const Solv
       {"sampler", to_string(s.sampler)},
       {"transport", to_string(s.transport)},
       {"rays", whole(row.rays)},
+      {"est_l1", row.estimated.l1},
+      {"est_l2", row.estimated.l2},
+      {"est_linf", row.estimated.linf},
   };
 }
 

@@ -4,6 +4,7 @@
 
 #include <atomic>
 #include <cstdint>
+#include <limits>
 #include <optional>
 #include <string>
 #include <variant>
@@ -36,6 +37,10 @@ struct ConvergeRow {
   double seconds = 0.0;
   ErrorNorms error;
   std::uint64_t rays = 0;  // rays cast (a walk casts several)
+  // The solver's estimated bound of the same error (error_estimate.hpp, under Measure::Reflected;
+  // NaN where it has none: one replicate, Measure::Total, or unbounded).
+  ErrorNorms estimated{std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::quiet_NaN(),
+                       std::numeric_limits<double>::quiet_NaN()};
 };
 
 // One column of a row of a convergence study, named as in convergence.csv and in the dicts that
@@ -48,7 +53,8 @@ struct ConvergeField {
 };
 // A row's columns, in the CSV's order: the method (its name and its settings, the estimator
 // resolved), the run (seed, photons shot, rounds, unshot fraction, seconds), its errors, what they
-// measure (`measure`, over the curve with id `curve` or, empty, the scene) and the rays cast. The
+// measure (`measure`, over the curve with id `curve` or, empty, the scene), the rays cast and the
+// solver's estimated bound of the errors (est_l1, est_l2, est_linf). The
 // command line and the Python module both write their rows from this, so the two cannot drift.
 std::vector<ConvergeField> converge_fields(const std::string& method, const SolverSettings& settings,
                                            const ConvergeRow& row, Measure measure, const std::string& curve);

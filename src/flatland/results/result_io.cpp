@@ -61,6 +61,8 @@ nlohmann::json result_without_curves(const Solver& solver, int samples_per_curve
       {"ray_profile", to_string(settings.ray_profile)},
       {"ray_mode", to_string(settings.ray_mode)},
       {"band_rays", settings.band_rays},
+      {"replicates", settings.replicates},
+      {"confidence", settings.confidence},
       {"samples", samples_per_curve},
   };
   result["stats"] = stats_to_json(*sampled.stats);
@@ -70,15 +72,15 @@ nlohmann::json result_without_curves(const Solver& solver, int samples_per_curve
 
 }  // namespace
 
-nlohmann::json result_to_json(const Solver& solver, int samples_per_curve) {
-  const SampledResult sampled = sample_solver(solver, samples_per_curve);
+nlohmann::json result_to_json(const Solver& solver, int samples_per_curve, const ErrorEstimate* estimate) {
+  const SampledResult sampled = sample_solver(solver, samples_per_curve, estimate);
   nlohmann::json result = result_without_curves(solver, samples_per_curve, sampled);
   result["curves"] = curves_to_json(sampled);
   return result;
 }
 
-std::string result_text(const Solver& solver, int samples_per_curve) {
-  const SampledResult sampled = sample_solver(solver, samples_per_curve);
+std::string result_text(const Solver& solver, int samples_per_curve, const ErrorEstimate* estimate) {
+  const SampledResult sampled = sample_solver(solver, samples_per_curve, estimate);
   const std::string outline = json_text(result_without_curves(solver, samples_per_curve, sampled));
   // The outline holds `"curves": []` (keys are sorted, so first); the curves go in its place as
   // dump(1) would write them at that depth: "[", each entry on its own lines two spaces in, "]"
@@ -116,8 +118,38 @@ std::string result_text(const Solver& solver, int samples_per_curve) {
   return text;
 }
 
+namespace {
+
+// A relative error, or null where it is unbounded (JSON has no infinity).
+nlohmann::json bound_or_null(double value) { return std::isfinite(value) ? nlohmann::json(value) : nlohmann::json(); }
+
+nlohmann::json errors_to_json(const RelativeErrors& errors) {
+  return {{"l1", bound_or_null(errors.l1)}, {"l2", bound_or_null(errors.l2)}, {"linf", bound_or_null(errors.linf)}};
+}
+
+}  // namespace
+
+nlohmann::json estimated_error_to_json(const ErrorEstimate& estimate) {
+  if (!estimate.available) return {{"available", false}, {"reason", estimate.unavailable}};
+  nlohmann::json result = errors_to_json(estimate.bound);
+  result["available"] = true;
+  result["measure"] = "reflected";
+  result["confidence"] = estimate.confidence;
+  result["replicates"] = estimate.replicates;
+  result["bounded"] = estimate.bounded;
+  result["parts"] = {{"noise", errors_to_json(estimate.noise)},
+                     {"storage", estimate.storage_estimated ? errors_to_json(estimate.storage) : nlohmann::json()},
+                     {"unshot", errors_to_json(estimate.unshot)}};
+  if (!estimate.caveat.empty()) result["caveat"] = estimate.caveat;
+  nlohmann::json curves = nlohmann::json::object();
+  for (const CurveErrorEstimate& curve : estimate.curves)
+    curves[curve.id] = curve.measured ? errors_to_json(curve.bound) : nlohmann::json();
+  result["curves"] = std::move(curves);
+  return result;
+}
+
 nlohmann::json stats_to_json(const ResultStats& stats) {
-  return {
+  nlohmann::json result = {
       {"photons", stats.photons},
       {"rounds", stats.rounds},
       {"rays", stats.rays},
@@ -128,6 +160,8 @@ nlohmann::json stats_to_json(const ResultStats& stats) {
       {"escaped_power", stats.books.escaped},
       {"unshot_power", stats.books.unshot},
   };
+  if (stats.estimated_error) result["estimated_error"] = estimated_error_to_json(*stats.estimated_error);
+  return result;
 }
 
 nlohmann::json reference_result_to_json(const Scene& scene, const ReferenceSettings& settings,

@@ -19,11 +19,12 @@
 namespace flatland {
 
 // The whole result document: scene, settings, stats and K samples per curve at s_j = (j+0.5) L/K.
-nlohmann::json result_to_json(const Solver& solver, int samples_per_curve);
+// `estimate`: the solver's estimated error, when already made (else it is made here).
+nlohmann::json result_to_json(const Solver& solver, int samples_per_curve, const ErrorEstimate* estimate = nullptr);
 // json_text(result_to_json(solver, samples_per_curve)), byte for byte, with the curves written
 // one at a time instead of held as one JSON tree, whose many small allocations cost seconds on
 // scenes of tens of thousands of curves (docs/performance.md).
-std::string result_text(const Solver& solver, int samples_per_curve);
+std::string result_text(const Solver& solver, int samples_per_curve, const ErrorEstimate* estimate = nullptr);
 
 // The document `flatland reference --out` writes: the reference's settings and statistics, its
 // estimated error when `estimate` is given, and `curves` (curves_to_json of its samples).
@@ -33,6 +34,8 @@ nlohmann::json reference_result_to_json(const Scene& scene, const ReferenceSetti
 
 // The "stats" entry of a solver's result.
 nlohmann::json stats_to_json(const ResultStats& stats);
+// The "estimated_error" entry of a solver's result's stats (docs/result-format.md).
+nlohmann::json estimated_error_to_json(const ErrorEstimate& estimate);
 // The "scene" entry of a result.
 nlohmann::json scene_to_json(const Scene& scene);
 // The program that wrote a result: {"name": "flatland", "version", "commit"} (version.hpp).

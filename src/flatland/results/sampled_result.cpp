@@ -90,7 +90,7 @@ SampledResult sample_radiosity(const Scene& scene, int samples_per_curve, const 
   return result;
 }
 
-SampledResult sample_solver(const Solver& solver, int samples_per_curve) {
+SampledResult sample_solver(const Solver& solver, int samples_per_curve, const ErrorEstimate* estimate) {
   const Scene& scene = solver.scene();
   SampledResult result = sample_radiosity(scene, samples_per_curve, [&solver](std::uint32_t c, Side side, double u) {
     return solver.radiosity(c, side, u);
@@ -116,6 +116,8 @@ SampledResult sample_solver(const Solver& solver, int samples_per_curve) {
   stats.seconds = solver.seconds();
   stats.stop_reason = solver.stop_reason();
   stats.books = solver.books();
+  stats.estimated_error =
+      estimate != nullptr ? *estimate : estimate_error(solver, {solver.settings().confidence, samples_per_curve});
   result.stats = stats;
   return result;
 }

@@ -15,6 +15,7 @@
 #include "flatland/base/status.hpp"
 #include "flatland/scene/scene.hpp"
 #include "flatland/storage/curve_storage.hpp"
+#include "flatland/transport/error_estimate.hpp"
 #include "flatland/transport/solver.hpp"
 
 namespace flatland {
@@ -58,6 +59,8 @@ struct ResultStats {
   double seconds = 0.0;
   StopReason stop_reason = StopReason::Running;
   EnergyBooks books;
+  // The solver's own estimate of its error (absent in documents that do not have one).
+  std::optional<ErrorEstimate> estimated_error;
 };
 
 struct SampledResult {
@@ -78,8 +81,9 @@ using RadiosityFunction = std::function<Spectrum(std::uint32_t curve, Side side,
 
 // K samples per curve of any method's radiosity (no spline, no stats).
 SampledResult sample_radiosity(const Scene& scene, int samples_per_curve, const RadiosityFunction& radiosity);
-// A solver's result: its radiosity sampled, its stored splines and its statistics.
-SampledResult sample_solver(const Solver& solver, int samples_per_curve);
+// A solver's result: its radiosity sampled, its stored splines and its statistics, with its
+// estimated error (`estimate`, or estimate_error at these samples and the settings' confidence).
+SampledResult sample_solver(const Solver& solver, int samples_per_curve, const ErrorEstimate* estimate = nullptr);
 
 // The "curves" array of a result document (with the splines when the result has them), and one
 // entry of it.

@@ -28,9 +28,9 @@ struct EnergyBooks {
   double imbalance() const { return emitted - (absorbed + escaped + unshot); }
 };
 
-// A finished round as a transport reads it: its deposits summed over threads (per coefficient and
-// channel, in fixed-point units, with the odd-numbered photons' part apart under automatic
-// storage), its escaped and absorbed units per channel, and the power of one unit.
+// A finished round as a transport reads it: its deposits per thread (per replicate, coefficient and
+// channel, in fixed-point units), its escaped and absorbed units per channel, and the power of one
+// unit.
 struct RoundTotals {
   std::span<const Deposits> deposits;
   std::array<std::int64_t, 3> escaped{};
@@ -38,7 +38,7 @@ struct RoundTotals {
   double inverse_scale = 0.0;
   std::uint64_t photons = 0;       // of this round
   std::uint64_t photons_shot = 0;  // of the solve, this round's included
-  bool halves = false;             // the deposits hold the odd photons' part apart
+  std::size_t replicates = 1;      // parts of the deposits, each coefficients x channels long
 };
 
 class LightTransport {
@@ -65,15 +65,17 @@ class LightTransport {
   // The most bits any round gave up: the books' rounding allowance.
   virtual int most_headroom_bits() const = 0;
 
-  // A finished round into the received power (and its odd-photon half) and the books.
+  // A finished round into the received power and, with more than one replicate, each replicate's
+  // part of it (`parts`, replicate r's at [r * size + index]: the parts sum to `received`), and
+  // into the books.
   virtual void end_round(const SceneStorage& storage, const RoundTotals& round, std::vector<double>& received,
-                         std::vector<double>& received_half) = 0;
-  // The open round's power so far (per coefficient and channel; `open_odd` the odd photons' part)
-  // into copies of the received power, as a reader sees the light arrive: `done` of the round's
-  // `photons` shot, after `before` in finished rounds.
-  virtual void add_open_round(std::vector<double>& received, std::vector<double>& received_half,
-                              const std::vector<double>& open, const std::vector<double>& open_odd, double before,
-                              double done, double photons, bool halves) const = 0;
+                         std::vector<double>& parts) = 0;
+  // The open round's power so far (per coefficient and channel; `open_parts` each replicate's part
+  // of it, empty with one replicate) into copies of the received power and its parts, as a reader
+  // sees the light arrive: `done` of the round's `photons` shot, after `before` in finished rounds.
+  virtual void add_open_round(std::vector<double>& received, std::vector<double>& parts,
+                              const std::vector<double>& open, const std::vector<double>& open_parts, double before,
+                              double done, double photons) const = 0;
   // Adds the absorbed, escaped and unshot power to `books` (emitted already in it).
   virtual void add_books(EnergyBooks& books, int channels, std::uint32_t rounds) const = 0;
 };

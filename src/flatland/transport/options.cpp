@@ -62,6 +62,12 @@ const std::vector<SolveOptionSpec>& table() {
       {SolveOption::BandRays, "band rays", "band-rays", "band_rays", {}, "K", "Sub-rays per photon in band mode"},
       {SolveOption::Tolerance, "tolerance", "tolerance", "tolerance", {}, "X",
        "Stop when the unshot power falls below this fraction of the emitted power"},
+      {SolveOption::Replicates, "replicates", "replicates", "replicates", {}, "R",
+       "Independent randomisations every round's photons are split into (1, or an even number up to 64): "
+       "their spread gives the result's estimated error; 1 gives none (and is refused with --elements auto)"},
+      {SolveOption::Confidence, "confidence", "confidence", "confidence", {}, "C",
+       "Confidence of the estimated error's bound, from 0.5 to 0.999 (the probability that the true error is "
+       "below it)"},
   };
   // clang-format on
   return options;
@@ -187,6 +193,15 @@ Status set_solve_option(SolverSettings& s, SolveOption option, std::string_view 
       s.elements = *elements;
       return ok_status();
     }
+    case SolveOption::Replicates: {
+      const std::string accepted = "1 or an even number up to " + std::to_string(kMaxReplicates);
+      Result<int> replicates = whole(1, kMaxReplicates, accepted.c_str());
+      if (!replicates) return replicates.error();
+      if (*replicates > 1 && *replicates % 2 != 0)
+        return option_error(spec, "expected " + accepted + ", got '" + std::string(text) + "'");
+      s.replicates = *replicates;
+      return ok_status();
+    }
     case SolveOption::BandRays: {
       Result<int> rays = whole(1, 256, "a whole number from 1 to 256");
       if (!rays) return rays.error();
@@ -199,6 +214,14 @@ Status set_solve_option(SolverSettings& s, SolveOption option, std::string_view 
         return option_error(spec,
                             "expected a width >= 0 in scene units (0: point rays), got '" + std::string(text) + "'");
       s.ray_width = *width;
+      return ok_status();
+    }
+    case SolveOption::Confidence: {
+      const std::optional<double> confidence = real_number(text);
+      if (!confidence || !(*confidence >= 0.5 && *confidence <= 0.999))
+        return option_error(spec,
+                            "expected a probability from 0.5 to 0.999 such as 0.95, got '" + std::string(text) + "'");
+      s.confidence = *confidence;
       return ok_status();
     }
     case SolveOption::Tolerance: {
@@ -239,8 +262,10 @@ std::string solve_option_text(const SolverSettings& s, SolveOption option) {
     case SolveOption::Threads: return std::to_string(s.threads);
     case SolveOption::Elements: return s.elements == kAutoElements ? "auto" : std::to_string(s.elements);
     case SolveOption::BandRays: return std::to_string(s.band_rays);
+    case SolveOption::Replicates: return std::to_string(s.replicates);
     case SolveOption::RayWidth: return format_number(s.ray_width);
     case SolveOption::Tolerance: return format_number(s.tolerance);
+    case SolveOption::Confidence: return format_number(s.confidence);
     case SolveOption::Basis: return name(s.basis);
     case SolveOption::Sampling: return name(s.sampling);
     case SolveOption::Discontinuities: return name(s.discontinuities);

@@ -33,6 +33,8 @@ enum class SolveOption {
   RayMode,
   BandRays,
   Tolerance,
+  Replicates,
+  Confidence,
 };
 
 struct SolveOptionSpec {

@@ -38,46 +38,51 @@ inline void prefetch(const void* address) {
 // Sobol' sequence (named by seed and round), whichever batch, step or thread shoots it; its
 // coordinates (PhotonDimension) and how rejection loops use them are in origins.hpp.
 //
-// With auto storage the round's photons form two halves, even and odd numbers, whose spread
-// measures the estimate's variance (choose_levels): the halves must be independent, so with
-// Sobol' each is a net of its own, scrambled independently (streams 2 round and 2 round + 1),
-// photon i taking point i / 2 of its half's. (Halves of one net are stratified against each
-// other: parity fixes the first digit of the first coordinate, and their difference is far from
-// noise.) A fixed mesh keeps one net per round (stream `round`).
+// The round's photons form R replicates (SolverSettings::replicates), photon i in replicate
+// i mod R, whose spread measures the estimate's variance (error_estimate.hpp, and choose_levels'
+// halves: the odd replicates). Replicates must be independent, so with Sobol' each is a net of its
+// own, scrambled independently (stream R round + r), photon i taking point i / R of its
+// replicate's. (Parts of one net are stratified against each other: parity fixes the first digit
+// of the first coordinate, and their difference is far from noise.) One replicate keeps one net
+// per round (stream `round`).
 class RoundPoints {
  public:
-  RoundPoints(std::uint64_t seed, std::uint32_t round, bool sobol, bool split_halves, const RoundPlan& plan)
-      : qmc(sobol),
-        halves(sobol && split_halves),
-        even(seed, this->halves ? 2 * std::uint64_t{round} : round),
-        odd(seed, 2 * std::uint64_t{round} + 1),
-        key_(source_key(seed, round)),
-        plan_(plan) {}
+  RoundPoints(std::uint64_t seed, std::uint32_t round, bool sobol, std::uint32_t replicates, const RoundPlan& plan)
+      : qmc(sobol), replicates_(replicates), key_(source_key(seed, round)), plan_(plan) {
+    if (!qmc) return;
+    nets.reserve(replicates);
+    for (std::uint32_t r = 0; r < replicates; ++r) nets.emplace_back(seed, std::uint64_t{replicates} * round + r);
+  }
   RoundPoints(const RoundPoints&) = delete;  // cursors keep pointers to the nets
   RoundPoints& operator=(const RoundPoints&) = delete;
 
+  // A cursor on every replicate's net (none for the random sampler).
+  std::vector<SobolCursor> cursors() const {
+    std::vector<SobolCursor> result;
+    result.reserve(nets.size());
+    for (const ScrambledSobol& net : nets) result.emplace_back(net);
+    return result;
+  }
   // The cursor of photon `index`'s net, moved to its point.
-  SobolCursor& seek(SobolCursor& even_cursor, SobolCursor& odd_cursor, std::uint32_t index) const {
-    SobolCursor& point = halves && (index & 1u) != 0 ? odd_cursor : even_cursor;
-    point.seek(halves ? index >> 1 : index);
+  SobolCursor& seek(std::vector<SobolCursor>& cursors, std::uint32_t index) const {
+    SobolCursor& point = cursors[index % replicates_];
+    point.seek(index / replicates_);
     return point;
   }
   // The source of photon `index`, by unshot power: a side of a curve, or one of its
   // coefficients. Sobol': from the photon's point (`place` gets what the choice leaves of
   // dimension kPlace, which places the origin); random: from the round's indexed uniforms, so
   // that the choice does not depend on how the round is cut into batches and steps either.
-  std::size_t choose_source(SobolCursor& even_cursor, SobolCursor& odd_cursor, std::uint32_t index,
-                            double& place) const {
+  std::size_t choose_source(std::vector<SobolCursor>& cursors, std::uint32_t index, double& place) const {
     if (!qmc) return plan_.sources.sample(indexed_uniform(key_, index));
-    return plan_.sources.sample(seek(even_cursor, odd_cursor, index).sample(kPlace), place);
+    return plan_.sources.sample(seek(cursors, index).sample(kPlace), place);
   }
 
   const bool qmc;
-  const bool halves;
-  const ScrambledSobol even;
-  const ScrambledSobol odd;
+  std::vector<ScrambledSobol> nets;
 
  private:
+  const std::uint32_t replicates_;
   const std::uint64_t key_;
   const RoundPlan& plan_;
 };
@@ -156,7 +161,7 @@ PhotonShooter::PhotonShooter(const Scene& scene, const SolverSettings& settings,
     : scene_(&scene),
       seed_(settings.seed),
       sobol_(settings.sampler == SamplerKind::Sobol),
-      halves_(settings.elements == kAutoElements),
+      replicates_(static_cast<std::uint32_t>(settings.replicates)),
       ray_width_(settings.ray_width),
       ray_profile_(settings.ray_profile),
       accelerator_(std::move(accelerator)),
@@ -226,11 +231,11 @@ void PhotonShooter::shoot_rays(const RoundView& round, Rng& rng, std::uint64_t f
   if constexpr (kRays == RayKind::Footprint) footprint.reserve(64);
   const auto channels = static_cast<std::size_t>(storage.channels());
   static_assert(kAcceptLobe < kSobolDimensions);
-  const RoundPoints points(seed_, round.number, sobol_, halves_, plan);
+  const RoundPoints points(seed_, round.number, sobol_, replicates_, plan);
   const bool qmc = points.qmc;
-  // Consecutive photons of a half take consecutive points: one XOR per dimension each.
-  SobolCursor cursor(points.even);
-  SobolCursor cursor_odd(points.odd);
+  // Consecutive photons of a replicate take consecutive points: one XOR per dimension each.
+  std::vector<SobolCursor> cursors = points.cursors();
+  const std::size_t replicate_size = storage.coefficient_count() * channels;
   // With many coefficients (their sampler's pieces, units and blocks far beyond the caches) every
   // photon's source is chosen first, and while photon i is shot the data of photon i + kAhead's
   // are asked for (docs/performance-log.md, "Sources chosen ahead"); the same choices either way.
@@ -241,25 +246,22 @@ void PhotonShooter::shoot_rays(const RoundView& round, Rng& rng, std::uint64_t f
   if (ahead) {
     sources.resize(count);
     places.resize(count);
-    SobolCursor even_point(points.even);
-    SobolCursor odd_point(points.odd);
+    std::vector<SobolCursor> ahead_cursors = points.cursors();
     for (std::uint64_t i = 0; i < count; ++i) {
       double place = 0.0;
-      sources[i] = static_cast<std::uint32_t>(
-          points.choose_source(even_point, odd_point, static_cast<std::uint32_t>(first + i), place));
+      sources[i] =
+          static_cast<std::uint32_t>(points.choose_source(ahead_cursors, static_cast<std::uint32_t>(first + i), place));
       places[i] = place;
     }
   }
   for (std::uint64_t i = 0; i < count; ++i) {
     if (ahead) prefetch_sources(storage, plan, sources, i, qmc);
     const auto index = static_cast<std::uint32_t>(first + i);  // < kMaxPhotonsPerRound
-    // Auto storage: odd-numbered photons deposit into the accumulator's second half.
-    if (halves_)
-      acc.half_offset =
-          (index & 1u) != 0 ? storage.coefficient_count() * static_cast<std::size_t>(storage.channels()) : 0;
-    SobolCursor& net_point = qmc ? points.seek(cursor, cursor_odd, index) : cursor;
+    // Replicate r of the round deposits into the accumulator's part r.
+    acc.replicate_offset = (index % replicates_) * replicate_size;
+    SobolCursor* net_point = qmc ? &points.seek(cursors, index) : nullptr;
     double place = ahead ? places[i] : 0.0;
-    const std::size_t source = ahead ? sources[i] : points.choose_source(cursor, cursor_odd, index, place);
+    const std::size_t source = ahead ? sources[i] : points.choose_source(cursors, index, place);
     const std::uint32_t block = by_coefficient ? storage.coefficient_block(source) : static_cast<std::uint32_t>(source);
     const std::uint32_t curve_index = block / 2;
     const bool back = (block & 1u) != 0;
@@ -267,11 +269,11 @@ void PhotonShooter::shoot_rays(const RoundView& round, Rng& rng, std::uint64_t f
     const std::array<std::int64_t, 3>& units = plan.photon_units[source];
     for (std::size_t ch = 0; ch < channels; ++ch) acc.shot[ch] += units[ch];
 
-    OriginDraws draws{rng, qmc ? &net_point : nullptr, place};
+    OriginDraws draws{rng, net_point, place};
     const Origin leaves = leave(round, curve_index, block, source, draws);
     const Vec2 normal = back ? -perp(leaves.tangent) : perp(leaves.tangent);
-    const Vec2 direction = leaving_direction(round.emitted_light, scene_->material_of(curve).emission, normal, rng,
-                                             qmc ? &net_point : nullptr);
+    const Vec2 direction =
+        leaving_direction(round.emitted_light, scene_->material_of(curve).emission, normal, rng, net_point);
     PhotonPath* path =
         start_path(paths, path_limit, leaves, curve_index, back, units, channels, plan.scale, round.bounce);
     if constexpr (kRays == RayKind::Band) {
@@ -463,10 +465,10 @@ void PhotonShooter::receive(const RoundView& round, const SceneHit& hit, const R
       for (std::size_t i = 0; i < footprint.size(); ++i) {
         if (i == largest) continue;
         const auto share = static_cast<std::int64_t>(footprint[i].weight * static_cast<double>(units[ch]) + 0.5);
-        acc.received[acc.half_offset + (offset + footprint[i].coefficient) * channels + ch] += share;
+        acc.received[acc.replicate_offset + (offset + footprint[i].coefficient) * channels + ch] += share;
         left -= share;
       }
-      acc.received[acc.half_offset + (offset + footprint[largest].coefficient) * channels + ch] += left;
+      acc.received[acc.replicate_offset + (offset + footprint[largest].coefficient) * channels + ch] += left;
     }
   } else {
     // Deposit on the basis functions alive at u; the last share takes the remainder so every
@@ -475,7 +477,7 @@ void PhotonShooter::receive(const RoundView& round, const SceneHit& hit, const R
     std::array<double, SplineBasis::kMaxDegree + 1> phi{};
     const std::size_t first = basis.evaluate(u, phi.data());
     const auto degree = static_cast<std::size_t>(basis.degree());
-    std::int64_t* target = acc.received.data() + acc.half_offset + offset * channels;
+    std::int64_t* target = acc.received.data() + acc.replicate_offset + offset * channels;
     for (std::size_t ch = 0; ch < channels; ++ch) {
       std::int64_t left = units[ch];
       for (std::size_t j = 0; j < degree; ++j) {

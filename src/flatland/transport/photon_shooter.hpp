@@ -55,10 +55,10 @@ struct PhotonPath {
 // vector, and sharing a line cost a third of the two-thread rate, or not, as the heap happened to
 // align them).
 struct alignas(64) Deposits {
-  // [coefficient * channels + channel]; with automatic storage twice that, odd-numbered photons of
-  // the round depositing into the second half (half_offset, set per photon).
+  // [replicate * coefficients * channels + coefficient * channels + channel]: replicate r of the
+  // round (its photons i with i mod R = r) deposits into part r (replicate_offset, set per photon).
   std::vector<std::int64_t> received;
-  std::size_t half_offset = 0;
+  std::size_t replicate_offset = 0;
   std::array<std::int64_t, 3> escaped{};
   // Absorbed outright: by sides that do not reflect, and (walks) where a walk ends or Russian
   // roulette's reweighting of its channels leaves power behind.
@@ -153,9 +153,9 @@ class PhotonShooter {
   const Scene* scene_ = nullptr;
   std::uint64_t seed_ = 1;
   bool sobol_ = true;
-  bool halves_ = false;          // automatic storage: odd-numbered photons deposit into the second half
-  bool by_coefficient_ = false;  // reconstructed origins on a B-spline basis
-  bool by_hermite_ = false;      // reconstructed origins on the Hermite reconstruction
+  std::uint32_t replicates_ = 1;  // photon i of a round deposits into part i mod replicates_
+  bool by_coefficient_ = false;   // reconstructed origins on a B-spline basis
+  bool by_hermite_ = false;       // reconstructed origins on the Hermite reconstruction
   double ray_width_ = 0.0;
   RayProfile ray_profile_ = RayProfile::Box;
   RayKind ray_kind_ = RayKind::Point;

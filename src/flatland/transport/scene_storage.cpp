@@ -182,6 +182,21 @@ void SceneStorage::estimate(const std::vector<double>& power, std::vector<double
   for (std::uint32_t c = 0; c < scene_->curves.size(); ++c) estimate_curve(c, power, coefficients);
 }
 
+void SceneStorage::estimate(const std::vector<double>& power, std::vector<double>& coefficients,
+                            const std::vector<int>& levels) const {
+  const auto channels = static_cast<std::size_t>(channels_);
+  coefficients.assign(power.size(), 0.0);
+  for (std::uint32_t c = 0; c < scene_->curves.size(); ++c)
+    for (Side side : {Side::Front, Side::Back}) {
+      const std::uint32_t offset = block_offset(c, side);
+      if (offset == kNoBlock || !holds_power(power, c, offset)) continue;
+      for (std::size_t ch = 0; ch < channels; ++ch) {
+        const std::size_t first = offset * channels + ch;
+        estimate_at_level(c, levels[c], &power[first], &coefficients[first], channels);
+      }
+    }
+}
+
 void SceneStorage::estimate_curve(std::uint32_t c, const std::vector<double>& power,
                                   std::vector<double>& coefficients) const {
   const auto channels = static_cast<std::size_t>(channels_);

@@ -88,6 +88,9 @@ class SceneStorage {
   // Per-unit-length coefficients of `power` (per coefficient and channel, finest layout) by the
   // estimator, at each curve's chosen level, prolonged into the finest basis.
   void estimate(const std::vector<double>& power, std::vector<double>& coefficients) const;
+  // The same with curve c at level levels[c] instead of its chosen one.
+  void estimate(const std::vector<double>& power, std::vector<double>& coefficients,
+                const std::vector<int>& levels) const;
   // The same for one curve's sides (coefficients already sized, and zero there).
   void estimate_curve(std::uint32_t curve, const std::vector<double>& power, std::vector<double>& coefficients) const;
   // One curve side's channel (`power[k * stride]`, finest layout) estimated at a level, in that

@@ -43,6 +43,15 @@ Status validate(const SolverSettings& settings) {
   if (!std::isfinite(settings.ray_width) || settings.ray_width < 0.0)
     return Error{"ray width: must be a finite width >= 0 in scene units (0: point rays)"};
   if (settings.band_rays < 1 || settings.band_rays > 256) return Error{"band rays: must be between 1 and 256"};
+  if (settings.replicates < 1 || settings.replicates > kMaxReplicates ||
+      (settings.replicates > 1 && settings.replicates % 2 != 0))
+    return Error{"replicates: must be 1 or an even number up to " + std::to_string(kMaxReplicates)};
+  if (!(settings.confidence >= 0.5 && settings.confidence <= 0.999))
+    return Error{"confidence: must be a probability from 0.5 to 0.999, e.g. 0.95"};
+  if (settings.replicates == 1 && settings.elements == kAutoElements)
+    return Error{
+        "replicates: automatic storage chooses its levels by comparing halves of the photons, so it needs at "
+        "least 2 replicates (or give a fixed number of elements)"};
   if (settings.transport == Transport::Walk && settings.ray_width > 0.0 && settings.ray_mode == RayMode::Band)
     return Error{
         "transport: a walk goes on from where its photon lands, and a band's sub-rays land in many "

@@ -86,6 +86,13 @@ inline constexpr double kAutoSmallBudgetElements = 128.0;
 // this fraction of the ray's width: the footprint's spread smooths every deposit on that scale (its
 // bias is O(width^2)), so finer elements would resolve nothing but cost time on every hit.
 inline constexpr double kFootprintFinestElement = 0.25;
+// The photons of every round are split into R replicates (photon i into replicate i mod R), each an
+// independent randomisation of the round (its own scrambled Sobol' net, or its own photons of the
+// random sampler): the spread of the R estimates gives the error estimate (error_estimate.hpp) and,
+// under automatic storage, the halves the levels are chosen by (odd replicates are odd photons).
+// 1 replicate (one net a round, no estimate) or an even number up to kMaxReplicates.
+inline constexpr int kDefaultReplicates = 8;
+inline constexpr int kMaxReplicates = 64;
 
 struct SolverSettings {
   std::uint64_t photons = 1'000'000;  // total budget over all rounds
@@ -106,6 +113,10 @@ struct SolverSettings {
   RayProfile ray_profile = RayProfile::Box;
   RayMode ray_mode = RayMode::Footprint;
   int band_rays = 8;
+  // Independent replicates of every round (kDefaultReplicates above), and the confidence of the
+  // estimated error's bound (error_estimate.hpp), in [0.5, 0.999].
+  int replicates = kDefaultReplicates;
+  double confidence = 0.95;
   SamplerKind sampler = SamplerKind::Sobol;
   // With Transport::Walk, `photons` counts walks; `tolerance` is not used (a walk ends by itself),
   // and rays must be points or footprints (a band's sub-rays have no single place to go on from).

@@ -33,11 +33,12 @@ std::uint64_t ProgressiveShooting::round_photons(double unshot, std::uint64_t sh
 }
 
 void ProgressiveShooting::end_round(const SceneStorage& storage, const RoundTotals& round,
-                                    std::vector<double>& received, std::vector<double>& received_half) {
-  // Power shot this round leaves the pool; what was received comes back as rho times itself. With
-  // automatic storage, odd-numbered photons deposited into the deposits' second half.
+                                    std::vector<double>& received, std::vector<double>& parts) {
+  // Power shot this round leaves the pool; what was received comes back as rho times itself. Each
+  // replicate's part adds to its own running total (the parts sum to the received power).
   const auto channels = static_cast<std::size_t>(storage.channels());
-  const std::size_t half = storage.coefficient_count() * channels;
+  const std::size_t size = storage.coefficient_count() * channels;
+  const bool split = round.replicates > 1;
   double previous_pool = 0.0;
   for (double value : unshot_) previous_pool += value;
   for (std::uint32_t block = 0; block < storage.block_count(); ++block) {
@@ -49,15 +50,14 @@ void ProgressiveShooting::end_round(const SceneStorage& storage, const RoundTota
       for (std::size_t ch = 0; ch < channels; ++ch) {
         const std::size_t index = (offset + k) * channels + ch;
         std::int64_t units = 0;
-        std::int64_t odd = 0;
-        for (const Deposits& deposits : round.deposits) {
-          units += deposits.received[index];
-          if (round.halves) odd += deposits.received[half + index];
+        for (std::size_t r = 0; r < round.replicates; ++r) {
+          std::int64_t part = 0;
+          for (const Deposits& deposits : round.deposits) part += deposits.received[r * size + index];
+          if (split) parts[r * size + index] += static_cast<double>(part) * round.inverse_scale;
+          units += part;
         }
-        units += odd;
         const double power = static_cast<double>(units) * round.inverse_scale;
         received[index] += power;
-        if (round.halves) received_half[index] += static_cast<double>(odd) * round.inverse_scale;
         unshot_[index] = rho[ch] * power;
         absorbed_[ch].add(power - unshot_[index]);
       }
@@ -70,13 +70,11 @@ void ProgressiveShooting::end_round(const SceneStorage& storage, const RoundTota
   previous_unshot_ = previous_pool;
 }
 
-void ProgressiveShooting::add_open_round(std::vector<double>& received, std::vector<double>& received_half,
-                                         const std::vector<double>& open, const std::vector<double>& open_odd, double,
-                                         double, double, bool halves) const {
-  for (std::size_t index = 0; index < received.size(); ++index) {
-    received[index] += open[index];
-    if (halves) received_half[index] += open_odd[index];
-  }
+void ProgressiveShooting::add_open_round(std::vector<double>& received, std::vector<double>& parts,
+                                         const std::vector<double>& open, const std::vector<double>& open_parts, double,
+                                         double, double) const {
+  for (std::size_t index = 0; index < received.size(); ++index) received[index] += open[index];
+  for (std::size_t index = 0; index < open_parts.size(); ++index) parts[index] += open_parts[index];
 }
 
 void ProgressiveShooting::add_books(EnergyBooks& books, int channels, std::uint32_t) const {

@@ -41,10 +41,9 @@ class ProgressiveShooting final : public LightTransport {
   int headroom_bits(std::uint64_t) override { return 0; }
   int most_headroom_bits() const override { return 0; }
   void end_round(const SceneStorage& storage, const RoundTotals& round, std::vector<double>& received,
-                 std::vector<double>& received_half) override;
-  void add_open_round(std::vector<double>& received, std::vector<double>& received_half,
-                      const std::vector<double>& open, const std::vector<double>& open_odd, double before, double done,
-                      double photons, bool halves) const override;
+                 std::vector<double>& parts) override;
+  void add_open_round(std::vector<double>& received, std::vector<double>& parts, const std::vector<double>& open,
+                      const std::vector<double>& open_parts, double before, double done, double photons) const override;
   void add_books(EnergyBooks& books, int channels, std::uint32_t rounds) const override;
 
  private:

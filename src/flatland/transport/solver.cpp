@@ -20,10 +20,10 @@ using Clock = std::chrono::steady_clock;
 double seconds_since(Clock::time_point start) { return std::chrono::duration<double>(Clock::now() - start).count(); }
 
 // The storage's memory, estimated from above before anything is allocated. Per coefficient and
-// channel: the received, unshot and reflected totals (doubles), one fixed-point deposit per worker
-// thread and the Galerkin scratch; per coefficient, its knots, basis integral, origin sampler and
-// source weight (about 160 bytes). A curve's segments share its elements, at least one each (at
-// most elements + segments); the regions between event nodes round their shares up, so that a
+// channel: the received, unshot and reflected totals (doubles), each replicate's part of the
+// received power, one fixed-point deposit per replicate and worker thread and the Galerkin scratch; per coefficient,
+// its knots, basis integral, origin sampler and source weight (about 160 bytes). A curve's segments share its elements,
+// at least one each (at most elements + segments); the regions between event nodes round their shares up, so that a
 // curve has at most twice that many, plus per segment a joint of multiplicity up to the degree + 1.
 Status check_memory(const Scene& scene, const SolverSettings& settings, unsigned threads) {
   double coefficients = 0.0;
@@ -32,7 +32,8 @@ Status check_memory(const Scene& scene, const SolverSettings& settings, unsigned
     coefficients += sides * (2.0 * (static_cast<double>(settings.elements) + curve.segment_count) +
                              4.0 * curve.segment_count + 4.0);
   }
-  const double per_coefficient = scene.channels * 8.0 * (4.0 + threads) + 160.0;
+  const double replicates = settings.replicates;
+  const double per_coefficient = scene.channels * 8.0 * (4.0 + replicates * (1.0 + threads)) + 160.0;
   const double bytes = coefficients * per_coefficient + 2048.0 * static_cast<double>(scene.segments.size());
   const std::size_t limit = settings.memory_limit != 0 ? settings.memory_limit : default_memory_budget();
   if (bytes <= static_cast<double>(limit)) return ok_status();
@@ -180,10 +181,11 @@ Status Solver::start_transport() {
     return Error{message};
   }
   received_.assign(size, 0.0);
+  if (settings_.replicates > 1) received_parts_.assign(size * static_cast<std::size_t>(settings_.replicates), 0.0);
   if (auto_storage_) received_half_.assign(size, 0.0);
-  reflected_.assign(size, 0.0);
+  readers_.coefficients.assign(size, 0.0);
   if (settings_.basis == BasisKind::Hermite) {
-    hermite_reflected_.resize(storage_.block_count());
+    readers_.hermite.resize(storage_.block_count());
     hermite_unshot_.resize(storage_.block_count());
   }
   return ok_status();
@@ -223,6 +225,14 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
   return solver;
 }
 
+void Solver::sum_odd_parts(const std::vector<double>& parts, std::vector<double>& half) const {
+  // Replicate r holds the photons i with i mod R = r, R even: the odd replicates are the odd photons.
+  const std::size_t size = received_.size();
+  half.assign(size, 0.0);
+  for (std::size_t r = 1; r < static_cast<std::size_t>(settings_.replicates); r += 2)
+    for (std::size_t index = 0; index < size; ++index) half[index] += parts[r * size + index];
+}
+
 bool Solver::has_side(std::uint32_t curve, Side side) const {
   return storage_.block_offset(curve, side) != SceneStorage::kNoBlock;
 }
@@ -244,7 +254,7 @@ RoundView Solver::round_view() const {
 }
 
 std::size_t Solver::round_message_size() const {
-  return storage_.coefficient_count() * static_cast<std::size_t>(channels_) * (auto_storage_ ? 2 : 1) + 12;
+  return storage_.coefficient_count() * static_cast<std::size_t>(channels_ * settings_.replicates) + 12;
 }
 
 bool Solver::begin_round() {
@@ -267,12 +277,17 @@ bool Solver::begin_round() {
     choose_final_levels();
     return false;
   }
-  if (photons_shot_ >= settings_.photons) {
+  // Every round's photons are a multiple of the replicates, so that each replicate is an equal
+  // share of it (R times its part estimates the whole); a budget's last R - 1 photons or fewer
+  // are not shot.
+  const auto replicates = static_cast<std::uint64_t>(settings_.replicates);
+  if (settings_.photons - photons_shot_ < replicates) {
     stop_reason_ = StopReason::BudgetSpent;
     choose_final_levels();
     return false;
   }
-  round_.photons = transport().round_photons(unshot, photons_shot_, settings_.photons, rounds_);
+  const std::uint64_t photons = transport().round_photons(unshot, photons_shot_, settings_.photons, rounds_);
+  round_.photons = std::max(replicates, photons - photons % replicates);
   round_.headroom_bits = transport().headroom_bits(round_.photons);
   // Fixed point: unshot * scale < 2^61, and scale a power of two so units convert exactly.
   round_.scale = std::ldexp(1.0, 60 - round_.headroom_bits - std::ilogb(unshot));
@@ -290,7 +305,7 @@ void Solver::plan_sources(const std::vector<double>& pool, const std::vector<Spe
   const bool by_coefficient = reconstructed && !by_hermite;
   // The unshot density of every block, channels summed, for the positions; each photon carries
   // its block's colour (its power comes from the deposits, so the books stay exact).
-  if (by_hermite) update_hermite(pool, false);
+  if (by_hermite) update_hermite_unshot(pool);
   const std::size_t sources = by_coefficient ? storage_.coefficient_count() : storage_.block_count();
   // Scratch kept between rounds (a fresh allocation of the storage's size faulted its pages in
   // every round).
@@ -347,7 +362,7 @@ void Solver::end_round(std::span<const Deposits> deposits) {
   totals.inverse_scale = 1.0 / round_.scale;
   totals.photons = round_.photons;
   totals.photons_shot = photons_shot_;
-  totals.halves = auto_storage_;
+  totals.replicates = static_cast<std::size_t>(settings_.replicates);
   for (const Deposits& d : deposits) {
     for (std::size_t ch = 0; ch < channels; ++ch) {
       totals.escaped[ch] += d.escaped[ch];
@@ -355,7 +370,8 @@ void Solver::end_round(std::span<const Deposits> deposits) {
     }
     rays_traced_ += d.rays;
   }
-  transport().end_round(storage_, totals, received_, received_half_);
+  transport().end_round(storage_, totals, received_, received_parts_);
+  if (auto_storage_) sum_odd_parts(received_parts_, received_half_);
   update_reflected(received_, received_half_);
   ++rounds_;
   check_books();
@@ -416,44 +432,81 @@ void Solver::update_reflected(const std::vector<double>& received, const std::ve
 }
 
 void Solver::refresh_readers(const std::vector<double>& received) {
-  const auto channels = static_cast<std::size_t>(channels_);
   readers_stale_ = false;
-  storage_.estimate(received, reflected_);
+  readers_ = reflected_field(received, storage_.chosen_levels());
+}
+
+ReflectedField Solver::reflected_field(const std::vector<double>& received, const std::vector<int>& levels) const {
+  const auto channels = static_cast<std::size_t>(channels_);
+  ReflectedField field;
+  if (settings_.basis == BasisKind::Hermite) {
+    // Each channel's estimate at the curve's level, in that level's hats, times rho, interpolated.
+    field.hermite.resize(storage_.block_count());
+    for (std::uint32_t block = 0; block < storage_.block_count(); ++block) {
+      const std::uint32_t offset = storage_.block_offset(block);
+      if (offset == SceneStorage::kNoBlock) continue;
+      const std::uint32_t c = block / 2;
+      const Spectrum& rho = storage_.block_reflectivity(block);
+      for (std::size_t ch = 0; ch < channels; ++ch) {
+        std::vector<double> values =
+            storage_.estimate_in_level(c, levels[c], &received[offset * channels + ch], channels);
+        for (double& v : values) v *= rho[ch];
+        field.hermite[block].push_back(storage_.hermite_of(c, levels[c], values.data()));
+      }
+    }
+  }
+  // The B-spline coefficients (Hermite storage keeps them too: its hats' estimate, for the
+  // result's stored spline).
+  storage_.estimate(received, field.coefficients, levels);
   for (std::uint32_t block = 0; block < storage_.block_count(); ++block) {
     const std::uint32_t offset = storage_.block_offset(block);
     if (offset == SceneStorage::kNoBlock) continue;
     const Spectrum& rho = storage_.block_reflectivity(block);
     for (std::size_t k = 0; k < storage_.finest(block / 2).basis.size(); ++k)
-      for (std::size_t ch = 0; ch < channels; ++ch) reflected_[(offset + k) * channels + ch] *= rho[ch];
+      for (std::size_t ch = 0; ch < channels; ++ch) field.coefficients[(offset + k) * channels + ch] *= rho[ch];
   }
-  if (settings_.basis == BasisKind::Hermite) update_hermite(received, true);
+  return field;
 }
 
-void Solver::update_hermite(const std::vector<double>& power, bool reflected) {
+Spectrum Solver::reflected_at(const ReflectedField& field, std::uint32_t curve, Side side, double u) const {
+  Spectrum result{};
+  const std::uint32_t offset = storage_.block_offset(curve, side);
+  if (offset == SceneStorage::kNoBlock) return result;
+  const auto channels = static_cast<std::size_t>(channels_);
+  if (settings_.basis == BasisKind::Hermite) {
+    const std::vector<HermiteReconstruction>& per_channel = field.hermite[curve * 2 + static_cast<std::uint32_t>(side)];
+    if (per_channel.empty()) return result;
+    const double s = storage_.arc_length_at(curve, u);
+    for (std::size_t ch = 0; ch < channels; ++ch) result[ch] = per_channel[ch].evaluate(s);
+    return result;
+  }
+  const CurveStorage& storage = storage_.finest(curve);
+  std::array<double, SplineBasis::kMaxDegree + 1> phi{};
+  const std::size_t first = storage.basis.evaluate(u, phi.data());
+  for (std::size_t ch = 0; ch < channels; ++ch)
+    for (int j = 0; j <= storage.basis.degree(); ++j)
+      result[ch] +=
+          phi[static_cast<std::size_t>(j)] *
+          field.coefficients[(offset + storage.basis.index(first + static_cast<std::size_t>(j))) * channels + ch];
+  return result;
+}
+
+void Solver::update_hermite_unshot(const std::vector<double>& power) {
   const auto channels = static_cast<std::size_t>(channels_);
   for (std::uint32_t c = 0; c < scene_->curves.size(); ++c)
     for (Side side : {Side::Front, Side::Back}) {
       const std::uint32_t offset = storage_.block_offset(c, side);
       if (offset == SceneStorage::kNoBlock) continue;
       const std::uint32_t block = c * 2 + static_cast<std::uint32_t>(side);
-      // Each channel's estimate at the chosen level, in that level's hats.
-      std::vector<std::vector<double>> values;
-      for (std::size_t ch = 0; ch < channels; ++ch)
-        values.push_back(
-            storage_.estimate_in_level(c, storage_.chosen_level(c), &power[offset * channels + ch], channels));
-      if (reflected) {
-        const Spectrum& rho = storage_.block_reflectivity(block);
-        hermite_reflected_[block].clear();
-        for (std::size_t ch = 0; ch < channels; ++ch) {
-          for (double& v : values[ch]) v *= rho[ch];
-          hermite_reflected_[block].push_back(storage_.hermite_of(c, storage_.chosen_level(c), values[ch].data()));
-        }
-      } else {
-        std::vector<double> summed(values[0].size(), 0.0);
-        for (std::size_t k = 0; k < summed.size(); ++k)
-          for (std::size_t ch = 0; ch < channels; ++ch) summed[k] += values[ch][k];
-        hermite_unshot_[block] = storage_.hermite_of(c, storage_.chosen_level(c), summed.data());
+      // Each channel's estimate at the chosen level, in that level's hats, summed over channels.
+      std::vector<double> summed;
+      for (std::size_t ch = 0; ch < channels; ++ch) {
+        const std::vector<double> values =
+            storage_.estimate_in_level(c, storage_.chosen_level(c), &power[offset * channels + ch], channels);
+        summed.resize(values.size(), 0.0);
+        for (std::size_t k = 0; k < summed.size(); ++k) summed[k] += values[k];
       }
+      hermite_unshot_[block] = storage_.hermite_of(c, storage_.chosen_level(c), summed.data());
     }
 }
 
@@ -481,7 +534,7 @@ std::uint64_t Solver::step_photons(std::uint64_t max_photons, const std::atomic<
     round_done_ = 0;
     round_deposits_.resize(threads_);
     for (Deposits& deposits : round_deposits_)
-      deposits.reset(storage_.coefficient_count() * static_cast<std::size_t>(channels_) * (auto_storage_ ? 2 : 1));
+      deposits.reset(storage_.coefficient_count() * static_cast<std::size_t>(channels_ * settings_.replicates));
   }
   const Clock::time_point start = Clock::now();
   const std::uint64_t first = round_done_;
@@ -619,23 +672,26 @@ void Solver::include_open_round() {
   if (!round_open_) return;
   const double inverse_scale = 1.0 / round_.scale;
   std::vector<double> received = received_;
+  std::vector<double> parts = received_parts_;
   std::vector<double> received_half = received_half_;
-  const std::size_t half = received.size();
-  // The open round's power so far, all its photons and the odd-numbered ones.
-  std::vector<double> open(half);
-  std::vector<double> open_odd(auto_storage_ ? half : 0);
-  for (std::size_t index = 0; index < half; ++index) {
+  const std::size_t size = received.size();
+  const auto replicates = static_cast<std::size_t>(settings_.replicates);
+  // The open round's power so far, all its photons and each replicate's.
+  std::vector<double> open(size);
+  std::vector<double> open_parts(replicates > 1 ? size * replicates : 0);
+  for (std::size_t index = 0; index < size; ++index) {
     std::int64_t units = 0;
-    std::int64_t odd = 0;
-    for (const Deposits& deposits : round_deposits_) {
-      units += deposits.received[index];
-      if (auto_storage_) odd += deposits.received[half + index];
+    for (std::size_t r = 0; r < replicates; ++r) {
+      std::int64_t part = 0;
+      for (const Deposits& deposits : round_deposits_) part += deposits.received[r * size + index];
+      if (replicates > 1) open_parts[r * size + index] = static_cast<double>(part) * inverse_scale;
+      units += part;
     }
-    open[index] = static_cast<double>(units + odd) * inverse_scale;
-    if (auto_storage_) open_odd[index] = static_cast<double>(odd) * inverse_scale;
+    open[index] = static_cast<double>(units) * inverse_scale;
   }
-  transport().add_open_round(received, received_half, open, open_odd, static_cast<double>(photons_shot_ - round_done_),
-                             static_cast<double>(round_done_), static_cast<double>(round_.photons), auto_storage_);
+  transport().add_open_round(received, parts, open, open_parts, static_cast<double>(photons_shot_ - round_done_),
+                             static_cast<double>(round_done_), static_cast<double>(round_.photons));
+  if (auto_storage_) sum_odd_parts(parts, received_half);
   update_reflected(received, received_half, LevelChoice::View);
 }
 
@@ -682,8 +738,19 @@ std::vector<double> Solver::radiosity_coefficients(std::uint32_t curve, Side sid
   const std::uint32_t offset = storage_.block_offset(curve, side);
   if (offset == SceneStorage::kNoBlock) return {};
   const auto channels = static_cast<std::size_t>(channels_);
-  const auto begin = reflected_.begin() + static_cast<std::ptrdiff_t>(offset * channels);
+  const auto begin = readers_.coefficients.begin() + static_cast<std::ptrdiff_t>(offset * channels);
   return {begin, begin + static_cast<std::ptrdiff_t>(storage_.finest(curve).basis.size() * channels)};
+}
+
+std::vector<double> Solver::replicate_received(int replicate) const {
+  if (settings_.replicates < 2) return {};
+  // Replicate r's photons are a 1/R share of every round, drawn like the whole: R times its part
+  // estimates the whole received power.
+  const std::size_t size = received_.size();
+  const auto begin = received_parts_.begin() + static_cast<std::ptrdiff_t>(static_cast<std::size_t>(replicate) * size);
+  std::vector<double> estimate(begin, begin + static_cast<std::ptrdiff_t>(size));
+  for (double& value : estimate) value *= static_cast<double>(settings_.replicates);
+  return estimate;
 }
 
 std::vector<double> Solver::unshot_coefficients(std::uint32_t curve, Side side) const {
@@ -700,25 +767,10 @@ Spectrum Solver::radiosity(std::uint32_t curve, Side side, double u) const {
   Spectrum result{};
   const std::uint32_t offset = storage_.block_offset(curve, side);
   if (offset == SceneStorage::kNoBlock) return result;
-  const auto channels = static_cast<std::size_t>(channels_);
-  const CurveStorage& storage = storage_.finest(curve);
-  std::array<double, SplineBasis::kMaxDegree + 1> phi{};
-  const std::size_t first = storage.basis.evaluate(u, phi.data());
-  if (settings_.basis == BasisKind::Hermite) {
-    const auto& per_channel = hermite_reflected_[curve * 2 + static_cast<std::uint32_t>(side)];
-    const double s = storage_.arc_length_at(curve, u);
-    for (std::size_t ch = 0; ch < channels; ++ch)
-      result[ch] = scene_->curves[curve].emittance[ch] * emittance_factor(scene_->curves[curve], u) +
-                   (per_channel.empty() ? 0.0 : per_channel[ch].evaluate(s));
-    return result;
-  }
-  for (std::size_t ch = 0; ch < channels; ++ch) {
-    double reflected = 0.0;
-    for (int j = 0; j <= storage.basis.degree(); ++j)
-      reflected += phi[static_cast<std::size_t>(j)] *
-                   reflected_[(offset + storage.basis.index(first + static_cast<std::size_t>(j))) * channels + ch];
-    result[ch] = scene_->curves[curve].emittance[ch] * emittance_factor(scene_->curves[curve], u) + reflected;
-  }
+  const Spectrum reflected = reflected_at(readers_, curve, side, u);
+  const Curve& c = scene_->curves[curve];
+  for (std::size_t ch = 0; ch < static_cast<std::size_t>(channels_); ++ch)
+    result[ch] = c.emittance[ch] * emittance_factor(c, u) + reflected[ch];
   return result;
 }
 

@@ -40,6 +40,14 @@
 namespace flatland {
 
 enum class StopReason { Running, Converged, BudgetSpent, Cancelled, BooksUnbalanced };
+
+// Reflected radiosity B - E as a solver reconstructs it from received power: B-spline coefficients
+// (finest layout, per coefficient and channel, times the side's reflectivity) and, with Hermite
+// storage, each block's reconstruction per channel (in arc length).
+struct ReflectedField {
+  std::vector<double> coefficients;
+  std::vector<std::vector<HermiteReconstruction>> hermite;
+};
 const char* to_string(StopReason reason);
 
 struct SolverProgress {
@@ -160,6 +168,19 @@ class Solver {
   // Radiosity (emitted + reflected power per unit length) leaving a side at curve parameter u.
   Spectrum radiosity(std::uint32_t curve, Side side, double u) const;
 
+  // What the error estimate reads (error_estimate.hpp). The replicates of every round
+  // (settings().replicates), and replicate r's estimate of the received power: its part times R
+  // (empty with one replicate). The received power of all photons.
+  int replicates() const { return settings_.replicates; }
+  std::vector<double> replicate_received(int replicate) const;
+  const std::vector<double>& received() const { return received_; }
+  // The reflected radiosity B - E that the received power `received` gives with curve c's storage
+  // at level levels[c] (chosen_levels(): what radiosity() shows), and its value on a side at u.
+  ReflectedField reflected_field(const std::vector<double>& received, const std::vector<int>& levels) const;
+  Spectrum reflected_at(const ReflectedField& field, std::uint32_t curve, Side side, double u) const;
+  const std::vector<int>& chosen_levels() const { return storage_.chosen_levels(); }
+  const SceneStorage& scene_storage() const { return storage_; }
+
  private:
   Solver() = default;
 
@@ -191,7 +212,7 @@ class Solver {
   // Always-on: emitted = absorbed + escaped + unshot within the fixed point's rounding, or the
   // solve stops (StopReason::BooksUnbalanced).
   void check_books();
-  // reflected_ (and the Hermite reconstructions) from the power received in all rounds.
+  // readers_ from the power received in all rounds.
   // `choice`: with automatic storage, whether the levels are chosen again (Scheduled: when the
   // photons shot have grown by kLevelChoiceGrowth since the last choice; View: for a reader's view
   // of an open round, chosen again when the photons have grown by kLevelChoiceGrowth since the
@@ -202,12 +223,13 @@ class Solver {
   void choose_final_levels();
   void update_reflected(const std::vector<double>& received, const std::vector<double>& received_half,
                         LevelChoice choice = LevelChoice::Scheduled);
-  // The readers' state (reflected_, hermite_reflected_) from `received` at the chosen levels.
+  // `half` = the sum of the odd replicates' parts in `parts`.
+  void sum_odd_parts(const std::vector<double>& parts, std::vector<double>& half) const;
+  // The readers' state (readers_) from `received` at the chosen levels.
   void refresh_readers(const std::vector<double>& received);
-  // The Hermite reconstructions of every block side (channels summed, for the photon origins) or
-  // of every channel times the side's reflectivity (the reflected radiosity), from the power
-  // `power` (finest layout), at each curve's chosen level.
-  void update_hermite(const std::vector<double>& power, bool reflected);
+  // The Hermite reconstruction of every block side's `power` (finest layout, channels summed, at
+  // each curve's chosen level): the density reconstructed origins are drawn from.
+  void update_hermite_unshot(const std::vector<double>& power);
   // f(c) for every curve, shared among the threads in runs of curves (SceneStorage::curve_chunks);
   // f must write only curve c's own coefficients.
   void for_each_curve(const std::function<void(std::uint32_t)>& f);
@@ -233,13 +255,16 @@ class Solver {
 
   // What the solution is made of. Shooting: all rounds' received power; walks: each round's
   // tallies estimate the whole received power, and this is their average weighted by walks. With
-  // automatic storage, received_half_ is the part of it from odd-numbered photons.
+  // more than one replicate, received_parts_ holds each replicate's part of it ([r * size + index],
+  // the same rule applied to its photons alone); with automatic storage, received_half_ is the part
+  // from odd-numbered photons (the odd replicates').
   std::vector<double> received_;  // [coefficient * channels + channel]
+  std::vector<double> received_parts_;
   std::vector<double> received_half_;
-  std::vector<double> reflected_;  // reflected radiosity coefficients b_k (estimator applied)
-  // Hermite basis only: reflected radiosity per block and channel, and the unshot density per
-  // block (channels summed) that reconstructed origins are drawn from; both in arc length.
-  std::vector<std::vector<HermiteReconstruction>> hermite_reflected_;
+  // What the readers see: the reflected radiosity of received_ at the chosen levels.
+  ReflectedField readers_;
+  // Hermite basis only: the unshot density per block (channels summed, in arc length) that
+  // reconstructed origins are drawn from.
   std::vector<HermiteReconstruction> hermite_unshot_;
   // While run() goes, update_reflected leaves the readers' state stale (readers_stale_) for run to
   // refresh once when it returns.

@@ -52,23 +52,27 @@ int RandomWalks::headroom_bits(std::uint64_t photons) {
 }
 
 void RandomWalks::end_round(const SceneStorage& storage, const RoundTotals& round, std::vector<double>& received,
-                            std::vector<double>& received_half) {
+                            std::vector<double>& parts) {
   // Each round's tallies estimate the whole received power (its walks carry all the emitted
   // power between them): the running estimate is their average weighted by walks. Power is
   // absorbed or escapes only where a walk's units end, so the books stay exact per round.
   const auto channels = static_cast<std::size_t>(storage.channels());
-  const std::size_t half = storage.coefficient_count() * channels;
+  // Each replicate's part is averaged the same way, so the parts keep summing to the whole.
+  const std::size_t size = storage.coefficient_count() * channels;
+  const bool split = round.replicates > 1;
   const double weight = static_cast<double>(round.photons) / static_cast<double>(round.photons_shot);
-  for (std::size_t index = 0; index < half; ++index) {
+  for (std::size_t index = 0; index < size; ++index) {
     std::int64_t units = 0;
-    std::int64_t odd = 0;
-    for (const Deposits& deposits : round.deposits) {
-      units += deposits.received[index];
-      if (round.halves) odd += deposits.received[half + index];
+    for (std::size_t r = 0; r < round.replicates; ++r) {
+      std::int64_t part = 0;
+      for (const Deposits& deposits : round.deposits) part += deposits.received[r * size + index];
+      if (split) {
+        double& running = parts[r * size + index];
+        running += weight * (static_cast<double>(part) * round.inverse_scale - running);
+      }
+      units += part;
     }
-    received[index] += weight * (static_cast<double>(units + odd) * round.inverse_scale - received[index]);
-    if (round.halves)
-      received_half[index] += weight * (static_cast<double>(odd) * round.inverse_scale - received_half[index]);
+    received[index] += weight * (static_cast<double>(units) * round.inverse_scale - received[index]);
   }
   for (std::size_t ch = 0; ch < channels; ++ch) {
     escaped_[ch] += weight * (static_cast<double>(round.escaped[ch]) * round.inverse_scale - escaped_[ch]);
@@ -76,16 +80,16 @@ void RandomWalks::end_round(const SceneStorage& storage, const RoundTotals& roun
   }
 }
 
-void RandomWalks::add_open_round(std::vector<double>& received, std::vector<double>& received_half,
-                                 const std::vector<double>& open, const std::vector<double>& open_odd, double before,
-                                 double done, double photons, bool halves) const {
+void RandomWalks::add_open_round(std::vector<double>& received, std::vector<double>& parts,
+                                 const std::vector<double>& open, const std::vector<double>& open_parts, double before,
+                                 double done, double photons) const {
   // The round's walks so far, each carrying 1/n of the emitted power, estimate done / n of the
   // received power; averaged with the finished rounds by walks.
   if (!(done > 0.0)) return;
-  for (std::size_t index = 0; index < received.size(); ++index) {
+  for (std::size_t index = 0; index < received.size(); ++index)
     received[index] = (before * received[index] + photons * open[index]) / (before + done);
-    if (halves) received_half[index] = (before * received_half[index] + photons * open_odd[index]) / (before + done);
-  }
+  for (std::size_t index = 0; index < open_parts.size(); ++index)
+    parts[index] = (before * parts[index] + photons * open_parts[index]) / (before + done);
 }
 
 void RandomWalks::add_books(EnergyBooks& books, int channels, std::uint32_t rounds) const {

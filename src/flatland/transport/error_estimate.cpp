@@ -1,0 +1,323 @@
+#include "flatland/transport/error_estimate.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+
+#include "flatland/base/portable_math.hpp"
+#include "flatland/base/statistics.hpp"
+#include "flatland/transport/sampling.hpp"
+#include "flatland/transport/solver.hpp"
+
+namespace flatland {
+
+namespace {
+
+constexpr double kInfinity = std::numeric_limits<double>::infinity();
+// The Gaussian combinations drawn for the noise's quantiles: enough that the 95 % quantile of 400
+// draws is within a few per cent of the distribution's, fewer on a scene of many curves (the draws
+// keep every curve's norms).
+constexpr int kMostDraws = 400;
+constexpr int kFewestDraws = 40;
+constexpr double kDrawValueBudget = 2e7;
+
+// Where B - E is evaluated: every side that has storage, at the midpoints of K equal arc-length
+// cells of its curve, each channel; point p of curve c lies in [first[c], first[c + 1]).
+struct EvaluationPoints {
+  struct Point {
+    std::uint32_t curve;
+    Side side;
+    double u;
+    double weight;  // the cell's length
+  };
+  std::vector<Point> points;
+  std::vector<std::size_t> first;
+  int channels = 1;
+  std::size_t values() const { return points.size() * static_cast<std::size_t>(channels); }
+};
+
+EvaluationPoints evaluation_points(const Solver& solver, int samples) {
+  const Scene& scene = solver.scene();
+  EvaluationPoints result;
+  result.channels = scene.channels;
+  for (std::uint32_t c = 0; c < scene.curves.size(); ++c) {
+    result.first.push_back(result.points.size());
+    const Curve& curve = scene.curves[c];
+    for (int j = 0; j < samples; ++j) {
+      const double s = (j + 0.5) * curve.length / samples;
+      const double u = point_at_arc_length(scene, curve, s).u;
+      for (Side side : {Side::Front, Side::Back})
+        if (solver.has_side(c, side)) result.points.push_back({c, side, u, curve.length / samples});
+    }
+  }
+  result.first.push_back(result.points.size());
+  return result;
+}
+
+// B - E of a field at every point and channel: [p * channels + ch].
+std::vector<double> evaluate(const Solver& solver, const ReflectedField& field, const EvaluationPoints& at) {
+  const auto channels = static_cast<std::size_t>(at.channels);
+  std::vector<double> values(at.values());
+  for (std::size_t p = 0; p < at.points.size(); ++p) {
+    const auto& point = at.points[p];
+    const Spectrum value = solver.reflected_at(field, point.curve, point.side, point.u);
+    for (std::size_t ch = 0; ch < channels; ++ch) values[p * channels + ch] = value[ch];
+  }
+  return values;
+}
+
+// Norms of a function given at the points: L1 and the square of L2 (weighted by cell length) and
+// L-infinity, accumulated per curve.
+struct Norms {
+  double l1 = 0.0;
+  double l2_squared = 0.0;
+  double linf = 0.0;
+  void add(double value, double weight) {
+    const double magnitude = std::fabs(value);
+    l1 += weight * magnitude;
+    l2_squared += weight * value * value;
+    linf = std::max(linf, magnitude);
+  }
+  void add(const Norms& other) {
+    l1 += other.l1;
+    l2_squared += other.l2_squared;
+    linf = std::max(linf, other.linf);
+  }
+  RelativeErrors absolute() const { return {l1, std::sqrt(l2_squared), linf}; }
+};
+
+// Per curve (and, last, over the scene) norms of `values`.
+std::vector<Norms> norms_of(const std::vector<double>& values, const EvaluationPoints& at) {
+  const auto channels = static_cast<std::size_t>(at.channels);
+  const std::size_t curves = at.first.size() - 1;
+  std::vector<Norms> norms(curves + 1);
+  for (std::size_t c = 0; c < curves; ++c) {
+    for (std::size_t p = at.first[c]; p < at.first[c + 1]; ++p)
+      for (std::size_t ch = 0; ch < channels; ++ch) norms[c].add(values[p * channels + ch], at.points[p].weight);
+    norms[curves].add(norms[c]);
+  }
+  return norms;
+}
+
+// The order q of the storage's discretisation error, error ~ h^q: the lumped estimator's is set by
+// the ends and nodes (O(h)); Hermite storage interpolates nodal values estimated on hats (O(h^2));
+// Galerkin and local estimates of degree-p splines have O(h^(p+1)).
+int storage_order(const SolverSettings& settings) {
+  if (settings.estimator == Estimator::Lumped) return 1;
+  if (settings.basis == BasisKind::Hermite) return 2;
+  return degree_of(settings.basis) + 1;
+}
+
+std::string percent(double fraction) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.3g %%", 100.0 * fraction);
+  return text;
+}
+
+}  // namespace
+
+ErrorEstimate estimate_error(const Solver& solver, const ErrorEstimateOptions& options) {
+  ErrorEstimate estimate;
+  estimate.confidence = options.confidence;
+  estimate.replicates = solver.replicates();
+  const int replicates = solver.replicates();
+  if (replicates < 2) {
+    estimate.unavailable = "one replicate gives no estimate of the error (give replicates 8, the default)";
+    return estimate;
+  }
+  if (solver.photons_shot() == 0) {
+    estimate.unavailable = "no photon has been shot yet";
+    return estimate;
+  }
+  estimate.available = true;
+  const auto count = static_cast<std::size_t>(replicates);
+  const EvaluationPoints at = evaluation_points(solver, std::max(1, options.samples_per_curve));
+  const std::size_t values = at.values();
+  const std::size_t curves = at.first.size() - 1;
+  const std::vector<int>& levels = solver.chosen_levels();
+
+  // The replicates' B - E and their mean (the solver's own, up to rounding).
+  std::vector<std::vector<double>> replicate(count);
+  std::vector<double> mean(values, 0.0);
+  for (std::size_t r = 0; r < count; ++r) {
+    replicate[r] = evaluate(solver, solver.reflected_field(solver.replicate_received(static_cast<int>(r)), levels), at);
+    for (std::size_t i = 0; i < values; ++i) mean[i] += replicate[r][i] / static_cast<double>(count);
+  }
+  const std::vector<Norms> size = norms_of(mean, at);
+
+  // Noise. The mean's error is about Gaussian with covariance S / R, S the replicates' sample
+  // covariance; sum_r g_r (X_r - mean) / sqrt(R (R - 1)), g_r standard normal, has exactly that
+  // covariance. Each norm's quantile over such draws, times t / z, bounds the norm of the error at
+  // the confidence even where one pattern dominates it (then it is |t_(R-1)| times its scale).
+  for (std::size_t r = 0; r < count; ++r)
+    for (std::size_t i = 0; i < values; ++i) replicate[r][i] -= mean[i];
+  const double scale = 1.0 / std::sqrt(static_cast<double>(count) * static_cast<double>(count - 1));
+  const int draws = static_cast<int>(std::clamp(kDrawValueBudget / (3.0 * static_cast<double>(curves + 1)),
+                                                static_cast<double>(kFewestDraws), static_cast<double>(kMostDraws)));
+  std::vector<std::vector<Norms>> drawn(static_cast<std::size_t>(draws));
+  Rng rng(solver.settings().seed, 0x6572726f72ull, 0);  // "error"
+  std::vector<double> gauss(count + 1);
+  std::vector<double> error(values);
+  for (auto& norms : drawn) {
+    // Box and Muller's pairs of independent standard normals.
+    for (std::size_t r = 0; r < count; r += 2) {
+      double sine = 0.0;
+      double cosine = 0.0;
+      portable::sin_cos(2.0 * 3.14159265358979323846 * rng.uniform(), sine, cosine);
+      const double radius = std::sqrt(-2.0 * portable::log(rng.uniform_open()));
+      gauss[r] = radius * cosine;
+      gauss[r + 1] = radius * sine;
+    }
+    std::fill(error.begin(), error.end(), 0.0);
+    for (std::size_t r = 0; r < count; ++r) {
+      const double g = gauss[r] * scale;
+      const std::vector<double>& deviation = replicate[r];
+      for (std::size_t i = 0; i < values; ++i) error[i] += g * deviation[i];
+    }
+    norms = norms_of(error, at);
+  }
+  const double t_over_z =
+      student_t_quantile_two_sided(options.confidence, replicates - 1) / normal_quantile_two_sided(options.confidence);
+  const auto rank = static_cast<std::size_t>(std::ceil(options.confidence * draws)) - 1;
+  auto noise_of = [&](std::size_t c) {
+    std::vector<double> l1, l2, linf;
+    for (const auto& norms : drawn) {
+      const RelativeErrors e = norms[c].absolute();
+      l1.push_back(e.l1);
+      l2.push_back(e.l2);
+      linf.push_back(e.linf);
+    }
+    auto quantile = [&](std::vector<double>& v) {
+      std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(rank), v.end());
+      return v[rank] * t_over_z;
+    };
+    return RelativeErrors{quantile(l1), quantile(l2), quantile(linf)};
+  };
+
+  // Storage. Curve c's estimate at its chosen level l against level l - 1 (or l + 1 at the
+  // coarsest): with error ~ h^q, B_l - B_(l-1) = (1 - 2^q) e_l, and B_(l+1) - B_l = (2^-q - 1) e_l.
+  // The difference carries noise too; its energy, estimated from the replicates' differences, is
+  // taken off the difference's (at most all of it), in every norm in the L2 ratio.
+  std::vector<double> bias(values, 0.0);
+  const Scene& scene = solver.scene();
+  const SceneStorage& storage = solver.scene_storage();
+  estimate.storage_estimated = solver.auto_storage();
+  if (solver.auto_storage()) {
+    std::vector<int> other = levels;
+    std::vector<double> factor(curves, 0.0);
+    const double q = std::ldexp(1.0, storage_order(solver.settings()));
+    for (std::uint32_t c = 0; c < curves; ++c) {
+      if (levels[c] > 0) {
+        other[c] = levels[c] - 1;
+        factor[c] = 1.0 / (q - 1.0);
+      } else if (storage.level_count(c) > 1) {
+        other[c] = levels[c] + 1;
+        factor[c] = 1.0 / (1.0 - 1.0 / q);
+      }
+    }
+    std::vector<double> difference = evaluate(solver, solver.reflected_field(solver.received(), other), at);
+    for (std::size_t i = 0; i < values; ++i) difference[i] = mean[i] - difference[i];
+    std::vector<double> noise_energy(curves, 0.0);
+    std::vector<double> other_mean(values, 0.0);
+    std::vector<std::vector<double>> other_replicate(count);
+    for (std::size_t r = 0; r < count; ++r) {
+      other_replicate[r] =
+          evaluate(solver, solver.reflected_field(solver.replicate_received(static_cast<int>(r)), other), at);
+      for (std::size_t i = 0; i < values; ++i) other_mean[i] += other_replicate[r][i] / static_cast<double>(count);
+    }
+    const auto channels = static_cast<std::size_t>(at.channels);
+    for (std::size_t r = 0; r < count; ++r)
+      for (std::size_t c = 0; c < curves; ++c)
+        for (std::size_t p = at.first[c]; p < at.first[c + 1]; ++p)
+          for (std::size_t ch = 0; ch < channels; ++ch) {
+            const std::size_t i = p * channels + ch;
+            // Replicate r's difference less the mean difference (replicate[r] already less the mean).
+            const double d = replicate[r][i] - (other_replicate[r][i] - other_mean[i]);
+            noise_energy[c] += at.points[p].weight * d * d * scale * scale;
+          }
+    const std::vector<Norms> difference_norms = norms_of(difference, at);
+    for (std::size_t c = 0; c < curves; ++c) {
+      const double energy = difference_norms[c].l2_squared;
+      const double kept = energy > 0.0 ? std::sqrt(std::max(0.0, 1.0 - noise_energy[c] / energy)) : 0.0;
+      for (std::size_t p = at.first[c]; p < at.first[c + 1]; ++p)
+        for (std::size_t ch = 0; ch < channels; ++ch)
+          bias[p * channels + ch] = factor[c] * kept * difference[p * channels + ch];
+    }
+  } else {
+    estimate.caveat =
+        "the storage mesh is fixed, so its discretisation error is not estimated (the bound holds for "
+        "the noise and the unshot light only; --elements auto estimates it)";
+  }
+  const std::vector<Norms> bias_norms = norms_of(bias, at);
+
+  // Unshot light: a round shoots the pool U and receives at most U of it, of which rho_max
+  // reflects; so all later rounds add at most rho_max U / (1 - rho_max) to the integral of B - E.
+  // Its share of B - E's integral is taken as its relative error in every norm (it is spread like
+  // B - E: an assumption, not a bound, for L2 and L-infinity).
+  double unshot_share = 0.0;
+  if (solver.settings().transport == Transport::Shooting) {
+    double rho_max = 0.0;
+    for (const Curve& curve : scene.curves)
+      for (int ch = 0; ch < scene.channels; ++ch)
+        rho_max = std::max(rho_max, scene.material_of(curve).reflectivity[static_cast<std::size_t>(ch)]);
+    const double unshot = solver.books().unshot;
+    const double missing = unshot > 0.0 ? rho_max * unshot / (1.0 - rho_max) : 0.0;
+    unshot_share = size[curves].l1 > 0.0 ? missing / size[curves].l1 : (missing > 0.0 ? kInfinity : 0.0);
+  }
+
+  // The bound: the parts' sum A in each norm, relative to the estimate's norm D less A (the true
+  // norm is at least D - A); none where A reaches D.
+  auto combine = [&](std::size_t c, RelativeErrors& bound, bool& bounded, RelativeErrors* parts) {
+    const RelativeErrors noise = noise_of(c);
+    const RelativeErrors bias_part = bias_norms[c].absolute();
+    const RelativeErrors norm = size[c].absolute();
+    bounded = true;
+    auto one = [&](double noise_part, double storage_part, double d, double& out, double* noise_out,
+                   double* storage_out, double* unshot_out) {
+      const double total = noise_part + storage_part + unshot_share * d;
+      out = total < d ? total / (d - total) : kInfinity;
+      if (!(total < d)) bounded = false;
+      if (noise_out != nullptr) {
+        *noise_out = d > 0.0 ? noise_part / d : kInfinity;
+        *storage_out = d > 0.0 ? storage_part / d : kInfinity;
+        *unshot_out = unshot_share;
+      }
+    };
+    one(noise.l1, bias_part.l1, norm.l1, bound.l1, parts ? &parts[0].l1 : nullptr, parts ? &parts[1].l1 : nullptr,
+        parts ? &parts[2].l1 : nullptr);
+    one(noise.l2, bias_part.l2, norm.l2, bound.l2, parts ? &parts[0].l2 : nullptr, parts ? &parts[1].l2 : nullptr,
+        parts ? &parts[2].l2 : nullptr);
+    one(noise.linf, bias_part.linf, norm.linf, bound.linf, parts ? &parts[0].linf : nullptr,
+        parts ? &parts[1].linf : nullptr, parts ? &parts[2].linf : nullptr);
+  };
+  RelativeErrors parts[3];
+  if (!(size[curves].l1 > 0.0)) {
+    estimate.available = false;
+    estimate.unavailable = "no light has been reflected yet, so the relative error of B - E is undefined";
+    return estimate;
+  }
+  combine(curves, estimate.bound, estimate.bounded, parts);
+  estimate.noise = parts[0];
+  estimate.storage = parts[1];
+  estimate.unshot = parts[2];
+  if (!estimate.bounded) {
+    const std::string why = "the estimated error is as large as B - E itself (noise " + percent(parts[0].l1) +
+                            ", storage " + percent(parts[1].l1) + ", unshot " + percent(parts[2].l1) +
+                            " in L1): shoot more photons";
+    estimate.caveat = estimate.caveat.empty() ? why : why + "; " + estimate.caveat;
+  }
+  for (std::uint32_t c = 0; c < curves; ++c) {
+    CurveErrorEstimate& curve = estimate.curves.emplace_back();
+    curve.id = scene.curves[c].id;
+    curve.measured = size[c].l1 > 0.0;
+    if (!curve.measured) {
+      curve.bound = {kInfinity, kInfinity, kInfinity};
+      continue;
+    }
+    combine(c, curve.bound, curve.bounded, nullptr);
+  }
+  return estimate;
+}
+
+}  // namespace flatland
