@@ -101,11 +101,13 @@ std::vector<Norms> norms_of(const std::vector<double>& values, const EvaluationP
 }
 
 // The order q of the storage's discretisation error, error ~ h^q: the lumped estimator's is set by
-// the ends and nodes (O(h)); Hermite storage interpolates nodal values estimated on hats (O(h^2));
-// Galerkin and local estimates of degree-p splines have O(h^(p+1)).
+// the ends and nodes (O(h)); Galerkin and local estimates of degree-p splines have O(h^(p+1));
+// Hermite storage interpolates with slopes from three nodes (exact for quadratics, O(h^3)) its
+// nodal values, which the local estimator makes exact for cubics and Galerkin's hat projection to
+// O(h^2).
 int storage_order(const SolverSettings& settings) {
   if (settings.estimator == Estimator::Lumped) return 1;
-  if (settings.basis == BasisKind::Hermite) return 2;
+  if (settings.basis == BasisKind::Hermite) return settings.estimator == Estimator::Local ? 3 : 2;
   return degree_of(settings.basis) + 1;
 }
 
