@@ -160,6 +160,15 @@ void print_summary(const Solver& solver, const ErrorEstimate& estimate) {
   std::fprintf(out, "energy    emitted %.6g = absorbed %.6g + escaped %.6g + unshot %.6g (imbalance %.2g)\n",
                books.emitted, books.absorbed, books.escaped, books.unshot, books.imbalance());
   print_estimated_error(out, estimate);
+  if (const double target = solver.settings().target_error; target > 0.0) {
+    if (solver.stop_reason() == StopReason::TargetReached)
+      std::fprintf(out, "target    %.3g %% reached (estimated %.3g %% when checked%s)\n", 100.0 * target,
+                   100.0 * solver.checked_error(),
+                   solver.passes() > 0 ? (", after " + std::to_string(solver.passes()) + " passes").c_str() : "");
+    else
+      std::fprintf(out, "target    %.3g %% not reached: %s first (give a larger --photons cap)\n", 100.0 * target,
+                   to_string(solver.stop_reason()));
+  }
 }
 
 }  // namespace

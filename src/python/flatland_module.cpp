@@ -298,6 +298,13 @@ class PySolver {
     d["coefficients"] = solver_->coefficient_count();
     return d;
   }
+  // The solve's estimated error as `flatland solve --out` writes it (stats.estimated_error).
+  py::object estimated_error(int samples) const {
+    check_idle();
+    if (samples < 1 || samples > 1'000'000) fail("samples: must be between 1 and 1000000");
+    const ErrorEstimate estimate = estimate_error(*solver_, {solver_->settings().confidence, samples});
+    return py::module_::import("json").attr("loads")(estimated_error_to_json(estimate).dump());
+  }
   SampledResult sampled(int samples) const {
     check_idle();
     return sample_solver(*solver_, samples);
@@ -636,6 +643,12 @@ PYBIND11_MODULE(flatland, m) {
            "Reflected radiosity coefficients b_k (B = E + sum b_k phi_k); channels interleaved")
       .def("knots", &PySolver::knots, py::arg("curve"), "Knots of the curve's storage B-splines, in u")
       .def_property_readonly("stats", &PySolver::stats)
+      .def_property_readonly(
+          "estimated_error", [](const PySolver& s) { return s.estimated_error(100); },
+          "Upper bound, at the confidence asked for (0.95), of the relative L1, L2 and Linf error of B - E, "
+          "over the scene and per curve, with its parts (noise, storage, unshot): a dict as in the result file")
+      .def("estimate_error", &PySolver::estimated_error, py::arg("samples") = 100,
+           "The estimated error evaluated at this many samples per curve")
       .def_property_readonly("scene", &PySolver::scene)
       .def("to_json", &PySolver::to_json, py::arg("samples") = 100, "The document `flatland solve --out` writes");
 

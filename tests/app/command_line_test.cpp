@@ -41,6 +41,7 @@ std::string other_value(const SolveOptionSpec& spec, const SolverSettings& defau
     case SolveOption::Tolerance: return "0.0625";
     case SolveOption::Replicates: return "4";
     case SolveOption::Confidence: return "0.9";
+    case SolveOption::TargetError: return "0.01";
     default: break;
   }
   ADD_FAILURE() << "no other value for --" << spec.flag;

@@ -65,6 +65,9 @@ const std::vector<SolveOptionSpec>& table() {
       {SolveOption::Replicates, "replicates", "replicates", "replicates", {}, "R",
        "Independent randomisations every round's photons are split into (1, or an even number up to 64): "
        "their spread gives the result's estimated error; 1 gives none (and is refused with --elements auto)"},
+      {SolveOption::TargetError, "target error", "target-error", "target_error", {}, "X",
+       "Keep shooting until the estimated relative L1 error of B - E is at most X (e.g. 1e-3), with photons "
+       "as the cap; 0: no target, the photon budget and tolerance decide"},
       {SolveOption::Confidence, "confidence", "confidence", "confidence", {}, "C",
        "Confidence of the estimated error's bound, from 0.5 to 0.999 (the probability that the true error is "
        "below it)"},
@@ -216,6 +219,14 @@ Status set_solve_option(SolverSettings& s, SolveOption option, std::string_view 
       s.ray_width = *width;
       return ok_status();
     }
+    case SolveOption::TargetError: {
+      const std::optional<double> target = real_number(text);
+      if (!target || !(*target >= 0.0 && *target < 1.0))
+        return option_error(
+            spec, "expected a relative error in (0, 1) such as 1e-3 (0: no target), got '" + std::string(text) + "'");
+      s.target_error = *target;
+      return ok_status();
+    }
     case SolveOption::Confidence: {
       const std::optional<double> confidence = real_number(text);
       if (!confidence || !(*confidence >= 0.5 && *confidence <= 0.999))
@@ -266,6 +277,7 @@ std::string solve_option_text(const SolverSettings& s, SolveOption option) {
     case SolveOption::RayWidth: return format_number(s.ray_width);
     case SolveOption::Tolerance: return format_number(s.tolerance);
     case SolveOption::Confidence: return format_number(s.confidence);
+    case SolveOption::TargetError: return format_number(s.target_error);
     case SolveOption::Basis: return name(s.basis);
     case SolveOption::Sampling: return name(s.sampling);
     case SolveOption::Discontinuities: return name(s.discontinuities);

@@ -35,6 +35,7 @@ enum class SolveOption {
   Tolerance,
   Replicates,
   Confidence,
+  TargetError,
 };
 
 struct SolveOptionSpec {

@@ -48,6 +48,12 @@ Status validate(const SolverSettings& settings) {
     return Error{"replicates: must be 1 or an even number up to " + std::to_string(kMaxReplicates)};
   if (!(settings.confidence >= 0.5 && settings.confidence <= 0.999))
     return Error{"confidence: must be a probability from 0.5 to 0.999, e.g. 0.95"};
+  if (!(settings.target_error >= 0.0 && settings.target_error < 1.0))
+    return Error{"target error: must be a relative error in (0, 1), e.g. 1e-3 (0: no target)"};
+  if (settings.target_error > 0.0 && settings.replicates < 2)
+    return Error{
+        "target error: the error is estimated from the replicates' spread, so it needs at least 2 "
+        "replicates (8 is the default)"};
   if (settings.replicates == 1 && settings.elements == kAutoElements)
     return Error{
         "replicates: automatic storage chooses its levels by comparing halves of the photons, so it needs at "

@@ -117,6 +117,9 @@ struct SolverSettings {
   // estimated error's bound (error_estimate.hpp), in [0.5, 0.999].
   int replicates = kDefaultReplicates;
   double confidence = 0.95;
+  // Solve to an accuracy (0: off): shoot until the estimated relative L1 error of B - E over the
+  // scene (error_estimate.hpp) is at most this, with `photons` as the cap (Solver, "Passes").
+  double target_error = 0.0;
   SamplerKind sampler = SamplerKind::Sobol;
   // With Transport::Walk, `photons` counts walks; `tolerance` is not used (a walk ends by itself),
   // and rays must be points or footprints (a band's sub-rays have no single place to go on from).

@@ -10,6 +10,7 @@
 
 #include "flatland/base/resources.hpp"
 #include "flatland/geometry/discontinuities.hpp"
+#include "flatland/transport/error_estimate.hpp"
 
 namespace flatland {
 
@@ -55,6 +56,7 @@ const char* to_string(StopReason reason) {
     case StopReason::BudgetSpent: return "photon budget spent";
     case StopReason::Cancelled: return "cancelled";
     case StopReason::BooksUnbalanced: return "energy books unbalanced";
+    case StopReason::TargetReached: return "target error reached";
   }
   return "?";
 }
@@ -165,6 +167,12 @@ Status Solver::start_transport() {
     Result<RandomWalks> walks = RandomWalks::create(scene, std::move(emission));
     if (!walks) return walks.error();
     transport_ = std::move(*walks);
+  } else if (settings_.target_error > 0.0) {
+    // Passes: each starts from the emitted power again.
+    emission_ = emission;
+    decay_ = decay;
+    pass_budget_ = std::min(settings_.photons, kFirstPassPhotons);
+    transport_ = ProgressiveShooting(std::move(emission), emitted_total_, decay, pass_tolerance());
   } else {
     transport_ = ProgressiveShooting(std::move(emission), emitted_total_, decay, settings_.tolerance);
   }
@@ -247,9 +255,9 @@ RoundView Solver::round_view() const {
   view.plan = &round_;
   view.storage = &storage_;
   view.hermite_unshot = &hermite_unshot_;
-  view.emitted_light = transport().emitted_light(rounds_);
+  view.emitted_light = transport().emitted_light(rounds_ - pass_first_round_);
   view.photons_go_on = transport().photons_go_on();
-  view.bounce = transport().bounce(rounds_);
+  view.bounce = transport().bounce(rounds_ - pass_first_round_);
   return view;
 }
 
@@ -260,39 +268,131 @@ std::size_t Solver::round_message_size() const {
 bool Solver::begin_round() {
   const auto channels = static_cast<std::size_t>(channels_);
   // The pool by block: what each curve side's photons would carry, channels summed and apart.
-  const std::vector<double>& pool = transport().pool();
   std::vector<double> weights(storage_.block_count(), 0.0);
   std::vector<Spectrum> block_unshot(storage_.block_count(), Spectrum{});
-  for (std::uint32_t block = 0; block < storage_.block_count(); ++block) {
-    const std::uint32_t offset = storage_.block_offset(block);
-    if (offset == SceneStorage::kNoBlock) continue;
-    const std::size_t count = storage_.finest(block / 2).basis.size();
-    for (std::size_t k = 0; k < count; ++k)
-      for (std::size_t ch = 0; ch < channels; ++ch) block_unshot[block][ch] += pool[(offset + k) * channels + ch];
-    for (std::size_t ch = 0; ch < channels; ++ch) weights[block] += block_unshot[block][ch];
-  }
-  const double unshot = std::accumulate(weights.begin(), weights.end(), 0.0);
-  if (transport().converged(unshot)) {
-    stop_reason_ = StopReason::Converged;
-    choose_final_levels();
-    return false;
-  }
+  auto measure_pool = [&]() {
+    const std::vector<double>& pool = transport().pool();
+    std::fill(weights.begin(), weights.end(), 0.0);
+    std::fill(block_unshot.begin(), block_unshot.end(), Spectrum{});
+    for (std::uint32_t block = 0; block < storage_.block_count(); ++block) {
+      const std::uint32_t offset = storage_.block_offset(block);
+      if (offset == SceneStorage::kNoBlock) continue;
+      const std::size_t count = storage_.finest(block / 2).basis.size();
+      for (std::size_t k = 0; k < count; ++k)
+        for (std::size_t ch = 0; ch < channels; ++ch) block_unshot[block][ch] += pool[(offset + k) * channels + ch];
+      for (std::size_t ch = 0; ch < channels; ++ch) weights[block] += block_unshot[block][ch];
+    }
+    return std::accumulate(weights.begin(), weights.end(), 0.0);
+  };
+  double unshot = measure_pool();
   // Every round's photons are a multiple of the replicates, so that each replicate is an equal
   // share of it (R times its part estimates the whole); a budget's last R - 1 photons or fewer
   // are not shot.
   const auto replicates = static_cast<std::uint64_t>(settings_.replicates);
-  if (settings_.photons - photons_shot_ < replicates) {
-    stop_reason_ = StopReason::BudgetSpent;
-    choose_final_levels();
-    return false;
+  if (settings_.target_error > 0.0) {
+    const std::uint32_t passes_before = passes_;
+    if (!next_pass_or_stop(unshot)) {
+      choose_final_levels();
+      return false;
+    }
+    if (passes_ != passes_before) unshot = measure_pool();
+  } else {
+    if (transport().converged(unshot)) {
+      stop_reason_ = StopReason::Converged;
+      choose_final_levels();
+      return false;
+    }
+    if (settings_.photons - photons_shot_ < replicates) {
+      stop_reason_ = StopReason::BudgetSpent;
+      choose_final_levels();
+      return false;
+    }
   }
-  const std::uint64_t photons = transport().round_photons(unshot, photons_shot_, settings_.photons, rounds_);
+  const std::uint64_t pass_budget = pass_budget_ != 0 ? pass_budget_ : settings_.photons;
+  const std::uint64_t photons =
+      transport().round_photons(unshot, photons_shot_ - pass_first_photon_, pass_budget, rounds_ - pass_first_round_);
   round_.photons = std::max(replicates, photons - photons % replicates);
   round_.headroom_bits = transport().headroom_bits(round_.photons);
   // Fixed point: unshot * scale < 2^61, and scale a power of two so units convert exactly.
   round_.scale = std::ldexp(1.0, 60 - round_.headroom_bits - std::ilogb(unshot));
-  plan_sources(pool, block_unshot, unshot);
+  plan_sources(transport().pool(), block_unshot, unshot);
   return true;
+}
+
+bool Solver::target_met() {
+  const ErrorEstimate estimate = estimate_error(*this, {settings_.confidence, kTargetSamples});
+  checked_error_ = estimate.available && estimate.bounded ? estimate.bound.l1 : std::numeric_limits<double>::infinity();
+  return checked_error_ <= settings_.target_error;
+}
+
+bool Solver::next_pass_or_stop(double unshot) {
+  const auto replicates = static_cast<std::uint64_t>(settings_.replicates);
+  const bool cap_spent = settings_.photons - photons_shot_ < replicates;
+  if (settings_.transport == Transport::Walk) {
+    // Every round of walks estimates the whole: the target is checked after each.
+    if (rounds_ > 0 && target_met()) {
+      stop_reason_ = StopReason::TargetReached;
+      return false;
+    }
+    if (cap_spent) stop_reason_ = StopReason::BudgetSpent;
+    return !cap_spent;
+  }
+  const std::uint64_t in_pass = photons_shot_ - pass_first_photon_;
+  const bool pass_over = transport().converged(unshot) || pass_budget_ - std::min(pass_budget_, in_pass) < replicates;
+  if (!pass_over && !cap_spent) return true;
+  // The pass joins the finished ones, weighted by its photons.
+  const double n = static_cast<double>(in_pass);
+  const std::size_t size = received_.size();
+  if (passes_received_.empty()) {
+    passes_received_.assign(size, 0.0);
+    passes_parts_.assign(received_parts_.size(), 0.0);
+  }
+  for (std::size_t i = 0; i < size; ++i) passes_received_[i] += n * received_[i];
+  for (std::size_t i = 0; i < received_parts_.size(); ++i) passes_parts_[i] += n * received_parts_[i];
+  EnergyBooks pass_books;
+  transport().add_books(pass_books, channels_, rounds_ - pass_first_round_);
+  passes_books_.absorbed += n * pass_books.absorbed;
+  passes_books_.escaped += n * pass_books.escaped;
+  passes_books_.unshot += n * pass_books.unshot;
+  passes_photons_ += n;
+  ++passes_;
+  std::fill(received_.begin(), received_.end(), 0.0);
+  std::fill(received_parts_.begin(), received_parts_.end(), 0.0);
+  pass_first_photon_ = photons_shot_;
+  pass_first_round_ = rounds_;
+  mix_passes();
+  if (auto_storage_) sum_odd_parts(mixed_parts_, received_half_);
+  update_reflected(mixed_received_, received_half_, LevelChoice::Final);
+  if (target_met()) {
+    stop_reason_ = StopReason::TargetReached;
+    return false;
+  }
+  if (cap_spent) {
+    stop_reason_ = StopReason::BudgetSpent;
+    return false;
+  }
+  // The next pass: with error ~ N^-1/2 the photons that would reach the target, 10 % more, but at
+  // least a quarter and at most all of those shot so far (so the photons spent are at most twice
+  // what the target needed), and no more than the cap leaves.
+  const double shot = static_cast<double>(photons_shot_);
+  const double ratio = checked_error_ / settings_.target_error;
+  const double wanted = std::isfinite(ratio) ? 1.1 * shot * (ratio * ratio - 1.0) : shot;
+  const double budget = std::clamp(wanted, 0.25 * shot, shot);
+  pass_budget_ = std::min(static_cast<std::uint64_t>(budget), settings_.photons - photons_shot_);
+  transport_ = ProgressiveShooting(emission_, emitted_total_, decay_, pass_tolerance());
+  return true;
+}
+
+void Solver::mix_passes() {
+  // The finished passes and the current one, each weighted by its photons.
+  const double n = static_cast<double>(photons_shot_ - pass_first_photon_);
+  const double total = passes_photons_ + n;
+  mixed_received_.resize(received_.size());
+  mixed_parts_.resize(received_parts_.size());
+  for (std::size_t i = 0; i < received_.size(); ++i)
+    mixed_received_[i] = (passes_received_[i] + n * received_[i]) / total;
+  for (std::size_t i = 0; i < received_parts_.size(); ++i)
+    mixed_parts_[i] = (passes_parts_[i] + n * received_parts_[i]) / total;
 }
 
 void Solver::plan_sources(const std::vector<double>& pool, const std::vector<Spectrum>& block_unshot, double unshot) {
@@ -371,8 +471,9 @@ void Solver::end_round(std::span<const Deposits> deposits) {
     rays_traced_ += d.rays;
   }
   transport().end_round(storage_, totals, received_, received_parts_);
-  if (auto_storage_) sum_odd_parts(received_parts_, received_half_);
-  update_reflected(received_, received_half_);
+  if (passes_photons_ > 0.0) mix_passes();
+  if (auto_storage_) sum_odd_parts(passes_photons_ > 0.0 ? mixed_parts_ : received_parts_, received_half_);
+  update_reflected(received(), received_half_);
   ++rounds_;
   check_books();
 }
@@ -397,7 +498,7 @@ void Solver::check_books() {
 
 void Solver::choose_final_levels() {
   if (auto_storage_ && (photons_at_choice_ != photons_shot_ || storage_.chosen_levels() != scheduled_level_))
-    update_reflected(received_, received_half_, LevelChoice::Final);
+    update_reflected(received(), received_half_, LevelChoice::Final);
 }
 
 void Solver::update_reflected(const std::vector<double>& received, const std::vector<double>& received_half,
@@ -689,8 +790,16 @@ void Solver::include_open_round() {
     }
     open[index] = static_cast<double>(units) * inverse_scale;
   }
-  transport().add_open_round(received, parts, open, open_parts, static_cast<double>(photons_shot_ - round_done_),
+  transport().add_open_round(received, parts, open, open_parts,
+                             static_cast<double>(photons_shot_ - pass_first_photon_ - round_done_),
                              static_cast<double>(round_done_), static_cast<double>(round_.photons));
+  if (passes_photons_ > 0.0) {
+    // The current pass so far with the finished ones, each weighted by its photons.
+    const double n = static_cast<double>(photons_shot_ - pass_first_photon_);
+    const double total = passes_photons_ + n;
+    for (std::size_t i = 0; i < received.size(); ++i) received[i] = (passes_received_[i] + n * received[i]) / total;
+    for (std::size_t i = 0; i < parts.size(); ++i) parts[i] = (passes_parts_[i] + n * parts[i]) / total;
+  }
   if (auto_storage_) sum_odd_parts(parts, received_half);
   update_reflected(received, received_half, LevelChoice::View);
 }
@@ -714,13 +823,22 @@ void Solver::run(const std::atomic<bool>* cancel, const ProgressCallback& progre
   while (step_round(cancel, progress, progress_interval)) {
   }
   defer_readers_ = false;
-  if (readers_stale_) refresh_readers(received_);
+  if (readers_stale_) refresh_readers(received());
 }
 
 EnergyBooks Solver::books() const {
   EnergyBooks books;
   for (int ch = 0; ch < channels_; ++ch) books.emitted += emitted_[static_cast<std::size_t>(ch)];
-  transport().add_books(books, channels_, rounds_);
+  transport().add_books(books, channels_, rounds_ - pass_first_round_);
+  if (passes_photons_ > 0.0) {
+    // The finished passes and the current one, each weighted by its photons: each balances, and so
+    // does their mean.
+    const double n = static_cast<double>(photons_shot_ - pass_first_photon_);
+    const double total = passes_photons_ + n;
+    books.absorbed = (passes_books_.absorbed + n * books.absorbed) / total;
+    books.escaped = (passes_books_.escaped + n * books.escaped) / total;
+    books.unshot = (passes_books_.unshot + n * books.unshot) / total;
+  }
   return books;
 }
 
@@ -747,7 +865,8 @@ std::vector<double> Solver::replicate_received(int replicate) const {
   // Replicate r's photons are a 1/R share of every round, drawn like the whole: R times its part
   // estimates the whole received power.
   const std::size_t size = received_.size();
-  const auto begin = received_parts_.begin() + static_cast<std::ptrdiff_t>(static_cast<std::size_t>(replicate) * size);
+  const std::vector<double>& parts = passes_photons_ > 0.0 ? mixed_parts_ : received_parts_;
+  const auto begin = parts.begin() + static_cast<std::ptrdiff_t>(static_cast<std::size_t>(replicate) * size);
   std::vector<double> estimate(begin, begin + static_cast<std::ptrdiff_t>(size));
   for (double& value : estimate) value *= static_cast<double>(settings_.replicates);
   return estimate;

@@ -18,6 +18,7 @@
 #include <atomic>
 #include <cstdint>
 #include <functional>
+#include <limits>
 #include <optional>
 #include <span>
 #include <string>
@@ -39,7 +40,7 @@
 
 namespace flatland {
 
-enum class StopReason { Running, Converged, BudgetSpent, Cancelled, BooksUnbalanced };
+enum class StopReason { Running, Converged, BudgetSpent, Cancelled, BooksUnbalanced, TargetReached };
 
 // Reflected radiosity B - E as a solver reconstructs it from received power: B-spline coefficients
 // (finest layout, per coefficient and channel, times the side's reflectivity) and, with Hermite
@@ -68,6 +69,10 @@ class Solver {
   // round, batch): the unit in which rounds are shared among threads and processes, and between
   // checks for a cancel.
   static constexpr std::uint64_t kBatchSize = 4096;
+  // Solving to an accuracy: the first pass's photons, and the samples per curve the target is
+  // checked at (flatland solve's default --samples).
+  static constexpr std::uint64_t kFirstPassPhotons = std::uint64_t{1} << 15;
+  static constexpr int kTargetSamples = 100;
 
   // `cancel` is checked between the curves' storage levels (building them all for a large budget
   // takes a moment): once it is set, create returns the error kSolverCancelled.
@@ -121,6 +126,10 @@ class Solver {
   // so they are not in photons_shot() or the books): what "interrupted after N photons" says.
   std::uint64_t photons_traced() const { return photons_shot_ + photons_cancelled_; }
   std::uint32_t rounds() const { return rounds_; }
+  // With a target error: the passes finished (shooting; docs/method.md, "Solving to an accuracy")
+  // and the estimated error when the target was last checked (infinity before).
+  std::uint32_t passes() const { return passes_; }
+  double checked_error() const { return checked_error_; }
   double seconds() const { return seconds_; }
   EnergyBooks books() const;
   SolverProgress progress() const;
@@ -173,7 +182,7 @@ class Solver {
   // (empty with one replicate). The received power of all photons.
   int replicates() const { return settings_.replicates; }
   std::vector<double> replicate_received(int replicate) const;
-  const std::vector<double>& received() const { return received_; }
+  const std::vector<double>& received() const { return passes_photons_ > 0.0 ? mixed_received_ : received_; }
   // The reflected radiosity B - E that the received power `received` gives with curve c's storage
   // at level levels[c] (chosen_levels(): what radiosity() shows), and its value on a side at u.
   ReflectedField reflected_field(const std::vector<double>& received, const std::vector<int>& levels) const;
@@ -223,6 +232,21 @@ class Solver {
   void choose_final_levels();
   void update_reflected(const std::vector<double>& received, const std::vector<double>& received_half,
                         LevelChoice choice = LevelChoice::Scheduled);
+  // Solving to an accuracy. With shooting, a target error is reached in passes: each a whole
+  // progressive solve of its own budget from the emitted power (rounds numbered on, so with fresh
+  // random streams), the solution their average weighted by photons. begin_round ends a pass when
+  // its pool has converged or its budget is spent, and checks the target: met, or the cap spent,
+  // ends the solve; else the next pass, of about the photons the estimate asks for, at most as many
+  // as all before it. Walks check the target after every round (each round estimates the whole).
+  // Returns whether the solve goes on.
+  bool next_pass_or_stop(double unshot);
+  // A pass's unshot-power tolerance: the settings' or, when smaller, a tenth of the target (light
+  // left unshot adds to the estimated error, and no pass may leave more than the target allows).
+  double pass_tolerance() const { return std::min(settings_.tolerance, 0.1 * settings_.target_error); }
+  bool target_met();
+  // The finished passes and the current one mixed (received_ and received_parts_ of the current
+  // pass with passes_received_ and passes_parts_), into mixed_received_ and mixed_parts_.
+  void mix_passes();
   // `half` = the sum of the odd replicates' parts in `parts`.
   void sum_odd_parts(const std::vector<double>& parts, std::vector<double>& half) const;
   // The readers' state (readers_) from `received` at the chosen levels.
@@ -261,6 +285,23 @@ class Solver {
   std::vector<double> received_;  // [coefficient * channels + channel]
   std::vector<double> received_parts_;
   std::vector<double> received_half_;
+  // Passes (next_pass_or_stop): the emitted power each pass starts from, the first guess of the
+  // pool's decay, the current pass's budget and first photon and round, the finished passes'
+  // photons, their received power, parts and books summed times their photons, and the mix of
+  // those with the current pass that readers see once a pass has finished.
+  std::vector<double> emission_;
+  double decay_ = 0.5;
+  std::uint64_t pass_budget_ = 0;
+  std::uint64_t pass_first_photon_ = 0;
+  std::uint32_t pass_first_round_ = 0;
+  std::uint32_t passes_ = 0;
+  double passes_photons_ = 0.0;
+  std::vector<double> passes_received_;
+  std::vector<double> passes_parts_;
+  EnergyBooks passes_books_;
+  std::vector<double> mixed_received_;
+  std::vector<double> mixed_parts_;
+  double checked_error_ = std::numeric_limits<double>::infinity();
   // What the readers see: the reflected radiosity of received_ at the chosen levels.
   ReflectedField readers_;
   // Hermite basis only: the unshot density per block (channels summed, in arc length) that

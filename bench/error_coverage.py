@@ -1,0 +1,87 @@
+#!/usr/bin/env python3
+"""Coverage and sharpness of the estimated error (docs/experiments.md, "The estimated error").
+
+For each scene: a reference (flatland reference), then `flatland converge` over methods, budgets
+and seeds, whose table holds each run's true error against the reference (rel_*) and the solver's
+own estimated bound (est_*). Per scene, method and budget it reports how many runs the bound
+covered (true <= estimate) and the median of estimate / true, in L1, L2 and Linf, as a Markdown
+table on stdout and DIR/coverage.md.
+
+  bench/error_coverage.py --out /tmp/coverage [--flatland build/flatland] [--seeds 40]
+"""
+import argparse
+import csv
+import os
+import statistics
+import subprocess
+import sys
+import time
+
+SCENES = {
+    "penumbra": "scenes2d/penumbra.json",
+    "round occluder": "scenes2d/tests/reference_round_occluder.json",
+    "lit ring": "scenes2d/tests/reference_ring_profile.json",
+    "furnace rho 0.9": "scenes2d/experiments/enclosure_rho0.9.json",
+}
+METHODS = "cubic,linear,constant,hermite,cubic+sampler=random,cubic+transport=walk,cubic+elements=64"
+
+
+def run(command):
+    started = time.time()
+    subprocess.run(command, check=True, stdout=subprocess.DEVNULL)
+    return time.time() - started
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--out", required=True)
+    parser.add_argument("--flatland", default=os.environ.get("FLATLAND", "build/flatland"))
+    parser.add_argument("--seeds", type=int, default=40)
+    parser.add_argument("--budgets", default="1e5,1e6")
+    parser.add_argument("--methods", default=METHODS)
+    parser.add_argument("--scenes", default=",".join(SCENES))
+    parser.add_argument("--threads", default="2")
+    args = parser.parse_args()
+    os.makedirs(args.out, exist_ok=True)
+    rows = []
+    for name in args.scenes.split(","):
+        scene = SCENES[name]
+        tag = name.replace(" ", "_").replace(".", "")
+        reference = os.path.join(args.out, tag + "_reference.json")
+        if not os.path.exists(reference):
+            run([args.flatland, "reference", scene, "--out", reference, "--samples", "100", "--quiet"])
+        directory = os.path.join(args.out, tag)
+        seconds = run([args.flatland, "converge", scene, "--reference", reference, "--methods", args.methods,
+                       "--budgets", args.budgets, "--seeds", str(args.seeds), "--samples", "100",
+                       "--threads", args.threads, "--out", directory])
+        print(f"{name}: converge took {seconds:.0f} s", file=sys.stderr)
+        runs = {}
+        with open(os.path.join(directory, "convergence.csv")) as table:
+            for row in csv.DictReader(table):
+                budget = min(args.budgets.split(","), key=lambda b: abs(float(b) - float(row["photons"])))
+                runs.setdefault((row["method"], budget), []).append(row)
+        for (method, budget), group in runs.items():
+            entry = {"scene": name, "method": method, "budget": budget, "runs": len(group)}
+            for norm in ("l1", "l2", "linf"):
+                true = [float(r["rel_" + norm]) for r in group]
+                est = [float(r["est_" + norm]) for r in group]
+                entry["covered_" + norm] = sum(e >= t for e, t in zip(est, true))
+                ratios = [e / t for e, t in zip(est, true) if t > 0]
+                entry["ratio_" + norm] = statistics.median(ratios) if ratios else float("nan")
+                entry["true_" + norm] = statistics.median(true)
+            rows.append(entry)
+    lines = ["| scene | method | photons | runs | covered L1 | L2 | Linf | median est/true L1 | L2 | Linf "
+             "| median true L1 |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for e in rows:
+        lines.append(f"| {e['scene']} | {e['method']} | {e['budget']} | {e['runs']} | {e['covered_l1']} | "
+                     f"{e['covered_l2']} | {e['covered_linf']} | {e['ratio_l1']:.2f} | {e['ratio_l2']:.2f} | "
+                     f"{e['ratio_linf']:.2f} | {e['true_l1']:.2e} |")
+    text = "\n".join(lines) + "\n"
+    with open(os.path.join(args.out, "coverage.md"), "w") as out:
+        out.write(text)
+    print(text)
+
+
+if __name__ == "__main__":
+    main()
