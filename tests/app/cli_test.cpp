@@ -485,6 +485,39 @@ TEST_F(Cli, FailedWriteLeavesNoFile) {
   EXPECT_NE(r.err.find("no-such-dir"), std::string::npos) << r.err;
 }
 
+// The estimated error where people look: the summary, the result's stats, compare beside the true
+// errors; and solving to an accuracy says what ended the solve.
+TEST_F(Cli, SolveReportsItsEstimatedErrorAndReachesATarget) {
+  const fs::path out = directory_ / "estimated.json";
+  const fs::path reference = directory_ / "reference.json";
+  CommandRun r = run("solve " + scene("penumbra.json") + " --photons 100000 --out " + out.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("error     ~ "), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("95 % confidence"), std::string::npos) << r.out;
+  const nlohmann::json result = nlohmann::json::parse(read_file(out));
+  const nlohmann::json& estimate = result["stats"]["estimated_error"];
+  for (const char* key : {"l1", "l2", "linf", "confidence", "replicates", "parts", "curves"})
+    EXPECT_TRUE(estimate.contains(key)) << key;
+  EXPECT_EQ(result["settings"]["replicates"], 8);
+  ASSERT_EQ(run("reference " + scene("penumbra.json") + " --quiet --out " + reference.string()).exit_code, 0);
+  r = run("compare " + out.string() + " " + reference.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("est. L1"), std::string::npos) << r.out;
+  r = run("solve " + scene("penumbra.json") + " --photons 1e8 --target-error 0.01");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("stopped   target error reached"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("target    1 % reached"), std::string::npos) << r.out;
+  r = run("solve " + scene("penumbra.json") + " --photons 20000 --target-error 1e-6");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("not reached: photon budget spent first"), std::string::npos) << r.out;
+  r = run("solve " + scene("penumbra.json") + " --target-error 2");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("--target-error"), std::string::npos) << r.err;
+  r = run("solve --help");
+  EXPECT_NE(r.out.find("--target-error"), std::string::npos);
+  EXPECT_NE(r.out.find("--replicates"), std::string::npos);
+}
+
 TEST_F(Cli, SolveWritesResultAndPicture) {
   const fs::path out = directory_ / "result.json";
   const fs::path picture = directory_ / "result.png";

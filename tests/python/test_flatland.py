@@ -359,3 +359,26 @@ def test_results_of_different_scene_files_are_not_compared(tmp_path):
     reformatted.write_text(json.dumps(json.load(open("scenes2d/penumbra.json")), indent=4))
     again = flatland.solve(flatland.Scene.load(str(reformatted)), photons=10_000)
     assert flatland.compare(again.to_json(), penumbra.to_json())["scene"]["l2"] == 0.0
+
+
+def test_estimated_error_and_target_error_as_the_command_line(tmp_path):
+    # The estimate in Python is the result file's, bit for bit; a target error ends the solve with
+    # the command line's stop reason and an estimate below the target.
+    out = tmp_path / "result.json"
+    cli = run_cli("solve", "scenes2d/penumbra.json", "--photons", "100000", "--seed", "3", "--out", str(out), "--quiet")
+    assert cli.returncode == 0, cli.stderr
+    scene = flatland.Scene.load("scenes2d/penumbra.json")
+    result = flatland.solve(scene, photons=100_000, seed=3)
+    estimate = result.estimated_error
+    assert estimate == json.loads(out.read_text())["stats"]["estimated_error"]
+    assert estimate["available"] and estimate["confidence"] == 0.95 and estimate["replicates"] == 8
+    assert 0 < estimate["l1"] < 0.05
+    assert set(estimate["curves"]) == {"emitter", "occluder", "receiver"}
+    assert estimate["curves"]["emitter"] is None  # it reflects nothing: no relative error
+    targeted = flatland.solve(scene, photons=10**8, target_error=0.01, seed=3)
+    assert targeted.stats["stop_reason"] == "target error reached"
+    assert targeted.estimated_error["l1"] <= 0.0105
+    with pytest.raises(ValueError, match="replicates"):
+        flatland.solve(scene, replicates=3)
+    with pytest.raises(ValueError, match="target_error"):
+        flatland.solve(scene, target_error=2)

@@ -1,0 +1,284 @@
+#include "flatland/transport/error_estimate.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <ostream>
+#include <numbers>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "flatland/reference/reference.hpp"
+#include "flatland/results/metrics.hpp"
+#include "flatland/results/sampled_result.hpp"
+#include "flatland/transport/solver.hpp"
+#include "test_support.hpp"
+
+namespace flatland {
+namespace {
+
+constexpr int kSamples = 100;
+
+Solver solved(const Scene& scene, const SolverSettings& settings) {
+  Result<Solver> solver = Solver::create(scene, settings);
+  EXPECT_TRUE(solver.ok()) << (solver.ok() ? "" : solver.error().message);
+  solver->run();
+  return std::move(solver).value();
+}
+
+// The true relative errors of B - E against `reference` (a sampled answer made independently of
+// the solver: a closed form or the reference solver), at the samples the estimate is made at.
+ErrorNorms true_error(const Solver& solver, const SampledResult& reference) {
+  Result<Comparison> comparison = compare_sampled(sample_solver(solver, kSamples), reference, Measure::Reflected);
+  EXPECT_TRUE(comparison.ok()) << (comparison.ok() ? "" : comparison.error().message);
+  return comparison->scene;
+}
+
+SampledResult reference_of(const Scene& scene) {
+  Result<ReferenceSolution> reference = solve_reference(scene, ReferenceSettings{});
+  EXPECT_TRUE(reference.ok());
+  return sample_radiosity(scene, kSamples,
+                          [&](std::uint32_t c, Side side, double u) { return reference->radiosity(c, side, u); });
+}
+
+// B = E / (1 - rho) everywhere in a closed enclosure of uniform E and rho.
+SampledResult furnace_answer(const Scene& scene, double rho) {
+  return sample_radiosity(scene, kSamples, [&](std::uint32_t, Side, double) {
+    const double b = scene.curves[0].emittance[0] / (1.0 - rho);
+    return Spectrum{b, b, b};
+  });
+}
+
+struct Coverage {
+  int runs = 0;
+  int covered[3] = {0, 0, 0};    // L1, L2, Linf
+  std::vector<double> ratio[3];  // estimate / true
+  double median_ratio(int norm) {
+    std::vector<double>& r = ratio[norm];
+    std::nth_element(r.begin(), r.begin() + static_cast<std::ptrdiff_t>(r.size() / 2), r.end());
+    return r[r.size() / 2];
+  }
+};
+
+Coverage coverage(const Scene& scene, const SampledResult& reference, SolverSettings settings, int seeds) {
+  Coverage result;
+  for (int seed = 1; seed <= seeds; ++seed) {
+    settings.seed = static_cast<std::uint64_t>(seed);
+    const Solver solver = solved(scene, settings);
+    const ErrorEstimate estimate = estimate_error(solver, {0.95, kSamples});
+    EXPECT_TRUE(estimate.available) << estimate.unavailable;
+    const ErrorNorms truth = true_error(solver, reference);
+    const double bound[3] = {estimate.bound.l1, estimate.bound.l2, estimate.bound.linf};
+    const double error[3] = {truth.l1, truth.l2, truth.linf};
+    ++result.runs;
+    for (int norm = 0; norm < 3; ++norm) {
+      result.covered[norm] += error[norm] <= bound[norm];
+      result.ratio[norm].push_back(bound[norm] / error[norm]);
+    }
+  }
+  return result;
+}
+
+// At 95 % confidence the covered runs of 40 are Binomial(40, 0.95) or better: fewer than 34 has
+// probability 1.4 % and is evidence of undercoverage. And a bound far wider than the error is no
+// help: the median of estimate / true is at most 3.
+void expect_coverage(Coverage c, const std::string& what) {
+  const char* names[3] = {"L1", "L2", "Linf"};
+  for (int norm = 0; norm < 3; ++norm) {
+    EXPECT_GE(c.covered[norm], 34) << what << " " << names[norm] << ": covered " << c.covered[norm] << " of " << c.runs;
+    const double median = c.median_ratio(norm);
+    EXPECT_LE(median, 3.0) << what << " " << names[norm];
+    EXPECT_GE(median, 1.0) << what << " " << names[norm];
+  }
+}
+
+struct MethodCase {
+  const char* name;
+  BasisKind basis;
+  int elements;
+  Transport transport;
+  SamplerKind sampler;
+};
+
+void PrintTo(const MethodCase& method, std::ostream* out) { *out << method.name; }
+
+class ErrorEstimateCoverage : public ::testing::TestWithParam<MethodCase> {};
+
+TEST_P(ErrorEstimateCoverage, BoundsTheTrueErrorOnThePenumbra) {
+  const Scene scene = testing::scene_from_file("scenes2d/penumbra.json");
+  const MethodCase& method = GetParam();
+  SolverSettings settings;
+  settings.photons = 100'000;
+  settings.threads = 1;
+  settings.basis = method.basis;
+  settings.elements = method.elements;
+  settings.transport = method.transport;
+  settings.sampler = method.sampler;
+  expect_coverage(coverage(scene, reference_of(scene), settings, 40), method.name);
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Methods, ErrorEstimateCoverage,
+    ::testing::Values(MethodCase{"cubic", BasisKind::Cubic, kAutoElements, Transport::Shooting, SamplerKind::Sobol},
+                      MethodCase{"linear", BasisKind::Linear, kAutoElements, Transport::Shooting, SamplerKind::Sobol},
+                      MethodCase{"hermite", BasisKind::Hermite, kAutoElements, Transport::Shooting, SamplerKind::Sobol},
+                      MethodCase{"random", BasisKind::Cubic, kAutoElements, Transport::Shooting, SamplerKind::Random},
+                      MethodCase{"walk", BasisKind::Cubic, kAutoElements, Transport::Walk, SamplerKind::Sobol},
+                      MethodCase{"fixed", BasisKind::Cubic, 64, Transport::Shooting, SamplerKind::Sobol}),
+    [](const ::testing::TestParamInfo<MethodCase>& info) { return std::string(info.param.name); });
+
+TEST(ErrorEstimate, BoundsTheTrueErrorInAFurnace) {
+  const double rho = 0.9;
+  const Scene scene = testing::scene_from_text(testing::circle_enclosure(rho, 1.0));
+  SolverSettings settings;
+  settings.photons = 100'000;
+  settings.threads = 1;
+  expect_coverage(coverage(scene, furnace_answer(scene, rho), settings, 40), "furnace");
+}
+
+TEST(ErrorEstimate, BoundsTheTrueErrorBehindARoundOccluder) {
+  const Scene scene = testing::scene_from_file("scenes2d/tests/reference_round_occluder.json");
+  SolverSettings settings;
+  settings.photons = 100'000;
+  settings.threads = 1;
+  expect_coverage(coverage(scene, reference_of(scene), settings, 40), "round occluder");
+}
+
+// Light left unshot: a budget spent long before a rho = 0.999 furnace converges leaves most of
+// the reflected light to come. The bound covers it (the unshot part is an upper bound of the
+// light to come), or says it cannot.
+TEST(ErrorEstimate, CoversTheLightLeftUnshotInAStiffEnclosure) {
+  const double rho = 0.999;
+  const Scene scene = testing::scene_from_text(testing::circle_enclosure(rho, 1.0));
+  SolverSettings settings;
+  settings.photons = 200'000;
+  settings.threads = 1;
+  const Solver solver = solved(scene, settings);
+  ASSERT_EQ(solver.stop_reason(), StopReason::BudgetSpent);
+  const ErrorEstimate estimate = estimate_error(solver);
+  const ErrorNorms truth = true_error(solver, furnace_answer(scene, rho));
+  ASSERT_TRUE(estimate.available);
+  // The unshot part is rho U / (1 - rho) over the integral of B - E, exactly.
+  const double reflected = 2.0 * std::numbers::pi * (1.0 / (1.0 - rho) - 1.0);
+  EXPECT_GT(estimate.unshot.l1, 0.5 * rho * solver.books().unshot / (1.0 - rho) / reflected);
+  if (estimate.bounded) {
+    EXPECT_GE(estimate.bound.l1, truth.l1);
+  } else {
+    EXPECT_TRUE(std::isinf(estimate.bound.l1));
+    EXPECT_NE(estimate.caveat.find("as large as B - E"), std::string::npos);
+  }
+}
+
+// The same bound whatever the thread count (it reads only the solver's deterministic state).
+TEST(ErrorEstimate, IsTheSameBitsOnAnyThreadCount) {
+  const Scene scene = testing::scene_from_file("scenes2d/mixed.json");
+  SolverSettings settings;
+  settings.photons = 60'000;
+  settings.threads = 1;
+  const ErrorEstimate one = estimate_error(solved(scene, settings));
+  settings.threads = 3;
+  const ErrorEstimate three = estimate_error(solved(scene, settings));
+  EXPECT_EQ(one.bound.l1, three.bound.l1);
+  EXPECT_EQ(one.bound.l2, three.bound.l2);
+  EXPECT_EQ(one.bound.linf, three.bound.linf);
+  ASSERT_EQ(one.curves.size(), three.curves.size());
+  for (std::size_t c = 0; c < one.curves.size(); ++c) EXPECT_EQ(one.curves[c].bound.l1, three.curves[c].bound.l1);
+}
+
+TEST(ErrorEstimate, SaysWhyThereIsNone) {
+  const Scene scene = testing::scene_from_file("scenes2d/penumbra.json");
+  SolverSettings settings;
+  settings.photons = 10'000;
+  settings.elements = 16;
+  settings.replicates = 1;
+  const ErrorEstimate estimate = estimate_error(solved(scene, settings));
+  EXPECT_FALSE(estimate.available);
+  EXPECT_NE(estimate.unavailable.find("replicate"), std::string::npos);
+  Result<Solver> fresh = Solver::create(scene, SolverSettings{});
+  ASSERT_TRUE(fresh.ok());
+  EXPECT_FALSE(estimate_error(*fresh).available);
+}
+
+// A fixed mesh has no coarser level to compare with: the bound says that it leaves the mesh's
+// discretisation error out.
+TEST(ErrorEstimate, NamesWhatAFixedMeshLeavesOut) {
+  const Scene scene = testing::scene_from_file("scenes2d/penumbra.json");
+  SolverSettings settings;
+  settings.photons = 20'000;
+  settings.elements = 8;
+  const ErrorEstimate estimate = estimate_error(solved(scene, settings));
+  ASSERT_TRUE(estimate.available);
+  EXPECT_FALSE(estimate.storage_estimated);
+  EXPECT_NE(estimate.caveat.find("not estimated"), std::string::npos);
+}
+
+// Solving to an accuracy: with --target-error 2e-3 the true error ends below 2.4e-3 in at least 90 %
+// of seeds (18 of 20), and every solve says the target ended it.
+TEST(ErrorEstimate, TargetErrorEndsBelowTheTarget) {
+  const Scene scene = testing::scene_from_file("scenes2d/penumbra.json");
+  const SampledResult reference = reference_of(scene);
+  SolverSettings settings;
+  settings.photons = 100'000'000;  // the cap
+  settings.target_error = 2e-3;
+  settings.threads = 1;
+  int below = 0;
+  for (int seed = 1; seed <= 20; ++seed) {
+    settings.seed = static_cast<std::uint64_t>(seed);
+    const Solver solver = solved(scene, settings);
+    EXPECT_EQ(solver.stop_reason(), StopReason::TargetReached);
+    EXPECT_LE(solver.checked_error(), 2e-3);
+    below += true_error(solver, reference).l1 <= 2.4e-3;
+  }
+  EXPECT_GE(below, 18);
+}
+
+// The cap ends a solve whose target it cannot reach, and says so.
+TEST(ErrorEstimate, TargetErrorStopsAtTheCap) {
+  const Scene scene = testing::scene_from_file("scenes2d/penumbra.json");
+  SolverSettings settings;
+  settings.photons = 50'000;
+  settings.target_error = 1e-5;
+  const Solver solver = solved(scene, settings);
+  EXPECT_EQ(solver.stop_reason(), StopReason::BudgetSpent);
+  EXPECT_GT(solver.checked_error(), 1e-5);
+  EXPECT_LE(solver.photons_shot(), settings.photons);
+  const EnergyBooks books = solver.books();
+  EXPECT_NEAR(books.imbalance(), 0.0, 1e-9 * books.emitted);
+}
+
+// Walks reach the target by rounds (each estimates the whole); shooting by passes whose mean
+// keeps the books balanced.
+TEST(ErrorEstimate, TargetErrorWorksForWalksAndKeepsTheBooks) {
+  const Scene scene = testing::scene_from_file("scenes2d/mixed.json");
+  for (Transport transport : {Transport::Shooting, Transport::Walk}) {
+    SolverSettings settings;
+    settings.photons = 20'000'000;
+    settings.target_error = 0.02;
+    settings.transport = transport;
+    const Solver solver = solved(scene, settings);
+    EXPECT_EQ(solver.stop_reason(), StopReason::TargetReached) << to_string(transport);
+    const EnergyBooks books = solver.books();
+    EXPECT_NEAR(books.imbalance(), 0.0, 1e-9 * books.emitted);
+    EXPECT_LE(estimate_error(solver).bound.l1, 0.02 * 1.05);
+  }
+}
+
+TEST(ErrorEstimate, SettingsNameTheirLimits) {
+  SolverSettings settings;
+  settings.replicates = 3;
+  EXPECT_NE(validate(settings).error().message.find("replicates: must be 1 or an even number"), std::string::npos);
+  settings.replicates = 1;
+  EXPECT_NE(validate(settings).error().message.find("automatic storage"), std::string::npos);
+  settings.elements = 16;
+  EXPECT_TRUE(validate(settings).ok());
+  settings.target_error = 1e-3;
+  EXPECT_NE(validate(settings).error().message.find("target error"), std::string::npos);
+  settings = SolverSettings{};
+  settings.confidence = 0.9999;
+  EXPECT_NE(validate(settings).error().message.find("confidence"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace flatland
