@@ -3,8 +3,8 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <ostream>
 #include <numbers>
+#include <ostream>
 #include <string>
 #include <vector>
 
