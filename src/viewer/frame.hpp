@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "flatland/scene/scene.hpp"
+#include "flatland/transport/error_estimate.hpp"
 #include "flatland/transport/solver.hpp"
 
 namespace flatland::viewer {
@@ -136,6 +137,11 @@ struct Snapshot {
   std::optional<double> reference_error;
   std::vector<std::array<double, 2>> error_history;                  // {seconds, rel_l2}
   std::vector<std::vector<std::array<double, 2>>> reference_curves;  // per curve {s, B}
+  // The solve's own estimated error (the scene's and each curve's bound) and, per curve and side,
+  // the bound's half-width at every trace sample (the channels' mean, as the plot shows B); remade
+  // about twice a second of solving and when the solve stops.
+  std::optional<ErrorEstimate> estimated_error;
+  std::shared_ptr<const std::vector<std::array<std::vector<double>, 2>>> error_band;
 };
 
 // Radiosity of a sample for display: one number (the channels' mean).

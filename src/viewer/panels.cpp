@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "flatland/base/text.hpp"
 #include "viewer/viewer_app.hpp"
 #include "viewer/window.hpp"
 
@@ -334,6 +335,17 @@ void Viewer::draw_solve_panel(const Snapshot& snapshot) {
     if (settings_.ray_mode == RayMode::Band && ImGui::SliderInt("band rays", &settings_.band_rays, 1, 64))
       changed = true;
   }
+  // Solve to an accuracy: 0 (off) or a relative L1 error of B - E; the photon budget is the cap.
+  float target = static_cast<float>(settings_.target_error);
+  if (ImGui::SliderFloat("target error", &target, 0.0f, 0.1f, target == 0.0f ? "off" : "%.0e",
+                         ImGuiSliderFlags_Logarithmic)) {
+    settings_.target_error = static_cast<double>(target);
+    changed = true;
+  }
+  if (ImGui::IsItemHovered())
+    ImGui::SetTooltip(
+        "Keep shooting until the estimated relative L1 error of B - E is at most this\n"
+        "(the photon budget is the cap); off: the budget and tolerance decide");
   float tolerance = static_cast<float>(settings_.tolerance);
   if (ImGui::SliderFloat("tolerance", &tolerance, 1e-6f, 0.1f, "%.0e", ImGuiSliderFlags_Logarithmic)) {
     settings_.tolerance = static_cast<double>(tolerance);
@@ -530,6 +542,23 @@ void Viewer::draw_status_panel(const Snapshot& snapshot) {
     ImGui::Text("unshot   %.6g (%.3g%%)", books.unshot, 100.0 * books.unshot / books.emitted);
     ImGui::Text("balance  %.2g", books.imbalance());
   }
+  if (snapshot.estimated_error && snapshot.estimated_error->available) {
+    const ErrorEstimate& estimate = *snapshot.estimated_error;
+    if (estimate.bounded)
+      ImGui::Text("error    <= %.2g %% (estimated, %g %%)", 100.0 * estimate.bound.l1, 100.0 * estimate.confidence);
+    else
+      ImGui::Text("error    not bounded yet");
+    if (ImGui::IsItemHovered())
+      ImGui::SetTooltip(
+          "Upper bound of the relative L1 error of B - E over the scene at %g %% confidence\n"
+          "noise %.2g %%, storage %s, unshot %.2g %%%s%s",
+          100.0 * estimate.confidence, 100.0 * estimate.noise.l1,
+          estimate.storage_estimated ? (format_number(100.0 * estimate.storage.l1, 2) + " %").c_str() : "not estimated",
+          100.0 * estimate.unshot.l1, estimate.caveat.empty() ? "" : "\n", estimate.caveat.c_str());
+    if (settings_.target_error > 0.0)
+      ImGui::Text("target   %.2g %%%s", 100.0 * settings_.target_error,
+                  snapshot.stop_reason == StopReason::TargetReached ? " (reached)" : "");
+  }
   if (snapshot.reference_error) {
     ImGui::Separator();
     ImGui::Text("error    %.4f (relative L2 of B vs reference)", *snapshot.reference_error);
@@ -612,6 +641,7 @@ struct PlotLine {
   const std::vector<Spectrum>* samples;
   ImU32 colour;
   const char* name;
+  const std::vector<double>* band = nullptr;  // the estimated error's half-width at each sample
 };
 
 // The newest journey's hops that landed on a curve: hop number (as on the stage) and record.
@@ -624,8 +654,12 @@ std::vector<PlotLine> plot_lines(const Snapshot& snapshot, std::size_t c, const 
     const std::vector<Spectrum>* samples =
         c < snapshot.radiosity.size() ? &snapshot.radiosity[c][static_cast<std::size_t>(side)] : nullptr;
     if (trace == nullptr || samples == nullptr || samples->size() != trace->s.size() || samples->empty()) continue;
+    const std::vector<double>* band = snapshot.error_band && c < snapshot.error_band->size()
+                                          ? &(*snapshot.error_band)[c][static_cast<std::size_t>(side)]
+                                          : nullptr;
+    if (band != nullptr && band->size() != samples->size()) band = nullptr;
     lines.push_back({samples, side == 0 ? IM_COL32(255, 190, 70, 255) : IM_COL32(110, 170, 255, 255),
-                     side == 0 ? "front" : "back"});
+                     side == 0 ? "front" : "back", band});
   }
   return lines;
 }
@@ -653,6 +687,10 @@ void draw_plot_legend(const std::vector<PlotLine>& lines, bool reference, int ma
   if (reference) {
     ImGui::SameLine();
     ImGui::TextColored(ImVec4(0.47f, 0.86f, 0.47f, 1.0f), "-- reference (%s)", main_side == 0 ? "front" : "back");
+  }
+  if (!lines.empty() && lines[0].band != nullptr) {
+    ImGui::SameLine();
+    ImGui::TextColored(ImVec4(0.75f, 0.75f, 0.75f, 1.0f), "band: +- estimated error");
   }
   ImGui::SameLine();
   ImGui::TextColored(ImVec4(0.8f, 0.35f, 0.35f, 1.0f), "| C-1");
@@ -739,6 +777,19 @@ void draw_plot_reference(const PlotArea& plot, const std::vector<std::array<doub
 }
 
 void draw_plot_lines(const PlotArea& plot, const std::vector<PlotLine>& lines, const CurveTrace& trace, int channels) {
+  // Under each line, the band of +- its estimated error: a translucent quad per trace interval.
+  for (const PlotLine& line : lines) {
+    if (line.band == nullptr) continue;
+    const ImU32 fill = (line.colour & 0x00ffffffu) | (static_cast<ImU32>(70) << IM_COL32_A_SHIFT);
+    for (std::size_t i = 1; i < line.samples->size(); ++i) {
+      const double b0 = luminance((*line.samples)[i - 1], channels);
+      const double b1 = luminance((*line.samples)[i], channels);
+      const double w0 = (*line.band)[i - 1];
+      const double w1 = (*line.band)[i];
+      plot.draw->AddQuadFilled(plot.point(trace.s[i - 1], b0 + w0), plot.point(trace.s[i], b1 + w1),
+                               plot.point(trace.s[i], b1 - w1), plot.point(trace.s[i - 1], b0 - w0), fill);
+    }
+  }
   for (const PlotLine& line : lines)
     for (std::size_t i = 1; i < line.samples->size(); ++i)
       plot.draw->AddLine(plot.point(trace.s[i - 1], luminance((*line.samples)[i - 1], channels)),

@@ -197,9 +197,25 @@ void Session::publish(const Solver* solver, const std::vector<PathRecord>& new_p
   snapshot->paths.assign(paths_.begin(), paths_.end());
   if (solver != nullptr && scene_) {
     describe_solver(*solver, *traces_, *snapshot);
+    // The estimated error: R (or 2R) reconstructions of the whole scene, so about twice a second of
+    // solving, and once more when the solve stops.
+    const double now = solver->seconds();
+    const bool final = solver->stopped();
+    if (solver->photons_shot() > 0 && !solver->round_open() &&
+        (last_estimate_time_ < 0.0 || now - last_estimate_time_ >= 0.5 || (final && !estimate_final_))) {
+      last_estimate_time_ = now;
+      estimate_final_ = final;
+      const double confidence = solver->settings().confidence;
+      estimated_error_ = estimate_error(*solver, {confidence, Solver::kTargetSamples});
+      std::vector<std::vector<double>> parameters;
+      for (const CurveTrace& trace : *traces_) parameters.push_back(trace.u);
+      error_band_ = std::make_shared<const std::vector<std::array<std::vector<double>, 2>>>(
+          pointwise_bound(*solver, parameters, confidence));
+    }
+    snapshot->estimated_error = estimated_error_;
+    snapshot->error_band = error_band_;
     if (reference) {
       // The error against the reference, at most about twice a second while running.
-      const double now = solver->seconds();
       if (force_error || last_error_time_ < 0.0 || now - last_error_time_ >= 0.5 || solver->stopped()) {
         last_error_time_ = now;
         const int samples = reference_samples(*reference);
@@ -295,6 +311,10 @@ void Session::clear_error_history() {
   error_history_.clear();
   reference_error_.reset();
   last_error_time_ = -1.0;
+  estimated_error_.reset();
+  error_band_.reset();
+  last_estimate_time_ = -1.0;
+  estimate_final_ = false;
 }
 
 void Session::start_solve(std::shared_ptr<const Scene> scene, const SolverSettings& settings) {

@@ -154,6 +154,11 @@ class Session {
   std::vector<std::array<double, 2>> error_history_;
   std::optional<double> reference_error_;
   double last_error_time_ = -1.0;
+  // The solve's estimated error and its band along the curves, and the solve time they were made at.
+  std::optional<ErrorEstimate> estimated_error_;
+  std::shared_ptr<const std::vector<std::array<std::vector<double>, 2>>> error_band_;
+  double last_estimate_time_ = -1.0;
+  bool estimate_final_ = false;
   std::uint64_t chunk_ = Solver::kBatchSize;  // photons per piece, adapted to about kPieceSeconds
   std::atomic<bool> cancel_{false};
   std::thread thread_;  // Worker only

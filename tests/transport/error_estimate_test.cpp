@@ -127,7 +127,7 @@ INSTANTIATE_TEST_SUITE_P(
                       MethodCase{"random", BasisKind::Cubic, kAutoElements, Transport::Shooting, SamplerKind::Random},
                       MethodCase{"walk", BasisKind::Cubic, kAutoElements, Transport::Walk, SamplerKind::Sobol},
                       MethodCase{"fixed", BasisKind::Cubic, 64, Transport::Shooting, SamplerKind::Sobol}),
-    [](const ::testing::TestParamInfo<MethodCase>& info) { return std::string(info.param.name); });
+    [](const ::testing::TestParamInfo<MethodCase>& case_info) { return std::string(case_info.param.name); });
 
 TEST(ErrorEstimate, BoundsTheTrueErrorInAFurnace) {
   const double rho = 0.9;

@@ -63,6 +63,7 @@ nlohmann::json result_without_curves(const Solver& solver, int samples_per_curve
       {"band_rays", settings.band_rays},
       {"replicates", settings.replicates},
       {"confidence", settings.confidence},
+      {"target_error", settings.target_error},
       {"samples", samples_per_curve},
   };
   result["stats"] = stats_to_json(*sampled.stats);

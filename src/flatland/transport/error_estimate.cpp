@@ -37,6 +37,23 @@ struct EvaluationPoints {
   std::size_t values() const { return points.size() * static_cast<std::size_t>(channels); }
 };
 
+// Points at given curve parameters (weights: equal shares of the curve's length).
+EvaluationPoints points_at(const Solver& solver, const std::vector<std::vector<double>>& parameters) {
+  const Scene& scene = solver.scene();
+  EvaluationPoints result;
+  result.channels = scene.channels;
+  for (std::uint32_t c = 0; c < scene.curves.size(); ++c) {
+    result.first.push_back(result.points.size());
+    const std::vector<double>& us = c < parameters.size() ? parameters[c] : std::vector<double>{};
+    for (double u : us)
+      for (Side side : {Side::Front, Side::Back})
+        if (solver.has_side(c, side))
+          result.points.push_back({c, side, u, scene.curves[c].length / static_cast<double>(us.size())});
+  }
+  result.first.push_back(result.points.size());
+  return result;
+}
+
 EvaluationPoints evaluation_points(const Solver& solver, int samples) {
   const Scene& scene = solver.scene();
   EvaluationPoints result;
@@ -117,6 +134,100 @@ std::string percent(double fraction) {
   return text;
 }
 
+// B - E at the points: the replicates' mean (the solver's own answer, up to rounding), each
+// replicate's deviation from it, and the storage part's estimated error there (zero on a fixed
+// mesh).
+struct PointValues {
+  std::vector<double> mean;
+  std::vector<std::vector<double>> deviation;
+  std::vector<double> bias;
+};
+
+PointValues values_at(const Solver& solver, const EvaluationPoints& at) {
+  const auto count = static_cast<std::size_t>(solver.replicates());
+  const std::size_t values = at.values();
+  const std::size_t curves = at.first.size() - 1;
+  const std::vector<int>& levels = solver.chosen_levels();
+  const double scale = 1.0 / std::sqrt(static_cast<double>(count) * static_cast<double>(count - 1));
+  PointValues result;
+  std::vector<std::vector<double>>& replicate = result.deviation;
+  std::vector<double>& mean = result.mean;
+  replicate.resize(count);
+  mean.assign(values, 0.0);
+  for (std::size_t r = 0; r < count; ++r) {
+    replicate[r] = evaluate(solver, solver.reflected_field(solver.replicate_received(static_cast<int>(r)), levels), at);
+    for (std::size_t i = 0; i < values; ++i) mean[i] += replicate[r][i] / static_cast<double>(count);
+  }
+  for (std::size_t r = 0; r < count; ++r)
+    for (std::size_t i = 0; i < values; ++i) replicate[r][i] -= mean[i];
+  // Storage. Curve c's estimate at its chosen level l against level l - 1 (or l + 1 at the
+  // coarsest): with error ~ h^q, B_l - B_(l-1) = (1 - 2^q) e_l, and B_(l+1) - B_l = (2^-q - 1) e_l.
+  // The difference carries noise too; its energy, estimated from the replicates' differences, is
+  // taken off the difference's (at most all of it), in every norm in the L2 ratio.
+  std::vector<double>& bias = result.bias;
+  bias.assign(values, 0.0);
+  const SceneStorage& storage = solver.scene_storage();
+  if (solver.auto_storage()) {
+    std::vector<int> other = levels;
+    std::vector<double> factor(curves, 0.0);
+    const double q = std::ldexp(1.0, storage_order(solver.settings()));
+    for (std::uint32_t c = 0; c < curves; ++c) {
+      if (levels[c] > 0) {
+        other[c] = levels[c] - 1;
+        factor[c] = 1.0 / (q - 1.0);
+      } else if (storage.level_count(c) > 1) {
+        other[c] = levels[c] + 1;
+        factor[c] = 1.0 / (1.0 - 1.0 / q);
+      }
+    }
+    std::vector<double> difference = evaluate(solver, solver.reflected_field(solver.received(), other), at);
+    for (std::size_t i = 0; i < values; ++i) difference[i] = mean[i] - difference[i];
+    std::vector<double> noise_energy(curves, 0.0);
+    std::vector<double> other_mean(values, 0.0);
+    std::vector<std::vector<double>> other_replicate(count);
+    for (std::size_t r = 0; r < count; ++r) {
+      other_replicate[r] =
+          evaluate(solver, solver.reflected_field(solver.replicate_received(static_cast<int>(r)), other), at);
+      for (std::size_t i = 0; i < values; ++i) other_mean[i] += other_replicate[r][i] / static_cast<double>(count);
+    }
+    const auto channels = static_cast<std::size_t>(at.channels);
+    for (std::size_t r = 0; r < count; ++r)
+      for (std::size_t c = 0; c < curves; ++c)
+        for (std::size_t p = at.first[c]; p < at.first[c + 1]; ++p)
+          for (std::size_t ch = 0; ch < channels; ++ch) {
+            const std::size_t i = p * channels + ch;
+            // Replicate r's difference less the mean difference (replicate[r] already less the mean).
+            const double d = replicate[r][i] - (other_replicate[r][i] - other_mean[i]);
+            noise_energy[c] += at.points[p].weight * d * d * scale * scale;
+          }
+    const std::vector<Norms> difference_norms = norms_of(difference, at);
+    for (std::size_t c = 0; c < curves; ++c) {
+      const double energy = difference_norms[c].l2_squared;
+      const double kept = energy > 0.0 ? std::sqrt(std::max(0.0, 1.0 - noise_energy[c] / energy)) : 0.0;
+      for (std::size_t p = at.first[c]; p < at.first[c + 1]; ++p)
+        for (std::size_t ch = 0; ch < channels; ++ch)
+          bias[p * channels + ch] = factor[c] * kept * difference[p * channels + ch];
+    }
+  }
+  return result;
+}
+
+// Unshot light: a round shoots the pool U and receives at most U of it, of which rho_max
+// reflects; so all later rounds add at most rho_max U / (1 - rho_max) to the integral of B - E.
+// Its share of B - E's integral (`reflected`) is taken as its relative error in every norm (it is
+// spread like B - E: an assumption, not a bound, for L2 and L-infinity). Walks leave nothing.
+double unshot_share_of(const Solver& solver, double reflected) {
+  if (solver.settings().transport != Transport::Shooting) return 0.0;
+  const Scene& scene = solver.scene();
+  double rho_max = 0.0;
+  for (const Curve& curve : scene.curves)
+    for (int ch = 0; ch < scene.channels; ++ch)
+      rho_max = std::max(rho_max, scene.material_of(curve).reflectivity[static_cast<std::size_t>(ch)]);
+  const double unshot = solver.books().unshot;
+  const double missing = unshot > 0.0 ? rho_max * unshot / (1.0 - rho_max) : 0.0;
+  return reflected > 0.0 ? missing / reflected : (missing > 0.0 ? kInfinity : 0.0);
+}
+
 }  // namespace
 
 ErrorEstimate estimate_error(const Solver& solver, const ErrorEstimateOptions& options) {
@@ -137,23 +248,22 @@ ErrorEstimate estimate_error(const Solver& solver, const ErrorEstimateOptions& o
   const EvaluationPoints at = evaluation_points(solver, std::max(1, options.samples_per_curve));
   const std::size_t values = at.values();
   const std::size_t curves = at.first.size() - 1;
-  const std::vector<int>& levels = solver.chosen_levels();
-
-  // The replicates' B - E and their mean (the solver's own, up to rounding).
-  std::vector<std::vector<double>> replicate(count);
-  std::vector<double> mean(values, 0.0);
-  for (std::size_t r = 0; r < count; ++r) {
-    replicate[r] = evaluate(solver, solver.reflected_field(solver.replicate_received(static_cast<int>(r)), levels), at);
-    for (std::size_t i = 0; i < values; ++i) mean[i] += replicate[r][i] / static_cast<double>(count);
-  }
+  PointValues point_values = values_at(solver, at);
+  const std::vector<double>& mean = point_values.mean;
+  const std::vector<std::vector<double>>& replicate = point_values.deviation;
+  const std::vector<double>& bias = point_values.bias;
+  estimate.storage_estimated = solver.auto_storage();
+  if (!solver.auto_storage())
+    estimate.caveat =
+        "the storage mesh is fixed, so its discretisation error is not estimated (the bound holds for "
+        "the noise and the unshot light only; --elements auto estimates it)";
+  const Scene& scene = solver.scene();
   const std::vector<Norms> size = norms_of(mean, at);
 
   // Noise. The mean's error is about Gaussian with covariance S / R, S the replicates' sample
   // covariance; sum_r g_r (X_r - mean) / sqrt(R (R - 1)), g_r standard normal, has exactly that
   // covariance. Each norm's quantile over such draws, times t / z, bounds the norm of the error at
   // the confidence even where one pattern dominates it (then it is |t_(R-1)| times its scale).
-  for (std::size_t r = 0; r < count; ++r)
-    for (std::size_t i = 0; i < values; ++i) replicate[r][i] -= mean[i];
   const double scale = 1.0 / std::sqrt(static_cast<double>(count) * static_cast<double>(count - 1));
   const int draws = static_cast<int>(std::clamp(kDrawValueBudget / (3.0 * static_cast<double>(curves + 1)),
                                                 static_cast<double>(kFewestDraws), static_cast<double>(kMostDraws)));
@@ -197,76 +307,10 @@ ErrorEstimate estimate_error(const Solver& solver, const ErrorEstimateOptions& o
     return RelativeErrors{quantile(l1), quantile(l2), quantile(linf)};
   };
 
-  // Storage. Curve c's estimate at its chosen level l against level l - 1 (or l + 1 at the
-  // coarsest): with error ~ h^q, B_l - B_(l-1) = (1 - 2^q) e_l, and B_(l+1) - B_l = (2^-q - 1) e_l.
-  // The difference carries noise too; its energy, estimated from the replicates' differences, is
-  // taken off the difference's (at most all of it), in every norm in the L2 ratio.
-  std::vector<double> bias(values, 0.0);
-  const Scene& scene = solver.scene();
-  const SceneStorage& storage = solver.scene_storage();
-  estimate.storage_estimated = solver.auto_storage();
-  if (solver.auto_storage()) {
-    std::vector<int> other = levels;
-    std::vector<double> factor(curves, 0.0);
-    const double q = std::ldexp(1.0, storage_order(solver.settings()));
-    for (std::uint32_t c = 0; c < curves; ++c) {
-      if (levels[c] > 0) {
-        other[c] = levels[c] - 1;
-        factor[c] = 1.0 / (q - 1.0);
-      } else if (storage.level_count(c) > 1) {
-        other[c] = levels[c] + 1;
-        factor[c] = 1.0 / (1.0 - 1.0 / q);
-      }
-    }
-    std::vector<double> difference = evaluate(solver, solver.reflected_field(solver.received(), other), at);
-    for (std::size_t i = 0; i < values; ++i) difference[i] = mean[i] - difference[i];
-    std::vector<double> noise_energy(curves, 0.0);
-    std::vector<double> other_mean(values, 0.0);
-    std::vector<std::vector<double>> other_replicate(count);
-    for (std::size_t r = 0; r < count; ++r) {
-      other_replicate[r] =
-          evaluate(solver, solver.reflected_field(solver.replicate_received(static_cast<int>(r)), other), at);
-      for (std::size_t i = 0; i < values; ++i) other_mean[i] += other_replicate[r][i] / static_cast<double>(count);
-    }
-    const auto channels = static_cast<std::size_t>(at.channels);
-    for (std::size_t r = 0; r < count; ++r)
-      for (std::size_t c = 0; c < curves; ++c)
-        for (std::size_t p = at.first[c]; p < at.first[c + 1]; ++p)
-          for (std::size_t ch = 0; ch < channels; ++ch) {
-            const std::size_t i = p * channels + ch;
-            // Replicate r's difference less the mean difference (replicate[r] already less the mean).
-            const double d = replicate[r][i] - (other_replicate[r][i] - other_mean[i]);
-            noise_energy[c] += at.points[p].weight * d * d * scale * scale;
-          }
-    const std::vector<Norms> difference_norms = norms_of(difference, at);
-    for (std::size_t c = 0; c < curves; ++c) {
-      const double energy = difference_norms[c].l2_squared;
-      const double kept = energy > 0.0 ? std::sqrt(std::max(0.0, 1.0 - noise_energy[c] / energy)) : 0.0;
-      for (std::size_t p = at.first[c]; p < at.first[c + 1]; ++p)
-        for (std::size_t ch = 0; ch < channels; ++ch)
-          bias[p * channels + ch] = factor[c] * kept * difference[p * channels + ch];
-    }
-  } else {
-    estimate.caveat =
-        "the storage mesh is fixed, so its discretisation error is not estimated (the bound holds for "
-        "the noise and the unshot light only; --elements auto estimates it)";
-  }
   const std::vector<Norms> bias_norms = norms_of(bias, at);
 
-  // Unshot light: a round shoots the pool U and receives at most U of it, of which rho_max
-  // reflects; so all later rounds add at most rho_max U / (1 - rho_max) to the integral of B - E.
-  // Its share of B - E's integral is taken as its relative error in every norm (it is spread like
-  // B - E: an assumption, not a bound, for L2 and L-infinity).
-  double unshot_share = 0.0;
-  if (solver.settings().transport == Transport::Shooting) {
-    double rho_max = 0.0;
-    for (const Curve& curve : scene.curves)
-      for (int ch = 0; ch < scene.channels; ++ch)
-        rho_max = std::max(rho_max, scene.material_of(curve).reflectivity[static_cast<std::size_t>(ch)]);
-    const double unshot = solver.books().unshot;
-    const double missing = unshot > 0.0 ? rho_max * unshot / (1.0 - rho_max) : 0.0;
-    unshot_share = size[curves].l1 > 0.0 ? missing / size[curves].l1 : (missing > 0.0 ? kInfinity : 0.0);
-  }
+  // Unshot light (unshot_share).
+  const double unshot_share = unshot_share_of(solver, size[curves].l1);
 
   // The bound: the parts' sum A in each norm, relative to the estimate's norm D less A (the true
   // norm is at least D - A); none where A reaches D.
@@ -320,6 +364,40 @@ ErrorEstimate estimate_error(const Solver& solver, const ErrorEstimateOptions& o
     combine(c, curve.bound, curve.bounded, nullptr);
   }
   return estimate;
+}
+
+std::vector<std::array<std::vector<double>, 2>> pointwise_bound(const Solver& solver,
+                                                                const std::vector<std::vector<double>>& parameters,
+                                                                double confidence) {
+  std::vector<std::array<std::vector<double>, 2>> result(solver.scene().curves.size());
+  const int replicates = solver.replicates();
+  if (replicates < 2 || solver.photons_shot() == 0) return result;
+  const EvaluationPoints at = points_at(solver, parameters);
+  const PointValues values = values_at(solver, at);
+  const auto channels = static_cast<std::size_t>(at.channels);
+  // The integral of B - E over the scene, for the unshot part's share.
+  double reflected = 0.0;
+  for (std::size_t p = 0; p < at.points.size(); ++p)
+    for (std::size_t ch = 0; ch < channels; ++ch)
+      reflected += at.points[p].weight * std::fabs(values.mean[p * channels + ch]);
+  const double unshot_share = unshot_share_of(solver, reflected);
+  // At one point the mean's error over its standard error is Student's t with R - 1 degrees of
+  // freedom: t times the standard error bounds it at the confidence.
+  const double t = student_t_quantile_two_sided(confidence, replicates - 1);
+  const auto count = static_cast<double>(replicates);
+  for (std::size_t p = 0; p < at.points.size(); ++p) {
+    const auto& point = at.points[p];
+    double half_width = 0.0;
+    for (std::size_t ch = 0; ch < channels; ++ch) {
+      const std::size_t i = p * channels + ch;
+      double squares = 0.0;
+      for (const std::vector<double>& deviation : values.deviation) squares += deviation[i] * deviation[i];
+      const double standard_error = std::sqrt(squares / (count * (count - 1.0)));
+      half_width += t * standard_error + std::fabs(values.bias[i]) + unshot_share * std::fabs(values.mean[i]);
+    }
+    result[point.curve][static_cast<std::size_t>(point.side)].push_back(half_width / static_cast<double>(channels));
+  }
+  return result;
 }
 
 }  // namespace flatland

@@ -13,6 +13,7 @@
 // the error relative to the true norm).
 #pragma once
 
+#include <array>
 #include <string>
 #include <vector>
 
@@ -67,5 +68,13 @@ struct ErrorEstimate {
 // The solver's error estimate; the same bits on any thread and process count (it reads only the
 // solver's deterministic state and draws its Gaussian combinations from a stream named by the seed).
 ErrorEstimate estimate_error(const Solver& solver, const ErrorEstimateOptions& options = {});
+
+// The bound along the curves, for a plot: at curve c's parameters `parameters[c]`, per side (empty
+// for a side without storage), the half-width t_(R-1) x (standard error of the replicates' mean)
+// plus the storage and unshot parts there, averaged over the channels as a plot of B shows them.
+// Empty lists when the solve has no estimate (one replicate, nothing shot).
+std::vector<std::array<std::vector<double>, 2>> pointwise_bound(const Solver& solver,
+                                                                const std::vector<std::vector<double>>& parameters,
+                                                                double confidence);
 
 }  // namespace flatland

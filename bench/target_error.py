@@ -1,0 +1,87 @@
+#!/usr/bin/env python3
+"""What `--target-error` spends and delivers (docs/experiments.md, "Solving to an accuracy").
+
+Per scene: `flatland solve --target-error T --photons CAP` over seeds, each compared with a
+reference (the true error) and its photons counted; and `flatland converge` of the default method
+over a grid of fixed budgets (factors of sqrt 2) and the same seeds, to find the smallest fixed
+budget whose median true error, and whose median estimated error, is at most T. Prints a Markdown
+table (also DIR/target.md).
+
+  bench/target_error.py --out /tmp/target [--flatland build/flatland] [--target 2e-3] [--seeds 20]
+"""
+import argparse
+import csv
+import json
+import os
+import statistics
+import subprocess
+import sys
+
+SCENES = {
+    "penumbra": "scenes2d/penumbra.json",
+    "round occluder": "scenes2d/tests/reference_round_occluder.json",
+    "lit ring": "scenes2d/tests/reference_ring_profile.json",
+    "furnace rho 0.9": "scenes2d/experiments/enclosure_rho0.9.json",
+}
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--out", required=True)
+    parser.add_argument("--flatland", default=os.environ.get("FLATLAND", "build/flatland"))
+    parser.add_argument("--target", type=float, default=2e-3)
+    parser.add_argument("--seeds", type=int, default=20)
+    parser.add_argument("--scenes", default=",".join(SCENES))
+    args = parser.parse_args()
+    os.makedirs(args.out, exist_ok=True)
+    lines = [f"| scene | target | runs | true error <= 1.2 target | median photons | median true L1 | "
+             f"smallest fixed budget: true <= target | estimate <= target | photons / those |",
+             "|---|---|---|---|---|---|---|---|---|"]
+    for name in args.scenes.split(","):
+        scene = SCENES[name]
+        tag = name.replace(" ", "_").replace(".", "")
+        reference = os.path.join(args.out, tag + "_reference.json")
+        if not os.path.exists(reference):
+            subprocess.run([args.flatland, "reference", scene, "--out", reference, "--quiet"], check=True)
+        photons, errors = [], []
+        for seed in range(1, args.seeds + 1):
+            out = os.path.join(args.out, f"{tag}_{seed}.json")
+            subprocess.run([args.flatland, "solve", scene, "--photons", "1e9", "--target-error", str(args.target),
+                            "--seed", str(seed), "--threads", "2", "--out", out, "--quiet"], check=True)
+            compared = subprocess.run([args.flatland, "compare", out, reference, "--json"], check=True,
+                                      capture_output=True, text=True)
+            errors.append(json.loads(compared.stdout)["scene"]["l1"])
+            with open(out) as result:
+                photons.append(json.load(result)["stats"]["photons"])
+            os.remove(out)
+        grid = [int(1e4 * 2 ** (k / 2)) for k in range(0, 27)]
+        top = max(photons)
+        grid = [b for b in grid if b <= 2 * top]
+        directory = os.path.join(args.out, tag)
+        subprocess.run([args.flatland, "converge", scene, "--reference", reference, "--methods", "cubic",
+                        "--budgets", ",".join(map(str, grid)), "--seeds", str(args.seeds), "--tolerance", "1e-3",
+                        "--threads", "2", "--out", directory], check=True, stdout=subprocess.DEVNULL)
+        with open(os.path.join(directory, "convergence.csv")) as table:
+            rows = list(csv.DictReader(table))  # method, then budget, then seed order
+        per = len(rows) // len(grid)
+        true_ok = est_ok = None
+        for i, budget in enumerate(grid):
+            group = rows[i * per:(i + 1) * per]
+            if true_ok is None and statistics.median(float(r["rel_l1"]) for r in group) <= args.target:
+                true_ok = budget
+            if est_ok is None and statistics.median(float(r["est_l1"]) for r in group) <= args.target:
+                est_ok = budget
+        used = statistics.median(photons)
+        within = sum(e <= 1.2 * args.target for e in errors)
+        lines.append(f"| {name} | {args.target:g} | {args.seeds} | {within} | {used:.3g} | "
+                     f"{statistics.median(errors):.2e} | {true_ok or '> grid':} | {est_ok or '> grid'} | "
+                     f"{used / true_ok if true_ok else float('nan'):.2f} / {used / est_ok if est_ok else float('nan'):.2f} |")
+        print(lines[-1], file=sys.stderr)
+    text = "\n".join(lines) + "\n"
+    with open(os.path.join(args.out, "target.md"), "w") as out:
+        out.write(text)
+    print(text)
+
+
+if __name__ == "__main__":
+    main()
