@@ -202,15 +202,21 @@ Status draw_plot(const PlotInput& in) {
     for (std::size_t b = 0; b < budgets; ++b) {
       std::vector<double> seconds;
       std::vector<double> errors;
+      std::vector<double> estimated;  // the solver's own bounds (NaN where a run has none)
       for (const Row& row : in.rows)
         if (row.method == m && row.budget == b) {
           seconds.push_back(std::max(row.seconds, 1e-6));
           errors.push_back(row.error.l2);
+          if (std::isfinite(row.estimated.l2)) estimated.push_back(row.estimated.l2);
         }
       if (errors.empty()) continue;
-      char line[256];
-      std::snprintf(line, sizeof line, "%.9g %.9g %.9g %.9g\n", median(seconds), median(errors),
-                    *std::min_element(errors.begin(), errors.end()), *std::max_element(errors.begin(), errors.end()));
+      // Column 5: the median estimated bound, or NaN (gnuplot leaves it out) when fewer than half
+      // the runs have one.
+      const double bound = 2 * estimated.size() >= errors.size() ? median(estimated) : NAN;
+      char line[320];
+      std::snprintf(line, sizeof line, "%.9g %.9g %.9g %.9g %.9g\n", median(seconds), median(errors),
+                    *std::min_element(errors.begin(), errors.end()), *std::max_element(errors.begin(), errors.end()),
+                    bound);
       data += line;
     }
     data += "\n\n";  // a gnuplot data block per method
@@ -235,9 +241,15 @@ Status draw_plot(const PlotInput& in) {
   for (std::size_t m = 0; m < in.methods.size(); ++m) {
     const std::string title = in.methods[m] + ": slope " + slope_text(slopes[m].seconds) + " vs time, " +
                               slope_text(slopes[m].photons) + " vs photons";
-    plot += "'convergence.dat' index " + std::to_string(m) + " using 1:2:3:4 with yerrorlines lw 2 title " +
-            gnuplot_string(title) + " noenhanced, ";
+    const std::string colour = " lc " + std::to_string(m + 1);
+    plot += "'convergence.dat' index " + std::to_string(m) + " using 1:2:3:4 with yerrorlines lw 2" + colour +
+            " title " + gnuplot_string(title) + " noenhanced, ";
+    // The method's estimated bound, dashed in its colour (no legend entry: one says what dashes are).
+    plot +=
+        "'convergence.dat' index " + std::to_string(m) + " using 1:5 with lines dt 2 lw 1.5" + colour + " notitle, ";
   }
+  plot += "NaN with lines dt 2 lw 1.5 lc rgb 'gray20' title " +
+          gnuplot_string("dashed: each method's estimated bound (median over seeds)") + " noenhanced, ";
   char guide[256];
   std::snprintf(guide, sizeof guide, "%.9g * (x / %.9g)**(-0.5) with lines dt 2 lc rgb 'gray40' title 'slope -1/2'",
                 anchor.error.l2, std::max(anchor.seconds, 1e-6));
@@ -344,7 +356,7 @@ Result<std::vector<Row>> read_rows(const fs::path& path, std::vector<std::string
   const int c_method = column("method"), c_seed = column("seed"), c_photons = column("photons"),
             c_seconds = column("seconds"), c_l1 = column("rel_l1"), c_l2 = column("rel_l2"),
             c_linf = column("rel_linf"), c_elements = column("elements"), c_measure = column("measure"),
-            c_curve = column("curve");
+            c_curve = column("curve"), c_estimated = column("est_l2");
   if (c_method < 0 || c_seed < 0 || c_photons < 0 || c_seconds < 0 || c_l1 < 0 || c_l2 < 0 || c_linf < 0)
     return Error{path.string() +
                  ":1: not a convergence table (expected the columns method, seed, "
@@ -356,6 +368,7 @@ Result<std::vector<Row>> read_rows(const fs::path& path, std::vector<std::string
     double seconds;
     ErrorNorms error;
     int elements;
+    double estimated;  // est_l2, NaN where the table has none
   };
   std::vector<Parsed> parsed;
   std::vector<std::uint64_t> seed_values;
@@ -389,6 +402,7 @@ Result<std::vector<Row>> read_rows(const fs::path& path, std::vector<std::string
     p.photons = static_cast<std::uint64_t>(values[1]);
     p.seconds = values[2];
     p.error = {values[3], values[4], values[5]};
+    p.estimated = c_estimated >= 0 ? number_at(c_estimated) : NAN;
     const double element_count = c_elements >= 0 ? number_at(c_elements) : 0.0;
     p.elements = std::isfinite(element_count) && element_count >= 1.0 && element_count < 1e9
                      ? static_cast<int>(element_count)
@@ -411,7 +425,9 @@ Result<std::vector<Row>> read_rows(const fs::path& path, std::vector<std::string
       it = methods.end() - 1;
     }
     const auto m = static_cast<std::size_t>(it - methods.begin());
-    rows.push_back({m, seen[m]++ / static_cast<std::size_t>(seeds), p.seed, p.photons, 0, 0.0, p.seconds, p.error, 0});
+    Row row{m, seen[m]++ / static_cast<std::size_t>(seeds), p.seed, p.photons, 0, 0.0, p.seconds, p.error, 0};
+    row.estimated.l2 = p.estimated;
+    rows.push_back(row);
   }
   return rows;
 }
