@@ -9,6 +9,7 @@
 
 #include <gtest/gtest.h>
 
+#include "flatland/transport/error_estimate.hpp"
 #include "flatland/transport/solver.hpp"
 #include "test_support.hpp"
 
@@ -55,6 +56,11 @@ TEST(Mpi, SharedSolveHasTheBitsOfOneProcess) {
     shared->run();
     EXPECT_GT(shared->rounds(), 1u);
     EXPECT_EQ(dump(*shared), dump(*alone));
+    // And so is the estimated error, which reads only the solve's state.
+    const ErrorEstimate shared_estimate = estimate_error(*shared);
+    const ErrorEstimate alone_estimate = estimate_error(*alone);
+    EXPECT_EQ(shared_estimate.bound.l1, alone_estimate.bound.l1);
+    EXPECT_EQ(shared_estimate.bound.linf, alone_estimate.bound.linf);
     EXPECT_EQ(shared->photons_shot(), alone->photons_shot());
     // One message per round: the deposits (once per replicate) and 12 counters (escaped, absorbed and shot per
     // channel, rays, photons, cancel).
