@@ -19,12 +19,14 @@ def main():
     parser.add_argument("--methods", default="constant,linear,cubic,hermite")
     parser.add_argument("--budgets", default="1e4,3e4,1e5,3e5,1e6,3e6")
     parser.add_argument("--seeds", type=int, default=10)
+    parser.add_argument("--replot", action="store_true", help="draw again from DIR/runs/convergence.csv")
     args = parser.parse_args()
     os.makedirs(args.out, exist_ok=True)
     work = os.path.join(args.out, "runs")
-    subprocess.run([args.flatland, "converge", args.scene, "--methods", args.methods, "--budgets", args.budgets,
-                    "--seeds", str(args.seeds), "--tolerance", "1e-3", "--threads", "2", "--out", work],
-                   check=True, stdout=subprocess.DEVNULL)
+    if not args.replot:
+        subprocess.run([args.flatland, "converge", args.scene, "--methods", args.methods, "--budgets", args.budgets,
+                        "--seeds", str(args.seeds), "--tolerance", "1e-3", "--threads", "2", "--out", work],
+                       check=True, stdout=subprocess.DEVNULL)
     with open(os.path.join(work, "convergence.csv")) as table:
         rows = list(csv.DictReader(table))
     methods = args.methods.split(",")
@@ -45,17 +47,18 @@ def main():
     plots = []
     for m, method in enumerate(methods):
         plots.append(f"'estimated_error.dat' index {m} using 1:2 with linespoints lw 2 lc {m + 1} pt 7 "
-                     f"title '{method}: true error'")
-        plots.append(f"'estimated_error.dat' index {m} using 1:3 with linespoints dt 2 lw 2 lc {m + 1} pt 6 "
-                     f"title '{method}: estimated bound (95 %)'")
+                     f"title '{method}'")
+        plots.append(f"'estimated_error.dat' index {m} using 1:3 with linespoints dt 2 lw 2 lc {m + 1} pt 6 notitle")
+    plots.append("NaN with linespoints lw 2 lc rgb 'gray30' pt 7 title 'true error (solid)'")
+    plots.append("NaN with linespoints dt 2 lw 2 lc rgb 'gray30' pt 6 title 'estimated bound, 95 % (dashed)'")
     script = f"""set terminal pngcairo size 900,640
 set output 'estimated_error.png'
 set logscale xy
 set grid
-set key outside right
+set key bottom left box opaque
 set xlabel 'photons'
 set ylabel 'relative L1 error of B - E'
-set title "{name}: the solver's estimated error against the true error\\nmedian over {args.seeds} seeds, default settings but the basis" noenhanced
+set title "{name}: estimated bound and true error\\nmedian over {args.seeds} seeds; default settings but the basis" noenhanced
 plot {", ".join(plots)}
 """
     with open(os.path.join(args.out, "estimated_error.gp"), "w") as out:
