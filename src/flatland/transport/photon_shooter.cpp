@@ -34,9 +34,9 @@ inline void prefetch(const void* address) {
 
 // A round's sources and its photons' quasi-random points.
 //
-// Randomised quasi-Monte Carlo: photon j of the round takes point j of the round's scrambled
-// Sobol' sequence (named by seed and round), whichever batch, step or thread shoots it; its
-// coordinates (PhotonDimension) and how rejection loops use them are in origins.hpp.
+// Randomised quasi-Monte Carlo: photon j of the round takes point j / R of its replicate's
+// scrambled Sobol' net (below), whichever batch, step or thread shoots it; its coordinates
+// (PhotonDimension) and how rejection loops use them are in origins.hpp.
 //
 // The round's photons form R replicates (SolverSettings::replicates), photon i in replicate
 // i mod R, whose spread measures the estimate's variance (error_estimate.hpp, and choose_levels'

@@ -327,8 +327,9 @@ SceneStorage::ReflectedPower SceneStorage::reflected_power(std::uint32_t c, cons
 }
 
 // Per curve, with the reflected power on each side: the estimate f_l at every level l, and f_l^A,
-// f_l^B from the two halves of the photons (odd and even numbers in their round: independent, with
-// equal means; with Sobol' two independently scrambled nets, see the shooter). Then, in the L2
+// f_l^B from the two halves of the photons (odd and even numbers in their round, the odd and even
+// replicates: independent, with equal means; with Sobol' independently scrambled nets, see the
+// shooter). Then, in the L2
 // norm along the curve (LevelNorm),
 //   variance  V_l = |f_l^A - f_l^B|^2     (its expectation is Var f_l^A + Var f_l^B = Var f_l),
 //   bias^2    |f_l - f_(l+1)|^2 less its own noise |D^A - D^B|^2 (D^X = f_l^X - f_(l+1)^X),
