@@ -1211,8 +1211,10 @@ TEST_F(Cli, MpiInterruptOfOneProcessStopsThemAll) {
   const double stopped = std::chrono::duration<double>(std::chrono::steady_clock::now() - sent).count();
   int status = 0;
   ::waitpid(launcher, &status, 0);
-  // (Measured 0.12 s; the bound leaves room for a sanitizer build on two busy cores.)
-  EXPECT_LT(stopped, 2.0) << read_file(directory_ / "mpirun.log");
+  // Measured 0.10-0.15 s, and 2.06 s in about one run of 14 (a wait inside OpenMPI's teardown,
+  // the same before and after the estimated error's replicates). The round in progress would take
+  // minutes (1e12 photons), so 5 s still shows that the interrupt stopped both at once.
+  EXPECT_LT(stopped, 5.0) << read_file(directory_ / "mpirun.log");
   ASSERT_TRUE(WIFEXITED(status));
   EXPECT_EQ(WEXITSTATUS(status), 130) << read_file(directory_ / "mpirun.log");
   EXPECT_FALSE(fs::exists(out));
