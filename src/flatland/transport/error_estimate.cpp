@@ -228,6 +228,29 @@ double unshot_share_of(const Solver& solver, double reflected) {
   return reflected > 0.0 ? missing / reflected : (missing > 0.0 ? kInfinity : 0.0);
 }
 
+// The bound from its parts (absolute norms) and the estimate's own norm D, in each norm: the sum
+// A relative to D - A (the true norm is at least D - A), none where A reaches D; and each part
+// relative to D.
+struct Combined {
+  RelativeErrors bound, noise, storage, unshot;
+  bool bounded = true;
+};
+
+Combined combine(const RelativeErrors& noise, const RelativeErrors& storage, const RelativeErrors& norm,
+                 double unshot_share) {
+  Combined result;
+  for (double RelativeErrors::*member : {&RelativeErrors::l1, &RelativeErrors::l2, &RelativeErrors::linf}) {
+    const double d = norm.*member;
+    const double total = noise.*member + storage.*member + unshot_share * d;
+    result.bound.*member = total < d ? total / (d - total) : kInfinity;
+    result.bounded = result.bounded && total < d;
+    result.noise.*member = d > 0.0 ? noise.*member / d : kInfinity;
+    result.storage.*member = d > 0.0 ? storage.*member / d : kInfinity;
+    result.unshot.*member = unshot_share;
+  }
+  return result;
+}
+
 }  // namespace
 
 ErrorEstimate estimate_error(const Solver& solver, const ErrorEstimateOptions& options) {
@@ -314,42 +337,23 @@ ErrorEstimate estimate_error(const Solver& solver, const ErrorEstimateOptions& o
 
   // The bound: the parts' sum A in each norm, relative to the estimate's norm D less A (the true
   // norm is at least D - A); none where A reaches D.
-  auto combine = [&](std::size_t c, RelativeErrors& bound, bool& bounded, RelativeErrors* parts) {
-    const RelativeErrors noise = noise_of(c);
-    const RelativeErrors bias_part = bias_norms[c].absolute();
-    const RelativeErrors norm = size[c].absolute();
-    bounded = true;
-    auto one = [&](double noise_part, double storage_part, double d, double& out, double* noise_out,
-                   double* storage_out, double* unshot_out) {
-      const double total = noise_part + storage_part + unshot_share * d;
-      out = total < d ? total / (d - total) : kInfinity;
-      if (!(total < d)) bounded = false;
-      if (noise_out != nullptr) {
-        *noise_out = d > 0.0 ? noise_part / d : kInfinity;
-        *storage_out = d > 0.0 ? storage_part / d : kInfinity;
-        *unshot_out = unshot_share;
-      }
-    };
-    one(noise.l1, bias_part.l1, norm.l1, bound.l1, parts ? &parts[0].l1 : nullptr, parts ? &parts[1].l1 : nullptr,
-        parts ? &parts[2].l1 : nullptr);
-    one(noise.l2, bias_part.l2, norm.l2, bound.l2, parts ? &parts[0].l2 : nullptr, parts ? &parts[1].l2 : nullptr,
-        parts ? &parts[2].l2 : nullptr);
-    one(noise.linf, bias_part.linf, norm.linf, bound.linf, parts ? &parts[0].linf : nullptr,
-        parts ? &parts[1].linf : nullptr, parts ? &parts[2].linf : nullptr);
+  auto combine_at = [&](std::size_t c) {
+    return combine(noise_of(c), bias_norms[c].absolute(), size[c].absolute(), unshot_share);
   };
-  RelativeErrors parts[3];
   if (!(size[curves].l1 > 0.0)) {
     estimate.available = false;
     estimate.unavailable = "no light has been reflected yet, so the relative error of B - E is undefined";
     return estimate;
   }
-  combine(curves, estimate.bound, estimate.bounded, parts);
-  estimate.noise = parts[0];
-  estimate.storage = parts[1];
-  estimate.unshot = parts[2];
+  const Combined scene_bound = combine_at(curves);
+  estimate.bound = scene_bound.bound;
+  estimate.bounded = scene_bound.bounded;
+  estimate.noise = scene_bound.noise;
+  estimate.storage = scene_bound.storage;
+  estimate.unshot = scene_bound.unshot;
   if (!estimate.bounded) {
-    const std::string why = "the estimated error is as large as B - E itself (noise " + percent(parts[0].l1) +
-                            ", storage " + percent(parts[1].l1) + ", unshot " + percent(parts[2].l1) +
+    const std::string why = "the estimated error is as large as B - E itself (noise " + percent(estimate.noise.l1) +
+                            ", storage " + percent(estimate.storage.l1) + ", unshot " + percent(estimate.unshot.l1) +
                             " in L1): shoot more photons";
     estimate.caveat = estimate.caveat.empty() ? why : why + "; " + estimate.caveat;
   }
@@ -361,7 +365,9 @@ ErrorEstimate estimate_error(const Solver& solver, const ErrorEstimateOptions& o
       curve.bound = {kInfinity, kInfinity, kInfinity};
       continue;
     }
-    combine(c, curve.bound, curve.bounded, nullptr);
+    const Combined curve_bound = combine_at(c);
+    curve.bound = curve_bound.bound;
+    curve.bounded = curve_bound.bounded;
   }
   return estimate;
 }
