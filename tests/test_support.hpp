@@ -39,6 +39,7 @@ struct SolutionData {
   std::vector<std::uint64_t> radiosity;
   std::vector<int> elements;
   std::vector<std::uint64_t> books;
+  std::vector<std::uint64_t> detected;
   std::uint32_t rounds = 0;
   std::uint64_t photons = 0;
   std::uint64_t rays = 0;
@@ -64,7 +65,10 @@ inline SolutionData solution_data(const Solver& solver) {
     }
   }
   const EnergyBooks books = solver.books();
-  for (double value : {books.emitted, books.absorbed, books.escaped, books.unshot}) bits(data.books, value);
+  for (double value : {books.emitted, books.absorbed, books.escaped, books.unshot, books.absorbed_mirrors,
+                       books.absorbed_glass, books.cut})
+    bits(data.books, value);
+  for (double value : solver.detected()) bits(data.detected, value);
   data.rounds = solver.rounds();
   data.photons = solver.photons_shot();
   data.rays = solver.rays_traced();
@@ -76,7 +80,7 @@ inline SolutionData solution_data(const Solver& solver) {
 // differ from nothing in particular, so a summary.
 inline void PrintTo(const SolutionData& data, std::ostream* out) {
   std::uint64_t hash = 1469598103934665603ull;  // FNV-1a over the doubles' bits
-  for (const auto* part : {&data.coefficients, &data.unshot, &data.radiosity, &data.books})
+  for (const auto* part : {&data.coefficients, &data.unshot, &data.radiosity, &data.books, &data.detected})
     for (std::uint64_t word : *part) hash = (hash ^ word) * 1099511628211ull;
   *out << "{" << data.rounds << " rounds, " << data.photons << " photons, " << data.rays << " rays, "
        << data.coefficients.size() << " coefficients, stop " << static_cast<int>(data.stop) << ", bits hash "
@@ -85,7 +89,7 @@ inline void PrintTo(const SolutionData& data, std::ostream* out) {
 
 // The solves on which rounds shared among processes are checked against one process (solver_test,
 // threads standing in for processes; mpi_test, under mpirun): shooting with point rays, with
-// footprints in colour, and random walks.
+// footprints in colour, random walks, and shooting through glass onto a detector.
 struct SharingCase {
   const char* scene;
   Transport transport;
@@ -93,7 +97,8 @@ struct SharingCase {
 };
 inline constexpr SharingCase kSharingCases[] = {{"scenes2d/mixed.json", Transport::Shooting, 0.0},
                                                 {"scenes2d/syndrome.json", Transport::Shooting, 0.02},
-                                                {"scenes2d/curved_room.json", Transport::Walk, 0.0}};
+                                                {"scenes2d/curved_room.json", Transport::Walk, 0.0},
+                                                {"scenes2d/prism.json", Transport::Shooting, 0.0}};
 inline SolverSettings sharing_settings(const SharingCase& c, std::uint64_t photons, std::uint64_t seed) {
   SolverSettings settings;
   settings.photons = photons;

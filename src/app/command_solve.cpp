@@ -157,8 +157,20 @@ void print_summary(const Solver& solver, const ErrorEstimate& estimate) {
     std::fprintf(out, "shared    %u processes summed %s bytes per round (%s in all, %u rounds)\n", sharing->size(),
                  human_count(static_cast<double>(solver.bytes_shared()) / solver.rounds()).c_str(),
                  human_count(static_cast<double>(solver.bytes_shared())).c_str(), solver.rounds());
-  std::fprintf(out, "energy    emitted %.6g = absorbed %.6g + escaped %.6g + unshot %.6g (imbalance %.2g)\n",
-               books.emitted, books.absorbed, books.escaped, books.unshot, books.imbalance());
+  if (solver.scene().has_specular()) {
+    std::fprintf(out,
+                 "energy    emitted %.6g = absorbed %.6g + escaped %.6g + unshot %.6g + by mirrors %.6g + in glass "
+                 "%.6g + cut %.6g (imbalance %.2g)\n",
+                 books.emitted, books.absorbed, books.escaped, books.unshot, books.absorbed_mirrors,
+                 books.absorbed_glass, books.cut, books.imbalance());
+    if (solver.chains_cut() > 0)
+      std::fprintf(out, "chains    %s photons cut after %u specular events (power %.3g%% of emitted)\n",
+                   human_count(static_cast<double>(solver.chains_cut())).c_str(), kChainLimit,
+                   100.0 * books.cut / books.emitted);
+  } else {
+    std::fprintf(out, "energy    emitted %.6g = absorbed %.6g + escaped %.6g + unshot %.6g (imbalance %.2g)\n",
+                 books.emitted, books.absorbed, books.escaped, books.unshot, books.imbalance());
+  }
   print_estimated_error(out, estimate);
   if (const double target = solver.settings().target_error; target > 0.0) {
     if (solver.stop_reason() == StopReason::TargetReached)

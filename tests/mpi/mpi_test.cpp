@@ -62,11 +62,11 @@ TEST(Mpi, SharedSolveHasTheBitsOfOneProcess) {
     EXPECT_EQ(shared_estimate.bound.l1, alone_estimate.bound.l1);
     EXPECT_EQ(shared_estimate.bound.linf, alone_estimate.bound.linf);
     EXPECT_EQ(shared->photons_shot(), alone->photons_shot());
-    // One message per round: the deposits (once per replicate) and 12 counters (escaped, absorbed and shot per
-    // channel, rays, photons, cancel).
+    // One message per round: the deposits (once per replicate), the detectors' tallies and 22 counters
+    // (escaped, absorbed, shot and the three chain losses per channel, chains cut, rays, photons, cancel).
     const std::uint64_t per_round = (shared->coefficient_count() * static_cast<std::uint64_t>(scene.channels) *
                                          static_cast<std::uint64_t>(settings.replicates) +
-                                     12) *
+                                     shared->detector_layout().size + 22) *
                                     8;
     EXPECT_EQ(world->bytes_summed() - bytes_before, per_round * shared->rounds());
     EXPECT_EQ(shared->bytes_shared(), per_round * shared->rounds());

@@ -292,7 +292,11 @@ TEST(Scene, EmittedPowerCountsLengthSidesAndChannels) {
 
 TEST(Scene, FinalizeAHandBuiltScene) {
   Scene s;
-  s.materials.push_back(Material{"m", {0.5, 0.5, 0.5}, {1, 1, 1}, {}});
+  Material m;
+  m.name = "m";
+  m.reflectivity = {0.5, 0.5, 0.5};
+  m.emittance = {1, 1, 1};
+  s.materials.push_back(m);
   Curve c;
   c.id = "c";
   c.kind = SegmentKind::Cubic;
@@ -384,7 +388,7 @@ TEST(SceneIoErrors, UnknownKeysGetAHint) {
                   "materials.wall: unknown key \"reflectivty\"; did you mean \"reflectivity\"?");
   // Nothing close: list what is accepted.
   EXPECT_CONTAINS(error_of(edited([](Json& j) { j["materials"]["wall"]["zzzzzzzz"] = 0.2; })),
-                  "unknown key \"zzzzzzzz\"; the keys here are \"reflectivity\", \"emittance\"");
+                  "unknown key \"zzzzzzzz\"; the keys here are \"type\", \"reflectivity\", \"emittance\"");
 }
 
 TEST(SceneIoErrors, DuplicateKeys) {
@@ -504,6 +508,92 @@ TEST(SceneIoErrors, ReflectivityAndEmittanceRanges) {
                   "curves[0].emittance[1]: must be >= 0");
   // Just below 1 is accepted.
   EXPECT_TRUE(parse(edited([](Json& j) { j["materials"]["wall"]["reflectivity"] = 0.999999; })).ok());
+}
+
+TEST(SceneIo, SpecularMaterialsAndTheirDefaults) {
+  const Result<Scene> r = parse(edited([](Json& j) {
+    j["materials"]["mirror"] = {{"type", "mirror"}};
+    j["materials"]["tinted"] = {{"type", "mirror"}, {"reflectance", {0.9, 0.5, 0.2}}};
+    j["materials"]["glass"] = {{"type", "dielectric"}, {"ior", 1.5}};
+    j["materials"]["flint"] = {
+        {"type", "dielectric"}, {"ior", {{"cauchy", {1.6, 0.01}}}}, {"ior_back", 1.33}, {"absorption", 0.5}};
+    j["materials"]["probe"] = {{"type", "detector"}, {"bins", 16}};
+    j["materials"]["plain"] = {{"type", "diffuse"}, {"reflectivity", 0.3}};
+    j["curves"][1]["material"] = "glass";
+  }));
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  const Scene& s = *r;
+  auto material = [&](const std::string& name) -> const Material& {
+    for (const Material& m : s.materials)
+      if (m.name == name) return m;
+    ADD_FAILURE() << name;
+    return s.materials[0];
+  };
+  EXPECT_EQ(material("lamp").optics, Optics::Diffuse);
+  EXPECT_EQ(material("plain").optics, Optics::Diffuse);
+  EXPECT_EQ(material("mirror").optics, Optics::Mirror);
+  EXPECT_EQ(material("mirror").reflectance, (Spectrum{1.0, 1.0, 1.0}));
+  EXPECT_EQ(material("tinted").reflectance, (Spectrum{0.9, 0.5, 0.2}));
+  EXPECT_EQ(s.channels, 3);  // an [r, g, b] reflectance makes the scene colour
+  EXPECT_EQ(material("glass").optics, Optics::Dielectric);
+  EXPECT_DOUBLE_EQ(material("glass").ior.at(0.5), 1.5);
+  EXPECT_DOUBLE_EQ(material("glass").ior_back, 1.0);
+  EXPECT_DOUBLE_EQ(material("flint").ior.at(0.5), 1.6 + 0.01 / 0.25);
+  EXPECT_DOUBLE_EQ(material("flint").ior_back, 1.33);
+  EXPECT_EQ(material("flint").absorption, (Spectrum{0.5, 0.5, 0.5}));
+  EXPECT_EQ(material("probe").optics, Optics::Detector);
+  EXPECT_EQ(material("probe").detector_bins, 16u);
+  EXPECT_TRUE(s.has_specular());
+  // A specular curve holds no diffuse light on either side.
+  EXPECT_FALSE(s.stores(s.curves[1], Side::Front));
+  EXPECT_TRUE(s.stores(s.curves[0], Side::Front));
+}
+
+TEST(SceneIoErrors, SpecularMaterials) {
+  EXPECT_CONTAINS(error_of(edited([](Json& j) { j["materials"]["wall"]["type"] = "mirorr"; })),
+                  "materials.wall.type: unknown material type \"mirorr\"; did you mean \"mirror\"? (accepted: "
+                  "\"diffuse\", \"mirror\", \"dielectric\", \"detector\")");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) {
+                    j["materials"]["wall"] = {{"type", "mirror"}, {"emittance", 1}};
+                  })),
+                  "materials.wall.emittance: a mirror does not emit; give the lamp a diffuse material of its own");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) {
+                    j["materials"]["wall"] = {{"type", "mirror"}, {"reflectivity", 0.5}};
+                  })),
+                  "materials.wall.reflectivity: a mirror reflects specularly: give its fraction as \"reflectance\"");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) {
+                    j["materials"]["wall"] = {{"type", "mirror"}, {"reflectance", 1.5}};
+                  })),
+                  "materials.wall.reflectance: must be in [0, 1] (the fraction reflected), got 1.5");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) {
+                    j["materials"]["wall"] = {{"type", "dielectric"}};
+                  })),
+                  "materials.wall: missing \"ior\"");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) {
+                    j["materials"]["wall"] = {{"type", "dielectric"}, {"ior", 0.5}};
+                  })),
+                  "materials.wall.ior: a refractive index must be in [1, 10] (1 is vacuum, 1.5 glass), got 0.5");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) {
+                    j["materials"]["wall"] = {{"type", "dielectric"}, {"ior", {{"cauchy", {1.0, -0.2}}}}};
+                  })),
+                  "materials.wall.ior.cauchy: gives n = ");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) {
+                    j["materials"]["wall"] = {{"type", "dielectric"}, {"ior", {{"cauchy", {1.5}}}}};
+                  })),
+                  "materials.wall.ior.cauchy: expected [A, B]");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) {
+                    j["materials"]["wall"] = {{"type", "dielectric"}, {"ior", 1.5}, {"absorption", -1}};
+                  })),
+                  "materials.wall.absorption: must be >= 0");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) {
+                    j["materials"]["wall"] = {{"type", "detector"}, {"bins", 2.5}};
+                  })),
+                  "materials.wall.bins: expected a whole number of bins from 1 to 4096, got 2.5");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) {
+                    j["materials"]["wall"] = {{"type", "mirror"}};
+                    j["curves"][1]["emittance"] = 1;
+                  })),
+                  "curves[1].emittance: material \"wall\" is not diffuse and does not emit");
 }
 
 TEST(SceneIoErrors, NumbersThatOverflowAreRejectedWithTheirPlace) {

@@ -161,6 +161,12 @@ nlohmann::json stats_to_json(const ResultStats& stats) {
       {"escaped_power", stats.books.escaped},
       {"unshot_power", stats.books.unshot},
   };
+  if (stats.specular) {
+    result["absorbed_by_mirrors_power"] = stats.books.absorbed_mirrors;
+    result["absorbed_in_glass_power"] = stats.books.absorbed_glass;
+    result["cut_power"] = stats.books.cut;
+    result["chains_cut"] = stats.chains_cut;
+  }
   if (stats.estimated_error) result["estimated_error"] = estimated_error_to_json(*stats.estimated_error);
   return result;
 }

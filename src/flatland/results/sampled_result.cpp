@@ -116,6 +116,8 @@ SampledResult sample_solver(const Solver& solver, int samples_per_curve, const E
   stats.seconds = solver.seconds();
   stats.stop_reason = solver.stop_reason();
   stats.books = solver.books();
+  stats.specular = scene.has_specular();
+  stats.chains_cut = solver.chains_cut();
   stats.estimated_error =
       estimate != nullptr ? *estimate : estimate_error(solver, {solver.settings().confidence, samples_per_curve});
   result.stats = stats;

@@ -59,6 +59,10 @@ struct ResultStats {
   double seconds = 0.0;
   StopReason stop_reason = StopReason::Running;
   EnergyBooks books;
+  // Scenes with mirrors, glass or detectors: the books' chain lines are written, and the photons
+  // cut at the chain limit.
+  bool specular = false;
+  std::uint64_t chains_cut = 0;
   // The solver's own estimate of its error (absent in documents that do not have one).
   std::optional<ErrorEstimate> estimated_error;
 };

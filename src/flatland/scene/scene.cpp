@@ -378,6 +378,12 @@ bool Scene::has_cubics() const {
   return false;
 }
 
+bool Scene::has_specular() const {
+  for (const Curve& c : curves)
+    if (material_of(c).optics != Optics::Diffuse) return true;
+  return false;
+}
+
 bool Scene::is_emitter(const Curve& c) const {
   for (int channel = 0; channel < channels; ++channel) {
     if (c.emittance[static_cast<std::size_t>(channel)] > 0.0) return true;

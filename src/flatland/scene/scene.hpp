@@ -44,11 +44,39 @@ struct Emission {
 // The scene file format version this program writes; it reads this one and version 1.
 inline constexpr int kSceneFormatVersion = 2;
 
+// What a surface does with the light that reaches it (docs/scene-format.md, docs/method.md).
+//  - Diffuse: keeps reflectivity times what it receives and reflects it diffusely (storage,
+//    reconstruction and origins are about these surfaces only).
+//  - Mirror: perfect specular reflection of `reflectance` (per channel) on the sides that the
+//    curve's `sides` names; the other side absorbs.
+//  - Dielectric: an interface between the index on the front (left) side and `ior_back` on the
+//    back: unpolarised Fresnel reflection, Snell refraction, total internal reflection; light
+//    crossing the front side's medium is attenuated by exp(-absorption x distance).
+//  - Detector: light passes untouched; the curve records the power crossing it.
+// Only diffuse materials emit.
+enum class Optics : std::uint8_t { Diffuse, Mirror, Dielectric, Detector };
+
+// A dielectric's refractive index at a wavelength: n = a + b / lambda^2, lambda in micrometres
+// (Cauchy's formula; b = 0 is a constant index).
+struct RefractiveIndex {
+  double a = 1.5;
+  double b = 0.0;
+  double at(double micrometres) const { return a + b / (micrometres * micrometres); }
+};
+// The wavelength at which light without a spectrum refracts: the helium d line.
+inline constexpr double kGreyWavelength = 0.5876;  // micrometres
+
 struct Material {
   std::string name;
-  Spectrum reflectivity{0.0, 0.0, 0.0};  // each channel in [0,1)
+  Spectrum reflectivity{0.0, 0.0, 0.0};  // Diffuse: each channel in [0,1)
   Spectrum emittance{0.0, 0.0, 0.0};     // power per unit length leaving each emitting side
   Emission emission;                     // directions of the emitted light
+  Optics optics = Optics::Diffuse;
+  Spectrum reflectance{1.0, 1.0, 1.0};   // Mirror: each channel in [0,1]
+  RefractiveIndex ior;                   // Dielectric: the front side's index
+  double ior_back = 1.0;                 // Dielectric: the back side's index
+  Spectrum absorption{0.0, 0.0, 0.0};    // Dielectric: per unit length in the front side's medium
+  std::uint32_t detector_bins = 32;      // Detector: bins along the arc length
 };
 
 struct Curve {
@@ -117,6 +145,10 @@ struct Scene {
   int format_version = kSceneFormatVersion;
 
   const Material& material_of(const Curve& c) const { return materials[c.material]; }
+  // Whether the curve's side `s` holds diffuse illumination (a diffuse material's named side).
+  bool stores(const Curve& c, Side s) const { return material_of(c).optics == Optics::Diffuse && c.has_side(s); }
+  // Whether some curve is a mirror, a dielectric or a detector (photons then follow chains).
+  bool has_specular() const;
   bool has_cubics() const;
   bool is_emitter(const Curve& c) const;
   // Total emitted power summed over channels and emitting sides.

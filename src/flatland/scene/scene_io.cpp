@@ -328,7 +328,7 @@ struct ParseFailure {
   std::string message;
 };
 
-enum class Quantity { Reflectivity, Emittance };
+enum class Quantity { Reflectivity, Emittance, Reflectance, Absorption };
 
 // Emittance values and profile factors (docs/scene-format.md, limits).
 constexpr double kMaxEmittance = 1e100;
@@ -505,7 +505,13 @@ class SceneReader {
   }
 
   void check_range(double x, const std::string& path, Quantity quantity) const {
-    if (quantity == Quantity::Reflectivity) {
+    if (quantity == Quantity::Reflectance) {
+      if (!(x >= 0.0 && x <= 1.0)) fail(path, "must be in [0, 1] (the fraction reflected), got " + format_number(x));
+    } else if (quantity == Quantity::Absorption) {
+      if (!(x >= 0.0 && x <= kMaxEmittance))
+        fail(path,
+             "must be >= 0 (attenuation per unit length inside), got " + format_number(x) + "; use 0 for clear glass");
+    } else if (quantity == Quantity::Reflectivity) {
       if (x < 0.0) fail(path, "must be in [0, 1), got " + format_number(x) + "; use 0 for black");
       if (x >= 1.0) {
         fail(path, "must be below 1: a surface that reflects everything never converges (got " + format_number(x) +
@@ -618,21 +624,115 @@ class SceneReader {
       if (!m.is_object()) {
         fail(path, "expected a material object {\"reflectivity\": ..., \"emittance\": ...}, got " + type_name(m));
       }
-      check_keys(m, path, {"reflectivity", "emittance", "emission"});
-      Material material;
+      Material material = read_material(m, path, colour);
       material.name = item.key();
-      if (const auto it = m.find("reflectivity"); it != m.end()) {
-        material.reflectivity = spectrum(*it, append_key(path, "reflectivity"), Quantity::Reflectivity, colour);
-      }
-      if (const auto it = m.find("emittance"); it != m.end()) {
-        material.emittance = spectrum(*it, append_key(path, "emittance"), Quantity::Emittance, colour);
-      }
-      if (const auto it = m.find("emission"); it != m.end())
-        material.emission = emission(*it, append_key(path, "emission"));
       material_index_.emplace(material.name, static_cast<std::uint32_t>(scene.materials.size()));
       material_names_.push_back(material.name);
       scene.materials.push_back(std::move(material));
     }
+  }
+
+  Material read_material(const Json& m, const std::string& path, bool& colour) const {
+    Material material;
+    if (const auto it = m.find("type"); it != m.end()) {
+      const std::string type = text_value(*it, append_key(path, "type"), "a material type");
+      if (type == "mirror") {
+        material.optics = Optics::Mirror;
+      } else if (type == "dielectric") {
+        material.optics = Optics::Dielectric;
+      } else if (type == "detector") {
+        material.optics = Optics::Detector;
+      } else if (type != "diffuse") {
+        fail_choice(append_key(path, "type"), "material type", type, {"diffuse", "mirror", "dielectric", "detector"});
+      }
+    }
+    if (material.optics != Optics::Diffuse) {
+      for (const char* key : {"emittance", "emission"})
+        if (m.contains(key))
+          fail(append_key(path, key), std::string("a ") + m.at("type").get<std::string>() +
+                                          " does not emit; give the lamp a diffuse material of its own");
+    }
+    if (material.optics != Optics::Diffuse && m.contains("reflectivity")) {
+      fail(append_key(path, "reflectivity"),
+           material.optics == Optics::Mirror
+               ? "a mirror reflects specularly: give its fraction as \"reflectance\" (in [0, 1]); \"reflectivity\" "
+                 "is a diffuse material's"
+           : material.optics == Optics::Dielectric
+               ? "a dielectric reflects by Fresnel's equations from its \"ior\"; remove \"reflectivity\""
+               : "a detector lets all light through; remove \"reflectivity\"");
+    }
+    switch (material.optics) {
+      case Optics::Diffuse:
+        check_keys(m, path, {"type", "reflectivity", "emittance", "emission"});
+        if (const auto it = m.find("reflectivity"); it != m.end())
+          material.reflectivity = spectrum(*it, append_key(path, "reflectivity"), Quantity::Reflectivity, colour);
+        if (const auto it = m.find("emittance"); it != m.end())
+          material.emittance = spectrum(*it, append_key(path, "emittance"), Quantity::Emittance, colour);
+        if (const auto it = m.find("emission"); it != m.end())
+          material.emission = emission(*it, append_key(path, "emission"));
+        break;
+      case Optics::Mirror:
+        check_keys(m, path, {"type", "reflectance"});
+        if (const auto it = m.find("reflectance"); it != m.end())
+          material.reflectance = spectrum(*it, append_key(path, "reflectance"), Quantity::Reflectance, colour);
+        break;
+      case Optics::Dielectric:
+        check_keys(m, path, {"type", "ior", "ior_back", "absorption"});
+        material.ior = refractive_index(require(m, path, "ior", "give the index, e.g. \"ior\": 1.5 (glass)"),
+                                        append_key(path, "ior"));
+        if (const auto it = m.find("ior_back"); it != m.end()) {
+          material.ior_back = number(*it, append_key(path, "ior_back"));
+          check_index(material.ior_back, append_key(path, "ior_back"));
+        }
+        if (const auto it = m.find("absorption"); it != m.end())
+          material.absorption = spectrum(*it, append_key(path, "absorption"), Quantity::Absorption, colour);
+        break;
+      case Optics::Detector:
+        check_keys(m, path, {"type", "bins"});
+        if (const auto it = m.find("bins"); it != m.end()) {
+          const double bins = number(*it, append_key(path, "bins"));
+          if (!(bins >= 1.0 && bins <= 4096.0) || bins != std::floor(bins))
+            fail(append_key(path, "bins"),
+                 "expected a whole number of bins from 1 to 4096, got " + format_number(bins));
+          material.detector_bins = static_cast<std::uint32_t>(bins);
+        }
+        break;
+    }
+    return material;
+  }
+
+  // A refractive index: a number, or {"cauchy": [A, B]} (n = A + B / lambda^2, lambda in um).
+  RefractiveIndex refractive_index(const Json& v, const std::string& path) const {
+    RefractiveIndex index;
+    if (v.is_number()) {
+      index.a = number(v, path);
+      check_index(index.a, path);
+      return index;
+    }
+    if (!v.is_object() || v.size() != 1 || !v.contains("cauchy"))
+      fail(path,
+           "expected an index (a number >= 1) or {\"cauchy\": [A, B]} (n = A + B / lambda^2, lambda in "
+           "micrometres), got " +
+               type_name(v));
+    const Json& c = v.at("cauchy");
+    const std::string cauchy_path = append_key(path, "cauchy");
+    if (!c.is_array() || c.size() != 2)
+      fail(cauchy_path, "expected [A, B] (n = A + B / lambda^2, lambda in micrometres), e.g. [1.5046, 0.0042] (BK7)");
+    index.a = number(c[0], append_index(cauchy_path, 0));
+    index.b = number(c[1], append_index(cauchy_path, 1));
+    // The index must stay a physical one over the visible range (360 to 830 nm).
+    for (double lambda : {0.36, 0.83}) {
+      const double n = index.at(lambda);
+      if (!(n >= 1.0 && n <= 10.0))
+        fail(cauchy_path, "gives n = " + format_number(n) + " at " + format_number(lambda * 1000.0) +
+                              " nm; the index must stay in [1, 10] from 360 to 830 nm");
+    }
+    return index;
+  }
+
+  void check_index(double n, const std::string& path) const {
+    if (!(n >= 1.0 && n <= 10.0))
+      fail(path, "a refractive index must be in [1, 10] (1 is vacuum, 1.5 glass), got " + format_number(n));
   }
 
   void read_curves(const Json& root, Scene& scene, bool& colour) {
@@ -677,6 +777,12 @@ class SceneReader {
     }
     curve.material = found->second;
     curve.emittance = scene.materials[found->second].emittance;
+    if (scene.materials[found->second].optics != Optics::Diffuse) {
+      for (const char* key : {"emittance", "emittance_profile"})
+        if (v.contains(key))
+          fail(append_key(path, key),
+               "material " + quote(material) + " is not diffuse and does not emit; give the lamp a diffuse material");
+    }
 
     const bool has_line = v.contains("line");
     const bool has_bezier = v.contains("bezier");

@@ -19,13 +19,19 @@
 
 namespace flatland {
 
-// Power summed over channels. emitted = absorbed + escaped + unshot after every round.
+// Power summed over channels. emitted = absorbed + escaped + unshot + what ended in specular
+// chains (absorbed by mirrors, absorbed in glass, cut at the chain limit) after every round.
 struct EnergyBooks {
   double emitted = 0.0;
   double absorbed = 0.0;
   double escaped = 0.0;
   double unshot = 0.0;
-  double imbalance() const { return emitted - (absorbed + escaped + unshot); }
+  double absorbed_mirrors = 0.0;
+  double absorbed_glass = 0.0;
+  double cut = 0.0;
+  double imbalance() const {
+    return emitted - (absorbed + escaped + unshot + absorbed_mirrors + absorbed_glass + cut);
+  }
 };
 
 // A finished round as a transport reads it: its deposits per thread (per replicate, coefficient and
@@ -35,6 +41,7 @@ struct RoundTotals {
   std::span<const Deposits> deposits;
   std::array<std::int64_t, 3> escaped{};
   std::array<std::int64_t, 3> absorbed{};
+  std::array<std::array<std::int64_t, 3>, kChainLosses> lost{};  // by ChainLoss
   double inverse_scale = 0.0;
   std::uint64_t photons = 0;       // of this round
   std::uint64_t photons_shot = 0;  // of the solve, this round's included
@@ -76,6 +83,10 @@ class LightTransport {
   virtual void add_open_round(std::vector<double>& received, std::vector<double>& parts,
                               const std::vector<double>& open, const std::vector<double>& open_parts, double before,
                               double done, double photons) const = 0;
+  // A finished round's tallies (power per entry, e.g. the detectors') into their running values
+  // as the received power is (shooting: summed over rounds; walks: averaged).
+  virtual void add_tallies(std::vector<double>& running, const std::vector<double>& round_values,
+                           const RoundTotals& round) const = 0;
   // Adds the absorbed, escaped and unshot power to `books` (emitted already in it).
   virtual void add_books(EnergyBooks& books, int channels, std::uint32_t rounds) const = 0;
 };

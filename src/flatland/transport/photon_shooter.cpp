@@ -5,6 +5,7 @@
 #include <numbers>
 
 #include "flatland/base/portable_math.hpp"
+#include "flatland/transport/optics.hpp"
 #include "flatland/transport/qmc.hpp"
 
 namespace flatland {
@@ -148,12 +149,27 @@ inline PhotonPath* start_path(std::vector<PhotonPath>* paths, std::size_t path_l
 
 }  // namespace
 
-void Deposits::reset(std::size_t size) {
+void Deposits::reset(std::size_t size, std::size_t detected_size) {
   received.assign(size, 0);
   escaped = {};
   absorbed = {};
   shot = {};
+  lost = {};
+  chains_cut = 0;
+  detected.assign(detected_size, 0);
   rays = 0;
+}
+
+DetectorLayout detector_layout(const Scene& scene) {
+  DetectorLayout layout;
+  layout.offsets.assign(scene.curves.size(), kNoDetector);
+  for (std::size_t c = 0; c < scene.curves.size(); ++c) {
+    const Material& material = scene.material_of(scene.curves[c]);
+    if (material.optics != Optics::Detector) continue;
+    layout.offsets[c] = static_cast<std::uint32_t>(layout.size);
+    layout.size += 2 * std::size_t{material.detector_bins} * static_cast<std::size_t>(scene.channels);
+  }
+  return layout;
 }
 
 PhotonShooter::PhotonShooter(const Scene& scene, const SolverSettings& settings, SegmentAccelerator accelerator,
@@ -166,6 +182,8 @@ PhotonShooter::PhotonShooter(const Scene& scene, const SolverSettings& settings,
       ray_profile_(settings.ray_profile),
       accelerator_(std::move(accelerator)),
       walls_(std::move(walls)) {
+  chains_ = scene.has_specular();
+  detectors_ = detector_layout(scene);
   const bool reconstructed = settings.sampling == PositionSampling::Reconstructed;
   by_hermite_ = reconstructed && settings.basis == BasisKind::Hermite;
   by_coefficient_ = reconstructed && !by_hermite_;
@@ -195,10 +213,20 @@ void PhotonShooter::shoot(const RoundView& round, Rng& rng, std::uint64_t first,
                           std::vector<PhotonPath>* paths, std::size_t path_limit) const {
   // The ray kind is fixed per solve: each kind gets its own compiled loop, so point rays carry no
   // footprint or band code at all.
+  // So is whether flights follow specular chains.
+  if (chains_) {
+    switch (ray_kind_) {
+      case RayKind::Point: return shoot_rays<RayKind::Point, true>(round, rng, first, count, acc, paths, path_limit);
+      case RayKind::Footprint:
+        return shoot_rays<RayKind::Footprint, true>(round, rng, first, count, acc, paths, path_limit);
+      case RayKind::Band: return shoot_rays<RayKind::Band, true>(round, rng, first, count, acc, paths, path_limit);
+    }
+  }
   switch (ray_kind_) {
-    case RayKind::Point: return shoot_rays<RayKind::Point>(round, rng, first, count, acc, paths, path_limit);
-    case RayKind::Footprint: return shoot_rays<RayKind::Footprint>(round, rng, first, count, acc, paths, path_limit);
-    case RayKind::Band: return shoot_rays<RayKind::Band>(round, rng, first, count, acc, paths, path_limit);
+    case RayKind::Point: return shoot_rays<RayKind::Point, false>(round, rng, first, count, acc, paths, path_limit);
+    case RayKind::Footprint:
+      return shoot_rays<RayKind::Footprint, false>(round, rng, first, count, acc, paths, path_limit);
+    case RayKind::Band: return shoot_rays<RayKind::Band, false>(round, rng, first, count, acc, paths, path_limit);
   }
 }
 
@@ -222,7 +250,7 @@ void PhotonShooter::shoot(const RoundView& round, Rng& rng, std::uint64_t first,
   return sample_uniform_origin(*scene_, curve, segment_choice_[curve_index], line_tangents_, draws);
 }
 
-template <PhotonShooter::RayKind kRays>
+template <PhotonShooter::RayKind kRays, bool kChains>
 void PhotonShooter::shoot_rays(const RoundView& round, Rng& rng, std::uint64_t first, std::uint64_t count,
                                Deposits& acc, std::vector<PhotonPath>* paths, std::size_t path_limit) const {
   const SceneStorage& storage = *round.storage;
@@ -266,7 +294,7 @@ void PhotonShooter::shoot_rays(const RoundView& round, Rng& rng, std::uint64_t f
     const std::uint32_t curve_index = block / 2;
     const bool back = (block & 1u) != 0;
     const Curve& curve = scene_->curves[curve_index];
-    const std::array<std::int64_t, 3>& units = plan.photon_units[source];
+    std::array<std::int64_t, 3> units = plan.photon_units[source];
     for (std::size_t ch = 0; ch < channels; ++ch) acc.shot[ch] += units[ch];
 
     OriginDraws draws{rng, net_point, place};
@@ -277,13 +305,14 @@ void PhotonShooter::shoot_rays(const RoundView& round, Rng& rng, std::uint64_t f
     PhotonPath* path =
         start_path(paths, path_limit, leaves, curve_index, back, units, channels, plan.scale, round.bounce);
     if constexpr (kRays == RayKind::Band) {
-      shoot_band(round, leaves, back, normal, direction, units, acc, path, footprint);
+      shoot_band<kChains>(round, rng, leaves, back, normal, direction, units, acc, path, footprint);
     } else {
-      const Ray ray{leaves.position, direction};
-      const SceneHit hit = accelerator_.closest_hit(ray, RayOrigin{leaves.segment, leaves.t});
+      Ray ray{leaves.position, direction};
+      SceneHit hit = accelerator_.closest_hit(ray, RayOrigin{leaves.segment, leaves.t});
       ++acc.rays;
-      receive<kRays>(round, hit, ray, units, acc, path, footprint);
-      if (round.photons_go_on) walk_on<kRays>(round, rng, hit, ray, units, acc, paths, path_limit, path, footprint);
+      const bool lands = receive<kRays, kChains>(round, rng, hit, ray, units, acc, path, footprint);
+      if (lands && round.photons_go_on)
+        walk_on<kRays, kChains>(round, rng, hit, ray, units, acc, paths, path_limit, path, footprint);
     }
   }
 }
@@ -294,7 +323,8 @@ void PhotonShooter::shoot_rays(const RoundView& round, Rng& rng, std::uint64_t f
 // start does not face its direction (the source bends away) leaves from the centre instead. Each
 // carries its share of the units, the last one the remainder, and deposits where it lands; the
 // middle one continues the photon's path.
-void PhotonShooter::shoot_band(const RoundView& round, const Origin& leaves, bool back, Vec2 normal, Vec2 direction,
+template <bool kChains>
+void PhotonShooter::shoot_band(const RoundView& round, Rng& rng, const Origin& leaves, bool back, Vec2 normal, Vec2 direction,
                                const std::array<std::int64_t, 3>& units, Deposits& acc, PhotonPath* path,
                                std::vector<FootprintWeight>& footprint) const {
   const auto channels = static_cast<std::size_t>(round.storage->channels());
@@ -325,10 +355,10 @@ void PhotonShooter::shoot_band(const RoundView& round, const Origin& leaves, boo
         start = leaves.position;
       }
     }
-    const Ray sub{start, direction};
-    const SceneHit hit = accelerator_.closest_hit(sub, RayOrigin{leaves.segment, t_i});
-    receive<RayKind::Point>(round, hit, sub, share, acc, ray_index == band_offsets_.size() / 2 ? path : nullptr,
-                            footprint);
+    Ray sub{start, direction};
+    SceneHit hit = accelerator_.closest_hit(sub, RayOrigin{leaves.segment, t_i});
+    receive<RayKind::Point, kChains>(round, rng, hit, sub, share, acc,
+                                     ray_index == band_offsets_.size() / 2 ? path : nullptr, footprint);
   }
   acc.rays += band_offsets_.size();
 }
@@ -349,7 +379,7 @@ Side PhotonShooter::side_hit(const SceneHit& hit, const Ray& ray, Vec2& tangent)
   return cross(tangent, ray.direction) < 0.0 ? Side::Front : Side::Back;
 }
 
-template <PhotonShooter::RayKind kRays>
+template <PhotonShooter::RayKind kRays, bool kChains>
 void PhotonShooter::walk_on(const RoundView& round, Rng& rng, SceneHit hit, Ray ray, std::array<std::int64_t, 3> units,
                             Deposits& acc, std::vector<PhotonPath>* paths, std::size_t path_limit, PhotonPath* last,
                             std::vector<FootprintWeight>& footprint) const {
@@ -414,23 +444,28 @@ void PhotonShooter::walk_on(const RoundView& round, Rng& rng, SceneHit hit, Ray 
       path->bounce = bounce;
     }
     last = path;
-    receive<kRays>(round, hit, ray, units, acc, path, footprint);
+    if (!receive<kRays, kChains>(round, rng, hit, ray, units, acc, path, footprint)) return;
   }
 }
 
-template <PhotonShooter::RayKind kRays>
-void PhotonShooter::receive(const RoundView& round, const SceneHit& hit, const Ray& ray,
-                            const std::array<std::int64_t, 3>& units, Deposits& acc, PhotonPath* path,
+template <PhotonShooter::RayKind kRays, bool kChains>
+bool PhotonShooter::receive(const RoundView& round, Rng& rng, SceneHit& hit, Ray& ray,
+                            std::array<std::int64_t, 3>& units, Deposits& acc, PhotonPath* path,
                             std::vector<FootprintWeight>& footprint) const {
   const SceneStorage& storage = *round.storage;
   const auto channels = static_cast<std::size_t>(storage.channels());
+  if constexpr (kChains) {
+    if (!follow_chain(rng, hit, ray, units, channels, acc, path)) return false;
+  } else {
+    (void)rng;
+  }
   if (hit.segment == kNoSegment) {
     for (std::size_t ch = 0; ch < channels; ++ch) acc.escaped[ch] += units[ch];
     if (path != nullptr) {
       path->escaped = true;
       path->end = ray.origin + ray.direction;
     }
-    return;
+    return true;
   }
   const SegmentInfo& info = segment_info_[hit.segment];
   Vec2 hit_tangent;
@@ -446,7 +481,7 @@ void PhotonShooter::receive(const RoundView& round, const SceneHit& hit, const R
   // power whatever the deposit's shape: no footprint or deposit is computed for it.
   if (offset == SceneStorage::kNoBlock || storage.block_black(info.curve * 2 + static_cast<std::uint32_t>(side))) {
     for (std::size_t ch = 0; ch < channels; ++ch) acc.absorbed[ch] += units[ch];
-    return;
+    return true;
   }
   const double u = info.index_in_curve + hit.t;
   if constexpr (kRays == RayKind::Footprint) {
@@ -488,6 +523,120 @@ void PhotonShooter::receive(const RoundView& round, const SceneHit& hit, const R
       }
       target[basis.index(first + degree) * channels + ch] += left;
     }
+  }
+  return true;
+}
+
+// The specular chain (docs/method.md, "Mirrors, glass and detectors"). Every event restarts the
+// flight on the curve itself (the point at the hit's parameter, that segment tested with the
+// deflated query), as a diffuse bounce does. Each channel's power changes only by deterministic
+// factors (a mirror's reflectance, the medium's transmittance), rounded to units with the
+// remainder booked as lost, so the books stay exact; the choice between reflection and refraction
+// is a draw with the Fresnel reflectance as its probability, so every photon keeps its power.
+bool PhotonShooter::follow_chain(Rng& rng, SceneHit& hit, Ray& ray, std::array<std::int64_t, 3>& units,
+                                 std::size_t channels, Deposits& acc, PhotonPath* path) const {
+  // The attenuation per unit length of the medium the flight crosses (null: none). Light leaving
+  // a diffuse side or an emitter starts in a clear medium; a dielectric's front side has its
+  // absorption, its back side none.
+  const Spectrum* medium = nullptr;
+  auto lose = [&](ChainLoss where, Vec2 at) {
+    for (std::size_t ch = 0; ch < channels; ++ch) acc.lost[static_cast<std::size_t>(where)][ch] += units[ch];
+    if (path != nullptr) {
+      path->end = at;
+      path->absorbed = true;
+      if (hit.segment != kNoSegment) path->hit_curve = segment_info_[hit.segment].curve;
+    }
+    return false;
+  };
+  for (std::uint32_t events = 0;; ++events) {
+    if (medium != nullptr) {
+      // Beer-Lambert over the flight; a flight that leaves the scene inside an absorbing medium
+      // never comes out of it.
+      std::int64_t carried = 0;
+      for (std::size_t ch = 0; ch < channels; ++ch) {
+        const double kept_fraction =
+            hit.segment == kNoSegment ? 0.0 : portable::exp(-(*medium)[ch] * hit.distance);
+        const auto kept = static_cast<std::int64_t>(static_cast<double>(units[ch]) * kept_fraction + 0.5);
+        acc.lost[static_cast<std::size_t>(ChainLoss::Glass)][ch] += units[ch] - kept;
+        units[ch] = kept;
+        carried += kept;
+      }
+      if (carried == 0) return lose(ChainLoss::Glass, ray.origin + (hit.segment == kNoSegment ? 1.0 : hit.distance) * ray.direction);
+    }
+    if (hit.segment == kNoSegment) return true;
+    const SegmentInfo& info = segment_info_[hit.segment];
+    const Curve& curve = scene_->curves[info.curve];
+    const Material& material = scene_->material_of(curve);
+    if (material.optics == Optics::Diffuse) return true;
+    const SceneSegment& segment = scene_->segments[hit.segment];
+    const Cubic& shape = segment.geometry.shape;
+    const Vec2 point =
+        segment.geometry.kind == SegmentKind::Line ? lerp(shape.p[0], shape.p[3], hit.t) : evaluate(shape, hit.t);
+    if (events == kChainLimit) {
+      ++acc.chains_cut;
+      return lose(ChainLoss::Limit, point);
+    }
+    Vec2 tangent;
+    const Side side = side_hit(hit, ray, tangent);
+    const Vec2 front = perp(normalized(tangent));
+    const Vec2 facing = side == Side::Front ? front : -front;  // the normal on the arriving side
+    const double cos_in = std::clamp(-dot(ray.direction, facing), 0.0, 1.0);
+    Vec2 direction = ray.direction;
+    switch (material.optics) {
+      case Optics::Diffuse: break;
+      case Optics::Detector: {
+        // Tallied where it crosses; the flight goes on unchanged.
+        const double s = arc_length_at(*scene_, curve, info.index_in_curve + hit.t);
+        const std::uint32_t bins = material.detector_bins;
+        const auto bin = std::min(bins - 1, static_cast<std::uint32_t>(std::max(0.0, s / curve.length * bins)));
+        std::int64_t* tally = acc.detected.data() + detectors_.offsets[info.curve] +
+                              (static_cast<std::size_t>(side) * bins + bin) * channels;
+        for (std::size_t ch = 0; ch < channels; ++ch) tally[ch] += units[ch] >> kDetectorShift;
+        break;
+      }
+      case Optics::Mirror: {
+        if (!curve.has_side(side)) return lose(ChainLoss::Mirrors, point);
+        std::int64_t carried = 0;
+        for (std::size_t ch = 0; ch < channels; ++ch) {
+          const auto kept = static_cast<std::int64_t>(static_cast<double>(units[ch]) * material.reflectance[ch] + 0.5);
+          acc.lost[static_cast<std::size_t>(ChainLoss::Mirrors)][ch] += units[ch] - kept;
+          units[ch] = kept;
+          carried += kept;
+        }
+        if (carried == 0) return lose(ChainLoss::Mirrors, point);
+        direction = ray.direction + (2.0 * cos_in) * facing;
+        break;
+      }
+      case Optics::Dielectric: {
+        // Snell: n1 sin(in) = n2 sin(out); unpolarised Fresnel reflectance, the mean of s and p.
+        const double front_index = material.ior.at(kGreyWavelength);
+        const double n1 = side == Side::Front ? front_index : material.ior_back;
+        const double n2 = side == Side::Front ? material.ior_back : front_index;
+        const double eta = n1 / n2;
+        const double sin2_out = eta * eta * (1.0 - cos_in * cos_in);
+        bool reflects = true;  // total internal reflection when sin2_out >= 1
+        double cos_out = 0.0;
+        if (sin2_out < 1.0) {
+          cos_out = std::sqrt(1.0 - sin2_out);
+          reflects = rng.uniform() < fresnel_reflectance(n1, n2, cos_in, cos_out);
+        }
+        Side goes_to = side;
+        if (reflects) {
+          direction = ray.direction + (2.0 * cos_in) * facing;
+        } else {
+          direction = eta * ray.direction + (eta * cos_in - cos_out) * facing;
+          goes_to = side == Side::Front ? Side::Back : Side::Front;
+        }
+        const Spectrum& absorption = material.absorption;
+        const bool absorbing = absorption[0] > 0.0 || absorption[1] > 0.0 || absorption[2] > 0.0;
+        medium = goes_to == Side::Front && absorbing ? &absorption : nullptr;
+        break;
+      }
+    }
+    if (path != nullptr) path->via.push_back(point);
+    ray = Ray{point, normalized(direction)};
+    hit = accelerator_.closest_hit(ray, RayOrigin{hit.segment, hit.t});
+    ++acc.rays;
   }
 }
 

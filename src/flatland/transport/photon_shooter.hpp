@@ -48,7 +48,35 @@ struct PhotonPath {
   bool absorbed = false;
   // Walks: the walk went on after this flight, but the record was full (path_limit).
   bool cut = false;
+  // The points where the flight met mirrors, glass or detectors on its way from `origin` to `end`
+  // (empty in a scene without them); the flight ended in the chain when `absorbed` is set there.
+  std::vector<Vec2> via;
 };
+
+// Where power ends inside a specular chain (each a line of the energy books): absorbed by mirrors
+// (their reflectance below 1, or their side that does not reflect), absorbed in glass, or cut
+// with its photon after kChainLimit events.
+enum class ChainLoss : std::uint8_t { Mirrors = 0, Glass = 1, Limit = 2 };
+inline constexpr std::size_t kChainLosses = 3;
+// Specular events (reflections, refractions, detector crossings) one flight may take; a photon
+// still in a chain after that is cut and counted (a light guide's thousandth bounce, or a ray
+// caught between two parallel mirrors).
+inline constexpr std::uint32_t kChainLimit = 1000;
+
+// The detectors' tallies: detector curve c's bin b on side s (the side the light arrives on,
+// front: crossing from the front to the back) and channel ch at
+// offsets[c] + (s * bins + b) * channels + ch; offsets[c] = kNoDetector for other curves.
+inline constexpr std::uint32_t kNoDetector = 0xffffffffu;
+// A detector tallies a crossing's units divided by 2^kDetectorShift (rounded down: at most 2^-50 of
+// the round's power per crossing): a photon may cross detectors up to kChainLimit < 2^10 times,
+// and the tallies must stay within the round's 2^63 units as the deposits do.
+inline constexpr int kDetectorShift = 10;
+static_assert(kChainLimit < (1u << kDetectorShift));
+struct DetectorLayout {
+  std::vector<std::uint32_t> offsets;
+  std::size_t size = 0;
+};
+DetectorLayout detector_layout(const Scene& scene);
 
 // Integer deposits of one thread during one round. Its counters are written by every photon:
 // each thread's deposits start a cache line of their own (the threads' lie side by side in a
@@ -64,12 +92,17 @@ struct alignas(64) Deposits {
   // roulette's reweighting of its channels leaves power behind.
   std::array<std::int64_t, 3> absorbed{};
   std::array<std::int64_t, 3> shot{};
+  // Specular chains: power that ends in them (by ChainLoss), photons cut at kChainLimit, and the
+  // detectors' tallies (DetectorLayout).
+  std::array<std::array<std::int64_t, 3>, kChainLosses> lost{};
+  std::uint64_t chains_cut = 0;
+  std::vector<std::int64_t> detected;
   std::uint64_t rays = 0;
   // Scratch of shooting: the sources of the photons of a batch, chosen before any is shot, and
   // (Sobol') what each choice left of its coordinate.
   std::vector<std::uint32_t> sources;
   std::vector<double> places;
-  void reset(std::size_t size);
+  void reset(std::size_t size, std::size_t detected_size);
 };
 
 // What a round shoots, decided when it begins: its photons, the fixed point's scale, the sources
@@ -127,25 +160,36 @@ class PhotonShooter {
     std::uint32_t index_in_curve = 0;
     SegmentKind kind = SegmentKind::Line;
   };
-  template <RayKind kRays>
+  // kChains: the scene has mirrors, glass or detectors, and every flight follows its specular
+  // chain (follow_chain); a scene without them compiles loops with no trace of it.
+  template <RayKind kRays, bool kChains>
   void shoot_rays(const RoundView& round, Rng& rng, std::uint64_t first, std::uint64_t count, Deposits& deposits,
                   std::vector<PhotonPath>* paths, std::size_t path_limit) const;
   Origin leave(const RoundView& round, std::uint32_t curve_index, std::uint32_t block, std::size_t source,
                OriginDraws& draws) const;
-  void shoot_band(const RoundView& round, const Origin& leaves, bool back, Vec2 normal, Vec2 direction,
+  template <bool kChains>
+  void shoot_band(const RoundView& round, Rng& rng, const Origin& leaves, bool back, Vec2 normal, Vec2 direction,
                   const std::array<std::int64_t, 3>& units, Deposits& deposits, PhotonPath* path,
                   std::vector<FootprintWeight>& footprint) const;
-  // What a photon (or a band's sub-ray) carrying `units` does where it lands.
-  template <RayKind kRays>
-  void receive(const RoundView& round, const SceneHit& hit, const Ray& ray, const std::array<std::int64_t, 3>& units,
+  // What a photon (or a band's sub-ray) carrying `units` does where it lands: with kChains, first
+  // its specular chain, after which `hit`, `ray` and `units` are its last flight's and what that
+  // brings. Returns false when the photon ended in the chain (booked there).
+  template <RayKind kRays, bool kChains>
+  bool receive(const RoundView& round, Rng& rng, SceneHit& hit, Ray& ray, std::array<std::int64_t, 3>& units,
                Deposits& deposits, PhotonPath* path, std::vector<FootprintWeight>& footprint) const;
+  // The specular chain of a flight that landed at `hit`: while it is on a mirror, a dielectric or
+  // a detector, the photon reflects, refracts (by the Fresnel weight, drawn from `rng`, so every
+  // photon keeps its power) or passes, and flies on. Returns true with `hit` on a diffuse side or
+  // escaped; false when the photon ended in the chain (absorbed by a mirror or in glass, or cut).
+  bool follow_chain(Rng& rng, SceneHit& hit, Ray& ray, std::array<std::int64_t, 3>& units, std::size_t channels,
+                    Deposits& deposits, PhotonPath* path) const;
   // The side of a curve that `ray` hits; `tangent` gets the curve's (unnormalised) tangent there.
   Side side_hit(const SceneHit& hit, const Ray& ray, Vec2& tangent) const;
   // Walks: the rest of a walk whose first flight `ray` landed at `hit` carrying `units` (already
   // received there): Russian roulette, a diffuse bounce from the side hit, the next flight's
   // deposit, until the walk ends. Its flights' paths are appended while `paths` has room;
   // `first_path` is the first flight's (or null), marked when the walk ends where it landed.
-  template <RayKind kRays>
+  template <RayKind kRays, bool kChains>
   void walk_on(const RoundView& round, Rng& rng, SceneHit hit, Ray ray, std::array<std::int64_t, 3> units,
                Deposits& deposits, std::vector<PhotonPath>* paths, std::size_t path_limit, PhotonPath* first_path,
                std::vector<FootprintWeight>& footprint) const;
@@ -159,6 +203,8 @@ class PhotonShooter {
   double ray_width_ = 0.0;
   RayProfile ray_profile_ = RayProfile::Box;
   RayKind ray_kind_ = RayKind::Point;
+  bool chains_ = false;  // the scene has mirrors, glass or detectors
+  DetectorLayout detectors_;
   SegmentAccelerator accelerator_;
   std::vector<SegmentInfo> segment_info_;
   std::vector<Vec2> line_tangents_;                   // per segment: its unit tangent if a line, else zero

@@ -81,7 +81,7 @@ void SceneStorage::lay_out_blocks(const Scene& scene) {
     chosen_level_.push_back(static_cast<int>(levels_[c].size()));
     const Material& material = scene.material_of(curve);
     for (Side side : {Side::Front, Side::Back}) {
-      if (!curve.has_side(side)) continue;
+      if (!scene.stores(curve, side)) continue;  // mirrors, glass and detectors hold no light
       const std::uint32_t block = c * 2 + static_cast<std::uint32_t>(side);
       block_offset_[block] = static_cast<std::uint32_t>(coefficient_count_);
       block_reflectivity_[block] = material.reflectivity;
@@ -96,7 +96,7 @@ void SceneStorage::lay_out_blocks(const Scene& scene) {
   std::size_t in_chunk = 0;
   for (std::uint32_t c = 0; c < scene.curves.size(); ++c) {
     for (Side side : {Side::Front, Side::Back})
-      if (scene.curves[c].has_side(side)) in_chunk += storage_[c].basis.size();
+      if (scene.stores(scene.curves[c], side)) in_chunk += storage_[c].basis.size();
     if (in_chunk >= kChunkCoefficients || c + 1 == scene.curves.size()) {
       curve_chunks_.push_back(c + 1);
       in_chunk = 0;

@@ -66,6 +66,8 @@ void ProgressiveShooting::end_round(const SceneStorage& storage, const RoundTota
   for (std::size_t ch = 0; ch < channels; ++ch) {
     escaped_[ch].add(static_cast<double>(round.escaped[ch]) * round.inverse_scale);
     absorbed_[ch].add(static_cast<double>(round.absorbed[ch]) * round.inverse_scale);
+    for (std::size_t loss = 0; loss < kChainLosses; ++loss)
+      lost_[loss][ch].add(static_cast<double>(round.lost[loss][ch]) * round.inverse_scale);
   }
   previous_unshot_ = previous_pool;
 }
@@ -77,10 +79,19 @@ void ProgressiveShooting::add_open_round(std::vector<double>& received, std::vec
   for (std::size_t index = 0; index < open_parts.size(); ++index) parts[index] += open_parts[index];
 }
 
+void ProgressiveShooting::add_tallies(std::vector<double>& running, const std::vector<double>& round_values,
+                                      const RoundTotals&) const {
+  for (std::size_t i = 0; i < running.size(); ++i) running[i] += round_values[i];
+}
+
 void ProgressiveShooting::add_books(EnergyBooks& books, int channels, std::uint32_t) const {
   for (int ch = 0; ch < channels; ++ch) {
-    books.absorbed += absorbed_[static_cast<std::size_t>(ch)].value();
-    books.escaped += escaped_[static_cast<std::size_t>(ch)].value();
+    const auto c = static_cast<std::size_t>(ch);
+    books.absorbed += absorbed_[c].value();
+    books.escaped += escaped_[c].value();
+    books.absorbed_mirrors += lost_[static_cast<std::size_t>(ChainLoss::Mirrors)][c].value();
+    books.absorbed_glass += lost_[static_cast<std::size_t>(ChainLoss::Glass)][c].value();
+    books.cut += lost_[static_cast<std::size_t>(ChainLoss::Limit)][c].value();
   }
   for (double value : unshot_) books.unshot += value;
 }

@@ -44,12 +44,15 @@ class ProgressiveShooting final : public LightTransport {
                  std::vector<double>& parts) override;
   void add_open_round(std::vector<double>& received, std::vector<double>& parts, const std::vector<double>& open,
                       const std::vector<double>& open_parts, double before, double done, double photons) const override;
+  void add_tallies(std::vector<double>& running, const std::vector<double>& round_values,
+                   const RoundTotals& round) const override;
   void add_books(EnergyBooks& books, int channels, std::uint32_t rounds) const override;
 
  private:
   std::vector<double> unshot_;                // the pool, per coefficient and channel
   std::array<CompensatedSum, 3> absorbed_{};  // over all rounds
   std::array<CompensatedSum, 3> escaped_{};
+  std::array<std::array<CompensatedSum, 3>, kChainLosses> lost_{};  // by ChainLoss
   double emitted_ = 0.0;
   double initial_ratio_ = 0.5;
   double previous_unshot_ = 0.0;

@@ -189,6 +189,8 @@ Status Solver::start_transport() {
     return Error{message};
   }
   received_.assign(size, 0.0);
+  detectors_ = flatland::detector_layout(scene);
+  detected_.assign(detectors_.size, 0.0);
   if (settings_.replicates > 1) received_parts_.assign(size * static_cast<std::size_t>(settings_.replicates), 0.0);
   if (auto_storage_) received_half_.assign(size, 0.0);
   readers_.coefficients.assign(size, 0.0);
@@ -262,7 +264,8 @@ RoundView Solver::round_view() const {
 }
 
 std::size_t Solver::round_message_size() const {
-  return storage_.coefficient_count() * static_cast<std::size_t>(channels_ * settings_.replicates) + 12;
+  return storage_.coefficient_count() * static_cast<std::size_t>(channels_ * settings_.replicates) + detectors_.size +
+         22;
 }
 
 bool Solver::begin_round() {
@@ -354,6 +357,12 @@ bool Solver::next_pass_or_stop(double unshot) {
   passes_books_.absorbed += n * pass_books.absorbed;
   passes_books_.escaped += n * pass_books.escaped;
   passes_books_.unshot += n * pass_books.unshot;
+  passes_books_.absorbed_mirrors += n * pass_books.absorbed_mirrors;
+  passes_books_.absorbed_glass += n * pass_books.absorbed_glass;
+  passes_books_.cut += n * pass_books.cut;
+  passes_detected_.resize(detected_.size(), 0.0);
+  for (std::size_t i = 0; i < detected_.size(); ++i) passes_detected_[i] += n * detected_[i];
+  std::fill(detected_.begin(), detected_.end(), 0.0);
   passes_photons_ += n;
   ++passes_;
   std::fill(received_.begin(), received_.end(), 0.0);
@@ -463,14 +472,24 @@ void Solver::end_round(std::span<const Deposits> deposits) {
   totals.photons = round_.photons;
   totals.photons_shot = photons_shot_;
   totals.replicates = static_cast<std::size_t>(settings_.replicates);
+  std::vector<std::int64_t> detected_units(detectors_.size, 0);
   for (const Deposits& d : deposits) {
     for (std::size_t ch = 0; ch < channels; ++ch) {
       totals.escaped[ch] += d.escaped[ch];
       totals.absorbed[ch] += d.absorbed[ch];
+      for (std::size_t loss = 0; loss < kChainLosses; ++loss) totals.lost[loss][ch] += d.lost[loss][ch];
     }
+    for (std::size_t i = 0; i < detectors_.size; ++i) detected_units[i] += d.detected[i];
     rays_traced_ += d.rays;
+    chains_cut_ += d.chains_cut;
   }
   transport().end_round(storage_, totals, received_, received_parts_);
+  if (detectors_.size > 0) {
+    std::vector<double> round_detected(detectors_.size);
+    const double unit = std::ldexp(totals.inverse_scale, kDetectorShift);
+    for (std::size_t i = 0; i < detectors_.size; ++i) round_detected[i] = static_cast<double>(detected_units[i]) * unit;
+    transport().add_tallies(detected_, round_detected, totals);
+  }
   if (passes_photons_ > 0.0) mix_passes();
   if (auto_storage_) sum_odd_parts(passes_photons_ > 0.0 ? mixed_parts_ : received_parts_, received_half_);
   update_reflected(received(), received_half_);
@@ -486,11 +505,12 @@ void Solver::check_books() {
   const double allowed = emitted_total_ * (1e-12 + static_cast<double>(photons_shot_) * 3.0 *
                                                        std::ldexp(1.0, transport().most_headroom_bits() - 60));
   if (!(std::fabs(totals.imbalance()) <= allowed)) {
-    char message[256];
+    char message[400];
     std::snprintf(message, sizeof message,
                   "energy books do not balance after round %u: emitted %.17g, absorbed %.17g, "
-                  "escaped %.17g, unshot %.17g",
-                  rounds_, totals.emitted, totals.absorbed, totals.escaped, totals.unshot);
+                  "escaped %.17g, unshot %.17g, absorbed by mirrors %.17g, in glass %.17g, cut %.17g",
+                  rounds_, totals.emitted, totals.absorbed, totals.escaped, totals.unshot, totals.absorbed_mirrors,
+                  totals.absorbed_glass, totals.cut);
     books_error_ = message;
     stop_reason_ = StopReason::BooksUnbalanced;
   }
@@ -635,7 +655,8 @@ std::uint64_t Solver::step_photons(std::uint64_t max_photons, const std::atomic<
     round_done_ = 0;
     round_deposits_.resize(threads_);
     for (Deposits& deposits : round_deposits_)
-      deposits.reset(storage_.coefficient_count() * static_cast<std::size_t>(channels_ * settings_.replicates));
+      deposits.reset(storage_.coefficient_count() * static_cast<std::size_t>(channels_ * settings_.replicates),
+                     detectors_.size);
   }
   const Clock::time_point start = Clock::now();
   const std::uint64_t first = round_done_;
@@ -747,14 +768,21 @@ std::pair<std::uint64_t, bool> Solver::share_round(std::uint64_t photons_done, b
       total.escaped[ch] += acc.escaped[ch];
       total.absorbed[ch] += acc.absorbed[ch];
       total.shot[ch] += acc.shot[ch];
+      for (std::size_t loss = 0; loss < kChainLosses; ++loss) total.lost[loss][ch] += acc.lost[loss][ch];
     }
+    for (std::size_t i = 0; i < total.detected.size(); ++i) total.detected[i] += acc.detected[i];
     total.rays += acc.rays;
-    acc.reset(total.received.size());
+    total.chains_cut += acc.chains_cut;
+    acc.reset(total.received.size(), total.detected.size());
   }
-  // One message per round: the deposits, then the books' counters, rays, photons and the cancel.
+  // One message per round: the deposits and detectors' tallies, then the books' counters, chains
+  // cut, rays, photons and the cancel.
   std::vector<std::int64_t> values(total.received);
-  for (const std::array<std::int64_t, 3>* counters : {&total.escaped, &total.absorbed, &total.shot})
+  values.insert(values.end(), total.detected.begin(), total.detected.end());
+  for (const std::array<std::int64_t, 3>* counters :
+       {&total.escaped, &total.absorbed, &total.shot, &total.lost[0], &total.lost[1], &total.lost[2]})
     values.insert(values.end(), counters->begin(), counters->end());
+  values.push_back(static_cast<std::int64_t>(total.chains_cut));
   values.push_back(static_cast<std::int64_t>(total.rays));
   values.push_back(static_cast<std::int64_t>(photons_done));
   values.push_back(aborted ? 1 : 0);
@@ -762,8 +790,11 @@ std::pair<std::uint64_t, bool> Solver::share_round(std::uint64_t photons_done, b
   ++rounds_shared_;
   std::size_t at = total.received.size();
   std::copy(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(at), total.received.begin());
-  for (std::array<std::int64_t, 3>* counters : {&total.escaped, &total.absorbed, &total.shot})
+  for (std::int64_t& tally : total.detected) tally = values[at++];
+  for (std::array<std::int64_t, 3>* counters :
+       {&total.escaped, &total.absorbed, &total.shot, &total.lost[0], &total.lost[1], &total.lost[2]})
     for (std::int64_t& counter : *counters) counter = values[at++];
+  total.chains_cut = static_cast<std::uint64_t>(values[at++]);
   total.rays = static_cast<std::uint64_t>(values[at++]);
   const auto all_done = static_cast<std::uint64_t>(values[at++]);
   return {all_done, values[at] != 0};
@@ -838,8 +869,20 @@ EnergyBooks Solver::books() const {
     books.absorbed = (passes_books_.absorbed + n * books.absorbed) / total;
     books.escaped = (passes_books_.escaped + n * books.escaped) / total;
     books.unshot = (passes_books_.unshot + n * books.unshot) / total;
+    books.absorbed_mirrors = (passes_books_.absorbed_mirrors + n * books.absorbed_mirrors) / total;
+    books.absorbed_glass = (passes_books_.absorbed_glass + n * books.absorbed_glass) / total;
+    books.cut = (passes_books_.cut + n * books.cut) / total;
   }
   return books;
+}
+
+std::vector<double> Solver::detected() const {
+  if (!(passes_photons_ > 0.0)) return detected_;
+  const double n = static_cast<double>(photons_shot_ - pass_first_photon_);
+  std::vector<double> mixed(detected_.size());
+  for (std::size_t i = 0; i < mixed.size(); ++i)
+    mixed[i] = (passes_detected_[i] + n * detected_[i]) / (passes_photons_ + n);
+  return mixed;
 }
 
 SolverProgress Solver::progress() const {

@@ -126,6 +126,13 @@ class Solver {
   // so they are not in photons_shot() or the books): what "interrupted after N photons" says.
   std::uint64_t photons_traced() const { return photons_shot_ + photons_cancelled_; }
   std::uint32_t rounds() const { return rounds_; }
+  // Photons cut at the specular chain limit (kChainLimit) in finished rounds; their power is the
+  // books' `cut` line.
+  std::uint64_t chains_cut() const { return chains_cut_; }
+  // The detectors' tallies (DetectorLayout, photon_shooter.hpp): the power crossing each bin and
+  // side per channel, over finished rounds (with a target error, the passes' photon-weighted mean).
+  const DetectorLayout& detector_layout() const { return detectors_; }
+  std::vector<double> detected() const;
   // With a target error: the passes finished (shooting; docs/method.md, "Solving to an accuracy")
   // and the estimated error when the target was last checked (infinity before).
   std::uint32_t passes() const { return passes_; }
@@ -260,8 +267,8 @@ class Solver {
   // With sharing: the threads' deposits added into round_deposits_[0], then over all processes,
   // with this process's photons shot and whether it was cancelled; returns the totals of both.
   std::pair<std::uint64_t, bool> share_round(std::uint64_t photons_done, bool aborted);
-  // The entries of one round's message: the deposits, 12 counters (escaped, absorbed and shot per
-  // channel, rays, photons, the cancel).
+  // The entries of one round's message: the deposits, the detectors' tallies, 22 counters (escaped,
+  // absorbed, shot and the three chain losses per channel, chains cut, rays, photons, the cancel).
   std::size_t round_message_size() const;
 
   const Scene* scene_ = nullptr;
@@ -343,6 +350,10 @@ class Solver {
   std::uint64_t photons_shot_ = 0;
   std::uint64_t photons_cancelled_ = 0;
   std::uint64_t rays_traced_ = 0;
+  std::uint64_t chains_cut_ = 0;
+  DetectorLayout detectors_;
+  std::vector<double> detected_;         // this pass's (the whole solve's without passes)
+  std::vector<double> passes_detected_;  // finished passes', each weighted by its photons
   std::uint32_t rounds_ = 0;
   double seconds_ = 0.0;
   StopReason stop_reason_ = StopReason::Running;

@@ -77,6 +77,8 @@ void RandomWalks::end_round(const SceneStorage& storage, const RoundTotals& roun
   for (std::size_t ch = 0; ch < channels; ++ch) {
     escaped_[ch] += weight * (static_cast<double>(round.escaped[ch]) * round.inverse_scale - escaped_[ch]);
     absorbed_[ch] += weight * (static_cast<double>(round.absorbed[ch]) * round.inverse_scale - absorbed_[ch]);
+    for (std::size_t loss = 0; loss < kChainLosses; ++loss)
+      lost_[loss][ch] += weight * (static_cast<double>(round.lost[loss][ch]) * round.inverse_scale - lost_[loss][ch]);
   }
 }
 
@@ -92,10 +94,20 @@ void RandomWalks::add_open_round(std::vector<double>& received, std::vector<doub
     parts[index] = (before * parts[index] + photons * open_parts[index]) / (before + done);
 }
 
+void RandomWalks::add_tallies(std::vector<double>& running, const std::vector<double>& round_values,
+                              const RoundTotals& round) const {
+  const double weight = static_cast<double>(round.photons) / static_cast<double>(round.photons_shot);
+  for (std::size_t i = 0; i < running.size(); ++i) running[i] += weight * (round_values[i] - running[i]);
+}
+
 void RandomWalks::add_books(EnergyBooks& books, int channels, std::uint32_t rounds) const {
   for (int ch = 0; ch < channels; ++ch) {
-    books.absorbed += absorbed_[static_cast<std::size_t>(ch)];
-    books.escaped += escaped_[static_cast<std::size_t>(ch)];
+    const auto c = static_cast<std::size_t>(ch);
+    books.absorbed += absorbed_[c];
+    books.escaped += escaped_[c];
+    books.absorbed_mirrors += lost_[static_cast<std::size_t>(ChainLoss::Mirrors)][c];
+    books.absorbed_glass += lost_[static_cast<std::size_t>(ChainLoss::Glass)][c];
+    books.cut += lost_[static_cast<std::size_t>(ChainLoss::Limit)][c];
   }
   // Until a round has finished nothing is accounted for: the emitted power is still to go.
   if (rounds == 0) books.unshot = books.emitted;

@@ -40,6 +40,8 @@ class RandomWalks final : public LightTransport {
                  std::vector<double>& parts) override;
   void add_open_round(std::vector<double>& received, std::vector<double>& parts, const std::vector<double>& open,
                       const std::vector<double>& open_parts, double before, double done, double photons) const override;
+  void add_tallies(std::vector<double>& running, const std::vector<double>& round_values,
+                   const RoundTotals& round) const override;
   void add_books(EnergyBooks& books, int channels, std::uint32_t rounds) const override;
 
  private:
@@ -50,6 +52,7 @@ class RandomWalks final : public LightTransport {
   // Absorbed and escaped power per channel, averaged over rounds as the received power is.
   std::array<double, 3> absorbed_{};
   std::array<double, 3> escaped_{};
+  std::array<std::array<double, 3>, kChainLosses> lost_{};  // by ChainLoss
 };
 
 }  // namespace flatland
