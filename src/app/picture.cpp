@@ -129,7 +129,20 @@ PngImage draw_picture(const Solver& solver, int width, int height) {
 
   const double half_band = std::max(2.0, width / 320.0);
   const Spectrum absorber{0.22, 0.22, 0.24};
-  for (const Band& band : bands) {
+  for (std::uint32_t c = 0; c < bands.size(); ++c) {
+    const Band& band = bands[c];
+    // Mirrors, glass and detectors hold no light of their own: drawn as lines of their colour
+    // (mirrors steel blue, glass cyan, detectors green).
+    const Optics optics = scene.material_of(scene.curves[c]).optics;
+    if (optics != Optics::Diffuse) {
+      const Spectrum colour = optics == Optics::Mirror       ? Spectrum{0.45, 0.6, 0.95}
+                              : optics == Optics::Dielectric ? Spectrum{0.25, 0.8, 0.9}
+                                                             : Spectrum{0.3, 0.85, 0.35};
+      for (std::size_t j = 0; j + 1 < band.points.size(); ++j)
+        draw_segment(image, to_pixels(band.points[j]), to_pixels(band.points[j + 1]),
+                     optics == Optics::Mirror ? 0.75 * half_band : 0.5 * half_band, colour);
+      continue;
+    }
     for (std::size_t j = 0; j + 1 < band.points.size(); ++j) {
       const Vec2 a = to_pixels(band.points[j]);
       const Vec2 b = to_pixels(band.points[j + 1]);

@@ -97,6 +97,28 @@ std::vector<CurveTrace> trace_curves(const Scene& scene, int samples_per_segment
   return traces;
 }
 
+void append_path_records(const PhotonPath& path, const Scene& scene, std::uint64_t& serial, std::uint32_t round,
+                         std::vector<PathRecord>& out) {
+  Vec2 from = path.origin;
+  for (const Vec2& point : path.via) {
+    PathRecord leg{serial++, from, point, path.power, round, path.bounce};
+    leg.specular = true;
+    out.push_back(leg);
+    from = point;
+  }
+  PathRecord last = path_record(path, scene, serial++, round);
+  if (!path.via.empty()) {
+    last.from = from;
+    if (path.escaped) {
+      // Its direction is the last leg's: end - origin was set from that leg's direction.
+      PhotonPath leg = path;
+      leg.origin = from;
+      last.to = path_record(leg, scene, 0, round).to;
+    }
+  }
+  out.push_back(last);
+}
+
 PathRecord path_record(const PhotonPath& path, const Scene& scene, std::uint64_t serial, std::uint32_t round) {
   PathRecord record{serial,       path.origin,   path.end, path.power,     round,         path.bounce,
                     path.escaped, path.absorbed, path.cut, path.hit_curve, path.hit_side, path.hit_s};
@@ -238,8 +260,8 @@ std::pair<std::size_t, std::size_t> newest_journey(const std::vector<PathRecord>
       const PathRecord& before = paths[first - 1];
       // (A hop starts on the curve where the last one landed: the same point to rounding.)
       const double size = length(hop.from) + length(before.from) + length(before.to - before.from);
-      if (hop.bounce != before.bounce + 1 || before.escaped || before.absorbed || before.cut ||
-          !(length(hop.from - before.to) <= 1e-9 * size))
+      const bool next = before.specular ? hop.bounce == before.bounce : hop.bounce == before.bounce + 1;
+      if (!next || before.escaped || before.absorbed || before.cut || !(length(hop.from - before.to) <= 1e-9 * size))
         break;
       --first;
     }
@@ -346,9 +368,21 @@ std::vector<LineVertex> build_overlay(const Snapshot& snapshot, const DrawOption
     }
     if (options.curves) {
       std::vector<Vec2> zero(n, Vec2{0.0, 0.0});
-      const std::array<float, 4> colour =
-          selected ? std::array<float, 4>{1.0f, 0.85f, 0.3f, 1.0f} : std::array<float, 4>{0.85f, 0.85f, 0.85f, 1.0f};
-      out.stroke(trace.points, zero, selected ? 3.0f : 2.0f, colour);
+      // Mirrors steel blue and thicker, glass cyan, detectors green; diffuse curves light grey.
+      const Optics optics = c < scene.curves.size() ? scene.material_of(scene.curves[c]).optics : Optics::Diffuse;
+      std::array<float, 4> colour{0.85f, 0.85f, 0.85f, 1.0f};
+      float width = 2.0f;
+      if (optics == Optics::Mirror) {
+        colour = {0.6f, 0.75f, 1.0f, 1.0f};
+        width = 3.5f;
+      } else if (optics == Optics::Dielectric) {
+        colour = {0.35f, 0.95f, 1.0f, 1.0f};
+        width = 2.5f;
+      } else if (optics == Optics::Detector) {
+        colour = {0.35f, 1.0f, 0.45f, 1.0f};
+      }
+      if (selected) colour = {1.0f, 0.85f, 0.3f, 1.0f};
+      out.stroke(trace.points, zero, selected ? width + 1.0f : width, colour);
     }
     if (c < snapshot.nodes.size()) {
       for (const NodeMark& node : snapshot.nodes[c]) {
@@ -382,7 +416,7 @@ std::vector<LineVertex> build_overlay(const Snapshot& snapshot, const DrawOption
         const Vec2 tip = hop.from + 0.6 * d;
         out.quad(tip, tip, Vec2{}, u * -12.0 + across * 6.0, Vec2{}, u * -12.0 - across * 6.0, colour, colour);
       }
-      if (hop.escaped) continue;  // it leaves the scene's box: nothing marks the end
+      if (hop.escaped || hop.specular) continue;  // it leaves the scene's box, or flies on: no end mark
       out.square(hop.to, 4.5f, dark);
       out.square(
           hop.to, 3.0f,

@@ -98,11 +98,18 @@ struct PathRecord {
   std::uint32_t hit_curve = 0;
   Side hit_side = Side::Front;
   double hit_s = 0.0;
+  // It ended on a mirror, glass or a detector and the photon flew on (the next record, with the
+  // same bounce, is that flight).
+  bool specular = false;
 };
 
 // A photon path for drawing: from its origin to its hit, or, for a photon that escaped (`end` is
 // then origin + direction), to where it leaves the scene's box.
 // (The box is padded by 5 % of the scene's size, so light escaping a flat scene still shows.)
+// A flight through a specular chain (PhotonPath::via) is one record a leg, its serials
+// consecutive from `serial` (advanced past them).
+void append_path_records(const PhotonPath& path, const Scene& scene, std::uint64_t& serial, std::uint32_t round,
+                         std::vector<PathRecord>& out);
 PathRecord path_record(const PhotonPath& path, const Scene& scene, std::uint64_t serial, std::uint32_t round);
 
 // A storage-mesh node of a curve: where, and the continuity of the illumination there.

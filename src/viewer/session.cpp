@@ -388,7 +388,7 @@ void Session::shoot_piece(const Piece& piece) {
   solver.include_open_round();
   std::vector<PathRecord> records;
   records.reserve(shot_paths.size());
-  for (const PhotonPath& path : shot_paths) records.push_back(path_record(path, *scene_, next_serial_++, round));
+  for (const PhotonPath& path : shot_paths) append_path_records(path, *scene_, next_serial_, round, records);
   publish(&solver, records, piece.stepping);
   std::lock_guard relock(mutex_);
   can_run_ = !solver.stopped();
