@@ -831,6 +831,21 @@ Status ReferenceBuilder::check() const {
     if (scene_.is_emitter(curve) && scene_.material_of(curve).emission.kind != Emission::Kind::Diffuse)
       return Error{scene_.source + ": curve '" + curve.id + "': the reference solver supports diffuse emitters only"};
   }
+  // Light through specular chains is not in its equations (form factors between diffuse elements).
+  std::string specular;
+  for (const Curve& curve : scene_.curves) {
+    const Optics optics = scene_.material_of(curve).optics;
+    if (optics == Optics::Diffuse) continue;
+    if (!specular.empty()) specular += ", ";
+    specular += "'" + curve.id + "' (" +
+                (optics == Optics::Mirror       ? "mirror"
+                 : optics == Optics::Dielectric ? "dielectric"
+                                                : "detector") +
+                ")";
+  }
+  if (!specular.empty())
+    return Error{scene_.source + ": the reference solver handles diffuse surfaces only, and curves " + specular +
+                 " are not; judge such a scene against a solve with many more photons (flatland compare)"};
   const double element_total = reference_element_count(scene_, settings_);
   if (element_total > static_cast<double>(kMaxReferenceElements)) {
     char message[320];
