@@ -54,6 +54,9 @@ CLI::App* add_solve_command(CLI::App& parent, SolveOptions& o) {
       ->check(CLI::Range(1, 1000000));
   cmd->add_option("--out", o.out, "Write the result as JSON to this file (docs/result-format.md)");
   cmd->add_option("--picture", o.picture, "Write a PNG picture of the curves coloured by their radiosity");
+  cmd->add_option("--detectors", o.detectors,
+                  "Write the power crossing each bin of the scene's detector curves as CSV to this file "
+                  "(docs/result-format.md)");
   cmd->add_option("--reference", o.reference,
                   "A reference result (same scene, same --samples): print the errors against it");
   cmd->add_flag("--quiet", o.quiet, "No progress line and no summary (errors only)");
@@ -136,6 +139,13 @@ void print_summary(const Solver& solver, const ErrorEstimate& estimate) {
                                                          : "lines and cubics",
                solver.discontinuity_nodes(), solver.contact_nodes(), solver.visibility_event_nodes(),
                solver.coefficient_count());
+  if (scene.has_specular()) {
+    std::size_t count[4] = {};
+    for (const Curve& curve : scene.curves) ++count[static_cast<std::size_t>(scene.material_of(curve).optics)];
+    std::fprintf(out, "optics    %zu mirror, %zu dielectric and %zu detector curves (chains of up to %u events)\n",
+                 count[static_cast<std::size_t>(Optics::Mirror)], count[static_cast<std::size_t>(Optics::Dielectric)],
+                 count[static_cast<std::size_t>(Optics::Detector)], kChainLimit);
+  }
   const bool walks = settings.transport == Transport::Walk;
   char workers[64];
   if (process_count() > 1)
@@ -170,6 +180,23 @@ void print_summary(const Solver& solver, const ErrorEstimate& estimate) {
   } else {
     std::fprintf(out, "energy    emitted %.6g = absorbed %.6g + escaped %.6g + unshot %.6g (imbalance %.2g)\n",
                  books.emitted, books.absorbed, books.escaped, books.unshot, books.imbalance());
+  }
+  if (const DetectorLayout& layout = solver.detector_layout(); layout.size > 0) {
+    // Each detector's totals, channels summed: the power that crossed it each way.
+    const std::vector<double> detected = solver.detected();
+    const auto channels = static_cast<std::size_t>(scene.channels);
+    for (std::uint32_t c = 0; c < scene.curves.size(); ++c) {
+      if (layout.offsets[c] == kNoDetector) continue;
+      const std::size_t per_side = std::size_t{scene.material_of(scene.curves[c]).detector_bins} * channels;
+      double front = 0.0, back = 0.0;
+      for (std::size_t i = 0; i < per_side; ++i) {
+        front += detected[layout.offsets[c] + i];
+        back += detected[layout.offsets[c] + per_side + i];
+      }
+      std::fprintf(
+          out, "detector  %s: %.6g crossed from its front, %.6g from its back (%.3g%% and %.3g%% of emitted)\n",
+          scene.curves[c].id.c_str(), front, back, 100.0 * front / books.emitted, 100.0 * back / books.emitted);
+    }
   }
   print_estimated_error(out, estimate);
   if (const double target = solver.settings().target_error; target > 0.0) {
@@ -227,9 +254,14 @@ int run_solve(SolveOptions& o) {
     // Everything the solve's end needs is checked before it starts: the output paths, the size of
     // the result, and the reference (read now, so a bad one costs no solve).
     if (speaks_for_the_run()) {
-      if (const std::optional<int> code = check_outputs({{"--out", o.out}, {"--picture", o.picture}},
-                                                        {{"scene file", o.scene}, {"--reference", o.reference}}))
+      if (const std::optional<int> code =
+              check_outputs({{"--out", o.out}, {"--picture", o.picture}, {"--detectors", o.detectors}},
+                            {{"scene file", o.scene}, {"--reference", o.reference}}))
         return *code;
+      if (!o.detectors.empty() && detector_layout(*scene).size == 0)
+        return usage_error("--detectors: " + o.scene +
+                           " has no detector curves; give a curve a material of type \"detector\" "
+                           "(docs/scene-format.md)");
       if (!o.out.empty() || !o.reference.empty())
         if (Status status = check_result_size(*scene, o.samples); !status) return usage_error(status.error().message);
       if (!o.reference.empty()) {
@@ -288,10 +320,14 @@ int run_solve(SolveOptions& o) {
     if (!png) return usage_error(o.picture + ": " + png.error().message);
     if (Status status = files.stage(o.picture, *png); !status) return usage_error(status.error().message);
   }
+  if (!o.detectors.empty())
+    if (Status status = files.stage(o.detectors, detectors_csv(solver)); !status)
+      return usage_error(status.error().message);
   if (const std::optional<int> code = commit_outputs(files)) return *code;
   if (!o.quiet) {
     if (!o.out.empty()) std::fprintf(report_stream(), "wrote     %s\n", o.out.c_str());
     if (!o.picture.empty()) std::fprintf(report_stream(), "wrote     %s\n", o.picture.c_str());
+    if (!o.detectors.empty()) std::fprintf(report_stream(), "wrote     %s\n", o.detectors.c_str());
   }
   return kExitOk;
 }

@@ -59,6 +59,7 @@ struct SolveOptions {
   int samples = 100;
   std::string out;
   std::string picture;
+  std::string detectors;  // CSV of the detectors' tallies
   std::string reference;
   bool quiet = false;
 };

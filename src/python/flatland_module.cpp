@@ -294,9 +294,21 @@ class PySolver {
     d["absorbed_power"] = books.absorbed;
     d["escaped_power"] = books.escaped;
     d["unshot_power"] = books.unshot;
+    if (scene_.scene->has_specular()) {
+      d["absorbed_by_mirrors_power"] = books.absorbed_mirrors;
+      d["absorbed_in_glass_power"] = books.absorbed_glass;
+      d["cut_power"] = books.cut;
+      d["chains_cut"] = solver_->chains_cut();
+    }
     d["stopped"] = solver_->stopped();
     d["coefficients"] = solver_->coefficient_count();
     return d;
+  }
+  // The detectors' tallies as `flatland solve --out` writes them ("detectors"); [] without any.
+  py::object detectors() const {
+    check_idle();
+    if (solver_->detector_layout().size == 0) return py::list();
+    return py::module_::import("json").attr("loads")(detectors_to_json(*solver_).dump());
   }
   // The solve's estimated error as `flatland solve --out` writes it (stats.estimated_error).
   py::object estimated_error(int samples) const {
@@ -643,6 +655,9 @@ PYBIND11_MODULE(flatland, m) {
            "Reflected radiosity coefficients b_k (B = E + sum b_k phi_k); channels interleaved")
       .def("knots", &PySolver::knots, py::arg("curve"), "Knots of the curve's storage B-splines, in u")
       .def_property_readonly("stats", &PySolver::stats)
+      .def_property_readonly("detectors", &PySolver::detectors,
+                             "Per detector curve: id, length, bins and the power crossing each bin from its front "
+                             "and from its back (as `flatland solve --out` writes them)")
       .def_property_readonly(
           "estimated_error", [](const PySolver& s) { return s.estimated_error(100); },
           "Upper bound, at the confidence asked for (0.95), of the relative L1, L2 and Linf error of B - E, "

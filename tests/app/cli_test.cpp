@@ -518,6 +518,53 @@ TEST_F(Cli, SolveReportsItsEstimatedErrorAndReachesATarget) {
   EXPECT_NE(r.out.find("--replicates"), std::string::npos);
 }
 
+TEST_F(Cli, SolveWritesDetectorsAndTheChainBooks) {
+  const fs::path out = directory_ / "prism.json";
+  const fs::path csv = directory_ / "probe.csv";
+  CommandRun r =
+      run("solve " + scene("prism.json") + " --photons 100000 --out " + out.string() + " --detectors " + csv.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("optics    0 mirror, 1 dielectric and 1 detector curves"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("+ by mirrors 0 + in glass 0 + cut 0"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("detector  probe: "), std::string::npos) << r.out;
+  const nlohmann::json result = nlohmann::json::parse(read_file(out));
+  for (const char* key : {"absorbed_by_mirrors_power", "absorbed_in_glass_power", "cut_power", "chains_cut"})
+    EXPECT_TRUE(result["stats"].contains(key)) << key;
+  ASSERT_EQ(result["detectors"].size(), 1u);
+  const nlohmann::json& probe = result["detectors"][0];
+  EXPECT_EQ(probe["id"], "probe");
+  EXPECT_EQ(probe["bins"], 60);
+  ASSERT_EQ(probe["front"].size(), 60u);
+  // The CSV holds the same tallies: a header and one line per bin.
+  const std::string text = read_file(csv);
+  EXPECT_EQ(text.rfind("detector,bin,s_from,s_to,x,y,front,back\n", 0), 0u) << text.substr(0, 80);
+  EXPECT_EQ(lines(text), 61);
+  std::istringstream rows(text);
+  std::string row;
+  std::getline(rows, row);
+  double front = 0.0;
+  while (std::getline(rows, row)) {
+    std::vector<std::string> fields;
+    std::istringstream cells(row);
+    for (std::string cell; std::getline(cells, cell, ',');) fields.push_back(cell);
+    ASSERT_EQ(fields.size(), 8u) << row;
+    front += std::stod(fields[6]);
+  }
+  EXPECT_NEAR(front, probe["front_total"].get<double>(), 1e-12 * front);
+  EXPECT_GT(front, 0.5 * result["stats"]["emitted_power"].get<double>());  // most of the beam crosses it
+  // A scene without detectors: refused before any work, and nothing written.
+  const fs::path none = directory_ / "none.csv";
+  r = run("solve " + scene("penumbra.json") + " --detectors " + none.string());
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("has no detector curves"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(none));
+  // The reference solver names what it cannot do.
+  r = run("reference " + scene("lens.json"));
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("curves 'lens' (dielectric) are not"), std::string::npos) << r.err;
+  EXPECT_EQ(lines(r.err), 1) << r.err;
+}
+
 TEST_F(Cli, SolveWritesResultAndPicture) {
   const fs::path out = directory_ / "result.json";
   const fs::path picture = directory_ / "result.png";

@@ -60,6 +60,33 @@ def test_same_seed_gives_the_same_bits_as_the_command_line(tmp_path):
     assert without_timing(result.to_json()) == without_timing(out.read_text())
 
 
+def test_mirrors_glass_and_detectors_are_the_command_lines(tmp_path):
+    # The prism's glass and detector, as the command line solves them: the same bits, the chain's
+    # books and the detector's tallies.
+    out = tmp_path / "prism.json"
+    cli = run_cli("solve", "scenes2d/prism.json", "--photons", "100000", "--seed", "3", "--out", str(out), "--quiet")
+    assert cli.returncode == 0, cli.stderr
+    result = flatland.solve(flatland.Scene.load("scenes2d/prism.json"), photons=100_000, seed=3)
+    assert without_timing(result.to_json()) == without_timing(out.read_text())
+    stats = result.stats
+    assert stats["emitted_power"] == pytest.approx(
+        stats["absorbed_power"] + stats["escaped_power"] + stats["unshot_power"] + stats["absorbed_by_mirrors_power"]
+        + stats["absorbed_in_glass_power"] + stats["cut_power"], rel=1e-12)
+    (probe,) = result.detectors
+    assert probe["id"] == "probe" and probe["bins"] == 60
+    assert sum(probe["front"]) == pytest.approx(probe["front_total"], rel=1e-12)
+    assert probe["front_total"] > 0.5 * stats["emitted_power"]
+    # A mirror in a scene built from a dict: its back absorbs, on the books' own line.
+    scene = flatland.Scene.from_dict({
+        "flatland": 2,
+        "materials": {"lamp": {"emittance": 1}, "mirror": {"type": "mirror", "reflectance": 0.5}},
+        "curves": [{"id": "lamp", "material": "lamp", "line": [[1, -1], [1, 1]]},
+                   {"id": "mirror", "material": "mirror", "line": [[0, -50], [0, 50]], "sides": "back"}]})
+    stats = flatland.solve(scene, photons=20_000).stats
+    assert stats["absorbed_by_mirrors_power"] == pytest.approx(0.5 * stats["emitted_power"], rel=0.02)
+    assert flatland.solve(flatland.Scene.load("scenes2d/penumbra.json"), photons=10_000).detectors == []
+
+
 def test_bad_scenes_and_options_raise_the_command_lines_message(tmp_path):
     bad = tmp_path / "bad.json"
     bad.write_text('{"flatland": 2, "curves": [{"id": "a", "line": [[0, 0], [1, 0]], "material": "nope"}]}')

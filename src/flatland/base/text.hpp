@@ -36,6 +36,10 @@ std::optional<std::size_t> find_overflowing_number(std::string_view text);
 // reads back as the same double. Every message that shows a number writes it with this.
 std::string format_number(double value, int significant = 0);
 
+// A CSV field (RFC 4180): as it is, or in double quotes (inner quotes doubled) when it holds a
+// comma, a quote or a line break.
+std::string csv_field(std::string_view text);
+
 // A whole number that fits an int ("16", "-3"), or nullopt ("16x", "1e3", "99999999999", "").
 std::optional<int> whole_number(const std::string& text);
 

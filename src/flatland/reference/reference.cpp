@@ -827,10 +827,6 @@ class ReferenceBuilder {
 
 Status ReferenceBuilder::check() const {
   if (Status status = validate(settings_); !status) return status;
-  for (const Curve& curve : scene_.curves) {
-    if (scene_.is_emitter(curve) && scene_.material_of(curve).emission.kind != Emission::Kind::Diffuse)
-      return Error{scene_.source + ": curve '" + curve.id + "': the reference solver supports diffuse emitters only"};
-  }
   // Light through specular chains is not in its equations (form factors between diffuse elements).
   std::string specular;
   for (const Curve& curve : scene_.curves) {
@@ -846,6 +842,10 @@ Status ReferenceBuilder::check() const {
   if (!specular.empty())
     return Error{scene_.source + ": the reference solver handles diffuse surfaces only, and curves " + specular +
                  " are not; judge such a scene against a solve with many more photons (flatland compare)"};
+  for (const Curve& curve : scene_.curves) {
+    if (scene_.is_emitter(curve) && scene_.material_of(curve).emission.kind != Emission::Kind::Diffuse)
+      return Error{scene_.source + ": curve '" + curve.id + "': the reference solver supports diffuse emitters only"};
+  }
   const double element_total = reference_element_count(scene_, settings_);
   if (element_total > static_cast<double>(kMaxReferenceElements)) {
     char message[320];

@@ -32,6 +32,15 @@ nlohmann::json reference_result_to_json(const Scene& scene, const ReferenceSetti
                                         const ReferenceSolution& solution, int samples_per_curve, double seconds,
                                         const ReferenceErrorEstimate* estimate, const nlohmann::json& curves);
 
+// The detectors' tallies (Solver::detected): per detector curve its id, length, bins and, per bin,
+// the power crossing it from its front side to its back ("front") and from the back ("back"),
+// a number or [r, g, b]; the "detectors" entry of a result (absent without detectors).
+nlohmann::json detectors_to_json(const Solver& solver);
+// The same as CSV, one line per detector bin: detector, bin, s_from, s_to (arc length), x, y
+// (the bin's middle), then front and back (one column each, or front_r, front_g, front_b, back_r,
+// back_g, back_b in colour).
+std::string detectors_csv(const Solver& solver);
+
 // The "stats" entry of a solver's result.
 nlohmann::json stats_to_json(const ResultStats& stats);
 // The "estimated_error" entry of a solver's result's stats (docs/result-format.md).

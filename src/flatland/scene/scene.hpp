@@ -72,11 +72,11 @@ struct Material {
   Spectrum emittance{0.0, 0.0, 0.0};     // power per unit length leaving each emitting side
   Emission emission;                     // directions of the emitted light
   Optics optics = Optics::Diffuse;
-  Spectrum reflectance{1.0, 1.0, 1.0};   // Mirror: each channel in [0,1]
-  RefractiveIndex ior;                   // Dielectric: the front side's index
-  double ior_back = 1.0;                 // Dielectric: the back side's index
-  Spectrum absorption{0.0, 0.0, 0.0};    // Dielectric: per unit length in the front side's medium
-  std::uint32_t detector_bins = 32;      // Detector: bins along the arc length
+  Spectrum reflectance{1.0, 1.0, 1.0};  // Mirror: each channel in [0,1]
+  RefractiveIndex ior;                  // Dielectric: the front side's index
+  double ior_back = 1.0;                // Dielectric: the back side's index
+  Spectrum absorption{0.0, 0.0, 0.0};   // Dielectric: per unit length in the front side's medium
+  std::uint32_t detector_bins = 32;     // Detector: bins along the arc length
 };
 
 struct Curve {

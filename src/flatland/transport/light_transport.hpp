@@ -29,9 +29,7 @@ struct EnergyBooks {
   double absorbed_mirrors = 0.0;
   double absorbed_glass = 0.0;
   double cut = 0.0;
-  double imbalance() const {
-    return emitted - (absorbed + escaped + unshot + absorbed_mirrors + absorbed_glass + cut);
-  }
+  double imbalance() const { return emitted - (absorbed + escaped + unshot + absorbed_mirrors + absorbed_glass + cut); }
 };
 
 // A finished round as a transport reads it: its deposits per thread (per replicate, coefficient and

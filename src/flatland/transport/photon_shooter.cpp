@@ -324,9 +324,9 @@ void PhotonShooter::shoot_rays(const RoundView& round, Rng& rng, std::uint64_t f
 // carries its share of the units, the last one the remainder, and deposits where it lands; the
 // middle one continues the photon's path.
 template <bool kChains>
-void PhotonShooter::shoot_band(const RoundView& round, Rng& rng, const Origin& leaves, bool back, Vec2 normal, Vec2 direction,
-                               const std::array<std::int64_t, 3>& units, Deposits& acc, PhotonPath* path,
-                               std::vector<FootprintWeight>& footprint) const {
+void PhotonShooter::shoot_band(const RoundView& round, Rng& rng, const Origin& leaves, bool back, Vec2 normal,
+                               Vec2 direction, const std::array<std::int64_t, 3>& units, Deposits& acc,
+                               PhotonPath* path, std::vector<FootprintWeight>& footprint) const {
   const auto channels = static_cast<std::size_t>(round.storage->channels());
   const SceneSegment& emitter = scene_->segments[leaves.segment];
   const Cubic& shape = emitter.geometry.shape;
@@ -554,14 +554,14 @@ bool PhotonShooter::follow_chain(Rng& rng, SceneHit& hit, Ray& ray, std::array<s
       // never comes out of it.
       std::int64_t carried = 0;
       for (std::size_t ch = 0; ch < channels; ++ch) {
-        const double kept_fraction =
-            hit.segment == kNoSegment ? 0.0 : portable::exp(-(*medium)[ch] * hit.distance);
+        const double kept_fraction = hit.segment == kNoSegment ? 0.0 : portable::exp(-(*medium)[ch] * hit.distance);
         const auto kept = static_cast<std::int64_t>(static_cast<double>(units[ch]) * kept_fraction + 0.5);
         acc.lost[static_cast<std::size_t>(ChainLoss::Glass)][ch] += units[ch] - kept;
         units[ch] = kept;
         carried += kept;
       }
-      if (carried == 0) return lose(ChainLoss::Glass, ray.origin + (hit.segment == kNoSegment ? 1.0 : hit.distance) * ray.direction);
+      if (carried == 0)
+        return lose(ChainLoss::Glass, ray.origin + (hit.segment == kNoSegment ? 1.0 : hit.distance) * ray.direction);
     }
     if (hit.segment == kNoSegment) return true;
     const SegmentInfo& info = segment_info_[hit.segment];
