@@ -535,9 +535,11 @@ TEST_F(Cli, SolveWritesDetectorsAndTheChainBooks) {
   EXPECT_EQ(probe["id"], "probe");
   EXPECT_EQ(probe["bins"], 60);
   ASSERT_EQ(probe["front"].size(), 60u);
-  // The CSV holds the same tallies: a header and one line per bin.
+  // The CSV holds the same tallies: a header and one line per bin (the prism's white light is
+  // spectral, so the scene is colour: three columns a side).
   const std::string text = read_file(csv);
-  EXPECT_EQ(text.rfind("detector,bin,s_from,s_to,x,y,front,back\n", 0), 0u) << text.substr(0, 80);
+  EXPECT_EQ(text.rfind("detector,bin,s_from,s_to,x,y,front_r,front_g,front_b,back_r,back_g,back_b\n", 0), 0u)
+      << text.substr(0, 80);
   EXPECT_EQ(lines(text), 61);
   std::istringstream rows(text);
   std::string row;
@@ -547,10 +549,12 @@ TEST_F(Cli, SolveWritesDetectorsAndTheChainBooks) {
     std::vector<std::string> fields;
     std::istringstream cells(row);
     for (std::string cell; std::getline(cells, cell, ',');) fields.push_back(cell);
-    ASSERT_EQ(fields.size(), 8u) << row;
-    front += std::stod(fields[6]);
+    ASSERT_EQ(fields.size(), 12u) << row;
+    front += std::stod(fields[6]) + std::stod(fields[7]) + std::stod(fields[8]);
   }
-  EXPECT_NEAR(front, probe["front_total"].get<double>(), 1e-12 * front);
+  double front_total = 0.0;
+  for (const nlohmann::json& channel : probe["front_total"]) front_total += channel.get<double>();
+  EXPECT_NEAR(front, front_total, 1e-12 * front);
   EXPECT_GT(front, 0.5 * result["stats"]["emitted_power"].get<double>());  // most of the beam crosses it
   // A scene without detectors: refused before any work, and nothing written.
   const fs::path none = directory_ / "none.csv";

@@ -64,5 +64,22 @@ TEST(Text, FindsTheNumberThatOverflowsADouble) {
   EXPECT_EQ(*find_overflowing_number(escaped), escaped.find("2e308"));
 }
 
+TEST(Text, NumbersReadBackAndWholeNumbersStayWhole) {
+  EXPECT_EQ(format_number(100.0), "100");
+  EXPECT_EQ(format_number(-3.0), "-3");
+  EXPECT_EQ(format_number(0.1), "0.1");
+  EXPECT_EQ(format_number(2.5), "2.5");
+  EXPECT_EQ(format_number(1e20), "1e+20");
+  EXPECT_EQ(format_number(1.0 / 3.0), "0.3333333333333333");
+  EXPECT_EQ(format_number(123.456, 3), "123");
+}
+
+TEST(Text, CsvFieldsAreQuotedOnlyWhenTheyMustBe) {
+  EXPECT_EQ(csv_field("probe"), "probe");
+  EXPECT_EQ(csv_field("a,b"), "\"a,b\"");
+  EXPECT_EQ(csv_field("say \"hi\""), "\"say \"\"hi\"\"\"");
+  EXPECT_EQ(csv_field("two\nlines"), "\"two\nlines\"");
+}
+
 }  // namespace
 }  // namespace flatland

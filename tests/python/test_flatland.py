@@ -74,8 +74,9 @@ def test_mirrors_glass_and_detectors_are_the_command_lines(tmp_path):
         + stats["absorbed_in_glass_power"] + stats["cut_power"], rel=1e-12)
     (probe,) = result.detectors
     assert probe["id"] == "probe" and probe["bins"] == 60
-    assert sum(probe["front"]) == pytest.approx(probe["front_total"], rel=1e-12)
-    assert probe["front_total"] > 0.5 * stats["emitted_power"]
+    # White light through the prism: a colour scene, [r, g, b] per bin.
+    assert sum(sum(rgb) for rgb in probe["front"]) == pytest.approx(sum(probe["front_total"]), rel=1e-12)
+    assert sum(probe["front_total"]) > 0.5 * stats["emitted_power"]
     # A mirror in a scene built from a dict: its back absorbs, on the books' own line.
     scene = flatland.Scene.from_dict({
         "flatland": 2,

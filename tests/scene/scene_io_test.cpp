@@ -596,6 +596,50 @@ TEST(SceneIoErrors, SpecularMaterials) {
                   "curves[1].emittance: material \"wall\" is not diffuse and does not emit");
 }
 
+TEST(SceneIoErrors, Spectra) {
+  EXPECT_CONTAINS(error_of(edited([](Json& j) {
+                    j["materials"]["lamp"]["spectrum"] = {{"blackbody", 100}};
+                  })),
+                  "materials.lamp.spectrum.blackbody: a temperature from 500 to 100000 kelvin, got 100");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) {
+                    j["materials"]["lamp"]["spectrum"] = {{"line", 900}};
+                  })),
+                  "materials.lamp.spectrum.line: a visible wavelength from 380 to 780 nanometres, got 900");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) {
+                    j["materials"]["lamp"]["spectrum"] = Json::array({{500, 1}, {450, 1}});
+                  })),
+                  "materials.lamp.spectrum[1][0]: wavelengths must increase along the table, got 450 after 500");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) {
+                    j["materials"]["lamp"]["spectrum"] = Json::array({{800, 1}, {900, 1}});
+                  })),
+                  "materials.lamp.spectrum: the spectrum has no power between 380 and 780 nm");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) {
+                    j["materials"]["lamp"]["spectrum"] = {{"laser", 532}};
+                  })),
+                  "materials.lamp.spectrum: unknown key \"laser\"");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) {
+                    j["materials"]["wall"]["spectrum"] = {{"line", 532}};
+                  })),
+                  "materials.wall.spectrum: a spectrum shapes emitted light: give the material an \"emittance\" > 0");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) {
+                    j["materials"]["lamp"]["emittance"] = {1, 1, 1};
+                    j["materials"]["lamp"]["spectrum"] = {{"line", 532}};
+                  })),
+                  "materials.lamp.emittance: with a \"spectrum\" the emittance is one number");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) {
+                    j["materials"]["lamp"]["spectrum"] = {{"line", 532}};
+                    j["curves"][0]["emittance"] = {1, 2, 3};
+                  })),
+                  "curves[0].emittance: material \"lamp\" has a spectrum: the curve's emittance is one number");
+  // A table in the visible range is accepted and makes the scene colour.
+  const Result<Scene> r = parse(edited([](Json& j) {
+    j["materials"]["lamp"]["spectrum"] = Json::array({{400, 0}, {600, 2}, {700, 1}});
+  }));
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  EXPECT_EQ(r->channels, 3);
+  EXPECT_TRUE(r->has_spectra());
+}
+
 TEST(SceneIoErrors, NumbersThatOverflowAreRejectedWithTheirPlace) {
   const std::string text = R"({"flatland": 1, "materials": {"lamp": {"emittance": 1}},
   "curves": [{"id": "a", "material": "lamp", "line": [[0, 0], [1e999, 0]]}]})";

@@ -289,13 +289,16 @@ TEST(SpecularChains, NothingLeavesGlassBeyondTheCriticalAngle) {
 
 // ---- A prism's deviation
 
-// A thin beam through a prism of apex angle A (index from Cauchy's formula at the d line): the
-// rays refracted at both faces leave deviated by delta = theta1 + theta2' - A, with
-// sin(theta1') = sin(theta1) / n, theta2 = A - theta1', sin(theta2') = n sin(theta2): the
-// textbook's angles, not the vectors the shooter uses.
-TEST(SpecularChains, PrismDeviatesAsSnellsLawSays) {
+// A thin beam through a prism of apex angle A, its index from Cauchy's formula at the light's
+// wavelength (a line spectrum; without a spectrum, the d line): the rays refracted at both faces
+// leave deviated by delta = theta1 + theta2' - A, with sin(theta1') = sin(theta1) / n,
+// theta2 = A - theta1', sin(theta2') = n sin(theta2): the textbook's angles, not the vectors the
+// shooter uses.
+void check_prism_deviation(double nanometres) {
   const double apex = 60.0 * kPi / 180.0;
-  const double n = 1.5046 + 0.0042 / (kGreyWavelength * kGreyWavelength);
+  const double a = 1.62, b = 0.0145;  // a dense flint, for a wide spread
+  const double micrometres = nanometres > 0.0 ? nanometres / 1000.0 : kGreyWavelength;
+  const double n = a + b / (micrometres * micrometres);
   // An equilateral prism, counter-clockwise: base from (-1, 0) to (1, 0), apex at (0, sqrt 3).
   // Its left face's outward normal points up-left, at 150 degrees; the beam travels at theta1 from
   // the inward normal (-30 degrees), turned anticlockwise (from below the normal, towards the apex),
@@ -309,13 +312,14 @@ TEST(SpecularChains, PrismDeviatesAsSnellsLawSays) {
   // The lamp's front must face `direction`: it runs along direction turned -90 degrees.
   const Vec2 along{direction.y, -direction.x};
   const Vec2 p0 = lamp_centre - 0.01 * along, p1 = lamp_centre + 0.01 * along;
+  const std::string spectrum = nanometres > 0.0 ? ", \"spectrum\": {\"line\": " + std::to_string(nanometres) + "}" : "";
   char text[1400];
   std::snprintf(text, sizeof text, R"({"flatland": 2,
-      "materials": {"lamp": {"emittance": 1, "emission": {"beam": 0.01}},
-                    "glass": {"type": "dielectric", "ior": {"cauchy": [1.5046, 0.0042]}}},
+      "materials": {"lamp": {"emittance": 1, "emission": {"beam": 0.01}%s},
+                    "glass": {"type": "dielectric", "ior": {"cauchy": [%.17g, %.17g]}}},
       "curves": [{"id": "lamp", "material": "lamp", "line": [[%.17g,%.17g],[%.17g,%.17g]]},
                  {"id": "prism", "material": "glass", "line": [[-1,0],[1,0],[0,%.17g],[-1,0]]}]})",
-                p0.x, p0.y, p1.x, p1.y, std::sqrt(3.0));
+                spectrum.c_str(), a, b, p0.x, p0.y, p1.x, p1.y, std::sqrt(3.0));
   const Scene scene = testing::scene_from_text(text);
   SolverSettings settings;
   settings.photons = 4096;
@@ -329,15 +333,49 @@ TEST(SpecularChains, PrismDeviatesAsSnellsLawSays) {
   const double deviation = theta1 + theta2_out - apex;
   int checked = 0;
   for (const PhotonPath& path : solver.paths()) {
+    EXPECT_EQ(path.wavelength, nanometres);
     if (path.via.size() != 2 || !path.escaped) continue;
     const Vec2 out = normalized(path.end - path.via[1]);
     // Twice refracted paths leave through the right face (x > 0 at the second event).
     if (!(path.via[1].x > 0.0)) continue;
     const double turned = std::atan2(cross(direction, out), dot(direction, out));
-    EXPECT_NEAR(-turned, deviation, 5e-4) << "path " << checked;  // turned clockwise, towards the base
+    EXPECT_NEAR(-turned, deviation, 5e-4) << nanometres << " nm, path " << checked;  // clockwise, to the base
     ++checked;
   }
-  EXPECT_GT(checked, 3000);  // most of the light goes through (about 90 %)
+  EXPECT_GT(checked, 3000) << nanometres;  // most of the light goes through (about 85 %)
+}
+
+TEST(SpecularChains, PrismDeviatesAsSnellsLawSays) { check_prism_deviation(0.0); }
+
+TEST(SpecularChains, PrismDispersesTwoWavelengthsAsCauchysIndexSays) {
+  check_prism_deviation(450.0);
+  check_prism_deviation(650.0);
+}
+
+TEST(SpecularChains, SpectralPhotonsKeepTheirPowerAndShareItByWavelength) {
+  // A white (6500 K) lamp over a white floor: each channel of the floor's light is the lamp's
+  // mean share of it, within the noise, and the books are exact.
+  const Scene scene = testing::scene_from_text(R"({"flatland": 2,
+      "materials": {"sun": {"emittance": 1, "spectrum": {"blackbody": 6500}}, "floor": {"reflectivity": 0.5}},
+      "curves": [{"id": "sun", "material": "sun", "line": [[1, 1], [-1, 1]]},
+                 {"id": "floor", "material": "floor", "line": [[-3, 0], [3, 0]]}]})");
+  SolverSettings settings;
+  settings.photons = 200'000;
+  settings.elements = 4;
+  settings.sampler = SamplerKind::Random;
+  Solver solver = make_solver(scene, settings);
+  ASSERT_TRUE(solver.step_round());
+  const std::uint32_t offset = solver.scene_storage().block_offset(1, Side::Front);
+  Spectrum received{};
+  for (std::size_t k = 0; k < solver.storage(1).basis.size(); ++k)
+    for (std::size_t ch = 0; ch < 3; ++ch) received[ch] += solver.received()[(offset + k) * 3 + ch];
+  const double total = received[0] + received[1] + received[2];
+  const Spectrum& shares = scene.materials[0].spectrum->mean_shares;
+  // Each photon's share of a channel lies in [0, 1]: its variance is at most s (1 - s).
+  const double n = total / (solver.books().emitted / static_cast<double>(solver.photons_shot()));
+  for (std::size_t ch = 0; ch < 3; ++ch)
+    EXPECT_NEAR(received[ch] / total, shares[ch], 5.0 * std::sqrt(shares[ch] * (1.0 - shares[ch]) / n)) << ch;
+  EXPECT_NEAR(solver.books().imbalance(), 0.0, 1e-12 * solver.books().emitted);
 }
 
 // ---- Detectors

@@ -69,6 +69,11 @@ std::string format_number(double value, int significant) {
     std::snprintf(text, sizeof text, "%.*g", significant, value);
     return text;
   }
+  // Whole numbers below 1e15 as such ("100", not the shortest "1e+02").
+  if (std::isfinite(value) && value == std::floor(value) && std::fabs(value) < 1e15) {
+    std::snprintf(text, sizeof text, "%.0f", value);
+    return text;
+  }
   // The fewest significant digits that read back exactly (17 always do).
   for (int digits = 1; digits <= 17; ++digits) {
     std::snprintf(text, sizeof text, "%.*g", digits, value);

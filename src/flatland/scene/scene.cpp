@@ -384,6 +384,12 @@ bool Scene::has_specular() const {
   return false;
 }
 
+bool Scene::has_spectra() const {
+  for (const Material& m : materials)
+    if (m.spectrum) return true;
+  return false;
+}
+
 bool Scene::is_emitter(const Curve& c) const {
   for (int channel = 0; channel < channels; ++channel) {
     if (c.emittance[static_cast<std::size_t>(channel)] > 0.0) return true;

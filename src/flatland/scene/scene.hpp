@@ -5,6 +5,7 @@
 #include <array>
 #include <atomic>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -13,6 +14,7 @@
 #include "flatland/base/vec2.hpp"
 #include "flatland/geometry/bezier.hpp"
 #include "flatland/geometry/segments.hpp"
+#include "flatland/scene/light_spectrum.hpp"
 
 namespace flatland {
 
@@ -71,6 +73,10 @@ struct Material {
   Spectrum reflectivity{0.0, 0.0, 0.0};  // Diffuse: each channel in [0,1)
   Spectrum emittance{0.0, 0.0, 0.0};     // power per unit length leaving each emitting side
   Emission emission;                     // directions of the emitted light
+  // Spectral emitters: the spectrum its photons' wavelengths are drawn from. The emittance then is
+  // its grey value E split by the spectrum's mean channel shares, 3 E x mean_shares (the same
+  // total power as a grey E in a colour scene).
+  std::optional<EmitterSpectrum> spectrum;
   Optics optics = Optics::Diffuse;
   Spectrum reflectance{1.0, 1.0, 1.0};  // Mirror: each channel in [0,1]
   RefractiveIndex ior;                  // Dielectric: the front side's index
@@ -149,6 +155,8 @@ struct Scene {
   bool stores(const Curve& c, Side s) const { return material_of(c).optics == Optics::Diffuse && c.has_side(s); }
   // Whether some curve is a mirror, a dielectric or a detector (photons then follow chains).
   bool has_specular() const;
+  // Whether some material has a spectrum (its photons carry wavelengths).
+  bool has_spectra() const;
   bool has_cubics() const;
   bool is_emitter(const Curve& c) const;
   // Total emitted power summed over channels and emitting sides.

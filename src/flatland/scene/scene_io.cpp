@@ -663,13 +663,28 @@ class SceneReader {
     }
     switch (material.optics) {
       case Optics::Diffuse:
-        check_keys(m, path, {"type", "reflectivity", "emittance", "emission"});
+        check_keys(m, path, {"type", "reflectivity", "emittance", "emission", "spectrum"});
         if (const auto it = m.find("reflectivity"); it != m.end())
           material.reflectivity = spectrum(*it, append_key(path, "reflectivity"), Quantity::Reflectivity, colour);
         if (const auto it = m.find("emittance"); it != m.end())
           material.emittance = spectrum(*it, append_key(path, "emittance"), Quantity::Emittance, colour);
         if (const auto it = m.find("emission"); it != m.end())
           material.emission = emission(*it, append_key(path, "emission"));
+        if (const auto it = m.find("spectrum"); it != m.end()) {
+          const std::string spectrum_path = append_key(path, "spectrum");
+          const auto emittance = m.find("emittance");
+          if (emittance == m.end() || !(material.emittance[0] > 0.0))
+            fail(spectrum_path, "a spectrum shapes emitted light: give the material an \"emittance\" > 0");
+          if (emittance->is_array())
+            fail(append_key(path, "emittance"),
+                 "with a \"spectrum\" the emittance is one number (its colour comes from the spectrum)");
+          material.spectrum = emitter_spectrum(*it, spectrum_path);
+          // A spectral scene is a colour scene: the grey emittance E is split by the spectrum.
+          colour = true;
+          const double grey = material.emittance[0];
+          for (std::size_t ch = 0; ch < 3; ++ch)
+            material.emittance[ch] = 3.0 * grey * material.spectrum->mean_shares[ch];
+        }
         break;
       case Optics::Mirror:
         check_keys(m, path, {"type", "reflectance"});
@@ -699,6 +714,51 @@ class SceneReader {
         break;
     }
     return material;
+  }
+
+  // {"blackbody": kelvin}, {"line": nm} or a table [[nm, power], ...].
+  EmitterSpectrum emitter_spectrum(const Json& v, const std::string& path) const {
+    constexpr const char* kForms =
+        "use {\"blackbody\": kelvin}, {\"line\": nanometres} or a table [[nanometres, power], ...]";
+    EmitterSpectrum result;
+    if (v.is_array()) {
+      result.kind = EmitterSpectrum::Kind::Table;
+      if (v.size() < 2) fail(path, "a spectrum table needs at least 2 points [[nanometres, power], ...]");
+      for (std::size_t k = 0; k < v.size(); ++k) {
+        const std::string point_path = append_index(path, k);
+        if (!v[k].is_array() || v[k].size() != 2)
+          fail(point_path, "expected a point [nanometres, power], got " + type_name(v[k]));
+        const double nm = number(v[k][0], append_index(point_path, 0));
+        const double power = number(v[k][1], append_index(point_path, 1));
+        if (!(nm >= 300.0 && nm <= 900.0))
+          fail(append_index(point_path, 0), "a wavelength in nanometres from 300 to 900, got " + format_number(nm));
+        if (!(power >= 0.0 && power <= kMaxEmittance))
+          fail(append_index(point_path, 1), "relative power must be >= 0, got " + format_number(power));
+        if (!result.points.empty() && !(nm > result.points.back().first))
+          fail(append_index(point_path, 0), "wavelengths must increase along the table, got " + format_number(nm) +
+                                                " after " + format_number(result.points.back().first));
+        result.points.emplace_back(nm, power);
+      }
+    } else {
+      if (!v.is_object() || v.size() != 1) fail(path, std::string("expected one spectrum form; ") + kForms);
+      check_keys(v, path, {"blackbody", "line"});
+      if (const auto it = v.find("blackbody"); it != v.end()) {
+        result.kind = EmitterSpectrum::Kind::Blackbody;
+        result.kelvin = number(*it, append_key(path, "blackbody"));
+        if (!(result.kelvin >= 500.0 && result.kelvin <= 100000.0))
+          fail(append_key(path, "blackbody"),
+               "a temperature from 500 to 100000 kelvin, got " + format_number(result.kelvin));
+      } else {
+        result.kind = EmitterSpectrum::Kind::Line;
+        result.line = number(v.at("line"), append_key(path, "line"));
+        if (!(result.line >= kMinWavelength && result.line <= kMaxWavelength))
+          fail(append_key(path, "line"),
+               "a visible wavelength from 380 to 780 nanometres, got " + format_number(result.line));
+      }
+    }
+    if (!result.prepare())
+      fail(path, "the spectrum has no power between 380 and 780 nm (the visible range its photons are drawn from)");
+    return result;
   }
 
   // A refractive index: a number, or {"cauchy": [A, B]} (n = A + B / lambda^2, lambda in um).
@@ -777,6 +837,15 @@ class SceneReader {
     }
     curve.material = found->second;
     curve.emittance = scene.materials[found->second].emittance;
+    if (const auto& spectral = scene.materials[found->second].spectrum; spectral) {
+      // A curve's own emittance on a spectral material: one number, split like the material's.
+      if (const auto it = v.find("emittance"); it != v.end()) {
+        if (!it->is_number())
+          fail(path + ".emittance", "material " + quote(material) +
+                                        " has a spectrum: the curve's emittance is one number (its colour comes "
+                                        "from the spectrum)");
+      }
+    }
     if (scene.materials[found->second].optics != Optics::Diffuse) {
       for (const char* key : {"emittance", "emittance_profile"})
         if (v.contains(key))
@@ -839,6 +908,10 @@ class SceneReader {
     }
     if (const auto it = v.find("emittance"); it != v.end()) {
       curve.emittance = spectrum(*it, path + ".emittance", Quantity::Emittance, colour);
+      if (const auto& spectral = scene.materials[curve.material].spectrum; spectral) {
+        const double grey = curve.emittance[0];
+        for (std::size_t ch = 0; ch < 3; ++ch) curve.emittance[ch] = 3.0 * grey * spectral->mean_shares[ch];
+      }
     }
     if (const auto it = v.find("emittance_profile"); it != v.end()) {
       const std::string profile_path = path + ".emittance_profile";

@@ -147,6 +147,16 @@ inline PhotonPath* start_path(std::vector<PhotonPath>* paths, std::size_t path_l
   return path;
 }
 
+// A photon's units shared among the three channels by the shares of its wavelength: each channel
+// the rounded share of the total, the last the remainder, so the total is unchanged.
+inline void split_by_wavelength(std::array<std::int64_t, 3>& units, double wavelength) {
+  const std::int64_t total = units[0] + units[1] + units[2];
+  const Spectrum shares = channel_shares(wavelength);
+  units[0] = static_cast<std::int64_t>(static_cast<double>(total) * shares[0] + 0.5);
+  units[1] = std::min(total - units[0], static_cast<std::int64_t>(static_cast<double>(total) * shares[1] + 0.5));
+  units[2] = total - units[0] - units[1];
+}
+
 }  // namespace
 
 void Deposits::reset(std::size_t size, std::size_t detected_size) {
@@ -183,6 +193,11 @@ PhotonShooter::PhotonShooter(const Scene& scene, const SolverSettings& settings,
       accelerator_(std::move(accelerator)),
       walls_(std::move(walls)) {
   chains_ = scene.has_specular();
+  spectral_ = scene.has_spectra();
+  for (const Curve& curve : scene.curves) {
+    const std::optional<EmitterSpectrum>& spectrum = scene.material_of(curve).spectrum;
+    spectra_.push_back(spectrum ? &*spectrum : nullptr);
+  }
   detectors_ = detector_layout(scene);
   const bool reconstructed = settings.sampling == PositionSampling::Reconstructed;
   by_hermite_ = reconstructed && settings.basis == BasisKind::Hermite;
@@ -295,6 +310,16 @@ void PhotonShooter::shoot_rays(const RoundView& round, Rng& rng, std::uint64_t f
     const bool back = (block & 1u) != 0;
     const Curve& curve = scene_->curves[curve_index];
     std::array<std::int64_t, 3> units = plan.photon_units[source];
+    // Light straight from a spectral emitter: a wavelength from its spectrum, and the photon's
+    // units shared among the channels by that wavelength's shares (their total unchanged, so the
+    // books stay exact; on average each channel gets the emittance's share).
+    double wavelength = 0.0;
+    if (spectral_ && round.emitted_light) {
+      if (const EmitterSpectrum* spectrum = spectra_[curve_index]; spectrum != nullptr) {
+        wavelength = spectrum->sample(rng.uniform());
+        split_by_wavelength(units, wavelength);
+      }
+    }
     for (std::size_t ch = 0; ch < channels; ++ch) acc.shot[ch] += units[ch];
 
     OriginDraws draws{rng, net_point, place};
@@ -304,13 +329,14 @@ void PhotonShooter::shoot_rays(const RoundView& round, Rng& rng, std::uint64_t f
         leaving_direction(round.emitted_light, scene_->material_of(curve).emission, normal, rng, net_point);
     PhotonPath* path =
         start_path(paths, path_limit, leaves, curve_index, back, units, channels, plan.scale, round.bounce);
+    if (path != nullptr) path->wavelength = wavelength;
     if constexpr (kRays == RayKind::Band) {
-      shoot_band<kChains>(round, rng, leaves, back, normal, direction, units, acc, path, footprint);
+      shoot_band<kChains>(round, rng, leaves, back, normal, direction, units, wavelength, acc, path, footprint);
     } else {
       Ray ray{leaves.position, direction};
       SceneHit hit = accelerator_.closest_hit(ray, RayOrigin{leaves.segment, leaves.t});
       ++acc.rays;
-      const bool lands = receive<kRays, kChains>(round, rng, hit, ray, units, acc, path, footprint);
+      const bool lands = receive<kRays, kChains>(round, rng, hit, ray, units, wavelength, acc, path, footprint);
       if (lands && round.photons_go_on)
         walk_on<kRays, kChains>(round, rng, hit, ray, units, acc, paths, path_limit, path, footprint);
     }
@@ -325,8 +351,8 @@ void PhotonShooter::shoot_rays(const RoundView& round, Rng& rng, std::uint64_t f
 // middle one continues the photon's path.
 template <bool kChains>
 void PhotonShooter::shoot_band(const RoundView& round, Rng& rng, const Origin& leaves, bool back, Vec2 normal,
-                               Vec2 direction, const std::array<std::int64_t, 3>& units, Deposits& acc,
-                               PhotonPath* path, std::vector<FootprintWeight>& footprint) const {
+                               Vec2 direction, const std::array<std::int64_t, 3>& units, double wavelength,
+                               Deposits& acc, PhotonPath* path, std::vector<FootprintWeight>& footprint) const {
   const auto channels = static_cast<std::size_t>(round.storage->channels());
   const SceneSegment& emitter = scene_->segments[leaves.segment];
   const Cubic& shape = emitter.geometry.shape;
@@ -357,7 +383,7 @@ void PhotonShooter::shoot_band(const RoundView& round, Rng& rng, const Origin& l
     }
     Ray sub{start, direction};
     SceneHit hit = accelerator_.closest_hit(sub, RayOrigin{leaves.segment, t_i});
-    receive<RayKind::Point, kChains>(round, rng, hit, sub, share, acc,
+    receive<RayKind::Point, kChains>(round, rng, hit, sub, share, wavelength, acc,
                                      ray_index == band_offsets_.size() / 2 ? path : nullptr, footprint);
   }
   acc.rays += band_offsets_.size();
@@ -444,20 +470,22 @@ void PhotonShooter::walk_on(const RoundView& round, Rng& rng, SceneHit hit, Ray 
       path->bounce = bounce;
     }
     last = path;
-    if (!receive<kRays, kChains>(round, rng, hit, ray, units, acc, path, footprint)) return;
+    // (A diffuse bounce keeps the light's colour in its channels, not a wavelength.)
+    if (!receive<kRays, kChains>(round, rng, hit, ray, units, 0.0, acc, path, footprint)) return;
   }
 }
 
 template <PhotonShooter::RayKind kRays, bool kChains>
 bool PhotonShooter::receive(const RoundView& round, Rng& rng, SceneHit& hit, Ray& ray,
-                            std::array<std::int64_t, 3>& units, Deposits& acc, PhotonPath* path,
+                            std::array<std::int64_t, 3>& units, double wavelength, Deposits& acc, PhotonPath* path,
                             std::vector<FootprintWeight>& footprint) const {
   const SceneStorage& storage = *round.storage;
   const auto channels = static_cast<std::size_t>(storage.channels());
   if constexpr (kChains) {
-    if (!follow_chain(rng, hit, ray, units, channels, acc, path)) return false;
+    if (!follow_chain(rng, hit, ray, units, wavelength, channels, acc, path)) return false;
   } else {
     (void)rng;
+    (void)wavelength;
   }
   if (hit.segment == kNoSegment) {
     for (std::size_t ch = 0; ch < channels; ++ch) acc.escaped[ch] += units[ch];
@@ -534,7 +562,9 @@ bool PhotonShooter::receive(const RoundView& round, Rng& rng, SceneHit& hit, Ray
 // remainder booked as lost, so the books stay exact; the choice between reflection and refraction
 // is a draw with the Fresnel reflectance as its probability, so every photon keeps its power.
 bool PhotonShooter::follow_chain(Rng& rng, SceneHit& hit, Ray& ray, std::array<std::int64_t, 3>& units,
-                                 std::size_t channels, Deposits& acc, PhotonPath* path) const {
+                                 double wavelength, std::size_t channels, Deposits& acc, PhotonPath* path) const {
+  // Dispersion: the index at the photon's wavelength (micrometres); light without one at the d line.
+  const double micrometres = wavelength > 0.0 ? wavelength / 1000.0 : kGreyWavelength;
   // The attenuation per unit length of the medium the flight crosses (null: none). Light leaving
   // a diffuse side or an emitter starts in a clear medium; a dielectric's front side has its
   // absorption, its back side none.
@@ -609,7 +639,7 @@ bool PhotonShooter::follow_chain(Rng& rng, SceneHit& hit, Ray& ray, std::array<s
       }
       case Optics::Dielectric: {
         // Snell: n1 sin(in) = n2 sin(out); unpolarised Fresnel reflectance, the mean of s and p.
-        const double front_index = material.ior.at(kGreyWavelength);
+        const double front_index = material.ior.at(micrometres);
         const double n1 = side == Side::Front ? front_index : material.ior_back;
         const double n2 = side == Side::Front ? material.ior_back : front_index;
         const double eta = n1 / n2;

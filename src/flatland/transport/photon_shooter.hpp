@@ -51,6 +51,8 @@ struct PhotonPath {
   // The points where the flight met mirrors, glass or detectors on its way from `origin` to `end`
   // (empty in a scene without them); the flight ended in the chain when `absorbed` is set there.
   std::vector<Vec2> via;
+  // Spectral light straight from its emitter: its wavelength in nanometres (0: none).
+  double wavelength = 0.0;
 };
 
 // Where power ends inside a specular chain (each a line of the energy books): absorbed by mirrors
@@ -169,20 +171,21 @@ class PhotonShooter {
                OriginDraws& draws) const;
   template <bool kChains>
   void shoot_band(const RoundView& round, Rng& rng, const Origin& leaves, bool back, Vec2 normal, Vec2 direction,
-                  const std::array<std::int64_t, 3>& units, Deposits& deposits, PhotonPath* path,
+                  const std::array<std::int64_t, 3>& units, double wavelength, Deposits& deposits, PhotonPath* path,
                   std::vector<FootprintWeight>& footprint) const;
   // What a photon (or a band's sub-ray) carrying `units` does where it lands: with kChains, first
   // its specular chain, after which `hit`, `ray` and `units` are its last flight's and what that
-  // brings. Returns false when the photon ended in the chain (booked there).
+  // brings. Returns false when the photon ended in the chain (booked there). `wavelength`: the
+  // photon's (nm), or 0 for light without one.
   template <RayKind kRays, bool kChains>
   bool receive(const RoundView& round, Rng& rng, SceneHit& hit, Ray& ray, std::array<std::int64_t, 3>& units,
-               Deposits& deposits, PhotonPath* path, std::vector<FootprintWeight>& footprint) const;
+               double wavelength, Deposits& deposits, PhotonPath* path, std::vector<FootprintWeight>& footprint) const;
   // The specular chain of a flight that landed at `hit`: while it is on a mirror, a dielectric or
   // a detector, the photon reflects, refracts (by the Fresnel weight, drawn from `rng`, so every
   // photon keeps its power) or passes, and flies on. Returns true with `hit` on a diffuse side or
   // escaped; false when the photon ended in the chain (absorbed by a mirror or in glass, or cut).
-  bool follow_chain(Rng& rng, SceneHit& hit, Ray& ray, std::array<std::int64_t, 3>& units, std::size_t channels,
-                    Deposits& deposits, PhotonPath* path) const;
+  bool follow_chain(Rng& rng, SceneHit& hit, Ray& ray, std::array<std::int64_t, 3>& units, double wavelength,
+                    std::size_t channels, Deposits& deposits, PhotonPath* path) const;
   // The side of a curve that `ray` hits; `tangent` gets the curve's (unnormalised) tangent there.
   Side side_hit(const SceneHit& hit, const Ray& ray, Vec2& tangent) const;
   // Walks: the rest of a walk whose first flight `ray` landed at `hit` carrying `units` (already
@@ -204,6 +207,9 @@ class PhotonShooter {
   RayProfile ray_profile_ = RayProfile::Box;
   RayKind ray_kind_ = RayKind::Point;
   bool chains_ = false;  // the scene has mirrors, glass or detectors
+  // Per curve, its material's spectrum (null: none); spectral_ when any curve has one.
+  std::vector<const EmitterSpectrum*> spectra_;
+  bool spectral_ = false;
   DetectorLayout detectors_;
   SegmentAccelerator accelerator_;
   std::vector<SegmentInfo> segment_info_;
