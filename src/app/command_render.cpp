@@ -115,8 +115,9 @@ int run_render(RenderOptions& o) {
   auto traces = std::make_shared<const std::vector<viewer::CurveTrace>>(viewer::trace_curves(*scene));
   snapshot.traces = traces;
   viewer::describe_solver(solver, *traces, snapshot);
+  std::uint64_t serial = 0;
   for (std::size_t i = 0; i < paths.size(); ++i)
-    snapshot.paths.push_back(viewer::path_record(paths[i], *scene, i, rounds[i]));
+    viewer::append_path_records(paths[i], *scene, serial, rounds[i], snapshot.paths);
   viewer::DrawOptions draw;
   draw.graph = o.graph;
   draw.band = o.band;

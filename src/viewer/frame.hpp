@@ -106,8 +106,9 @@ struct PathRecord {
 // A photon path for drawing: from its origin to its hit, or, for a photon that escaped (`end` is
 // then origin + direction), to where it leaves the scene's box.
 // (The box is padded by 5 % of the scene's size, so light escaping a flat scene still shows.)
-// A flight through a specular chain (PhotonPath::via) is one record a leg, its serials
-// consecutive from `serial` (advanced past them).
+// The records of one flight: one a leg for a flight through a specular chain (PhotonPath::via),
+// their serials consecutive from `serial` (advanced past them). Every front end draws paths
+// through this; path_record alone is the last leg's record.
 void append_path_records(const PhotonPath& path, const Scene& scene, std::uint64_t& serial, std::uint32_t round,
                          std::vector<PathRecord>& out);
 PathRecord path_record(const PhotonPath& path, const Scene& scene, std::uint64_t serial, std::uint32_t round);
