@@ -150,6 +150,9 @@ struct Snapshot {
   // about twice a second of solving and when the solve stops.
   std::optional<ErrorEstimate> estimated_error;
   std::shared_ptr<const std::vector<std::array<std::vector<double>, 2>>> error_band;
+  // Detector curves: per curve and side (the side the light arrives on), the power per unit
+  // length that crossed each bin (empty for other curves).
+  std::vector<std::array<std::vector<Spectrum>, 2>> detected;
 };
 
 // Radiosity of a sample for display: one number (the channels' mean).

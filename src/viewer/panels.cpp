@@ -540,6 +540,8 @@ void Viewer::draw_status_panel(const Snapshot& snapshot) {
     ImGui::Text("emitted  %.6g", books.emitted);
     ImGui::Text("absorbed %.6g  escaped %.6g", books.absorbed, books.escaped);
     ImGui::Text("unshot   %.6g (%.3g%%)", books.unshot, 100.0 * books.unshot / books.emitted);
+    if (scene_->has_specular())
+      ImGui::Text("mirrors  %.6g  glass %.6g  cut %.6g", books.absorbed_mirrors, books.absorbed_glass, books.cut);
     ImGui::Text("balance  %.2g", books.imbalance());
   }
   if (snapshot.estimated_error && snapshot.estimated_error->available) {
@@ -603,8 +605,39 @@ void draw_curve_facts(const Scene& scene, const Snapshot& snapshot, std::size_t 
   const Curve& curve = scene.curves[c];
   const Material& material = scene.material_of(curve);
   ImGui::TextWrapped("curve    %zu '%s'", c, curve.id.c_str());
-  ImGui::TextWrapped("material %s: rho %.3g %.3g %.3g", material.name.c_str(), material.reflectivity[0],
-                     material.reflectivity[1], material.reflectivity[2]);
+  switch (material.optics) {
+    case Optics::Diffuse:
+      ImGui::TextWrapped("material %s: rho %.3g %.3g %.3g", material.name.c_str(), material.reflectivity[0],
+                         material.reflectivity[1], material.reflectivity[2]);
+      if (material.spectrum) {
+        const EmitterSpectrum& sp = *material.spectrum;
+        if (sp.kind == EmitterSpectrum::Kind::Blackbody)
+          ImGui::TextWrapped("spectrum black body at %.0f K", sp.kelvin);
+        else if (sp.kind == EmitterSpectrum::Kind::Line)
+          ImGui::TextWrapped("spectrum a line at %.1f nm", sp.line);
+        else
+          ImGui::TextWrapped("spectrum a table of %zu points", sp.points.size());
+      }
+      break;
+    case Optics::Mirror:
+      ImGui::TextWrapped("material %s: mirror, reflectance %.3g %.3g %.3g", material.name.c_str(),
+                         material.reflectance[0], material.reflectance[1], material.reflectance[2]);
+      break;
+    case Optics::Dielectric: {
+      // The index at 450 and 650 nm (equal without dispersion) and the critical angle at the d line.
+      const double front = material.ior.at(kGreyWavelength);
+      const double high = std::max(front, material.ior_back), low = std::min(front, material.ior_back);
+      ImGui::TextWrapped("material %s: dielectric, n %.4g (450 nm) .. %.4g (650 nm) in front, %.4g behind",
+                         material.name.c_str(), material.ior.at(0.45), material.ior.at(0.65), material.ior_back);
+      if (high > low)
+        ImGui::TextWrapped("critical angle %.2f degrees (total internal reflection beyond it, from the n = %.4g side)",
+                           std::asin(low / high) * 180.0 / 3.14159265358979323846, high);
+      break;
+    }
+    case Optics::Detector:
+      ImGui::TextWrapped("material %s: detector, %u bins", material.name.c_str(), material.detector_bins);
+      break;
+  }
   if (scene.is_emitter(curve))
     ImGui::TextWrapped("emits    %.3g %.3g %.3g per unit length", curve.emittance[0], curve.emittance[1],
                        curve.emittance[2]);
@@ -828,7 +861,8 @@ void Viewer::draw_curve_panel(const Snapshot& snapshot) {
   ImGui::Begin("Curve", nullptr, kDocked);
   record_panel("Curve");
   draw_curve_facts(*scene_, snapshot, c);
-  draw_node_list(snapshot, c);
+  // (Mirrors, glass and detectors store no light: no nodes to list.)
+  if (scene_->material_of(scene_->curves[c]).optics == Optics::Diffuse) draw_node_list(snapshot, c);
   draw_curve_plot(snapshot, c);
   ImGui::End();
 }
@@ -838,6 +872,10 @@ void Viewer::draw_curve_panel(const Snapshot& snapshot) {
 // nodes below C1 (C0 grey, C-1 red), where the illumination may kink or jump.
 void Viewer::draw_curve_plot(const Snapshot& snapshot, std::size_t c, bool captions) {
   const Curve& curve = scene_->curves[c];
+  if (c < snapshot.detected.size() && !snapshot.detected[c][0].empty()) {
+    draw_detector_plot(snapshot, c, captions);
+    return;
+  }
   const CurveTrace* trace = snapshot.traces && c < snapshot.traces->size() ? &(*snapshot.traces)[c] : nullptr;
   const int main_side = curve.sides == Sides::Back ? 1 : 0;
   const std::vector<PlotLine> lines = plot_lines(snapshot, c, trace);
@@ -873,6 +911,46 @@ void Viewer::draw_curve_plot(const Snapshot& snapshot, std::size_t c, bool capti
         "curve and left their deposits.");
   ImGui::TextWrapped("B (power per unit length) against s (arc length from the first point)%s",
                      scene_->channels == 3 ? "; mean of r, g, b" : "");
+}
+
+// A detector's tallies as steps, one per bin: the power per unit length that crossed it arriving on
+// its front (orange) and on its back (blue), against s.
+void Viewer::draw_detector_plot(const Snapshot& snapshot, std::size_t c, bool captions) {
+  const Curve& curve = scene_->curves[c];
+  const int channels = scene_->channels;
+  const auto& sides = snapshot.detected[c];
+  double hi = 0.0;
+  for (const auto& side : sides)
+    for (const Spectrum& value : side) hi = std::max(hi, luminance(value, channels));
+  hi = hi > 0.0 && std::isfinite(hi) ? 1.1 * hi : 1.0;
+  ImDrawList* draw = ImGui::GetWindowDrawList();
+  const float text = ImGui::GetTextLineHeight();
+  const ImVec2 corner = ImGui::GetCursorScreenPos();
+  const ImVec2 avail = ImGui::GetContentRegionAvail();
+  const ImVec2 size(avail.x, std::max(avail.y - (captions ? 2.5f : 0.0f) * text - 8.0f, 80.0f));
+  ImGui::InvisibleButton("##detector plot", size);
+  track("detector plot");
+  const PlotArea plot = plot_area(draw, corner, size, text, curve.length, hi);
+  draw_plot_axes(plot);
+  draw->PushClipRect(plot.lo, plot.hi_corner, true);
+  const ImU32 colours[2] = {IM_COL32(255, 190, 70, 255), IM_COL32(110, 170, 255, 255)};
+  for (std::size_t side = 0; side < 2; ++side) {
+    const std::vector<Spectrum>& bins = sides[side];
+    const double width = curve.length / static_cast<double>(bins.size());
+    for (std::size_t b = 0; b < bins.size(); ++b) {
+      const double value = luminance(bins[b], channels);
+      const double s0 = width * static_cast<double>(b), s1 = s0 + width;
+      draw->AddLine(plot.point(s0, value), plot.point(s1, value), colours[side], 1.5f);
+      if (b + 1 < bins.size())
+        draw->AddLine(plot.point(s1, value), plot.point(s1, luminance(bins[b + 1], channels)), colours[side], 1.0f);
+    }
+  }
+  draw->PopClipRect();
+  if (!captions) return;
+  ImGui::TextWrapped(
+      "Power per unit length that crossed each of the detector's bins, arriving on its front (orange) and on its "
+      "back (blue), against s%s",
+      channels == 3 ? "; mean of r, g, b" : "");
 }
 
 void Viewer::draw_help_panel() {

@@ -167,6 +167,7 @@ class Viewer {
   void draw_curve_panel(const Snapshot& snapshot);
   // B(s) along curve c, in the curve panel (with the captions that explain it) or an overlay.
   void draw_curve_plot(const Snapshot& snapshot, std::size_t c, bool captions = true);
+  void draw_detector_plot(const Snapshot& snapshot, std::size_t c, bool captions);
   void draw_colour_key(const Snapshot& snapshot);
   void draw_key_strip(const Snapshot& snapshot);
   void draw_counter_overlay(const Snapshot& snapshot);
