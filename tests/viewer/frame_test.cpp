@@ -92,6 +92,43 @@ TEST(Frame, NewestJourneyIsTheLastRunOfConnectedBounces) {
   EXPECT_EQ(newest_journey(round), (std::pair<std::size_t, std::size_t>{1, 2}));
 }
 
+TEST(Frame, AChainIsDrawnLegByLegAndIsOneJourney) {
+  // A flight from (0, 0) that met a mirror at (1, 0) and glass at (1, 1), then landed at (0, 2).
+  const Scene scene = testing::scene_from_file("scenes2d/lens.json");
+  PhotonPath path;
+  path.origin = {0, 0};
+  path.via = {{1, 0}, {1, 1}};
+  path.end = {0, 2};
+  path.hit_curve = 2;
+  path.bounce = 3;
+  std::vector<PathRecord> records;
+  std::uint64_t serial = 7;
+  append_path_records(path, scene, serial, 4, records);
+  ASSERT_EQ(records.size(), 3u);
+  EXPECT_EQ(serial, 10u);
+  const Vec2 points[] = {{0, 0}, {1, 0}, {1, 1}, {0, 2}};
+  for (std::size_t i = 0; i < 3; ++i) {
+    EXPECT_EQ(records[i].from, points[i]);
+    EXPECT_EQ(records[i].to, points[i + 1]);
+    EXPECT_EQ(records[i].serial, 7 + i);
+    EXPECT_EQ(records[i].bounce, 3u);
+    EXPECT_EQ(records[i].round, 4u);
+    EXPECT_EQ(records[i].specular, i < 2);
+  }
+  EXPECT_EQ(records[2].hit_curve, 2u);
+  // The newest journey runs through the legs.
+  EXPECT_EQ(newest_journey(records), (std::pair<std::size_t, std::size_t>{0, 3}));
+  // An escaped flight leaves along its last leg: towards +y from (1, 1), to the box's edge.
+  path.escaped = true;
+  path.end = Vec2{1, 1} + Vec2{0, 1};
+  records.clear();
+  append_path_records(path, scene, serial, 4, records);
+  ASSERT_EQ(records.size(), 3u);
+  EXPECT_EQ(records[2].from, (Vec2{1, 1}));
+  EXPECT_EQ(records[2].to.x, 1.0);
+  EXPECT_GT(records[2].to.y, scene.bounds.upper.y);
+}
+
 TEST(Frame, ZoomKeepsThePointUnderTheCursor) {
   Box bounds;
   bounds.extend(Vec2{0.0, 0.0});
