@@ -40,6 +40,87 @@ TEST(Discontinuity, PenumbraEventsSitWhereEmitterAndOccluderEndsLineUp) {
   for (std::size_t i = 0; i < 4; ++i) EXPECT_NEAR(floor_x[i], sorted[i], 1e-12);
 }
 
+// A lamp (0.3 to 0.8 at height 1, facing down) and a short flat mirror on x = 0 from 0.2 to 0.6:
+// the floor (y = 0 from 0.05 to 2) sees the lamp's image (x from -0.8 to -0.3) only through the
+// mirror, and the lines from the image's ends through the mirror's ends bound that light where
+// they meet the floor: the line from the image end (e, 1) through the mirror end (0, m) meets
+// y = 0 at x = -e m / (1 - m).
+TEST(Discontinuity, AFlatMirrorsImageMarksTheFloorThroughTheMirrorsEnds) {
+  const Scene scene = testing::scene_from_text(R"({"flatland": 2,
+      "materials": {"lamp": {"emittance": 1}, "floor": {"reflectivity": 0.5}, "mirror": {"type": "mirror"}},
+      "curves": [{"id": "lamp", "material": "lamp", "line": [[0.8, 1], [0.3, 1]]},
+                 {"id": "floor", "material": "floor", "line": [[0.05, 0], [2, 0]]},
+                 {"id": "mirror", "material": "mirror", "line": [[0, 0.6], [0, 0.2]]}]})");
+  const SegmentAccelerator accelerator(geometry_of(scene));
+  std::vector<double> floor_x;
+  for (const DiscontinuityNode& node : find_visibility_events(scene, accelerator)) {
+    ASSERT_EQ(scene.curves[node.curve].id, "floor");
+    floor_x.push_back(0.05 + 1.95 * node.u);
+  }
+  std::vector<double> expected;
+  for (double e : {-0.3, -0.8})
+    for (double m : {0.2, 0.6}) expected.push_back(-e * m / (1.0 - m));
+  std::sort(expected.begin(), expected.end());
+  ASSERT_EQ(floor_x.size(), expected.size());
+  for (std::size_t i = 0; i < expected.size(); ++i) EXPECT_NEAR(floor_x[i], expected[i], 1e-12);
+  // The mirror's back (its front faces +x: it runs down) does not reflect when only the back is
+  // named: no image, no events.
+  const Scene back = testing::scene_from_text(R"({"flatland": 2,
+      "materials": {"lamp": {"emittance": 1}, "floor": {"reflectivity": 0.5}, "mirror": {"type": "mirror"}},
+      "curves": [{"id": "lamp", "material": "lamp", "line": [[0.8, 1], [0.3, 1]]},
+                 {"id": "floor", "material": "floor", "line": [[0.05, 0], [2, 0]]},
+                 {"id": "mirror", "material": "mirror", "sides": "back", "line": [[0, 0.6], [0, 0.2]]}]})");
+  EXPECT_TRUE(find_visibility_events(back, SegmentAccelerator(geometry_of(back))).empty());
+}
+
+// Event lines pass through detectors and are reflected by mirrors: the penumbra scene with a
+// detector across the light has the same events, and a mirror under the occluder's lines turns
+// them up onto a ceiling.
+TEST(Discontinuity, EventLinesPassDetectorsAndReflectOffMirrors) {
+  const Scene plain = testing::scene_from_file("scenes2d/penumbra.json");
+  std::string text = testing::read_text_file(testing::source_path("scenes2d/penumbra.json"));
+  const std::string curves = "\"curves\": [";
+  const std::string materials = "\"materials\": {";
+  text.insert(text.find(materials) + materials.size(), "\"probe\": {\"type\": \"detector\"}, ");
+  text.insert(text.find(curves) + curves.size(),
+              "{\"id\": \"probe\", \"material\": \"probe\", \"line\": [[-5, 0.5], [5, 0.5]]}, ");
+  const Scene with_detector = testing::scene_from_text(text);
+  const std::vector<DiscontinuityNode> a = find_visibility_events(plain, SegmentAccelerator(geometry_of(plain)));
+  const std::vector<DiscontinuityNode> b =
+      find_visibility_events(with_detector, SegmentAccelerator(geometry_of(with_detector)));
+  ASSERT_EQ(a.size(), b.size());
+  for (std::size_t i = 0; i < a.size(); ++i) EXPECT_NEAR(a[i].u, b[i].u, 1e-12);
+  // A mirror below: emitter (+-0.5, 2), occluder ends (-0.1, 1), (0.7, 1), a mirror at y = 0 and a
+  // ceiling at y = 3 (facing down, from -20 to 20). A line through E and O meets the mirror at
+  // x0 = E.x + 2 (O.x - E.x) and, reflected, the ceiling at x0 + 3 (O.x - E.x).
+  const Scene mirrored = testing::scene_from_text(R"({"flatland": 2,
+      "materials": {"emitter": {"emittance": 1}, "black": {}, "mirror": {"type": "mirror"},
+                    "ceiling": {"reflectivity": 0.5}},
+      "curves": [{"id": "emitter", "material": "emitter", "line": [[0.5, 2], [-0.5, 2]]},
+                 {"id": "occluder", "material": "black", "sides": "both", "line": [[-0.1, 1], [0.7, 1]]},
+                 {"id": "mirror", "material": "mirror", "line": [[-20, 0], [20, 0]]},
+                 {"id": "ceiling", "material": "ceiling", "line": [[20, 3], [-20, 3]]}]})");
+  std::vector<double> ceiling_x;
+  for (const DiscontinuityNode& node : find_visibility_events(mirrored, SegmentAccelerator(geometry_of(mirrored)))) {
+    if (mirrored.curves[node.curve].id != "ceiling") continue;
+    ceiling_x.push_back(20.0 - 40.0 * node.u);
+  }
+  std::vector<double> expected;
+  for (double e : {-0.5, 0.5})
+    for (double o : {-0.1, 0.7}) expected.push_back(e + 5.0 * (o - e));  // two of them 1.5: one node
+  // And the lamp's own shadow in the mirrored light: the line from its image (-0.5, -2) straight up
+  // past its end (-0.5, 2) (the other image lines through the occluder's ends are blocked by the
+  // lamp or the occluder, or are the lines above).
+  expected.push_back(-0.5);
+  std::sort(expected.begin(), expected.end());
+  expected.erase(
+      std::unique(expected.begin(), expected.end(), [](double x, double y) { return std::fabs(x - y) < 1e-9; }),
+      expected.end());
+  std::sort(ceiling_x.begin(), ceiling_x.end());
+  ASSERT_EQ(ceiling_x.size(), expected.size());
+  for (std::size_t i = 0; i < expected.size(); ++i) EXPECT_NEAR(ceiling_x[i], expected[i], 1e-9);
+}
+
 // The penumbra scene's emitter made a reflector (panel), lit from below by a lamp off to the
 // side that emits upward only: with secondary sources the panel's end points past the occluder's
 // mark the floor where the emitter's did (x = P.x + 2 (O.x - P.x)); without them nothing marks the

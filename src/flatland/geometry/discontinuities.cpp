@@ -51,6 +51,8 @@ void append_new_pairs(const std::vector<std::pair<double, double>>& found,
 // crossings about sqrt(2 rounding / curvature) apart. Crossings of the point's own curve closer than
 // kGraze * scale to it are that graze, not a hit.
 constexpr double kGraze = 1e-6;
+// An event line is followed through at most this many mirror reflections.
+constexpr int kMirrorBounces = 8;
 // A direction whose sine with a segment's tangent is below this runs along the segment.
 constexpr double kAlongSine = 1e-9;
 // Proper crossings stay this far (in t) from the segments' ends; closer ones are contacts at the
@@ -673,20 +675,90 @@ struct EventFinder {
       const Vec2 where = a.position + blocker.distance * d;
       if (scene.segments[blocker.segment].curve != b.curve || length(where - b.position) > kGraze * scene.scale) return;
     }
-    // A surface touching B (a contact there) blocks the line at B: its node is the contact's.
-    const SceneHit hit = cast(b, d);
+    land(b, d);
+  }
+
+  // The line leaves B along d: its event is where it lands on a reflecting diffuse side. A surface
+  // touching B (a contact there) blocks the line at B: its node is the contact's. The line goes on
+  // through detectors and is reflected by mirrors (the boundary of the light a mirror turns is the
+  // mirrored boundary), up to kMirrorBounces times; glass ends it (refraction bends light into
+  // caustics, which are not lines).
+  void land(const Feature& b, Vec2 d) {
+    SceneHit hit = cast(b, d);
     if (hit.segment == kNoSegment || hit.distance <= kTouch * scene.scale) return;
-    const SceneSegment& segment = scene.segments[hit.segment];
-    const Curve& receiver = scene.curves[segment.curve];
-    // Light arrives travelling along d: it meets the front if the front normal opposes d. Only a side
-    // that reflects stores light that could show the kink.
-    const Side side = dot(unit_normal(segment.geometry.shape, hit.t, scene.scale), d) < 0.0 ? Side::Front : Side::Back;
-    const Spectrum& rho = scene.material_of(receiver).reflectivity;
-    bool reflects = false;
-    for (int channel = 0; channel < scene.channels; ++channel)
-      reflects = reflects || rho[static_cast<std::size_t>(channel)] > 0.0;
-    if (!receiver.has_side(side) || !reflects) return;
-    events.push_back({segment.curve, wrap(receiver, segment.index_in_curve + hit.t), Continuity::C0});
+    Vec2 from = b.position;
+    for (int bounce = 0;; ++bounce) {
+      if (hit.segment == kNoSegment) return;
+      const SceneSegment& segment = scene.segments[hit.segment];
+      const Curve& receiver = scene.curves[segment.curve];
+      const Material& material = scene.material_of(receiver);
+      // Light arrives travelling along d: it meets the front if the front normal opposes d.
+      const Vec2 normal = unit_normal(segment.geometry.shape, hit.t, scene.scale);
+      const Side side = dot(normal, d) < 0.0 ? Side::Front : Side::Back;
+      if (material.optics == Optics::Diffuse) {
+        // Only a side that reflects stores light that could show the kink.
+        if (!receiver.has_side(side) || !reflects(scene, receiver)) return;
+        events.push_back({segment.curve, wrap(receiver, segment.index_in_curve + hit.t), Continuity::C0});
+        return;
+      }
+      if (bounce == kMirrorBounces || material.optics == Optics::Dielectric) return;
+      if (material.optics == Optics::Mirror) {
+        if (!receiver.has_side(side)) return;
+        d = d - (2.0 * dot(d, normal)) * normal;
+      }
+      const Vec2 at = segment.geometry.kind == SegmentKind::Line
+                          ? lerp(segment.geometry.shape.p[0], segment.geometry.shape.p[3], hit.t)
+                          : evaluate(segment.geometry.shape, hit.t);
+      from = at;
+      hit = accelerator.closest_hit(Ray{from, d}, RayOrigin{hit.segment, hit.t});
+    }
+  }
+
+  // The line from A's image in the flat mirror segment `mirror` through B: light from A reflected
+  // at M (where the line crosses the mirror) passes B, and the line's continuation past B bounds the
+  // light the mirror turns (B a vertex of an occluder, or the mirror's own end). `image` is A
+  // reflected in the mirror's line; A must be on a reflecting side.
+  void try_image_line(const Feature& a, Vec2 image, std::uint32_t mirror, const Feature& b) {
+    const SceneSegment& m = scene.segments[mirror];
+    const Vec2 p0 = m.geometry.shape.p[0], p1 = m.geometry.shape.p[3];
+    const Vec2 offset = b.position - image;
+    const double distance = length(offset);
+    if (distance <= kTouch * scene.scale) return;
+    const Vec2 d = (1.0 / distance) * offset;
+    // M = image + s d on the mirror's line p0 + t (p1 - p0): s in (0, distance], t in [0, 1].
+    const Vec2 edge = p1 - p0;
+    const double denominator = cross(d, edge);
+    if (std::fabs(denominator) <= kAlongSine * length(edge)) return;  // along the mirror
+    const double s_cross = cross(p0 - image, edge) / denominator;
+    const double t_cross = cross(p0 - image, d) / denominator;
+    const double touch = kTouch * scene.scale / length(edge);
+    if (!(s_cross > kTouch * scene.scale && s_cross <= distance + kTouch * scene.scale)) return;
+    if (!(t_cross >= -touch && t_cross <= 1.0 + touch)) return;
+    const Vec2 at_mirror = image + s_cross * d;
+    const Vec2 to_mirror = at_mirror - a.position;
+    const double reach = length(to_mirror);
+    if (reach <= kTouch * scene.scale) return;
+    const Vec2 d_real = (1.0 / reach) * to_mirror;
+    if (!source_allows(scene, a, d_real) || !occluder_allows(scene, b, d)) return;
+    // The mirror's side that A lights must reflect.
+    const Vec2 normal = unit_normal(m.geometry.shape, 0.5, scene.scale);
+    const Side lit = dot(normal, d_real) < 0.0 ? Side::Front : Side::Back;
+    if (!scene.curves[m.curve].has_side(lit)) return;
+    // A to M free (the first hit is the mirror at M, or B when B is the mirror's end there).
+    const SceneHit first = cast(a, d_real);
+    if (first.segment == kNoSegment || first.distance < reach - kGraze * scene.scale) return;
+    // M to B free, when B lies beyond M.
+    const double beyond = distance - s_cross;
+    if (beyond > kGraze * scene.scale) {
+      const SceneHit second =
+          accelerator.closest_hit(Ray{at_mirror, d}, RayOrigin{mirror, std::clamp(t_cross, 0.0, 1.0)});
+      if (second.segment != kNoSegment && second.distance < beyond - kTouch * scene.scale) {
+        const Vec2 where = at_mirror + second.distance * d;
+        if (scene.segments[second.segment].curve != b.curve || length(where - b.position) > kGraze * scene.scale)
+          return;
+      }
+    }
+    land(b, d);
   }
 };
 
@@ -897,6 +969,14 @@ std::vector<DiscontinuityNode> find_visibility_events(const Scene& scene, const 
   for (std::uint32_t c = 0; c < curve_count; ++c)
     if (scene.curves[c].kind == SegmentKind::Cubic) curved_curves.push_back(c);
 
+  // Straight segments of mirrors: an emitter's vertex has an image in each.
+  std::vector<std::uint32_t> flat_mirrors;
+  for (std::uint32_t i = 0; i < scene.segments.size(); ++i) {
+    const SceneSegment& segment = scene.segments[i];
+    if (scene.material_of(scene.curves[segment.curve]).optics == Optics::Mirror &&
+        (segment.geometry.kind == SegmentKind::Line || is_straight(segment.geometry, scene.scale)))
+      flat_mirrors.push_back(i);
+  }
   EventFinder finder{scene, accelerator, {}};
   for (std::uint32_t s = 0; s < curve_count; ++s) {
     const Curve& source = scene.curves[s];
@@ -909,6 +989,16 @@ std::vector<DiscontinuityNode> find_visibility_events(const Scene& scene, const 
       }
       for (const std::uint32_t o : curved_curves)
         for (const Feature& b : curve_tangent_points(scene, o, v.position, vertices[o])) finder.try_line(a, b);
+      // Through flat mirrors: the emitter's vertex's image in each, to every vertex.
+      for (const std::uint32_t m : flat_mirrors) {
+        const Cubic& shape = scene.segments[m].geometry.shape;
+        const Vec2 p0 = shape.p[0];
+        const Vec2 along = normalized(shape.p[3] - p0);
+        const Vec2 relative = v.position - p0;
+        const Vec2 image = p0 + (2.0 * dot(relative, along)) * along - relative;
+        if (length(image - v.position) <= kTouch * scene.scale) continue;  // on the mirror's line
+        for (const Vertex* w : all_vertices) finder.try_image_line(a, image, m, vertex_feature(*w));
+      }
     }
     if (scene.curves[s].kind != SegmentKind::Cubic) continue;
     // TV: tangent points of the emitter seen from every vertex.
