@@ -330,6 +330,9 @@ struct ParseFailure {
 
 enum class Quantity { Reflectivity, Emittance, Reflectance, Absorption };
 
+// Detector bins over all detector curves (docs/scene-format.md, limits).
+constexpr std::size_t kMaxDetectorBins = 65536;
+
 // Emittance values and profile factors (docs/scene-format.md, limits).
 constexpr double kMaxEmittance = 1e100;
 constexpr double kMinEmittance = 1e-100;
@@ -574,6 +577,14 @@ class SceneReader {
     read_materials(root, scene, colour);
     read_curves(root, scene, colour);
     scene.channels = colour ? 3 : 1;
+    // Every thread keeps each detector bin's tally (both sides, every channel): bounded, so that a
+    // scene of many detectors cannot take the memory of its solve.
+    std::size_t bins = 0;
+    for (const Curve& curve : scene.curves)
+      if (scene.material_of(curve).optics == Optics::Detector) bins += scene.material_of(curve).detector_bins;
+    if (bins > kMaxDetectorBins)
+      fail("curves", "the detector curves have " + std::to_string(bins) + " bins in all; at most " +
+                         std::to_string(kMaxDetectorBins) + " (use fewer detectors or fewer \"bins\")");
 
     if (const Status status = finalize_scene(scene); !status) {
       throw ParseFailure{locate(status.error().message)};
