@@ -24,6 +24,36 @@ Solver make_solver(const Scene& scene, const SolverSettings& settings) {
   return std::move(solver).value();
 }
 
+// The first round of a solve on 4 elements a curve: the light straight from the emitters, through
+// every chain, and what side `side` of curve `curve` received of it, per channel.
+struct FirstRound {
+  Spectrum received{};
+  EnergyBooks books;
+  double photons = 0.0;
+  std::uint64_t chains_cut = 0;
+};
+FirstRound first_round(const Scene& scene, std::uint32_t curve, Side side, std::uint64_t photons, std::uint64_t seed,
+                       SamplerKind sampler) {
+  SolverSettings settings;
+  settings.photons = photons;
+  settings.elements = 4;
+  settings.sampler = sampler;
+  settings.seed = seed;
+  Solver solver = make_solver(scene, settings);
+  FirstRound result;
+  EXPECT_TRUE(solver.step_round());
+  const auto channels = static_cast<std::size_t>(scene.channels);
+  const std::uint32_t offset = solver.scene_storage().block_offset(curve, side);
+  for (std::size_t k = 0; k < solver.storage(curve).basis.size(); ++k)
+    for (std::size_t ch = 0; ch < channels; ++ch)
+      result.received[ch] += solver.received()[(offset + k) * channels + ch];
+  result.books = solver.books();
+  result.photons = static_cast<double>(solver.photons_shot());
+  result.chains_cut = solver.chains_cut();
+  EXPECT_NEAR(result.books.imbalance(), 0.0, 1e-12 * result.books.emitted);
+  return result;
+}
+
 // ---- Fresnel's equations
 
 TEST(Optics, FresnelAtNormalIncidenceIsTheSquaredContrast) {
@@ -206,29 +236,18 @@ TEST(SpecularChains, SlabTransmitsTheFresnelSeriesAtEveryAngle) {
                    {"id": "slab", "material": "glass", "line": [[-50,-0.1],[50,-0.1],[50,0],[-50,0],[-50,-0.1]]},
                    {"id": "screen", "material": "screen", "line": [[-60,-0.5],[60,-0.5]]}]})",
                   half_angle, cx + dx, cy + dy, cx - dx, cy - dy);
-    const Scene scene = testing::scene_from_text(text);
-    SolverSettings settings;
-    settings.photons = 400'000;
-    settings.elements = 4;
-    settings.sampler = SamplerKind::Random;
-    settings.seed = 11;
-    Solver solver = make_solver(scene, settings);
-    ASSERT_TRUE(solver.step_round());  // the screen's light from the lamp, through the slab
-    const std::uint32_t offset = solver.scene_storage().block_offset(2, Side::Front);
-    const std::size_t count = solver.storage(2).basis.size();
-    double received = 0.0;
-    for (std::size_t k = 0; k < count; ++k) received += solver.received()[offset + k];
-    const double n = static_cast<double>(solver.photons_shot());
+    // The screen's light from the lamp, through the slab.
+    const FirstRound round =
+        first_round(testing::scene_from_text(text), 2, Side::Front, 400'000, 11, SamplerKind::Random);
     const double expected = slab_transmittance(degrees, half_angle);
-    const double sigma = std::sqrt(expected * (1.0 - expected) / n);
-    const double fraction = received / solver.books().emitted;
+    const double sigma = std::sqrt(expected * (1.0 - expected) / round.photons);
+    const double fraction = round.received[0] / round.books.emitted;
     EXPECT_NEAR(fraction, expected, 5.0 * sigma) << degrees << " degrees";
     // And not the single interface's (1 - R)^2: the internal round trips are there.
     const double r = fresnel_reflectance(1.0, 1.5, std::cos(a));
     if (degrees >= 75.0) {
       EXPECT_GT(std::fabs(fraction - (1.0 - r) * (1.0 - r)), 10.0 * sigma) << degrees;
     }
-    EXPECT_NEAR(solver.books().imbalance(), 0.0, 1e-12 * solver.books().emitted);
   }
 }
 
@@ -258,23 +277,8 @@ TrappedBeam beam_in_a_block(double degrees) {
                 1.5 - dx, 0.2 - dy, 1.5 + dx, 0.2 + dy);
   // The lamp runs along (cos a, sin a): its front (left) faces up, turned anticlockwise by a (the
   // beam meets the top face near x = 0.8); the screen's front faces down, to the block.
-  const Scene scene = testing::scene_from_text(text);
-  SolverSettings settings;
-  settings.photons = 20'000;
-  settings.elements = 4;
-  settings.seed = 2;
-  Solver solver = make_solver(scene, settings);
-  EXPECT_TRUE(solver.step_round());
-  TrappedBeam result;
-  const std::uint32_t offset = solver.scene_storage().block_offset(2, Side::Front);
-  for (std::size_t k = 0; k < solver.storage(2).basis.size(); ++k) result.to_screen += solver.received()[offset + k];
-  const EnergyBooks books = solver.books();
-  result.emitted = books.emitted;
-  result.cut = books.cut;
-  result.absorbed = books.absorbed;
-  result.chains_cut = solver.chains_cut();
-  EXPECT_NEAR(books.imbalance(), 0.0, 1e-12 * books.emitted);
-  return result;
+  const FirstRound round = first_round(testing::scene_from_text(text), 2, Side::Front, 20'000, 2, SamplerKind::Sobol);
+  return {round.received[0], round.books.emitted, round.books.cut, round.books.absorbed, round.chains_cut};
 }
 
 TEST(SpecularChains, NothingLeavesGlassBeyondTheCriticalAngle) {
@@ -359,23 +363,14 @@ TEST(SpecularChains, SpectralPhotonsKeepTheirPowerAndShareItByWavelength) {
       "materials": {"sun": {"emittance": 1, "spectrum": {"blackbody": 6500}}, "floor": {"reflectivity": 0.5}},
       "curves": [{"id": "sun", "material": "sun", "line": [[1, 1], [-1, 1]]},
                  {"id": "floor", "material": "floor", "line": [[-3, 0], [3, 0]]}]})");
-  SolverSettings settings;
-  settings.photons = 200'000;
-  settings.elements = 4;
-  settings.sampler = SamplerKind::Random;
-  Solver solver = make_solver(scene, settings);
-  ASSERT_TRUE(solver.step_round());
-  const std::uint32_t offset = solver.scene_storage().block_offset(1, Side::Front);
-  Spectrum received{};
-  for (std::size_t k = 0; k < solver.storage(1).basis.size(); ++k)
-    for (std::size_t ch = 0; ch < 3; ++ch) received[ch] += solver.received()[(offset + k) * 3 + ch];
+  const FirstRound round = first_round(scene, 1, Side::Front, 200'000, 1, SamplerKind::Random);
+  const Spectrum& received = round.received;
   const double total = received[0] + received[1] + received[2];
   const Spectrum& shares = scene.materials[0].spectrum->mean_shares;
   // Each photon's share of a channel lies in [0, 1]: its variance is at most s (1 - s).
-  const double n = total / (solver.books().emitted / static_cast<double>(solver.photons_shot()));
+  const double n = total / (round.books.emitted / round.photons);
   for (std::size_t ch = 0; ch < 3; ++ch)
     EXPECT_NEAR(received[ch] / total, shares[ch], 5.0 * std::sqrt(shares[ch] * (1.0 - shares[ch]) / n)) << ch;
-  EXPECT_NEAR(solver.books().imbalance(), 0.0, 1e-12 * solver.books().emitted);
 }
 
 // ---- Detectors
@@ -434,26 +429,15 @@ TEST(SpecularChains, GlassAbsorbsByBeerLambert) {
                  {"id": "slab", "material": "glass", "line": [[-50,%.17g],[50,%.17g],[50,0],[-50,0],[-50,%.17g]]},
                  {"id": "screen", "material": "screen", "line": [[-60,-0.5],[60,-0.5]]}]})",
                 sigma, -d, -d, -d);
-  const Scene scene = testing::scene_from_text(text);
-  SolverSettings settings;
-  settings.photons = 400'000;
-  settings.elements = 4;
-  settings.sampler = SamplerKind::Random;
-  Solver solver = make_solver(scene, settings);
-  ASSERT_TRUE(solver.step_round());
-  const std::uint32_t offset = solver.scene_storage().block_offset(2, Side::Front);
-  double received = 0.0;
-  for (std::size_t k = 0; k < solver.storage(2).basis.size(); ++k) received += solver.received()[offset + k];
+  const FirstRound round = first_round(testing::scene_from_text(text), 2, Side::Front, 400'000, 1, SamplerKind::Random);
   const double r = fresnel_reflectance(1.0, 1.5, 1.0);
   const double t = std::exp(-sigma * d);
   const double expected = (1.0 - r) * (1.0 - r) * t / (1.0 - r * r * t * t);
   // A photon brings between 0 and 1 of its power to the screen: the variance of that share is at
   // most mu (1 - mu), mu its mean.
-  const double n = static_cast<double>(solver.photons_shot());
-  EXPECT_NEAR(received / solver.books().emitted, expected, 5.0 * std::sqrt(expected * (1.0 - expected) / n));
-  const EnergyBooks books = solver.books();
-  EXPECT_GT(books.absorbed_glass, 0.1 * books.emitted);
-  EXPECT_NEAR(books.imbalance(), 0.0, 1e-12 * books.emitted);
+  EXPECT_NEAR(round.received[0] / round.books.emitted, expected,
+              5.0 * std::sqrt(expected * (1.0 - expected) / round.photons));
+  EXPECT_GT(round.books.absorbed_glass, 0.1 * round.books.emitted);
 }
 
 TEST(SpecularChains, TeachingScenesBalanceTheirBooksWithBothTransports) {
