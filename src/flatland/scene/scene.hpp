@@ -55,6 +55,8 @@ inline constexpr int kSceneFormatVersion = 2;
 //    back: unpolarised Fresnel reflection, Snell refraction, total internal reflection; light
 //    crossing the front side's medium is attenuated by exp(-absorption x distance).
 //  - Detector: light passes untouched; the curve records the power crossing it.
+// Mirrors and dielectrics may be rough: `roughness` > 0 tilts the normal of each interaction by a
+// microfacet's (PhotonShooter::follow_chain).
 // Only diffuse materials emit.
 enum class Optics : std::uint8_t { Diffuse, Mirror, Dielectric, Detector };
 
@@ -82,6 +84,7 @@ struct Material {
   RefractiveIndex ior;                  // Dielectric: the front side's index
   double ior_back = 1.0;                // Dielectric: the back side's index
   Spectrum absorption{0.0, 0.0, 0.0};   // Dielectric: per unit length in the front side's medium
+  double roughness = 0.0;               // Mirror, Dielectric: microfacet slopes' standard deviation
   std::uint32_t detector_bins = 32;     // Detector: bins along the arc length
 };
 

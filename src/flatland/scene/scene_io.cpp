@@ -698,12 +698,14 @@ class SceneReader {
         }
         break;
       case Optics::Mirror:
-        check_keys(m, path, {"type", "reflectance"});
+        check_keys(m, path, {"type", "reflectance", "roughness"});
         if (const auto it = m.find("reflectance"); it != m.end())
           material.reflectance = spectrum(*it, append_key(path, "reflectance"), Quantity::Reflectance, colour);
+        material.roughness = roughness(m, path);
         break;
       case Optics::Dielectric:
-        check_keys(m, path, {"type", "ior", "ior_back", "absorption"});
+        check_keys(m, path, {"type", "ior", "ior_back", "absorption", "roughness"});
+        material.roughness = roughness(m, path);
         material.ior = refractive_index(require(m, path, "ior", "give the index, e.g. \"ior\": 1.5 (glass)"),
                                         append_key(path, "ior"));
         if (const auto it = m.find("ior_back"); it != m.end()) {
@@ -770,6 +772,17 @@ class SceneReader {
     if (!result.prepare())
       fail(path, "the spectrum has no power between 380 and 780 nm (the visible range its photons are drawn from)");
     return result;
+  }
+
+  // A mirror's or a dielectric's "roughness": 0 (smooth, the default) to 1.
+  double roughness(const Json& m, const std::string& path) const {
+    const auto it = m.find("roughness");
+    if (it == m.end()) return 0.0;
+    const double value = number(*it, append_key(path, "roughness"));
+    if (!(value >= 0.0 && value <= 1.0))
+      fail(append_key(path, "roughness"),
+           "must be in [0, 1] (the microfacets' slope spread; 0 is smooth), got " + format_number(value));
+    return value;
   }
 
   // A refractive index: a number, or {"cauchy": [A, B]} (n = A + B / lambda^2, lambda in um).

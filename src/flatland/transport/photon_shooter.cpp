@@ -147,6 +147,26 @@ inline PhotonPath* start_path(std::vector<PhotonPath>* paths, std::size_t path_l
   return path;
 }
 
+// A rough surface's microfacet normal where a ray travelling along d meets it: facets of slope s
+// (tan of their tilt from the surface normal `facing`, along the unit tangent `along`), s Gaussian
+// with standard deviation `roughness` truncated at 5 of them, each met in proportion to its width
+// as the ray sees it, (-d) . (facing + s along) (a facet of slope s is sqrt(1 + s^2) wide per unit of
+// surface): rejection against that width's bound 1 + 5 roughness. After 64 refusals (a grazing
+// ray), the surface's own normal.
+inline Vec2 microfacet_normal(Vec2 facing, Vec2 along, Vec2 d, double roughness, Rng& rng) {
+  const double bound = 1.0 + 5.0 * roughness;
+  for (int tries = 0; tries < 64; ++tries) {
+    double sine = 0.0, cosine = 0.0;
+    portable::sin_cos(2.0 * std::numbers::pi * rng.uniform(), sine, cosine);
+    const double slope = roughness * std::sqrt(-2.0 * portable::log(1.0 - rng.uniform())) * cosine;
+    if (std::fabs(slope) > 5.0 * roughness) continue;
+    const Vec2 tilted = facing + slope * along;
+    const double seen = -dot(d, tilted);
+    if (seen > 0.0 && rng.uniform() * bound < seen) return normalized(tilted);
+  }
+  return facing;
+}
+
 // A photon's units shared among the three channels by the shares of its wavelength: each channel
 // the rounded share of the total, the last the remainder, so the total is unchanged.
 inline void split_by_wavelength(std::array<std::int64_t, 3>& units, double wavelength) {
@@ -610,7 +630,11 @@ bool PhotonShooter::follow_chain(Rng& rng, SceneHit& hit, Ray& ray, std::array<s
     const Side side = side_hit(hit, ray, tangent);
     const Vec2 front = perp(normalized(tangent));
     const Vec2 facing = side == Side::Front ? front : -front;  // the normal on the arriving side
-    const double cos_in = std::clamp(-dot(ray.direction, facing), 0.0, 1.0);
+    // The normal the light meets: the surface's, or on a rough surface a microfacet's.
+    const Vec2 normal = material.roughness > 0.0 && material.optics != Optics::Detector
+                            ? microfacet_normal(facing, normalized(tangent), ray.direction, material.roughness, rng)
+                            : facing;
+    const double cos_in = std::clamp(-dot(ray.direction, normal), 0.0, 1.0);
     Vec2 direction = ray.direction;
     switch (material.optics) {
       case Optics::Diffuse: break;
@@ -634,7 +658,9 @@ bool PhotonShooter::follow_chain(Rng& rng, SceneHit& hit, Ray& ray, std::array<s
           carried += kept;
         }
         if (carried == 0) return lose(ChainLoss::Mirrors, point);
-        direction = ray.direction + (2.0 * cos_in) * facing;
+        direction = ray.direction + (2.0 * cos_in) * normal;
+        // A microfacet may send the light into the surface: it meets the surface again and leaves.
+        if (dot(direction, facing) < 0.0) direction = direction - (2.0 * dot(direction, facing)) * facing;
         break;
       }
       case Optics::Dielectric: {
@@ -652,10 +678,13 @@ bool PhotonShooter::follow_chain(Rng& rng, SceneHit& hit, Ray& ray, std::array<s
         }
         Side goes_to = side;
         if (reflects) {
-          direction = ray.direction + (2.0 * cos_in) * facing;
+          direction = ray.direction + (2.0 * cos_in) * normal;
+          if (dot(direction, facing) < 0.0) direction = direction - (2.0 * dot(direction, facing)) * facing;
         } else {
-          direction = eta * ray.direction + (eta * cos_in - cos_out) * facing;
+          direction = eta * ray.direction + (eta * cos_in - cos_out) * normal;
           goes_to = side == Side::Front ? Side::Back : Side::Front;
+          // (Through a tilted microfacet the light may still head back: it crosses all the same.)
+          if (dot(direction, facing) > 0.0) direction = direction - (2.0 * dot(direction, facing)) * facing;
         }
         const Spectrum& absorption = material.absorption;
         const bool absorbing = absorption[0] > 0.0 || absorption[1] > 0.0 || absorption[2] > 0.0;
