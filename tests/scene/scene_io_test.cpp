@@ -586,17 +586,25 @@ TEST(SceneIoErrors, SpecularMaterials) {
                   })),
                   "materials.wall.absorption: must be >= 0");
   EXPECT_CONTAINS(error_of(edited([](Json& j) {
+                    j["materials"]["wall"] = {{"type", "mirror"}, {"roughness", 1.5}};
+                  })),
+                  "materials.wall.roughness: must be in [0, 1] (the microfacets' slope spread; 0 is smooth), got 1.5");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) {
+                    j["materials"]["wall"] = {{"type", "detector"}, {"roughness", 0.1}};
+                  })),
+                  "unknown key \"roughness\"");
+  EXPECT_CONTAINS(error_of(edited([](Json& j) {
                     j["materials"]["wall"] = {{"type", "detector"}, {"bins", 2.5}};
                   })),
                   "materials.wall.bins: expected a whole number of bins from 1 to 4096, got 2.5");
-  EXPECT_CONTAINS(error_of(edited([](Json& j) {
-                    j["materials"]["probe"] = {{"type", "detector"}, {"bins", 4096}};
-                    for (int k = 0; k < 17; ++k)
-                      j["curves"].push_back({{"id", "probe" + std::to_string(k)},
-                                             {"material", "probe"},
-                                             {"line", {{0, k + 2}, {1, k + 2}}}});
-                  })),
-                  "curves: the detector curves have 69632 bins in all; at most 65536");
+  EXPECT_CONTAINS(
+      error_of(edited([](Json& j) {
+        j["materials"]["probe"] = {{"type", "detector"}, {"bins", 4096}};
+        for (int k = 0; k < 17; ++k)
+          j["curves"].push_back(
+              {{"id", "probe" + std::to_string(k)}, {"material", "probe"}, {"line", {{0, k + 2}, {1, k + 2}}}});
+      })),
+      "curves: the detector curves have 69632 bins in all; at most 65536");
   EXPECT_CONTAINS(error_of(edited([](Json& j) {
                     j["materials"]["wall"] = {{"type", "mirror"}};
                     j["curves"][1]["emittance"] = 1;
