@@ -7,15 +7,28 @@
 #include <algorithm>
 #include <atomic>
 #include <system_error>
+#include <thread>
 
 namespace flatland {
 
 WorkerPool::WorkerPool(unsigned threads) : requested_(std::max(threads, 1u)) {
   unsigned helpers = requested_ - 1;
-  // Under an address-space limit (ulimit -v) every thread's stack counts against it: the helpers
-  // take at most half of what is left, so the work itself still has room.
+  // Under an address-space limit (ulimit -v) every thread's stack counts against it, and so does
+  // the malloc arena a thread may get when it allocates while others do (glibc reserves 64 MiB of
+  // address space for each, up to 8 per core): the helpers, with an arena each up to that count,
+  // take at most half of what is left, so the work itself still has room. (Counting stacks alone
+  // let the arenas of a busy start take the rest, and the work then ran out of memory.)
   if (const std::size_t left = address_space_left(); left != SIZE_MAX) {
-    const std::size_t room = left / 2 / thread_stack_bytes();
+    constexpr std::size_t kArenaBytes = std::size_t{64} << 20;
+    const std::size_t arenas = 8 * std::size_t{std::max(1u, std::thread::hardware_concurrency())};
+    std::size_t budget = left / 2;
+    std::size_t room = 0;
+    while (room < helpers) {
+      const std::size_t cost = thread_stack_bytes() + (room < arenas ? kArenaBytes : 0);
+      if (cost > budget) break;
+      budget -= cost;
+      ++room;
+    }
     if (room < helpers) {
       helpers = static_cast<unsigned>(room);
       shortfall_ = "started " + std::to_string(helpers + 1) + " of the " + std::to_string(requested_) +

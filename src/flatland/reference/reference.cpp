@@ -841,7 +841,8 @@ Status ReferenceBuilder::check() const {
   }
   if (!specular.empty())
     return Error{scene_.source + ": the reference solver handles diffuse surfaces only, and curves " + specular +
-                 " are not; judge such a scene against a solve with many more photons (flatland compare)"};
+                 " are not; use a solve with many more photons as the reference (flatland solve --out REF.json, then "
+                 "compare or converge --reference REF.json)"};
   for (const Curve& curve : scene_.curves) {
     if (scene_.is_emitter(curve) && scene_.material_of(curve).emission.kind != Emission::Kind::Diffuse)
       return Error{scene_.source + ": curve '" + curve.id + "': the reference solver supports diffuse emitters only"};
