@@ -32,7 +32,7 @@ WorkerPool::WorkerPool(unsigned threads) : requested_(std::max(threads, 1u)) {
     if (room < helpers) {
       helpers = static_cast<unsigned>(room);
       shortfall_ = "started " + std::to_string(helpers + 1) + " of the " + std::to_string(requested_) +
-                   " threads asked for (the address-space limit, ulimit -v, leaves room for no more stacks)";
+                   " threads asked for (the address-space limit, ulimit -v, leaves room for no more threads)";
     }
   }
   helpers_.reserve(helpers);
