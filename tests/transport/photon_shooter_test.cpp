@@ -54,6 +54,21 @@ FirstRound first_round(const Scene& scene, std::uint32_t curve, Side side, std::
   return result;
 }
 
+// The paths of a first round of 4096 photons (every one recorded), with its books.
+struct FirstPaths {
+  std::vector<PhotonPath> paths;
+  EnergyBooks books;
+};
+FirstPaths first_round_paths(const Scene& scene) {
+  SolverSettings settings;
+  settings.photons = 4096;
+  settings.elements = 4;
+  Solver solver = make_solver(scene, settings);
+  solver.record_paths(4096);
+  EXPECT_TRUE(solver.step_round());
+  return {solver.paths(), solver.books()};
+}
+
 // ---- Fresnel's equations
 
 TEST(Optics, FresnelAtNormalIncidenceIsTheSquaredContrast) {
@@ -324,19 +339,13 @@ void check_prism_deviation(double nanometres) {
       "curves": [{"id": "lamp", "material": "lamp", "line": [[%.17g,%.17g],[%.17g,%.17g]]},
                  {"id": "prism", "material": "glass", "line": [[-1,0],[1,0],[0,%.17g],[-1,0]]}]})",
                 spectrum.c_str(), a, b, p0.x, p0.y, p1.x, p1.y, std::sqrt(3.0));
-  const Scene scene = testing::scene_from_text(text);
-  SolverSettings settings;
-  settings.photons = 4096;
-  settings.elements = 4;
-  Solver solver = make_solver(scene, settings);
-  solver.record_paths(4096);
-  ASSERT_TRUE(solver.step_round());
+  const FirstPaths round = first_round_paths(testing::scene_from_text(text));
   const double theta1_in = std::asin(std::sin(theta1) / n);
   const double theta2 = apex - theta1_in;
   const double theta2_out = std::asin(n * std::sin(theta2));
   const double deviation = theta1 + theta2_out - apex;
   int checked = 0;
-  for (const PhotonPath& path : solver.paths()) {
+  for (const PhotonPath& path : round.paths) {
     EXPECT_EQ(path.wavelength, nanometres);
     if (path.via.size() != 2 || !path.escaped) continue;
     const Vec2 out = normalized(path.end - path.via[1]);
@@ -389,15 +398,9 @@ TEST(SpecularChains, ARoughMirrorSpreadsABeamAsItsFacetsSay) {
         "curves": [{"id": "lamp", "material": "lamp", "line": [[0.001, 1], [-0.001, 1]]},
                    {"id": "mirror", "material": "mirror", "line": [[-1, 0], [1, 0]]}]})",
                   roughness);
-    const Scene scene = testing::scene_from_text(text);
-    SolverSettings settings;
-    settings.photons = 4096;
-    settings.elements = 4;
-    Solver solver = make_solver(scene, settings);
-    solver.record_paths(4096);
-    ASSERT_TRUE(solver.step_round());
+    const FirstPaths round = first_round_paths(testing::scene_from_text(text));
     std::vector<double> angles;
-    for (const PhotonPath& path : solver.paths()) {
+    for (const PhotonPath& path : round.paths) {
       if (path.via.size() != 1) continue;  // reflected once, then out (or onto the lamp's back)
       const Vec2 out = normalized(path.end - path.via[0]);
       angles.push_back(std::atan2(out.x, out.y));
@@ -423,7 +426,7 @@ TEST(SpecularChains, ARoughMirrorSpreadsABeamAsItsFacetsSay) {
     const double expected = std::sqrt(second / weight);
     EXPECT_NEAR(spread, expected, 0.06 * expected) << roughness;
     EXPECT_NEAR(mean, 0.0, 5.0 * expected / std::sqrt(static_cast<double>(angles.size()))) << roughness;
-    EXPECT_NEAR(solver.books().imbalance(), 0.0, 1e-12 * solver.books().emitted);
+    EXPECT_NEAR(round.books.imbalance(), 0.0, 1e-12 * round.books.emitted);
   }
 }
 
