@@ -438,6 +438,85 @@ TEST(Reference, RejectsBadInput) {
   EXPECT_FALSE(solve_reference(scene, ReferenceSettings{}).ok());
 }
 
+// Flat mirrors: one reflection, by the element's image.
+
+// A lamp (0.3 to 0.8 at height 1, facing down) over a floor (rho 0.5, 0.05 to 2) and a mirror of
+// reflectance r on x = 0 from `low` to `high`: the floor sees the lamp and, through the mirror
+// segment, its image (-0.8 to -0.3). In sin(theta) from the floor's normal each is an interval;
+// the image's is cut to the window's (the directions to the mirror's ends), and
+// B = rho (H_lamp + r H_image), H = (1/2) |measure|.
+double mirror_floor_closed_form(double x, double low, double high, double r) {
+  auto sine = [x](double px, double py) { return (px - x) / std::hypot(px - x, py); };
+  const double direct = sine(0.8, 1.0) - sine(0.3, 1.0);
+  const double image_lo = sine(-0.8, 1.0), image_hi = sine(-0.3, 1.0);
+  // From x > 0 the window's directions: the lower end is the further from the normal (more
+  // negative sine), the upper the nearer.
+  const double window_lo = sine(0.0, low), window_hi = sine(0.0, high);
+  const double image = std::max(0.0, std::min(image_hi, window_hi) - std::max(image_lo, window_lo));
+  return 0.5 * 0.5 * (direct + r * image);
+}
+
+TEST(Reference, FlatMirrorsAddTheirImagesExactly) {
+  for (const auto& [low, high] : {std::pair{0.0, 1.5}, std::pair{0.2, 0.6}}) {
+    char text[800];
+    std::snprintf(text, sizeof text, R"({"flatland": 2,
+        "materials": {"lamp": {"emittance": 1}, "floor": {"reflectivity": 0.5},
+                      "mirror": {"type": "mirror", "reflectance": 0.8}},
+        "curves": [{"id": "lamp", "material": "lamp", "line": [[0.8, 1], [0.3, 1]]},
+                   {"id": "floor", "material": "floor", "line": [[0.05, 0], [2, 0]]},
+                   {"id": "mirror", "material": "mirror", "line": [[0, %.17g], [0, %.17g]]}]})",
+                  high, low);
+    const ReferenceSolution solution = solve(testing::scene_from_text(text), ReferenceSettings{});
+    double worst = 0.0;
+    for (int k = 0; k <= 100; ++k) {
+      const double u = k / 100.0;
+      const double x = 0.05 + 1.95 * u;
+      const double exact = mirror_floor_closed_form(x, low, high, 0.8);
+      worst = std::max(worst, std::fabs(solution.radiosity(1, Side::Front, u)[0] - exact));
+      EXPECT_NEAR(solution.radiosity(1, Side::Front, u)[0], exact, 1e-12) << low << " " << high << " x " << x;
+    }
+    EXPECT_LT(worst, 1e-12);
+  }
+}
+
+TEST(Reference, APerfectMirrorWallDoublesTheRoom) {
+  // A unit box of uniform E = 1 and rho = 0.5 whose left wall is a perfect mirror: reflected in
+  // it, the box is the closed room twice as wide, and every straight path crosses the mirror's
+  // line once, so one reflection is all there is. B = E / (1 - rho) = 2 on every wall.
+  const Scene scene = testing::scene_from_text(R"({"flatland": 2,
+      "materials": {"wall": {"emittance": 1, "reflectivity": 0.5}, "mirror": {"type": "mirror"}},
+      "curves": [{"id": "walls", "material": "wall", "line": [[0, 0], [1, 0], [1, 1], [0, 1]]},
+                 {"id": "mirror", "material": "mirror", "line": [[0, 1], [0, 0]]}]})");
+  ReferenceSettings settings;
+  settings.max_element_length = 0.02;
+  const ReferenceSolution solution = solve(scene, settings);
+  // (At the samples of a result, (k + 1/2) L / K: not at the corners, where a point is on two walls,
+  // nor on the mirror's line.)
+  for (int k = 0; k < 60; ++k)
+    EXPECT_NEAR(solution.radiosity(0, Side::Front, 3.0 * (k + 0.5) / 60.0)[0], 2.0, 1e-9) << k;
+}
+
+TEST(Reference, RefusesWhatItCannotFollowNamingIt) {
+  const Scene scene = testing::scene_from_text(R"({"flatland": 2,
+      "materials": {"lamp": {"emittance": 1}, "glass": {"type": "dielectric", "ior": 1.5},
+                    "rough": {"type": "mirror", "roughness": 0.1}, "tinted": {"type": "mirror", "reflectance": [1, 0.5, 0.5]},
+                    "flat": {"type": "mirror"}},
+      "curves": [{"id": "lamp", "material": "lamp", "line": [[1, 1], [0, 1]]},
+                 {"id": "lens", "material": "glass", "line": [[0, 0], [1, 0], [0.5, -1], [0, 0]]},
+                 {"id": "frosted", "material": "rough", "line": [[2, 0], [2, 1]]},
+                 {"id": "red", "material": "tinted", "line": [[3, 0], [3, 1]]},
+                 {"id": "bowl", "material": "flat", "bezier": [[4, 0], [4.3, -1], [4.7, -1], [5, 0]]},
+                 {"id": "plain", "material": "flat", "line": [[6, 0], [6, 1]]}]})");
+  const Result<ReferenceSolution> solution = solve_reference(scene, ReferenceSettings{});
+  ASSERT_FALSE(solution.ok());
+  const std::string& message = solution.error().message;
+  for (const char* named :
+       {"'lens' (dielectric)", "'frosted' (a curved, rough or coloured mirror)",
+        "'red' (a curved, rough or coloured mirror)", "'bowl' (a curved, rough or coloured mirror)"})
+    EXPECT_NE(message.find(named), std::string::npos) << message;
+  EXPECT_EQ(message.find("'plain'"), std::string::npos) << message;  // a flat mirror is followed
+}
+
 // Elements against seconds on a scene with occlusion (run with --gtest_also_run_disabled_tests).
 TEST(Reference, CancelStopsTheSolve) {
   const Scene scene = testing::scene_from_text(testing::circle_enclosure(0.5, 1.0));

@@ -484,6 +484,47 @@ class PairQuadrature {
 };
 
 // Whether element j lies wholly in the closed half-plane in front of `side` of element i.
+// ---- Mirrors
+//
+// Light from y reaches x by one reflection in a flat mirror when the path x -> M -> y (M on the
+// mirror segment) is free. Reflected in the mirror's line, x -> M becomes x' -> M, a straight line
+// on with M -> y: x sees y by the mirror exactly where its image x' sees y through the mirror
+// segment (a window in the line), the elements in front of the mirror occluding M -> y and their
+// images occluding x' -> M (elements behind the line take no part: the path stays in front). A
+// sweep from x' over those, with x's normal reflected (reflection keeps angles to the normal, so
+// the measure (sin b - sin a) / 2 is x's), gives F(x -> j by the mirror) for every element j; times
+// the reflectance, it adds to the direct F. One reflection is followed: light between two mirrors
+// facing each other is missed after its first.
+
+ReferenceElement chord_element(Vec2 a, Vec2 b) {
+  ReferenceElement e;
+  e.a = a;
+  e.b = b;
+  e.length = length(b - a);
+  e.normal = (1.0 / e.length) * perp(b - a);
+  return e;
+}
+
+Vec2 mirrored_point(Vec2 p, const ReferenceMirror& mirror) {
+  return p - (2.0 * dot(p - mirror.origin, mirror.normal)) * mirror.normal;
+}
+
+// Calls add(j, side_j, F) for every element side that x (on element `self`, or kNoElement; normal
+// `normal`, receiving side `side`) sees by one reflection in `mirror`, F its form factor times the
+// reflectance. Nothing for a point not in front of the mirror (`touch`: the scene's tolerance).
+template <class Add>
+void gather_by_mirror(Sweeper& sweeper, const ReferenceMirror& mirror, Vec2 x, Vec2 normal, std::uint32_t self,
+                      Side side, double touch, std::vector<VisibleElement>& scratch, const Add& add) {
+  if (!(dot(x - mirror.origin, mirror.normal) > touch)) return;
+  const Vec2 image = mirrored_point(x, mirror);
+  const Vec2 image_normal = normal - (2.0 * dot(normal, mirror.normal)) * mirror.normal;
+  const std::uint32_t image_self = self != kNoElement ? mirror.image_of[self] : kNoElement;
+  sweeper.run(mirror.elements, image, image_normal, image_self, side, scratch);
+  for (const VisibleElement& v : scratch)
+    if (const std::uint32_t j = mirror.real[v.element]; j != kNoElement)
+      add(j, v.side, mirror.reflectance * v.form_factor);
+}
+
 bool in_front_of(const ReferenceElement& i, Side side, const ReferenceElement& j) {
   const Vec2 n = side == Side::Front ? i.normal : -i.normal;
   const double tolerance = 1e-12 * (i.length + j.length);
@@ -746,10 +787,17 @@ Spectrum ReferenceSolution::radiosity(std::uint32_t curve_index, Side side, doub
   Sweeper sweeper;
   std::vector<VisibleElement> visible;
   sweeper.run(elements_, x, normal, self, side, visible);
+  // (element side, F) seen directly and by the mirrors.
+  std::vector<std::pair<std::size_t, double>> seen;
+  for (const VisibleElement& v : visible) seen.emplace_back(patch_index(v.element, v.side), v.form_factor);
+  std::vector<VisibleElement> scratch;
+  for (const ReferenceMirror& mirror : mirrors_)
+    gather_by_mirror(sweeper, mirror, x, normal, self, side, 1e-12 * scene_.scale, scratch,
+                     [&](std::uint32_t j, Side side_j, double f) { seen.emplace_back(patch_index(j, side_j), f); });
   for (int c = 0; c < scene_.channels; ++c) {
     const auto k = static_cast<std::size_t>(c);
     double gathered = 0.0;
-    for (const VisibleElement& v : visible) gathered += v.form_factor * radiosity_[k][patch_index(v.element, v.side)];
+    for (const auto& [p, f] : seen) gathered += f * radiosity_[k][p];
     result[k] += material.reflectivity[k] * gathered;
   }
   return result;
@@ -780,6 +828,8 @@ class ReferenceBuilder {
   Status check() const;
   // 1. Elements: the chords of every segment, equal in arc length between contacts.
   Status build_elements();
+  // Mirrors: every reflecting side of every flat mirror segment, its view of the elements.
+  void build_mirrors();
   // Chain neighbours: consecutive elements of a curve that share an end point exactly (joints
   // share their control point), and the last and first of a closed curve.
   void link_neighbours();
@@ -795,6 +845,17 @@ class ReferenceBuilder {
 
  private:
   bool cancelled() const { return settings_.cancel != nullptr && settings_.cancel->load(std::memory_order_relaxed); }
+  // A mirror the reference follows: every segment straight, no roughness, one reflectance for
+  // every channel.
+  bool is_flat_grey_mirror(const Curve& curve) const {
+    const Material& material = scene_.material_of(curve);
+    if (material.roughness > 0.0) return false;
+    for (int c = 1; c < scene_.channels; ++c)
+      if (material.reflectance[static_cast<std::size_t>(c)] != material.reflectance[0]) return false;
+    for (std::uint32_t k = 0; k < curve.segment_count; ++k)
+      if (scene_.segments[curve.first_segment + k].geometry.kind != SegmentKind::Line) return false;
+    return true;
+  }
   double max_length() const {
     return settings_.max_element_length > 0.0 ? settings_.max_element_length : scene_.scale / 400.0;
   }
@@ -827,20 +888,24 @@ class ReferenceBuilder {
 
 Status ReferenceBuilder::check() const {
   if (Status status = validate(settings_); !status) return status;
-  // Light through specular chains is not in its equations (form factors between diffuse elements).
+  // Light through specular chains is not in its equations (form factors between diffuse elements),
+  // but for one reflection in a flat, smooth, grey mirror (its images, below).
   std::string specular;
   for (const Curve& curve : scene_.curves) {
-    const Optics optics = scene_.material_of(curve).optics;
+    const Material& material = scene_.material_of(curve);
+    const Optics optics = material.optics;
     if (optics == Optics::Diffuse) continue;
+    if (optics == Optics::Mirror && is_flat_grey_mirror(curve)) continue;
     if (!specular.empty()) specular += ", ";
     specular += "'" + curve.id + "' (" +
-                (optics == Optics::Mirror       ? "mirror"
+                (optics == Optics::Mirror       ? "a curved, rough or coloured mirror"
                  : optics == Optics::Dielectric ? "dielectric"
                                                 : "detector") +
                 ")";
   }
   if (!specular.empty())
-    return Error{scene_.source + ": the reference solver handles diffuse surfaces only, and curves " + specular +
+    return Error{scene_.source + ": the reference solver handles diffuse surfaces and flat mirrors only, and curves " +
+                 specular +
                  " are not; use a solve with many more photons as the reference (flatland solve --out REF.json, then "
                  "compare or converge --reference REF.json)"};
   for (const Curve& curve : scene_.curves) {
@@ -909,6 +974,60 @@ Status ReferenceBuilder::build_elements() {
   return ok_status();
 }
 
+void ReferenceBuilder::build_mirrors() {
+  const double touch = 1e-12 * scene_.scale;
+  for (std::uint32_t si = 0; si < scene_.segments.size(); ++si) {
+    const SceneSegment& segment = scene_.segments[si];
+    const Curve& curve = scene_.curves[segment.curve];
+    const Material& material = scene_.material_of(curve);
+    if (material.optics != Optics::Mirror) continue;
+    const Vec2 p0 = segment.geometry.shape.p[0];
+    const Vec2 p1 = segment.geometry.shape.p[3];
+    const Vec2 along = normalized(p1 - p0);
+    for (const Side side : {Side::Front, Side::Back}) {
+      if (!curve.has_side(side)) continue;
+      ReferenceMirror mirror;
+      mirror.origin = p0;
+      mirror.normal = side == Side::Front ? perp(along) : -perp(along);
+      mirror.reflectance = material.reflectance[0];
+      mirror.image_of.assign(elements_.size(), kNoElement);
+      // The elements in front, clipped at the line (their chain links dropped: they index the
+      // scene's elements), then their images, then the blockers.
+      for (std::uint32_t j = 0; j < elements_.size(); ++j) {
+        const ReferenceElement& e = elements_[j];
+        if (e.segment == si) continue;
+        const double da = dot(e.a - p0, mirror.normal);
+        const double db = dot(e.b - p0, mirror.normal);
+        if (da <= touch && db <= touch) continue;
+        ReferenceElement clipped = e;
+        clipped.previous = kNoElement;
+        clipped.next = kNoElement;
+        if (da < 0.0 || db < 0.0) {
+          const Vec2 cut = e.a + (da / (da - db)) * (e.b - e.a);
+          (da < 0.0 ? clipped.a : clipped.b) = cut;
+          clipped.length = length(clipped.b - clipped.a);
+          if (!(clipped.length > touch)) continue;
+        }
+        mirror.real.push_back(j);
+        mirror.elements.push_back(clipped);
+      }
+      const std::size_t in_front = mirror.elements.size();
+      for (std::size_t k = 0; k < in_front; ++k) {
+        const ReferenceElement& e = mirror.elements[k];
+        mirror.image_of[mirror.real[k]] = static_cast<std::uint32_t>(mirror.elements.size());
+        mirror.elements.push_back(chord_element(mirrored_point(e.b, mirror), mirrored_point(e.a, mirror)));
+        mirror.real.push_back(kNoElement);
+      }
+      const double far = 10.0 * scene_.scale + length(p1 - p0);
+      mirror.elements.push_back(chord_element(p0 - far * along, p0));
+      mirror.elements.push_back(chord_element(p1, p1 + far * along));
+      mirror.real.push_back(kNoElement);
+      mirror.real.push_back(kNoElement);
+      solution_.mirrors_.push_back(std::move(mirror));
+    }
+  }
+}
+
 void ReferenceBuilder::link_neighbours() {
   const auto element_count = static_cast<std::uint32_t>(elements_.size());
   for (std::uint32_t k = 0; k + 1 < element_count; ++k) {
@@ -953,6 +1072,11 @@ void ReferenceBuilder::compute_rows(bool reports) {
   std::vector<VisibleElement> visible;
   std::vector<double> accumulated(patch_count(), 0.0);
   std::vector<int> whole_count(patch_count(), 0);
+  // Seen directly from some quadrature point; listed in `touched`; F by the mirrors.
+  std::vector<char> direct(patch_count(), 0);
+  std::vector<char> listed(patch_count(), 0);
+  std::vector<double> mirrored(patch_count(), 0.0);
+  const double touch = 1e-12 * scene_.scale;
   std::vector<std::uint32_t> touched;
   for (;;) {
     if (cancelled() || out_of_memory_.load(std::memory_order_relaxed)) break;
@@ -969,20 +1093,32 @@ void ReferenceBuilder::compute_rows(bool reports) {
       sweeper.run(elements_, x, normal, i, side, visible);
       for (const VisibleElement& v : visible) {
         const std::size_t p = patch_index(v.element, v.side);
-        if (accumulated[p] == 0.0 && whole_count[p] == 0) touched.push_back(static_cast<std::uint32_t>(p));
+        if (!listed[p]) touched.push_back(static_cast<std::uint32_t>(p));
+        listed[p] = 1;
+        direct[p] = 1;
         accumulated[p] += weights_[q] * v.form_factor;
         whole_count[p] += v.whole ? 1 : 0;
       }
+      for (const ReferenceMirror& mirror : solution_.mirrors_)
+        gather_by_mirror(sweeper, mirror, x, normal, i, side, touch, visible,
+                         [&](std::uint32_t j, Side side_j, double f) {
+                           const std::size_t p = patch_index(j, side_j);
+                           if (!listed[p]) touched.push_back(static_cast<std::uint32_t>(p));
+                           listed[p] = 1;
+                           mirrored[p] += weights_[q] * f;
+                         });
     }
     std::sort(touched.begin(), touched.end());
     auto& entries = row_entries_[row];
     double sum = 0.0;
     for (const std::uint32_t p : touched) {
-      double f = accumulated[p];
+      double f = 0.0;
       const std::uint32_t j = p / 2;
       const Side side_j = static_cast<Side>(p % 2);
-      if (whole_count[p] == settings_.quadrature && in_front_of(ei, side, elements_[j]) &&
-          in_front_of(elements_[j], side_j, ei)) {
+      if (!direct[p]) {
+        // Seen by a mirror only.
+      } else if (whole_count[p] == settings_.quadrature && in_front_of(ei, side, elements_[j]) &&
+                 in_front_of(elements_[j], side_j, ei)) {
         const ReferenceElement& ej = elements_[j];
         f = crossed_strings(ei.a, ei.b, ej.a, ej.b);
       } else {
@@ -990,8 +1126,14 @@ void ReferenceBuilder::compute_rows(bool reports) {
         // split at the visibility events.
         f = pair_quadrature.form_factor(i, side, j, side_j);
       }
+      // By the mirrors: the plain quadrature over the element (their images' visibility events are
+      // not split at).
+      f += mirrored[p];
       accumulated[p] = 0.0;
       whole_count[p] = 0;
+      direct[p] = 0;
+      listed[p] = 0;
+      mirrored[p] = 0.0;
       sum += f;
       if (carries_[p] && f > 0.0) entries.emplace_back(p, f);
     }
@@ -1100,6 +1242,7 @@ Result<ReferenceSolution> solve_reference(const Scene& scene, const ReferenceSet
   solution.scene_ = scene;
   solution.settings_ = settings;
   if (Status status = build.build_elements(); !status) return status.error();
+  build.build_mirrors();
   build.link_neighbours();
   build.number_patches();
   if (Status status = build.form_factors(); !status) return status.error();

@@ -131,6 +131,20 @@ double pair_form_factor(const std::vector<ReferenceElement>& elements, std::uint
 // (a's and b's chosen so that a1-a2 and b1-b2 do not cross). Returns F from segment 1 to 2.
 double crossed_strings(Vec2 a1, Vec2 b1, Vec2 a2, Vec2 b2);
 
+// One reflecting side of a flat mirror segment, as the reference sees it (reference.cpp,
+// "Mirrors"): the elements in front of that side clipped to it, their mirror images (the first
+// leg's occluders), and two blockers along the mirror's line outside the segment, so that a sweep
+// from a point's image sees an element j exactly where light from j reaches the point by one
+// reflection in the mirror.
+struct ReferenceMirror {
+  Vec2 origin;               // a point of the mirror's line (its first end)
+  Vec2 normal;               // unit normal of the reflecting side
+  double reflectance = 1.0;  // the same in every channel
+  std::vector<ReferenceElement> elements;
+  std::vector<std::uint32_t> real;      // per entry: the scene element it is (clipped), or kNoElement
+  std::vector<std::uint32_t> image_of;  // per scene element: its image's entry, or kNoElement
+};
+
 class ReferenceSolution {
  public:
   // Radiosity leaving `side` of curve `curve` at curve parameter u (u = segment index + t): the
@@ -166,6 +180,8 @@ class ReferenceSolution {
   Scene scene_;
   ReferenceSettings settings_;
   std::vector<ReferenceElement> elements_;
+  // Flat mirrors' reflecting sides (one reflection each is followed).
+  std::vector<ReferenceMirror> mirrors_;
   // Per segment: first element and count (elements of a segment are consecutive).
   std::vector<std::uint32_t> segment_first_;
   std::vector<std::uint32_t> segment_count_;

@@ -605,7 +605,8 @@ bool PhotonShooter::follow_chain(Rng& rng, SceneHit& hit, Ray& ray, std::array<s
       std::int64_t carried = 0;
       for (std::size_t ch = 0; ch < channels; ++ch) {
         const double kept_fraction = hit.segment == kNoSegment ? 0.0 : portable::exp(-(*medium)[ch] * hit.distance);
-        const auto kept = static_cast<std::int64_t>(static_cast<double>(units[ch]) * kept_fraction + 0.5);
+        const auto kept =
+            std::min(units[ch], static_cast<std::int64_t>(static_cast<double>(units[ch]) * kept_fraction + 0.5));
         acc.lost[static_cast<std::size_t>(ChainLoss::Glass)][ch] += units[ch] - kept;
         units[ch] = kept;
         carried += kept;
@@ -652,7 +653,9 @@ bool PhotonShooter::follow_chain(Rng& rng, SceneHit& hit, Ray& ray, std::array<s
         if (!curve.has_side(side)) return lose(ChainLoss::Mirrors, point);
         std::int64_t carried = 0;
         for (std::size_t ch = 0; ch < channels; ++ch) {
-          const auto kept = static_cast<std::int64_t>(static_cast<double>(units[ch]) * material.reflectance[ch] + 0.5);
+          // (At most what arrived: units + 0.5 rounds up in a double when units are past 2^53.)
+          const auto kept = std::min(
+              units[ch], static_cast<std::int64_t>(static_cast<double>(units[ch]) * material.reflectance[ch] + 0.5));
           acc.lost[static_cast<std::size_t>(ChainLoss::Mirrors)][ch] += units[ch] - kept;
           units[ch] = kept;
           carried += kept;
