@@ -181,22 +181,13 @@ void print_summary(const Solver& solver, const ErrorEstimate& estimate) {
     std::fprintf(out, "energy    emitted %.6g = absorbed %.6g + escaped %.6g + unshot %.6g (imbalance %.2g)\n",
                  books.emitted, books.absorbed, books.escaped, books.unshot, books.imbalance());
   }
-  if (const DetectorLayout& layout = solver.detector_layout(); layout.size > 0) {
-    // Each detector's totals, channels summed: the power that crossed it each way.
-    const std::vector<double> detected = solver.detected();
-    const auto channels = static_cast<std::size_t>(scene.channels);
-    for (std::uint32_t c = 0; c < scene.curves.size(); ++c) {
-      if (layout.offsets[c] == kNoDetector) continue;
-      const std::size_t per_side = std::size_t{scene.material_of(scene.curves[c]).detector_bins} * channels;
-      double front = 0.0, back = 0.0;
-      for (std::size_t i = 0; i < per_side; ++i) {
-        front += detected[layout.offsets[c] + i];
-        back += detected[layout.offsets[c] + per_side + i];
-      }
-      std::fprintf(
-          out, "detector  %s: %.6g crossed from its front, %.6g from its back (%.3g%% and %.3g%% of emitted)\n",
-          scene.curves[c].id.c_str(), front, back, 100.0 * front / books.emitted, 100.0 * back / books.emitted);
-    }
+  // Each detector's totals, channels summed: the power that crossed it each way.
+  for (const DetectorReading& reading : solver.detector_readings()) {
+    const double front = reading.front_total[0] + reading.front_total[1] + reading.front_total[2];
+    const double back = reading.back_total[0] + reading.back_total[1] + reading.back_total[2];
+    std::fprintf(out, "detector  %s: %.6g crossed from its front, %.6g from its back (%.3g%% and %.3g%% of emitted)\n",
+                 scene.curves[reading.curve].id.c_str(), front, back, 100.0 * front / books.emitted,
+                 100.0 * back / books.emitted);
   }
   print_estimated_error(out, estimate);
   if (const double target = solver.settings().target_error; target > 0.0) {

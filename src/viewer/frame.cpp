@@ -97,6 +97,24 @@ std::vector<CurveTrace> trace_curves(const Scene& scene, int samples_per_segment
   return traces;
 }
 
+namespace {
+
+// Where a ray from `from` along d leaves the scene's box, padded by 5 % of the scene's size: the
+// smallest positive slab distance along d.
+Vec2 box_exit(const Scene& scene, Vec2 from, Vec2 d) {
+  const Vec2 pad{0.05 * scene.scale, 0.05 * scene.scale};
+  const Vec2 lower = scene.bounds.lower - pad;
+  const Vec2 upper = scene.bounds.upper + pad;
+  double t = INFINITY;
+  if (d.x > 0.0) t = std::min(t, (upper.x - from.x) / d.x);
+  if (d.x < 0.0) t = std::min(t, (lower.x - from.x) / d.x);
+  if (d.y > 0.0) t = std::min(t, (upper.y - from.y) / d.y);
+  if (d.y < 0.0) t = std::min(t, (lower.y - from.y) / d.y);
+  return from + d * (std::isfinite(t) ? std::max(t, 0.0) : 0.0);
+}
+
+}  // namespace
+
 void append_path_records(const PhotonPath& path, const Scene& scene, std::uint64_t& serial, std::uint32_t round,
                          std::vector<PathRecord>& out) {
   Vec2 from = path.origin;
@@ -109,12 +127,8 @@ void append_path_records(const PhotonPath& path, const Scene& scene, std::uint64
   PathRecord last = path_record(path, scene, serial++, round);
   if (!path.via.empty()) {
     last.from = from;
-    if (path.escaped) {
-      // Its direction is the last leg's: end - origin was set from that leg's direction.
-      PhotonPath leg = path;
-      leg.origin = from;
-      last.to = path_record(leg, scene, 0, round).to;
-    }
+    // An escaped flight's end is its last leg's start plus that leg's direction.
+    if (path.escaped) last.to = box_exit(scene, from, path.end - from);
   }
   out.push_back(last);
 }
@@ -122,19 +136,7 @@ void append_path_records(const PhotonPath& path, const Scene& scene, std::uint64
 PathRecord path_record(const PhotonPath& path, const Scene& scene, std::uint64_t serial, std::uint32_t round) {
   PathRecord record{serial,       path.origin,   path.end, path.power,     round,         path.bounce,
                     path.escaped, path.absorbed, path.cut, path.hit_curve, path.hit_side, path.hit_s};
-  if (path.escaped) {
-    // Exit from the box: the smallest positive slab distance along the direction.
-    const Vec2 d = path.end - path.origin;
-    const Vec2 pad{0.05 * scene.scale, 0.05 * scene.scale};
-    const Vec2 lower = scene.bounds.lower - pad;
-    const Vec2 upper = scene.bounds.upper + pad;
-    double t = INFINITY;
-    if (d.x > 0.0) t = std::min(t, (upper.x - path.origin.x) / d.x);
-    if (d.x < 0.0) t = std::min(t, (lower.x - path.origin.x) / d.x);
-    if (d.y > 0.0) t = std::min(t, (upper.y - path.origin.y) / d.y);
-    if (d.y < 0.0) t = std::min(t, (lower.y - path.origin.y) / d.y);
-    record.to = path.origin + d * (std::isfinite(t) ? std::max(t, 0.0) : 0.0);
-  }
+  if (path.escaped) record.to = box_exit(scene, path.origin, path.end - path.origin);
   return record;
 }
 

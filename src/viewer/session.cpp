@@ -47,23 +47,13 @@ void describe_solver(const Solver& solver, const std::vector<CurveTrace>& traces
   snapshot.radiosity.resize(scene.curves.size());
   snapshot.nodes.resize(scene.curves.size());
   snapshot.detected.assign(scene.curves.size(), {});
-  if (const DetectorLayout& layout = solver.detector_layout(); layout.size > 0) {
-    const std::vector<double> detected = solver.detected();
-    const auto channels = static_cast<std::size_t>(scene.channels);
-    for (std::uint32_t c = 0; c < scene.curves.size(); ++c) {
-      if (layout.offsets[c] == kNoDetector) continue;
-      const std::uint32_t bins = scene.material_of(scene.curves[c]).detector_bins;
-      const double bin_length = scene.curves[c].length / bins;
-      for (std::size_t side = 0; side < 2; ++side) {
-        std::vector<Spectrum>& out = snapshot.detected[c][side];
-        for (std::uint32_t b = 0; b < bins; ++b) {
-          Spectrum value{};
-          for (std::size_t ch = 0; ch < channels; ++ch)
-            value[ch] = detected[layout.offsets[c] + (side * bins + b) * channels + ch] / bin_length;
-          out.push_back(value);
-        }
-      }
-    }
+  // Power per unit length per bin.
+  for (DetectorReading& reading : solver.detector_readings()) {
+    const double bin_length = scene.curves[reading.curve].length / static_cast<double>(reading.front.size());
+    for (std::vector<Spectrum>* bins : {&reading.front, &reading.back})
+      for (Spectrum& value : *bins)
+        for (double& channel : value) channel /= bin_length;
+    snapshot.detected[reading.curve] = {std::move(reading.front), std::move(reading.back)};
   }
   snapshot.received_share.assign(scene.curves.size(), 0.0);
   double total_reflected = 0.0;

@@ -12,6 +12,7 @@
 #include <iterator>
 #include <optional>
 #include <random>
+#include <tuple>
 
 #include <signal.h>
 #include <unistd.h>
@@ -72,55 +73,29 @@ nlohmann::json result_without_curves(const Solver& solver, int samples_per_curve
   return result;
 }
 
-// Calls f(curve, bins, front, back) for every detector, `front` and `back` pointing at its bins'
-// tallies (bins x channels each).
-template <class F>
-void for_each_detector(const Solver& solver, const std::vector<double>& detected, F f) {
-  const Scene& scene = solver.scene();
-  const DetectorLayout& layout = solver.detector_layout();
-  const auto channels = static_cast<std::size_t>(scene.channels);
-  for (std::uint32_t c = 0; c < scene.curves.size(); ++c) {
-    if (layout.offsets[c] == kNoDetector) continue;
-    const std::uint32_t bins = scene.material_of(scene.curves[c]).detector_bins;
-    const double* front = detected.data() + layout.offsets[c];
-    f(c, bins, front, front + std::size_t{bins} * channels);
-  }
-}
-
 }  // namespace
 
 nlohmann::json detectors_to_json(const Solver& solver) {
   const Scene& scene = solver.scene();
-  const auto channels = static_cast<std::size_t>(scene.channels);
-  const std::vector<double> detected = solver.detected();
   nlohmann::json list = nlohmann::json::array();
-  for_each_detector(solver, detected,
-                    [&](std::uint32_t c, std::uint32_t bins, const double* front, const double* back) {
-                      const Curve& curve = scene.curves[c];
-                      nlohmann::json entry = {{"id", curve.id}, {"length", curve.length}, {"bins", bins}};
-                      for (const auto& [name, values] : {std::pair{"front", front}, std::pair{"back", back}}) {
-                        nlohmann::json tallies = nlohmann::json::array();
-                        Spectrum total{};
-                        for (std::uint32_t b = 0; b < bins; ++b) {
-                          Spectrum value{};
-                          for (std::size_t ch = 0; ch < channels; ++ch) {
-                            value[ch] = values[b * channels + ch];
-                            total[ch] += value[ch];
-                          }
-                          tallies.push_back(spectrum_to_json(value, scene.channels));
-                        }
-                        entry[name] = std::move(tallies);
-                        entry[std::string(name) + "_total"] = spectrum_to_json(total, scene.channels);
-                      }
-                      list.push_back(std::move(entry));
-                    });
+  for (const DetectorReading& reading : solver.detector_readings()) {
+    const Curve& curve = scene.curves[reading.curve];
+    nlohmann::json entry = {{"id", curve.id}, {"length", curve.length}, {"bins", reading.front.size()}};
+    for (const auto& [name, bins, total] : {std::tuple{"front", &reading.front, &reading.front_total},
+                                            std::tuple{"back", &reading.back, &reading.back_total}}) {
+      nlohmann::json tallies = nlohmann::json::array();
+      for (const Spectrum& value : *bins) tallies.push_back(spectrum_to_json(value, scene.channels));
+      entry[name] = std::move(tallies);
+      entry[std::string(name) + "_total"] = spectrum_to_json(*total, scene.channels);
+    }
+    list.push_back(std::move(entry));
+  }
   return list;
 }
 
 std::string detectors_csv(const Solver& solver) {
   const Scene& scene = solver.scene();
   const auto channels = static_cast<std::size_t>(scene.channels);
-  const std::vector<double> detected = solver.detected();
   std::string text = channels == 1 ? "detector,bin,s_from,s_to,x,y,front,back\n"
                                    : "detector,bin,s_from,s_to,x,y,front_r,front_g,front_b,back_r,back_g,back_b\n";
   char number[40];
@@ -128,20 +103,20 @@ std::string detectors_csv(const Solver& solver) {
     std::snprintf(number, sizeof number, ",%.17g", value);
     text += number;
   };
-  for_each_detector(solver, detected,
-                    [&](std::uint32_t c, std::uint32_t bins, const double* front, const double* back) {
-                      const Curve& curve = scene.curves[c];
-                      for (std::uint32_t b = 0; b < bins; ++b) {
-                        text += csv_field(curve.id) + "," + std::to_string(b);
-                        const double from = curve.length * b / bins;
-                        const double to = curve.length * (b + 1) / bins;
-                        const Vec2 middle = point_at_arc_length(scene, curve, 0.5 * (from + to)).position;
-                        for (double value : {from, to, middle.x, middle.y}) add(value);
-                        for (std::size_t ch = 0; ch < channels; ++ch) add(front[b * channels + ch]);
-                        for (std::size_t ch = 0; ch < channels; ++ch) add(back[b * channels + ch]);
-                        text += "\n";
-                      }
-                    });
+  for (const DetectorReading& reading : solver.detector_readings()) {
+    const Curve& curve = scene.curves[reading.curve];
+    const std::size_t bins = reading.front.size();
+    for (std::size_t b = 0; b < bins; ++b) {
+      text += csv_field(curve.id) + "," + std::to_string(b);
+      const double from = curve.length * static_cast<double>(b) / static_cast<double>(bins);
+      const double to = curve.length * static_cast<double>(b + 1) / static_cast<double>(bins);
+      const Vec2 middle = point_at_arc_length(scene, curve, 0.5 * (from + to)).position;
+      for (double value : {from, to, middle.x, middle.y}) add(value);
+      for (std::size_t ch = 0; ch < channels; ++ch) add(reading.front[b][ch]);
+      for (std::size_t ch = 0; ch < channels; ++ch) add(reading.back[b][ch]);
+      text += "\n";
+    }
+  }
   return text;
 }
 

@@ -30,6 +30,15 @@ struct EnergyBooks {
   double absorbed_glass = 0.0;
   double cut = 0.0;
   double imbalance() const { return emitted - (absorbed + escaped + unshot + absorbed_mirrors + absorbed_glass + cut); }
+  // Adds `weight` times every outcome of `other` (all but emitted): for weighted means of books.
+  void add_outcomes(const EnergyBooks& other, double weight) {
+    absorbed += weight * other.absorbed;
+    escaped += weight * other.escaped;
+    unshot += weight * other.unshot;
+    absorbed_mirrors += weight * other.absorbed_mirrors;
+    absorbed_glass += weight * other.absorbed_glass;
+    cut += weight * other.cut;
+  }
 };
 
 // A finished round as a transport reads it: its deposits per thread (per replicate, coefficient and

@@ -218,7 +218,7 @@ PhotonShooter::PhotonShooter(const Scene& scene, const SolverSettings& settings,
     const std::optional<EmitterSpectrum>& spectrum = scene.material_of(curve).spectrum;
     spectra_.push_back(spectrum ? &*spectrum : nullptr);
   }
-  detectors_ = detector_layout(scene);
+  detectors_ = flatland::detector_layout(scene);
   const bool reconstructed = settings.sampling == PositionSampling::Reconstructed;
   by_hermite_ = reconstructed && settings.basis == BasisKind::Hermite;
   by_coefficient_ = reconstructed && !by_hermite_;
@@ -598,19 +598,27 @@ bool PhotonShooter::follow_chain(Rng& rng, SceneHit& hit, Ray& ray, std::array<s
     }
     return false;
   };
+  // Each channel keeps `fraction(ch)` of its units (rounded, never more than it had), the rest
+  // booked to `where`; returns the units still carried.
+  auto attenuate = [&](ChainLoss where, auto fraction) {
+    std::int64_t carried = 0;
+    for (std::size_t ch = 0; ch < channels; ++ch) {
+      // (At most what arrived: units + 0.5 rounds up in a double when units are past 2^53.)
+      const auto kept =
+          std::min(units[ch], static_cast<std::int64_t>(static_cast<double>(units[ch]) * fraction(ch) + 0.5));
+      acc.lost[static_cast<std::size_t>(where)][ch] += units[ch] - kept;
+      units[ch] = kept;
+      carried += kept;
+    }
+    return carried;
+  };
   for (std::uint32_t events = 0;; ++events) {
     if (medium != nullptr) {
       // Beer-Lambert over the flight; a flight that leaves the scene inside an absorbing medium
       // never comes out of it.
-      std::int64_t carried = 0;
-      for (std::size_t ch = 0; ch < channels; ++ch) {
-        const double kept_fraction = hit.segment == kNoSegment ? 0.0 : portable::exp(-(*medium)[ch] * hit.distance);
-        const auto kept =
-            std::min(units[ch], static_cast<std::int64_t>(static_cast<double>(units[ch]) * kept_fraction + 0.5));
-        acc.lost[static_cast<std::size_t>(ChainLoss::Glass)][ch] += units[ch] - kept;
-        units[ch] = kept;
-        carried += kept;
-      }
+      const std::int64_t carried = attenuate(ChainLoss::Glass, [&](std::size_t ch) {
+        return hit.segment == kNoSegment ? 0.0 : portable::exp(-(*medium)[ch] * hit.distance);
+      });
       if (carried == 0)
         return lose(ChainLoss::Glass, ray.origin + (hit.segment == kNoSegment ? 1.0 : hit.distance) * ray.direction);
     }
@@ -651,15 +659,8 @@ bool PhotonShooter::follow_chain(Rng& rng, SceneHit& hit, Ray& ray, std::array<s
       }
       case Optics::Mirror: {
         if (!curve.has_side(side)) return lose(ChainLoss::Mirrors, point);
-        std::int64_t carried = 0;
-        for (std::size_t ch = 0; ch < channels; ++ch) {
-          // (At most what arrived: units + 0.5 rounds up in a double when units are past 2^53.)
-          const auto kept = std::min(
-              units[ch], static_cast<std::int64_t>(static_cast<double>(units[ch]) * material.reflectance[ch] + 0.5));
-          acc.lost[static_cast<std::size_t>(ChainLoss::Mirrors)][ch] += units[ch] - kept;
-          units[ch] = kept;
-          carried += kept;
-        }
+        const std::int64_t carried =
+            attenuate(ChainLoss::Mirrors, [&](std::size_t ch) { return material.reflectance[ch]; });
         if (carried == 0) return lose(ChainLoss::Mirrors, point);
         direction = ray.direction + (2.0 * cos_in) * normal;
         // A microfacet may send the light into the surface: it meets the surface again and leaves.

@@ -154,6 +154,7 @@ class PhotonShooter {
              std::vector<PhotonPath>* paths, std::size_t path_limit) const;
 
   const SegmentAccelerator& accelerator() const { return accelerator_; }
+  const DetectorLayout& detector_layout() const { return detectors_; }
 
  private:
   enum class RayKind { Point, Footprint, Band };

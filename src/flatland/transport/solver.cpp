@@ -189,8 +189,7 @@ Status Solver::start_transport() {
     return Error{message};
   }
   received_.assign(size, 0.0);
-  detectors_ = flatland::detector_layout(scene);
-  detected_.assign(detectors_.size, 0.0);
+  detected_.assign(shooter_.detector_layout().size, 0.0);
   if (settings_.replicates > 1) received_parts_.assign(size * static_cast<std::size_t>(settings_.replicates), 0.0);
   if (auto_storage_) received_half_.assign(size, 0.0);
   readers_.coefficients.assign(size, 0.0);
@@ -264,8 +263,8 @@ RoundView Solver::round_view() const {
 }
 
 std::size_t Solver::round_message_size() const {
-  return storage_.coefficient_count() * static_cast<std::size_t>(channels_ * settings_.replicates) + detectors_.size +
-         22;
+  return storage_.coefficient_count() * static_cast<std::size_t>(channels_ * settings_.replicates) +
+         shooter_.detector_layout().size + 22;
 }
 
 bool Solver::begin_round() {
@@ -354,12 +353,7 @@ bool Solver::next_pass_or_stop(double unshot) {
   for (std::size_t i = 0; i < received_parts_.size(); ++i) passes_parts_[i] += n * received_parts_[i];
   EnergyBooks pass_books;
   transport().add_books(pass_books, channels_, rounds_ - pass_first_round_);
-  passes_books_.absorbed += n * pass_books.absorbed;
-  passes_books_.escaped += n * pass_books.escaped;
-  passes_books_.unshot += n * pass_books.unshot;
-  passes_books_.absorbed_mirrors += n * pass_books.absorbed_mirrors;
-  passes_books_.absorbed_glass += n * pass_books.absorbed_glass;
-  passes_books_.cut += n * pass_books.cut;
+  passes_books_.add_outcomes(pass_books, n);
   passes_detected_.resize(detected_.size(), 0.0);
   for (std::size_t i = 0; i < detected_.size(); ++i) passes_detected_[i] += n * detected_[i];
   std::fill(detected_.begin(), detected_.end(), 0.0);
@@ -392,16 +386,19 @@ bool Solver::next_pass_or_stop(double unshot) {
   return true;
 }
 
-void Solver::mix_passes() {
-  // The finished passes and the current one, each weighted by its photons.
+void Solver::passes_mean(const std::vector<double>& passes, const std::vector<double>& current,
+                         std::vector<double>& out) const {
+  // The finished passes (their values already times their photons) and the current one, each
+  // weighted by its photons.
   const double n = static_cast<double>(photons_shot_ - pass_first_photon_);
   const double total = passes_photons_ + n;
-  mixed_received_.resize(received_.size());
-  mixed_parts_.resize(received_parts_.size());
-  for (std::size_t i = 0; i < received_.size(); ++i)
-    mixed_received_[i] = (passes_received_[i] + n * received_[i]) / total;
-  for (std::size_t i = 0; i < received_parts_.size(); ++i)
-    mixed_parts_[i] = (passes_parts_[i] + n * received_parts_[i]) / total;
+  out.resize(current.size());
+  for (std::size_t i = 0; i < current.size(); ++i) out[i] = (passes[i] + n * current[i]) / total;
+}
+
+void Solver::mix_passes() {
+  passes_mean(passes_received_, received_, mixed_received_);
+  passes_mean(passes_parts_, received_parts_, mixed_parts_);
 }
 
 void Solver::plan_sources(const std::vector<double>& pool, const std::vector<Spectrum>& block_unshot, double unshot) {
@@ -472,22 +469,23 @@ void Solver::end_round(std::span<const Deposits> deposits) {
   totals.photons = round_.photons;
   totals.photons_shot = photons_shot_;
   totals.replicates = static_cast<std::size_t>(settings_.replicates);
-  std::vector<std::int64_t> detected_units(detectors_.size, 0);
+  std::vector<std::int64_t> detected_units(shooter_.detector_layout().size, 0);
   for (const Deposits& d : deposits) {
     for (std::size_t ch = 0; ch < channels; ++ch) {
       totals.escaped[ch] += d.escaped[ch];
       totals.absorbed[ch] += d.absorbed[ch];
       for (std::size_t loss = 0; loss < kChainLosses; ++loss) totals.lost[loss][ch] += d.lost[loss][ch];
     }
-    for (std::size_t i = 0; i < detectors_.size; ++i) detected_units[i] += d.detected[i];
+    for (std::size_t i = 0; i < shooter_.detector_layout().size; ++i) detected_units[i] += d.detected[i];
     rays_traced_ += d.rays;
     chains_cut_ += d.chains_cut;
   }
   transport().end_round(storage_, totals, received_, received_parts_);
-  if (detectors_.size > 0) {
-    std::vector<double> round_detected(detectors_.size);
+  if (shooter_.detector_layout().size > 0) {
+    std::vector<double> round_detected(shooter_.detector_layout().size);
     const double unit = std::ldexp(totals.inverse_scale, kDetectorShift);
-    for (std::size_t i = 0; i < detectors_.size; ++i) round_detected[i] = static_cast<double>(detected_units[i]) * unit;
+    for (std::size_t i = 0; i < shooter_.detector_layout().size; ++i)
+      round_detected[i] = static_cast<double>(detected_units[i]) * unit;
     transport().add_tallies(detected_, round_detected, totals);
   }
   if (passes_photons_ > 0.0) mix_passes();
@@ -656,7 +654,7 @@ std::uint64_t Solver::step_photons(std::uint64_t max_photons, const std::atomic<
     round_deposits_.resize(threads_);
     for (Deposits& deposits : round_deposits_)
       deposits.reset(storage_.coefficient_count() * static_cast<std::size_t>(channels_ * settings_.replicates),
-                     detectors_.size);
+                     shooter_.detector_layout().size);
   }
   const Clock::time_point start = Clock::now();
   const std::uint64_t first = round_done_;
@@ -826,10 +824,8 @@ void Solver::include_open_round() {
                              static_cast<double>(round_done_), static_cast<double>(round_.photons));
   if (passes_photons_ > 0.0) {
     // The current pass so far with the finished ones, each weighted by its photons.
-    const double n = static_cast<double>(photons_shot_ - pass_first_photon_);
-    const double total = passes_photons_ + n;
-    for (std::size_t i = 0; i < received.size(); ++i) received[i] = (passes_received_[i] + n * received[i]) / total;
-    for (std::size_t i = 0; i < parts.size(); ++i) parts[i] = (passes_parts_[i] + n * parts[i]) / total;
+    passes_mean(passes_received_, received, received);  // (element by element: in place is fine)
+    passes_mean(passes_parts_, parts, parts);
   }
   if (auto_storage_) sum_odd_parts(parts, received_half);
   update_reflected(received, received_half, LevelChoice::View);
@@ -866,23 +862,47 @@ EnergyBooks Solver::books() const {
     // does their mean.
     const double n = static_cast<double>(photons_shot_ - pass_first_photon_);
     const double total = passes_photons_ + n;
-    books.absorbed = (passes_books_.absorbed + n * books.absorbed) / total;
-    books.escaped = (passes_books_.escaped + n * books.escaped) / total;
-    books.unshot = (passes_books_.unshot + n * books.unshot) / total;
-    books.absorbed_mirrors = (passes_books_.absorbed_mirrors + n * books.absorbed_mirrors) / total;
-    books.absorbed_glass = (passes_books_.absorbed_glass + n * books.absorbed_glass) / total;
-    books.cut = (passes_books_.cut + n * books.cut) / total;
+    EnergyBooks mixed;
+    mixed.emitted = books.emitted;
+    mixed.add_outcomes(passes_books_, 1.0 / total);
+    mixed.add_outcomes(books, n / total);
+    books = mixed;
   }
   return books;
 }
 
 std::vector<double> Solver::detected() const {
   if (!(passes_photons_ > 0.0)) return detected_;
-  const double n = static_cast<double>(photons_shot_ - pass_first_photon_);
-  std::vector<double> mixed(detected_.size());
-  for (std::size_t i = 0; i < mixed.size(); ++i)
-    mixed[i] = (passes_detected_[i] + n * detected_[i]) / (passes_photons_ + n);
+  std::vector<double> mixed;
+  passes_mean(passes_detected_, detected_, mixed);
   return mixed;
+}
+
+std::vector<DetectorReading> Solver::detector_readings() const {
+  const DetectorLayout& layout = shooter_.detector_layout();
+  std::vector<DetectorReading> readings;
+  if (layout.size == 0) return readings;
+  const std::vector<double> tallies = detected();
+  const auto channels = static_cast<std::size_t>(channels_);
+  for (std::uint32_t c = 0; c < scene_->curves.size(); ++c) {
+    if (layout.offsets[c] == kNoDetector) continue;
+    DetectorReading& reading = readings.emplace_back();
+    reading.curve = c;
+    const std::uint32_t bins = scene_->material_of(scene_->curves[c]).detector_bins;
+    for (const Side side : {Side::Front, Side::Back}) {
+      std::vector<Spectrum>& out = side == Side::Front ? reading.front : reading.back;
+      Spectrum& total = side == Side::Front ? reading.front_total : reading.back_total;
+      const double* bin_tallies = tallies.data() + layout.offsets[c] + static_cast<std::size_t>(side) * bins * channels;
+      for (std::uint32_t b = 0; b < bins; ++b) {
+        Spectrum& value = out.emplace_back();
+        for (std::size_t ch = 0; ch < channels; ++ch) {
+          value[ch] = bin_tallies[b * channels + ch];
+          total[ch] += value[ch];
+        }
+      }
+    }
+  }
+  return readings;
 }
 
 SolverProgress Solver::progress() const {

@@ -51,6 +51,16 @@ struct ReflectedField {
 };
 const char* to_string(StopReason reason);
 
+// A detector curve's tallies (Solver::detector_readings): per bin of its arc length the power that
+// crossed it arriving on its front side (`front`) and on its back (`back`), per channel.
+struct DetectorReading {
+  std::uint32_t curve = 0;
+  std::vector<Spectrum> front;
+  std::vector<Spectrum> back;
+  Spectrum front_total{};
+  Spectrum back_total{};
+};
+
 struct SolverProgress {
   std::uint64_t photons = 0;  // shot so far
   std::uint64_t budget = 0;
@@ -131,8 +141,10 @@ class Solver {
   std::uint64_t chains_cut() const { return chains_cut_; }
   // The detectors' tallies (DetectorLayout, photon_shooter.hpp): the power crossing each bin and
   // side per channel, over finished rounds (with a target error, the passes' photon-weighted mean).
-  const DetectorLayout& detector_layout() const { return detectors_; }
+  const DetectorLayout& detector_layout() const { return shooter_.detector_layout(); }
   std::vector<double> detected() const;
+  // The same per detector curve, bin by bin each way, with their totals.
+  std::vector<DetectorReading> detector_readings() const;
   // With a target error: the passes finished (shooting; docs/method.md, "Solving to an accuracy")
   // and the estimated error when the target was last checked (infinity before).
   std::uint32_t passes() const { return passes_; }
@@ -254,6 +266,10 @@ class Solver {
   // The finished passes and the current one mixed (received_ and received_parts_ of the current
   // pass with passes_received_ and passes_parts_), into mixed_received_ and mixed_parts_.
   void mix_passes();
+  // out = the photon-weighted mean of the finished passes (`passes`, each value times its photons)
+  // and the current one; element by element, so `out` may be `current`.
+  void passes_mean(const std::vector<double>& passes, const std::vector<double>& current,
+                   std::vector<double>& out) const;
   // `half` = the sum of the odd replicates' parts in `parts`.
   void sum_odd_parts(const std::vector<double>& parts, std::vector<double>& half) const;
   // The readers' state (readers_) from `received` at the chosen levels.
@@ -351,7 +367,6 @@ class Solver {
   std::uint64_t photons_cancelled_ = 0;
   std::uint64_t rays_traced_ = 0;
   std::uint64_t chains_cut_ = 0;
-  DetectorLayout detectors_;
   std::vector<double> detected_;         // this pass's (the whole solve's without passes)
   std::vector<double> passes_detected_;  // finished passes', each weighted by its photons
   std::uint32_t rounds_ = 0;
