@@ -5,11 +5,15 @@
 # gnuplot-nox). Usage: docs/figures/penumbra.sh [PHOTONS]
 set -euo pipefail
 cd "$(dirname "$0")/../.."
+flatland=${FLATLAND:-build/flatland}
+# So that a change of the program's defaults does not change what this measures, every setting
+# it does not vary is pinned to the paper's setting (lumped deposits, reconstructed origins, direct-light events, pseudo-random numbers, point rays).
+pin=(--estimator lumped --sampling reconstructed --discontinuities auto --sampler random --tolerance 1e-6 --ray-width 0 --transport shooting --threads 2)
 photons=${1:-400000}
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 for basis in constant linear cubic; do
-  build/flatland solve scenes2d/penumbra.json --basis "$basis" --elements 16 --photons "$photons" --seed 7 \
+  "$flatland" solve "${pin[@]}" scenes2d/penumbra.json --basis "$basis" --elements 16 --photons "$photons" --seed 7 \
     --samples 600 --quiet --out "$work/$basis.json"
 done
 python3 - "$work" <<'PY'

@@ -5,6 +5,10 @@
 # Needs build/flatland and python3. Usage: docs/figures/penumbra_table.sh [PHOTONS] [SEEDS]
 set -euo pipefail
 cd "$(dirname "$0")/../.."
+flatland=${FLATLAND:-build/flatland}
+# So that a change of the program's defaults does not change what this measures, every setting
+# it does not vary is pinned to the paper's setting (16 elements per curve, lumped deposits, direct-light events, pseudo-random numbers).
+pin=(--elements 16 --estimator lumped --discontinuities auto --sampler random --tolerance 1e-6 --transport shooting)
 photons=${1:-400000}
 seeds=${2:-5}
 work=$(mktemp -d)
@@ -18,7 +22,7 @@ for basis in constant linear cubic hermite; do
         band) extra=(--ray-width 0.05 --ray-mode band --band-rays 4 --ray-profile tent) ;;
       esac
       for seed in $(seq 1 "$seeds"); do
-        build/flatland solve scenes2d/penumbra.json --basis "$basis" --sampling "$sampling" \
+        "$flatland" solve "${pin[@]}" scenes2d/penumbra.json --basis "$basis" --sampling "$sampling" \
           --photons "$photons" --seed "$seed" --samples 600 --threads 1 --quiet "${extra[@]}" \
           --out "$work/$basis-$sampling-$rays-$seed.json"
       done

@@ -8,10 +8,13 @@
 #     error, from the test that holds the closed forms (tests/reference/reference_test.cpp,
 #     Reference.DISABLED_EstimatedAgainstTrueErrorTable).
 # Needs BUILD/flatland and BUILD/reference_test (BUILD defaults to build).
-# Usage: docs/figures/reference_accuracy.sh [BUILD]
+# Usage: docs/figures/reference_accuracy.sh [BUILD [TABLES]]: with TABLES (a directory, docs/reproduce.sh
+# gives docs/tables) the tables go to TABLES/reference-accuracy-2.md (1.) and -1.md (2.), else to stdout.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 build=${1:-build}
+tables=${2:-}
+[ -z "$tables" ] || exec > "$tables/reference-accuracy-2.md"
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 printf "| scene | N | elements | seconds | estimated rel. L2 error | observed order |\n|---|---|---|---|---|---|\n"
@@ -34,5 +37,6 @@ EOF
   done
 done
 echo
+[ -z "$tables" ] || exec > "$tables/reference-accuracy-1.md"
 "$build/reference_test" --gtest_also_run_disabled_tests \
   --gtest_filter=Reference.DISABLED_EstimatedAgainstTrueErrorTable | grep '^|'

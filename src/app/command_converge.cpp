@@ -232,7 +232,7 @@ Status draw_plot(const PlotInput& in) {
   std::string script = "set logscale xy\nset xlabel 'solve time (s)'\nset ylabel " +
                        gnuplot_string("relative L2 error of " + in.measured.describe()) +
                        " noenhanced\n"
-                       "set key below\nset grid\n"
+                       "set key below vertical maxcols 1 Left reverse font ',9'\nset grid\n"
                        "set title " +
                        gnuplot_string(in.scene_name) + ".\"\\n\"." + gnuplot_string(subtitle) + " noenhanced\n";
   // Each method's legend entry carries its observed slopes (observed_slopes).
@@ -272,8 +272,12 @@ Status draw_plot(const PlotInput& in) {
   plot += "\n";
   const fs::path png_temporary = directory / ".convergence.png.tmp";
   const fs::path svg_temporary = directory / ".convergence.svg.tmp";
-  script += "set terminal pngcairo size 900,720\nset output '.convergence.png.tmp'\n" + plot;
-  script += "set terminal svg size 900,720\nset output '.convergence.svg.tmp'\n" + plot;
+  // The key lists one method per line below the axes (entries as wide as the plot would make
+  // gnuplot drop the key altogether), so the picture grows by a line per method and keeps the
+  // axes' 560 pixels whatever the number of methods.
+  const std::string size = "900," + std::to_string(560 + 16 * (in.methods.size() + 3));
+  script += "set terminal pngcairo size " + size + "\nset output '.convergence.png.tmp'\n" + plot;
+  script += "set terminal svg size " + size + "\nset output '.convergence.svg.tmp'\n" + plot;
   if (Status status = write_file_atomically((directory / "convergence.gp").string(), script, &interrupt_flag());
       !status)
     return status;

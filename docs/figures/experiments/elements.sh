@@ -10,19 +10,22 @@
 # Usage: docs/figures/experiments/elements.sh [PHOTONS] [SEEDS]
 set -euo pipefail
 cd "$(dirname "$0")/../../.."
+flatland=${FLATLAND:-build/flatland}
+# So that a change of the program's defaults does not change what this measures, what the experiment does not vary is pinned to plain Monte Carlo as Shirley's bound assumes it (lumped deposits, pseudo-random numbers, point rays).
+pin=(--estimator lumped --sampler random --sampling reconstructed --ray-width 0 --transport shooting --threads 2)
 photons=${1:-1000000}
 seeds=${2:-8}
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 scene=scenes2d/curved_room.json
-build/flatland reference "$scene" --elements 800 --samples 4096 --quiet --no-error-estimate \
+"$flatland" reference "$scene" --elements 800 --samples 4096 --quiet --no-error-estimate \
   --out "$work/reference.json"
 tenth=$((photons / 10))
 for basis in constant cubic; do
   for n in 4 16 64 256 1024; do
     for p in "$photons" "$tenth"; do
       for seed in $(seq 1 "$seeds"); do
-        build/flatland solve "$scene" --basis "$basis" --elements "$n" --discontinuities scene \
+        "$flatland" solve "${pin[@]}" "$scene" --basis "$basis" --elements "$n" --discontinuities scene \
           --photons "$p" --tolerance 1e-6 --seed "$seed" --samples 4096 --quiet \
           --out "$work/$basis-$n-$p-$seed.json"
       done

@@ -11,6 +11,9 @@
 # Needs build/flatland and python3. Usage: docs/figures/experiments/scale.sh [PHOTONS] [SEEDS]
 set -euo pipefail
 cd "$(dirname "$0")/../../.."
+flatland=${FLATLAND:-build/flatland}
+# So that a change of the program's defaults does not change what this measures, every other setting is pinned to the defaults (cubic, Galerkin, auto mesh, Sobol' points).
+pin=(--basis cubic --estimator galerkin --elements auto --sampling reconstructed --discontinuities auto --sampler sobol --ray-width 0 --transport shooting --threads 2)
 photons=${1:-1000000}
 seeds=${2:-5}
 work=$(mktemp -d)
@@ -18,10 +21,10 @@ trap 'rm -rf "$work"' EXIT
 variants="curved_room experiments/curved_room_scale1e-6 experiments/curved_room_scale1e6 experiments/curved_room_far1e6 experiments/curved_room_far1e8"
 for v in $variants; do
   name=$(basename "$v")
-  build/flatland reference "scenes2d/$v.json" --elements 800 --samples 200 --quiet --no-error-estimate \
+  "$flatland" reference "scenes2d/$v.json" --elements 800 --samples 200 --quiet --no-error-estimate \
     --out "$work/$name-reference.json"
   for seed in $(seq 1 "$seeds"); do
-    build/flatland solve "scenes2d/$v.json" --photons "$photons" --tolerance 1e-6 --seed "$seed" \
+    "$flatland" solve "${pin[@]}" "scenes2d/$v.json" --photons "$photons" --tolerance 1e-6 --seed "$seed" \
       --samples 200 --quiet --out "$work/$name-$seed.json"
   done
 done

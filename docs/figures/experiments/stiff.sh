@@ -8,6 +8,9 @@
 # Needs build/flatland and python3. Usage: docs/figures/experiments/stiff.sh [SEEDS] [TOLERANCE]
 set -euo pipefail
 cd "$(dirname "$0")/../../.."
+flatland=${FLATLAND:-build/flatland}
+# So that a change of the program's defaults does not change what this measures, every other setting is pinned to the defaults (cubic, Galerkin, auto mesh, Sobol' points).
+pin=(--basis cubic --estimator galerkin --elements auto --sampling reconstructed --discontinuities auto --sampler sobol --ray-width 0 --transport shooting --threads 2)
 seeds=${1:-5}
 tolerance=${2:-1e-3}
 work=$(mktemp -d)
@@ -15,7 +18,7 @@ trap 'rm -rf "$work"' EXIT
 for rho in 0.9 0.99 0.999; do
   for p in 100000 1000000 10000000; do
     for seed in $(seq 1 "$seeds"); do
-      build/flatland solve "scenes2d/experiments/enclosure_rho$rho.json" --photons "$p" \
+      "$flatland" solve "${pin[@]}" "scenes2d/experiments/enclosure_rho$rho.json" --photons "$p" \
         --tolerance "$tolerance" --seed "$seed" --samples 200 --quiet --out "$work/$rho-$p-$seed.json"
     done
   done

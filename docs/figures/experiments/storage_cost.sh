@@ -7,13 +7,16 @@
 # Usage: docs/figures/experiments/storage_cost.sh [PHOTONS] [SEEDS]
 set -euo pipefail
 cd "$(dirname "$0")/../../.."
+flatland=${FLATLAND:-build/flatland}
+# So that a change of the program's defaults does not change what this measures, what the experiment does not vary is pinned to the defaults (cubic, Galerkin, reconstructed origins, Sobol' points, point rays).
+pin=(--basis cubic --estimator galerkin --sampling reconstructed --sampler sobol --ray-width 0 --transport shooting)
 photons=${1:-2e6}
 seeds=${2:-3}
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 for n in 1 3 15 63 255 1023 2047; do
   for seed in $(seq 1 "$seeds"); do
-    build/flatland solve scenes2d/room_reflector.json --photons "$photons" --elements "$n" \
+    "$flatland" solve "${pin[@]}" scenes2d/room_reflector.json --photons "$photons" --elements "$n" \
       --discontinuities scene --seed "$seed" --tolerance 1e-9 --threads 1 --quiet \
       --out "$work/e$n-s$seed.json"
   done

@@ -8,19 +8,22 @@
 # Usage: docs/figures/experiments/width.sh [SEEDS]
 set -euo pipefail
 cd "$(dirname "$0")/../../.."
+flatland=${FLATLAND:-build/flatland}
+# So that a change of the program's defaults does not change what this measures, what the experiment does not vary is pinned to the paper's method (cubic, lumped deposits, reconstructed origins, direct-light events, pseudo-random numbers: the noise ~ 1/sqrt(N W) is Monte Carlo's).
+pin=(--basis cubic --estimator lumped --sampler random --sampling reconstructed --discontinuities auto --ray-profile box --transport shooting --threads 2)
 seeds=${1:-16}
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 scene=scenes2d/penumbra.json
 widths="0 0.005 0.01 0.02 0.05 0.1 0.2 0.4"
-build/flatland reference "$scene" --elements 800 --samples 600 --quiet --no-error-estimate \
+"$flatland" reference "$scene" --elements 800 --samples 600 --quiet --no-error-estimate \
   --out "$work/reference.json"
 for mode in footprint band; do
   for w in $widths; do
     [ "$mode" = band ] && [ "$w" = 0 ] && continue
     for p in 100000 1000000; do
       for seed in $(seq 1 "$seeds"); do
-        build/flatland solve "$scene" --elements 128 --ray-width "$w" --ray-mode "$mode" \
+        "$flatland" solve "${pin[@]}" "$scene" --elements 128 --ray-width "$w" --ray-mode "$mode" \
           --photons "$p" --tolerance 1e-6 --seed "$seed" --samples 600 --quiet \
           --out "$work/$mode-$w-$p-$seed.json"
       done
