@@ -62,7 +62,10 @@ list() {
 }
 
 commit=$(git rev-parse --short HEAD 2>/dev/null || echo unknown)
-if [ -n "$(git status --porcelain --untracked-files=no 2>/dev/null)" ]; then commit="$commit (with uncommitted changes)"; fi
+# Only what can change a number counts as a change (not the documents the tables are pasted into).
+if [ -n "$(git status --porcelain --untracked-files=no -- src CMakeLists.txt bench scenes2d '*.py' '*.sh' 2>/dev/null)" ]; then
+  commit="$commit (with uncommitted changes)"
+fi
 machine="$(nproc) cores, $(sed -n 's/^model name\s*: //p' /proc/cpuinfo | head -1)"
 
 # Runs one step. A table spec ">NAME" means the command's standard output is the table; a plain
