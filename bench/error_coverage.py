@@ -10,6 +10,7 @@ table on stdout and DIR/coverage.md.
   bench/error_coverage.py --out /tmp/coverage [--flatland build/flatland] [--seeds 40]
 """
 import argparse
+import re
 import csv
 import os
 import statistics
@@ -20,16 +21,33 @@ import time
 SCENES = {
     "penumbra": "scenes2d/penumbra.json",
     "round occluder": "scenes2d/tests/reference_round_occluder.json",
-    "lit ring": "scenes2d/tests/reference_ring_profile.json",
+    "ring profile": "scenes2d/tests/reference_ring_profile.json",
     "furnace rho 0.9": "scenes2d/experiments/enclosure_rho0.9.json",
 }
 METHODS = "cubic,linear,constant,hermite,cubic+sampler=random,cubic+transport=walk,cubic+elements=64"
 
 
+# Every setting a method does not name is pinned to the defaults of the program measured (cubic,
+# Galerkin for B-splines and local for Hermite, storage that follows the photons, reconstructed
+# origins, direct-light events, Sobol' points, point rays, shooting), so a change of the program's
+# defaults does not change what this measures.
+PINNED = {"basis": "cubic", "elements": "auto", "sampling": "reconstructed", "discontinuities": "auto",
+          "sampler": "sobol", "ray-width": "0", "transport": "shooting"}
+
+
+def pinned(method):
+    """The method's settings with every key it leaves out filled in: 'linear' or 'cubic+sampler=random'."""
+    named = dict(p.split("=", 1) if "=" in p else ("basis", p) for p in method.split("+"))
+    full = dict(PINNED, **named)
+    full.setdefault("estimator", "local" if full["basis"] == "hermite" else "galerkin")
+    return "+".join(k + "=" + v for k, v in full.items())
+
+
 def run(command):
+    """Seconds the command took and what it printed."""
     started = time.time()
-    subprocess.run(command, check=True, stdout=subprocess.DEVNULL)
-    return time.time() - started
+    done = subprocess.run(command, check=True, stdout=subprocess.PIPE, text=True)
+    return time.time() - started, done.stdout
 
 
 def main():
@@ -43,15 +61,17 @@ def main():
     parser.add_argument("--threads", default="2")
     args = parser.parse_args()
     os.makedirs(args.out, exist_ok=True)
-    rows = []
+    rows, checks = [], []
     for name in args.scenes.split(","):
         scene = SCENES[name]
         tag = name.replace(" ", "_").replace(".", "")
         reference = os.path.join(args.out, tag + "_reference.json")
         if not os.path.exists(reference):
-            run([args.flatland, "reference", scene, "--out", reference, "--samples", "100", "--quiet"])
+            run([args.flatland, "reference", scene, "--elements", "1600", "--out", reference, "--samples", "100",
+                 "--quiet"])
         directory = os.path.join(args.out, tag)
-        seconds = run([args.flatland, "converge", scene, "--reference", reference, "--methods", args.methods,
+        labels = {pinned(m): m for m in args.methods.split(",")}
+        seconds, printed = run([args.flatland, "converge", scene, "--reference", reference, "--methods", ",".join(labels),
                        "--budgets", args.budgets, "--seeds", str(args.seeds), "--samples", "100",
                        "--threads", args.threads, "--out", directory])
         print(f"{name}: converge took {seconds:.0f} s", file=sys.stderr)
@@ -59,7 +79,12 @@ def main():
         with open(os.path.join(directory, "convergence.csv")) as table:
             for row in csv.DictReader(table):
                 budget = min(args.budgets.split(","), key=lambda b: abs(float(b) - float(row["photons"])))
-                runs.setdefault((row["method"], budget), []).append(row)
+                runs.setdefault((labels[row["method"]], budget), []).append(row)
+        # The reference must be 10x more accurate than the smallest median error it judges.
+        floor = float(re.search(r"reference error \(estimated\) ([0-9.eE+-]+) relative L2", printed).group(1))
+        smallest = min(statistics.median(float(r["rel_l2"]) for r in group) for group in runs.values())
+        checks.append(f"{name}: {floor:.2g} against {smallest:.2g}, "
+                      + ("good enough" if 10 * floor <= smallest else "NOT 10x below"))
         for (method, budget), group in runs.items():
             entry = {"scene": name, "method": method, "budget": budget, "runs": len(group)}
             for norm in ("l1", "l2", "linf"):
@@ -77,6 +102,8 @@ def main():
         lines.append(f"| {e['scene']} | {e['method']} | {e['budget']} | {e['runs']} | {e['covered_l1']} | "
                      f"{e['covered_l2']} | {e['covered_linf']} | {e['ratio_l1']:.2f} | {e['ratio_l2']:.2f} | "
                      f"{e['ratio_linf']:.2f} | {e['true_l1']:.2e} |")
+    lines += ["", "References (relative L2 error of B - E, estimated, against the smallest median error judged): "
+              + "; ".join(checks) + "."]
     text = "\n".join(lines) + "\n"
     with open(os.path.join(args.out, "coverage.md"), "w") as out:
         out.write(text)

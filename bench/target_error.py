@@ -20,9 +20,16 @@ import sys
 SCENES = {
     "penumbra": "scenes2d/penumbra.json",
     "round occluder": "scenes2d/tests/reference_round_occluder.json",
-    "lit ring": "scenes2d/tests/reference_ring_profile.json",
+    "ring profile": "scenes2d/tests/reference_ring_profile.json",
     "furnace rho 0.9": "scenes2d/experiments/enclosure_rho0.9.json",
 }
+
+
+# Every setting pinned to the defaults of the program measured, so a change of defaults does not
+# change what this measures: the default method (cubic storage, Galerkin, storage that follows the
+# photons, reconstructed origins, direct-light events, Sobol' points, point rays).
+PINNED_ARGS = ["--basis", "cubic", "--estimator", "galerkin", "--elements", "auto", "--sampling", "reconstructed",
+               "--discontinuities", "auto", "--sampler", "sobol", "--ray-width", "0", "--transport", "shooting"]
 
 
 def main():
@@ -42,12 +49,13 @@ def main():
         tag = name.replace(" ", "_").replace(".", "")
         reference = os.path.join(args.out, tag + "_reference.json")
         if not os.path.exists(reference):
-            subprocess.run([args.flatland, "reference", scene, "--out", reference, "--quiet"], check=True)
+            subprocess.run([args.flatland, "reference", scene, "--elements", "1600", "--out", reference, "--quiet"],
+                           check=True)
         photons, errors = [], []
         for seed in range(1, args.seeds + 1):
             out = os.path.join(args.out, f"{tag}_{seed}.json")
             subprocess.run([args.flatland, "solve", scene, "--photons", "1e9", "--target-error", str(args.target),
-                            "--seed", str(seed), "--threads", "2", "--out", out, "--quiet"], check=True)
+                            "--seed", str(seed), "--threads", "2", "--out", out, "--quiet"] + PINNED_ARGS, check=True)
             compared = subprocess.run([args.flatland, "compare", out, reference, "--json"], check=True,
                                       capture_output=True, text=True)
             errors.append(json.loads(compared.stdout)["scene"]["l1"])
@@ -58,7 +66,9 @@ def main():
         top = max(photons)
         grid = [b for b in grid if b <= 2 * top]
         directory = os.path.join(args.out, tag)
-        subprocess.run([args.flatland, "converge", scene, "--reference", reference, "--methods", "cubic",
+        subprocess.run([args.flatland, "converge", scene, "--reference", reference, "--methods",
+                        "basis=cubic+estimator=galerkin+elements=auto+sampling=reconstructed+discontinuities=auto"
+                        "+sampler=sobol+ray-width=0+transport=shooting",
                         "--budgets", ",".join(map(str, grid)), "--seeds", str(args.seeds), "--tolerance", "1e-3",
                         "--threads", "2", "--out", directory], check=True, stdout=subprocess.DEVNULL)
         with open(os.path.join(directory, "convergence.csv")) as table:

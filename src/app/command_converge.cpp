@@ -189,6 +189,43 @@ struct PlotInput {
   double floor;  // the reference's estimated error, or <= 0 when unknown
 };
 
+// The legend's names: the settings every method shares ("key=value" parts of the method strings,
+// joined by '+') are said once, in `shared`, and each method is named by the parts that set it
+// apart, so that methods spelled out in full still fit a line each. A method with no part of its
+// own (every part shared) keeps its whole name.
+struct LegendNames {
+  std::string shared;
+  std::vector<std::string> names;
+};
+
+LegendNames legend_names(const std::vector<std::string>& methods) {
+  auto split = [](const std::string& method) {
+    std::vector<std::string> parts;
+    std::size_t start = 0;
+    for (std::size_t plus; (plus = method.find('+', start)) != std::string::npos; start = plus + 1)
+      parts.push_back(method.substr(start, plus - start));
+    parts.push_back(method.substr(start));
+    return parts;
+  };
+  std::vector<std::vector<std::string>> parts;
+  for (const std::string& method : methods) parts.push_back(split(method));
+  LegendNames out;
+  std::vector<std::string> shared;
+  if (methods.size() > 1)
+    for (const std::string& part : parts.front())
+      if (std::all_of(parts.begin(), parts.end(),
+                      [&](const auto& p) { return std::find(p.begin(), p.end(), part) != p.end(); }))
+        shared.push_back(part);
+  for (std::size_t m = 0; m < methods.size(); ++m) {
+    std::string name;
+    for (const std::string& part : parts[m])
+      if (std::find(shared.begin(), shared.end(), part) == shared.end()) name += (name.empty() ? "" : "+") + part;
+    out.names.push_back(name.empty() ? methods[m] : name);
+  }
+  for (const std::string& part : shared) out.shared += (out.shared.empty() ? "" : "+") + part;
+  return out;
+}
+
 // The log-log plot of the median L2 error against the median solve time per method and budget,
 // with bars from the smallest to the largest error over the seeds, a -1/2 guide through the first
 // run and the reference's error floor: convergence.{dat,gp} for gnuplot, which writes the PNG and
@@ -227,21 +264,28 @@ Status draw_plot(const PlotInput& in) {
   // gnuplot runs in the directory, so the script names its files without the directory's path;
   // the only text from the user (scene and method names) goes through gnuplot_string.
   const Row& anchor = in.rows.front();
-  const std::string subtitle = (in.elements > 0 ? std::to_string(in.elements) + " elements per curve, " : "") +
-                               "median over " + std::to_string(in.seeds) + " seeds, bars from min to max";
+  const LegendNames legend = legend_names(in.methods);
+  std::string subtitle = (in.elements > 0 ? std::to_string(in.elements) + " elements per curve, " : "") +
+                         "median over " + std::to_string(in.seeds) + " seeds, bars from min to max";
+
   std::string script = "set logscale xy\nset xlabel 'solve time (s)'\nset ylabel " +
                        gnuplot_string("relative L2 error of " + in.measured.describe()) +
                        " noenhanced\n"
                        "set key below vertical maxcols 1 Left reverse font ',9'\nset grid\n"
                        "set title " +
-                       gnuplot_string(in.scene_name) + ".\"\\n\"." + gnuplot_string(subtitle) + " noenhanced\n";
+                       gnuplot_string(in.scene_name) + ".\"\\n\"." + gnuplot_string(subtitle) +
+                       (legend.shared.empty() ? "" : ".\"\\n\"." + gnuplot_string("every method: " + legend.shared)) +
+                       " noenhanced\n";
   // Each method's legend entry carries its observed slopes (observed_slopes).
   const std::vector<Slopes> slopes = observed_slopes(in.rows, in.methods.size());
   std::string plot = "plot ";
   for (std::size_t m = 0; m < in.methods.size(); ++m) {
-    const std::string title = in.methods[m] + ": slope " + slope_text(slopes[m].seconds) + " vs time, " +
+    const std::string title = legend.names[m] + ": slope " + slope_text(slopes[m].seconds) + " vs time, " +
                               slope_text(slopes[m].photons) + " vs photons";
-    const std::string colour = " lc " + std::to_string(m + 1);
+    // Twelve distinct colours, then the same colours dashed: gnuplot's own cycle repeats after eight.
+    static constexpr const char* kColours[] = {"#9400d3", "#009e73", "#56b4e9", "#e69f00", "#0072b2", "#e51e10",
+                                               "#000000", "#c0a000", "#8c564b", "#e377c2", "#7f7f7f", "#17becf"};
+    const std::string colour = std::string(" lc rgb '") + kColours[m % 12] + "'" + (m >= 12 ? " dt 4" : "");
     plot += "'convergence.dat' index " + std::to_string(m) + " using 1:2:3:4 with yerrorlines lw 2" + colour +
             " title " + gnuplot_string(title) + " noenhanced, ";
     // The method's estimated bound, dashed in its colour (no legend entry: one says what dashes are).
@@ -272,10 +316,14 @@ Status draw_plot(const PlotInput& in) {
   plot += "\n";
   const fs::path png_temporary = directory / ".convergence.png.tmp";
   const fs::path svg_temporary = directory / ".convergence.svg.tmp";
-  // The key lists one method per line below the axes (entries as wide as the plot would make
-  // gnuplot drop the key altogether), so the picture grows by a line per method and keeps the
-  // axes' 560 pixels whatever the number of methods.
-  const std::string size = "900," + std::to_string(560 + 16 * (in.methods.size() + 3));
+  // The key lists one method per line below the axes, so the picture grows by a line per method
+  // and keeps its axes' height whatever the number of methods; it is wide enough for the longest
+  // entry (gnuplot reserves about 8 pixels a character, whatever the key's font, and drops the
+  // whole key when an entry is wider than the picture).
+  std::size_t longest = legend.shared.size();
+  for (const std::string& name : legend.names) longest = std::max(longest, name.size() + 40);
+  const std::string size = std::to_string(std::max<std::size_t>(900, 8 * longest + 160)) + "," +
+                           std::to_string(600 + 17 * (in.methods.size() + 4));
   script += "set terminal pngcairo size " + size + "\nset output '.convergence.png.tmp'\n" + plot;
   script += "set terminal svg size " + size + "\nset output '.convergence.svg.tmp'\n" + plot;
   if (Status status = write_file_atomically((directory / "convergence.gp").string(), script, &interrupt_flag());
