@@ -36,14 +36,15 @@ STEPS=(
   "scale|tiny and huge scales, far from the origin|python3 docs/figures/experiments/make_scenes.py >/dev/null && docs/figures/experiments/scale.sh|>scale"
   "secondary|direct-light events of secondary sources|SEEDS=3 docs/figures/experiments/secondary.sh|>secondary"
   "penumbra-methods|every basis, origin sampling and ray kind on the penumbra scene against its closed form|docs/figures/penumbra_table.sh 400000 5 && docs/figures/penumbra.sh 400000 >/dev/null|>penumbra-methods"
-  "estimators|lumped, Galerkin and local estimators on four scenes|ELEMENTS='16 64 256' BUDGETS='1e5 1e6' SEEDS=3 docs/figures/estimators/estimators.sh >/dev/null && python3 docs/figures/estimators/analyse.py|estimators"
+  "estimators|lumped, Galerkin and local estimators on four scenes|WORK=\$(mktemp -d) ELEMENTS='16 64' BUDGETS='1e5 1e6 1e7' SEEDS=3 docs/figures/estimators/estimators.sh > /dev/null && cp docs/figures/estimators/compact.md docs/tables/estimators.md|estimators"
+  "estimator-storage|each estimator on 16 fixed elements and on storage that follows the photons|python3 docs/figures/estimators/storage.py|>estimator-storage"
   "seam|the closing point of a closed curve against its Fourier closed form|python3 docs/figures/seam/ring_seam.py build 1e7 3 cubic,linear|>seam"
   "reference-accuracy|the reference solver's own error|docs/figures/reference_accuracy.sh build docs/tables|reference-accuracy-1 reference-accuracy-2"
   "coverage|coverage and sharpness of the estimated error|python3 bench/error_coverage.py --out build/reproduce/coverage --seeds 40|>coverage"
   "target-error|what --target-error spends and delivers|python3 bench/target_error.py --out build/reproduce/target --seeds 20 --scenes 'penumbra,round occluder,furnace rho 0.9'|>target-error"
   "estimated-error-figure|the estimated error against the true error, by photons|python3 bench/estimated_error_figure.py --out docs/figures/estimated_error|-"
   "specular|mirrors and glass against closed forms|python3 bench/specular_closed_forms.py --out build/reproduce/specular --photons 1e6 --seeds 5 && docs/figures/specular/make_pictures.sh >/dev/null|>specular"
-  "pictures|gallery of the test scenes, the error along a curve, the discontinuity mesh, an extended ray|docs/figures/pictures/make.sh|-"
+  "pictures|gallery of the test scenes, the error along a curve, the discontinuity mesh, an extended ray|docs/figures/pictures/make.sh && python3 docs/figures/pictures/to_tables.py|pictures-gallery pictures-curves"
   "geometry|pictures of contacts and direct-light events|docs/figures/geometry/geometry.sh build|-"
 )
 QUICK=(time-to-accuracy-quick syndrome stiff specular-quick)

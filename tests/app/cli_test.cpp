@@ -317,6 +317,27 @@ TEST_F(Cli, ReferenceWritesTheResultFormat) {
   EXPECT_EQ(lines(bad.err), 1) << bad.err;
 }
 
+// Methods spelled out in full: the key names each by what sets it apart and says the shared
+// settings once, and the picture is wide enough for every entry (gnuplot drops a key with an
+// entry wider than the picture, which it counts at about 8 pixels a character).
+TEST_F(Cli, ConvergePlotKeyFitsMethodsSpelledOutInFull) {
+  const fs::path out = directory_ / "long_names";
+  const std::string shared =
+      "estimator=galerkin+elements=auto+sampling=reconstructed+discontinuities=auto"
+      "+sampler=sobol+ray-width=0+transport=shooting";
+  const CommandRun r = run("converge " + scene("penumbra.json") + " --methods basis=linear+" + shared +
+                           ",basis=cubic+" + shared + " --budgets 2000 --seeds 1 --samples 20 --out " + out.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const std::string script = read_file(out / "convergence.gp");
+  EXPECT_NE(script.find("every method: " + shared), std::string::npos) << script;
+  EXPECT_NE(script.find("title 'basis=linear: slope "), std::string::npos) << script;
+  EXPECT_NE(script.find("title 'basis=cubic: slope "), std::string::npos) << script;
+  const std::size_t size = script.find("pngcairo size ");
+  ASSERT_NE(size, std::string::npos) << script;
+  const int width = std::stoi(script.substr(size + 14));
+  EXPECT_GE(width, static_cast<int>(8 * (std::string("every method: ") + shared).size())) << script;
+}
+
 TEST_F(Cli, ConvergeWritesTableAndPlots) {
   const fs::path out = directory_ / "convergence";
   const CommandRun r = run(

@@ -30,7 +30,7 @@ mkdir -p "$work"
 for scene in "${scenes[@]}"; do
   name=$(basename "$scene")
   ref=$work/$name-reference.json
-  [ -f "$ref" ] || "$flatland" reference "scenes2d/$scene.json" --elements 800 --threads "$threads" \
+  [ -f "$ref" ] || "$flatland" reference "scenes2d/$scene.json" --elements 1600 --threads "$threads" \
     --quiet --out "$ref"
   for basis in constant linear cubic hermite; do
     for estimator in lumped galerkin local; do
@@ -43,7 +43,7 @@ for scene in "${scenes[@]}"; do
             # A solve that fails leaves RUN.failed (its message) and the table says "fails".
             "$flatland" solve "scenes2d/$scene.json" --basis "$basis" --estimator "$estimator" \
               --elements "$n" --photons "$photons" --seed "$seed" --tolerance 1e-6 \
-              --sampling reconstructed --discontinuities auto --sampler random \
+              --sampling reconstructed --discontinuities auto --sampler random --ray-width 0 --transport shooting \
               --threads "$threads" --quiet --out "$out" 2>"$work/stderr" ||
               cp "$work/stderr" "${out%.json}.failed"
           done

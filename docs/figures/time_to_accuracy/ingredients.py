@@ -55,8 +55,10 @@ def main():
             err[name, i] = statistics.median(es)
             secs[name, i] = statistics.median(float(r["seconds"]) for r in rows if r["method"] == m)
         smallest = min(err[name, i] for i in range(len(methods)))
-        checks.append("%s %s" % (tta.nice(name), "good enough (%.0fx)" % (smallest / floor) if floor * 10 <= smallest
-                                 else "NOT 10x below (%.2g against %.2g)" % (floor, smallest)))
+        ratio = smallest / floor if floor > 0 else float("inf")
+        checks.append("%s: reference error %.2g against %.2g (%s), %s" % (
+            tta.nice(name), floor, smallest, "%.0fx" % ratio if ratio < 1e4 else "more than 1e4x",
+            "good enough" if floor * 10 <= smallest else "NOT 10x below"))
     names = list(tta.SCENES)
     lines = ["Median relative L2 error of B - E at %s photons, %d seeds, %s thread(s); 'gain': the geometric "
              "mean over the scenes of the error before the step / after it; time: median solve seconds, "
