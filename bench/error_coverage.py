@@ -108,6 +108,8 @@ def main():
     with open(os.path.join(args.out, "coverage.md"), "w") as out:
         out.write(text)
     print(text)
+    if any("NOT" in c for c in checks):
+        sys.exit("a reference is not 10x more accurate than the errors it judges")
 
 
 if __name__ == "__main__":

@@ -12,6 +12,7 @@ table (also DIR/target.md).
 import argparse
 import csv
 import json
+import re
 import os
 import statistics
 import subprocess
@@ -44,6 +45,7 @@ def main():
     lines = [f"| scene | target | runs | true error <= 1.2 target | median photons | median true L1 | "
              f"smallest fixed budget: true <= target | estimate <= target | photons / those |",
              "|---|---|---|---|---|---|---|---|---|"]
+    checks = []
     for name in args.scenes.split(","):
         scene = SCENES[name]
         tag = name.replace(" ", "_").replace(".", "")
@@ -66,11 +68,11 @@ def main():
         top = max(photons)
         grid = [b for b in grid if b <= 2 * top]
         directory = os.path.join(args.out, tag)
-        subprocess.run([args.flatland, "converge", scene, "--reference", reference, "--methods",
+        converged = subprocess.run([args.flatland, "converge", scene, "--reference", reference, "--methods",
                         "basis=cubic+estimator=galerkin+elements=auto+sampling=reconstructed+discontinuities=auto"
                         "+sampler=sobol+ray-width=0+transport=shooting",
                         "--budgets", ",".join(map(str, grid)), "--seeds", str(args.seeds), "--tolerance", "1e-3",
-                        "--threads", "2", "--out", directory], check=True, stdout=subprocess.DEVNULL)
+                        "--threads", "2", "--out", directory], check=True, stdout=subprocess.PIPE, text=True)
         with open(os.path.join(directory, "convergence.csv")) as table:
             rows = list(csv.DictReader(table))  # method, then budget, then seed order
         per = len(rows) // len(grid)
@@ -81,16 +83,27 @@ def main():
                 true_ok = budget
             if est_ok is None and statistics.median(float(r["est_l1"]) for r in group) <= args.target:
                 est_ok = budget
+        # The reference must be 10x more accurate than the smallest median error judged (converge
+        # prints its estimate in the same measure, relative L2 of B - E; the targets are in L1).
+        floor = float(re.search(r"reference error \(estimated\) ([0-9.eE+-]+)", converged.stdout).group(1))
+        smallest = min(statistics.median(errors), min(statistics.median(float(r["rel_l1"]) for r in rows[i * per:(i + 1) * per])
+                                                        for i in range(len(grid))))
+        checks.append(f"{name} {floor:.2g} against {smallest:.2g}: " + ("good enough" if 10 * floor <= smallest
+                                                                          else "NOT 10x below"))
         used = statistics.median(photons)
         within = sum(e <= 1.2 * args.target for e in errors)
         lines.append(f"| {name} | {args.target:g} | {args.seeds} | {within} | {used:.3g} | "
                      f"{statistics.median(errors):.2e} | {true_ok or '> grid':} | {est_ok or '> grid'} | "
                      f"{used / true_ok if true_ok else float('nan'):.2f} / {used / est_ok if est_ok else float('nan'):.2f} |")
         print(lines[-1], file=sys.stderr)
+    lines += ["", "References (relative L2 error of B - E, estimated, against the smallest median error judged): "
+              + "; ".join(checks) + "."]
     text = "\n".join(lines) + "\n"
     with open(os.path.join(args.out, "target.md"), "w") as out:
         out.write(text)
     print(text)
+    if any("NOT" in c for c in checks):
+        sys.exit("a reference is not 10x more accurate than the errors it judges")
 
 
 if __name__ == "__main__":

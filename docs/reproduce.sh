@@ -26,7 +26,7 @@ mkdir -p "$tables" "$logs"
 
 # name | what it measures | the command (run from the repository's top) | tables it writes
 STEPS=(
-  "time-to-accuracy|error against solve time of every storage, with the defaults and the paper's settings, and of random walks, on five scenes|python3 docs/figures/time_to_accuracy/run.py|time-to-accuracy time-to-accuracy-errors walks readme-answer"
+  "time-to-accuracy|error against solve time of every storage, with the defaults and the paper's settings, and of random walks, on five scenes|python3 docs/figures/time_to_accuracy/run.py|time-to-accuracy time-to-accuracy-errors time-to-accuracy-findings walks readme-answer"
   "ingredients|what each ingredient buys, one setting at a time from classic to the defaults, at 1e6 photons|python3 docs/figures/time_to_accuracy/ingredients.py|ingredients"
   "syndrome|the constant radiosity assumption syndrome|docs/figures/experiments/syndrome.sh 1e6 5|>syndrome"
   "storage-cost|run time against the size of the storage mesh|docs/figures/experiments/storage_cost.sh 2e6 3|>storage-cost"
@@ -50,7 +50,7 @@ STEPS=(
 QUICK=(time-to-accuracy-quick syndrome stiff specular-quick)
 QUICK_STEPS=(
   "time-to-accuracy-quick|two scenes, four methods, 1e4 to 1e6 photons, against the committed runs|python3 docs/figures/time_to_accuracy/run.py --quick|"
-  "specular-quick|mirrors and glass against closed forms at 1e5 photons|python3 bench/specular_closed_forms.py --out build/reproduce/specular-quick --photons 1e5 --seeds 5|>specular"
+  "specular-quick|mirrors and glass against closed forms (the full step without its pictures)|python3 bench/specular_closed_forms.py --out build/reproduce/specular-quick --photons 1e6 --seeds 5|>specular"
 )
 
 field() { local IFS='|'; set -f; local parts=($1); set +f; echo "${parts[$2]:-}"; }
@@ -69,8 +69,9 @@ if [ -n "$(git status --porcelain --untracked-files=no -- src CMakeLists.txt ben
 fi
 machine="$(nproc) cores, $(sed -n 's/^model name\s*: //p' /proc/cpuinfo | head -1)"
 
-# Runs one step. A table spec ">NAME" means the command's standard output is the table; a plain
-# NAME means the script writes docs/tables/NAME.md itself. With COMPARE=1 the tables go to a
+# Runs one step. A table spec ">NAME" means the command's standard output is the table (kept only
+# when the step succeeds); a plain NAME means the script writes docs/tables/NAME.md itself, at its
+# end. With COMPARE=1 the tables go to a
 # scratch directory and are compared with the committed ones (docs/figures/compare_tables.py).
 run_step() {
   local spec=$1 name cmd tabs start secs status=0
@@ -80,7 +81,8 @@ run_step() {
   printf '%s: %s ... ' "$name" "$(field "$spec" 1)"
   start=$(date +%s)
   case $tabs in
-    ">"*) bash -c "$cmd" > "$out/${tabs#>}.md" 2> "$logs/$name.log" || status=$? ;;
+    ">"*) bash -c "$cmd" > "$logs/$name.out" 2> "$logs/$name.log" || status=$?
+          [ "$status" != 0 ] || mv "$logs/$name.out" "$out/${tabs#>}.md" ;;
     *) bash -c "$cmd" > "$logs/$name.log" 2>&1 || status=$? ;;
   esac
   secs=$(( $(date +%s) - start ))

@@ -14,7 +14,7 @@ set -euo pipefail
 cd "$(dirname "$0")/../.."
 build=${1:-build}
 tables=${2:-}
-[ -z "$tables" ] || exec > "$tables/reference-accuracy-2.md"
+[ -z "$tables" ] || exec > "$tables/reference-accuracy-2.md.partial"
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 printf "| scene | N | elements | seconds | estimated rel. L2 error | observed order |\n|---|---|---|---|---|---|\n"
@@ -22,7 +22,13 @@ for scene in scenes2d/*.json; do
   name=$(basename "$scene" .json)
   for n in 100 200 400 800; do
     out="$work/$name-$n.json"
-    "$build/flatland" reference "$scene" --elements "$n" --quiet --out "$out"
+    # Scenes with glass, detectors or curved or rough mirrors are refused by the reference
+    # (docs/reference.md): one row says so.
+    if ! "$build/flatland" reference "$scene" --elements "$n" --quiet --out "$out" 2> "$work/refused"; then
+      grep -q 'the reference solver handles' "$work/refused" || { cat "$work/refused" >&2; exit 1; }
+      echo "| $name | - | - | - | not solved: glass, detectors or curved mirrors | - |"
+      break
+    fi
     python3 - "$out" "$name" "$n" <<'EOF'
 import json, sys
 stats = json.load(open(sys.argv[1]))["stats"]
@@ -37,6 +43,11 @@ EOF
   done
 done
 echo
-[ -z "$tables" ] || exec > "$tables/reference-accuracy-1.md"
+[ -z "$tables" ] || exec > "$tables/reference-accuracy-1.md.partial"
 "$build/reference_test" --gtest_also_run_disabled_tests \
   --gtest_filter=Reference.DISABLED_EstimatedAgainstTrueErrorTable | grep '^|'
+# Both tables are complete: they replace the committed ones (a failed run leaves those alone).
+if [ -n "$tables" ]; then
+  mv "$tables/reference-accuracy-2.md.partial" "$tables/reference-accuracy-2.md"
+  mv "$tables/reference-accuracy-1.md.partial" "$tables/reference-accuracy-1.md"
+fi

@@ -53,3 +53,22 @@ def median(values):
     values = sorted(values)
     n = len(values)
     return values[n // 2] if n % 2 else 0.5 * (values[n // 2 - 1] + values[n // 2])
+
+
+def reference_check(reference, smallest, curve=None, what="the smallest error judged"):
+    """Says whether the reference is at least 10x more accurate than `smallest` (a relative L2 error
+    of B on `curve`, or over the scene). The reference's own estimate (stats.estimated_error.l2,
+    from its solves at two coarser resolutions) is relative to its B over the scene; over one curve
+    its absolute error is at most the scene's, so relative to that curve it is at most
+    estimate x |B|_scene / |B|_curve. Returns (ok, sentence)."""
+    estimate = reference["stats"].get("estimated_error", {}).get("l2")
+    if estimate is None:
+        return False, "no estimate of its own error (made with --no-error-estimate)"
+    r_all, w_all = samples(reference)
+    r_curve, w_curve = samples(reference, curve)
+    scene = math.sqrt(sum(w * r * r for r, w in zip(r_all, w_all)))
+    part = math.sqrt(sum(w * r * r for r, w in zip(r_curve, w_curve)))
+    floor = estimate * scene / part if part > 0 else float("inf")
+    ok = 10 * floor <= smallest
+    return ok, "%s: estimated error %.2g against %s %.2g: %s" % (
+        curve or "scene", floor, what, smallest, "good enough" if ok else "NOT 10x below")

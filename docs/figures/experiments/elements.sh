@@ -18,7 +18,7 @@ seeds=${2:-8}
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 scene=scenes2d/curved_room.json
-"$flatland" reference "$scene" --elements 800 --samples 4096 --quiet --no-error-estimate \
+"$flatland" reference "$scene" --elements 1600 --samples 4096 --quiet \
   --out "$work/reference.json"
 tenth=$((photons / 10))
 for basis in constant cubic; do
@@ -35,9 +35,11 @@ done
 python3 - "$work" "$seeds" "$photons" "$tenth" <<'PY'
 import os, sys
 sys.path.insert(0, os.path.join("docs", "figures", "experiments"))
-from analysis import load, samples, bias_and_noise
+from analysis import load, samples, bias_and_noise, reference_check
 work, seeds, photons, tenth = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), int(sys.argv[4])
-reference, weights = samples(load(os.path.join(work, "reference.json")))
+reference_result = load(os.path.join(work, "reference.json"))
+reference, weights = samples(reference_result)
+resolved = []  # biases the seeds resolve: above the noise of their mean
 target = 0.01
 print("| storage | elements per curve | coefficients | noise at %s photons | noise at %s | ratio (sqrt 10 = 3.16) | photons for 1 %% noise | photons / coefficients | bias |" % (f"{photons:,}", f"{tenth:,}"))
 print("|---|---|---|---|---|---|---|---|---|")
@@ -61,6 +63,8 @@ with open(os.path.join(work, "needed.dat"), "w") as data:
                 noise[p] = s
                 if p == photons:
                     bias = b
+            if bias > noise[photons] / seeds ** 0.5:
+                resolved.append(bias)
             needed = photons * (noise[photons] / target) ** 2
             print("| %s | %d | %d | %.4f | %.4f | %.2f | %.3g | %.0f | %.4f |" % (
                 basis, n, coefficients, noise[photons], noise[tenth], noise[tenth] / noise[photons],
@@ -75,6 +79,12 @@ with open(os.path.join(work, "needed.dat"), "w") as data:
         fits.append((basis, slope, math.exp(my - mx)))
 for basis, slope, _ in fits:
     print("\n%s: photons needed grow as coefficients^%.3f" % (basis, slope))
+# Only the bias column is measured against the reference (the noise is each run's distance from
+# the seeds' mean); it must be 10x below the smallest bias the seeds resolve.
+ok, text = reference_check(reference_result, min(resolved), what="the smallest resolved bias")
+print("\nReference (N = 1600): " + text + ".")
+if not ok:
+    sys.exit("the reference is not 10x more accurate than the errors it judges")
 with open(os.path.join(work, "guide.gp"), "w") as f:
     f.write("a = %.9g\n" % fits[0][2])
 PY

@@ -16,16 +16,17 @@ seeds=${SEEDS:-3}
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 for scene in curved_room room_reflector default syndrome; do
-  "$flatland" reference "scenes2d/$scene.json" --elements 800 --samples 200 --quiet --out "$work/$scene-ref.json"
+  "$flatland" reference "scenes2d/$scene.json" --elements 1600 --samples 200 --quiet --out "$work/$scene-ref.json"
   "$flatland" converge "scenes2d/$scene.json" --reference "$work/$scene-ref.json" \
     --methods "$pin+$default+discontinuities=auto,$pin+$default+discontinuities=secondary,$pin+discontinuities=auto+elements=16+estimator=lumped,$pin+discontinuities=secondary+elements=16+estimator=lumped" \
-    --budgets 1e6,1e7 --seeds "$seeds" --threads 2 --samples 200 --out "$work/$scene" >/dev/null 2>&1
+    --budgets 1e6,1e7 --seeds "$seeds" --threads 2 --samples 200 --out "$work/$scene" > "$work/$scene.txt" 2>&1
 done
 python3 - "$work" <<'PY'
-import collections, csv, statistics, sys
+import collections, csv, re, statistics, sys
 work = sys.argv[1]
 print("| scene | storage | photons | auto | secondary | auto / secondary |")
 print("|---|---|---|---|---|---|")
+checks = []
 for scene in ["curved_room", "room_reflector", "default", "syndrome"]:
     errors = collections.defaultdict(list)
     for row in csv.DictReader(open(f"{work}/{scene}/convergence.csv")):
@@ -37,4 +38,13 @@ for scene in ["curved_room", "room_reflector", "default", "syndrome"]:
             a = statistics.median(errors[(storage, photons, False)])
             s = statistics.median(errors[(storage, photons, True)])
             print(f"| {scene} | {storage} | {photons} | {a:.4f} | {s:.4f} | {a / s:.2f} |")
+    # The reference's own error (converge prints it in the measure of the table) against the
+    # smallest median error it judges.
+    floor = float(re.search(r"reference error \(estimated\) ([0-9.eE+-]+)", open(f"{work}/{scene}.txt").read()).group(1))
+    smallest = min(statistics.median(v) for v in errors.values())
+    checks.append(f"{scene} {floor:.2g} against {smallest:.2g}: " + ("good enough" if 10 * floor <= smallest else "NOT 10x below"))
+print()
+print("References (N = 1600): " + "; ".join(checks) + ".")
+if any("NOT" in c for c in checks):
+    sys.exit("a reference is not 10x more accurate than the errors it judges")
 PY

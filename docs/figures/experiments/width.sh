@@ -16,7 +16,7 @@ work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 scene=scenes2d/penumbra.json
 widths="0 0.005 0.01 0.02 0.05 0.1 0.2 0.4"
-"$flatland" reference "$scene" --elements 800 --samples 600 --quiet --no-error-estimate \
+"$flatland" reference "$scene" --elements 1600 --samples 600 --quiet \
   --out "$work/reference.json"
 for mode in footprint band; do
   for w in $widths; do
@@ -33,9 +33,11 @@ done
 python3 - "$work" "$seeds" "$widths" <<'PY'
 import os, sys
 sys.path.insert(0, os.path.join("docs", "figures", "experiments"))
-from analysis import load, samples, bias_and_noise, median
+from analysis import load, samples, bias_and_noise, median, reference_check
 work, seeds, widths = sys.argv[1], int(sys.argv[2]), sys.argv[3].split()
-reference, weights = samples(load(os.path.join(work, "reference.json")), "receiver")
+reference_result = load(os.path.join(work, "reference.json"))
+reference, weights = samples(reference_result, "receiver")
+smallest = 1.0
 print("| rays | width (m) | photons | bias | noise | total (sqrt(bias^2 + noise^2)) | seconds |")
 print("|---|---|---|---|---|---|---|")
 with open(os.path.join(work, "width.dat"), "w") as data:
@@ -51,11 +53,16 @@ with open(os.path.join(work, "width.dat"), "w") as data:
                     seconds.append(result["stats"]["seconds"])
                 bias, noise = bias_and_noise(runs, reference, weights)
                 total = (bias ** 2 + noise ** 2) ** 0.5
+                smallest = min(smallest, total)
                 print("| %s | %s | %s | %.4f | %.4f | %.4f | %.3f |" % (
                     "point" if w == "0" else mode, w, f"{p:,}", bias, noise, total, median(seconds)))
                 # Width 0 drawn at 0.002 so that it shows on the log axis.
                 data.write("%s %.6g %.6g %.6g\n" % (w if w != "0" else "0.002", bias, noise, total))
             data.write("\n\n")
+ok, text = reference_check(reference_result, smallest, "receiver", what="the smallest total error")
+print("\nReference (N = 1600): " + text + ".")
+if not ok:
+    sys.exit("the reference is not 10x more accurate than the errors it judges")
 PY
 gnuplot <<GP
 set terminal pngcairo size 1000,640
