@@ -369,6 +369,28 @@ TEST(Reference, Penumbra) {
   EXPECT_EQ(solution.radiosity(0, Side::Back, 0.5)[0], 0.0);
 }
 
+// The curved room and its copy moved to (1e8, -1e8) (docs/figures/experiments/make_scenes.py):
+// B does not change under translation. At this resolution some of the walls' sample points fall on
+// element ends; there the point evaluated on the curve and the chord end differ by the rounding of
+// coordinates near 1e8 (1.5e-8), and the gather must still take the end's elements as attached
+// (seen edge-on from their common end), not as elements a hair away that fill half the view.
+TEST(Reference, FarFromTheOriginAPointOnAnElementEndSeesItsNeighbours) {
+  const Scene near = testing::scene_from_file("scenes2d/curved_room.json");
+  const Scene far = testing::scene_from_file("scenes2d/experiments/curved_room_far1e8.json");
+  ReferenceSettings settings;
+  settings.max_element_length = near.scale / 800.0;
+  const ReferenceSolution a = solve(near, settings);
+  const ReferenceSolution b = solve(far, settings);
+  for (std::uint32_t curve = 0; curve < near.curves.size(); ++curve) {
+    const std::vector<double> va = samples(a, curve, Side::Front, 100);
+    const std::vector<double> vb = samples(b, curve, Side::Front, 100);
+    double largest = 0.0;
+    for (double v : va) largest = std::max(largest, std::fabs(v));
+    for (std::size_t k = 0; k < va.size(); ++k)
+      EXPECT_NEAR(vb[k], va[k], 1e-6 * largest) << "curve " << curve << ", sample " << k;
+  }
+}
+
 // A half-circle reflector lit by a line lamp: the error at fixed points falls as h^2.
 TEST(Reference, SecondOrderConvergence) {
   const double k = 0.5522847498307936;

@@ -55,6 +55,10 @@ class Sweeper {
     pieces_.clear();
     const std::size_t count = elements.size();
     const Vec2 lateral_axis{normal.y, -normal.x};
+    // x and the element ends carry the rounding of their coordinates (a point evaluated on a
+    // curve far from the origin differs from the chord end at the same place by a few units in
+    // the last place of |x|, 1.5e-8 at 1e8): an end that near x is at x.
+    const double rounding = 64.0 * std::numeric_limits<double>::epsilon() * (std::fabs(x.x) + std::fabs(x.y));
     auto add_attached = [&](std::uint32_t j, Vec2 r, double length_r, bool own) {
       const double depth = dot(r, normal);
       if (!(depth > 1e-12 * length_r)) return;  // convex there (or on the chord): not seen
@@ -83,7 +87,7 @@ class Sweeper {
       const Vec2 rb = e.b - x;
       const double la = length(ra);
       const double lb = length(rb);
-      const double at_vertex = 1e-12 * std::max(la + lb, e.length);
+      const double at_vertex = std::max(1e-12 * std::max(la + lb, e.length), rounding);
       if (j == self) {
         if (la > at_vertex) add_attached(j, ra, la, true);
         if (lb > at_vertex) add_attached(j, rb, lb, true);
