@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Regenerates every measured table and figure of README.md and docs/ at the current commit.
 #
-#   docs/reproduce.sh                 everything (about 50 minutes on 2 cores)
+#   docs/reproduce.sh                 everything (about 30 minutes on 2 cores)
 #   docs/reproduce.sh --quick         a representative subset (under 10 minutes), compared with the
 #                                     committed tables; exit status 1 when they disagree
 #   docs/reproduce.sh --list          the steps, their scripts and what they write
@@ -110,7 +110,7 @@ for a in "$@"; do
   case $a in
     --quick) quick=1 ;;
     --list) list; exit 0 ;;
-    -h|--help) sed -n '2,19p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    -h|--help) sed -n '2,18p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     -*) echo "docs/reproduce.sh: unknown option $a (see --help)" >&2; exit 2 ;;
     *) only+=("$a") ;;
   esac

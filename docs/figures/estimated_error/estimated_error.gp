@@ -1,8 +1,8 @@
-set terminal pngcairo size 900,640
+set terminal pngcairo size 1100,640
 set output 'estimated_error.png'
 set logscale xy
 set grid
-set key bottom left box opaque
+set key outside right
 set xlabel 'photons'
 set ylabel 'relative L1 error of B - E'
 set title "reference_round_occluder: estimated bound and true error\nmedian over 10 seeds; default settings but the basis" noenhanced
