@@ -38,8 +38,8 @@ gnuplot <<GP
 set terminal pngcairo size 900,480 font ",11"
 set output "docs/figures/penumbra.png"
 set title "Penumbra scene: B along the receiver, $photons photons, 16 elements per curve"
-set xlabel "x on the receiver"
-set ylabel "radiosity B"
+set xlabel "x on the receiver (m)"
+set ylabel "radiosity B (W/m)"
 set xrange [-2:2.5]
 set key top right
 plot "$work/cubic.dat" using 1:3 with lines lw 3 lc rgb "black" title "closed form", \

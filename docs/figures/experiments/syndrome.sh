@@ -76,13 +76,13 @@ set terminal pngcairo size 1000,700
 set output 'docs/figures/experiments/syndrome.png'
 set multiplot layout 2,1 title "constant radiosity syndrome: B along the ceiling and the floor ($photons photons, cubic, 16 elements, seed 1)"
 set xlabel 'x (m)'
-set ylabel 'B (ceiling)'
+set ylabel 'B on the ceiling (W/m)'
 set key top right
 set grid
 plot '$work/curves.dat' index 0 using 1:2 with lines lw 3 lc rgb 'black' title 'reference', \
      '' index 0 using 1:3 with lines lw 2 lc rgb '#d62728' title 'uniform origins', \
      '' index 0 using 1:4 with lines lw 2 lc rgb '#1f77b4' title 'reconstructed origins (the paper)'
-set ylabel 'B (floor)'
+set ylabel 'B on the floor (W/m, log scale)'
 set logscale y
 plot '$work/curves.dat' index 1 using 1:2 with lines lw 3 lc rgb 'black' title 'reference', \
      '' index 1 using 1:3 with lines lw 2 lc rgb '#d62728' title 'uniform origins', \

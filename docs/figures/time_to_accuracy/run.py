@@ -70,7 +70,7 @@ def run(cmd, out_path=None):
         sys.stderr.write(p.stdout + p.stderr)
         sys.exit("failed (exit %d): %s" % (p.returncode, " ".join(cmd)))
     if out_path:
-        with open(out_path, "w") as f:
+        with open(os.path.join(ROOT, out_path), "w") as f:
             f.write(p.stdout)
     return p.stdout
 
@@ -78,6 +78,9 @@ def run(cmd, out_path=None):
 def solve_scene(name, out, methods, budgets):
     scene, n = SCENES[name]
     os.makedirs(out, exist_ok=True)
+    # Paths relative to the repository's top (the commands run there), so that the logs kept
+    # beside the runs name no directory of the machine that made them.
+    out = os.path.relpath(out, ROOT) if out.startswith(ROOT + os.sep) else out
     ref = os.path.join(out, "reference.json")
     run([FLATLAND, "reference", scene, "--elements", str(n), "--threads", THREADS, "--out", ref],
         os.path.join(out, "reference.txt"))
@@ -321,9 +324,9 @@ def findings(data):
     floors = [label for label, family, _, _ in METHODS if family in ("paper", "classic")]
     stuck = [n for n in names if all(time_to(data[n][l], 1e-2)[1] == ">" for l in floors)]
     w("- With the paper's lumped deposits on 16 fixed elements no storage reaches 1 %% on %s: the error stops "
-      "at the mesh's bias (cubic, paper: %s at 1e7 photons)." % (
+      "at the mesh's bias (cubic, paper, at 1e7 photons: %s)." % (
           ", ".join(nice(n) for n in stuck) if stuck else "any scene",
-          ", ".join("%.2g %%" % (100 * data[n]["cubic, paper"][-1][2]) for n in names)))
+          ", ".join("%s %.2g %%" % (nice(n), 100 * data[n]["cubic, paper"][-1][2]) for n in names)))
     gain = statistics.median(data[n]["cubic, paper"][-1][2] / data[n]["cubic"][-1][2] for n in names)
     w("- At 1e7 photons the defaults' cubic error is %.0fx below the paper's method's (median over the scenes)."
       % gain)
