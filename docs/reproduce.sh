@@ -91,6 +91,8 @@ run_step() {
     return 1
   fi
   echo "$secs s"
+  # A step that compares by itself (no table) says its verdict on its log's last line.
+  [ -n "$tabs" ] || tail -1 "$logs/$name.log" | sed 's/^/  /'
   for t in ${tabs#>}; do
     [ "$t" = - ] && continue
     local f="$out/$t.md"
