@@ -15,7 +15,9 @@
 # it and the step's run time, and its figures next to its script; then docs/figures/paste_tables.py
 # copies every table into the documents between the markers <!-- table NAME --> and
 # <!-- /table NAME -->, so a number is typed nowhere. The log of each step is kept in
-# build/reproduce/STEP.log. Needs the program built (cmake --build build), python3 and gnuplot.
+# build/reproduce/STEP.log. Needs the program and the tests built (cmake --build build: the
+# reference step runs build/reference_test), python3, gnuplot and xvfb-run (the viewer's pictures).
+# The web page's pictures are taken by its tests (tests/web, docs/web.md), not here.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 export FLATLAND=${FLATLAND:-build/flatland}
@@ -46,6 +48,7 @@ STEPS=(
   "specular|mirrors and glass against closed forms|python3 bench/specular_closed_forms.py --out build/reproduce/specular --photons 1e6 --seeds 5 && docs/figures/specular/make_pictures.sh >/dev/null|>specular"
   "pictures|gallery of the test scenes, the error along a curve, the discontinuity mesh, an extended ray|docs/figures/pictures/make.sh && python3 docs/figures/pictures/to_tables.py|pictures-gallery pictures-curves"
   "geometry|pictures of contacts and direct-light events|docs/figures/geometry/geometry.sh build|-"
+  "viewer|the viewer's pictures in README.md and docs/viewer.md, taken by the viewer under a virtual X server|docs/figures/viewer.sh|-"
 )
 QUICK=(time-to-accuracy-quick syndrome stiff specular-quick)
 QUICK_STEPS=(
@@ -112,13 +115,14 @@ for a in "$@"; do
   case $a in
     --quick) quick=1 ;;
     --list) list; exit 0 ;;
-    -h|--help) sed -n '2,18p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    -h|--help) sed -n '2,20p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     -*) echo "docs/reproduce.sh: unknown option $a (see --help)" >&2; exit 2 ;;
     *) only+=("$a") ;;
   esac
 done
 [ -x "$FLATLAND" ] || { echo "docs/reproduce.sh: no executable $FLATLAND: build it first (cmake -S . -B build && cmake --build build -j 2) or set FLATLAND" >&2; exit 2; }
 command -v gnuplot >/dev/null || { echo "docs/reproduce.sh: gnuplot is missing: apt-get install gnuplot-nox" >&2; exit 2; }
+command -v xvfb-run >/dev/null || { echo "docs/reproduce.sh: xvfb-run is missing: apt-get install xvfb xauth (or .ci/setup)" >&2; exit 2; }
 
 t0=$(date +%s)
 : > "$logs/times.txt"
