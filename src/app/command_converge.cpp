@@ -32,11 +32,13 @@ namespace fs = std::filesystem;
 
 using Method = ConvergeMethod;
 
-std::vector<std::string> split(const std::string& text) {
+// The non-empty parts of `text` between separators (the lists of the options, a method's
+// key=value parts).
+std::vector<std::string> split(const std::string& text, char separator = ',') {
   std::vector<std::string> out;
   std::stringstream parts(text);
   std::string part;
-  while (std::getline(parts, part, ','))
+  while (std::getline(parts, part, separator))
     if (!part.empty()) out.push_back(part);
   return out;
 }
@@ -199,16 +201,8 @@ struct LegendNames {
 };
 
 LegendNames legend_names(const std::vector<std::string>& methods) {
-  auto split = [](const std::string& method) {
-    std::vector<std::string> parts;
-    std::size_t start = 0;
-    for (std::size_t plus; (plus = method.find('+', start)) != std::string::npos; start = plus + 1)
-      parts.push_back(method.substr(start, plus - start));
-    parts.push_back(method.substr(start));
-    return parts;
-  };
   std::vector<std::vector<std::string>> parts;
-  for (const std::string& method : methods) parts.push_back(split(method));
+  for (const std::string& method : methods) parts.push_back(split(method, '+'));
   LegendNames out;
   std::vector<std::string> shared;
   if (methods.size() > 1)
@@ -265,9 +259,8 @@ Status draw_plot(const PlotInput& in) {
   // the only text from the user (scene and method names) goes through gnuplot_string.
   const Row& anchor = in.rows.front();
   const LegendNames legend = legend_names(in.methods);
-  std::string subtitle = (in.elements > 0 ? std::to_string(in.elements) + " elements per curve, " : "") +
-                         "median over " + std::to_string(in.seeds) + " seeds, bars from min to max";
-
+  const std::string subtitle = (in.elements > 0 ? std::to_string(in.elements) + " elements per curve, " : "") +
+                               "median over " + std::to_string(in.seeds) + " seeds, bars from min to max";
   std::string script = "set logscale xy\nset xlabel 'solve time (s)'\nset ylabel " +
                        gnuplot_string("relative L2 error of " + in.measured.describe()) +
                        " noenhanced\n"
