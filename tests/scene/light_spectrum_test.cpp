@@ -12,20 +12,47 @@
 namespace flatland {
 namespace {
 
-TEST(LightSpectrum, ColourMatchingFunctionsFollowTheCieTable) {
-  // CIE 1931 2-degree observer, tabulated values (nm, x, y, z). The analytic fit is within a few
-  // per cent of the peak values.
+TEST(LightSpectrum, ColourMatchingFunctionsGiveTheSpectrumLocus) {
+  // Chromaticities (x / (x + y + z), y / (x + y + z)) of monochromatic light, as the CIE publishes
+  // them for the 1931 observer: an answer independent of how the functions are stored.
   struct Row {
-    double nm, x, y, z;
+    double nm, x, y;
   };
-  const Row rows[] = {{450.0, 0.3362, 0.0380, 1.7721}, {500.0, 0.0049, 0.3230, 0.2720},
-                      {555.0, 0.5121, 1.0000, 0.0057}, {600.0, 1.0622, 0.6310, 0.0008},
-                      {650.0, 0.2835, 0.1070, 0.0000}, {700.0, 0.0114, 0.0041, 0.0000}};
+  const Row rows[] = {{400.0, 0.17334, 0.00480}, {450.0, 0.15664, 0.01771}, {500.0, 0.00817, 0.53842},
+                      {550.0, 0.30160, 0.69231}, {600.0, 0.62704, 0.37249}, {650.0, 0.72599, 0.27401},
+                      {700.0, 0.73469, 0.26531}, {750.0, 0.73469, 0.26531}, {780.0, 0.73469, 0.26531}};
   for (const Row& row : rows) {
     const std::array<double, 3> xyz = cie_1931(row.nm);
-    EXPECT_NEAR(xyz[0], row.x, 0.04) << row.nm;
-    EXPECT_NEAR(xyz[1], row.y, 0.04) << row.nm;
-    EXPECT_NEAR(xyz[2], row.z, 0.06) << row.nm;
+    const double sum = xyz[0] + xyz[1] + xyz[2];
+    EXPECT_NEAR(xyz[0] / sum, row.x, 2e-4) << row.nm;
+    EXPECT_NEAR(xyz[1] / sum, row.y, 2e-4) << row.nm;
+  }
+  // The luminous efficiency peaks at 555 nm with y = 1.
+  EXPECT_DOUBLE_EQ(cie_1931(555.0)[1], 1.0);
+}
+
+TEST(LightSpectrum, EqualEnergyLightIsTheWhitePointOfXyz) {
+  // The 1931 functions are normalised so their integrals are equal: light with the same power at
+  // every wavelength has chromaticity (1/3, 1/3). Integrated with the midpoint rule on 0.1 nm.
+  std::array<double, 3> total{};
+  for (double nm = kMinWavelength + 0.05; nm < kMaxWavelength; nm += 0.1) {
+    const std::array<double, 3> xyz = cie_1931(nm);
+    for (std::size_t i = 0; i < 3; ++i) total[i] += 0.1 * xyz[i];
+  }
+  const double sum = total[0] + total[1] + total[2];
+  EXPECT_NEAR(total[0] / sum, 1.0 / 3.0, 1e-4);
+  EXPECT_NEAR(total[1] / sum, 1.0 / 3.0, 1e-4);
+  EXPECT_NEAR(total[1], 106.857, 0.05);  // the integral of y over the visible range
+}
+
+TEST(LightSpectrum, DeepRedIsRed) {
+  // Every wavelength from 620 nm to the end of the range lies outside sRGB on the red side: its
+  // green and blue are negative and set to zero, so all its power goes to red.
+  for (double nm = 620.0; nm <= kMaxWavelength; nm += 0.5) {
+    const Spectrum s = channel_shares(nm);
+    EXPECT_GT(s[0], s[1]) << nm;
+    EXPECT_GE(s[1], s[2]) << nm;
+    EXPECT_DOUBLE_EQ(s[0], 1.0) << nm;
   }
 }
 

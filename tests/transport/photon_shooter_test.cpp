@@ -410,6 +410,28 @@ TEST(SpecularChains, SpectralPhotonsKeepTheirPowerAndShareItByWavelength) {
     EXPECT_NEAR(received[ch] / total, shares[ch], 5.0 * std::sqrt(shares[ch] * (1.0 - shares[ch]) / n)) << ch;
 }
 
+TEST(SpecularChains, DeepRedLightLandsInTheRedChannel) {
+  // Monochromatic light from 620 nm to the end of the range is outside sRGB on the red side (its
+  // green and blue are negative): a grey floor under such a lamp receives red only. A 1500 K black
+  // body is mostly such light: red > green > blue.
+  const auto floor_light = [](const std::string& spectrum) {
+    const Scene scene = testing::scene_from_text(R"({"flatland": 2,
+        "materials": {"lamp": {"emittance": 1, "spectrum": )" + spectrum + R"(}, "floor": {"reflectivity": 0.5}},
+        "curves": [{"id": "lamp", "material": "lamp", "line": [[1, 1], [-1, 1]]},
+                   {"id": "floor", "material": "floor", "line": [[-3, 0], [3, 0]]}]})");
+    return first_round(scene, 1, Side::Front, 20'000, 1, SamplerKind::Random).received;
+  };
+  for (const char* nm : {"620", "700", "750", "780"}) {
+    const Spectrum received = floor_light(std::string(R"({"line": )") + nm + "}");
+    EXPECT_GT(received[0], 0.0) << nm;
+    EXPECT_EQ(received[1], 0.0) << nm;
+    EXPECT_EQ(received[2], 0.0) << nm;
+  }
+  const Spectrum warm = floor_light(R"({"blackbody": 1500})");
+  EXPECT_GT(warm[0], warm[1]);
+  EXPECT_GT(warm[1], warm[2]);
+}
+
 // ---- Rough surfaces
 
 // A thin beam straight down onto a rough mirror: every facet is met in proportion to its width as

@@ -17,9 +17,8 @@ using Spectrum = std::array<double, 3>;
 inline constexpr double kMinWavelength = 380.0;
 inline constexpr double kMaxWavelength = 780.0;
 
-// The CIE 1931 2-degree colour matching functions x, y, z at `nanometres`, by the analytic fit of
-// Wyman, Sloan and Shirley (a sum of piecewise Gaussians per function; within a few per cent of the
-// tabulated functions over the visible range).
+// The CIE 1931 2-degree colour matching functions x, y, z at `nanometres`: the CIE's table every
+// 5 nm over [kMinWavelength, kMaxWavelength], linear between rows, the nearest end outside.
 std::array<double, 3> cie_1931(double nanometres);
 
 // Linear sRGB (D65 white) of CIE XYZ.
