@@ -539,6 +539,36 @@ TEST(Reference, RefusesWhatItCannotFollowNamingIt) {
   EXPECT_EQ(message.find("'plain'"), std::string::npos) << message;  // a flat mirror is followed
 }
 
+TEST(Reference, RefusesMirrorsThatFaceEachOther) {
+  // A room whose side walls are facing mirrors: the floor sees the lamp's images of images, which
+  // one reflection per mirror misses (the corridor of images gives the floor about 25 % more
+  // light). The reference refuses the scene by the mirrors' names instead of reporting an error
+  // estimate that does not bound its error. So does a concave mirror corner (two segments of one
+  // curve facing each other); mirrors back to back, or side by side on one line, are followed.
+  const auto refusal = [](const char* curves) {
+    const Scene scene = testing::scene_from_text(std::string(R"({"flatland": 2,
+        "materials": {"lamp": {"emittance": 1}, "wall": {"reflectivity": 0.5}, "mirror": {"type": "mirror"}},
+        "curves": [{"id": "lamp", "material": "lamp", "line": [[1.5, 2], [0.5, 2]]},
+                   {"id": "floor", "material": "wall", "line": [[0, 0], [2, 0]]}, )") + curves + "]}");
+    ReferenceSettings settings;
+    settings.max_element_length = 0.05;
+    const Result<ReferenceSolution> solution = solve_reference(scene, settings);
+    return solution.ok() ? std::string() : solution.error().message;
+  };
+  const std::string facing = refusal(R"({"id": "left", "material": "mirror", "line": [[0, 2], [0, 0]]},
+                                        {"id": "right", "material": "mirror", "line": [[2, 0], [2, 2]]})");
+  EXPECT_NE(facing.find("mirrors 'left' and 'right' face each other"), std::string::npos) << facing;
+  const std::string corner = refusal(R"({"id": "corner", "material": "mirror", "line": [[0, 1], [0, 0.2], [0.8, 0.2]]})");
+  EXPECT_NE(corner.find("mirror 'corner' faces itself"), std::string::npos) << corner;
+  EXPECT_EQ(refusal(R"({"id": "a", "material": "mirror", "line": [[0, 2], [0, 0]]},
+                       {"id": "b", "material": "mirror", "line": [[2.1, 0], [2.1, 2]], "sides": "back"})"),
+            "");  // b reflects away from the room
+  EXPECT_EQ(refusal(R"({"id": "a", "material": "mirror", "line": [[0.2, 0.5], [0.6, 0.5]]},
+                       {"id": "b", "material": "mirror", "line": [[0.8, 0.5], [1.2, 0.5]]})"),
+            "");  // side by side on one line
+  EXPECT_EQ(refusal(R"({"id": "convex", "material": "mirror", "line": [[0, 1], [0.8, 1], [0.8, 0.2]]})"), "");
+}
+
 // Elements against seconds on a scene with occlusion (run with --gtest_also_run_disabled_tests).
 TEST(Reference, CancelStopsTheSolve) {
   const Scene scene = testing::scene_from_text(testing::circle_enclosure(0.5, 1.0));

@@ -497,8 +497,8 @@ class PairQuadrature {
 // images occluding x' -> M (elements behind the line take no part: the path stays in front). A
 // sweep from x' over those, with x's normal reflected (reflection keeps angles to the normal, so
 // the measure (sin b - sin a) / 2 is x's), gives F(x -> j by the mirror) for every element j; times
-// the reflectance, it adds to the direct F. One reflection is followed: light between two mirrors
-// facing each other is missed after its first.
+// the reflectance, it adds to the direct F. One reflection is all there is when no two mirrors face
+// each other; scenes where two do are refused (ReferenceBuilder::check_single_reflections).
 
 ReferenceElement chord_element(Vec2 a, Vec2 b) {
   ReferenceElement e;
@@ -830,6 +830,8 @@ class ReferenceBuilder {
   // Refuses what the reference cannot solve (non-diffuse emitters) or cannot finish (too many
   // elements, by their count alone), before any work is done.
   Status check() const;
+  // Refuses scenes where light can meet two flat mirrors in a row (one reflection is followed).
+  Status check_single_reflections() const;
   // 1. Elements: the chords of every segment, equal in arc length between contacts.
   Status build_elements();
   // Mirrors: every reflecting side of every flat mirror segment, its view of the elements.
@@ -912,6 +914,7 @@ Status ReferenceBuilder::check() const {
                  specular +
                  " are not; use a solve with many more photons as the reference (flatland solve --out REF.json, then "
                  "compare or converge --reference REF.json)"};
+  if (Status status = check_single_reflections(); !status) return status;
   for (const Curve& curve : scene_.curves) {
     if (scene_.is_emitter(curve) && scene_.material_of(curve).emission.kind != Emission::Kind::Diffuse)
       return Error{scene_.source + ": curve '" + curve.id + "': the reference solver supports diffuse emitters only"};
@@ -925,6 +928,49 @@ Status ReferenceBuilder::check() const {
                   "(--elements or --max-element-length)",
                   element_total, max_length(), kMaxReferenceElements);
     return Error{message};
+  }
+  return ok_status();
+}
+
+// Light reaches a second mirror after the first only if the two reflecting sides face each other:
+// part of B lies strictly in front of A's reflecting side and part of A strictly in front of B's.
+// Where no such pair exists, every path from a diffuse point to a diffuse point meets at most one
+// mirror (a path that leaves mirror A toward mirror B needs B in front of A, and to be reflected
+// by B it must arrive on B's reflecting side, which needs A in front of B), so one image per
+// mirror is the whole of the specular light. Where one exists, the reference refuses the scene
+// rather than report an error estimate that does not bound its error. The test ignores occluders
+// between the two (conservative: such a pair is refused even if walls hide them from each other).
+Status ReferenceBuilder::check_single_reflections() const {
+  struct MirrorSide {
+    Vec2 a, b, normal;
+    std::uint32_t curve;
+  };
+  std::vector<MirrorSide> sides;
+  for (const SceneSegment& segment : scene_.segments) {
+    const Curve& curve = scene_.curves[segment.curve];
+    if (scene_.material_of(curve).optics != Optics::Mirror) continue;
+    const Vec2 a = segment.geometry.shape.p[0], b = segment.geometry.shape.p[3];
+    const Vec2 front = normalized(perp(b - a));
+    for (const Side side : {Side::Front, Side::Back})
+      if (curve.has_side(side)) sides.push_back({a, b, side == Side::Front ? front : -front, segment.curve});
+  }
+  const double touch = 1e-9 * scene_.scale;
+  const auto in_front = [&](const MirrorSide& of, const MirrorSide& other) {
+    return dot(other.a - of.a, of.normal) > touch || dot(other.b - of.a, of.normal) > touch;
+  };
+  for (std::size_t i = 0; i < sides.size(); ++i) {
+    if (cancelled()) return Error{kReferenceCancelled};
+    for (std::size_t j = i + 1; j < sides.size(); ++j) {
+      if (!in_front(sides[i], sides[j]) || !in_front(sides[j], sides[i])) continue;
+      const std::string& first = scene_.curves[sides[i].curve].id;
+      const std::string& second = scene_.curves[sides[j].curve].id;
+      return Error{scene_.source + ": " +
+                   (first == second ? "mirror '" + first + "' faces itself (two of its segments face each other)"
+                                    : "mirrors '" + first + "' and '" + second + "' face each other") +
+                   ": light reflected by one reaches the other, and the reference solver follows one reflection; use "
+                   "a solve with many more photons as the reference (flatland solve --out REF.json, then compare or "
+                   "converge --reference REF.json)"};
+    }
   }
   return ok_status();
 }
