@@ -265,6 +265,24 @@ TEST(ErrorEstimate, TargetErrorWorksForWalksAndKeepsTheBooks) {
   }
 }
 
+// A scene that reflects nothing (a black floor) has B - E = 0 exactly: a relative error of it is not
+// defined, and a target is refused before any photon is shot instead of spending the whole cap.
+TEST(ErrorEstimate, TargetErrorOnASceneThatReflectsNothingIsRefused) {
+  const Scene scene = testing::scene_from_text(R"({"flatland": 2,
+      "materials": {"lamp": {"emittance": 1}, "black": {"reflectivity": 0}},
+      "curves": [{"id": "lamp", "material": "lamp", "line": [[1, 1], [-1, 1]]},
+                 {"id": "floor", "material": "black", "line": [[-3, 0], [3, 0]]}]})");
+  SolverSettings settings;
+  settings.photons = 1'000'000'000;
+  settings.target_error = 1e-3;
+  const Result<Solver> solver = Solver::create(scene, settings);
+  ASSERT_FALSE(solver.ok());
+  EXPECT_NE(solver.error().message.find("no diffuse side of the scene reflects light"), std::string::npos)
+      << solver.error().message;
+  settings.target_error = 0.0;
+  EXPECT_TRUE(Solver::create(scene, settings).ok());  // without a target the solve is fine
+}
+
 TEST(ErrorEstimate, SettingsNameTheirLimits) {
   SolverSettings settings;
   settings.replicates = 3;

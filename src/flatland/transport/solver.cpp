@@ -163,6 +163,13 @@ Status Solver::start_transport() {
     reflecting_length += scene.curves[block / 2].length;
   }
   const double decay = reflecting_length > 0.0 ? weighted_reflectivity / reflecting_length : 0.5;
+  // The target is a relative error of B - E; where no diffuse side reflects, B - E is exactly
+  // zero and its relative error is not defined: no number of photons reaches a target.
+  if (settings_.target_error > 0.0 && !(weighted_reflectivity > 0.0))
+    return Error{scene.source +
+                 ": target error: no diffuse side of the scene reflects light (every reflectivity is 0), so the "
+                 "reflected light B - E is exactly zero and its relative error is not defined; solve without a "
+                 "target error"};
   if (settings_.transport == Transport::Walk) {
     Result<RandomWalks> walks = RandomWalks::create(scene, std::move(emission));
     if (!walks) return walks.error();
