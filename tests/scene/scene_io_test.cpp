@@ -581,10 +581,12 @@ TEST(SceneIoErrors, SpecularMaterials) {
                     j["materials"]["wall"] = {{"type", "dielectric"}, {"ior", {{"cauchy", {1.5}}}}};
                   })),
                   "materials.wall.ior.cauchy: expected [A, B]");
-  EXPECT_CONTAINS(error_of(edited([](Json& j) {
-                    j["materials"]["wall"] = {{"type", "dielectric"}, {"ior", 1.5}, {"absorption", -1}};
-                  })),
-                  "materials.wall.absorption: must be >= 0");
+  // Both ends of a range get the message that names the range.
+  for (double absorption : {-1.0, 1e101})
+    EXPECT_CONTAINS(error_of(edited([absorption](Json& j) {
+                      j["materials"]["wall"] = {{"type", "dielectric"}, {"ior", 1.5}, {"absorption", absorption}};
+                    })),
+                    "materials.wall.absorption: must be between 0 and 1e100 (attenuation per unit length inside)");
   EXPECT_CONTAINS(error_of(edited([](Json& j) {
                     j["materials"]["wall"] = {{"type", "mirror"}, {"roughness", 1.5}};
                   })),
@@ -613,6 +615,11 @@ TEST(SceneIoErrors, SpecularMaterials) {
 }
 
 TEST(SceneIoErrors, Spectra) {
+  for (double power : {-1.0, 1e308})
+    EXPECT_CONTAINS(error_of(edited([power](Json& j) {
+                      j["materials"]["lamp"]["spectrum"] = Json::array({{500, 1}, {600, power}});
+                    })),
+                    "materials.lamp.spectrum[1][1]: relative power must be between 0 and 1e100");
   EXPECT_CONTAINS(error_of(edited([](Json& j) {
                     j["materials"]["lamp"]["spectrum"] = {{"blackbody", 100}};
                   })),

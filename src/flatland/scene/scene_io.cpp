@@ -513,7 +513,8 @@ class SceneReader {
     } else if (quantity == Quantity::Absorption) {
       if (!(x >= 0.0 && x <= kMaxEmittance))
         fail(path,
-             "must be >= 0 (attenuation per unit length inside), got " + format_number(x) + "; use 0 for clear glass");
+             "must be between 0 and 1e100 (attenuation per unit length inside), got " + format_number(x) +
+                 "; use 0 for clear glass");
     } else if (quantity == Quantity::Reflectivity) {
       if (x < 0.0) fail(path, "must be in [0, 1), got " + format_number(x) + "; use 0 for black");
       if (x >= 1.0) {
@@ -746,7 +747,7 @@ class SceneReader {
         if (!(nm >= 300.0 && nm <= 900.0))
           fail(append_index(point_path, 0), "a wavelength in nanometres from 300 to 900, got " + format_number(nm));
         if (!(power >= 0.0 && power <= kMaxEmittance))
-          fail(append_index(point_path, 1), "relative power must be >= 0, got " + format_number(power));
+          fail(append_index(point_path, 1), "relative power must be between 0 and 1e100, got " + format_number(power));
         if (!result.points.empty() && !(nm > result.points.back().first))
           fail(append_index(point_path, 0), "wavelengths must increase along the table, got " + format_number(nm) +
                                                 " after " + format_number(result.points.back().first));
