@@ -549,7 +549,8 @@ TEST(Reference, RefusesMirrorsThatFaceEachOther) {
     const Scene scene = testing::scene_from_text(std::string(R"({"flatland": 2,
         "materials": {"lamp": {"emittance": 1}, "wall": {"reflectivity": 0.5}, "mirror": {"type": "mirror"}},
         "curves": [{"id": "lamp", "material": "lamp", "line": [[1.5, 2], [0.5, 2]]},
-                   {"id": "floor", "material": "wall", "line": [[0, 0], [2, 0]]}, )") + curves + "]}");
+                   {"id": "floor", "material": "wall", "line": [[0, 0], [2, 0]]}, )") +
+                                                 curves + "]}");
     ReferenceSettings settings;
     settings.max_element_length = 0.05;
     const Result<ReferenceSolution> solution = solve_reference(scene, settings);
@@ -558,7 +559,8 @@ TEST(Reference, RefusesMirrorsThatFaceEachOther) {
   const std::string facing = refusal(R"({"id": "left", "material": "mirror", "line": [[0, 2], [0, 0]]},
                                         {"id": "right", "material": "mirror", "line": [[2, 0], [2, 2]]})");
   EXPECT_NE(facing.find("mirrors 'left' and 'right' face each other"), std::string::npos) << facing;
-  const std::string corner = refusal(R"({"id": "corner", "material": "mirror", "line": [[0, 1], [0, 0.2], [0.8, 0.2]]})");
+  const std::string corner =
+      refusal(R"({"id": "corner", "material": "mirror", "line": [[0, 1], [0, 0.2], [0.8, 0.2]]})");
   EXPECT_NE(corner.find("mirror 'corner' faces itself"), std::string::npos) << corner;
   EXPECT_EQ(refusal(R"({"id": "a", "material": "mirror", "line": [[0, 2], [0, 0]]},
                        {"id": "b", "material": "mirror", "line": [[2.1, 0], [2.1, 2]], "sides": "back"})"),

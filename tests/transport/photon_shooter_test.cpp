@@ -416,7 +416,8 @@ TEST(SpecularChains, DeepRedLightLandsInTheRedChannel) {
   // body is mostly such light: red > green > blue.
   const auto floor_light = [](const std::string& spectrum) {
     const Scene scene = testing::scene_from_text(R"({"flatland": 2,
-        "materials": {"lamp": {"emittance": 1, "spectrum": )" + spectrum + R"(}, "floor": {"reflectivity": 0.5}},
+        "materials": {"lamp": {"emittance": 1, "spectrum": )" +
+                                                 spectrum + R"(}, "floor": {"reflectivity": 0.5}},
         "curves": [{"id": "lamp", "material": "lamp", "line": [[1, 1], [-1, 1]]},
                    {"id": "floor", "material": "floor", "line": [[-3, 0], [3, 0]]}]})");
     return first_round(scene, 1, Side::Front, 20'000, 1, SamplerKind::Random).received;

@@ -512,9 +512,8 @@ class SceneReader {
       if (!(x >= 0.0 && x <= 1.0)) fail(path, "must be in [0, 1] (the fraction reflected), got " + format_number(x));
     } else if (quantity == Quantity::Absorption) {
       if (!(x >= 0.0 && x <= kMaxEmittance))
-        fail(path,
-             "must be between 0 and 1e100 (attenuation per unit length inside), got " + format_number(x) +
-                 "; use 0 for clear glass");
+        fail(path, "must be between 0 and 1e100 (attenuation per unit length inside), got " + format_number(x) +
+                       "; use 0 for clear glass");
     } else if (quantity == Quantity::Reflectivity) {
       if (x < 0.0) fail(path, "must be in [0, 1), got " + format_number(x) + "; use 0 for black");
       if (x >= 1.0) {
