@@ -982,6 +982,44 @@ TEST(Solver, StorageBeyondTheMemoryLimitIsRefusedBeforeAllocating) {
   EXPECT_TRUE(Solver::create(scene, settings).ok());
 }
 
+// Mirrors, glass and detectors hold no light: they get one storage element a segment whatever the
+// budget or the mesh asked for, and no coefficients, so a scene of many specular curves costs what
+// its diffuse curves do. Automatic storage's memory refusal says what automatic storage wanted.
+TEST(Solver, SpecularCurvesGetNoStorageMesh) {
+  std::string text = R"({"flatland": 2,
+      "materials": {"lamp": {"emittance": 1}, "wall": {"reflectivity": 0.5}, "mirror": {"type": "mirror"},
+                    "glass": {"type": "dielectric", "ior": 1.5}, "probe": {"type": "detector"}},
+      "curves": [{"id": "lamp", "material": "lamp", "line": [[1.5, 2], [0.5, 2]]},
+                 {"id": "room", "material": "wall", "line": [[0, 2], [0, 0], [2, 0], [2, 2]]},
+                 {"id": "mirror", "material": "mirror", "line": [[0.2, 0.5], [0.6, 0.4]]},
+                 {"id": "glass", "material": "glass", "line": [[1, 0.5], [1.4, 0.5], [1.2, 0.8], [1, 0.5]]},
+                 {"id": "probe", "material": "probe", "line": [[0.2, 1.5], [1.8, 1.5]]}]})";
+  const Scene scene = testing::scene_from_text(text);
+  for (const int elements : {kAutoElements, 256}) {
+    SolverSettings settings;
+    settings.elements = elements;
+    settings.photons = 1'000'000;
+    const Result<Solver> solver = Solver::create(scene, settings);
+    ASSERT_TRUE(solver.ok()) << solver.error().message;
+    for (std::uint32_t c = 2; c < 5; ++c) {
+      EXPECT_FALSE(solver->has_side(c, Side::Front)) << c;
+      EXPECT_FALSE(solver->has_side(c, Side::Back)) << c;
+      // Cubic storage on one element a segment: at most four basis functions a segment (corners
+      // are value jumps), whatever the mesh asked for.
+      EXPECT_LE(solver->storage(c).basis.size(), 4 * scene.curves[c].segment_count) << c;
+      EXPECT_TRUE(solver->storage(c).nodes.size() <= scene.curves[c].segment_count) << c;
+    }
+    EXPECT_GT(solver->storage(1).basis.size(), 16u);  // the room's walls are refined
+  }
+  SolverSettings tight;
+  tight.memory_limit = 1 << 16;  // 64 kB
+  const Result<Solver> refused = Solver::create(scene, tight);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_NE(refused.error().message.find("automatic storage refines up to"), std::string::npos)
+      << refused.error().message;
+  EXPECT_NE(refused.error().message.find("on 2 curves that hold light"), std::string::npos) << refused.error().message;
+}
+
 // A cancel in the middle of a round drops the round's deposits, but says how many photons it
 // traced: "interrupted after 0 photons" after millions were shot was wrong.
 TEST(Solver, CancelledRoundsCountTheirPhotons) {

@@ -978,11 +978,13 @@ std::vector<DiscontinuityNode> find_visibility_events(const Scene& scene, const 
       flat_mirrors.push_back(i);
   }
   EventFinder finder{scene, accelerator, {}};
+  const auto cancelled = [&] { return options.cancel != nullptr && options.cancel->load(std::memory_order_relaxed); };
   for (std::uint32_t s = 0; s < curve_count; ++s) {
     const Curve& source = scene.curves[s];
     if (!scene.is_emitter(source) && !(options.secondary && reflects(scene, source))) continue;
     // VV and VT: from the emitter's vertices to every vertex and every tangent point.
     for (const Vertex& v : vertices[s]) {
+      if (cancelled()) return {};
       const Feature a = vertex_feature(v);
       for (const Vertex* w : all_vertices) {
         if (w != &v) finder.try_line(a, vertex_feature(*w));
@@ -991,8 +993,13 @@ std::vector<DiscontinuityNode> find_visibility_events(const Scene& scene, const 
         for (const Feature& b : curve_tangent_points(scene, o, v.position, vertices[o])) finder.try_line(a, b);
       // Through flat mirrors: the emitter's vertex's image in each, to every vertex.
       for (const std::uint32_t m : flat_mirrors) {
+        if (cancelled()) return {};  // each mirror costs a line to every vertex
         const Cubic& shape = scene.segments[m].geometry.shape;
         const Vec2 p0 = shape.p[0];
+        // Light from v meets the side of the mirror that v is on: nothing to image when that side
+        // does not reflect (try_image_line would refuse every line for the same reason).
+        const double facing = dot(unit_normal(shape, 0.5, scene.scale), v.position - p0);
+        if (!scene.curves[scene.segments[m].curve].has_side(facing > 0.0 ? Side::Front : Side::Back)) continue;
         const Vec2 along = normalized(shape.p[3] - p0);
         const Vec2 relative = v.position - p0;
         const Vec2 image = p0 + (2.0 * dot(relative, along)) * along - relative;
@@ -1003,12 +1010,15 @@ std::vector<DiscontinuityNode> find_visibility_events(const Scene& scene, const 
     if (scene.curves[s].kind != SegmentKind::Cubic) continue;
     // TV: tangent points of the emitter seen from every vertex.
     for (const Vertex* w : all_vertices) {
+      if (cancelled()) return {};
       const Feature b = vertex_feature(*w);
       for (const Feature& a : curve_tangent_points(scene, s, w->position, vertices[s])) finder.try_line(a, b);
     }
     // TT: bitangents of the emitter and every curved curve (itself included).
-    for (const std::uint32_t o : curved_curves)
+    for (const std::uint32_t o : curved_curves) {
+      if (cancelled()) return {};
       for (const auto& [a, b] : curve_bitangents(scene, s, o, vertices[s], vertices[o])) finder.try_line(a, b);
+    }
   }
   return merge_events(scene, std::move(finder.events), options);
 }

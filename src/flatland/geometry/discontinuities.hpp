@@ -8,6 +8,7 @@
 //    the irradiance on the first surface hit has a kink (a C0 node: value continuous, slope not).
 #pragma once
 
+#include <atomic>
 #include <cstdint>
 #include <optional>
 #include <string_view>
@@ -58,6 +59,9 @@ struct EventOptions {
   // along them, so the lines from their end points, corners and silhouettes bound the part of
   // them a point sees just as an emitter's do), each with the sides that the curve has.
   bool secondary = false;
+  // Set (by a signal handler, say) to stop the search early: find_visibility_events then returns
+  // what it has found so far, and the caller, which owns the flag, discards it.
+  const std::atomic<bool>* cancel = nullptr;
 };
 
 // Complete direct-light events of every emitter S (a curve with positive emittance; with

@@ -52,8 +52,15 @@ Result<SceneStorage> SceneStorage::build(const Scene& scene, const SolverSetting
   pool.for_each(scene.curves.size(), [&](std::size_t c) {
     if (is_cancelled(cancel)) return;
     const Curve& curve = scene.curves[c];
-    const int finest_level = finest_level_of(scene, curve, settings, plan, smooth, events[c]);
     CurveStorage& finest = built.storage_[c];
+    if (!scene.stores(curve, Side::Front) && !scene.stores(curve, Side::Back)) {
+      // Mirrors, glass and detectors hold no light: no block, no deposit, no estimate. They keep
+      // the smallest storage (one element a segment, no levels) so that every curve has a basis
+      // to name in results, at a cost that does not grow with the plan.
+      finest = build_curve_storage(scene, curve, settings.basis, 1, smooth);
+      return;
+    }
+    const int finest_level = finest_level_of(scene, curve, settings, plan, smooth, events[c]);
     finest = build_curve_storage(scene, curve, settings.basis, plan.elements, smooth, events[c], finest_level);
     if (local) build_local_estimator(scene, curve, finest, hermite);
     // The coarser levels, each with its restriction from the finest.

@@ -26,10 +26,13 @@ double seconds_since(Clock::time_point start) { return std::chrono::duration<dou
 // its knots, basis integral, origin sampler and source weight (about 160 bytes). A curve's segments share its elements,
 // at least one each (at most elements + segments); the regions between event nodes round their shares up, so that a
 // curve has at most twice that many, plus per segment a joint of multiplicity up to the degree + 1.
-Status check_memory(const Scene& scene, const SolverSettings& settings, unsigned threads) {
+Status check_memory(const Scene& scene, const SolverSettings& settings, const StoragePlan& plan, unsigned threads) {
   double coefficients = 0.0;
   for (const Curve& curve : scene.curves) {
-    const double sides = curve.sides == Sides::Both ? 2.0 : 1.0;
+    // Curves that hold no light (mirrors, glass, detectors) get one element a segment and no
+    // coefficients: the per-segment allowance below covers them.
+    const double sides = scene.stores(curve, Side::Front) + scene.stores(curve, Side::Back);
+    if (sides == 0.0) continue;
     coefficients += sides * (2.0 * (static_cast<double>(settings.elements) + curve.segment_count) +
                              4.0 * curve.segment_count + 4.0);
   }
@@ -38,12 +41,23 @@ Status check_memory(const Scene& scene, const SolverSettings& settings, unsigned
   const double bytes = coefficients * per_coefficient + 2048.0 * static_cast<double>(scene.segments.size());
   const std::size_t limit = settings.memory_limit != 0 ? settings.memory_limit : default_memory_budget();
   if (bytes <= static_cast<double>(limit)) return ok_status();
-  char message[320];
-  std::snprintf(message, sizeof message,
-                "elements: %d a curve on %zu curves would need about %.3g storage coefficients and %s of "
-                "memory, more than the limit of %s; use fewer elements per curve",
-                settings.elements, scene.curves.size(), coefficients, format_bytes(bytes).c_str(),
-                format_bytes(static_cast<double>(limit)).c_str());
+  std::size_t holding = 0;
+  for (const Curve& curve : scene.curves)
+    holding += scene.stores(curve, Side::Front) || scene.stores(curve, Side::Back);
+  char message[400];
+  if (plan.automatic)
+    std::snprintf(message, sizeof message,
+                  "elements: automatic storage refines up to %d elements a curve for this photon budget, and on "
+                  "%zu curves that hold light that would need about %.3g storage coefficients and %s of memory, "
+                  "more than the limit of %s; give a fixed number of elements per curve, or fewer photons",
+                  settings.elements, holding, coefficients, format_bytes(bytes).c_str(),
+                  format_bytes(static_cast<double>(limit)).c_str());
+  else
+    std::snprintf(message, sizeof message,
+                  "elements: %d a curve on %zu curves that hold light would need about %.3g storage coefficients "
+                  "and %s of memory, more than the limit of %s; use fewer elements per curve",
+                  settings.elements, holding, coefficients, format_bytes(bytes).c_str(),
+                  format_bytes(static_cast<double>(limit)).c_str());
   return Error{message};
 }
 
@@ -101,14 +115,21 @@ StoragePlan Solver::plan_storage(const Scene& scene, const SolverSettings& setti
 }
 
 std::vector<std::vector<MeshNode>> Solver::find_events(const SegmentAccelerator& accelerator, const StoragePlan& plan,
-                                                       std::vector<std::vector<double>>& walls) {
+                                                       std::vector<std::vector<double>>& walls,
+                                                       const std::atomic<bool>* cancel) {
   const Scene& scene = *scene_;
   std::vector<std::vector<MeshNode>> events(scene.curves.size());
   walls.assign(scene.curves.size(), {});
+  // Only curves that hold light need nodes: a mirror's, a dielectric's or a detector's would
+  // refine a storage nothing is deposited on.
+  const auto holds_light = [&](std::uint32_t c) {
+    return scene.stores(scene.curves[c], Side::Front) || scene.stores(scene.curves[c], Side::Back);
+  };
   if (settings_.discontinuities != DiscontinuityMode::None) {
     // Contacts are part of the geometry (light on the two sides is unrelated): a value jump there
     // whenever the scene's joints are honoured.
     for (const DiscontinuityNode& node : find_contacts(scene, accelerator)) {
+      if (!holds_light(node.curve)) continue;
       events[node.curve].push_back({node.u, node.continuity});
       walls[node.curve].push_back(arc_length_at(scene, scene.curves[node.curve], node.u));
       ++contact_nodes_;
@@ -120,7 +141,9 @@ std::vector<std::vector<MeshNode>> Solver::find_events(const SegmentAccelerator&
     EventOptions options;
     options.elements = plan.elements << plan.finest_level;
     options.secondary = settings_.discontinuities == DiscontinuityMode::Secondary;
+    options.cancel = cancel;
     for (const DiscontinuityNode& node : find_visibility_events(scene, accelerator, options)) {
+      if (!holds_light(node.curve)) continue;
       events[node.curve].push_back({node.u, node.continuity});
       ++visibility_events_;
     }
@@ -221,14 +244,15 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
   const StoragePlan plan = plan_storage(scene, settings);
   SolverSettings sized = settings;
   sized.elements = plan.elements << plan.finest_level;
-  if (Status status = check_memory(scene, sized, solver.threads_); !status) return status.error();
+  if (Status status = check_memory(scene, sized, plan, solver.threads_); !status) return status.error();
   // 2. The ray caster's tree, and the storage mesh's extra nodes from the geometry.
   std::vector<SegmentGeometry> geometry;
   geometry.reserve(scene.segments.size());
   for (const SceneSegment& segment : scene.segments) geometry.push_back(segment.geometry);
   SegmentAccelerator accelerator(std::move(geometry));
   std::vector<std::vector<double>> walls;
-  const std::vector<std::vector<MeshNode>> events = solver.find_events(accelerator, plan, walls);
+  const std::vector<std::vector<MeshNode>> events = solver.find_events(accelerator, plan, walls, cancel);
+  if (cancelled()) return Error{kSolverCancelled};
   solver.shooter_ = PhotonShooter(scene, solver.settings_, std::move(accelerator), std::move(walls));
   // 3. Every curve's storage, its levels and the coefficients' layout.
   Result<SceneStorage> storage =

@@ -216,9 +216,11 @@ class Solver {
   static Status check_scene(const Scene& scene, const SolverSettings& settings);
   static StoragePlan plan_storage(const Scene& scene, const SolverSettings& settings);
   // The storage mesh's extra nodes: contacts (C-1, where footprints also stop: `walls`, per curve
-  // in arc length) and visibility events (C0), as the settings ask.
+  // in arc length) and visibility events (C0), as the settings ask, on the curves that hold light.
+  // Stops early (with partial nodes) once `cancel` is set.
   std::vector<std::vector<MeshNode>> find_events(const SegmentAccelerator& accelerator, const StoragePlan& plan,
-                                                 std::vector<std::vector<double>>& walls);
+                                                 std::vector<std::vector<double>>& walls,
+                                                 const std::atomic<bool>* cancel);
   // The power the emitters put on each coefficient (E times the basis integrals), the emitted
   // books, and the transport that starts from it.
   Status start_transport();
