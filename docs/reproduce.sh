@@ -3,10 +3,20 @@
 #
 #   docs/reproduce.sh                 everything (about 30 minutes on 2 cores)
 #   docs/reproduce.sh --quick         a representative subset (under 10 minutes), compared with the
-#                                     committed tables; exit status 1 when they disagree
+#                                     committed tables, and the check that README.md and docs/*.md
+#                                     show docs/tables (docs/figures/paste_tables.py --check); exit
+#                                     status 1 when they disagree
+#   docs/reproduce.sh --quick STEP... only these steps of the quick subset, compared, and the check
 #   docs/reproduce.sh --list          the steps, their scripts and what they write
-#   docs/reproduce.sh STEP...         only these steps (then the tables are pasted as usual)
-#   FLATLAND=PATH docs/reproduce.sh   another executable (default build/flatland)
+#   docs/reproduce.sh STEP...         only these steps (then the tables are pasted as usual); a step
+#                                     of the quick subset only (NAME-quick) compares and writes nothing
+#   docs/reproduce.sh --dry-run ...   checks the arguments and says what would run; runs nothing
+#   FLATLAND=PATH docs/reproduce.sh   another executable (default build/flatland; a relative PATH
+#                                     starts at the repository's top)
+#
+# Bad arguments (an unknown option or step, a step --quick does not run, a FLATLAND that is not an
+# executable file, a missing tool) stop it with exit status 2 and a one-line message, before it
+# creates, empties or writes any file.
 #
 # Each step runs one experiment's script with every solver setting pinned in the script itself
 # (basis, estimator, storage, origins, discontinuities, sampler, rays, photons, seeds, threads,
@@ -14,17 +24,17 @@
 # A step writes its tables to docs/tables/NAME.md, each headed by the commit and command that made
 # it and the step's run time, and its figures next to its script; then docs/figures/paste_tables.py
 # copies every table into the documents between the markers <!-- table NAME --> and
-# <!-- /table NAME -->, so a number is typed nowhere. The log of each step is kept in
-# build/reproduce/STEP.log. Needs the program and the tests built (cmake --build build: the
-# reference step runs build/reference_test), python3, gnuplot and xvfb-run (the viewer's pictures).
-# The web page's pictures are taken by its tests (tests/web, docs/web.md), not here.
+# <!-- /table NAME -->, so a number is typed nowhere. Every step takes the program from FLATLAND.
+# The log of each step is kept in build/reproduce/STEP.log. Needs the program and the tests built
+# (cmake --build build: the reference step runs build/reference_test), python3, gnuplot and, for
+# the viewer step, xvfb-run. The web page's pictures are taken by its tests (tests/web,
+# docs/web.md), not here.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 export FLATLAND=${FLATLAND:-build/flatland}
 export THREADS=2
 tables=docs/tables
 logs=build/reproduce
-mkdir -p "$tables" "$logs"
 
 # name | what it measures | the command (run from the repository's top) | tables it writes
 STEPS=(
@@ -47,23 +57,93 @@ STEPS=(
   "estimated-error-figure|the estimated error against the true error, by photons|python3 bench/estimated_error_figure.py --out docs/figures/estimated_error|-"
   "specular|mirrors and glass against closed forms|python3 bench/specular_closed_forms.py --out build/reproduce/specular --photons 1e6 --seeds 5 && docs/figures/specular/make_pictures.sh >/dev/null|>specular"
   "pictures|gallery of the test scenes, the error along a curve, the discontinuity mesh, an extended ray|docs/figures/pictures/make.sh && python3 docs/figures/pictures/to_tables.py|pictures-gallery pictures-curves"
-  "geometry|pictures of contacts and direct-light events|docs/figures/geometry/geometry.sh build|-"
+  "geometry|pictures of contacts and direct-light events|docs/figures/geometry/geometry.sh|-"
   "viewer|the viewer's pictures in README.md and docs/viewer.md, taken by the viewer under a virtual X server|docs/figures/viewer.sh|-"
 )
 QUICK=(time-to-accuracy-quick syndrome stiff specular-quick)
+# Steps of the quick subset only: they compare with the committed tables wherever they are named
+# (with or without --quick) and write none.
 QUICK_STEPS=(
-  "time-to-accuracy-quick|two scenes, four methods, 1e4 to 1e6 photons, against the committed runs|python3 docs/figures/time_to_accuracy/run.py --quick|"
+  "time-to-accuracy-quick|two scenes, four methods, 1e4 to 1e6 photons, against the committed runs and tables|python3 docs/figures/time_to_accuracy/run.py --quick|"
   "specular-quick|mirrors and glass against closed forms (the full step without its pictures)|python3 bench/specular_closed_forms.py --out build/reproduce/specular-quick --photons 1e6 --seeds 5|>specular"
 )
 
 field() { local IFS='|'; set -f; local parts=($1); set +f; echo "${parts[$2]:-}"; }
+# The spec of a step by its name (exit status 1 when there is none).
+spec_of() { local s; for s in "${STEPS[@]}" "${QUICK_STEPS[@]}"; do [ "$(field "$s" 0)" = "$1" ] && { echo "$s"; return 0; }; done; return 1; }
+is_quick_only() { local s; for s in "${QUICK_STEPS[@]}"; do [ "$(field "$s" 0)" = "$1" ] && return 0; done; return 1; }
+in_quick() { case " ${QUICK[*]} " in *" $1 "*) return 0 ;; esac; return 1; }
+named() { local n; for n in "${only[@]}"; do [ "$n" = "$1" ] && return 0; done; return 1; }
+# A bad argument or a missing tool: one line on stderr, exit status 2, nothing written yet.
+refuse() { echo "docs/reproduce.sh: $*" >&2; exit 2; }
 
 list() {
+  local s name
   for s in "${STEPS[@]}" "${QUICK_STEPS[@]}"; do
-    printf '%-24s %s\n%-24s   %s\n%-24s   tables: %s\n' "$(field "$s" 0)" "$(field "$s" 1)" "" "$(field "$s" 2)" "" \
-      "$(field "$s" 3 | tr -d '>')"
+    name=$(field "$s" 0)
+    printf '%-24s %s\n%-24s   %s\n' "$name" "$(field "$s" 1)" "" "$(field "$s" 2)"
+    if is_quick_only "$name" && [ -z "$(field "$s" 3)" ]; then
+      printf '%-24s   compares by itself; writes nothing (run by --quick)\n' ""
+    elif is_quick_only "$name"; then
+      printf '%-24s   compares with the committed tables: %s; writes nothing (run by --quick)\n' "" "$(field "$s" 3 | tr -d '>')"
+    else
+      printf '%-24s   tables: %s%s\n' "" "$(field "$s" 3 | tr -d '>')" "$(in_quick "$name" && echo ' (compared under --quick)')"
+    fi
   done
 }
+
+# Every argument is checked here, before anything is created, emptied or written.
+quick=0 dry=0 want_list=0 want_help=0
+only=()
+for a in "$@"; do
+  case $a in
+    --quick) quick=1 ;;
+    --list) want_list=1 ;;
+    --dry-run) dry=1 ;;
+    -h|--help) want_help=1 ;;
+    -*) refuse "unknown option '$a': the options are --quick, --list, --dry-run and --help" ;;
+    *) only+=("$a") ;;
+  esac
+done
+for name in "${only[@]}"; do
+  spec_of "$name" >/dev/null || refuse "no step '$name': docs/reproduce.sh --list names the steps"
+  if [ "$quick" = 1 ] && ! in_quick "$name"; then
+    refuse "--quick runs only its own steps (${QUICK[*]}), not '$name': drop --quick to run '$name'"
+  fi
+done
+if [ "$want_help" = 1 ]; then
+  awk 'NR > 1 && /^#/ { sub(/^# ?/, ""); print; next } NR > 1 { exit }' "$0"
+  exit 0
+fi
+[ "$want_list" = 0 ] || { list; exit 0; }
+
+# The steps to run, in the order of the lists, and whether each compares or writes: under --quick
+# every step compares; without it a step of the quick subset only compares and every other writes.
+run=() compare=()
+for s in "${STEPS[@]}" "${QUICK_STEPS[@]}"; do
+  name=$(field "$s" 0)
+  if [ "${#only[@]}" -gt 0 ]; then
+    named "$name" || continue
+  elif [ "$quick" = 1 ]; then
+    in_quick "$name" || continue
+  else
+    is_quick_only "$name" && continue
+  fi
+  run+=("$s")
+  if [ "$quick" = 1 ] || is_quick_only "$name"; then compare+=(1); else compare+=(0); fi
+done
+writes=0
+for c in "${compare[@]}"; do [ "$c" = 1 ] || writes=1; done
+
+[ -e "$FLATLAND" ] || refuse "FLATLAND=$FLATLAND does not exist: build it (cmake -S . -B build && cmake --build build -j 2) or set FLATLAND to the program"
+[ -f "$FLATLAND" ] || refuse "FLATLAND=$FLATLAND is not a file: set FLATLAND to the program (such as build/flatland)"
+[ -x "$FLATLAND" ] || refuse "FLATLAND=$FLATLAND is not executable: set FLATLAND to the program (such as build/flatland)"
+command -v python3 >/dev/null || refuse "python3 is missing: apt-get install python3"
+command -v gnuplot >/dev/null || refuse "gnuplot is missing: apt-get install gnuplot-nox"
+for s in "${run[@]}"; do
+  [ "$(field "$s" 0)" != viewer ] || command -v xvfb-run >/dev/null ||
+    refuse "xvfb-run is missing (the viewer step needs it): apt-get install xvfb xauth (or .ci/setup)"
+done
 
 commit=$(git rev-parse --short HEAD 2>/dev/null || echo unknown)
 # Only what can change a number counts as a change (not the documents the tables are pasted into).
@@ -72,15 +152,27 @@ if [ -n "$(git status --porcelain --untracked-files=no -- src CMakeLists.txt ben
 fi
 machine="$(nproc) cores, $(sed -n 's/^model name\s*: //p' /proc/cpuinfo | head -1)"
 
+if [ "$dry" = 1 ]; then
+  echo "would run at commit $commit ($FLATLAND):"
+  for i in "${!run[@]}"; do
+    s=${run[$i]}
+    printf '  %-24s %s\n' "$(field "$s" 0)" "$([ "${compare[$i]}" = 1 ] && echo 'compared with the committed tables' || echo 'writes its tables and figures')"
+  done
+  if [ "$writes" = 1 ]; then echo "  then docs/figures/paste_tables.py"; else echo "  then docs/figures/paste_tables.py --check"; fi
+  exit 0
+fi
+mkdir -p "$tables" "$logs"
+
 # Runs one step. A table spec ">NAME" means the command's standard output is the table (kept only
 # when the step succeeds); a plain NAME means the script writes docs/tables/NAME.md itself, at its
-# end. With COMPARE=1 the tables go to a
-# scratch directory and are compared with the committed ones (docs/figures/compare_tables.py).
+# end. With COMPARE=1 the tables go to build/reproduce/STEP.tables/ (kept to look at) and are
+# compared with the committed ones (docs/figures/compare_tables.py, which prints every row it
+# compared and how it agreed).
 run_step() {
   local spec=$1 name cmd tabs start secs status=0
   name=$(field "$spec" 0); cmd=$(field "$spec" 2); tabs=$(field "$spec" 3)
   local out=$tables
-  [ "${COMPARE:-0}" = 1 ] && out=$(mktemp -d)
+  if [ "${COMPARE:-0}" = 1 ]; then out=$logs/$name.tables; rm -rf "$out"; mkdir -p "$out"; fi
   printf '%s: %s ... ' "$name" "$(field "$spec" 1)"
   start=$(date +%s)
   case $tabs in
@@ -90,12 +182,14 @@ run_step() {
   esac
   secs=$(( $(date +%s) - start ))
   if [ "$status" != 0 ]; then
-    echo "FAILED (exit $status) after $secs s; its log: $logs/$name.log"; tail -5 "$logs/$name.log" | sed 's/^/    /'
+    echo "FAILED (exit $status) after $secs s; its log: $logs/$name.log"
+    # A step that compares by itself (no table) says what disagrees in its log: all of it is shown.
+    if [ -z "$tabs" ]; then sed 's/^/  /' "$logs/$name.log"; else tail -5 "$logs/$name.log" | sed 's/^/    /'; fi
     return 1
   fi
   echo "$secs s"
-  # A step that compares by itself (no table) says its verdict on its log's last line.
-  [ -n "$tabs" ] || tail -1 "$logs/$name.log" | sed 's/^/  /'
+  # A step that compares by itself (no table) prints what it compared and its verdict, last.
+  [ -n "$tabs" ] || sed 's/^/  /' "$logs/$name.log"
   for t in ${tabs#>}; do
     [ "$t" = - ] && continue
     local f="$out/$t.md"
@@ -109,43 +203,23 @@ run_step() {
   echo "$name $secs" >> "$logs/times.txt"
 }
 
-quick=0
-only=()
-for a in "$@"; do
-  case $a in
-    --quick) quick=1 ;;
-    --list) list; exit 0 ;;
-    -h|--help) sed -n '2,20p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
-    -*) echo "docs/reproduce.sh: unknown option $a (see --help)" >&2; exit 2 ;;
-    *) only+=("$a") ;;
-  esac
-done
-[ -x "$FLATLAND" ] || { echo "docs/reproduce.sh: no executable $FLATLAND: build it first (cmake -S . -B build && cmake --build build -j 2) or set FLATLAND" >&2; exit 2; }
-command -v gnuplot >/dev/null || { echo "docs/reproduce.sh: gnuplot is missing: apt-get install gnuplot-nox" >&2; exit 2; }
-command -v xvfb-run >/dev/null || { echo "docs/reproduce.sh: xvfb-run is missing: apt-get install xvfb xauth (or .ci/setup)" >&2; exit 2; }
-
 t0=$(date +%s)
 : > "$logs/times.txt"
 failed=0
-if [ "$quick" = 1 ]; then
-  echo "quick reproduction at commit $commit ($FLATLAND), against the committed tables:"
-  for s in "${STEPS[@]}" "${QUICK_STEPS[@]}"; do
-    name=$(field "$s" 0)
-    case " ${QUICK[*]} " in *" $name "*) COMPARE=1 run_step "$s" || failed=1 ;; esac
-  done
-else
-  for name in "${only[@]}"; do
-    found=0
-    for s in "${STEPS[@]}"; do [ "$(field "$s" 0)" = "$name" ] && found=1; done
-    [ "$found" = 1 ] || { echo "docs/reproduce.sh: no step '$name' (docs/reproduce.sh --list)" >&2; exit 2; }
-  done
+if [ "$writes" = 1 ]; then
   echo "reproducing at commit $commit ($FLATLAND) on $machine:"
-  for s in "${STEPS[@]}"; do
-    name=$(field "$s" 0)
-    if [ "${#only[@]}" -gt 0 ] && ! printf '%s\n' "${only[@]}" | grep -qx "$name"; then continue; fi
-    run_step "$s" || failed=1
-  done
-  python3 docs/figures/paste_tables.py
+else
+  echo "quick reproduction at commit $commit ($FLATLAND), against the committed tables:"
+fi
+for i in "${!run[@]}"; do
+  COMPARE=${compare[$i]} run_step "${run[$i]}" || failed=1
+done
+if [ "$writes" = 1 ]; then
+  python3 docs/figures/paste_tables.py || failed=1
+else
+  # The documents must show the committed tables: a number edited in a document alone differs.
+  echo "the tables pasted into README.md and docs/*.md, against docs/tables:"
+  python3 docs/figures/paste_tables.py --check | sed 's/^/  /' || failed=1
 fi
 total=$(( $(date +%s) - t0 ))
 printf 'took %d min %d s' $(( total / 60 )) $(( total % 60 ))

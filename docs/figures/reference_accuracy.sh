@@ -7,12 +7,14 @@
 #  2. The closed-form scenes (penumbra, round occluder, ring): that estimate against the true
 #     error, from the test that holds the closed forms (tests/reference/reference_test.cpp,
 #     Reference.DISABLED_EstimatedAgainstTrueErrorTable).
-# Needs BUILD/flatland and BUILD/reference_test (BUILD defaults to build).
+# Needs the program FLATLAND (default BUILD/flatland) and BUILD/reference_test (BUILD defaults to
+# build): docs/reproduce.sh sets FLATLAND, so that every step measures the same program.
 # Usage: docs/figures/reference_accuracy.sh [BUILD [TABLES]]: with TABLES (a directory, docs/reproduce.sh
 # gives docs/tables) the tables go to TABLES/reference-accuracy-2.md (1.) and -1.md (2.), else to stdout.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 build=${1:-build}
+flatland=${FLATLAND:-$build/flatland}
 tables=${2:-}
 [ -z "$tables" ] || exec > "$tables/reference-accuracy-2.md.partial"
 work=$(mktemp -d)
@@ -24,7 +26,7 @@ for scene in scenes2d/*.json; do
     out="$work/$name-$n.json"
     # Scenes with glass, detectors, curved or rough mirrors or emitters other than diffuse ones
     # are refused by the reference (docs/reference.md): one row says so, with its reason.
-    if ! "$build/flatland" reference "$scene" --elements "$n" --quiet --out "$out" 2> "$work/refused"; then
+    if ! "$flatland" reference "$scene" --elements "$n" --quiet --out "$out" 2> "$work/refused"; then
       grep -q 'the reference solver' "$work/refused" || { cat "$work/refused" >&2; exit 1; }
       reason=$(sed -n 's/.*\(the reference solver [^;]*\).*/\1/p' "$work/refused")
       echo "| $name | - | - | - | not solved: $reason | - |"

@@ -13,7 +13,9 @@ setting is pinned (16 elements per curve, lumped deposits: the seam's O(h) end b
 estimate's; pseudo-random numbers, reconstructed origins, point rays), so a change of the program's
 defaults does not change what this measures.
 
-Usage: docs/figures/seam/ring_seam.py [BUILD_DIR] [PHOTONS] [SEEDS] [BASES, comma-separated]"""
+Usage: [FLATLAND=PATH] docs/figures/seam/ring_seam.py [BUILD_DIR] [PHOTONS] [SEEDS] [BASES, comma-separated]
+The program is FLATLAND (as docs/reproduce.sh sets it), else BUILD_DIR/flatland (BUILD_DIR defaults
+to build)."""
 import json
 import math
 import os
@@ -22,6 +24,7 @@ import sys
 import tempfile
 
 build = sys.argv[1] if len(sys.argv) > 1 else "build"
+flatland = os.environ.get("FLATLAND") or os.path.join(build, "flatland")
 photons = sys.argv[2] if len(sys.argv) > 2 else "1e7"
 seeds = int(sys.argv[3]) if len(sys.argv) > 3 else 3
 bases = (sys.argv[4] if len(sys.argv) > 4 else "cubic,linear").split(",")
@@ -124,7 +127,7 @@ def main():
                 near, away = [], []
                 for seed in range(1, seeds + 1):
                     out = os.path.join(tmp, "out.json")
-                    subprocess.run([os.path.join(build, "flatland"), "solve", path, "--photons", photons,
+                    subprocess.run([flatland, "solve", path, "--photons", photons,
                                     "--seed", str(seed), "--basis", basis, "--tolerance", "1e-6",
                                     "--samples", str(SAMPLES), "--out", out] + PIN,
                                    check=True, stdout=subprocess.DEVNULL)
