@@ -168,7 +168,8 @@ def plot(out_png, scene, med, floor):
             f.write("\n\n")
             dt, pt = styles[family]
             colour = "#000000" if family == "classic" else ("#9467bd" if family == "walk" else colours[basis])
-            title = {"default": "%s (defaults: Galerkin, auto mesh, Sobol')" % basis,
+            estimator = {"galerkin": "Galerkin", "local": "local", "lumped": "lumped"}[DEFAULT_ESTIMATOR[basis]]
+            title = {"default": "%s (defaults: %s, auto mesh, Sobol')" % (basis, estimator),
                      "paper": "%s, paper (lumped, 16 elements, random)" % basis,
                      "classic": "classic (constant, lumped, 16 elements, uniform origins, no events, random)",
                      "walk": "cubic, random walks (defaults)"}[family]
