@@ -1020,6 +1020,35 @@ TEST(Solver, SpecularCurvesGetNoStorageMesh) {
   EXPECT_NE(refused.error().message.find("on 2 curves that hold light"), std::string::npos) << refused.error().message;
 }
 
+// Automatic storage shares the budget among reflecting curves by length: a room (walls of length 40)
+// with a hundred small reflecting boxes (sides 0.2: 80 in all) gives the walls a third of 1e6
+// photons, 163 elements' worth at 2048 photons an element, so 128 elements at their finest level;
+// an equal share per curve gave them 1e6 / 101 photons, 4 elements, however long they were.
+TEST(Solver, AutomaticStorageSharesTheBudgetByLength) {
+  std::string text = R"({"flatland": 2, "materials": {"wall": {"reflectivity": 0.6}, "lamp": {"emittance": 1}},
+      "curves": [{"id": "room", "material": "wall", "line": [[0, 0], [10, 0], [10, 10], [0, 10], [0, 0]]},
+                 {"id": "lamp", "material": "lamp", "line": [[6, 9.9], [4, 9.9]]})";
+  for (int i = 0; i < 100; ++i) {
+    const double x = 0.5 + (i % 10) * 0.9, y = 0.5 + (i / 10) * 0.9;
+    char box[200];
+    std::snprintf(
+        box, sizeof box,
+        R"(, {"id": "box%d", "material": "wall", "line": [[%g, %g], [%g, %g], [%g, %g], [%g, %g], [%g, %g]]})", i, x, y,
+        x + 0.2, y, x + 0.2, y + 0.2, x, y + 0.2, x, y);
+    text += box;
+  }
+  const Scene scene = testing::scene_from_text(text + "]}");
+  SolverSettings settings;
+  settings.photons = 1'000'000;
+  const Result<Solver> solver = Solver::create(scene, settings);
+  ASSERT_TRUE(solver.ok()) << solver.error().message;
+  const SceneStorage& storage = solver->scene_storage();
+  EXPECT_GE(storage.level_elements(0, storage.finest_level(0)), 128);
+  // A box's share: 1e6 x 0.8 / 120 photons, 3.3 elements' worth at 2048 each, but up to 128
+  // elements at 128 photons each (the small-budget rule): 52, so 32 at its finest level.
+  EXPECT_EQ(storage.level_elements(2, storage.finest_level(2)), 32);
+}
+
 // A cancel in the middle of a round drops the round's deposits, but says how many photons it
 // traced: "interrupted after 0 photons" after millions were shot was wrong.
 TEST(Solver, CancelledRoundsCountTheirPhotons) {

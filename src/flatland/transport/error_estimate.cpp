@@ -141,74 +141,169 @@ struct PointValues {
   std::vector<double> mean;
   std::vector<std::vector<double>> deviation;
   std::vector<double> bias;
+  int unestimated = 0;  // curves with storage whose storage part could not be estimated
 };
 
-PointValues values_at(const Solver& solver, const EvaluationPoints& at) {
+// x^n for a small n >= 0 by multiplication (the same bits on every platform).
+double integer_power(double x, int n) {
+  double result = 1.0;
+  for (int i = 0; i < n; ++i) result *= x;
+  return result;
+}
+
+// B - E of every replicate at the points with each curve c at level levels[c], as deviations from
+// their mean, and the mean.
+struct LevelValues {
+  std::vector<double> mean;
+  std::vector<std::vector<double>> deviation;
+};
+
+LevelValues level_values(const Solver& solver, const EvaluationPoints& at, const std::vector<int>& levels) {
   const auto count = static_cast<std::size_t>(solver.replicates());
-  const std::size_t values = at.values();
-  const std::size_t curves = at.first.size() - 1;
-  const std::vector<int>& levels = solver.chosen_levels();
-  const double scale = 1.0 / std::sqrt(static_cast<double>(count) * static_cast<double>(count - 1));
-  PointValues result;
-  std::vector<std::vector<double>>& replicate = result.deviation;
-  std::vector<double>& mean = result.mean;
-  replicate.resize(count);
-  mean.assign(values, 0.0);
+  LevelValues result;
+  result.mean.assign(at.values(), 0.0);
+  result.deviation.resize(count);
   for (std::size_t r = 0; r < count; ++r) {
-    replicate[r] = evaluate(solver, solver.reflected_field(solver.replicate_received(static_cast<int>(r)), levels), at);
-    for (std::size_t i = 0; i < values; ++i) mean[i] += replicate[r][i] / static_cast<double>(count);
+    result.deviation[r] =
+        evaluate(solver, solver.reflected_field(solver.replicate_received(static_cast<int>(r)), levels), at);
+    for (std::size_t i = 0; i < at.values(); ++i) result.mean[i] += result.deviation[r][i] / static_cast<double>(count);
   }
-  for (std::size_t r = 0; r < count; ++r)
-    for (std::size_t i = 0; i < values; ++i) replicate[r][i] -= mean[i];
-  // Storage. Curve c's estimate at its chosen level l against level l - 1 (or l + 1 at the
-  // coarsest): with error ~ h^q, B_l - B_(l-1) = (1 - 2^q) e_l, and B_(l+1) - B_l = (2^-q - 1) e_l.
-  // The difference carries noise too; its energy, estimated from the replicates' differences, is
-  // taken off the difference's (at most all of it), in every norm in the L2 ratio.
-  std::vector<double>& bias = result.bias;
-  bias.assign(values, 0.0);
+  for (std::vector<double>& deviation : result.deviation)
+    for (std::size_t i = 0; i < at.values(); ++i) deviation[i] -= result.mean[i];
+  return result;
+}
+
+// Per curve, the squared L2 norm of the difference of two fields' means less its noise (the
+// energy of the replicates' differences about it, over R (R - 1)): an estimate of the squared norm
+// of the difference of their expectations, at least 0.
+std::vector<double> difference_energy(const LevelValues& x, const LevelValues& y, const EvaluationPoints& at) {
+  const std::size_t curves = at.first.size() - 1;
+  const auto channels = static_cast<std::size_t>(at.channels);
+  const auto count = static_cast<double>(x.deviation.size());
+  std::vector<double> energy(curves, 0.0);
+  for (std::size_t c = 0; c < curves; ++c) {
+    double signal = 0.0;
+    double noise = 0.0;
+    for (std::size_t p = at.first[c]; p < at.first[c + 1]; ++p)
+      for (std::size_t ch = 0; ch < channels; ++ch) {
+        const std::size_t i = p * channels + ch;
+        const double d = x.mean[i] - y.mean[i];
+        signal += at.points[p].weight * d * d;
+        for (std::size_t r = 0; r < x.deviation.size(); ++r) {
+          const double e = x.deviation[r][i] - y.deviation[r][i];
+          noise += at.points[p].weight * e * e / (count * (count - 1.0));
+        }
+      }
+    energy[c] = std::max(signal - noise, 0.0);
+  }
+  return energy;
+}
+
+// The storage part: per point, the estimated discretisation error of B - E at each curve's chosen
+// level l, with error ~ C h^q'. Against the nearest coarser level j whose mesh differs from l's
+// (SceneStorage::distinct_level; k = l's elements over j's): B_l - B_j = (k^q' - 1) e_l; at the
+// coarsest distinct mesh, against the nearest finer distinct level m (k = m's elements over l's):
+// B_m - B_l = (k^-q' - 1) e_l. q' is the order the curve shows: the estimator's order q holds
+// only where B is smooth at the scale of the elements, and a curve whose kinks the mesh has no node
+// for (shadow edges of many occluders) converges at order 1 or less. From a second distinct level
+// beyond the pair (j2 below j, or m2 above m), the ratio of the coarser step's difference to the
+// finer step's is about k^q' (with the two steps' ratios k_c, k_f: k_f^q' (k_c^q' - 1) /
+// (k_f^q' - 1)); q' is the largest whole order from 1 to q that the ratio reaches (so rounded
+// down: conservative), and q where no second level exists. Each difference's noise is taken off
+// its energy (difference_energy); the per-point difference is scaled by its curve's share of
+// signal in it. `unestimated` counts the curves with storage but a single distinct mesh (no
+// difference to measure: their part is 0).
+std::vector<double> storage_bias(const Solver& solver, const EvaluationPoints& at, const LevelValues& chosen,
+                                 int& unestimated) {
   const SceneStorage& storage = solver.scene_storage();
-  if (solver.auto_storage()) {
-    std::vector<int> other = levels;
-    std::vector<double> factor(curves, 0.0);
-    const double q = std::ldexp(1.0, storage_order(solver.settings()));
-    for (std::uint32_t c = 0; c < curves; ++c) {
-      if (levels[c] > 0) {
-        other[c] = levels[c] - 1;
-        factor[c] = 1.0 / (q - 1.0);
-      } else if (storage.level_count(c) > 1) {
-        other[c] = levels[c] + 1;
-        factor[c] = 1.0 / (1.0 - 1.0 / q);
+  const std::vector<int>& levels = solver.chosen_levels();
+  const std::size_t curves = at.first.size() - 1;
+  const auto channels = static_cast<std::size_t>(at.channels);
+  const int order = storage_order(solver.settings());
+  // The pair (near: the level whose error is estimated or its finer partner) and a second pair one
+  // distinct step further from the chosen level, per curve; -1 where there is none.
+  std::vector<int> other(levels), further(levels);
+  std::vector<char> has_further(curves, 0);
+  std::vector<double> k_near(curves, 0.0), k_far(curves, 0.0);
+  std::vector<char> upward(curves, 0), estimated(curves, 0);
+  unestimated = 0;
+  for (std::uint32_t c = 0; c < curves; ++c) {
+    const int l = levels[c];
+    const auto elements = [&](int level) { return static_cast<double>(storage.level_elements(c, level)); };
+    if (const int j = storage.distinct_level(c, l, -1); j >= 0) {
+      other[c] = j;
+      k_near[c] = elements(l) / elements(j);
+      if (const int j2 = storage.distinct_level(c, j, -1); j2 >= 0) {
+        further[c] = j2;
+        has_further[c] = 1;
+        k_far[c] = elements(j) / elements(j2);
+      }
+      estimated[c] = 1;
+    } else if (const int m = storage.distinct_level(c, l, +1); m >= 0) {
+      other[c] = m;
+      upward[c] = 1;
+      k_near[c] = elements(m) / elements(l);
+      if (const int m2 = storage.distinct_level(c, m, +1); m2 >= 0) {
+        further[c] = m2;
+        has_further[c] = 1;
+        k_far[c] = elements(m2) / elements(m);
+      }
+      estimated[c] = 1;
+    } else if (solver.has_side(c, Side::Front) || solver.has_side(c, Side::Back)) {
+      ++unestimated;
+    }
+  }
+  const LevelValues other_values = level_values(solver, at, other);
+  const std::vector<double> near_energy = difference_energy(chosen, other_values, at);
+  std::vector<double> far_energy(curves, 0.0);
+  if (std::find(has_further.begin(), has_further.end(), 1) != has_further.end())
+    far_energy = difference_energy(other_values, level_values(solver, at, further), at);
+  std::vector<double> bias(at.values(), 0.0);
+  for (std::uint32_t c = 0; c < curves; ++c) {
+    if (!estimated[c] || !(near_energy[c] > 0.0)) continue;
+    int observed = order;
+    if (has_further[c]) {
+      // The coarser step's difference over the finer step's.
+      const double ratio = upward[c] ? std::sqrt(near_energy[c] / std::max(far_energy[c], 1e-300))
+                                     : std::sqrt(far_energy[c] / near_energy[c]);
+      const double k_fine = upward[c] ? k_far[c] : k_near[c];
+      const double k_coarse = upward[c] ? k_near[c] : k_far[c];
+      observed = 1;
+      for (int q = 2; q <= order; ++q) {
+        const double expected =
+            integer_power(k_fine, q) * (integer_power(k_coarse, q) - 1.0) / (integer_power(k_fine, q) - 1.0);
+        if (ratio >= expected) observed = q;
       }
     }
-    std::vector<double> difference = evaluate(solver, solver.reflected_field(solver.received(), other), at);
-    for (std::size_t i = 0; i < values; ++i) difference[i] = mean[i] - difference[i];
-    std::vector<double> noise_energy(curves, 0.0);
-    std::vector<double> other_mean(values, 0.0);
-    std::vector<std::vector<double>> other_replicate(count);
-    for (std::size_t r = 0; r < count; ++r) {
-      other_replicate[r] =
-          evaluate(solver, solver.reflected_field(solver.replicate_received(static_cast<int>(r)), other), at);
-      for (std::size_t i = 0; i < values; ++i) other_mean[i] += other_replicate[r][i] / static_cast<double>(count);
-    }
-    const auto channels = static_cast<std::size_t>(at.channels);
-    for (std::size_t r = 0; r < count; ++r)
-      for (std::size_t c = 0; c < curves; ++c)
-        for (std::size_t p = at.first[c]; p < at.first[c + 1]; ++p)
-          for (std::size_t ch = 0; ch < channels; ++ch) {
-            const std::size_t i = p * channels + ch;
-            // Replicate r's difference less the mean difference (replicate[r] already less the mean).
-            const double d = replicate[r][i] - (other_replicate[r][i] - other_mean[i]);
-            noise_energy[c] += at.points[p].weight * d * d * scale * scale;
-          }
-    const std::vector<Norms> difference_norms = norms_of(difference, at);
-    for (std::size_t c = 0; c < curves; ++c) {
-      const double energy = difference_norms[c].l2_squared;
-      const double kept = energy > 0.0 ? std::sqrt(std::max(0.0, 1.0 - noise_energy[c] / energy)) : 0.0;
-      for (std::size_t p = at.first[c]; p < at.first[c + 1]; ++p)
-        for (std::size_t ch = 0; ch < channels; ++ch)
-          bias[p * channels + ch] = factor[c] * kept * difference[p * channels + ch];
-    }
+    const double kq = integer_power(k_near[c], observed);
+    const double factor = upward[c] ? kq / (kq - 1.0) : 1.0 / (kq - 1.0);
+    // The mean difference holds noise too: scale it to the share of its energy that is signal.
+    double energy = 0.0;
+    for (std::size_t p = at.first[c]; p < at.first[c + 1]; ++p)
+      for (std::size_t ch = 0; ch < channels; ++ch) {
+        const double d = chosen.mean[p * channels + ch] - other_values.mean[p * channels + ch];
+        energy += at.points[p].weight * d * d;
+      }
+    const double kept = energy > 0.0 ? std::sqrt(std::min(1.0, near_energy[c] / energy)) : 0.0;
+    for (std::size_t p = at.first[c]; p < at.first[c + 1]; ++p)
+      for (std::size_t ch = 0; ch < channels; ++ch) {
+        const std::size_t i = p * channels + ch;
+        bias[i] = factor * kept * (chosen.mean[i] - other_values.mean[i]);
+      }
   }
+  return bias;
+}
+
+PointValues values_at(const Solver& solver, const EvaluationPoints& at) {
+  PointValues result;
+  LevelValues chosen = level_values(solver, at, solver.chosen_levels());
+  // Storage (storage_bias).
+  if (solver.auto_storage())
+    result.bias = storage_bias(solver, at, chosen, result.unestimated);
+  else
+    result.bias.assign(at.values(), 0.0);
+  result.mean = std::move(chosen.mean);
+  result.deviation = std::move(chosen.deviation);
   return result;
 }
 
@@ -280,6 +375,11 @@ ErrorEstimate estimate_error(const Solver& solver, const ErrorEstimateOptions& o
     estimate.caveat =
         "the storage mesh is fixed, so its discretisation error is not estimated (the bound holds for "
         "the noise and the unshot light only; --elements auto estimates it)";
+  else if (point_values.unestimated > 0)
+    estimate.caveat = "the storage's discretisation error is not estimated on " +
+                      std::to_string(point_values.unestimated) +
+                      " curve(s) whose photons support only one storage mesh (the bound holds for their noise and "
+                      "unshot light only; more photons give them a second mesh to compare)";
   const Scene& scene = solver.scene();
   const std::vector<Norms> size = norms_of(mean, at);
 

@@ -9,6 +9,13 @@ namespace flatland {
 
 namespace {
 
+// x^n for a small n >= 0 by multiplication: the same bits on every platform (std::pow's need not be).
+double integer_power(double x, int n) {
+  double result = 1.0;
+  for (int i = 0; i < n; ++i) result *= x;
+  return result;
+}
+
 bool is_cancelled(const std::atomic<bool>* cancel) {
   return cancel != nullptr && cancel->load(std::memory_order_relaxed);
 }
@@ -20,11 +27,12 @@ bool is_cancelled(const std::atomic<bool>* cancel) {
 // many segments stops refining where its own count would pass the room (counting
 // kAutoBaseElements << level built 1024 elements a curve for 3,900 photons on curves of 256
 // segments).
-int finest_level_of(const Scene& scene, const Curve& curve, const SolverSettings& settings, const StoragePlan& plan,
+int finest_level_of(const Scene& scene, std::uint32_t c, const SolverSettings& settings, const StoragePlan& plan,
                     bool smooth, std::span<const MeshNode> events) {
+  const Curve& curve = scene.curves[c];
   int finest = plan.finest_level;
   const auto base = std::max<double>(kAutoBaseElements, curve.segment_count);
-  while (plan.automatic && finest > 0 && std::ldexp(base, finest) > plan.room) --finest;
+  while (plan.automatic && finest > 0 && std::ldexp(base, finest) > plan.room[c]) --finest;
   if (plan.automatic && settings.ray_width > 0.0 && settings.ray_mode == RayMode::Footprint) {
     while (finest > 0 && longest_element(scene, curve, plan.elements, smooth, events, finest) <
                              kFootprintFinestElement * settings.ray_width)
@@ -60,7 +68,7 @@ Result<SceneStorage> SceneStorage::build(const Scene& scene, const SolverSetting
       finest = build_curve_storage(scene, curve, settings.basis, 1, smooth);
       return;
     }
-    const int finest_level = finest_level_of(scene, curve, settings, plan, smooth, events[c]);
+    const int finest_level = finest_level_of(scene, static_cast<std::uint32_t>(c), settings, plan, smooth, events[c]);
     finest = build_curve_storage(scene, curve, settings.basis, plan.elements, smooth, events[c], finest_level);
     if (local) build_local_estimator(scene, curve, finest, hermite);
     // The coarser levels, each with its restriction from the finest.
@@ -116,8 +124,19 @@ const CurveStorage& SceneStorage::at_level(std::uint32_t curve, int level) const
   return level < static_cast<int>(levels.size()) ? levels[static_cast<std::size_t>(level)].storage : storage_[curve];
 }
 
-int SceneStorage::elements_in_use(std::uint32_t curve) const {
-  const CurveStorage& storage = at_level(curve, chosen_level_[curve]);
+int SceneStorage::elements_in_use(std::uint32_t curve) const { return level_elements(curve, chosen_level_[curve]); }
+
+int SceneStorage::distinct_level(std::uint32_t curve, int level, int step) const {
+  const double here = level_elements(curve, level);
+  for (int other = level + step; other >= 0 && other < level_count(curve); other += step) {
+    const double ratio = level_elements(curve, other) / here;
+    if (ratio >= kDistinctLevelRatio || ratio <= 1.0 / kDistinctLevelRatio) return other;
+  }
+  return -1;
+}
+
+int SceneStorage::level_elements(std::uint32_t curve, int level) const {
+  const CurveStorage& storage = at_level(curve, level);
   int spans = 0;
   const std::vector<double>& knots = storage.basis.knots();
   for (std::size_t span = storage.basis.first_span(); span < storage.basis.end_span(); ++span)
@@ -339,13 +358,16 @@ SceneStorage::ReflectedPower SceneStorage::reflected_power(std::uint32_t c, cons
 // shooter). Then, in the L2
 // norm along the curve (LevelNorm),
 //   variance  V_l = |f_l^A - f_l^B|^2     (its expectation is Var f_l^A + Var f_l^B = Var f_l),
-//   bias^2    |f_l - f_(l+1)|^2 less its own noise |D^A - D^B|^2 (D^X = f_l^X - f_(l+1)^X),
-//             times (2^q / (2^q - 1))^2: with the bias shrinking by 2^q per level (q the
-//             estimator's order), f_l - f_(l+1) is (1 - 2^-q) of level l's bias; the finest
-//             level's bias is the one below it over 2^q,
+//   bias^2    |f_l - f_m|^2 less its own noise |D^A - D^B|^2 (D^X = f_l^X - f_m^X), m the next
+//             finer level whose mesh differs from l's (distinct_level), times
+//             (k^q / (k^q - 1))^2: with the bias shrinking as h^q (q the estimator's order) and
+//             k = m's elements over l's, f_l - f_m is (1 - k^-q) of level l's bias; a level with
+//             no distinct finer one has the bias of the distinct level below it over k^q,
 // and the level kept minimises bias^2 + V (ties: the coarser). Each level's bias comes from its
-// own step to the next: sums of steps accumulate their noise, and differences to the finest level
-// carry the finest level's large variance, both of which push choices off the best.
+// own step to the next distinct mesh: sums of steps accumulate their noise, and differences to the
+// finest level carry the finest level's large variance, both of which push choices off the best;
+// a step to the same mesh (a curve cut by many nodes keeps short regions whole over several
+// levels) would see no bias at all and keep the coarsest level however coarse it is.
 int SceneStorage::best_level(std::uint32_t c, const ReflectedPower& reflected) const {
   const int finest = static_cast<int>(levels_[c].size());
   const auto count = static_cast<std::size_t>(finest) + 1;
@@ -362,22 +384,27 @@ int SceneStorage::best_level(std::uint32_t c, const ReflectedPower& reflected) c
     for (std::size_t side = 0; side < sides; ++side)
       for (std::size_t set = 0; set < 3; ++set)
         norm2.represent(level, reflected.sides[side][set], (*targets[set])[level].data() + side * width);
-  // The estimator's order q: its bias shrinks by 2^q per level.
+  // The estimator's order q: its bias shrinks as h^q.
   const int degree = storage_[c].basis.degree();
   const int order = estimator_ == Estimator::Lumped ? std::min(degree + 1, 2) : degree + 1;
-  const double richardson = std::ldexp(1.0, order) / (std::ldexp(1.0, order) - 1.0);
-  const std::size_t last = count - 1;
   double best = std::numeric_limits<double>::infinity();
-  double bias2 = 0.0;
+  std::vector<double> biases2(count, 0.0);
   int chosen = finest;
   for (std::size_t l = 0; l < count; ++l) {
-    if (l < last) {
-      const double difference = norm2([&](std::size_t i) { return full[l][i] - full[l + 1][i]; });
+    const int level = static_cast<int>(l);
+    double& bias2 = biases2[l];
+    if (const int finer = distinct_level(c, level, +1); finer >= 0) {
+      const auto m = static_cast<std::size_t>(finer);
+      const double kq = integer_power(static_cast<double>(level_elements(c, finer)) / level_elements(c, level), order);
+      const double difference = norm2([&](std::size_t i) { return full[l][i] - full[m][i]; });
       const double noise =
-          norm2([&](std::size_t i) { return (part_a[l][i] - part_a[l + 1][i]) - (part_b[l][i] - part_b[l + 1][i]); });
-      bias2 = std::max(difference - noise, 0.0) * richardson * richardson;
-    } else {
-      bias2 = std::ldexp(bias2, -2 * order);  // the finest: the last step's bias, one level on
+          norm2([&](std::size_t i) { return (part_a[l][i] - part_a[m][i]) - (part_b[l][i] - part_b[m][i]); });
+      bias2 = std::max(difference - noise, 0.0) * (kq / (kq - 1.0)) * (kq / (kq - 1.0));
+    } else if (const int coarser = distinct_level(c, level, -1); coarser >= 0) {
+      // The finest distinct mesh: the bias of the distinct level below it, shrunk by its ratio.
+      const double kq =
+          integer_power(static_cast<double>(level_elements(c, level)) / level_elements(c, coarser), order);
+      bias2 = biases2[static_cast<std::size_t>(coarser)] / (kq * kq);
     }
     const double variance = norm2([&](std::size_t i) { return part_a[l][i] - part_b[l][i]; });
     if (bias2 + variance < best) {

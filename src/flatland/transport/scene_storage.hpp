@@ -29,10 +29,10 @@ namespace flatland {
 // How fine each curve's storage is built: its finest level has `elements` << level elements (at
 // least one a segment), with automatic storage every coarser level below it too.
 struct StoragePlan {
-  int elements = 1;        // of the coarsest level (the only one on a fixed mesh)
-  int finest_level = 0;    // the most any curve gets
-  double room = 0.0;       // automatic storage: elements a curve's finest level may have
-  bool automatic = false;  // settings.elements == kAutoElements
+  int elements = 1;          // of the coarsest level (the only one on a fixed mesh)
+  int finest_level = 0;      // the most any curve gets
+  std::vector<double> room;  // automatic storage: elements each curve's finest level may have
+  bool automatic = false;    // settings.elements == kAutoElements
 };
 
 class SceneStorage {
@@ -73,8 +73,16 @@ class SceneStorage {
   int chosen_level(std::uint32_t curve) const { return chosen_level_[curve]; }
   const std::vector<int>& chosen_levels() const { return chosen_level_; }
   void set_chosen_levels(const std::vector<int>& levels) { chosen_level_ = levels; }
-  // Elements (non-empty knot spans) of a curve's mesh at its chosen level.
+  // Elements (non-empty knot spans) of a curve's mesh at its chosen level, and at any level.
   int elements_in_use(std::uint32_t curve) const;
+  int level_elements(std::uint32_t curve, int level) const;
+  // The nearest level to `level` in direction `step` (-1 coarser, +1 finer) whose mesh differs
+  // from it: at least kDistinctLevelRatio times as many elements, or as few; -1 when none does. A
+  // curve cut by many nodes into regions shorter than an element keeps those regions whole over
+  // several levels, so consecutive levels can be the same mesh: their difference says nothing
+  // about either's discretisation error.
+  static constexpr double kDistinctLevelRatio = 1.5;
+  int distinct_level(std::uint32_t curve, int level, int step) const;
   // Storage nodes below C1 (value or slope jumps) over all curves' finest meshes.
   std::size_t discontinuity_nodes() const;
   // Runs of whole curves holding at least kChunkCoefficients coefficients between them (the last

@@ -70,9 +70,9 @@ inline constexpr std::uint64_t kMaxPhotons = std::uint64_t{1} << 50;
 // The most seeds a convergence study runs per method and budget.
 inline constexpr int kMaxSeeds = 1000;
 // Auto storage's levels: the coarsest has about kAutoBaseElements elements per curve (and at
-// least one per segment), each next level halves every element, and the finest stops where a
-// reflecting curve's equal share of the photon budget would put fewer than kAutoPhotonsPerElement
-// photons on an element, or at kAutoMaxLevels levels.
+// least one per segment), each next level halves every element, and each curve's finest stops
+// where its share of the photon budget (by length among the reflecting curves) would put fewer than
+// kAutoPhotonsPerElement photons on an element, or at kAutoMaxLevels levels.
 inline constexpr int kAutoBaseElements = 4;
 inline constexpr int kAutoMaxLevels = 11;
 inline constexpr double kAutoPhotonsPerElement = 2048.0;

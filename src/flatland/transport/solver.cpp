@@ -28,13 +28,21 @@ double seconds_since(Clock::time_point start) { return std::chrono::duration<dou
 // curve has at most twice that many, plus per segment a joint of multiplicity up to the degree + 1.
 Status check_memory(const Scene& scene, const SolverSettings& settings, const StoragePlan& plan, unsigned threads) {
   double coefficients = 0.0;
-  for (const Curve& curve : scene.curves) {
+  int most = 0;  // elements a curve, the most any curve is given
+  for (std::size_t c = 0; c < scene.curves.size(); ++c) {
+    const Curve& curve = scene.curves[c];
     // Curves that hold no light (mirrors, glass, detectors) get one element a segment and no
     // coefficients: the per-segment allowance below covers them.
     const double sides = scene.stores(curve, Side::Front) + scene.stores(curve, Side::Back);
     if (sides == 0.0) continue;
-    coefficients += sides * (2.0 * (static_cast<double>(settings.elements) + curve.segment_count) +
-                             4.0 * curve.segment_count + 4.0);
+    // Automatic storage: the finest level the curve's room allows (as SceneStorage::build makes it).
+    int level = plan.finest_level;
+    const auto base = std::max<double>(kAutoBaseElements, curve.segment_count);
+    while (plan.automatic && level > 0 && std::ldexp(base, level) > plan.room[c]) --level;
+    const int elements = plan.elements << level;
+    most = std::max(most, elements);
+    coefficients +=
+        sides * (2.0 * (static_cast<double>(elements) + curve.segment_count) + 4.0 * curve.segment_count + 4.0);
   }
   const double replicates = settings.replicates;
   const double per_coefficient = scene.channels * 8.0 * (4.0 + replicates * (1.0 + threads)) + 160.0;
@@ -50,7 +58,7 @@ Status check_memory(const Scene& scene, const SolverSettings& settings, const St
                   "elements: automatic storage refines up to %d elements a curve for this photon budget, and on "
                   "%zu curves that hold light that would need about %.3g storage coefficients and %s of memory, "
                   "more than the limit of %s; give a fixed number of elements per curve, or fewer photons",
-                  settings.elements, holding, coefficients, format_bytes(bytes).c_str(),
+                  most, holding, coefficients, format_bytes(bytes).c_str(),
                   format_bytes(static_cast<double>(limit)).c_str());
   else
     std::snprintf(message, sizeof message,
@@ -96,20 +104,37 @@ StoragePlan Solver::plan_storage(const Scene& scene, const SolverSettings& setti
   plan.automatic = settings.elements == kAutoElements;
   plan.elements = plan.automatic ? kAutoBaseElements : settings.elements;
   if (!plan.automatic) return plan;
-  // Automatic storage: the finest level that a reflecting curve's share of the budget still fills
-  // with kAutoPhotonsPerElement photons per element (the best element length shrinks with the
-  // photon count, docs/method.md, so a bigger budget reaches finer levels), or at small budgets up
-  // to kAutoSmallBudgetElements as long as each still gets kAutoSmallBudgetPhotonsPerElement.
+  // Automatic storage: each curve's finest level is the finest that its share of the budget still
+  // fills with kAutoPhotonsPerElement photons per element (the best element length shrinks with
+  // the photon count, docs/method.md, so a bigger budget reaches finer levels), or at small budgets
+  // up to kAutoSmallBudgetElements as long as each still gets kAutoSmallBudgetPhotonsPerElement. A
+  // reflecting curve's share is the budget times its share of the reflecting curves' length (light
+  // lands on a curve about in proportion to its length: an equal share per curve let hundreds of
+  // small reflecting boxes hold the walls of their room at 16 elements); a curve that reflects
+  // nothing (only emits, or absorbs) gets an equal share of one reflecting curve.
   std::size_t reflecting = 0;
-  for (const Curve& curve : scene.curves) {
+  double reflecting_length = 0.0;
+  const auto reflects = [&](const Curve& curve) {
     const Spectrum& rho = scene.material_of(curve).reflectivity;
-    reflecting += rho[0] + rho[1] + rho[2] > 0.0;
+    return rho[0] + rho[1] + rho[2] > 0.0;
+  };
+  for (const Curve& curve : scene.curves)
+    if (reflects(curve)) {
+      ++reflecting;
+      reflecting_length += curve.length;
+    }
+  const auto photons = static_cast<double>(settings.photons);
+  const double equal_share = photons / static_cast<double>(std::max<std::size_t>(reflecting, 1));
+  plan.room.resize(scene.curves.size());
+  double most = 0.0;
+  for (std::size_t c = 0; c < scene.curves.size(); ++c) {
+    const Curve& curve = scene.curves[c];
+    const double share = reflects(curve) ? photons * (curve.length / reflecting_length) : equal_share;
+    plan.room[c] = std::max(share / kAutoPhotonsPerElement,
+                            std::min(share / kAutoSmallBudgetPhotonsPerElement, kAutoSmallBudgetElements));
+    most = std::max(most, plan.room[c]);
   }
-  const double share =
-      static_cast<double>(settings.photons) / static_cast<double>(std::max<std::size_t>(reflecting, 1));
-  plan.room = std::max(share / kAutoPhotonsPerElement,
-                       std::min(share / kAutoSmallBudgetPhotonsPerElement, kAutoSmallBudgetElements));
-  while (plan.finest_level + 1 < kAutoMaxLevels && (kAutoBaseElements << (plan.finest_level + 1)) <= plan.room)
+  while (plan.finest_level + 1 < kAutoMaxLevels && (kAutoBaseElements << (plan.finest_level + 1)) <= most)
     ++plan.finest_level;
   return plan;
 }
@@ -242,9 +267,7 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
   solver.auto_storage_ = settings.elements == kAutoElements;
   // 1. How fine the storage may go, and whether it fits the memory.
   const StoragePlan plan = plan_storage(scene, settings);
-  SolverSettings sized = settings;
-  sized.elements = plan.elements << plan.finest_level;
-  if (Status status = check_memory(scene, sized, plan, solver.threads_); !status) return status.error();
+  if (Status status = check_memory(scene, settings, plan, solver.threads_); !status) return status.error();
   // 2. The ray caster's tree, and the storage mesh's extra nodes from the geometry.
   std::vector<SegmentGeometry> geometry;
   geometry.reserve(scene.segments.size());
