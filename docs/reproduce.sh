@@ -151,6 +151,15 @@ if [ -n "$(git status --porcelain --untracked-files=no -- src CMakeLists.txt ben
   commit="$commit (with uncommitted changes)"
 fi
 machine="$(nproc) cores, $(sed -n 's/^model name\s*: //p' /proc/cpuinfo | head -1)"
+# The compiler and flags the program was built with (its build directory's CMake cache), and the OS.
+cache="$(dirname "$FLATLAND")/CMakeCache.txt"
+if [ -f "$cache" ]; then
+  cxx=$(sed -n 's/^CMAKE_CXX_COMPILER:FILEPATH=//p' "$cache")
+  type=$(sed -n 's/^CMAKE_BUILD_TYPE:STRING=//p' "$cache")
+  flags=$(sed -n "s/^CMAKE_CXX_FLAGS_$(echo "${type:-none}" | tr '[:lower:]' '[:upper:]'):STRING=//p" "$cache")
+  machine="$machine, $("${cxx:-c++}" --version 2>/dev/null | head -1) ${type:-no build type} ($flags)"
+fi
+machine="$machine, $(sed -n 's/^PRETTY_NAME="\(.*\)"/\1/p' /etc/os-release 2>/dev/null | head -1)"
 
 if [ "$dry" = 1 ]; then
   echo "would run at commit $commit ($FLATLAND):"
