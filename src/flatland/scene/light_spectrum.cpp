@@ -117,8 +117,10 @@ constexpr std::array<std::array<double, 3>, 81> kCie1931 = {{
 static_assert(kMinWavelength + kCieStep * (kCie1931.size() - 1) == kMaxWavelength);
 
 std::array<double, 3> cie_1931(double nm) {
-  // Linear between the table's rows; outside [kMinWavelength, kMaxWavelength] the nearest end.
-  const double position = std::clamp((nm - kMinWavelength) / kCieStep, 0.0, static_cast<double>(kCie1931.size() - 1));
+  // Linear between the table's rows; outside [kMinWavelength, kMaxWavelength] the nearest end (and
+  // for NaN the first row: the comparisons below are false for it, so it never reaches the cast).
+  const auto last = static_cast<double>(kCie1931.size() - 1);
+  const double position = nm >= kMaxWavelength ? last : nm > kMinWavelength ? (nm - kMinWavelength) / kCieStep : 0.0;
   const std::size_t row = std::min(static_cast<std::size_t>(position), kCie1931.size() - 2);
   const double f = position - static_cast<double>(row);
   std::array<double, 3> xyz{};
