@@ -107,6 +107,58 @@ TEST_F(Cli, MalformedSceneNamesFileAndLine) {
   EXPECT_NE(r.err.find("broken.json:3"), std::string::npos) << r.err;
 }
 
+// Answers that used to be wrong and look right: each is now right, or refused in one line (exit 2,
+// nothing written) before any work.
+TEST_F(Cli, WhatWasSilentlyWrongIsRightOrRefused) {
+  const auto write = [&](const std::string& name, const std::string& text) {
+    std::ofstream(directory_ / name) << text;
+    return (directory_ / name).string();
+  };
+  const fs::path out = directory_ / "out.json";
+  // A room whose side walls are facing mirrors: the reference follows one reflection, so it refuses.
+  const std::string facing = write("facing.json", R"({"flatland": 2,
+      "materials": {"lamp": {"emittance": 1}, "wall": {"reflectivity": 0.5}, "mirror": {"type": "mirror"}},
+      "curves": [{"id": "lamp", "material": "lamp", "line": [[1.5, 2], [0.5, 2]]},
+                 {"id": "floor", "material": "wall", "line": [[0, 0], [2, 0]]},
+                 {"id": "left", "material": "mirror", "line": [[0, 2], [0, 0]]},
+                 {"id": "right", "material": "mirror", "line": [[2, 0], [2, 2]]}]})");
+  CommandRun r = run("reference " + facing + " --out " + out.string());
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_EQ(lines(r.err), 1) << r.err;
+  EXPECT_NE(r.err.find("mirrors 'left' and 'right' face each other"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(out));
+  // A target error on a scene that reflects nothing: refused before the first photon of a 1e9 cap.
+  const std::string black = write("black.json", R"({"flatland": 2,
+      "materials": {"lamp": {"emittance": 1}, "black": {"reflectivity": 0}},
+      "curves": [{"id": "lamp", "material": "lamp", "line": [[1, 1], [-1, 1]]},
+                 {"id": "floor", "material": "black", "line": [[-3, 0], [3, 0]]}]})");
+  r = run("solve " + black + " --target-error 1e-3 --photons 1e9 --out " + out.string());
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_EQ(lines(r.err), 1) << r.err;
+  EXPECT_NE(r.err.find("relative error is not defined"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(out));
+  // Absorption past the parser's limit: the message names the limit.
+  r = run("solve " + write("dense.json", R"({"flatland": 2,
+      "materials": {"lamp": {"emittance": 1}, "glass": {"type": "dielectric", "ior": 1.5, "absorption": 1e101}},
+      "curves": [{"id": "lamp", "material": "lamp", "line": [[1, 1], [-1, 1]]},
+                 {"id": "slab", "material": "glass", "line": [[-1, 0], [1, 0], [1, 0.2], [-1, 0.2], [-1, 0]]}]})"));
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_NE(r.err.find("between 0 and 1e100"), std::string::npos) << r.err;
+  // A deep red lamp over a grey floor lights it red.
+  const std::string red = write("red.json", R"({"flatland": 2,
+      "materials": {"lamp": {"emittance": 1, "spectrum": {"line": 780}}, "floor": {"reflectivity": 0.5}},
+      "curves": [{"id": "lamp", "material": "lamp", "line": [[1, 1], [-1, 1]]},
+                 {"id": "floor", "material": "floor", "line": [[-3, 0], [3, 0]]}]})");
+  r = run("solve " + red + " --photons 20000 --out " + out.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const nlohmann::json result = nlohmann::json::parse(read_file(out));
+  for (const nlohmann::json& sample : result["curves"][1]["samples"]) {
+    EXPECT_GT(sample["B"][0].get<double>(), 0.0);
+    EXPECT_EQ(sample["B"][1].get<double>(), 0.0);
+    EXPECT_EQ(sample["B"][2].get<double>(), 0.0);
+  }
+}
+
 TEST_F(Cli, CompareAgainstAReference) {
   const fs::path a = directory_ / "a.json";
   const fs::path b = directory_ / "b.json";

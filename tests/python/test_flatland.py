@@ -410,3 +410,32 @@ def test_estimated_error_and_target_error_as_the_command_line(tmp_path):
         flatland.solve(scene, replicates=3)
     with pytest.raises(ValueError, match="target_error"):
         flatland.solve(scene, target_error=2)
+
+
+def test_what_was_silently_wrong_is_right_or_refused_as_on_the_command_line():
+    # Mirrors facing each other: the reference follows one reflection, so it refuses, naming them.
+    facing = flatland.Scene.from_dict({
+        "flatland": 2,
+        "materials": {"lamp": {"emittance": 1}, "wall": {"reflectivity": 0.5}, "mirror": {"type": "mirror"}},
+        "curves": [{"id": "lamp", "material": "lamp", "line": [[1.5, 2], [0.5, 2]]},
+                   {"id": "floor", "material": "wall", "line": [[0, 0], [2, 0]]},
+                   {"id": "left", "material": "mirror", "line": [[0, 2], [0, 0]]},
+                   {"id": "right", "material": "mirror", "line": [[2, 0], [2, 2]]}]})
+    with pytest.raises(ValueError, match="mirrors 'left' and 'right' face each other"):
+        flatland.reference(facing)
+    # A target error where nothing reflects: refused before the first photon of a 1e9 cap.
+    black = flatland.Scene.from_dict({
+        "flatland": 2,
+        "materials": {"lamp": {"emittance": 1}, "black": {"reflectivity": 0}},
+        "curves": [{"id": "lamp", "material": "lamp", "line": [[1, 1], [-1, 1]]},
+                   {"id": "floor", "material": "black", "line": [[-3, 0], [3, 0]]}]})
+    with pytest.raises(ValueError, match="relative error is not defined"):
+        flatland.solve(black, photons=10**9, target_error=1e-3)
+    # Deep red light over a grey floor is red.
+    red = flatland.Scene.from_dict({
+        "flatland": 2,
+        "materials": {"lamp": {"emittance": 1, "spectrum": {"line": 780}}, "floor": {"reflectivity": 0.5}},
+        "curves": [{"id": "lamp", "material": "lamp", "line": [[1, 1], [-1, 1]]},
+                   {"id": "floor", "material": "floor", "line": [[-3, 0], [3, 0]]}]})
+    b = flatland.solve(red, photons=20_000).B("floor", np.linspace(0.5, 5.5, 11))
+    assert np.all(b[:, 0] > 0) and np.all(b[:, 1] == 0) and np.all(b[:, 2] == 0)
