@@ -43,11 +43,11 @@ NUMBER = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
 NUMBER_SOURCES = ["src", "CMakeLists.txt", "bench", "scenes2d", "*.py", "*.sh"]
 
 
-def tables(path):
-    """Every Markdown table in the file: (header cells, [row cells]), and the lines outside them
-    (without the line docs/reproduce.sh heads the file with)."""
+def parse_tables(text):
+    """Every Markdown table in `text`: (header cells, [row cells]), and the lines outside them
+    (without the line docs/reproduce.sh heads a table file with)."""
     out, prose, cur = [], [], None
-    for line in open(path):
+    for line in text.split("\n"):
         line = line.strip()
         if line.startswith("|") and line.endswith("|"):
             cells = [c.strip() for c in line.strip("|").split("|")]
@@ -61,6 +61,12 @@ def tables(path):
             if line and not line.startswith("*Made by"):
                 prose.append(line)
     return out, prose
+
+
+def tables(path):
+    """parse_tables of a file."""
+    with open(path) as f:
+        return parse_tables(f.read())
 
 
 def number(cell):

@@ -83,5 +83,12 @@ TEST(PortableMath, PowerWithinItsConditionNumber) {
   EXPECT_TRUE(std::isnan(portable::pow(-0.5, 2.0)));
 }
 
+TEST(PortableMath, IntegerPowerIsRepeatedMultiplication) {
+  EXPECT_EQ(portable::integer_power(1.7, 0), 1.0);
+  EXPECT_EQ(portable::integer_power(2.0, 10), 1024.0);  // exact: powers of two
+  EXPECT_EQ(portable::integer_power(1.5, 3), 3.375);
+  EXPECT_EQ(portable::integer_power(0.1, 4), 0.1 * 0.1 * 0.1 * 0.1);
+}
+
 }  // namespace
 }  // namespace flatland

@@ -24,6 +24,8 @@ import argparse, csv, math, os, re, shutil, statistics, subprocess, sys, tempfil
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.abspath(os.path.join(HERE, "..", "..", ".."))
+sys.path.insert(0, os.path.dirname(HERE))  # docs/figures: the Markdown table parser
+from compare_tables import parse_tables  # noqa: E402
 FLATLAND = os.environ.get("FLATLAND", "build/flatland")
 THREADS = os.environ.get("THREADS", "2")
 SEEDS = 5
@@ -390,20 +392,8 @@ def compare_with_runs(d, tdir):
 
 
 def markdown_tables(path):
-    """Every Markdown table of a file: [(header cells, [row cells])]."""
-    out, cur = [], None
-    for line in committed_text(path).split("\n"):
-        line = line.strip()
-        if line.startswith("|") and line.endswith("|"):
-            cells = [c.strip() for c in line.strip("|").split("|")]
-            if cur is None:
-                cur = (cells, [])
-                out.append(cur)
-            elif not all(re.fullmatch(r":?-+:?", c) for c in cells):
-                cur[1].append(cells)
-        else:
-            cur = None
-    return out
+    """Every Markdown table of a committed table file: [(header cells, [row cells])]."""
+    return parse_tables(committed_text(path))[0]
 
 
 def cell(path, first_header, key, column):

@@ -18,5 +18,11 @@ double exp(double x);
 double log(double x);
 // x >= 0: x^y (0^0 = 1; 0^y = 0 for y > 0, infinity for y < 0). A negative x gives NaN.
 double pow(double x, double y);
+// x^n for a whole n >= 0 (small: n multiplications), the same bits everywhere.
+inline double integer_power(double x, int n) {
+  double result = 1.0;
+  for (int i = 0; i < n; ++i) result *= x;
+  return result;
+}
 
 }  // namespace flatland::portable

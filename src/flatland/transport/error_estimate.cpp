@@ -144,13 +144,6 @@ struct PointValues {
   int unestimated = 0;  // curves with storage whose storage part could not be estimated
 };
 
-// x^n for a small n >= 0 by multiplication (the same bits on every platform).
-double integer_power(double x, int n) {
-  double result = 1.0;
-  for (int i = 0; i < n; ++i) result *= x;
-  return result;
-}
-
 // B - E of every replicate at the points with each curve c at level levels[c], as deviations from
 // their mean, and the mean.
 struct LevelValues {
@@ -270,12 +263,12 @@ std::vector<double> storage_bias(const Solver& solver, const EvaluationPoints& a
       const double k_coarse = upward[c] ? k_near[c] : k_far[c];
       observed = 1;
       for (int q = 2; q <= order; ++q) {
-        const double expected =
-            integer_power(k_fine, q) * (integer_power(k_coarse, q) - 1.0) / (integer_power(k_fine, q) - 1.0);
+        const double expected = portable::integer_power(k_fine, q) * (portable::integer_power(k_coarse, q) - 1.0) /
+                                (portable::integer_power(k_fine, q) - 1.0);
         if (ratio >= expected) observed = q;
       }
     }
-    const double kq = integer_power(k_near[c], observed);
+    const double kq = portable::integer_power(k_near[c], observed);
     const double factor = upward[c] ? kq / (kq - 1.0) : 1.0 / (kq - 1.0);
     // The mean difference holds noise too: scale it to the share of its energy that is signal.
     double energy = 0.0;

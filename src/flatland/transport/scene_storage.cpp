@@ -5,16 +5,11 @@
 #include <cmath>
 #include <limits>
 
+#include "flatland/base/portable_math.hpp"
+
 namespace flatland {
 
 namespace {
-
-// x^n for a small n >= 0 by multiplication: the same bits on every platform (std::pow's need not be).
-double integer_power(double x, int n) {
-  double result = 1.0;
-  for (int i = 0; i < n; ++i) result *= x;
-  return result;
-}
 
 bool is_cancelled(const std::atomic<bool>* cancel) {
   return cancel != nullptr && cancel->load(std::memory_order_relaxed);
@@ -395,7 +390,8 @@ int SceneStorage::best_level(std::uint32_t c, const ReflectedPower& reflected) c
     double& bias2 = biases2[l];
     if (const int finer = distinct_level(c, level, +1); finer >= 0) {
       const auto m = static_cast<std::size_t>(finer);
-      const double kq = integer_power(static_cast<double>(level_elements(c, finer)) / level_elements(c, level), order);
+      const double kq =
+          portable::integer_power(static_cast<double>(level_elements(c, finer)) / level_elements(c, level), order);
       const double difference = norm2([&](std::size_t i) { return full[l][i] - full[m][i]; });
       const double noise =
           norm2([&](std::size_t i) { return (part_a[l][i] - part_a[m][i]) - (part_b[l][i] - part_b[m][i]); });
@@ -403,7 +399,7 @@ int SceneStorage::best_level(std::uint32_t c, const ReflectedPower& reflected) c
     } else if (const int coarser = distinct_level(c, level, -1); coarser >= 0) {
       // The finest distinct mesh: the bias of the distinct level below it, shrunk by its ratio.
       const double kq =
-          integer_power(static_cast<double>(level_elements(c, level)) / level_elements(c, coarser), order);
+          portable::integer_power(static_cast<double>(level_elements(c, level)) / level_elements(c, coarser), order);
       bias2 = biases2[static_cast<std::size_t>(coarser)] / (kq * kq);
     }
     const double variance = norm2([&](std::size_t i) { return part_a[l][i] - part_b[l][i]; });
