@@ -243,7 +243,7 @@ std::string room_of_boxes(int boxes) {
     text += R"(, {"id": "box)" + std::to_string(placed.size()) + R"(", "material": "wall", "line": [)";
     for (int k = 0; k <= 4; ++k) {
       const double a = turn + (k % 4) * std::numbers::pi / 2;
-      char point[64];
+      char point[700];
       std::snprintf(point, sizeof point, "%s[%.9f, %.9f]", k > 0 ? ", " : "", c.x + r * std::cos(a),
                     c.y + r * std::sin(a));
       text += point;

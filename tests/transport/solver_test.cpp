@@ -1030,7 +1030,7 @@ TEST(Solver, AutomaticStorageSharesTheBudgetByLength) {
                  {"id": "lamp", "material": "lamp", "line": [[6, 9.9], [4, 9.9]]})";
   for (int i = 0; i < 100; ++i) {
     const double x = 0.5 + (i % 10) * 0.9, y = 0.5 + (i / 10) * 0.9;
-    char box[200];
+    char box[512];
     std::snprintf(
         box, sizeof box,
         R"(, {"id": "box%d", "material": "wall", "line": [[%g, %g], [%g, %g], [%g, %g], [%g, %g], [%g, %g]]})", i, x, y,
