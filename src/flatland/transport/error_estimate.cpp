@@ -213,8 +213,9 @@ std::vector<double> storage_bias(const Solver& solver, const EvaluationPoints& a
   const std::size_t curves = at.first.size() - 1;
   const auto channels = static_cast<std::size_t>(at.channels);
   const int order = storage_order(solver.settings());
-  // The pair (near: the level whose error is estimated or its finer partner) and a second pair one
-  // distinct step further from the chosen level, per curve; -1 where there is none.
+  // Per curve, the distinct level the chosen one is compared with (`other`, element ratio k_near)
+  // and, where one exists (`has_further`), a second distinct level one step further from the
+  // chosen level (`further`, ratio k_far) for the observed order; `upward` where they are finer.
   std::vector<int> other(levels), further(levels);
   std::vector<char> has_further(curves, 0);
   std::vector<double> k_near(curves, 0.0), k_far(curves, 0.0);
