@@ -1,5 +1,6 @@
 #!/usr/bin/env python3
-"""Coverage and sharpness of the estimated error (docs/experiments.md, "The estimated error").
+"""Coverage and sharpness of the estimated error (docs/experiments-error-and-optics.md,
+"The estimated error").
 
 For each scene: a reference (flatland reference), then `flatland converge` over methods, budgets
 and seeds, whose table holds each run's true error against the reference (rel_*) and the solver's

@@ -1,6 +1,7 @@
 #!/usr/bin/env python3
-"""The figure of docs/experiments.md, "The estimated error": median true and estimated relative L1
-error of B - E against photons, per method, on one scene (flatland converge, then gnuplot).
+"""The figure of docs/experiments-error-and-optics.md, "The estimated error": median true and
+estimated relative L1 error of B - E against photons, per method, on one scene (flatland converge,
+then gnuplot).
 
   bench/estimated_error_figure.py --out docs/figures/estimated_error [--flatland build/flatland]
 """

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
-"""Mirrors and glass against closed forms, through the command line (docs/experiments.md,
-"Mirrors, glass and dispersion"). Four measurements, each printed as a Markdown table (also
-DIR/*.md):
+"""Mirrors and glass against closed forms, through the command line
+(docs/experiments-error-and-optics.md, "Mirrors, glass and dispersion"). Four measurements, each
+printed as a Markdown table (also DIR/*.md):
 
 1. mirror: a floor lit by a lamp and a flat mirror standing on the floor's line, against the image
    method, rho (H_lamp + reflectance H_image) with H = (sin a2 - sin a1) / 2 per source; beside it

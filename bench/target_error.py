@@ -1,5 +1,6 @@
 #!/usr/bin/env python3
-"""What `--target-error` spends and delivers (docs/experiments.md, "Solving to an accuracy").
+"""What `--target-error` spends and delivers (docs/experiments-error-and-optics.md,
+"Solving to a target").
 
 Per scene: `flatland solve --target-error T --photons CAP` over seeds, each compared with a
 reference (the true error) and its photons counted; and `flatland converge` of the default method

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Estimator against storage mesh (docs/method.md, "Storage that follows the photons"): cubic storage
+"""Estimator against storage mesh (docs/storage-mesh.md, "Storage that follows the photons"): cubic storage
 with the lumped, Galerkin and local estimators, each on 16 fixed elements per curve and on storage
 that follows the photons (auto), at 1e5, 1e6 and 1e7 photons, on the penumbra and the curved room;
 median relative L2 error of B - E over 3 seeds against `flatland reference` (N = 1600, checked to be

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Secondary-source events (docs/method.md, Direct-light events): `--discontinuities auto` against
+# Secondary-source events (docs/storage-mesh.md, Direct-light events): `--discontinuities auto` against
 # `secondary` on the four rooms, with the default storage (Galerkin, auto elements) and with the
 # paper's (lumped deposits on 16 fixed elements per curve), at 1e6 and 1e7 photons, SEEDS (3) seeds,
 # against a reference of N = 800. Prints the median relative L2 error of B - E per method and budget.

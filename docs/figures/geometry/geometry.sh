@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Pictures of the method's geometry for docs/method.md, taken by flatland itself (offscreen):
+# Pictures of the method's geometry for docs/storage-mesh.md, taken by flatland itself (offscreen):
 # the arch on a lit floor with contacts (scene joints) and without (none), and the round occluder
 # with its direct-light events (auto) and without (scene).
 # Usage: [FLATLAND=PATH] docs/figures/geometry/geometry.sh [BUILD_DIR]: the program is FLATLAND (as

@@ -542,7 +542,7 @@ small peak remains beside its outer C0 nodes). The cubic's largest error is at t
 (s = 5, 8 and 13 m) let B jump and the errors beside them stay small, but all three bases err most at s = 1.03 m (floor) and s = 11.97 m (ceiling): there the lamp's
 light grazes past the reflector's lower and upper tips, and the penumbra is only 0.044 m wide, so its
 two boundaries, closer than 5 % of an element, are merged into one C0 node at their mean
-(docs/method.md, "Direct-light events"); a near-jump that narrow is not resolved by 16 elements.*
+(docs/storage-mesh.md, "Direct-light events"); a near-jump that narrow is not resolved by 16 elements.*
 
 ### A close-up of the discontinuity mesh
 

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """The seam of a closed curve, measured: a ring of eight cubic arcs (radius 1, rho = 0.5) with a
 smooth emittance profile E(phi) = 1 + 0.8 sin(phi), steepest at the closing point (phi = 0). The
-exact answer is diagonal in Fourier series (docs/method.md, "Closed curves"): with the kernel
+exact answer is diagonal in Fourier series (docs/storage-mesh.md, "Closed curves"): with the kernel
 k(psi) = |sin(psi / 2)| / 4 per unit angle, B_n = E_n / (1 - rho lambda_n), lambda_0 = 1,
 lambda_n = -1 / (4 n^2 - 1). E_n are taken from the profile as the scene file states it (a cubic
 Bernstein polynomial of the control points' factors along each arc), at the arcs' true angles.

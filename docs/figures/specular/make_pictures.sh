@@ -1,7 +1,8 @@
 #!/bin/sh
-# The teaching scenes with mirrors, glass and a prism (docs/experiments.md, "Mirrors, glass and
-# dispersion"): each rendered by `flatland render` (photon paths and B along the curves, no display
-# needed). FLATLAND selects the executable (default build/flatland); run from the repository's top.
+# The teaching scenes with mirrors, glass and a prism (docs/experiments-error-and-optics.md,
+# "Mirrors, glass and dispersion"): each rendered by `flatland render` (photon paths and B along
+# the curves, no display needed). FLATLAND selects the executable (default build/flatland); run
+# from the repository's top.
 set -eu
 flatland=${FLATLAND:-build/flatland}
 out=docs/figures/specular
