@@ -21,6 +21,7 @@
 #include "app/output.hpp"
 #include "app/processes.hpp"
 #include "app/progress.hpp"
+#include "flatland/reference/reference.hpp"
 #include "flatland/results/converge.hpp"
 #include "flatland/results/result_io.hpp"
 

@@ -11,6 +11,7 @@
 #include "app/output.hpp"
 #include "app/progress.hpp"
 #include "flatland/reference/reference.hpp"
+#include "flatland/reference/reference_io.hpp"
 #include "flatland/results/result_io.hpp"
 
 namespace flatland::app {

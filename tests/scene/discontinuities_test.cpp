@@ -1,4 +1,4 @@
-#include "flatland/geometry/discontinuities.hpp"
+#include "flatland/scene/discontinuities.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -17,7 +17,7 @@
 #include <gtest/gtest.h>
 
 #include "flatland/base/quadrature.hpp"
-#include "flatland/transport/sampling.hpp"
+#include "flatland/base/random.hpp"
 #include "flatland/transport/solver.hpp"
 #include "test_support.hpp"
 

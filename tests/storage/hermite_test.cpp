@@ -8,7 +8,7 @@
 
 #include <gtest/gtest.h>
 
-#include "flatland/transport/sampling.hpp"
+#include "flatland/base/random.hpp"
 #include "test_support.hpp"
 
 namespace flatland {

@@ -1182,7 +1182,7 @@ TEST(Solver, ClosedRingHasNoSeamAtItsClosingPoint) {
   // there rests on ~2-3 independent values (relative spread about 1/sqrt(2 x 2.5) = 0.45) and the
   // sum over three seeds about 0.26: a periodic ring, whose closing point is like any other
   // place, stays below 1.5 (2 sigma). A seam (format version 1) adds an O(h) end bias of the
-  // lumped estimate at 3e6 photons (measured: ratio 2.3, docs/method.md): it must exceed 1.5.
+  // lumped estimate at 3e6 photons (measured: ratio 2.3, docs/storage-mesh.md): it must exceed 1.5.
   auto ratio = [](int version) {
     const Scene scene = testing::scene_from_text(ring_with_profile(version));
     const RingSolution exact = solve_ring(scene, 0.5);

@@ -11,7 +11,6 @@
 
 #include "flatland/base/files.hpp"
 #include "flatland/base/status.hpp"
-#include "flatland/reference/reference.hpp"
 #include "flatland/results/sampled_result.hpp"
 #include "flatland/scene/scene.hpp"
 #include "flatland/transport/solver.hpp"
@@ -25,12 +24,6 @@ nlohmann::json result_to_json(const Solver& solver, int samples_per_curve, const
 // one at a time instead of held as one JSON tree, whose many small allocations cost seconds on
 // scenes of tens of thousands of curves (docs/performance.md).
 std::string result_text(const Solver& solver, int samples_per_curve, const ErrorEstimate* estimate = nullptr);
-
-// The document `flatland reference --out` writes: the reference's settings and statistics, its
-// estimated error when `estimate` is given, and `curves` (curves_to_json of its samples).
-nlohmann::json reference_result_to_json(const Scene& scene, const ReferenceSettings& settings,
-                                        const ReferenceSolution& solution, int samples_per_curve, double seconds,
-                                        const ReferenceErrorEstimate* estimate, const nlohmann::json& curves);
 
 // The detectors' tallies (Solver::detected): per detector curve its id, length, bins and, per bin,
 // the power crossing it from its front side to its back ("front") and from the back ("back"),

@@ -1,6 +1,6 @@
 // Spectral light: an emitter's spectrum (a black body, a line or a table), the wavelengths its
 // photons draw from it, and how a wavelength's power is shared among the three colour channels
-// through the CIE 1931 colour matching functions and linear sRGB (docs/method.md, "Spectral
+// through the CIE 1931 colour matching functions and linear sRGB (docs/optics.md, "Spectral
 // light"). Every function here uses the four basic operations and portable::exp only, so a
 // photon's wavelength and shares are the same bits on every platform.
 #pragma once

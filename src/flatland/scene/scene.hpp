@@ -46,7 +46,7 @@ struct Emission {
 // The scene file format version this program writes; it reads this one and version 1.
 inline constexpr int kSceneFormatVersion = 2;
 
-// What a surface does with the light that reaches it (docs/scene-format.md, docs/method.md).
+// What a surface does with the light that reaches it (docs/scene-format.md, docs/optics.md).
 //  - Diffuse: keeps reflectivity times what it receives and reflects it diffusely (storage,
 //    reconstruction and origins are about these surfaces only).
 //  - Mirror: perfect specular reflection of `reflectance` (per channel) on the sides that the

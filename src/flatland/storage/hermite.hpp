@@ -17,9 +17,9 @@
 #include <span>
 #include <vector>
 
+#include "flatland/base/discrete_distribution.hpp"
 #include "flatland/base/status.hpp"
 #include "flatland/scene/scene.hpp"
-#include "flatland/transport/sampling.hpp"
 
 namespace flatland {
 

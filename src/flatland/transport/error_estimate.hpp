@@ -1,5 +1,5 @@
 // An upper bound, at a stated confidence, of the error of a solver's reflected radiosity B - E,
-// from the solve itself (docs/method.md, "The estimated error"):
+// from the solve itself (docs/estimated-error.md):
 // - noise: every round's photons are split into R independent replicates (settings.hpp), each of
 //   which estimates B - E on its own; the spread of the R estimates gives the covariance of their
 //   mean, and the quantile of each norm of a Gaussian error with that covariance (drawn as Gaussian

@@ -1,6 +1,6 @@
 // How light gets from the emitters to its last bounce, round by round (docs/method.md,
-// Transport): what a round's photons leave with, how many a round shoots, what its deposits mean
-// for the received power, and the energy books. Every transport shoots its photons with the same
+// "Progressive shooting" and "Random walks"): what a round's photons leave with, how many a round shoots, what its
+// deposits mean for the received power, and the energy books. Every transport shoots its photons with the same
 // PhotonShooter; a transport whose photons go on from where they land (random walks) says so.
 //
 // A new transport is a class of its own file that implements this interface and an alternative

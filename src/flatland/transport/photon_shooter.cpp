@@ -575,7 +575,7 @@ bool PhotonShooter::receive(const RoundView& round, Rng& rng, SceneHit& hit, Ray
   return true;
 }
 
-// The specular chain (docs/method.md, "Mirrors, glass and detectors"). Every event restarts the
+// The specular chain (docs/optics.md). Every event restarts the
 // flight on the curve itself (the point at the hit's parameter, that segment tested with the
 // deflated query), as a diffuse bounce does. Each channel's power changes only by deterministic
 // factors (a mirror's reflectance, the medium's transmittance), rounded to units with the

@@ -114,7 +114,7 @@ class SceneStorage {
   double arc_length_at(std::uint32_t curve, double u) const;
 
   // Automatic storage: each curve's level with the least estimated error, from the power received
-  // by all photons and by the odd-numbered half of them (docs/method.md, automatic storage).
+  // by all photons and by the odd-numbered half of them (docs/storage-mesh.md, automatic storage).
   void choose_levels(const std::vector<double>& received, const std::vector<double>& half);
 
  private:

@@ -10,7 +10,7 @@
 #include <string_view>
 
 #include "flatland/base/status.hpp"
-#include "flatland/geometry/discontinuities.hpp"
+#include "flatland/scene/discontinuities.hpp"
 #include "flatland/storage/spline_basis.hpp"
 #include "flatland/transport/footprint.hpp"
 
@@ -43,7 +43,7 @@ const char* to_string(RayMode mode);
 enum class SamplerKind { Random, Sobol };
 const char* to_string(SamplerKind sampler);
 
-// How light gets from the emitters to its last bounce (docs/method.md, Transport):
+// How light gets from the emitters to its last bounce (docs/method.md, "Progressive shooting" and "Random walks"):
 // - Shooting: progressive rounds, each shooting the power the previous round reflected, one hop
 //   per photon (the paper's method).
 // - Walk: every photon is a random walk from an emitter that, at each hit, tallies the power it

@@ -145,7 +145,7 @@ class Solver {
   std::vector<double> detected() const;
   // The same per detector curve, bin by bin each way, with their totals.
   std::vector<DetectorReading> detector_readings() const;
-  // With a target error: the passes finished (shooting; docs/method.md, "Solving to an accuracy")
+  // With a target error: the passes finished (shooting; docs/estimated-error.md, "Solving to an accuracy")
   // and the estimated error when the target was last checked (infinity before).
   std::uint32_t passes() const { return passes_; }
   double checked_error() const { return checked_error_; }
