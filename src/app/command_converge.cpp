@@ -276,11 +276,13 @@ Status draw_plot(const PlotInput& in) {
   for (std::size_t m = 0; m < in.methods.size(); ++m) {
     const std::string title = legend.names[m] + ": slope " + slope_text(slopes[m].seconds) + " vs time, " +
                               slope_text(slopes[m].photons) + " vs photons";
-    // Twelve distinct colours, then the same colours dashed: gnuplot's own cycle repeats after eight.
+    // Twelve distinct colours, then the same colours dash-dotted: gnuplot's own cycle repeats after
+    // eight. One dash type a line: the bound's own dashes are set apart from the method's line.
     static constexpr const char* kColours[] = {"#9400d3", "#009e73", "#56b4e9", "#e69f00", "#0072b2", "#e51e10",
                                                "#000000", "#c0a000", "#8c564b", "#e377c2", "#7f7f7f", "#17becf"};
-    const std::string colour = std::string(" lc rgb '") + kColours[m % 12] + "'" + (m >= 12 ? " dt 4" : "");
-    plot += "'convergence.dat' index " + std::to_string(m) + " using 1:2:3:4 with yerrorlines lw 2" + colour +
+    const std::string colour = std::string(" lc rgb '") + kColours[m % 12] + "'";
+    const std::string dashes = m >= 12 ? " dt 4" : "";
+    plot += "'convergence.dat' index " + std::to_string(m) + " using 1:2:3:4 with yerrorlines lw 2" + colour + dashes +
             " title " + gnuplot_string(title) + " noenhanced, ";
     // The method's estimated bound, dashed in its colour (no legend entry: one says what dashes are).
     plot +=

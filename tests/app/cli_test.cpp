@@ -390,6 +390,22 @@ TEST_F(Cli, ConvergePlotKeyFitsMethodsSpelledOutInFull) {
   EXPECT_GE(width, static_cast<int>(8 * (std::string("every method: ") + shared).size())) << script;
 }
 
+// More than twelve methods: the thirteenth on reuse the colours with dashes of their own, and the
+// bound's dashes must not clash with them (gnuplot refused "dt 2 ... dt 4" in one style, so
+// converge exited 1 without its plot).
+TEST_F(Cli, ConvergePlotsMoreMethodsThanColours) {
+  const fs::path out = directory_ / "many_methods";
+  std::string methods;
+  for (int elements = 1; elements <= 13; ++elements)
+    methods += (elements > 1 ? "," : "") + std::string("constant+elements=") + std::to_string(elements);
+  const CommandRun r = run("converge " + scene("penumbra.json") + " --methods " + methods +
+                           " --budgets 1000 --seeds 1 --samples 10 --out " + out.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(read_file(out / "convergence.png").substr(1, 3), "PNG");
+  const std::string script = read_file(out / "convergence.gp");
+  EXPECT_EQ(script.find("dt 2 lw 1.5 lc rgb '#9400d3' dt 4"), std::string::npos) << script;
+}
+
 TEST_F(Cli, ConvergeWritesTableAndPlots) {
   const fs::path out = directory_ / "convergence";
   const CommandRun r = run(
