@@ -66,8 +66,9 @@ int report_parse_error(const CLI::App& app, const CLI::ParseError& error, int ar
 }  // namespace
 
 CommandLine::CommandLine()
-    : app{"flatland: diffuse light transport in 2D scenes of lines and cubic Bezier curves, after\n"
-          "'Cubic Monte Carlo Radiosity' (Elias, Feda, Ferschin, Purgathofer).\n"
+    : app{"flatland: light transport in 2D scenes of lines and cubic Bezier curves (diffuse surfaces,\n"
+          "mirrors, glass and detectors), after 'Cubic Monte Carlo Radiosity' (Elias, Feda, Ferschin,\n"
+          "Purgathofer).\n"
           "Scenes are JSON files (docs/scene-format.md); examples are in scenes2d/.",
           "flatland"} {
   app.set_version_flag("--version",

@@ -131,14 +131,14 @@ void print_summary(const Solver& solver, const ErrorEstimate& estimate) {
                to_string(settings.discontinuities), rays, to_string(settings.sampler));
   // What the scene made the solver use (and so what it left out).
   std::fprintf(out,
-               "features  %s (%d channel%s), %s, %zu discontinuity nodes (%zu from contacts, %zu "
-               "from visibility events), %zu storage coefficients\n",
+               "features  %s (%d channel%s), %s, %zu discontinuity nodes (%zu at the scene's corners and joints, %zu "
+               "at contacts, %zu at visibility events), %zu storage coefficients\n",
                scene.channels == 1 ? "grey" : "colour", scene.channels, scene.channels == 1 ? "" : "s",
                cubic_segments == 0                       ? "lines only (no cubic solver)"
                : cubic_segments == scene.segments.size() ? "cubics only"
                                                          : "lines and cubics",
-               solver.discontinuity_nodes(), solver.contact_nodes(), solver.visibility_event_nodes(),
-               solver.coefficient_count());
+               solver.discontinuity_nodes(), solver.node_sources().scene, solver.node_sources().contacts,
+               solver.node_sources().events, solver.coefficient_count());
   if (scene.has_specular()) {
     std::size_t count[4] = {};
     for (const Curve& curve : scene.curves) ++count[static_cast<std::size_t>(scene.material_of(curve).optics)];
@@ -185,7 +185,9 @@ void print_summary(const Solver& solver, const ErrorEstimate& estimate) {
   for (const DetectorReading& reading : solver.detector_readings()) {
     const double front = reading.front_total[0] + reading.front_total[1] + reading.front_total[2];
     const double back = reading.back_total[0] + reading.back_total[1] + reading.back_total[2];
-    std::fprintf(out, "detector  %s: %.6g crossed from its front, %.6g from its back (%.3g%% and %.3g%% of emitted)\n",
+    std::fprintf(out,
+                 "detector  %s: %.6g crossed from its front, %.6g from its back (%.3g%% and %.3g%% of emitted; light "
+                 "that crosses it more than once counts each time)\n",
                  scene.curves[reading.curve].id.c_str(), front, back, 100.0 * front / books.emitted,
                  100.0 * back / books.emitted);
   }

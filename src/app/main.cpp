@@ -1,4 +1,4 @@
-// flatland: diffuse light transport in 2D after "Cubic Monte Carlo Radiosity".
+// flatland: light transport in 2D (diffuse surfaces, mirrors, glass) after "Cubic Monte Carlo Radiosity".
 #include <csignal>
 #include <cstdio>
 #include <exception>

@@ -863,6 +863,35 @@ TEST(Solver, CancelStopsBeforeTheRoundEnds) {
 // land): on the curved room, whose walls and pillar reflect, it finds more nodes than `auto`
 // does, and the solve's books still balance. (More nodes need not mean more coefficients: the
 // regions between nodes are split evenly, each into its share of the elements.)
+// The summary's breakdown of the discontinuity nodes adds up (it named asked-for contacts and
+// events, which merge with each other and with the scene's corners, and left the corners out): every
+// storage node below C1 is counted once, by the first of corner or joint, contact, event; a scene
+// of straight walls meeting at corners has its corners as scene nodes, and none without events.
+TEST(Solver, NodeSourcesAddUpToTheDiscontinuityNodes) {
+  for (const char* file : {"scenes2d/default.json", "scenes2d/penumbra.json", "scenes2d/curved_room.json",
+                           "scenes2d/mixed.json", "scenes2d/arch.json"}) {
+    const Scene scene = testing::scene_from_file(file);
+    for (DiscontinuityMode mode : {DiscontinuityMode::None, DiscontinuityMode::Scene, DiscontinuityMode::Auto}) {
+      SolverSettings settings;
+      settings.photons = 10'000;
+      settings.elements = 8;
+      settings.discontinuities = mode;
+      const Solver solver = make_solver(scene, settings);
+      const Solver::NodeSources& sources = solver.node_sources();
+      EXPECT_EQ(sources.scene + sources.contacts + sources.events, solver.discontinuity_nodes())
+          << file << " " << to_string(mode);
+      EXPECT_LE(sources.contacts, solver.contact_nodes()) << file;
+      EXPECT_LE(sources.events, solver.visibility_event_nodes()) << file;
+      if (mode != DiscontinuityMode::Auto) {
+        EXPECT_EQ(sources.events, 0u) << file;
+      }
+      if (mode == DiscontinuityMode::None) {
+        EXPECT_EQ(sources.contacts, 0u) << file;
+      }
+    }
+  }
+}
+
 TEST(Solver, SecondarySourcesAddEventsToTheEmitters) {
   const Scene scene = testing::scene_from_file("scenes2d/curved_room.json");
   SolverSettings settings;

@@ -178,6 +178,15 @@ class Solver {
   // C-1 nodes asked for at contacts (an end point or corner on another curve, a crossing); with
   // discontinuities scene or auto.
   std::size_t contact_nodes() const { return contact_nodes_; }
+  // The storage's discontinuity nodes (discontinuity_nodes()) by what put each there, counted
+  // once: the scene's corners and joints first, then contacts, then visibility events (the counts
+  // above are the nodes asked for, some of which coincide with others and merge).
+  struct NodeSources {
+    std::size_t scene = 0;
+    std::size_t contacts = 0;
+    std::size_t events = 0;
+  };
+  const NodeSources& node_sources() const { return node_sources_; }
   std::size_t coefficient_count() const { return storage_.coefficient_count(); }
   // Storage elements (non-empty knot spans) of a curve's mesh in use: with auto storage the level
   // chosen after the last round (coefficients stay in the finest basis, which holds it exactly).
@@ -218,6 +227,8 @@ class Solver {
   // The storage mesh's extra nodes: contacts (C-1, where footprints also stop: `walls`, per curve
   // in arc length) and visibility events (C0), as the settings ask, on the curves that hold light.
   // Stops early (with partial nodes) once `cancel` is set.
+  // Counts node_sources_ from the storage's nodes and find_events' lists.
+  void count_node_sources(const std::vector<std::vector<MeshNode>>& events);
   std::vector<std::vector<MeshNode>> find_events(const SegmentAccelerator& accelerator, const StoragePlan& plan,
                                                  std::vector<std::vector<double>>& walls,
                                                  const std::atomic<bool>* cancel);
@@ -299,6 +310,8 @@ class Solver {
   std::variant<ProgressiveShooting, RandomWalks> transport_;
   std::size_t visibility_events_ = 0;
   std::size_t contact_nodes_ = 0;
+  NodeSources node_sources_;
+  std::vector<std::size_t> contacts_per_curve_;  // set-up: each curve's contacts in find_events' lists
   Spectrum emitted_{};
   double emitted_total_ = 0.0;
 

@@ -131,6 +131,7 @@ std::vector<std::vector<MeshNode>> Solver::find_events(const SegmentAccelerator&
   const Scene& scene = *scene_;
   std::vector<std::vector<MeshNode>> events(scene.curves.size());
   walls.assign(scene.curves.size(), {});
+  contacts_per_curve_.assign(scene.curves.size(), 0);
   // Only curves that hold light need nodes: a mirror's, a dielectric's or a detector's would
   // refine a storage nothing is deposited on.
   const auto holds_light = [&](std::uint32_t c) {
@@ -144,6 +145,7 @@ std::vector<std::vector<MeshNode>> Solver::find_events(const SegmentAccelerator&
       events[node.curve].push_back({node.u, node.continuity});
       walls[node.curve].push_back(arc_length_at(scene, scene.curves[node.curve], node.u));
       ++contact_nodes_;
+      ++contacts_per_curve_[node.curve];
     }
     for (std::vector<double>& curve_walls : walls) std::sort(curve_walls.begin(), curve_walls.end());
   }
@@ -160,6 +162,42 @@ std::vector<std::vector<MeshNode>> Solver::find_events(const SegmentAccelerator&
     }
   }
   return events;
+}
+
+void Solver::count_node_sources(const std::vector<std::vector<MeshNode>>& events) {
+  // find_events lists a curve's contacts first (contacts_per_curve_), then its visibility events; a storage node within
+  // 1e-9 of one of them is that one's (the storage merges nodes that close, curve_storage.cpp).
+  const Scene& scene = *scene_;
+  const std::vector<std::size_t>& contacts = contacts_per_curve_;
+  node_sources_ = {};
+  for (std::uint32_t c = 0; c < scene.curves.size(); ++c) {
+    const auto near = [&](double u, std::size_t from, std::size_t to) {
+      for (std::size_t k = from; k < to; ++k)
+        if (std::fabs(events[c][k].u - u) <= 1e-9) return true;
+      return false;
+    };
+    for (const MeshNode& node : storage_.finest(c).nodes) {
+      if (node.continuity == Continuity::C1) continue;
+      // Joint j (between segments j - 1 and j) is at u = j; a closed curve's closing joint (the last)
+      // at u = 0 or u = segment count.
+      const Curve& curve = scene.curves[c];
+      const double joint = std::round(node.u);
+      const auto count = static_cast<double>(curve.segment_count);
+      bool at_joint = false;
+      if (std::fabs(node.u - joint) <= 1e-9) {
+        if (joint >= 1.0 && joint < count)
+          at_joint = curve.joints[static_cast<std::size_t>(joint) - 1] != Continuity::C1;
+        else if (curve.closed && (joint == 0.0 || joint == count))
+          at_joint = curve.joints.back() != Continuity::C1;
+      }
+      if (at_joint)
+        ++node_sources_.scene;
+      else if (near(node.u, 0, contacts[c]))
+        ++node_sources_.contacts;
+      else
+        ++node_sources_.events;
+    }
+  }
 }
 
 Status Solver::start_transport() {
@@ -268,6 +306,7 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
       SceneStorage::build(scene, solver.settings_, plan, events, solver.worker_pool(), cancel);
   if (!storage || cancelled()) return Error{kSolverCancelled};
   solver.storage_ = std::move(*storage);
+  solver.count_node_sources(events);
   // 4. The transport, starting from the emitted power, and the footprints' tables.
   if (Status status = solver.start_transport(); !status) return status.error();
   if (!solver.shooter_.prepare_footprints(solver.storage_, cancel) || cancelled()) return Error{kSolverCancelled};
