@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Regenerates every measured table and figure of README.md and docs/ at the current commit.
 #
-#   docs/reproduce.sh                 everything (about 30 minutes on 2 cores)
+#   docs/reproduce.sh                 everything (about 55 minutes on 2 cores)
 #   docs/reproduce.sh --quick         a representative subset (under 10 minutes), compared with the
 #                                     committed tables, and the check that README.md and docs/*.md
 #                                     show docs/tables (docs/figures/paste_tables.py --check); exit

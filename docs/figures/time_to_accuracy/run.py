@@ -8,11 +8,20 @@ out in the method strings, so a change of the program's defaults does not change
 
     docs/figures/time_to_accuracy/run.py [--quick] [--tables DIR]
 
-Writes, per scene, DIR/<scene>/convergence.csv (every run), converge.txt, reference.txt and
-DIR/<scene>.png (median error against median time, one line per method, legend below the axes,
-the 1 % and 0.1 % targets and the reference's own error drawn); and the tables
-  TABLES/time-to-accuracy.md        time to 1 % and 0.1 %, error at 1e6 photons, cost per photon
-  TABLES/time-to-accuracy-errors.md median error per budget (every number the plots show)
+The paper's settings run on fixed meshes of 16, 64 and 256 elements per curve (PAPER_MESHES), and
+the tables and plots report them on their best fixed mesh for each budget (the mesh with the least
+median error there, chosen with hindsight: add_envelopes), beside the 16-element setting.
+
+Writes, per scene, DIR/<scene>/convergence.csv (every run but the paper's settings on meshes finer
+than 16 elements, which are in DIR/<scene>/meshes/convergence.csv: see MESHES_DIR), converge.txt,
+reference.txt and DIR/<scene>.png (median error against median time, one line per method, the
+paper's settings on their best fixed mesh per budget, legend below the axes, the 1 % and 0.1 %
+targets and the reference's own error drawn); and the tables
+  TABLES/time-to-accuracy.md        time to 1 % and 0.1 %, error at 1e6 photons (with its
+                                    interquartile range over the seeds), cost per photon
+  TABLES/time-to-accuracy-errors.md median error per budget with its interquartile range, every
+                                    mesh of the paper's settings on its own row (every number the
+                                    plots show)
   TABLES/walks.md                   random walks against shooting (same scenes, same references)
   TABLES/readme-answer.md           the README's summary
 --quick makes the five tables again from the committed runs (no solve) and compares them with
@@ -44,17 +53,24 @@ SCENES = {
     "curved_room": ("scenes2d/curved_room.json", 1600),
 }
 
-# Settings common to every method; each method names the rest. "elements=16" is the paper's fixed
-# mesh (16 elements per curve); "auto" lets each curve's mesh follow its photons.
+# Settings common to every method; each method names the rest. "elements=N" is a fixed mesh of N
+# elements per curve; "auto" lets each curve's mesh follow its photons.
 COMMON = "discontinuities=auto+sampling=reconstructed+ray-width=0+transport=shooting"
 DEFAULT_ESTIMATOR = {"constant": "galerkin", "linear": "galerkin", "cubic": "galerkin", "hermite": "local"}
+BASES = ["constant", "linear", "cubic", "hermite"]
+# The paper's settings run on these fixed meshes (elements per curve): 16, the mesh of the paper's
+# runs so far, and finer ones, whose smaller bias may pay at the larger budgets. The tables and plots
+# report the paper's method on its best fixed mesh for each budget (add_envelopes), and every mesh
+# on its own in time-to-accuracy-errors.md.
+PAPER_MESHES = {"constant": [16, 64], "linear": [16, 64, 256], "cubic": [16, 64, 256], "hermite": [16, 64]}
 METHODS = []  # (label, family, basis, method string)
-for basis in ["constant", "linear", "cubic", "hermite"]:
+for basis in BASES:
     METHODS.append((basis, "default", basis, "basis=%s+estimator=%s+elements=auto+sampler=sobol+%s"
                     % (basis, DEFAULT_ESTIMATOR[basis], COMMON)))
-for basis in ["constant", "linear", "cubic", "hermite"]:
-    METHODS.append((basis + ", paper", "paper", basis,
-                    "basis=%s+estimator=lumped+elements=16+sampler=random+%s" % (basis, COMMON)))
+for basis in BASES:
+    for n in PAPER_MESHES[basis]:
+        METHODS.append(("%s, paper, %d elements" % (basis, n), "paper", basis,
+                        "basis=%s+estimator=lumped+elements=%d+sampler=random+%s" % (basis, n, COMMON)))
 CLASSIC = ("basis=constant+estimator=lumped+elements=16+sampler=random+discontinuities=none+sampling=uniform"
            "+ray-width=0+transport=shooting")
 METHODS.append(("classic", "classic", "constant", CLASSIC))
@@ -63,7 +79,7 @@ METHODS.append(("cubic, walks", "walk", "cubic", "basis=cubic+estimator=galerkin
 for _name in [n for n in SCENES if n not in os.environ.get("TTA_SCENES", ",".join(SCENES)).split(",")]:
     del SCENES[_name]
 QUICK_SCENES = ["penumbra", "round_occluder"]
-QUICK_METHODS = ["linear", "cubic", "cubic, paper", "classic"]
+QUICK_METHODS = ["linear", "cubic", "cubic, paper, 16 elements", "classic"]
 QUICK_BUDGETS = ["1e4", "1e5", "1e6"]
 
 
@@ -79,6 +95,17 @@ def run(cmd, out_path=None):
     return p.stdout
 
 
+# The paper's settings on the meshes finer than 16 elements are solved by a converge of their own,
+# into <scene>/meshes/, so that each converge plot stays readable (at most 12 methods, each in a
+# colour of its own) and the other methods' runs stay in <scene>/ as before.
+MESHES_DIR = "meshes"
+
+
+def run_dir(method):
+    """The subdirectory of a scene's runs that holds a method's runs ('' or MESHES_DIR)."""
+    return MESHES_DIR if method[1] == "paper" and "+elements=16+" not in method[3] else ""
+
+
 def solve_scene(name, out, methods, budgets):
     scene, n = SCENES[name]
     os.makedirs(out, exist_ok=True)
@@ -88,11 +115,17 @@ def solve_scene(name, out, methods, budgets):
     ref = os.path.join(out, "reference.json")
     run([FLATLAND, "reference", scene, "--elements", str(n), "--threads", THREADS, "--out", ref],
         os.path.join(out, "reference.txt"))
-    text = run([FLATLAND, "converge", scene, "--reference", ref, "--methods", ",".join(m[3] for m in methods),
-                "--budgets", ",".join(budgets), "--seeds", str(SEEDS), "--threads", THREADS,
-                "--samples", "100", "--out", out], os.path.join(out, "converge.txt"))
-    # converge's own plot (every method, its legend) is kept under the converge name
-    return text
+    for sub in ["", MESHES_DIR]:
+        group = [m for m in methods if run_dir(m) == sub]
+        if not group:
+            continue
+        assert len(group) <= 12, "a converge plot of more than 12 methods repeats its colours"
+        where = os.path.join(out, sub) if sub else out
+        os.makedirs(where, exist_ok=True)
+        run([FLATLAND, "converge", scene, "--reference", ref, "--methods", ",".join(m[3] for m in group),
+             "--budgets", ",".join(budgets), "--seeds", str(SEEDS), "--threads", THREADS,
+             "--samples", "100", "--out", where], os.path.join(where, "converge.txt"))
+        # converge's own plot (its methods, its legend) is kept under the converge name
 
 
 def floor_of(out):
@@ -102,19 +135,22 @@ def floor_of(out):
     return float(m.group(1)) if m else 0.0
 
 
-def load(path, methods, budgets):
-    """{label: [(budget, median seconds, median error, min, max, median photons, errors by seed)]}.
+def load(out, methods, budgets):
+    """{label: [(budget, median seconds, median error, min, max, median photons, errors by seed)]} of
+    the runs of a scene's directory (its convergence.csv and, when there is one, that of MESHES_DIR).
     converge writes each method's budgets in order, seeds 1..S within each; the budget of a row is
     taken from its position (the rounds round the photons shot, so they do not name the budget)."""
     by_method = {m[3]: m[0] for m in methods}
     runs = {}
-    with open(path) as f:
-        for r in csv.DictReader(f):
-            label = by_method[r["method"]]
-            groups = runs.setdefault(label, [])
-            if int(r["seed"]) == 1 or not groups:
-                groups.append([])
-            groups[-1].append((float(r["seconds"]), float(r["rel_l2"]), float(r["photons"]), int(r["seed"])))
+    paths = [os.path.join(out, "convergence.csv"), os.path.join(out, MESHES_DIR, "convergence.csv")]
+    for path in [p for p in paths if os.path.exists(p)]:
+        with open(path) as f:
+            for r in csv.DictReader(f):
+                label = by_method[r["method"]]
+                groups = runs.setdefault(label, [])
+                if int(r["seed"]) == 1 or not groups:
+                    groups.append([])
+                groups[-1].append((float(r["seconds"]), float(r["rel_l2"]), float(r["photons"]), int(r["seed"])))
     med = {}
     for label, groups in runs.items():
         rows = []
@@ -138,6 +174,50 @@ def time_to(rows, target):
     return rows[-1][1], ">"
 
 
+def paper_label(basis, n):
+    return "%s, paper, %d elements" % (basis, n)
+
+
+def envelope_label(basis):
+    return "%s, paper (best of %s)" % (basis, "/".join(str(n) for n in PAPER_MESHES[basis]))
+
+
+def add_envelopes(med):
+    """Adds to med, per basis, the paper's settings on their best fixed mesh for each budget: at each
+    budget the row of the mesh (PAPER_MESHES) with the least median error (the coarser on a tie),
+    with that mesh appended to the row. The choice is made with hindsight, after every mesh has run
+    at every budget: generous to the paper."""
+    for basis in BASES:
+        meshes = [(n, med[paper_label(basis, n)]) for n in PAPER_MESHES[basis]]
+        med[envelope_label(basis)] = [
+            min((rows[i] + (n,) for n, rows in meshes), key=lambda r: (r[2], r[7]))
+            for i in range(len(meshes[0][1]))]
+    return med
+
+
+def meshes_text():
+    """The paper's meshes in words: '16, 64 or 256 elements per curve for linear and cubic, 16 or 64
+    for constant and hermite'."""
+    groups = {}
+    for b in BASES:
+        groups.setdefault(tuple(PAPER_MESHES[b]), []).append(b)
+    return ", ".join("%s or %d%s for %s" % (", ".join(str(n) for n in m[:-1]), m[-1],
+                                            " elements per curve" if i == 0 else "", " and ".join(bs))
+                     for i, (m, bs) in enumerate(sorted(groups.items(), key=lambda g: -len(g[0]))))
+
+
+def mesh_of(row):
+    """The mesh a row of a paper envelope was chosen on; None for the row of a single method."""
+    return row[7] if len(row) > 7 else None
+
+
+def quartiles(row):
+    """(first, third) quartile of a row's errors over the seeds: statistics.quantiles(n=4,
+    method='inclusive'), which for 5 seeds are the second smallest and the second largest."""
+    q = statistics.quantiles(sorted(row[6].values()), n=4, method="inclusive")
+    return q[0], q[2]
+
+
 def fmt_t(tk):
     t, kind = tk
     if kind == ">":
@@ -150,18 +230,45 @@ def fmt_e(e):
     return "%.2g %%" % (100 * e)
 
 
+def fmt_e_iqr(row):
+    """A row's median error in percent with its interquartile range over the seeds, and the mesh
+    of an envelope's row: '3.2 % [3.1–3.3 %] (64)'."""
+    q1, q3 = quartiles(row)
+    text = "%s [%.2g–%.2g %%]" % (fmt_e(row[2]), 100 * q1, 100 * q3)
+    return text + (" (%d)" % mesh_of(row) if mesh_of(row) else "")
+
+
+def median_text(cell):
+    """The median of a table's cell: the text before its interquartile range ' [' or its ' ('."""
+    return re.split(r" \(| \[", cell, maxsplit=1)[0]
+
+
 def nice(name):
     return name.replace("_", " ")
 
 
+def series(paper):
+    """(label, family, basis) of the rows a table or plot reports, in order: the defaults, the paper's
+    settings (paper: 'best' its best fixed mesh per budget, 'best+16' that and the 16-element setting
+    below it, 'all' that and every mesh), classic and walks."""
+    out = [(m[0], m[1], m[2]) for m in METHODS if m[1] == "default"]
+    for basis in BASES:
+        out.append((envelope_label(basis), "paper", basis))
+        if paper != "best":
+            out += [(paper_label(basis, n), "paper", basis) for n in PAPER_MESHES[basis] if paper == "all" or n == 16]
+    return out + [(m[0], m[1], m[2]) for m in METHODS if m[1] in ("classic", "walk")]
+
+
 def plot(out_png, scene, med, floor):
-    """Median error against median time, one line per method; legend below the axes."""
+    """Median error against median time, one line per method (the paper's settings on their best
+    fixed mesh per budget); legend below the axes."""
     dat = out_png[:-4] + ".dat"
     styles = {"default": (1, 7), "paper": (2, 6), "classic": (1, 5), "walk": (4, 9)}
     colours = {"constant": "#7f7f7f", "linear": "#1f77b4", "cubic": "#d62728", "hermite": "#2ca02c"}
     lines, i = [], 0
+    plotted = series("best")
     with open(dat, "w") as f:
-        for label, family, basis, _ in METHODS:
+        for label, family, basis in plotted:
             if label not in med:
                 continue
             f.write("# %s: budget seconds median_rel_l2 min max photons\n" % label)
@@ -172,7 +279,8 @@ def plot(out_png, scene, med, floor):
             colour = "#000000" if family == "classic" else ("#9467bd" if family == "walk" else colours[basis])
             estimator = {"galerkin": "Galerkin", "local": "local", "lumped": "lumped"}[DEFAULT_ESTIMATOR[basis]]
             title = {"default": "%s (defaults: %s, auto mesh, Sobol')" % (basis, estimator),
-                     "paper": "%s, paper (lumped, 16 elements, random)" % basis,
+                     "paper": "%s, paper (lumped, best fixed mesh per budget of %s elements, random)"
+                              % (basis, "/".join(str(n) for n in PAPER_MESHES[basis])),
                      "classic": "classic (constant, lumped, 16 elements, uniform origins, no events, random)",
                      "walk": "cubic, random walks (defaults)"}[family]
             lines.append("'%s' index %d using 2:3:4:5 with yerrorlines lw 2 dt %d pt %d ps 0.8 lc rgb '%s' title \"%s\" noenhanced"
@@ -180,7 +288,7 @@ def plot(out_png, scene, med, floor):
             i += 1
     lines.append("0.01 with lines lc rgb '#444444' dt 2 lw 1 title 'targets: 1 % and 0.1 %'")
     lines.append("0.001 with lines lc rgb '#444444' dt 2 lw 1 notitle")
-    smallest = min(r[3] for rows in med.values() for r in rows)
+    smallest = min(r[3] for label, _, _ in plotted if label in med for r in med[label])
     label = ""
     if 0 < floor < 0.01 * smallest:  # drawn, it would only stretch the axis: said in a label
         label = "set label 1 'reference error (estimated) %.2g: far below the plot' at graph 0.02, graph 0.04\n" % floor
@@ -224,40 +332,57 @@ def tables(d, tdir, plots=True):
     data, floors, checks = {}, {}, []
     for name in SCENES:
         out = os.path.join(d, name)
-        data[name] = load(os.path.join(out, "convergence.csv"), METHODS, BUDGETS)
+        data[name] = add_envelopes(load(out, METHODS, BUDGETS))
         floors[name] = floor_of(out)
         if plots:
             plot(os.path.join(d, name + ".png"), name, data[name], floors[name])
         checks.append(check_reference(name, data[name], floors[name]))
-    labels = [m[0] for m in METHODS if m[2] != "walk"]
-    shooting = [m for m in METHODS if m[1] != "walk"]
+    best = meshes_text()
 
     lines = []
     w = lines.append
     w("Time to a relative L2 error of B - E of 1 %% and 0.1 %% (median over %d seeds; '–': not reached by 1e7"
-      " photons), error at %s photons, and cost per photon at 1e7 photons, %s thread(s):" % (SEEDS, "1e6", THREADS))
+      " photons), error at %s photons (the median [its interquartile range over the %d seeds: the first and"
+      " third quartiles by Python's statistics.quantiles(method='inclusive'), for %d seeds the second smallest"
+      " and the second largest error]), and cost per photon at 1e7 photons, %s thread(s). 'X, paper (best of"
+      " ...)' is the paper's settings on the fixed mesh (%s) with the least median error"
+      " at each budget, chosen with hindsight, after every mesh has run at every budget: generous to the"
+      " paper. Its times to 1 %% and 0.1 %% are interpolated on those meshes' (median time, median error)"
+      " points, its error at 1e6 photons names the mesh chosen there in parentheses, and its cost per"
+      " photon is that of the mesh chosen at 1e7; 'X, paper, 16 elements' is the paper's settings on 16"
+      " elements per curve at every budget:" % (SEEDS, "1e6", SEEDS, SEEDS, THREADS, best))
     w("")
     w("| scene | method | to 1 % | to 0.1 % | error at 1e6 photons | ns per photon |")
     w("|---|---|---|---|---|---|")
     for name, med in data.items():
-        for label, family, basis, _ in shooting:
+        for label, family, basis in series("best+16"):
+            if family == "walk":
+                continue
             rows = med[label]
             at = [r for r in rows if r[0] == FIXED_BUDGET][0]
             w("| %s | %s | %s | %s | %s | %.0f |" % (nice(name), label, fmt_t(time_to(rows, 1e-2)),
-                                                     fmt_t(time_to(rows, 1e-3)), fmt_e(at[2]), cost_per_photon(rows)))
+                                                     fmt_t(time_to(rows, 1e-3)), fmt_e_iqr(at), cost_per_photon(rows)))
     w("")
     w("References (the check every comparison makes): " + "; ".join(c[1] for c in checks) + ".")
     write(tdir, "time-to-accuracy", lines)
 
     lines = []
     w = lines.append
-    w("Median relative L2 error of B - E (median solve time) per photon budget, %d seeds:" % SEEDS)
+    w("Median relative L2 error of B - E [its interquartile range over the %d seeds: the first and third"
+      " quartiles by Python's statistics.quantiles(method='inclusive'), for %d seeds the second smallest and"
+      " the second largest error] (median solve time) per photon budget. 'X, paper (best of ...)' is, at each"
+      " budget, the paper's settings on the fixed mesh with the least median error, chosen with hindsight"
+      " (generous to the paper), the mesh (elements per curve) named in parentheses before the time; the"
+      " plots draw these rows for the paper's settings, and each mesh's own row follows them:" % (SEEDS, SEEDS))
     for name, med in data.items():
         w("")
         w("| %s | %s |" % (nice(name), " | ".join(BUDGETS)))
         w("|---|%s" % ("---|" * len(BUDGETS)))
-        for label, _, _, _ in METHODS:
-            w("| %s | %s |" % (label, " | ".join("%.3g (%.2g s)" % (r[2], r[1]) for r in med[label])))
+        for label, _, _ in series("all"):
+            w("| %s | %s |" % (label, " | ".join(
+                "%.3g [%.3g–%.3g] (%s%.2g s)" % ((r[2],) + quartiles(r) + ("%d, " % mesh_of(r) if mesh_of(r) else "",
+                                                                           r[1]))
+                for r in med[label])))
     write(tdir, "time-to-accuracy-errors", lines)
 
     lines = []
@@ -284,23 +409,27 @@ def tables(d, tdir, plots=True):
     write(tdir, "walks", lines)
 
     # The README's answer: per method, the time to 1 % and to 0.1 % on each scene, the error at 1e6
-    # photons as the geometric mean over the scenes, and the cost per photon against linear's.
+    # photons as the geometric mean over the scenes, and the cost per photon against linear's (the
+    # paper's settings and classic against the paper's linear); the paper's settings on their best
+    # fixed mesh per budget.
     lines = []
     w = lines.append
     w("| method | %s | error at 1e6 photons (geometric mean) | time per photon / linear's |"
       % " | ".join(nice(n) for n in data))
     w("|---|%s---|---|" % ("---|" * len(data)))
-    for label, family, basis, _ in shooting:
+    for label, family, basis in series("best"):
+        if family == "walk":
+            continue
         cells = []
         for name, med in data.items():
             rows = med[label]
             cells.append("%s / %s" % (fmt_t(time_to(rows, 1e-2)), fmt_t(time_to(rows, 1e-3))))
         gm = math.exp(statistics.mean(math.log([r for r in med[label] if r[0] == FIXED_BUDGET][0][2])
                                       for med in data.values()))
-        base = "linear" if family == "default" else "linear, paper"
+        base = "linear" if family == "default" else envelope_label("linear")
         cost = statistics.median(cost_per_photon(med[label]) / cost_per_photon(med[base]) for med in data.values())
-        w("| %s | %s | %s | %.2fx |" % ("**%s**" % label if label == "cubic, paper" else label, " | ".join(cells),
-                                        fmt_e(gm), cost))
+        w("| %s | %s | %s | %.2fx |" % ("**%s**" % label if label == envelope_label("cubic") else label,
+                                        " | ".join(cells), fmt_e(gm), cost))
     write(tdir, "readme-answer", lines)
     write(tdir, "time-to-accuracy-findings", findings(data))
     return all(c[0] for c in checks)
@@ -311,7 +440,7 @@ def findings(data):
     names = list(data)
     out = []
     w = out.append
-    reach = {label: [n for n in names if time_to(data[n][label], 1e-3)[1] != ">"] for label, _, _, _ in METHODS}
+    reach = {label: [n for n in names if time_to(data[n][label], 1e-3)[1] != ">"] for label in data[names[0]]}
     for label in ["constant", "linear", "cubic", "hermite"]:
         w("- **%s** (defaults) reaches 0.1 %% on %s." % (
             label, ", ".join(nice(n) for n in reach[label]) if reach[label] else "no scene"))
@@ -328,15 +457,40 @@ def findings(data):
                       for n in worse))))
     ratio = statistics.median(cost_per_photon(data[n]["cubic"]) / cost_per_photon(data[n]["linear"]) for n in names)
     w("- A photon costs cubic storage %.2fx what it costs linear (median over the scenes, at 1e7 photons)." % ratio)
-    floors = [label for label, family, _, _ in METHODS if family in ("paper", "classic")]
-    stuck = [n for n in names if all(time_to(data[n][l], 1e-2)[1] == ">" for l in floors)]
-    w("- With the paper's lumped deposits on 16 fixed elements no storage reaches 1 %% on %s: the error stops "
-      "at the mesh's bias (cubic, paper, at 1e7 photons: %s)." % (
-          ", ".join(nice(n) for n in stuck) if stuck else "any scene",
-          ", ".join("%s %.2g %%" % (nice(n), 100 * data[n]["cubic, paper"][-1][2]) for n in names)))
-    gain = statistics.median(data[n]["cubic, paper"][-1][2] / data[n]["cubic"][-1][2] for n in names)
-    w("- At 1e7 photons the defaults' cubic error is %.0fx below the paper's method's (median over the scenes)."
-      % gain)
+
+    def listed(scenes):
+        return ", ".join(nice(n) for n in scenes) if scenes else "none"
+
+    sixteen = [paper_label(b, 16) for b in BASES] + ["classic"]
+    bests = [envelope_label(b) for b in BASES] + ["classic"]
+    stuck16 = [n for n in names if all(time_to(data[n][l], 1e-2)[1] == ">" for l in sixteen)]
+    stuck = [n for n in names if all(time_to(data[n][l], 1e-2)[1] == ">" for l in bests)]
+    w("- Scenes where no storage with the paper's lumped deposits (nor classic) reaches 1 %% by 1e7 photons: on 16"
+      " fixed elements per curve, %s; on its best fixed mesh per budget (%s, chosen with hindsight), %s."
+      % (listed(stuck16), meshes_text(), listed(stuck)))
+    tenth = [(b, [n for n in names if time_to(data[n][envelope_label(b)], 1e-3)[1] != ">"]) for b in BASES]
+    w("- On its best fixed mesh per budget the paper's settings reach 0.1 %% %s." % (
+        "on no scene" if not any(sc for _, sc in tenth) else "; ".join(
+            "%s on %s" % (b, listed(sc)) for b, sc in tenth if sc)))
+    i6, i7 = BUDGETS.index([b for b in BUDGETS if float(b) == FIXED_BUDGET][0]), len(BUDGETS) - 1
+    falls = [statistics.median(data[n][paper_label("cubic", m)][i6][2] / data[n][paper_label("cubic", m)][i7][2]
+                               for n in names) for m in PAPER_MESHES["cubic"]]
+    w("- From %s to %s photons the median error of cubic, paper falls by a factor of %s on %s elements per curve"
+      " (medians over the scenes; noise alone would fall by %.1f, a mesh's bias not at all)." % (
+          BUDGETS[i6], BUDGETS[i7], ", ".join("%.1f" % f for f in falls),
+          ", ".join(str(m) for m in PAPER_MESHES["cubic"]), math.sqrt(float(BUDGETS[i7]) / float(BUDGETS[i6]))))
+    w("- The best fixed mesh of cubic, paper at %s photons: %s." % (
+        ", ".join(BUDGETS), "; ".join("%s %s" % (nice(n), "/".join(str(mesh_of(r))
+                                                                   for r in data[n][envelope_label("cubic")]))
+                                      for n in names)))
+    w("- Cubic, paper at %s photons on its best fixed mesh against 16 elements: %s." % (
+        BUDGETS[-1], ", ".join("%s %.2g %% (%d elements) against %.2g %%" % (
+            nice(n), 100 * data[n][envelope_label("cubic")][-1][2], mesh_of(data[n][envelope_label("cubic")][-1]),
+            100 * data[n][paper_label("cubic", 16)][-1][2]) for n in names)))
+    gain = statistics.median(data[n][envelope_label("cubic")][-1][2] / data[n]["cubic"][-1][2] for n in names)
+    gain16 = statistics.median(data[n][paper_label("cubic", 16)][-1][2] / data[n]["cubic"][-1][2] for n in names)
+    w("- At %s photons the defaults' cubic error is %.0fx below the paper's method's on its best fixed mesh, %.0fx"
+      " below it on 16 elements (medians over the scenes)." % (BUDGETS[-1], gain, gain16))
     return out
 
 
@@ -417,17 +571,21 @@ def printed(text, digits):
 
 
 def quick_cells(tdir, name, label, budget):
-    """The numbers of the Markdown tables that state this run's median error: (table, its cell or
-    None, the text the table's script writes for a median, significant digits)."""
+    """The numbers of the Markdown tables that state this run's median error: (table, its cell's
+    median (median_text) or None, the text the table's script writes for a median, significant
+    digits)."""
     column = [b for b in BUDGETS if float(b) == budget][0]
+    def median(text):  # a cell's median: without its interquartile range ' [...]' and its ' (...)'
+        return text and median_text(text)
+
     errors = cell(os.path.join(tdir, "time-to-accuracy-errors.md"), nice(name), (label,), column)
-    out = [("time-to-accuracy-errors.md", errors and errors.split(" (")[0], lambda e: "%.3g" % e, 3)]
+    out = [("time-to-accuracy-errors.md", median(errors), lambda e: "%.3g" % e, 3)]
     if budget == FIXED_BUDGET:
-        out.append(("time-to-accuracy.md", cell(os.path.join(tdir, "time-to-accuracy.md"), None,
-                                                (nice(name), label), "error at 1e6 photons"), fmt_e, 2))
+        out.append(("time-to-accuracy.md", median(cell(os.path.join(tdir, "time-to-accuracy.md"), None,
+                                                       (nice(name), label), "error at 1e6 photons")), fmt_e, 2))
         if label == "cubic":
-            out.append(("walks.md", cell(os.path.join(tdir, "walks.md"), None, (nice(name), "shooting"),
-                                         "error at 1e6"), fmt_e, 2))
+            out.append(("walks.md", median(cell(os.path.join(tdir, "walks.md"), None, (nice(name), "shooting"),
+                                                "error at 1e6")), fmt_e, 2))
     return out
 
 
@@ -456,14 +614,14 @@ def compare_quick(d, scratch, tdir):
     bad = 0
     methods = [m for m in METHODS if m[0] in QUICK_METHODS]
     for name in QUICK_SCENES:
-        full = load(os.path.join(d, name, "convergence.csv"), METHODS, BUDGETS)
-        quick = load(os.path.join(scratch, name, "convergence.csv"), methods, QUICK_BUDGETS)
+        full = load(os.path.join(d, name), METHODS, BUDGETS)
+        quick = load(os.path.join(scratch, name), methods, QUICK_BUDGETS)
         for label in QUICK_METHODS:
             for q in quick[label]:
                 f = [r for r in full[label] if r[0] == q[0]][0]
                 same = q[6] == f[6]
                 differ = sum(q[6].get(seed) != e for seed, e in f[6].items())
-                head = "  %-15s %-13s %-6g " % (name, label, q[0])
+                head = "  %-15s %-25s %-6g " % (name, label, q[0])
                 parts = []
                 if same:
                     head += "%d seeds: the committed bits; median %.4g:" % (len(f[6]), q[2])
