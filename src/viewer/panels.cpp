@@ -697,12 +697,20 @@ std::vector<PlotLine> plot_lines(const Snapshot& snapshot, std::size_t c, const 
   return lines;
 }
 
+// On colour scenes the plots draw r, g and b, each in its colour (a spectrum is invisible in
+// their mean); on grey scenes the one channel.
+constexpr ImU32 kChannelColours[3] = {IM_COL32(240, 85, 75, 255), IM_COL32(95, 205, 95, 255),
+                                      IM_COL32(100, 150, 255, 255)};
+
+// The largest value a plot draws of a sample: the largest channel on colour scenes.
+double plotted_top(const Spectrum& b, int channels) { return channels == 3 ? std::max({b[0], b[1], b[2]}) : b[0]; }
+
 // The B at the top of the plot: a tenth above the highest B of the lines and the reference, 1 when
 // none is above zero.
 double plot_top(const std::vector<PlotLine>& lines, const std::vector<std::array<double, 2>>* reference, int channels) {
   double hi = 0.0;
   for (const PlotLine& line : lines)
-    for (const Spectrum& b : *line.samples) hi = std::max(hi, luminance(b, channels));
+    for (const Spectrum& b : *line.samples) hi = std::max(hi, plotted_top(b, channels));
   if (reference != nullptr)
     for (const auto& point : *reference) hi = std::max(hi, point[1]);
   hi = hi > 0.0 ? 1.1 * hi : 1.0;
@@ -711,24 +719,49 @@ double plot_top(const std::vector<PlotLine>& lines, const std::vector<std::array
 }
 
 // Legend: each line's side, the reference's side and the marks of the nodes below C1.
-void draw_plot_legend(const std::vector<PlotLine>& lines, bool reference, int main_side) {
-  for (std::size_t i = 0; i < lines.size(); ++i) {
-    if (i > 0) ImGui::SameLine();
-    ImGui::TextColored(ImGui::ColorConvertU32ToFloat4(lines[i].colour), "-- %s%s", lines[i].name,
-                       lines.size() == 1 ? " side" : "");
+// One entry of a legend: on the line of the previous one when it fits, else on the next line (a
+// legend on one line ran past narrow panels at large ui scales).
+void legend_entry(const ImVec4& colour, const std::string& text, bool first, float spacing = -1.0f) {
+  if (!first) {
+    ImGui::SameLine(0.0f, spacing);
+    if (ImGui::GetContentRegionAvail().x < ImGui::CalcTextSize(text.c_str()).x) ImGui::NewLine();
   }
-  if (reference) {
-    ImGui::SameLine();
-    ImGui::TextColored(ImVec4(0.47f, 0.86f, 0.47f, 1.0f), "-- reference (%s)", main_side == 0 ? "front" : "back");
+  ImGui::TextColored(colour, "%s", text.c_str());
+}
+
+void draw_plot_legend(const std::vector<PlotLine>& lines, bool reference, int main_side, int channels) {
+  bool first = true;
+  if (channels == 3) {
+    // Colour: a line per channel in its colour; the second side's lines dashed.
+    for (std::size_t ch = 0; ch < 3; ++ch) {
+      legend_entry(ImGui::ColorConvertU32ToFloat4(kChannelColours[ch]),
+                   ch == 0   ? "-- r"
+                   : ch == 1 ? "g"
+                             : "b",
+                   first, 5.0f);
+      first = false;
+    }
+    for (std::size_t i = 0; i < lines.size(); ++i)
+      legend_entry(ImGui::ColorConvertU32ToFloat4(lines[i].colour),
+                   std::string(lines.size() == 1 ? ""
+                               : i == 0          ? "solid: "
+                                                 : "dashed: ") +
+                       lines[i].name + (lines.size() == 1 ? " side" : ""),
+                   false);
+  } else {
+    for (const PlotLine& line : lines) {
+      legend_entry(ImGui::ColorConvertU32ToFloat4(line.colour),
+                   std::string("-- ") + line.name + (lines.size() == 1 ? " side" : ""), first);
+      first = false;
+    }
   }
-  if (!lines.empty() && lines[0].band != nullptr) {
-    ImGui::SameLine();
-    ImGui::TextColored(ImVec4(0.75f, 0.75f, 0.75f, 1.0f), "band: +- estimated error");
-  }
-  ImGui::SameLine();
-  ImGui::TextColored(ImVec4(0.8f, 0.35f, 0.35f, 1.0f), "| C-1");
-  ImGui::SameLine();
-  ImGui::TextColored(ImVec4(0.6f, 0.6f, 0.6f, 1.0f), "| C0");
+  if (reference)
+    legend_entry(ImVec4(0.47f, 0.86f, 0.47f, 1.0f),
+                 std::string("-- reference (") + (main_side == 0 ? "front" : "back") + ")", first);
+  if (!lines.empty() && lines[0].band != nullptr)
+    legend_entry(ImVec4(0.75f, 0.75f, 0.75f, 1.0f), "band: +- estimated error", false);
+  legend_entry(ImVec4(0.8f, 0.35f, 0.35f, 1.0f), "| C-1", false);
+  legend_entry(ImVec4(0.6f, 0.6f, 0.6f, 1.0f), "| C0", false);
 }
 
 // Where the newest journey's hops landed on curve `c` (its deposits).
@@ -823,10 +856,22 @@ void draw_plot_lines(const PlotArea& plot, const std::vector<PlotLine>& lines, c
                                plot.point(trace.s[i], b1 - w1), plot.point(trace.s[i - 1], b0 - w0), fill);
     }
   }
-  for (const PlotLine& line : lines)
-    for (std::size_t i = 1; i < line.samples->size(); ++i)
-      plot.draw->AddLine(plot.point(trace.s[i - 1], luminance((*line.samples)[i - 1], channels)),
-                         plot.point(trace.s[i], luminance((*line.samples)[i], channels)), line.colour, 1.5f);
+  for (std::size_t l = 0; l < lines.size(); ++l) {
+    const PlotLine& line = lines[l];
+    if (channels != 3) {
+      for (std::size_t i = 1; i < line.samples->size(); ++i)
+        plot.draw->AddLine(plot.point(trace.s[i - 1], luminance((*line.samples)[i - 1], channels)),
+                           plot.point(trace.s[i], luminance((*line.samples)[i], channels)), line.colour, 1.5f);
+      continue;
+    }
+    // Colour: r, g and b; the second side's lines dashed (every other pair of samples).
+    for (std::size_t ch = 0; ch < 3; ++ch)
+      for (std::size_t i = 1; i < line.samples->size(); ++i) {
+        if (l > 0 && (i / 2) % 2 == 1) continue;
+        plot.draw->AddLine(plot.point(trace.s[i - 1], (*line.samples)[i - 1][ch]),
+                           plot.point(trace.s[i], (*line.samples)[i][ch]), kChannelColours[ch], 1.5f);
+      }
+  }
 }
 
 // The newest journey's deposits: numbered as on the stage and coloured by bounce, a triangle on the
@@ -884,7 +929,7 @@ void Viewer::draw_curve_plot(const Snapshot& snapshot, std::size_t c, bool capti
       c < snapshot.reference_curves.size() && !snapshot.reference_curves[c].empty() ? &snapshot.reference_curves[c]
                                                                                     : nullptr;
   const double hi = plot_top(lines, reference, scene_->channels);
-  draw_plot_legend(lines, reference != nullptr, main_side);
+  draw_plot_legend(lines, reference != nullptr, main_side, scene_->channels);
   // Where the newest journey's hops landed on this curve (its deposits): hop number and record.
   Landings landings;
   if (draw_.paths && draw_.journey) landings = journey_landings(snapshot, c);
@@ -910,7 +955,7 @@ void Viewer::draw_curve_plot(const Snapshot& snapshot, std::size_t c, bool capti
         "Triangles: where the newest journey's hops (numbered as on the stage) landed on this "
         "curve and left their deposits.");
   ImGui::TextWrapped("B (power per unit length) against s (arc length from the first point)%s",
-                     scene_->channels == 3 ? "; mean of r, g, b" : "");
+                     scene_->channels == 3 ? "; r, g and b in their colours" : "");
 }
 
 // A detector's tallies as steps, one per bin: the power per unit length that crossed it arriving on
@@ -921,7 +966,7 @@ void Viewer::draw_detector_plot(const Snapshot& snapshot, std::size_t c, bool ca
   const auto& sides = snapshot.detected[c];
   double hi = 0.0;
   for (const auto& side : sides)
-    for (const Spectrum& value : side) hi = std::max(hi, luminance(value, channels));
+    for (const Spectrum& value : side) hi = std::max(hi, plotted_top(value, channels));
   hi = hi > 0.0 && std::isfinite(hi) ? 1.1 * hi : 1.0;
   ImDrawList* draw = ImGui::GetWindowDrawList();
   const float text = ImGui::GetTextLineHeight();
@@ -934,23 +979,30 @@ void Viewer::draw_detector_plot(const Snapshot& snapshot, std::size_t c, bool ca
   draw_plot_axes(plot);
   draw->PushClipRect(plot.lo, plot.hi_corner, true);
   const ImU32 colours[2] = {IM_COL32(255, 190, 70, 255), IM_COL32(110, 170, 255, 255)};
+  // Grey: one step line a side; colour: r, g and b in their colours, the back's thinner.
   for (std::size_t side = 0; side < 2; ++side) {
     const std::vector<Spectrum>& bins = sides[side];
     const double width = curve.length / static_cast<double>(bins.size());
-    for (std::size_t b = 0; b < bins.size(); ++b) {
-      const double value = luminance(bins[b], channels);
-      const double s0 = width * static_cast<double>(b), s1 = s0 + width;
-      draw->AddLine(plot.point(s0, value), plot.point(s1, value), colours[side], 1.5f);
-      if (b + 1 < bins.size())
-        draw->AddLine(plot.point(s1, value), plot.point(s1, luminance(bins[b + 1], channels)), colours[side], 1.0f);
+    for (std::size_t ch = 0; ch < (channels == 3 ? 3u : 1u); ++ch) {
+      const ImU32 colour = channels == 3 ? kChannelColours[ch] : colours[side];
+      const float thickness = channels == 3 && side == 1 ? 0.8f : 1.5f;
+      auto value_of = [&](const Spectrum& bin) { return channels == 3 ? bin[ch] : luminance(bin, channels); };
+      for (std::size_t b = 0; b < bins.size(); ++b) {
+        const double value = value_of(bins[b]);
+        const double s0 = width * static_cast<double>(b), s1 = s0 + width;
+        draw->AddLine(plot.point(s0, value), plot.point(s1, value), colour, thickness);
+        if (b + 1 < bins.size())
+          draw->AddLine(plot.point(s1, value), plot.point(s1, value_of(bins[b + 1])), colour, 0.7f * thickness);
+      }
     }
   }
   draw->PopClipRect();
   if (!captions) return;
   ImGui::TextWrapped(
-      "Power per unit length that crossed each of the detector's bins, arriving on its front (orange) and on its "
-      "back (blue), against s%s",
-      channels == 3 ? "; mean of r, g, b" : "");
+      "Power per unit length that crossed each of the detector's bins, arriving on its front (%s) and on its "
+      "back (%s), against s%s",
+      channels == 3 ? "thick lines" : "orange", channels == 3 ? "thin lines" : "blue",
+      channels == 3 ? "; r, g and b in their colours: the detector's spectrum" : "");
 }
 
 void Viewer::draw_help_panel() {
