@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <numeric>
 
 namespace flatland::viewer {
@@ -138,6 +139,37 @@ PathRecord path_record(const PhotonPath& path, const Scene& scene, std::uint64_t
                     path.escaped, path.absorbed, path.cut, path.hit_curve, path.hit_side, path.hit_s};
   if (path.escaped) record.to = box_exit(scene, path.origin, path.end - path.origin);
   return record;
+}
+
+std::array<float, 4> optics_colour(Optics optics) {
+  switch (optics) {
+    case Optics::Mirror: return {0.6f, 0.75f, 1.0f, 1.0f};
+    case Optics::Dielectric: return {0.35f, 0.95f, 1.0f, 1.0f};
+    case Optics::Detector: return {0.35f, 1.0f, 0.45f, 1.0f};
+    case Optics::Diffuse: break;
+  }
+  return {0.85f, 0.85f, 0.85f, 1.0f};
+}
+
+std::string material_words(const Scene& scene, const Curve& curve) {
+  const Material& material = scene.material_of(curve);
+  char text[128];
+  switch (material.optics) {
+    case Optics::Mirror: std::snprintf(text, sizeof text, "mirror"); break;
+    case Optics::Dielectric:
+      std::snprintf(text, sizeof text, "glass, n %.3g at %.0f nm", material.ior.at(kGreyWavelength),
+                    1000.0 * kGreyWavelength);
+      break;
+    case Optics::Detector: std::snprintf(text, sizeof text, "detector, %u bins", material.detector_bins); break;
+    case Optics::Diffuse:
+      if (scene.channels == 1)
+        std::snprintf(text, sizeof text, "diffuse, rho %.3g", material.reflectivity[0]);
+      else
+        std::snprintf(text, sizeof text, "diffuse, rho %.3g %.3g %.3g", material.reflectivity[0],
+                      material.reflectivity[1], material.reflectivity[2]);
+      break;
+  }
+  return std::string(text) + (scene.is_emitter(curve) ? ", emits" : "");
 }
 
 double luminance(const Spectrum& b, int channels) {
@@ -372,17 +404,8 @@ std::vector<LineVertex> build_overlay(const Snapshot& snapshot, const DrawOption
       std::vector<Vec2> zero(n, Vec2{0.0, 0.0});
       // Mirrors steel blue and thicker, glass cyan, detectors green; diffuse curves light grey.
       const Optics optics = c < scene.curves.size() ? scene.material_of(scene.curves[c]).optics : Optics::Diffuse;
-      std::array<float, 4> colour{0.85f, 0.85f, 0.85f, 1.0f};
-      float width = 2.0f;
-      if (optics == Optics::Mirror) {
-        colour = {0.6f, 0.75f, 1.0f, 1.0f};
-        width = 3.5f;
-      } else if (optics == Optics::Dielectric) {
-        colour = {0.35f, 0.95f, 1.0f, 1.0f};
-        width = 2.5f;
-      } else if (optics == Optics::Detector) {
-        colour = {0.35f, 1.0f, 0.45f, 1.0f};
-      }
+      std::array<float, 4> colour = optics_colour(optics);
+      const float width = optics == Optics::Mirror ? 3.5f : optics == Optics::Dielectric ? 2.5f : 2.0f;
       if (selected) colour = {1.0f, 0.85f, 0.3f, 1.0f};
       out.stroke(trace.points, zero, selected ? width + 1.0f : width, colour);
     }

@@ -179,6 +179,13 @@ enum class ChannelView { All, Red, Green, Blue };
 // The colour of round or bounce `index` (six saturated colours, repeating).
 std::array<float, 3> path_palette(std::uint32_t index);
 
+// The colour a curve of these optics is drawn in on the stage (mirrors steel blue, glass cyan,
+// detectors green, diffuse light grey), shared by the stage and the materials' legend.
+std::array<float, 4> optics_colour(Optics optics);
+// A curve's material in a few words for a legend or a tooltip: "mirror", "glass, n 1.62 at 588 nm",
+// "detector, 60 bins", "diffuse, rho 0.7", with ", emits" for an emitter.
+std::string material_words(const Scene& scene, const Curve& curve);
+
 struct DrawOptions {
   bool curves = true;
   bool band = true;  // colour-mapped band of B along each lit side

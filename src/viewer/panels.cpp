@@ -400,6 +400,29 @@ void Viewer::draw_colour_key(const Snapshot& snapshot) {
                          : "scale: the 99th percentile of B off the emitters, %.3g",
                      range);
   ImGui::PopStyleColor();
+  draw_materials_legend(*snapshot.scene);
+}
+
+// The materials that hold no light, in the colours the stage draws them in: each mirror, glass
+// (with its index) and detector material once, on one line (the key strip keeps a line for it).
+void Viewer::draw_materials_legend(const Scene& scene) {
+  if (!scene.has_specular()) return;
+  std::vector<std::uint32_t> shown;  // material indices
+  bool first = true;
+  for (const Curve& curve : scene.curves) {
+    const Material& material = scene.material_of(curve);
+    if (material.optics == Optics::Diffuse) continue;
+    if (std::find(shown.begin(), shown.end(), curve.material) != shown.end()) continue;
+    shown.push_back(curve.material);
+    const std::array<float, 4> c = optics_colour(material.optics);
+    const std::string words = "-- " + material.name + ": " + material_words(scene, curve);
+    if (!first) {
+      ImGui::SameLine();
+      if (ImGui::GetContentRegionAvail().x < ImGui::CalcTextSize(words.c_str()).x) break;  // one line only
+    }
+    ImGui::TextColored(ImVec4(c[0], c[1], c[2], c[3]), "%s", words.c_str());
+    first = false;
+  }
 }
 
 void Viewer::draw_display_panel() {

@@ -477,10 +477,13 @@ void Viewer::handle_events() {
   const float font =
       (imgui_io.Fonts->Fonts.empty() ? 13.0f : imgui_io.Fonts->Fonts[0]->FontSize) * imgui_io.FontGlobalScale;
   const float menu = options_.show_ui ? font + 2.0f * ImGui::GetStyle().FramePadding.y : 0.0f;
-  // The key's strip: its caption, the colour bar with its tick labels, and a note of up to two lines.
-  const float key = options_.show_ui && (draw_.band || draw_.graph)
-                        ? 5.0f * (font + ImGui::GetStyle().ItemSpacing.y) + 2.0f * ImGui::GetStyle().WindowPadding.y
-                        : 0.0f;
+  // The key's strip: its caption, the colour bar with its tick labels, a note of up to two lines,
+  // and on scenes with mirrors, glass or detectors their legend.
+  const float key_lines = scene_->has_specular() ? 6.0f : 5.0f;
+  const float key =
+      options_.show_ui && (draw_.band || draw_.graph)
+          ? key_lines * (font + ImGui::GetStyle().ItemSpacing.y) + 2.0f * ImGui::GetStyle().WindowPadding.y
+          : 0.0f;
   const StageLayout layout =
       stage_layout(width, height, options_.ui_scale, options_.show_ui && panels_visible_ && !presentation_, menu, key);
   if (!(layout.stage == layout_.stage) && view_auto_) view_fitted_ = false;
@@ -559,6 +562,14 @@ void Viewer::handle_scene_mouse(const Snapshot& snapshot) {
           best = d;
           hovered_point_ = static_cast<int>(i);
         }
+      }
+    }
+    // The curve under the mouse names itself and its material (click to inspect it).
+    if (hovered_point_ < 0 && dragging_point_ < 0 && !panning_ && snapshot.traces) {
+      if (const auto under = pick_curve(*snapshot.traces, view_, mouse); under && *under < scene_->curves.size()) {
+        const Curve& curve = scene_->curves[*under];
+        ImGui::SetTooltip("curve %u '%s': %s\n(click to inspect it)", *under, curve.id.c_str(),
+                          material_words(*scene_, curve).c_str());
       }
     }
     if (ImGui::IsMouseClicked(ImGuiMouseButton_Left)) {
