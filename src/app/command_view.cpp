@@ -59,6 +59,9 @@ CLI::App* add_view_command(CLI::App& parent, ViewCommandOptions& o) {
   cmd->add_flag("--present", o.present,
                 "Start in presentation mode (M): the stage fills the window, with the photon counter, the "
                 "inspected curve's B(s) and the colour key on it");
+  cmd->add_flag("--first-photons", o.first_photons,
+                "Start with the First photons lecture preset (key 1): random walks shot one at a time, a new "
+                "one every 0.8 s, coloured by bounce, the newest journey on top (Space runs on, '.' steps)");
   cmd->add_option("--ui-scale", o.ui_scale,
                   "Size of the panels' text and widgets, and of their columns (1.5-2 for a projector)")
       ->capture_default_str()
@@ -114,6 +117,7 @@ std::optional<int> make_view_options(ViewCommandOptions& o, viewer::ViewOptions&
   options.path_fade = o.fade;
   options.show_ui = !o.no_ui;
   options.present = o.present;
+  options.first_photons = o.first_photons;
   options.ui_scale = o.ui_scale;
   options.vsync = !o.no_vsync;
   options.max_fps = o.max_fps;

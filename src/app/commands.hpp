@@ -153,6 +153,7 @@ struct ViewCommandOptions {
   float fade = 1.0f;
   bool no_ui = false;
   bool present = false;
+  bool first_photons = false;
   float ui_scale = 1.0f;
   bool no_vsync = false;
   int max_fps = 0;

@@ -231,6 +231,10 @@ Status Viewer::start_session(const ViewOptions& options, const std::shared_ptr<c
   std::snprintf(budget, sizeof budget, "%g", static_cast<double>(settings_.photons));
   budget_text_ = budget;
   restart();
+  if (options.first_photons) {
+    first_photons();  // restarts with walks and steps one photon at a time (the preset's own pace)
+    return ok_status();
+  }
   if (frame_step_.mode == FrameStep::Mode::Live && !options.paused) session_->set_running(true);
   return ok_status();
 }

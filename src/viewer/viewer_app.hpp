@@ -44,7 +44,8 @@ struct ViewOptions {
   float path_exposure = 1.0f;
   float path_fade = 1.0f;  // 0: every kept path equally bright; 1: the oldest fade to about 5 %
   bool show_ui = true;
-  bool present = false;  // start in presentation mode
+  bool present = false;        // start in presentation mode
+  bool first_photons = false;  // start with the First photons lecture preset (key 1)
   // Size of the panels' text and widgets (and their columns): 1 at a desk, 1.5-2 on a projector.
   float ui_scale = 1.0f;
   bool vsync = true;
@@ -126,6 +127,8 @@ class Viewer {
   void first_photons();
   static constexpr double kFirstPhotonsSeconds = 0.8;
   bool slow_stepping() const { return slow_stepping_; }
+  // What a link to this view carries besides the solve settings (the web page's Copy link).
+  std::size_t paths_kept() const { return static_cast<std::size_t>(keep_slider_); }
   // Opens another scene file (as File > Open scene does); a file that does not load leaves the
   // scene as it was, and its one-line error is the result (and the status panel's message).
   Status open_scene(const std::string& path);

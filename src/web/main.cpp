@@ -46,8 +46,9 @@ EMSCRIPTEN_KEEPALIVE void flatland_resize(int width, int height) {
 }
 
 // The viewer's state as URL parameters (Copy link): every solve option that differs from its
-// default, the inspected curve and presentation mode, as "name=value&..." (values URL-safe: the
-// options' texts are names and numbers).
+// default, the inspected curve, presentation mode, the First photons preset, and the paths'
+// colouring and count, as "name=value&..." (values URL-safe: the options' texts are names and
+// numbers).
 EMSCRIPTEN_KEEPALIVE const char* flatland_state_query() {
   static std::string query;
   query.clear();
@@ -66,6 +67,15 @@ EMSCRIPTEN_KEEPALIVE const char* flatland_state_query() {
   if (curve >= 0 && static_cast<std::size_t>(curve) < the_viewer->scene().curves.size())
     query += (query.empty() ? "select=" : "&select=") + std::to_string(curve);
   if (the_viewer->presentation()) query += query.empty() ? "present=1" : "&present=1";
+  // A lesson's view: the First photons preset while it steps, and the paths' colouring and count
+  // where they differ from the defaults (view::ViewOptions).
+  auto add = [&](const std::string& item) { query += (query.empty() ? "" : "&") + item; };
+  if (the_viewer->slow_stepping()) add("first-photons=1");
+  const viewer::ViewOptions view_defaults;
+  if (the_viewer->paths_kept() != view_defaults.keep_paths)
+    add("keep-paths=" + std::to_string(the_viewer->paths_kept()));
+  if (the_viewer->path_colour() == viewer::PathColour::Round) add("colour-by=round");
+  if (the_viewer->path_colour() == viewer::PathColour::Bounce && !the_viewer->slow_stepping()) add("colour-by=bounce");
   return query.c_str();
 }
 

@@ -434,6 +434,25 @@ TEST_F(Viewer, FirstPhotonsPresetStepsWalksSlowly) {
   EXPECT_FALSE(viewer.slow_stepping());
 }
 
+// A lesson from a link: --first-photons (the web page's first-photons=1) starts in the preset, as
+// pressing 1 does, and the command line accepts it.
+TEST_F(Viewer, FirstPhotonsOptionStartsInThePreset) {
+  ViewOptions options = paused_window("room_reflector.json", 10'000);
+  options.first_photons = true;
+  Result<std::unique_ptr<viewer::Viewer>> created = create_window(options);
+  ASSERT_TRUE(created) << created.error().message;
+  viewer::Viewer& viewer = **created;
+  EXPECT_EQ(viewer.settings().transport, Transport::Walk);
+  EXPECT_EQ(viewer.path_colour(), PathColour::Bounce);
+  EXPECT_EQ(viewer.paths_kept(), 24u);
+  EXPECT_TRUE(viewer.slow_stepping());
+  frames_until(
+      viewer, [&] { return viewer.session().snapshot()->progress.photons >= 1; }, 100'000);
+  EXPECT_GE(viewer.session().snapshot()->progress.photons, 1u);
+  const CommandRun help = run("view --help");
+  EXPECT_NE(help.out.find("--first-photons"), std::string::npos);
+}
+
 // Stepping walks one photon a frame draws the newest journey over the kept paths: each of its hops
 // in its bounce's colour (sampled a third of the way along, away from the arrowhead).
 TEST_F(Viewer, SteppedWalksDrawTheNewestJourney) {

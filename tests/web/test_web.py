@@ -240,3 +240,18 @@ def test_presentation_mode_fills_a_projector(page, tmp_path):
         return bar[-1] > bar[0] + 100 and all(b >= a - 8 for a, b in zip(bar, bar[1:]))
 
     assert any(ramp(y) for y in range(int(0.75 * len(rows)), len(rows)))
+
+
+def test_every_lesson_link_opens_its_lesson(page, tmp_path):
+    # docs/web.md's lesson links: each loads without the command line's error in the page (the
+    # status line stays empty), First photons included (first-photons=1, the flag --first-photons).
+    text = open(os.path.join(SOURCE, "docs", "web.md")).read()
+    links = re.findall(r"`index\.html\?([^`]+)`", text.split("## Lesson links", 1)[1].split("\n## ", 1)[0])
+    assert len(links) >= 8
+    for query in links:
+        dom = chromium(tmp_path, f"{page['url']}?{query}", "--dump-dom", budget=4000)
+        assert not element(dom, "div", "status").startswith("flatland: error"), query
+    # The check sees a broken lesson: a value the viewer refuses is the page's error.
+    dom = chromium(tmp_path, f"{page['url']}?scene=default&first-photons=1&colour-by=rainbow", "--dump-dom",
+                   budget=4000)
+    assert element(dom, "div", "status").startswith("flatland: error: --colour-by"), dom
