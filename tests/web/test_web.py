@@ -255,3 +255,15 @@ def test_every_lesson_link_opens_its_lesson(page, tmp_path):
     dom = chromium(tmp_path, f"{page['url']}?scene=default&first-photons=1&colour-by=rainbow", "--dump-dom",
                    budget=4000)
     assert element(dom, "div", "status").startswith("flatland: error: --colour-by"), dom
+
+
+def test_an_error_page_offers_a_way_on(page, tmp_path):
+    # A link the viewer refuses: the message names the page's help, not a command a browser user
+    # cannot run, and the page offers the scene with its defaults, the default scene and the menu.
+    dom = chromium(tmp_path, f"{page['url']}?scene=prism&colour-by=rainbow", "--dump-dom", budget=4000)
+    status = element(dom, "div", "status")
+    assert status.startswith("flatland: error: --colour-by"), status
+    assert "flatland view --help" not in status and "the page's help" in status, status
+    assert 'id="recover-defaults" href="?scene=prism"' in dom
+    assert 'id="recover" style="display: block;"' in dom
+    assert re.search(r'<select id="scenes"[^>]*>.*<option value="/scenes2d/penumbra.json">penumbra</option>', dom, re.S)
