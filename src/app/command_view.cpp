@@ -57,8 +57,8 @@ CLI::App* add_view_command(CLI::App& parent, ViewCommandOptions& o) {
       ->check(finite_range(1e-3, 1e3));
   cmd->add_flag("--no-ui", o.no_ui, "Hide the panels");
   cmd->add_flag("--present", o.present,
-                "Start in presentation mode (M): the stage fills the window, with the photon counter, the "
-                "inspected curve's B(s) and the colour key on it");
+                "Start in presentation mode (M): no panels; the photon counter above the stage, the inspected "
+                "curve's B(s) beside it and the colour key under it, none on it");
   cmd->add_flag("--first-photons", o.first_photons,
                 "Start with the First photons lecture preset (key 1): random walks shot one at a time, a new "
                 "one every 0.8 s, coloured by bounce, the newest journey on top (Space runs on, '.' steps)");

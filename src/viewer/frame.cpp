@@ -58,6 +58,23 @@ StageLayout stage_layout(int width, int height, float ui_scale, bool panels, flo
   return layout;
 }
 
+StageLayout presentation_layout(int width, int height, float menu_height, float key_height, float counter_height,
+                                float plot_width) {
+  const auto w = static_cast<float>(std::max(width, 1));
+  const auto h = static_cast<float>(std::max(height, 1));
+  const float top = std::clamp(menu_height, 0.0f, h);
+  const float key = std::clamp(key_height, 0.0f, (h - top) / 3.0f);
+  const float counter = std::clamp(counter_height, 0.0f, (h - top) / 4.0f);
+  const float plot = std::floor(std::clamp(plot_width, 0.0f, 0.45f * w));
+  StageLayout layout;
+  layout.left = {0.0f, top, 0.0f, h};
+  layout.right = {w - plot, top, w, h};
+  layout.counter = {0.0f, top, w - plot, top + counter};
+  layout.stage = {0.0f, top + counter, w - plot, h - key};
+  layout.key = {0.0f, h - key, w - plot, h};
+  return layout;
+}
+
 ViewTransform fit_view(const Box& bounds, int width, int height, const PixelRect& stage, double margin) {
   // Fit to the stage as if it were the window, then move the centre so that the stage's centre,
   // not the window's, shows the scene's.

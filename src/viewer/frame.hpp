@@ -61,13 +61,20 @@ struct StageLayout {
   PixelRect left;
   PixelRect right;
   PixelRect stage;
-  PixelRect key;  // under the stage, as wide: the colour key (empty without one)
+  PixelRect key;      // under the stage, as wide: the colour key (empty without one)
+  PixelRect counter;  // presentation mode: the photon counter's band over the stage (else empty)
 };
 // The window below the menu: the panels' columns at the sides (none without `panels`; together at
 // most 60 % of the width), the stage between them, and a strip `key_height` high under the stage
 // for the colour key, so that the key is always in view.
 StageLayout stage_layout(int width, int height, float ui_scale, bool panels, float menu_height,
                          float key_height = 0.0f);
+// Presentation mode (M), for a projector: the photon counter in a band `counter_height` high above
+// the stage, the inspected curve's B(s) in a column `plot_width` wide at the right (none at 0, and
+// at most 45 % of the width) and the key's strip under the stage: the stage takes the rest, so
+// nothing is drawn over the scene (`right` is the plot's column).
+StageLayout presentation_layout(int width, int height, float menu_height, float key_height, float counter_height,
+                                float plot_width);
 
 // The whole of `bounds` inside `stage` of a width x height window, with a margin of `margin` of the
 // stage's smaller side.

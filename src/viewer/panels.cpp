@@ -29,7 +29,7 @@ const char* const kHelp[][2] = {
     {"Backspace", "reset (restart the solve)"},
     {"F", "fit the scene to the stage (the space between the panels)"},
     {"Tab", "hide or show the panels (the scene takes the whole window)"},
-    {"M", "presentation mode: the stage fills the window, with the counter, B(s) and the key on it"},
+    {"M", "presentation mode: the stage takes the window, with the counter above, B(s) beside, the key under it"},
     {"C", "show control points (drag them to edit)"},
     {"N", "show storage nodes"},
     {"G", "graph of B along the normals"},
@@ -512,12 +512,11 @@ void Viewer::draw_key_strip(const Snapshot& snapshot) {
   ImGui::End();
 }
 
-// Presentation mode: the photon counter, large, at the stage's top left.
+// Presentation mode: the photon counter, large, in its band above the stage.
 void Viewer::draw_counter_overlay(const Snapshot& snapshot) {
-  const float gap = 8.0f * options_.ui_scale;
-  ImGui::SetNextWindowPos(ImVec2(layout_.stage.x0 + gap, layout_.stage.y0 + gap), ImGuiCond_Always);
-  ImGui::SetNextWindowBgAlpha(0.55f);
-  ImGui::Begin("##counter", nullptr, kOverlay | ImGuiWindowFlags_AlwaysAutoResize | ImGuiWindowFlags_NoInputs);
+  ImGui::SetNextWindowPos(ImVec2(layout_.counter.x0, layout_.counter.y0), ImGuiCond_Always);
+  ImGui::SetNextWindowSize(ImVec2(layout_.counter.width(), layout_.counter.height()), ImGuiCond_Always);
+  ImGui::Begin("##counter", nullptr, kOverlay | ImGuiWindowFlags_NoInputs | ImGuiWindowFlags_NoScrollbar);
   record_panel("Counter");
   ImGui::SetWindowFontScale(1.5f);
   const char* state = snapshot.stop_reason != StopReason::Running ? "finished"
@@ -528,14 +527,11 @@ void Viewer::draw_counter_overlay(const Snapshot& snapshot) {
   ImGui::End();
 }
 
-// Presentation mode: the inspected curve's B(s) over the stage's bottom right corner.
+// Presentation mode: the inspected curve's B(s) in its column beside the stage.
 void Viewer::draw_curve_overlay(const Snapshot& snapshot) {
   const auto c = static_cast<std::size_t>(draw_.selected_curve);
-  const float gap = 8.0f * options_.ui_scale;
-  const ImVec2 size(std::max(0.4f * layout_.stage.width(), 200.0f), std::max(0.42f * layout_.stage.height(), 150.0f));
-  ImGui::SetNextWindowPos(ImVec2(layout_.stage.x1 - size.x - gap, layout_.stage.y1 - size.y - gap), ImGuiCond_Always);
-  ImGui::SetNextWindowSize(size, ImGuiCond_Always);
-  ImGui::SetNextWindowBgAlpha(0.75f);
+  ImGui::SetNextWindowPos(ImVec2(layout_.right.x0, layout_.right.y0), ImGuiCond_Always);
+  ImGui::SetNextWindowSize(ImVec2(layout_.right.width(), layout_.right.height()), ImGuiCond_Always);
   ImGui::Begin("##curve plot", nullptr, kOverlay);
   record_panel("Curve plot");
   ImGui::Text("curve %zu '%s': B against arc length", c, scene_->curves[c].id.c_str());

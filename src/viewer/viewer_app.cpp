@@ -488,8 +488,17 @@ void Viewer::handle_events() {
       options_.show_ui && (draw_.band || draw_.graph)
           ? key_lines * (font + ImGui::GetStyle().ItemSpacing.y) + 2.0f * ImGui::GetStyle().WindowPadding.y
           : 0.0f;
+  // Presentation mode: the counter's band (its text at 1.5 times the font) and, with a curve
+  // inspected, its B(s) in a column of a third of the width, all beside the stage.
+  const bool inspected =
+      draw_.selected_curve >= 0 && static_cast<std::size_t>(draw_.selected_curve) < scene_->curves.size();
   const StageLayout layout =
-      stage_layout(width, height, options_.ui_scale, options_.show_ui && panels_visible_ && !presentation_, menu, key);
+      presentation_ && options_.show_ui
+          ? presentation_layout(width, height, menu, key,
+                                1.5f * font + 2.0f * ImGui::GetStyle().WindowPadding.y + 4.0f * options_.ui_scale,
+                                inspected ? 0.32f * static_cast<float>(width) : 0.0f)
+          : stage_layout(width, height, options_.ui_scale, options_.show_ui && panels_visible_ && !presentation_, menu,
+                         key);
   if (!(layout.stage == layout_.stage) && view_auto_) view_fitted_ = false;
   layout_ = layout;
   if (!view_fitted_) {

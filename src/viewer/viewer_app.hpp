@@ -108,8 +108,8 @@ class Viewer {
   // off at its right edge).
   bool panel_scrolls(const std::string& name) const;
   bool panel_clips(const std::string& name) const;
-  // Presentation mode (M): the stage fills the window; the photon counter, the inspected curve's
-  // B(s) and the colour key are overlays on it.
+  // Presentation mode (M): no panels; the photon counter above the stage, the inspected curve's
+  // B(s) beside it, the colour key under it (presentation_layout).
   bool presentation() const { return presentation_; }
   std::size_t paths_drawn() const;  // photon paths in the path buffer after the last frame
 

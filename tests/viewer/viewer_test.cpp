@@ -319,8 +319,9 @@ TEST_F(Viewer, PanelsNeverCoverTheScene) {
 
 // The classroom sizes: at 1280x720 and at 1920x1080 with --ui-scale 2 no panel cuts its labels
 // off, the colour key's strip lies inside the window under the stage and beside the columns; in
-// presentation mode (M) the stage spans the window's width, with the counter, the inspected
-// curve's B(s) and the key on it, and M again brings the panels back.
+// presentation mode (M) the stage spans the window's width but for the inspected curve's B(s) in
+// a column at the right, with the counter above it and the key under it: nothing lies on the
+// stage. M again brings the panels back.
 TEST_F(Viewer, ClassroomSizesKeepLabelsAndTheKeyInView) {
   std::unique_ptr<viewer::Viewer> last;
   for (const auto& [width, height, scale] : {std::tuple{1280, 720, 1.0f}, {1920, 1080, 2.0f}}) {
@@ -357,13 +358,22 @@ TEST_F(Viewer, ClassroomSizesKeepLabelsAndTheKeyInView) {
       viewer, [] { return false; }, 4);
   EXPECT_TRUE(viewer.presentation());
   EXPECT_FALSE(viewer.panel_rect("Solve").has_value());
-  EXPECT_EQ(viewer.layout().stage.width(), static_cast<float>(viewer.view().width));
+  const PixelRect stage = viewer.layout().stage;
+  const std::optional<PixelRect> plot = viewer.panel_rect("Curve plot");
+  ASSERT_TRUE(plot.has_value());
+  EXPECT_EQ(stage.x0, 0.0f);
+  EXPECT_NEAR(stage.x1, plot->x0, 0.5f);
+  EXPECT_GE(stage.width(), 0.55f * static_cast<float>(viewer.view().width));
   for (const char* overlay : {"Counter", "Curve plot", "Key"}) {
     const std::optional<PixelRect> rect = viewer.panel_rect(overlay);
     ASSERT_TRUE(rect.has_value()) << overlay;
     EXPECT_FALSE(viewer.panel_clips(overlay)) << overlay;
     EXPECT_GE(rect->x0, 0.0f);
     EXPECT_LE(rect->x1, static_cast<float>(viewer.view().width) + 0.5f);
+    // Beside, above or below the stage, never on it.
+    const bool apart = rect->x1 <= stage.x0 + 0.5f || rect->x0 >= stage.x1 - 0.5f || rect->y1 <= stage.y0 + 0.5f ||
+                       rect->y0 >= stage.y1 - 0.5f;
+    EXPECT_TRUE(apart) << overlay << " lies on the stage";
   }
   viewer.queue_key('m');
   frames_until(
