@@ -64,19 +64,34 @@ class RoundPoints {
     for (const ScrambledSobol& net : nets) result.emplace_back(net);
     return result;
   }
-  // The cursor of photon `index`'s net, moved to its point.
-  SobolCursor& seek(std::vector<SobolCursor>& cursors, std::uint32_t index) const {
-    SobolCursor& point = cursors[index % replicates_];
-    point.seek(index / replicates_);
+  // Where photon `index` is: its replicate (index mod R) and its point in that replicate's net
+  // (index / R). A photon loop divides once, at its first photon, and steps on with next().
+  struct Place {
+    std::uint32_t index;
+    std::uint32_t replicate;
+    std::uint32_t point;
+  };
+  Place place_of(std::uint32_t index) const { return {index, index % replicates_, index / replicates_}; }
+  void next(Place& at) const {
+    ++at.index;
+    if (++at.replicate == replicates_) {
+      at.replicate = 0;
+      ++at.point;
+    }
+  }
+  // The cursor of the photon's net, moved to its point.
+  SobolCursor& seek(std::vector<SobolCursor>& cursors, const Place& at) const {
+    SobolCursor& point = cursors[at.replicate];
+    point.seek(at.point);
     return point;
   }
-  // The source of photon `index`, by unshot power: a side of a curve, or one of its
-  // coefficients. Sobol': from the photon's point (`place` gets what the choice leaves of
-  // dimension kPlace, which places the origin); random: from the round's indexed uniforms, so
-  // that the choice does not depend on how the round is cut into batches and steps either.
-  std::size_t choose_source(std::vector<SobolCursor>& cursors, std::uint32_t index, double& place) const {
-    if (!qmc) return plan_.sources.sample(indexed_uniform(key_, index));
-    return plan_.sources.sample(seek(cursors, index).sample(kPlace), place);
+  // The source of the photon, by unshot power: a side of a curve, or one of its coefficients.
+  // Sobol': from the photon's point (`place` gets what the choice leaves of dimension kPlace,
+  // which places the origin); random: from the round's indexed uniforms, so that the choice does
+  // not depend on how the round is cut into batches and steps either.
+  std::size_t choose_source(std::vector<SobolCursor>& cursors, const Place& at, double& place) const {
+    if (!qmc) return plan_.sources.sample(indexed_uniform(key_, at.index));
+    return plan_.sources.sample(seek(cursors, at).sample(kPlace), place);
   }
 
   const bool qmc;
@@ -310,21 +325,22 @@ void PhotonShooter::shoot_rays(const RoundView& round, Rng& rng, std::uint64_t f
     sources.resize(count);
     places.resize(count);
     std::vector<SobolCursor> ahead_cursors = points.cursors();
-    for (std::uint64_t i = 0; i < count; ++i) {
+    RoundPoints::Place at = points.place_of(static_cast<std::uint32_t>(first));
+    for (std::uint64_t i = 0; i < count; ++i, points.next(at)) {
       double place = 0.0;
-      sources[i] =
-          static_cast<std::uint32_t>(points.choose_source(ahead_cursors, static_cast<std::uint32_t>(first + i), place));
+      sources[i] = static_cast<std::uint32_t>(points.choose_source(ahead_cursors, at, place));
       places[i] = place;
     }
   }
-  for (std::uint64_t i = 0; i < count; ++i) {
+  // The photon's replicate and net point, stepped on without a division per photon.
+  RoundPoints::Place at = points.place_of(static_cast<std::uint32_t>(first));
+  for (std::uint64_t i = 0; i < count; ++i, points.next(at)) {
     if (ahead) prefetch_sources(storage, plan, sources, i, qmc);
-    const auto index = static_cast<std::uint32_t>(first + i);  // < kMaxPhotonsPerRound
     // Replicate r of the round deposits into the accumulator's part r.
-    acc.replicate_offset = (index % replicates_) * replicate_size;
-    SobolCursor* net_point = qmc ? &points.seek(cursors, index) : nullptr;
+    acc.replicate_offset = at.replicate * replicate_size;
+    SobolCursor* net_point = qmc ? &points.seek(cursors, at) : nullptr;
     double place = ahead ? places[i] : 0.0;
-    const std::size_t source = ahead ? sources[i] : points.choose_source(cursors, index, place);
+    const std::size_t source = ahead ? sources[i] : points.choose_source(cursors, at, place);
     const std::uint32_t block = by_coefficient ? storage.coefficient_block(source) : static_cast<std::uint32_t>(source);
     const std::uint32_t curve_index = block / 2;
     const bool back = (block & 1u) != 0;
