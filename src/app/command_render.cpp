@@ -19,8 +19,10 @@ namespace flatland::app {
 CLI::App* add_render_command(CLI::App& parent, RenderOptions& o) {
   CLI::App* cmd = parent.add_subcommand(
       "render",
-      "Solve a scene and render the viewer's picture (photon paths, B along every curve) to a PNG "
-      "file offscreen: no display needed.");
+      "Solve a scene and render the viewer's picture to a PNG file offscreen (no display needed): the "
+      "photon paths, each in its light's colour and brightness; along every lit side of a curve a band "
+      "coloured by its radiosity B and a graph of B (a thin line offset along the normal, higher where B "
+      "is larger); mirrors steel blue, glass cyan, detectors green. docs/viewer.md says more.");
   cmd->add_option("scene", o.solve.scene, "Scene file (JSON, docs/scene-format.md)")->required();
   add_solver_options(cmd, o.solve);
   cmd->add_option("--out", o.out, "The picture (PNG)")->required();
@@ -41,6 +43,11 @@ CLI::App* add_render_command(CLI::App& parent, RenderOptions& o) {
       ->check(finite_range(1e-3, 1e3));
   cmd->add_flag("--graph,!--no-graph", o.graph, "Draw B(s) as a graph along each curve's normal");
   cmd->add_flag("--band,!--no-band", o.band, "Draw the colour band of B along each curve");
+  cmd->add_flag("--journey", o.journey,
+                "Also draw the newest photon's journey on top (its hops numbered and coloured by bounce), as "
+                "the viewer does");
+  cmd->add_flag("--nodes", o.nodes,
+                "Also mark the storage's nodes below C1 as diamonds (C-1 red, C0 green), as the viewer does");
   cmd->add_option("--shaders", o.shaders,
                   "Load the GLSL shaders from this directory instead of the built-in copies of shaders/");
   cmd->add_flag("--quiet", o.solve.quiet, "No progress line and no summary (errors only)");
@@ -121,6 +128,8 @@ int run_render(RenderOptions& o) {
   viewer::DrawOptions draw;
   draw.graph = o.graph;
   draw.band = o.band;
+  draw.journey = o.journey;
+  draw.discontinuities = o.nodes;
   draw.fade = 0.0f;  // no ages in a finished solve
   const viewer::ViewTransform view = viewer::fit_view(scene->bounds, o.width, o.height);
   viewer::PathLayer layer;

@@ -176,6 +176,8 @@ struct RenderOptions {
   float exposure = 1.0f;
   bool graph = true;
   bool band = true;
+  bool journey = false;  // the newest photon's journey on top (the viewer's default, not a picture's)
+  bool nodes = false;    // the storage's nodes below C1 as diamonds
   std::string shaders;
 };
 CLI::App* add_render_command(CLI::App& parent, RenderOptions& options);

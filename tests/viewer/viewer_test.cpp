@@ -159,6 +159,27 @@ TEST_F(Viewer, RenderNeedsNoDisplayAndDrawsTheSamePicture) {
   EXPECT_EQ(a, b);
 }
 
+// A picture for a reader, not a session: render leaves out the newest journey and the nodes'
+// diamonds (unexplained in a picture without the viewer's legends) unless asked for them.
+TEST_F(Viewer, RenderDrawsTheJourneyAndNodesOnlyWhenAsked) {
+  auto render = [&](const std::string& name, const std::string& flags) {
+    const fs::path out = directory_ / name;
+    const CommandRun r = run("render " + scene("penumbra.json") + " --photons 2e4 --width 320 --height 320 --quiet " +
+                                 flags + " --out " + out.string(),
+                             "env -u DISPLAY -u WAYLAND_DISPLAY");
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    Result<png::PngImage> image = png::read_png(out.string());
+    EXPECT_TRUE(image) << (image ? "" : image.error().message);
+    return image ? image->pixels : std::vector<std::uint8_t>{};
+  };
+  const std::vector<std::uint8_t> plain = render("plain.png", "");
+  const std::vector<std::uint8_t> marked = render("marked.png", "--journey --nodes");
+  ASSERT_EQ(plain.size(), marked.size());
+  std::size_t differing = 0;
+  for (std::size_t i = 0; i < plain.size(); ++i) differing += plain[i] != marked[i];
+  EXPECT_GT(differing, 30u);  // the journey's line and four diamonds at least
+}
+
 TEST_F(Viewer, NoDisplayIsOneLineAndExitTwo) {
   const CommandRun result = run("view " + scene("penumbra.json") + " --frames 1", "env -u DISPLAY -u WAYLAND_DISPLAY");
   EXPECT_EQ(result.exit_code, 2);
