@@ -689,17 +689,9 @@ TEST(Reference, RingMatchesItsFourierSolution) {
 // on 400,000 points of the exact point-to-element factor (visible_elements), error ~1e-12.
 TEST(Reference, SplitQuadratureConvergesWhereTheUnsplitRuleDoesNot) {
   std::vector<ReferenceElement> elements(3);
-  auto element = [](Vec2 a, Vec2 b) {
-    ReferenceElement e;
-    e.a = a;
-    e.b = b;
-    e.length = length(b - a);
-    e.normal = (1.0 / e.length) * perp(b - a);
-    return e;
-  };
-  elements[0] = element({-0.5, 0.0}, {0.5, 0.0});    // receiver, front up
-  elements[1] = element({0.4, 1.0}, {-0.4, 1.0});    // lamp, front down
-  elements[2] = element({-0.05, 0.5}, {0.3, 0.55});  // occluder
+  elements[0] = chord_element({-0.5, 0.0}, {0.5, 0.0});    // receiver, front up
+  elements[1] = chord_element({0.4, 1.0}, {-0.4, 1.0});    // lamp, front down
+  elements[2] = chord_element({-0.05, 0.5}, {0.3, 0.55});  // occluder
   const int n = 400'000;
   double brute = 0.0;
   for (int k = 0; k < n; ++k) {

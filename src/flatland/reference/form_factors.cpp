@@ -347,15 +347,6 @@ void PairQuadrature::add_events(const ReferenceElement& ei, const ReferenceEleme
   breaks_.back() = 1.0;
 }
 
-ReferenceElement chord_element(Vec2 a, Vec2 b) {
-  ReferenceElement e;
-  e.a = a;
-  e.b = b;
-  e.length = length(b - a);
-  e.normal = (1.0 / e.length) * perp(b - a);
-  return e;
-}
-
 Vec2 mirrored_point(Vec2 p, const ReferenceMirror& mirror) {
   return p - (2.0 * dot(p - mirror.origin, mirror.normal)) * mirror.normal;
 }
@@ -393,6 +384,15 @@ double crossed_strings(Vec2 a1, Vec2 b1, Vec2 a2, Vec2 b2) {
   const double pairing_one = length(a1 - a2) + length(b1 - b2);
   const double pairing_two = length(a1 - b2) + length(b1 - a2);
   return std::fabs(pairing_one - pairing_two) / (2.0 * length(b1 - a1));
+}
+
+ReferenceElement chord_element(Vec2 a, Vec2 b) {
+  ReferenceElement e;
+  e.a = a;
+  e.b = b;
+  e.length = length(b - a);
+  e.normal = (1.0 / e.length) * perp(b - a);
+  return e;
 }
 
 }  // namespace flatland

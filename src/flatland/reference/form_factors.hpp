@@ -170,9 +170,6 @@ class PairQuadrature {
 // the reflectance, it adds to the direct F. One reflection is all there is when no two mirrors face
 // each other; scenes where two do are refused (ReferenceBuilder::check_single_reflections).
 
-// The element with ends a and b (front normal perp(b - a)).
-ReferenceElement chord_element(Vec2 a, Vec2 b);
-
 // p reflected in the mirror's line.
 Vec2 mirrored_point(Vec2 p, const ReferenceMirror& mirror);
 

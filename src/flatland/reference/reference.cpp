@@ -32,7 +32,6 @@ bool any_positive(const Spectrum& s, int channels) {
   return false;
 }
 
-using reference_detail::chord_element;
 using reference_detail::gather_by_mirror;
 using reference_detail::mirrored_point;
 using reference_detail::PairQuadrature;

@@ -126,6 +126,9 @@ std::vector<VisibleElement> visible_elements(const std::vector<ReferenceElement>
 double pair_form_factor(const std::vector<ReferenceElement>& elements, std::uint32_t i, Side si, std::uint32_t j,
                         Side sj, int points, bool split = true, std::size_t* pieces = nullptr);
 
+// The element with ends a and b: its length, and its front normal perp(b - a) / length.
+ReferenceElement chord_element(Vec2 a, Vec2 b);
+
 // Hottel's crossed strings for two straight segments that see each other whole:
 // F_12 = (crossed - uncrossed) / (2 L_1), crossed = |a1 b2| + |b1 a2|, uncrossed = |a1 a2| + |b1 b2|
 // (a's and b's chosen so that a1-a2 and b1-b2 do not cross). Returns F from segment 1 to 2.
