@@ -4,7 +4,7 @@
 # if there is one. Usage: tests/layers_check.sh SOURCE_DIR
 set -euo pipefail
 root=${1:?usage: layers_check.sh SOURCE_DIR}
-layers=(base geometry scene storage transport results reference)
+layers=(base geometry scene storage transport results reference studies)
 status=0
 for ((i = 0; i < ${#layers[@]}; i++)); do
   layer=${layers[$i]}

@@ -115,6 +115,18 @@ std::optional<int> parse_command_line(int argc, const char* const* argv, Command
   return std::nullopt;
 }
 
+namespace {
+
+// The viewer and render draw the storage's B as it arrives; a final gather belongs to a finished
+// result (solve, converge, Python).
+Status gather_refused(const char* who) {
+  return Error{std::string("--gather: ") + who +
+               " draws the storage's B as the photons arrive; a final gather is for a finished result (flatland solve "
+               "--gather samples, converge's gather=samples, Python's gather=\"samples\"); use --gather none"};
+}
+
+}  // namespace
+
 Status validate_command_line(CommandLine& command_line) {
   switch (command_line.command) {
     case Command::Solve: return finish_solver_settings(command_line.solve);
@@ -128,12 +140,17 @@ Status validate_command_line(CommandLine& command_line) {
     case Command::Converge: return check_converge_options(command_line.converge);
     case Command::View: {
       if (Status status = finish_solver_settings(command_line.view.solve); !status) return status;
+      if (command_line.view.solve.settings.gather != GatherMode::None) return gather_refused("the viewer");
 #ifdef FLATLAND_HAVE_VIEWER
       if (Result<viewer::FrameStep> step = viewer::parse_frame_step(command_line.view.step); !step) return step.error();
 #endif
       return ok_status();
     }
-    case Command::Render: return finish_solver_settings(command_line.render.solve);
+    case Command::Render: {
+      if (Status status = finish_solver_settings(command_line.render.solve); !status) return status;
+      if (command_line.render.solve.settings.gather != GatherMode::None) return gather_refused("render");
+      return ok_status();
+    }
     case Command::None: break;
   }
   return Error{"no command given"};

@@ -22,8 +22,8 @@
 #include "app/processes.hpp"
 #include "app/progress.hpp"
 #include "flatland/reference/reference.hpp"
-#include "flatland/results/converge.hpp"
 #include "flatland/results/result_io.hpp"
+#include "flatland/studies/converge.hpp"
 
 namespace flatland::app {
 

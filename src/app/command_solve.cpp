@@ -16,6 +16,7 @@
 #include "app/processes.hpp"
 #include "app/progress.hpp"
 #include "flatland/base/text.hpp"
+#include "flatland/reference/final_gather.hpp"
 #include "flatland/results/result_io.hpp"
 #include "flatland/scene/scene.hpp"
 
@@ -67,6 +68,12 @@ namespace {
 
 // "error     ~ 0.042 % (L1 of B - E, at most, 95 % confidence; L2 0.05 %, Linf 0.2 %)", or why there
 // is none; its caveat on a line of its own.
+// ", gather 0.0012 %" where a final gather estimated its own error; empty otherwise.
+std::string gather_part(const ErrorEstimate& estimate) {
+  if (!(estimate.gather.l1 > 0.0)) return "";
+  return ", gather " + format_number(100.0 * estimate.gather.l1, 2) + " %";
+}
+
 void print_estimated_error(std::FILE* out, const ErrorEstimate& estimate) {
   if (!estimate.available) {
     std::fprintf(out, "error     not estimated: %s\n", estimate.unavailable.c_str());
@@ -76,11 +83,11 @@ void print_estimated_error(std::FILE* out, const ErrorEstimate& estimate) {
     std::fprintf(
         out,
         "error     ~ %.2g %% or less (relative L1 of B - E at %g %% confidence; L2 %.2g %%, Linf %.2g %%; "
-        "noise %.2g %%, storage %s, unshot %.2g %%)\n",
+        "noise %.2g %%, storage %s, unshot %.2g %%%s)\n",
         100.0 * estimate.bound.l1, 100.0 * estimate.confidence, 100.0 * estimate.bound.l2, 100.0 * estimate.bound.linf,
         100.0 * estimate.noise.l1,
         estimate.storage_estimated ? (format_number(100.0 * estimate.storage.l1, 2) + " %").c_str() : "not estimated",
-        100.0 * estimate.unshot.l1);
+        100.0 * estimate.unshot.l1, gather_part(estimate).c_str());
   else
     std::fprintf(out, "error     unbounded at %g %% confidence\n", 100.0 * estimate.confidence);
   if (!estimate.caveat.empty()) std::fprintf(out, "          (%s)\n", estimate.caveat.c_str());
@@ -272,6 +279,14 @@ int run_solve(SolveOptions& o) {
   };
   if (const std::optional<int> code = agree(prepare())) return *code;
   if (const std::optional<int> code = agree_on_digest("scene file", o.scene, scene->source_sha256)) return *code;
+  // The gather's elements are made (and the scene checked for it) before any photon is shot.
+  std::optional<FinalGather> gather;
+  if (o.settings.gather == GatherMode::Samples) {
+    Result<FinalGather> made = FinalGather::create(*scene, {0.0, o.settings.threads, &interrupt_flag()});
+    if (!made)
+      return interrupt_flag().load() ? interrupted() : usage_error("--gather samples: " + made.error().message);
+    gather.emplace(std::move(*made));
+  }
   // Set-up can take a while (storage for a large budget): only once every process may go on.
   auto create = [&]() -> std::optional<int> {
     Result<Solver> created = Solver::create(*scene, o.settings, &interrupt_flag());
@@ -292,12 +307,26 @@ int run_solve(SolveOptions& o) {
   if (!speaks_for_the_run()) return kExitOk;
   if (!o.quiet && !solver.thread_shortfall().empty())
     note(solver.thread_shortfall() + "; the results are the same bits on any thread count");
-  const ErrorEstimate estimate = estimate_error(solver, {solver.settings().confidence, o.samples});
-  if (!o.quiet) print_summary(solver, estimate);
+  // With a gather, the result and its estimated error are the gathered ones.
+  std::optional<SampledResult> gathered;
+  if (gather) {
+    gathered = gather->gather_result(solver, o.samples);
+    if (gather->cancelled()) return interrupted();
+  }
+  const ErrorEstimate estimate =
+      gathered ? *gathered->stats->estimated_error : estimate_error(solver, {solver.settings().confidence, o.samples});
+  if (!o.quiet) {
+    print_summary(solver, estimate);
+    if (gather)
+      std::fprintf(report_stream(),
+                   "gathered  B at %d samples per curve: one bounce over %zu elements (h = %.3g), %.3f s\n", o.samples,
+                   gather->elements(), gather->max_element_length(), gather->sweep_seconds());
+  }
 
   OutputFiles files(&interrupt_flag());
   if (reference) {
-    const nlohmann::json document = result_to_json(solver, o.samples, &estimate);
+    const nlohmann::json document =
+        gathered ? result_to_json(solver, o.samples, *gathered) : result_to_json(solver, o.samples, &estimate);
     Result<Comparison> comparison = compare_results(document, *reference);
     if (!comparison) return usage_error("--reference " + o.reference + ": " + comparison.error().message);
     if (!o.quiet) print_comparison(*comparison, true, &document);
@@ -305,7 +334,9 @@ int run_solve(SolveOptions& o) {
       if (Status status = files.stage(o.out, json_text(document)); !status) return usage_error(status.error().message);
   } else if (!o.out.empty()) {
     // The same text, without holding the whole document as a JSON tree (result_io.hpp).
-    if (Status status = files.stage(o.out, result_text(solver, o.samples, &estimate)); !status)
+    if (Status status = files.stage(
+            o.out, gathered ? result_text(solver, o.samples, *gathered) : result_text(solver, o.samples, &estimate));
+        !status)
       return usage_error(status.error().message);
   }
   if (!o.picture.empty()) {

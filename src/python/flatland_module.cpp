@@ -22,14 +22,15 @@
 
 #include "flatland/base/text.hpp"
 #include "flatland/base/version.hpp"
+#include "flatland/reference/final_gather.hpp"
 #include "flatland/reference/reference.hpp"
 #include "flatland/reference/reference_io.hpp"
-#include "flatland/results/converge.hpp"
 #include "flatland/results/metrics.hpp"
 #include "flatland/results/result_io.hpp"
 #include "flatland/results/sampled_result.hpp"
 #include "flatland/scene/discontinuities.hpp"
 #include "flatland/scene/scene.hpp"
+#include "flatland/studies/converge.hpp"
 #include "flatland/transport/footprint.hpp"
 #include "flatland/transport/options.hpp"
 #include "flatland/transport/solver.hpp"
@@ -216,6 +217,10 @@ std::string keywords_help() {
 class PySolver {
  public:
   PySolver(PyScene scene, const SolverSettings& settings) : scene_(std::move(scene)) {
+    // A final gather's elements first: a scene it cannot gather is refused before any set-up.
+    if (settings.gather == GatherMode::Samples)
+      gather_ =
+          std::make_unique<FinalGather>(value_or_fail(FinalGather::create(*scene_.scene, {0.0, settings.threads})));
     solver_ = std::make_unique<Solver>(value_or_fail(Solver::create(*scene_.scene, settings)));
   }
 
@@ -315,17 +320,20 @@ class PySolver {
   py::object estimated_error(int samples) const {
     check_idle();
     if (samples < 1 || samples > 1'000'000) fail("samples: must be between 1 and 1000000");
-    const ErrorEstimate estimate = estimate_error(*solver_, {solver_->settings().confidence, samples});
+    const ErrorEstimate estimate = gather_ ? *gather_->gather_result(*solver_, samples).stats->estimated_error
+                                           : estimate_error(*solver_, {solver_->settings().confidence, samples});
     return py::module_::import("json").attr("loads")(estimated_error_to_json(estimate).dump());
   }
+  // With gather="samples" the samples' B (and the estimated error) are the final gather's.
   SampledResult sampled(int samples) const {
     check_idle();
-    return sample_solver(*solver_, samples);
+    return gather_ ? gather_->gather_result(*solver_, samples) : sample_solver(*solver_, samples);
   }
   std::string to_json(int samples) const {
     check_idle();
     if (samples < 1 || samples > 1'000'000) fail("samples: must be between 1 and 1000000");
-    return result_text(*solver_, samples);
+    return gather_ ? result_text(*solver_, samples, gather_->gather_result(*solver_, samples))
+                   : result_text(*solver_, samples);
   }
   const PyScene& scene() const { return scene_; }
 
@@ -398,6 +406,7 @@ class PySolver {
 
   PyScene scene_;
   std::unique_ptr<Solver> solver_;
+  std::unique_ptr<FinalGather> gather_;  // with gather="samples"
   std::atomic<bool> busy_{false};
   bool warned_threads_ = false;
 };

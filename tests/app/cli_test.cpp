@@ -416,7 +416,7 @@ TEST_F(Cli, ConvergeWritesTableAndPlots) {
   EXPECT_EQ(csv.substr(0, csv.find('\n')),
             "method,basis,sampling,discontinuities,estimator,elements,ray_width,ray_mode,ray_profile,"
             "band_rays,tolerance,seed,photons,rounds,unshot,seconds,rel_l1,rel_l2,rel_linf,measure,curve,"
-            "sampler,transport,rays,est_l1,est_l2,est_linf");
+            "sampler,transport,rays,est_l1,est_l2,est_linf,gather");
   EXPECT_EQ(lines(csv), 1 + 2 * 2 * 2);  // header + methods x budgets x seeds
   EXPECT_NE(csv.find("\"cubic+sampling=uniform\",cubic,uniform"), std::string::npos);
   const std::string png = read_file(out / "convergence.png");

@@ -60,6 +60,26 @@ def test_same_seed_gives_the_same_bits_as_the_command_line(tmp_path):
     assert without_timing(result.to_json()) == without_timing(out.read_text())
 
 
+def test_a_final_gather_is_the_command_lines(tmp_path):
+    # gather="samples": the same gathered samples and estimated error as solve --gather samples.
+    out = tmp_path / "gathered.json"
+    cli = run_cli("solve", "scenes2d/default.json", "--photons", "100000", "--seed", "5", "--gather", "samples",
+                  "--out", str(out), "--quiet")
+    assert cli.returncode == 0, cli.stderr
+    result = flatland.solve(flatland.Scene.load("scenes2d/default.json"), photons=100_000, seed=5, gather="samples")
+    assert without_timing(result.to_json()) == without_timing(out.read_text())
+    document = json.loads(out.read_text())
+    assert document["settings"]["final_gather"]["element_length"] > 0
+    assert "gather" in document["stats"]["estimated_error"]["parts"]
+    # Glass is refused with the command line's words.
+    cli = run_cli("solve", "scenes2d/prism.json", "--gather", "samples")
+    assert cli.returncode == 2
+    with pytest.raises(ValueError) as error:
+        flatland.solve(flatland.Scene.load("scenes2d/prism.json"), gather="samples")
+    assert "a final gather handles diffuse surfaces" in str(error.value)
+    assert "a final gather handles diffuse surfaces" in cli.stderr
+
+
 def test_mirrors_glass_and_detectors_are_the_command_lines(tmp_path):
     # The prism's glass and detector, as the command line solves them: the same bits, the chain's
     # books and the detector's tallies.

@@ -238,23 +238,17 @@ double ReferenceSolution::row_sum(std::uint32_t i, Side si) const {
   return row == kNoElement ? -1.0 : row_sums_[row];
 }
 
-Spectrum ReferenceSolution::radiosity(std::uint32_t curve_index, Side side, double u) const {
-  Spectrum result{0.0, 0.0, 0.0};
+void ReferenceSolution::gather_weights(std::uint32_t curve_index, Side side, double u,
+                                       std::vector<std::pair<std::uint32_t, double>>& seen) const {
+  seen.clear();
   const Curve& curve = scene_.curves[curve_index];
-  if (!curve.has_side(side)) return result;
+  if (!curve.has_side(side) || !any_positive(scene_.material_of(curve).reflectivity, scene_.channels)) return;
   const double clamped = std::clamp(u, 0.0, static_cast<double>(curve.segment_count));
   const auto local =
       static_cast<std::uint32_t>(std::min(std::floor(clamped), static_cast<double>(curve.segment_count) - 1.0));
   const double t = clamped - local;
   const std::uint32_t segment_index = curve.first_segment + local;
   const SceneSegment& segment = scene_.segments[segment_index];
-  const Material& material = scene_.material_of(curve);
-  const double factor = emittance_factor(curve, local + t);
-  for (int c = 0; c < scene_.channels; ++c) {
-    const auto k = static_cast<std::size_t>(c);
-    result[k] = curve.emittance[k] * factor;
-  }
-  if (!any_positive(material.reflectivity, scene_.channels)) return result;
 
   // The element that holds the point: the last whose start is at or before it.
   const std::uint32_t pieces = segment_count_[segment_index];
@@ -270,13 +264,30 @@ Spectrum ReferenceSolution::radiosity(std::uint32_t curve_index, Side side, doub
   Sweeper sweeper;
   std::vector<VisibleElement> visible;
   sweeper.run(elements_, x, normal, self, side, visible);
-  // (element side, F) seen directly and by the mirrors.
-  std::vector<std::pair<std::size_t, double>> seen;
-  for (const VisibleElement& v : visible) seen.emplace_back(patch_index(v.element, v.side), v.form_factor);
+  for (const VisibleElement& v : visible)
+    seen.emplace_back(static_cast<std::uint32_t>(patch_index(v.element, v.side)), v.form_factor);
   std::vector<VisibleElement> scratch;
   for (const ReferenceMirror& mirror : mirrors_)
     gather_by_mirror(sweeper, mirror, x, normal, self, side, 1e-12 * scene_.scale, scratch,
-                     [&](std::uint32_t j, Side side_j, double f) { seen.emplace_back(patch_index(j, side_j), f); });
+                     [&](std::uint32_t j, Side side_j, double f) {
+                       seen.emplace_back(static_cast<std::uint32_t>(patch_index(j, side_j)), f);
+                     });
+}
+
+Spectrum ReferenceSolution::radiosity(std::uint32_t curve_index, Side side, double u) const {
+  Spectrum result{0.0, 0.0, 0.0};
+  const Curve& curve = scene_.curves[curve_index];
+  if (!curve.has_side(side)) return result;
+  const double clamped = std::clamp(u, 0.0, static_cast<double>(curve.segment_count));
+  const double factor = emittance_factor(curve, clamped);
+  for (int c = 0; c < scene_.channels; ++c) {
+    const auto k = static_cast<std::size_t>(c);
+    result[k] = curve.emittance[k] * factor;
+  }
+  const Material& material = scene_.material_of(curve);
+  if (!any_positive(material.reflectivity, scene_.channels)) return result;
+  std::vector<std::pair<std::uint32_t, double>> seen;
+  gather_weights(curve_index, side, u, seen);
   for (int c = 0; c < scene_.channels; ++c) {
     const auto k = static_cast<std::size_t>(c);
     double gathered = 0.0;
@@ -284,6 +295,10 @@ Spectrum ReferenceSolution::radiosity(std::uint32_t curve_index, Side side, doub
     result[k] += material.reflectivity[k] * gathered;
   }
   return result;
+}
+
+void ReferenceSolution::set_element_radiosity(std::array<std::vector<double>, 3> radiosity) {
+  radiosity_ = std::move(radiosity);
 }
 
 double reference_element_count(const Scene& scene, const ReferenceSettings& settings) {
@@ -299,8 +314,15 @@ double reference_element_count(const Scene& scene, const ReferenceSettings& sett
 // solve_reference's steps, each a method; a friend of ReferenceSolution, whose members it fills.
 class ReferenceBuilder {
  public:
-  ReferenceBuilder(const Scene& scene, const ReferenceSettings& settings, ReferenceSolution& solution)
-      : scene_(scene),
+  // `subject` names the solver in refusals, `advice` says what to do instead.
+  ReferenceBuilder(const Scene& scene, const ReferenceSettings& settings, ReferenceSolution& solution,
+                   std::string subject = "the reference solver",
+                   std::string advice =
+                       "use a solve with many more photons as the reference (flatland solve --out "
+                       "REF.json, then compare or converge --reference REF.json)")
+      : subject_(std::move(subject)),
+        advice_(std::move(advice)),
+        scene_(scene),
         settings_(settings),
         solution_(solution),
         elements_(solution.elements_),
@@ -353,6 +375,8 @@ class ReferenceBuilder {
   // a value); past the memory limit every worker stops.
   static constexpr double kBytesPerEntry = 2.0 * (sizeof(std::uint32_t) + sizeof(double)) + 4.0;
 
+  std::string subject_;
+  std::string advice_;
   const Scene& scene_;
   const ReferenceSettings& settings_;
   ReferenceSolution& solution_;
@@ -389,24 +413,27 @@ Status ReferenceBuilder::check() const {
                 ")";
   }
   if (!specular.empty())
-    return Error{scene_.source + ": the reference solver handles diffuse surfaces and flat mirrors only, and curves " +
-                 specular +
-                 " are not; use a solve with many more photons as the reference (flatland solve --out REF.json, then "
-                 "compare or converge --reference REF.json)"};
+    return Error{scene_.source + ": " + subject_ + " handles diffuse surfaces and flat mirrors only, and curves " +
+                 specular + " are not; " + advice_};
   if (Status status = check_single_reflections(); !status) return status;
   for (const Curve& curve : scene_.curves) {
     if (scene_.is_emitter(curve) && scene_.material_of(curve).emission.kind != Emission::Kind::Diffuse)
-      return Error{scene_.source + ": curve '" + curve.id + "': the reference solver supports diffuse emitters only"};
+      return Error{scene_.source + ": curve '" + curve.id + "': " + subject_ + " supports diffuse emitters only"};
   }
   const double element_total = reference_element_count(scene_, settings_);
   if (element_total > static_cast<double>(kMaxReferenceElements)) {
     char message[320];
-    std::snprintf(message, sizeof message,
-                  "%.4g reference elements (elements of length %.3g); at most %zu: form factors "
-                  "take time and memory growing as the square of the count; use fewer elements "
-                  "(--elements or --max-element-length)",
-                  element_total, max_length(), kMaxReferenceElements);
-    return Error{message};
+    if (subject_ == "the reference solver")
+      std::snprintf(message, sizeof message,
+                    "%.4g reference elements (elements of length %.3g); at most %zu: form factors "
+                    "take time and memory growing as the square of the count; use fewer elements "
+                    "(--elements or --max-element-length)",
+                    element_total, max_length(), kMaxReferenceElements);
+    else
+      std::snprintf(message, sizeof message,
+                    "%.4g elements of length %.3g for %s; at most %zu (every sample sweeps them all); ", element_total,
+                    max_length(), subject_.c_str(), kMaxReferenceElements);
+    return Error{subject_ == "the reference solver" ? std::string(message) : message + advice_};
   }
   return ok_status();
 }
@@ -446,9 +473,8 @@ Status ReferenceBuilder::check_single_reflections() const {
       return Error{scene_.source + ": " +
                    (first == second ? "mirror '" + first + "' faces itself (two of its segments face each other)"
                                     : "mirrors '" + first + "' and '" + second + "' face each other") +
-                   ": light reflected by one reaches the other, and the reference solver follows one reflection; use "
-                   "a solve with many more photons as the reference (flatland solve --out REF.json, then compare or "
-                   "converge --reference REF.json)"};
+                   ": light reflected by one reaches the other, and " + subject_ + " follows one reflection; " +
+                   advice_};
     }
   }
   return ok_status();
@@ -776,6 +802,25 @@ Result<ReferenceSolution> solve_reference(const Scene& scene, const ReferenceSet
   build.number_patches();
   if (Status status = build.form_factors(); !status) return status.error();
   if (Status status = build.solve_channels(); !status) return status.error();
+  return solution;
+}
+
+Result<ReferenceSolution> reference_elements(const Scene& scene, const ReferenceSettings& settings,
+                                             const std::string& subject, const std::string& advice) {
+  ReferenceSolution solution;
+  ReferenceBuilder build(scene, settings, solution, subject, advice);
+  if (Status status = build.check(); !status) return status.error();
+  solution.scene_ = scene;
+  solution.settings_ = settings;
+  if (Status status = build.build_elements(); !status) return status.error();
+  build.build_mirrors();
+  build.link_neighbours();
+  for (int c = 0; c < scene.channels; ++c) {
+    std::vector<double>& b = solution.radiosity_[static_cast<std::size_t>(c)];
+    b.assign(2 * solution.elements_.size(), 0.0);
+    for (std::size_t p = 0; p < b.size(); ++p)
+      b[p] = solution.elements_[p / 2].emittance[p % 2][static_cast<std::size_t>(c)];
+  }
   return solution;
 }
 

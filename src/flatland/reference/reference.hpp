@@ -159,6 +159,17 @@ class ReferenceSolution {
   const std::vector<ReferenceElement>& element_list() const { return elements_; }
   // Element radiosity b of element j's side (zero on inactive sides).
   Spectrum element_radiosity(std::uint32_t element, Side side) const;
+  // What the final gather at (curve, side, u) sums: `seen` receives (patch, F(x -> patch)) for
+  // every element side that x sees, directly and by one reflection in a flat mirror (patch =
+  // 2 element + side, F times the mirror's reflectance for the latter); radiosity() is then
+  // E(x) + rho(x) sum F b over `seen`. Empty on a side the scene does not name or that reflects
+  // nothing.
+  void gather_weights(std::uint32_t curve, Side side, double u,
+                      std::vector<std::pair<std::uint32_t, double>>& seen) const;
+  // Replaces the element radiosities (per channel, per patch 2 element + side; channels the
+  // scene does not use may be empty): a final gather of another method's solution
+  // (final_gather.hpp) feeds its own.
+  void set_element_radiosity(std::array<std::vector<double>, 3> radiosity);
   // Form factor F from (element i, side si) to (element j, side sj): computed for reflecting
   // patches (rho > 0 in some channel) towards patches that reflect or emit; 0 otherwise.
   double form_factor(std::uint32_t i, Side si, std::uint32_t j, Side sj) const;
@@ -179,6 +190,8 @@ class ReferenceSolution {
 
  private:
   friend Result<ReferenceSolution> solve_reference(const Scene& scene, const ReferenceSettings& settings);
+  friend Result<ReferenceSolution> reference_elements(const Scene& scene, const ReferenceSettings& settings,
+                                                      const std::string& subject, const std::string& advice);
   friend class ReferenceBuilder;  // solve_reference's steps (reference.cpp)
   Scene scene_;
   ReferenceSettings settings_;
@@ -211,6 +224,11 @@ class ReferenceSolution {
 double reference_element_count(const Scene& scene, const ReferenceSettings& settings);
 
 Result<ReferenceSolution> solve_reference(const Scene& scene, const ReferenceSettings& settings);
+// The reference's elements and mirrors without form factors or a solve (element radiosity b = e,
+// the emittance): what a final gather of another solution needs. Refuses what solve_reference
+// refuses; its messages name `subject` ("a final gather") and end with `advice`.
+Result<ReferenceSolution> reference_elements(const Scene& scene, const ReferenceSettings& settings,
+                                             const std::string& subject, const std::string& advice);
 
 // The reference's own discretisation error, from references with elements of length h, 2h and 4h
 // (each one flattens the curves anew, so the chords' departure from the curves is in it as much

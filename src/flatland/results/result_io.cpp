@@ -66,6 +66,8 @@ nlohmann::json result_without_curves(const Solver& solver, int samples_per_curve
       {"confidence", settings.confidence},
       {"target_error", settings.target_error},
       {"samples", samples_per_curve},
+      {"final_gather",
+       sampled.final_gather ? nlohmann::json{{"element_length", *sampled.final_gather}} : nlohmann::json(false)},
   };
   result["stats"] = stats_to_json(*sampled.stats);
   if (solver.detector_layout().size > 0) result["detectors"] = detectors_to_json(solver);
@@ -121,14 +123,20 @@ std::string detectors_csv(const Solver& solver) {
 }
 
 nlohmann::json result_to_json(const Solver& solver, int samples_per_curve, const ErrorEstimate* estimate) {
-  const SampledResult sampled = sample_solver(solver, samples_per_curve, estimate);
+  return result_to_json(solver, samples_per_curve, sample_solver(solver, samples_per_curve, estimate));
+}
+
+std::string result_text(const Solver& solver, int samples_per_curve, const ErrorEstimate* estimate) {
+  return result_text(solver, samples_per_curve, sample_solver(solver, samples_per_curve, estimate));
+}
+
+nlohmann::json result_to_json(const Solver& solver, int samples_per_curve, const SampledResult& sampled) {
   nlohmann::json result = result_without_curves(solver, samples_per_curve, sampled);
   result["curves"] = curves_to_json(sampled);
   return result;
 }
 
-std::string result_text(const Solver& solver, int samples_per_curve, const ErrorEstimate* estimate) {
-  const SampledResult sampled = sample_solver(solver, samples_per_curve, estimate);
+std::string result_text(const Solver& solver, int samples_per_curve, const SampledResult& sampled) {
   const std::string outline = json_text(result_without_curves(solver, samples_per_curve, sampled));
   // The outline holds `"curves": []` (keys are sorted, so first); the curves go in its place as
   // dump(1) would write them at that depth: "[", each entry on its own lines two spaces in, "]"
@@ -188,6 +196,9 @@ nlohmann::json estimated_error_to_json(const ErrorEstimate& estimate) {
   result["parts"] = {{"noise", errors_to_json(estimate.noise)},
                      {"storage", estimate.storage_estimated ? errors_to_json(estimate.storage) : nlohmann::json()},
                      {"unshot", errors_to_json(estimate.unshot)}};
+  // A final gather's own discretisation error (docs/result-format.md): only results that gathered.
+  if (estimate.gather.l1 > 0.0 || estimate.gather.l2 > 0.0 || estimate.gather.linf > 0.0)
+    result["parts"]["gather"] = errors_to_json(estimate.gather);
   if (!estimate.caveat.empty()) result["caveat"] = estimate.caveat;
   nlohmann::json curves = nlohmann::json::object();
   for (const CurveErrorEstimate& curve : estimate.curves)

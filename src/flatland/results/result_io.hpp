@@ -24,6 +24,9 @@ nlohmann::json result_to_json(const Solver& solver, int samples_per_curve, const
 // one at a time instead of held as one JSON tree, whose many small allocations cost seconds on
 // scenes of tens of thousands of curves (docs/performance.md).
 std::string result_text(const Solver& solver, int samples_per_curve, const ErrorEstimate* estimate = nullptr);
+// The same two of a result already sampled from the solver (a final gather's, reference/final_gather.hpp).
+nlohmann::json result_to_json(const Solver& solver, int samples_per_curve, const SampledResult& sampled);
+std::string result_text(const Solver& solver, int samples_per_curve, const SampledResult& sampled);
 
 // The detectors' tallies (Solver::detected): per detector curve its id, length, bins and, per bin,
 // the power crossing it from its front side to its back ("front") and from the back ("back"),

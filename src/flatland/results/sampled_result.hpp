@@ -75,6 +75,9 @@ struct SampledResult {
   std::string scene_sha256;
   std::vector<ResultCurve> curves;
   std::optional<ResultStats> stats;  // results of a solver
+  // Results whose B is a final gather of the solver's (reference/final_gather.hpp): its element
+  // length h.
+  std::optional<double> final_gather;
 };
 
 // Radiosity as JSON: a number for grey scenes, [r,g,b] for colour ones.

@@ -151,16 +151,26 @@ struct LevelValues {
   std::vector<std::vector<double>> deviation;
 };
 
-LevelValues level_values(const Solver& solver, const EvaluationPoints& at, const std::vector<int>& levels) {
+LevelValues level_values(const Solver& solver, const EvaluationPoints& at, const std::vector<int>& levels,
+                         const ReflectedEvaluator* evaluator) {
   const auto count = static_cast<std::size_t>(solver.replicates());
   LevelValues result;
   result.mean.assign(at.values(), 0.0);
-  result.deviation.resize(count);
-  for (std::size_t r = 0; r < count; ++r) {
-    result.deviation[r] =
-        evaluate(solver, solver.reflected_field(solver.replicate_received(static_cast<int>(r)), levels), at);
-    for (std::size_t i = 0; i < at.values(); ++i) result.mean[i] += result.deviation[r][i] / static_cast<double>(count);
+  if (evaluator != nullptr) {
+    std::vector<ReflectedField> fields;
+    for (std::size_t r = 0; r < count; ++r)
+      fields.push_back(solver.reflected_field(solver.replicate_received(static_cast<int>(r)), levels));
+    std::vector<FieldPoint> points;
+    for (const auto& point : at.points) points.push_back({point.curve, point.side, point.u});
+    result.deviation = evaluator->evaluate(solver, points, fields);
+  } else {
+    result.deviation.resize(count);
+    for (std::size_t r = 0; r < count; ++r)
+      result.deviation[r] =
+          evaluate(solver, solver.reflected_field(solver.replicate_received(static_cast<int>(r)), levels), at);
   }
+  for (std::size_t r = 0; r < count; ++r)
+    for (std::size_t i = 0; i < at.values(); ++i) result.mean[i] += result.deviation[r][i] / static_cast<double>(count);
   for (std::vector<double>& deviation : result.deviation)
     for (std::size_t i = 0; i < at.values(); ++i) deviation[i] -= result.mean[i];
   return result;
@@ -207,7 +217,7 @@ std::vector<double> difference_energy(const LevelValues& x, const LevelValues& y
 // signal in it. `unestimated` counts the curves with storage but a single distinct mesh (no
 // difference to measure: their part is 0).
 std::vector<double> storage_bias(const Solver& solver, const EvaluationPoints& at, const LevelValues& chosen,
-                                 int& unestimated) {
+                                 const ReflectedEvaluator* evaluator, int& unestimated) {
   const SceneStorage& storage = solver.scene_storage();
   const std::vector<int>& levels = solver.chosen_levels();
   const std::size_t curves = at.first.size() - 1;
@@ -247,11 +257,11 @@ std::vector<double> storage_bias(const Solver& solver, const EvaluationPoints& a
       ++unestimated;
     }
   }
-  const LevelValues other_values = level_values(solver, at, other);
+  const LevelValues other_values = level_values(solver, at, other, evaluator);
   const std::vector<double> near_energy = difference_energy(chosen, other_values, at);
   std::vector<double> far_energy(curves, 0.0);
   if (std::find(has_further.begin(), has_further.end(), 1) != has_further.end())
-    far_energy = difference_energy(other_values, level_values(solver, at, further), at);
+    far_energy = difference_energy(other_values, level_values(solver, at, further, evaluator), at);
   std::vector<double> bias(at.values(), 0.0);
   for (std::uint32_t c = 0; c < curves; ++c) {
     if (!estimated[c] || !(near_energy[c] > 0.0)) continue;
@@ -288,12 +298,12 @@ std::vector<double> storage_bias(const Solver& solver, const EvaluationPoints& a
   return bias;
 }
 
-PointValues values_at(const Solver& solver, const EvaluationPoints& at) {
+PointValues values_at(const Solver& solver, const EvaluationPoints& at, const ReflectedEvaluator* evaluator) {
   PointValues result;
-  LevelValues chosen = level_values(solver, at, solver.chosen_levels());
+  LevelValues chosen = level_values(solver, at, solver.chosen_levels(), evaluator);
   // Storage (storage_bias).
   if (solver.auto_storage())
-    result.bias = storage_bias(solver, at, chosen, result.unestimated);
+    result.bias = storage_bias(solver, at, chosen, evaluator, result.unestimated);
   else
     result.bias.assign(at.values(), 0.0);
   result.mean = std::move(chosen.mean);
@@ -321,20 +331,21 @@ double unshot_share_of(const Solver& solver, double reflected) {
 // A relative to D - A (the true norm is at least D - A), none where A reaches D; and each part
 // relative to D.
 struct Combined {
-  RelativeErrors bound, noise, storage, unshot;
+  RelativeErrors bound, noise, storage, unshot, gather;
   bool bounded = true;
 };
 
-Combined combine(const RelativeErrors& noise, const RelativeErrors& storage, const RelativeErrors& norm,
-                 double unshot_share) {
+Combined combine(const RelativeErrors& noise, const RelativeErrors& storage, const RelativeErrors& gather,
+                 const RelativeErrors& norm, double unshot_share) {
   Combined result;
   for (double RelativeErrors::*member : {&RelativeErrors::l1, &RelativeErrors::l2, &RelativeErrors::linf}) {
     const double d = norm.*member;
-    const double total = noise.*member + storage.*member + unshot_share * d;
+    const double total = noise.*member + storage.*member + gather.*member + unshot_share * d;
     result.bound.*member = total < d ? total / (d - total) : kInfinity;
     result.bounded = result.bounded && total < d;
     result.noise.*member = d > 0.0 ? noise.*member / d : kInfinity;
     result.storage.*member = d > 0.0 ? storage.*member / d : kInfinity;
+    result.gather.*member = d > 0.0 ? gather.*member / d : kInfinity;
     result.unshot.*member = unshot_share;
   }
   return result;
@@ -360,7 +371,7 @@ ErrorEstimate estimate_error(const Solver& solver, const ErrorEstimateOptions& o
   const EvaluationPoints at = evaluation_points(solver, std::max(1, options.samples_per_curve));
   const std::size_t values = at.values();
   const std::size_t curves = at.first.size() - 1;
-  PointValues point_values = values_at(solver, at);
+  PointValues point_values = values_at(solver, at, options.evaluator);
   const std::vector<double>& mean = point_values.mean;
   const std::vector<std::vector<double>>& replicate = point_values.deviation;
   const std::vector<double>& bias = point_values.bias;
@@ -425,6 +436,16 @@ ErrorEstimate estimate_error(const Solver& solver, const ErrorEstimateOptions& o
   };
 
   const std::vector<Norms> bias_norms = norms_of(bias, at);
+  // The evaluator's own error, at the solver's answer.
+  std::vector<double> own;
+  if (options.evaluator != nullptr) {
+    std::vector<FieldPoint> points;
+    for (const auto& point : at.points) points.push_back({point.curve, point.side, point.u});
+    own =
+        options.evaluator->own_error(solver, points, solver.reflected_field(solver.received(), solver.chosen_levels()));
+  }
+  if (own.size() != values) own.assign(values, 0.0);
+  const std::vector<Norms> own_norms = norms_of(own, at);
 
   // Unshot light (unshot_share).
   const double unshot_share = unshot_share_of(solver, size[curves].l1);
@@ -432,7 +453,7 @@ ErrorEstimate estimate_error(const Solver& solver, const ErrorEstimateOptions& o
   // The bound: the parts' sum A in each norm, relative to the estimate's norm D less A (the true
   // norm is at least D - A); none where A reaches D.
   auto combine_at = [&](std::size_t c) {
-    return combine(noise_of(c), bias_norms[c].absolute(), size[c].absolute(), unshot_share);
+    return combine(noise_of(c), bias_norms[c].absolute(), own_norms[c].absolute(), size[c].absolute(), unshot_share);
   };
   if (!(size[curves].l1 > 0.0)) {
     estimate.available = false;
@@ -445,6 +466,7 @@ ErrorEstimate estimate_error(const Solver& solver, const ErrorEstimateOptions& o
   estimate.noise = scene_bound.noise;
   estimate.storage = scene_bound.storage;
   estimate.unshot = scene_bound.unshot;
+  estimate.gather = scene_bound.gather;
   if (!estimate.bounded) {
     const std::string why = "the estimated error is as large as B - E itself (noise " + percent(estimate.noise.l1) +
                             ", storage " + percent(estimate.storage.l1) + ", unshot " + percent(estimate.unshot.l1) +
@@ -473,7 +495,7 @@ std::vector<std::array<std::vector<double>, 2>> pointwise_bound(const Solver& so
   const int replicates = solver.replicates();
   if (replicates < 2 || solver.photons_shot() == 0) return result;
   const EvaluationPoints at = points_at(solver, parameters);
-  const PointValues values = values_at(solver, at);
+  const PointValues values = values_at(solver, at, nullptr);
   const auto channels = static_cast<std::size_t>(at.channels);
   // The integral of B - E over the scene, for the unshot part's share.
   double reflected = 0.0;

@@ -8,18 +8,48 @@
 // - storage: with automatic storage, the difference between each curve's chosen level and the next
 //   coarser one, scaled by Richardson's factor for the estimator's order, less its own noise;
 // - unshot: the light still in the pool, which at most rho_max U / (1 - rho_max) more of B - E
-//   would carry, spread like B - E.
+//   would carry, spread like B - E;
+// - with an evaluator (a final gather), its own discretisation error as it estimates it.
 // The bound is their sum, relative to the estimate's norm less the bound (so that it also bounds
 // the error relative to the true norm).
 #pragma once
 
 #include <array>
+#include <cstdint>
+#include <span>
 #include <string>
 #include <vector>
+
+#include "flatland/scene/scene.hpp"
 
 namespace flatland {
 
 class Solver;
+struct ReflectedField;
+
+// A point where B - E is evaluated: curve, side and curve parameter.
+struct FieldPoint {
+  std::uint32_t curve = 0;
+  Side side = Side::Front;
+  double u = 0.0;
+};
+
+// B - E at points as something other than the storage's own spline gives it: a final gather of
+// the stored solution (reference/final_gather.hpp). The error estimate evaluates every field it
+// compares (each replicate's, each storage level's) through it, so that its bound is the bound of
+// what the evaluator reports. It is linear in the field.
+class ReflectedEvaluator {
+ public:
+  virtual ~ReflectedEvaluator() = default;
+  // B - E of each field at the points: values[f][p * channels + ch].
+  virtual std::vector<std::vector<double>> evaluate(const Solver& solver, std::span<const FieldPoint> points,
+                                                    std::span<const ReflectedField> fields) const = 0;
+  // An estimate of its own discretisation error at the points when it evaluates `field` (signed,
+  // [p * channels + ch]), or empty where it has none.
+  virtual std::vector<double> own_error(const Solver&, std::span<const FieldPoint>, const ReflectedField&) const {
+    return {};
+  }
+};
 
 // Relative errors of B - E along arc length, as a comparison with a reference measures them
 // (results/metrics.hpp, Measure::Reflected): L1, L2 and L-infinity over every side and channel.
@@ -32,6 +62,8 @@ struct RelativeErrors {
 struct ErrorEstimateOptions {
   double confidence = 0.95;     // of the bound, in [kMinConfidence, kMaxConfidence]
   int samples_per_curve = 100;  // where B - E is evaluated: midpoints of equal arc-length cells
+  // How B - E is evaluated there: null for the storage's splines.
+  const ReflectedEvaluator* evaluator = nullptr;
 };
 inline constexpr double kMinConfidence = 0.5;
 inline constexpr double kMaxConfidence = 0.999;
@@ -57,6 +89,8 @@ struct ErrorEstimate {
   RelativeErrors noise;
   RelativeErrors storage;
   RelativeErrors unshot;
+  // The evaluator's own discretisation error (a final gather's elements); zero without one.
+  RelativeErrors gather;
   // False on a fixed mesh (no coarser level to compare with): the mesh's discretisation error is
   // then not in the bound, and `caveat` says so.
   bool storage_estimated = false;

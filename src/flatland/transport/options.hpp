@@ -28,6 +28,7 @@ enum class SolveOption {
   Estimator,
   Sampler,
   Transport,
+  Gather,
   RayWidth,
   RayProfile,
   RayMode,

@@ -1,11 +1,13 @@
-#include "flatland/results/converge.hpp"
+#include "flatland/studies/converge.hpp"
 
 #include <algorithm>
+#include <chrono>
 #include <cstdlib>
 #include <sstream>
 #include <vector>
 
 #include "flatland/base/text.hpp"
+#include "flatland/reference/final_gather.hpp"
 #include "flatland/transport/footprint.hpp"
 #include "flatland/transport/options.hpp"
 
@@ -51,9 +53,23 @@ Result<ConvergeRow> converge_run(const Scene& scene, const SolverSettings& setti
   if (!solver) return solver.error();
   solver->run(cancel, progress);
   if (solver->stop_reason() == StopReason::Cancelled) return Error{kConvergeCancelled};
+  // A method that gathers is timed with its gather (the sweeps and the estimate through them).
+  std::optional<FinalGather> gather;
+  std::optional<SampledResult> gathered;
+  double gather_seconds = 0.0;
+  if (settings.gather == GatherMode::Samples) {
+    const auto start = std::chrono::steady_clock::now();
+    Result<FinalGather> made = FinalGather::create(scene, {0.0, settings.threads, cancel});
+    if (!made) return made.error();
+    gather.emplace(std::move(*made));
+    gathered = gather->gather_result(*solver, samples);
+    if (gather->cancelled()) return Error{kConvergeCancelled};
+    gather_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  }
   Result<Comparison> comparison = compare_sampled(
-      sample_radiosity(scene, samples,
-                       [&](std::uint32_t c, Side side, double u) { return solver->radiosity(c, side, u); }),
+      gathered ? *gathered
+               : sample_radiosity(scene, samples,
+                                  [&](std::uint32_t c, Side side, double u) { return solver->radiosity(c, side, u); }),
       reference, measure);
   if (!comparison) return Error{"reference: " + comparison.error().message};
   if (curve && *curve >= comparison->curves.size()) return Error{"curve: no such curve in the reference"};
@@ -63,11 +79,12 @@ Result<ConvergeRow> converge_run(const Scene& scene, const SolverSettings& setti
   row.photons = solver->photons_shot();
   row.rounds = solver->rounds();
   row.unshot = books.emitted > 0.0 ? books.unshot / books.emitted : 0.0;
-  row.seconds = solver->seconds();
+  row.seconds = solver->seconds() + gather_seconds;
   row.error = curve ? comparison->curves[*curve].norms : comparison->scene;
   row.rays = solver->rays_traced();
   if (measure == Measure::Reflected) {
-    const ErrorEstimate estimate = estimate_error(*solver, {settings.confidence, samples});
+    const ErrorEstimate estimate =
+        gathered ? *gathered->stats->estimated_error : estimate_error(*solver, {settings.confidence, samples});
     if (estimate.available) {
       const RelativeErrors& bound = curve ? estimate.curves[*curve].bound : estimate.bound;
       row.estimated = {bound.l1, bound.l2, bound.linf};
@@ -109,6 +126,7 @@ std::vector<ConvergeField> converge_fields(const std::string& method, const Solv
       {"est_l1", row.estimated.l1},
       {"est_l2", row.estimated.l2},
       {"est_linf", row.estimated.linf},
+      {"gather", to_string(s.gather)},
   };
 }
 
