@@ -297,6 +297,7 @@ int run_solve(SolveOptions& o) {
   if (const std::optional<int> code = agree(create())) return *code;
   Solver& solver = *solver_slot;
   solver.share_rounds(shared_processes());
+  if (gather) solver.check_target_through(&*gather);
 
   {
     ProgressLine line(!o.quiet && speaks_for_the_run());

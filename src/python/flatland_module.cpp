@@ -222,6 +222,7 @@ class PySolver {
       gather_ =
           std::make_unique<FinalGather>(value_or_fail(FinalGather::create(*scene_.scene, {0.0, settings.threads})));
     solver_ = std::make_unique<Solver>(value_or_fail(Solver::create(*scene_.scene, settings)));
+    if (gather_) solver_->check_target_through(gather_.get());
   }
 
   // Runs (with the GIL released) until the solve stops; `progress` (called about every

@@ -49,22 +49,31 @@ Result<ConvergeMethod> parse_converge_method(const std::string& text, const Solv
 Result<ConvergeRow> converge_run(const Scene& scene, const SolverSettings& settings, const SampledResult& reference,
                                  Measure measure, std::optional<std::size_t> curve, int samples,
                                  const std::atomic<bool>* cancel, const ProgressCallback& progress) {
-  Result<Solver> solver = Solver::create(scene, settings, cancel);
-  if (!solver) return solver.error();
-  solver->run(cancel, progress);
-  if (solver->stop_reason() == StopReason::Cancelled) return Error{kConvergeCancelled};
-  // A method that gathers is timed with its gather (the sweeps and the estimate through them).
+  // A method that gathers is timed with its gather (its elements, the sweeps, and the estimate
+  // through them, also when a target error is checked).
   std::optional<FinalGather> gather;
   std::optional<SampledResult> gathered;
   double gather_seconds = 0.0;
+  const auto seconds_since = [](std::chrono::steady_clock::time_point start) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  };
   if (settings.gather == GatherMode::Samples) {
     const auto start = std::chrono::steady_clock::now();
     Result<FinalGather> made = FinalGather::create(scene, {0.0, settings.threads, cancel});
     if (!made) return made.error();
     gather.emplace(std::move(*made));
+    gather_seconds += seconds_since(start);
+  }
+  Result<Solver> solver = Solver::create(scene, settings, cancel);
+  if (!solver) return solver.error();
+  if (gather) solver->check_target_through(&*gather);
+  solver->run(cancel, progress);
+  if (solver->stop_reason() == StopReason::Cancelled) return Error{kConvergeCancelled};
+  if (gather) {
+    const auto start = std::chrono::steady_clock::now();
     gathered = gather->gather_result(*solver, samples);
+    gather_seconds += seconds_since(start);
     if (gather->cancelled()) return Error{kConvergeCancelled};
-    gather_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   }
   Result<Comparison> comparison = compare_sampled(
       gathered ? *gathered

@@ -122,7 +122,7 @@ bool Solver::begin_round() {
 }
 
 bool Solver::target_met() {
-  const ErrorEstimate estimate = estimate_error(*this, {settings_.confidence, kTargetSamples});
+  const ErrorEstimate estimate = estimate_error(*this, {settings_.confidence, kTargetSamples, target_evaluator_});
   checked_error_ = estimate.available && estimate.bounded ? estimate.bound.l1 : std::numeric_limits<double>::infinity();
   return checked_error_ <= settings_.target_error;
 }

@@ -40,6 +40,8 @@
 
 namespace flatland {
 
+class ReflectedEvaluator;  // error_estimate.hpp
+
 enum class StopReason { Running, Converged, BudgetSpent, Cancelled, BooksUnbalanced, TargetReached };
 
 // Reflected radiosity B - E as a solver reconstructs it from received power: B-spline coefficients
@@ -83,6 +85,10 @@ class Solver {
   // checked at (flatland solve's default --samples).
   static constexpr std::uint64_t kFirstPassPhotons = std::uint64_t{1} << 15;
   static constexpr int kTargetSamples = 100;
+  // Solving to an accuracy, the estimate checked is that of B - E as `evaluator` gives it (a final
+  // gather's: reference/final_gather.hpp), or the storage's own (null, the default). The evaluator
+  // must outlive the solve.
+  void check_target_through(const ReflectedEvaluator* evaluator) { target_evaluator_ = evaluator; }
 
   // `cancel` is checked between the curves' storage levels (building them all for a large budget
   // takes a moment): once it is set, create returns the error kSolverCancelled.
@@ -340,6 +346,7 @@ class Solver {
   std::vector<double> mixed_received_;
   std::vector<double> mixed_parts_;
   double checked_error_ = std::numeric_limits<double>::infinity();
+  const ReflectedEvaluator* target_evaluator_ = nullptr;
   // What the readers see: the reflected radiosity of received_ at the chosen levels.
   ReflectedField readers_;
   // Hermite basis only: the unshot density per block (channels summed, in arc length) that
