@@ -115,18 +115,6 @@ std::optional<int> parse_command_line(int argc, const char* const* argv, Command
   return std::nullopt;
 }
 
-namespace {
-
-// The viewer and render draw the storage's B as it arrives; a final gather belongs to a finished
-// result (solve, converge, Python).
-Status gather_refused(const char* who) {
-  return Error{std::string("--gather: ") + who +
-               " draws the storage's B as the photons arrive; a final gather is for a finished result (flatland solve "
-               "--gather samples, converge's gather=samples, Python's gather=\"samples\"); use --gather none"};
-}
-
-}  // namespace
-
 Status validate_command_line(CommandLine& command_line) {
   switch (command_line.command) {
     case Command::Solve: return finish_solver_settings(command_line.solve);
@@ -140,7 +128,7 @@ Status validate_command_line(CommandLine& command_line) {
     case Command::Converge: return check_converge_options(command_line.converge);
     case Command::View: {
       if (Status status = finish_solver_settings(command_line.view.solve); !status) return status;
-      if (command_line.view.solve.settings.gather != GatherMode::None) return gather_refused("the viewer");
+      if (Status status = check_no_gather(command_line.view.solve, "the viewer"); !status) return status;
 #ifdef FLATLAND_HAVE_VIEWER
       if (Result<viewer::FrameStep> step = viewer::parse_frame_step(command_line.view.step); !step) return step.error();
 #endif
@@ -148,7 +136,7 @@ Status validate_command_line(CommandLine& command_line) {
     }
     case Command::Render: {
       if (Status status = finish_solver_settings(command_line.render.solve); !status) return status;
-      if (command_line.render.solve.settings.gather != GatherMode::None) return gather_refused("render");
+      if (Status status = check_no_gather(command_line.render.solve, "render"); !status) return status;
       return ok_status();
     }
     case Command::None: break;

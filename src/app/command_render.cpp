@@ -59,6 +59,10 @@ int run_render(RenderOptions& o) {
     std::fprintf(stderr, "flatland: error: %s\n", status.error().message.c_str());
     return kExitUsage;
   }
+  if (Status status = check_no_gather(o.solve, "render"); !status) {
+    std::fprintf(stderr, "flatland: error: %s\n", status.error().message.c_str());
+    return kExitUsage;
+  }
   Result<Scene> loaded = load_scene(o.solve.scene, &interrupt_flag());
   if (!loaded) return input_error(loaded.error());
   auto scene = std::make_shared<const Scene>(std::move(*loaded));

@@ -240,6 +240,13 @@ Status finish_solver_settings(SolveOptions& o) {
   return ok_status();
 }
 
+Status check_no_gather(const SolveOptions& options, const char* who) {
+  if (options.settings.gather == GatherMode::None) return ok_status();
+  return Error{std::string("--gather: ") + who +
+               " draws the storage's B as the photons arrive; a final gather is for a finished result (flatland solve "
+               "--gather samples, converge's gather=samples, Python's gather=\"samples\"); use --gather none"};
+}
+
 int run_solve(SolveOptions& o) {
   std::optional<Scene> scene;
   std::optional<nlohmann::json> reference;
