@@ -33,7 +33,7 @@ METHODS = "cubic,linear,constant,hermite,cubic+sampler=random,cubic+transport=wa
 # origins, direct-light events, Sobol' points, point rays, shooting), so a change of the program's
 # defaults does not change what this measures.
 PINNED = {"basis": "cubic", "elements": "auto", "sampling": "reconstructed", "discontinuities": "auto",
-          "sampler": "sobol", "ray-width": "0", "transport": "shooting"}
+          "sampler": "sobol", "ray-width": "0", "transport": "shooting", "gather": "none"}
 
 
 def pinned(method):

@@ -30,7 +30,7 @@ def main():
     # subject), so a change of defaults does not change it; hermite takes the local estimator, the
     # others Galerkin, as the defaults do.
     full = ["basis=%s+estimator=%s+elements=auto+sampling=reconstructed+discontinuities=auto+sampler=sobol"
-            "+ray-width=0+transport=shooting" % (b, "local" if b == "hermite" else "galerkin")
+            "+ray-width=0+transport=shooting+gather=none" % (b, "local" if b == "hermite" else "galerkin")
             for b in args.methods.split(",")]
     if not args.replot:
         os.makedirs(work, exist_ok=True)

@@ -31,7 +31,7 @@ SCENES = {
 # change what this measures: the default method (cubic storage, Galerkin, storage that follows the
 # photons, reconstructed origins, direct-light events, Sobol' points, point rays).
 PINNED_ARGS = ["--basis", "cubic", "--estimator", "galerkin", "--elements", "auto", "--sampling", "reconstructed",
-               "--discontinuities", "auto", "--sampler", "sobol", "--ray-width", "0", "--transport", "shooting"]
+               "--discontinuities", "auto", "--sampler", "sobol", "--ray-width", "0", "--transport", "shooting", "--gather", "none"]
 
 
 def main():
@@ -71,7 +71,7 @@ def main():
         directory = os.path.join(args.out, tag)
         converged = subprocess.run([args.flatland, "converge", scene, "--reference", reference, "--methods",
                         "basis=cubic+estimator=galerkin+elements=auto+sampling=reconstructed+discontinuities=auto"
-                        "+sampler=sobol+ray-width=0+transport=shooting",
+                        "+sampler=sobol+ray-width=0+transport=shooting+gather=none",
                         "--budgets", ",".join(map(str, grid)), "--seeds", str(args.seeds), "--tolerance", "1e-3",
                         "--threads", "2", "--out", directory], check=True, stdout=subprocess.PIPE, text=True)
         with open(os.path.join(directory, "convergence.csv")) as table:

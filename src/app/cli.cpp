@@ -128,17 +128,12 @@ Status validate_command_line(CommandLine& command_line) {
     case Command::Converge: return check_converge_options(command_line.converge);
     case Command::View: {
       if (Status status = finish_solver_settings(command_line.view.solve); !status) return status;
-      if (Status status = check_no_gather(command_line.view.solve, "the viewer"); !status) return status;
 #ifdef FLATLAND_HAVE_VIEWER
       if (Result<viewer::FrameStep> step = viewer::parse_frame_step(command_line.view.step); !step) return step.error();
 #endif
       return ok_status();
     }
-    case Command::Render: {
-      if (Status status = finish_solver_settings(command_line.render.solve); !status) return status;
-      if (Status status = check_no_gather(command_line.render.solve, "render"); !status) return status;
-      return ok_status();
-    }
+    case Command::Render: return finish_solver_settings(command_line.render.solve);
     case Command::None: break;
   }
   return Error{"no command given"};

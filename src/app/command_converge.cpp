@@ -606,7 +606,7 @@ double floor_for(const nlohmann::json& reference, double floor, const Measured& 
 // A row travels as integers (its doubles bit for bit), zero where another process did the run.
 void gather_rows(std::vector<std::optional<Row>>& rows) {
   if (process_count() == 1) return;
-  constexpr std::size_t kFields = 14;
+  constexpr std::size_t kFields = 15;
   std::vector<std::int64_t> values(rows.size() * kFields, 0);
   for (std::size_t i = 0; i < rows.size(); ++i) {
     if (!rows[i]) continue;
@@ -626,6 +626,7 @@ void gather_rows(std::vector<std::optional<Row>>& rows) {
     out[11] = bit_cast<std::int64_t>(row.estimated.l1);
     out[12] = bit_cast<std::int64_t>(row.estimated.l2);
     out[13] = bit_cast<std::int64_t>(row.estimated.linf);
+    out[14] = row.gathered ? 1 : 0;
   }
   std::vector<std::int64_t> rays(rows.size(), 0);
   for (std::size_t i = 0; i < rows.size(); ++i)
@@ -650,6 +651,7 @@ void gather_rows(std::vector<std::optional<Row>>& rows) {
     row.error = error;
     row.estimated = {bit_cast<double>(in[11]), bit_cast<double>(in[12]), bit_cast<double>(in[13])};
     row.rays = static_cast<std::uint64_t>(rays[i]);
+    row.gathered = in[14] != 0;
     rows[i] = row;
   }
 }

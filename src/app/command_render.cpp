@@ -8,6 +8,7 @@
 #include "app/output.hpp"
 #include "app/progress.hpp"
 #include "flatland/base/resources.hpp"
+#include "flatland/reference/final_gather.hpp"
 #include "flatland/results/result_io.hpp"
 #include "png/png_io.hpp"
 #include "viewer/offscreen.hpp"
@@ -59,10 +60,6 @@ int run_render(RenderOptions& o) {
     std::fprintf(stderr, "flatland: error: %s\n", status.error().message.c_str());
     return kExitUsage;
   }
-  if (Status status = check_no_gather(o.solve, "render"); !status) {
-    std::fprintf(stderr, "flatland: error: %s\n", status.error().message.c_str());
-    return kExitUsage;
-  }
   Result<Scene> loaded = load_scene(o.solve.scene, &interrupt_flag());
   if (!loaded) return input_error(loaded.error());
   auto scene = std::make_shared<const Scene>(std::move(*loaded));
@@ -91,6 +88,13 @@ int run_render(RenderOptions& o) {
     std::fprintf(stderr, "flatland: error: %s\n", renderer.error().message.c_str());
     return kExitUsage;
   }
+  // The --result file's samples are gathered as solve's are (the picture is the storage's B).
+  Result<GatherChoice> choice = choose_gather(*scene, o.solve.settings, o.solve.samples, &interrupt_flag());
+  if (!choice) {
+    if (interrupt_flag().load()) return interrupted();
+    std::fprintf(stderr, "flatland: error: --gather samples: %s\n", choice.error().message.c_str());
+    return kExitUsage;
+  }
   Result<Solver> created = Solver::create(*scene, o.solve.settings, &interrupt_flag());
   if (!created) {
     if (interrupt_flag().load()) return interrupted();
@@ -98,6 +102,7 @@ int run_render(RenderOptions& o) {
     return kExitUsage;
   }
   Solver& solver = *created;
+  if (choice->gather) solver.check_target_through(choice->gather.get());
 
   // Paths from every round, in proportion to its photons.
   std::vector<PhotonPath> paths;
@@ -147,7 +152,11 @@ int run_render(RenderOptions& o) {
 
   OutputFiles files(&interrupt_flag());
   if (!o.result.empty())
-    if (Status status = files.stage(o.result, result_text(solver, o.solve.samples)); !status)
+    if (Status status = files.stage(
+            o.result, choice->gather
+                          ? result_text(solver, o.solve.samples, choice->gather->gather_result(solver, o.solve.samples))
+                          : result_text(solver, o.solve.samples));
+        !status)
       return usage_error(status.error().message);
   Result<std::string> png = png::encode_png(image);
   if (!png) return usage_error(o.out + ": " + png.error().message);

@@ -240,17 +240,12 @@ Status finish_solver_settings(SolveOptions& o) {
   return ok_status();
 }
 
-Status check_no_gather(const SolveOptions& options, const char* who) {
-  if (options.settings.gather == GatherMode::None) return ok_status();
-  return Error{std::string("--gather: ") + who +
-               " draws the storage's B as the photons arrive; a final gather is for a finished result (flatland solve "
-               "--gather samples, converge's gather=samples, Python's gather=\"samples\"); use --gather none"};
-}
-
 int run_solve(SolveOptions& o) {
   std::optional<Scene> scene;
   std::optional<nlohmann::json> reference;
   std::optional<Solver> solver_slot;
+  std::unique_ptr<FinalGather> gather;
+  std::string gather_skipped;  // why --gather auto gathers nothing
   // Under mpirun every process loads the scene and sets up the same solver; rank 0 alone checks
   // and writes the outputs. All agree to go on before the set-up and after it (processes.hpp).
   auto prepare = [&]() -> std::optional<int> {
@@ -286,16 +281,14 @@ int run_solve(SolveOptions& o) {
   };
   if (const std::optional<int> code = agree(prepare())) return *code;
   if (const std::optional<int> code = agree_on_digest("scene file", o.scene, scene->source_sha256)) return *code;
-  // The gather's elements are made (and the scene checked for it) before any photon is shot.
-  std::optional<FinalGather> gather;
-  if (o.settings.gather == GatherMode::Samples) {
-    Result<FinalGather> made = FinalGather::create(*scene, {0.0, o.settings.threads, &interrupt_flag()});
-    if (!made)
-      return interrupt_flag().load() ? interrupted() : usage_error("--gather samples: " + made.error().message);
-    gather.emplace(std::move(*made));
-  }
   // Set-up can take a while (storage for a large budget): only once every process may go on.
   auto create = [&]() -> std::optional<int> {
+    // The gather's elements are made (and the scene checked for it) before any photon is shot.
+    Result<GatherChoice> choice = choose_gather(*scene, o.settings, o.samples, &interrupt_flag());
+    if (!choice)
+      return interrupt_flag().load() ? interrupted() : usage_error("--gather samples: " + choice.error().message);
+    gather = std::move(choice->gather);
+    gather_skipped = choice->skipped;
     Result<Solver> created = Solver::create(*scene, o.settings, &interrupt_flag());
     if (!created) return interrupt_flag().load() ? interrupted() : usage_error(created.error().message);
     solver_slot.emplace(std::move(*created));
@@ -304,7 +297,7 @@ int run_solve(SolveOptions& o) {
   if (const std::optional<int> code = agree(create())) return *code;
   Solver& solver = *solver_slot;
   solver.share_rounds(shared_processes());
-  if (gather) solver.check_target_through(&*gather);
+  if (gather) solver.check_target_through(gather.get());
 
   {
     ProgressLine line(!o.quiet && speaks_for_the_run());
@@ -325,6 +318,8 @@ int run_solve(SolveOptions& o) {
       gathered ? *gathered->stats->estimated_error : estimate_error(solver, {solver.settings().confidence, o.samples});
   if (!o.quiet) {
     print_summary(solver, estimate);
+    if (!gather_skipped.empty())
+      std::fprintf(report_stream(), "gathered  no: %s (--gather auto)\n", gather_skipped.c_str());
     if (gather)
       std::fprintf(report_stream(),
                    "gathered  B at %d samples per curve: one bounce over %zu elements (h = %.3g), %.3f s\n", o.samples,

@@ -84,10 +84,6 @@ std::optional<int> make_view_options(ViewCommandOptions& o, viewer::ViewOptions&
     std::fprintf(stderr, "flatland: error: %s\n", status.error().message.c_str());
     return kExitUsage;
   }
-  if (Status status = check_no_gather(o.solve, "the viewer"); !status) {
-    std::fprintf(stderr, "flatland: error: %s\n", status.error().message.c_str());
-    return kExitUsage;
-  }
   if (Result<viewer::FrameStep> step = viewer::parse_frame_step(o.step); !step) {
     std::fprintf(stderr, "flatland: error: %s\n", step.error().message.c_str());
     return kExitUsage;

@@ -131,9 +131,7 @@ void add_solver_options(CLI::App* command, SolveOptions& options);
 std::optional<int> abnormal_stop(const Solver& solver);
 // Turns the parsed text options into options.settings and validates them.
 Status finish_solver_settings(SolveOptions& options);
-// The viewer and render draw the storage's B as it arrives; a final gather belongs to a finished
-// result (solve, converge, Python): --gather samples is refused, naming `who`.
-Status check_no_gather(const SolveOptions& options, const char* who);
+
 int run_solve(SolveOptions& options);
 
 struct ViewCommandOptions {

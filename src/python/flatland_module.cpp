@@ -218,9 +218,8 @@ class PySolver {
  public:
   PySolver(PyScene scene, const SolverSettings& settings) : scene_(std::move(scene)) {
     // A final gather's elements first: a scene it cannot gather is refused before any set-up.
-    if (settings.gather == GatherMode::Samples)
-      gather_ =
-          std::make_unique<FinalGather>(value_or_fail(FinalGather::create(*scene_.scene, {0.0, settings.threads})));
+    // (auto decides at the default 100 samples per curve).
+    gather_ = value_or_fail(choose_gather(*scene_.scene, settings, Solver::kTargetSamples)).gather;
     solver_ = std::make_unique<Solver>(value_or_fail(Solver::create(*scene_.scene, settings)));
     if (gather_) solver_->check_target_through(gather_.get());
   }
@@ -325,7 +324,8 @@ class PySolver {
                                            : estimate_error(*solver_, {solver_->settings().confidence, samples});
     return py::module_::import("json").attr("loads")(estimated_error_to_json(estimate).dump());
   }
-  // With gather="samples" the samples' B (and the estimated error) are the final gather's.
+  // With a final gather (gather="samples", or "auto" where it gathers) the samples' B and the
+  // estimated error are the gather's.
   SampledResult sampled(int samples) const {
     check_idle();
     return gather_ ? gather_->gather_result(*solver_, samples) : sample_solver(*solver_, samples);
@@ -407,7 +407,7 @@ class PySolver {
 
   PyScene scene_;
   std::unique_ptr<Solver> solver_;
-  std::unique_ptr<FinalGather> gather_;  // with gather="samples"
+  std::unique_ptr<FinalGather> gather_;  // with gather "samples", or "auto" where it gathers
   std::atomic<bool> busy_{false};
   bool warned_threads_ = false;
 };

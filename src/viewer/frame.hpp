@@ -156,6 +156,10 @@ struct Snapshot {
   // the bound's half-width at every trace sample (the channels' mean, as the plot shows B); remade
   // about twice a second of solving and when the solve stops.
   std::optional<ErrorEstimate> estimated_error;
+  // The estimate is of the final gather's B (once the solve has stopped, with a gather); empty, or
+  // why --gather auto gathers nothing on this scene.
+  bool estimate_gathered = false;
+  std::string gather_skipped;
   std::shared_ptr<const std::vector<std::array<std::vector<double>, 2>>> error_band;
   // Detector curves: per curve and side (the side the light arrives on), the power per unit
   // length that crossed each bin (empty for other curves).

@@ -513,16 +513,24 @@ void Viewer::draw_status_panel(const Snapshot& snapshot) {
   if (snapshot.estimated_error && snapshot.estimated_error->available) {
     const ErrorEstimate& estimate = *snapshot.estimated_error;
     if (estimate.bounded)
-      ImGui::Text("error    <= %.2g %% (estimated, %g %%)", 100.0 * estimate.bound.l1, 100.0 * estimate.confidence);
+      ImGui::Text("error    <= %.2g %% (estimated, %g %%%s)", 100.0 * estimate.bound.l1, 100.0 * estimate.confidence,
+                  snapshot.estimate_gathered ? ", gathered" : "");
     else
       ImGui::Text("error    not bounded yet");
     if (ImGui::IsItemHovered())
       ImGui::SetTooltip(
           "Upper bound of the relative L1 error of B - E over the scene at %g %% confidence\n"
-          "noise %.2g %%, storage %s, unshot %.2g %%%s%s",
+          "noise %.2g %%, storage %s, unshot %.2g %%%s%s%s%s",
           100.0 * estimate.confidence, 100.0 * estimate.noise.l1,
           estimate.storage_estimated ? (format_number(100.0 * estimate.storage.l1, 2) + " %").c_str() : "not estimated",
-          100.0 * estimate.unshot.l1, estimate.caveat.empty() ? "" : "\n", estimate.caveat.c_str());
+          100.0 * estimate.unshot.l1,
+          snapshot.estimate_gathered
+              ? (", gather " + format_number(100.0 * estimate.gather.l1, 2) +
+                 " %\nof the final gather's B, which a saved result holds; the plots show the storage's B")
+                    .c_str()
+              : "",
+          snapshot.gather_skipped.empty() ? "" : ("\nno final gather: " + snapshot.gather_skipped).c_str(),
+          estimate.caveat.empty() ? "" : "\n", estimate.caveat.c_str());
     if (settings_.target_error > 0.0)
       ImGui::Text("target   %.2g %%%s", 100.0 * settings_.target_error,
                   snapshot.stop_reason == StopReason::TargetReached ? " (reached)" : "");

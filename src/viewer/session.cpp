@@ -183,6 +183,7 @@ void Session::wait_idle() {
 Result<nlohmann::json> Session::result_json(int samples_per_curve) {
   std::lock_guard lock(solver_mutex_);
   if (!solver_) return Error{error_.empty() ? "nothing solved yet" : error_};
+  if (gather_) return result_to_json(*solver_, samples_per_curve, gather_->gather_result(*solver_, samples_per_curve));
   return result_to_json(*solver_, samples_per_curve);
 }
 
@@ -215,13 +216,18 @@ void Session::publish(const Solver* solver, const std::vector<PathRecord>& new_p
       last_estimate_time_ = now;
       estimate_final_ = final;
       const double confidence = solver->settings().confidence;
-      estimated_error_ = estimate_error(*solver, {confidence, Solver::kTargetSamples});
+      // Once stopped, the estimate is the gathered answer's, as solve reports it.
+      estimate_gathered_ = final && gather_ != nullptr;
+      estimated_error_ =
+          estimate_error(*solver, {confidence, Solver::kTargetSamples, estimate_gathered_ ? gather_.get() : nullptr});
       std::vector<std::vector<double>> parameters;
       for (const CurveTrace& trace : *traces_) parameters.push_back(trace.u);
       error_band_ = std::make_shared<const std::vector<std::array<std::vector<double>, 2>>>(
           pointwise_bound(*solver, parameters, confidence));
     }
     snapshot->estimated_error = estimated_error_;
+    snapshot->estimate_gathered = estimate_gathered_;
+    snapshot->gather_skipped = gather_skipped_;
     snapshot->error_band = error_band_;
     if (reference) {
       // The error against the reference, at most about twice a second while running.
@@ -229,10 +235,13 @@ void Session::publish(const Solver* solver, const std::vector<PathRecord>& new_p
         last_error_time_ = now;
         const int samples = reference_samples(*reference);
         if (samples > 0) {
+          // Once stopped with a gather, the gathered answer is judged, as solve --reference judges it.
           Result<Comparison> comparison = compare_sampled(
-              sample_radiosity(
-                  solver->scene(), samples,
-                  [solver](std::uint32_t c, Side side, double u) { return solver->radiosity(c, side, u); }),
+              solver->stopped() && gather_ != nullptr
+                  ? gather_->gather_result(*solver, samples)
+                  : sample_radiosity(
+                        solver->scene(), samples,
+                        [solver](std::uint32_t c, Side side, double u) { return solver->radiosity(c, side, u); }),
               *reference);
           if (comparison) {
             reference_error_ = comparison->scene.l2;
@@ -329,6 +338,9 @@ void Session::clear_error_history() {
 void Session::start_solve(std::shared_ptr<const Scene> scene, const SolverSettings& settings) {
   std::lock_guard solver_lock(solver_mutex_);
   solver_.reset();
+  gather_.reset();
+  gather_skipped_.clear();
+  estimate_gathered_ = false;
   paths_.clear();
   next_serial_ = 0;
   clear_error_history();
@@ -340,11 +352,16 @@ void Session::start_solve(std::shared_ptr<const Scene> scene, const SolverSettin
   }
   error_.clear();
   if (scene_) {
-    Result<Solver> created = Solver::create(*scene_, settings);
-    if (created)
+    Result<GatherChoice> choice = choose_gather(*scene_, settings, Solver::kTargetSamples);
+    Result<Solver> created = choice ? Solver::create(*scene_, settings) : Result<Solver>(choice.error());
+    if (created) {
       solver_.emplace(std::move(*created));
-    else
+      gather_ = std::move(choice->gather);
+      gather_skipped_ = choice->skipped;
+      if (gather_) solver_->check_target_through(gather_.get());
+    } else {
       error_ = created.error().message;
+    }
   }
   publish(solver_ ? &*solver_ : nullptr, {}, true);
   std::lock_guard relock(mutex_);

@@ -16,6 +16,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "flatland/reference/final_gather.hpp"
 #include "flatland/results/sampled_result.hpp"
 #include "flatland/scene/scene.hpp"
 #include "flatland/transport/solver.hpp"
@@ -135,6 +136,11 @@ class Session {
   std::shared_ptr<const Scene> scene_;
   std::shared_ptr<const std::vector<CurveTrace>> traces_;
   std::optional<Solver> solver_;
+  // The final gather the settings ask for (--gather samples, or auto where the scene allows it):
+  // it gathers the saved result and the estimate once the solve stops; the plots stay the
+  // storage's B, live. `gather_skipped_`: why auto gathers nothing.
+  std::unique_ptr<FinalGather> gather_;
+  std::string gather_skipped_;
   std::string error_;
   std::uint64_t generation_ = 0;
   std::deque<PathRecord> paths_;
@@ -156,6 +162,7 @@ class Session {
   double last_error_time_ = -1.0;
   // The solve's estimated error and its band along the curves, and the solve time they were made at.
   std::optional<ErrorEstimate> estimated_error_;
+  bool estimate_gathered_ = false;
   std::shared_ptr<const std::vector<std::array<std::vector<double>, 2>>> error_band_;
   double last_estimate_time_ = -1.0;
   bool estimate_final_ = false;

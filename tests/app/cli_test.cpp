@@ -485,14 +485,15 @@ std::vector<std::map<std::string, std::string>> csv_rows(const std::string& csv,
 TEST_F(Cli, ConvergeMeasuresTheReflectedPartAndPrintsSlopes) {
   const fs::path out = directory_ / "reflected";
   const CommandRun r = run("converge " + scene("penumbra.json") +
-                           " --methods constant,linear --budgets 2000,8000,32000 --seeds 2 --samples 20 "
-                           "--elements 16 --out " +
+                           " --methods constant+gather=none,linear+gather=none --budgets 2000,8000,32000 --seeds 2 "
+                           "--samples 20 --elements 16 --out " +
                            out.string());
+  // (Without the final gather: gathered, the penumbra's B - E is exact at any budget.)
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const std::string csv = read_file(out / "convergence.csv");
-  EXPECT_EQ(csv_rows(csv, "constant").size(), 6u);
+  EXPECT_EQ(csv_rows(csv, "constant+gather=none").size(), 6u);
   std::vector<double> photons, errors;
-  for (auto& row : csv_rows(csv, "linear")) {
+  for (auto& row : csv_rows(csv, "linear+gather=none")) {
     EXPECT_EQ(row["measure"], "reflected");
     EXPECT_EQ(row["curve"], "");
     photons.push_back(std::stod(row["photons"]));
@@ -501,7 +502,7 @@ TEST_F(Cli, ConvergeMeasuresTheReflectedPartAndPrintsSlopes) {
   ASSERT_EQ(photons.size(), 6u);
   // The printed slope of linear against photons is the fit of its rows.
   EXPECT_NE(r.out.find("observed slopes of the relative L2 error of B - E"), std::string::npos) << r.out;
-  const std::size_t at = r.out.find("  linear ");
+  const std::size_t at = r.out.find("  linear+gather=none ");
   ASSERT_NE(at, std::string::npos) << r.out;
   std::istringstream printed(r.out.substr(at));
   std::string name;
@@ -511,7 +512,7 @@ TEST_F(Cli, ConvergeMeasuresTheReflectedPartAndPrintsSlopes) {
   EXPECT_LT(slope_photons, -0.2) << r.out;  // the noise falls with the photons
   const std::string script = read_file(out / "convergence.gp");
   EXPECT_NE(script.find("relative L2 error of B - E"), std::string::npos) << script;
-  EXPECT_NE(script.find("'linear: slope "), std::string::npos) << script;
+  EXPECT_NE(script.find("'linear: slope "), std::string::npos) << script;  // gather=none is shared
   EXPECT_NE(script.find(" vs photons'"), std::string::npos) << script;
   // --replot prints the same slopes from the table.
   const CommandRun replot = run("converge " + scene("penumbra.json") + " --replot --out " + out.string());
@@ -522,12 +523,12 @@ TEST_F(Cli, ConvergeMeasuresTheReflectedPartAndPrintsSlopes) {
   // scene's B - E, so the same errors as above, seed for seed.
   const fs::path receiver = directory_ / "receiver";
   const CommandRun one = run("converge " + scene("penumbra.json") +
-                             " --methods linear --budgets 2000,8000,32000 --seeds 2 --samples 20 --elements 16 "
-                             "--curve receiver --out " +
+                             " --methods linear+gather=none --budgets 2000,8000,32000 --seeds 2 --samples 20 "
+                             "--elements 16 --curve receiver --out " +
                              receiver.string());
   ASSERT_EQ(one.exit_code, 0) << one.err;
   std::vector<double> receiver_errors;
-  for (auto& row : csv_rows(read_file(receiver / "convergence.csv"), "linear")) {
+  for (auto& row : csv_rows(read_file(receiver / "convergence.csv"), "linear+gather=none")) {
     EXPECT_EQ(row["measure"], "reflected");
     EXPECT_EQ(row["curve"], "receiver");
     receiver_errors.push_back(std::stod(row["rel_l2"]));
@@ -596,9 +597,14 @@ TEST_F(Cli, SolveReportsItsEstimatedErrorAndReachesATarget) {
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.out.find("stopped   target error reached"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("target    1 % reached"), std::string::npos) << r.out;
-  r = run("solve " + scene("penumbra.json") + " --photons 20000 --target-error 1e-6");
+  r = run("solve " + scene("penumbra.json") + " --photons 20000 --target-error 1e-6 --gather none");
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.out.find("not reached: photon budget spent first"), std::string::npos) << r.out;
+  // Gathered (the default), the penumbra's reflected light is direct only, and exact: the same
+  // target is reached at once.
+  r = run("solve " + scene("penumbra.json") + " --photons 20000 --target-error 1e-6");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("target    0.0001 % reached"), std::string::npos) << r.out;
   r = run("solve " + scene("penumbra.json") + " --target-error 2");
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_NE(r.err.find("--target-error"), std::string::npos) << r.err;

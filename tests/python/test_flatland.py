@@ -196,11 +196,13 @@ def test_compare_against_a_reference():
     assert json.loads(reference)["settings"]["method"] == "reference"
     itself = flatland.compare(reference, reference)
     assert itself["scene"]["l2"] == 0.0
-    result = flatland.solve(scene, photons=200_000)
+    result = flatland.solve(scene, photons=200_000, gather="none")
     errors = flatland.compare(result, reference)
     assert errors["measure"] == "reflected"
     assert 0.0 < errors["scene"]["l2"] < 0.05
     assert set(errors["curves"]) == set(scene.curves)
+    # Gathered (the default), the penumbra's reflected light is direct only: the reference's own.
+    assert flatland.compare(flatland.solve(scene, photons=20_000), reference)["scene"]["l2"] < 1e-12
 
 
 def test_converge_gives_the_rows_of_the_command_line(tmp_path):
@@ -234,7 +236,7 @@ def test_converge_gives_the_rows_of_the_command_line(tmp_path):
     # A solve as the reference, at the runs' own samples; a reference sampled otherwise is refused
     # before any run.
     penumbra = flatland.Scene.load("scenes2d/penumbra.json")
-    rows = flatland.converge(penumbra, methods=["linear"], budgets=[1e4], seeds=1, samples=40,
+    rows = flatland.converge(penumbra, methods=["linear+gather=none"], budgets=[1e4], seeds=1, samples=40,
                              reference=flatland.solve(penumbra, photons=100_000))
     assert len(rows) == 1 and 0.0 < rows[0]["rel_l2"] < 1.0
     with pytest.raises(ValueError, match="100 samples per curve, the runs 40"):

@@ -31,6 +31,12 @@ FinalGather made(const Scene& scene, double h, unsigned threads = 0) {
   return std::move(*gather);
 }
 
+ReferenceSettings elements_of_length(double h) {
+  ReferenceSettings settings;
+  settings.max_element_length = h;
+  return settings;
+}
+
 constexpr const char* kRoom = R"({"flatland": 2,
   "materials": {"wall": {"reflectivity": 0.7}, "lamp": {"reflectivity": 0, "emittance": 2},
                 "box": {"reflectivity": [0.2, 0.5, 0.8]}},
@@ -102,8 +108,7 @@ TEST(FinalGather, EnclosureErrorAtMostRhoTimesTheLargestGathered) {
   const Solver solver = solved(scene, 20'000);
   const double h = 0.05;
   const FinalGather gather = made(scene, h);
-  Result<ReferenceSolution> elements =
-      reference_elements(scene, ReferenceSettings{.max_element_length = h}, "a final gather", "");
+  Result<ReferenceSolution> elements = reference_elements(scene, elements_of_length(h), "a final gather", "");
   ASSERT_TRUE(elements);
   double largest = 0.0;  // of the values gathered
   for (const ReferenceElement& e : elements->element_list())
@@ -153,6 +158,45 @@ TEST(FinalGather, RefusesWhatTheReferenceRefusesInItsOwnWords) {
       << gather.error().message;
   EXPECT_NE(gather.error().message.find("--gather none"), std::string::npos);
   EXPECT_EQ(gather.error().message.find("reference solver"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace flatland
+
+namespace flatland {
+namespace {
+
+// --gather auto gathers where it can at a bounded cost, and says why not elsewhere; samples
+// refuses what it cannot gather; none never gathers.
+TEST(FinalGather, AutoGathersWhereItCanAndSaysWhyNot) {
+  const Scene room = testing::scene_from_text(kRoom);
+  const Scene prism = testing::scene_from_file("scenes2d/prism.json");
+  SolverSettings settings;
+  ASSERT_EQ(settings.gather, GatherMode::Auto) << "the default";
+  Result<GatherChoice> chosen = choose_gather(room, settings, 100);
+  ASSERT_TRUE(chosen);
+  EXPECT_NE(chosen->gather, nullptr);
+  EXPECT_TRUE(chosen->skipped.empty());
+  chosen = choose_gather(prism, settings, 100);
+  ASSERT_TRUE(chosen);
+  EXPECT_EQ(chosen->gather, nullptr);
+  EXPECT_NE(chosen->skipped.find("'prism' (dielectric)"), std::string::npos) << chosen->skipped;
+  EXPECT_EQ(chosen->skipped.find("--gather none"), std::string::npos) << "auto says why, not what to type";
+  // A million samples per curve would sweep far more than auto allows at once.
+  chosen = choose_gather(room, settings, 1'000'000);
+  ASSERT_TRUE(chosen);
+  EXPECT_EQ(chosen->gather, nullptr);
+  EXPECT_NE(chosen->skipped.find("--gather samples gathers all the same"), std::string::npos) << chosen->skipped;
+  settings.gather = GatherMode::Samples;
+  EXPECT_FALSE(choose_gather(prism, settings, 100));
+  chosen = choose_gather(room, settings, 1'000'000);
+  ASSERT_TRUE(chosen);
+  EXPECT_NE(chosen->gather, nullptr);
+  settings.gather = GatherMode::None;
+  chosen = choose_gather(room, settings, 100);
+  ASSERT_TRUE(chosen);
+  EXPECT_EQ(chosen->gather, nullptr);
+  EXPECT_TRUE(chosen->skipped.empty());
 }
 
 }  // namespace

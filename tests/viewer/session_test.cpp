@@ -4,11 +4,21 @@
 
 #include <gtest/gtest.h>
 
+#include "flatland/reference/final_gather.hpp"
 #include "flatland/results/result_io.hpp"
 #include "test_support.hpp"
 
 namespace flatland::viewer {
 namespace {
+
+// What `flatland solve` writes of the solver: with the final gather its settings choose (the
+// default, auto, gathers these diffuse scenes), as the session's saved result is.
+nlohmann::json solved_json(const Solver& solver, int samples) {
+  Result<GatherChoice> choice = choose_gather(solver.scene(), solver.settings(), Solver::kTargetSamples);
+  EXPECT_TRUE(choice);
+  if (choice && choice->gather) return result_to_json(solver, samples, choice->gather->gather_result(solver, samples));
+  return result_to_json(solver, samples);
+}
 
 std::string without_timing(nlohmann::json result) {
   result["stats"].erase("seconds");
@@ -37,7 +47,7 @@ TEST(Session, SteppedRoundsGiveTheSolversResult) {
   Solver solver = *Solver::create(*scene, settings);
   for (int round = 0; round < 3; ++round) ASSERT_TRUE(solver.step_round());
   EXPECT_EQ(snapshot->progress.photons, solver.photons_shot());
-  EXPECT_EQ(without_timing(*stepped), without_timing(result_to_json(solver, 40)));
+  EXPECT_EQ(without_timing(*stepped), without_timing(solved_json(solver, 40)));
 }
 
 TEST(Session, StepsAcrossBatchesRoundsAndThreadCountsMatchTheSolver) {
@@ -70,7 +80,7 @@ TEST(Session, StepsAcrossBatchesRoundsAndThreadCountsMatchTheSolver) {
   for (std::uint32_t r = 0; r < rounds; ++r) ASSERT_TRUE(solver.step_round());
   EXPECT_EQ(session.snapshot()->progress.photons, solver.photons_shot());
   nlohmann::json a = *session.result_json(30);
-  nlohmann::json b = result_to_json(solver, 30);
+  nlohmann::json b = solved_json(solver, 30);
   a["settings"].erase("threads");
   b["settings"].erase("threads");
   EXPECT_EQ(without_timing(a), without_timing(b));
@@ -96,7 +106,7 @@ TEST(Session, RestartWhileRunningStartsAFreshSolve) {
   Solver solver = *Solver::create(*scene, settings);
   solver.run();
   EXPECT_EQ(snapshot->stop_reason, solver.stop_reason());
-  EXPECT_EQ(without_timing(*session.result_json(20)), without_timing(result_to_json(solver, 20)));
+  EXPECT_EQ(without_timing(*session.result_json(20)), without_timing(solved_json(solver, 20)));
 }
 
 TEST(Session, OnePhotonStepShowsOnePathAndItsDeposit) {
@@ -138,7 +148,7 @@ TEST(Session, RunningSpendsTheBudgetAndKeepsTheNewestPaths) {
   solver.run();
   EXPECT_EQ(snapshot->stop_reason, solver.stop_reason());
   EXPECT_EQ(snapshot->progress.photons, solver.photons_shot());
-  EXPECT_EQ(without_timing(*session.result_json(30)), without_timing(result_to_json(solver, 30)));
+  EXPECT_EQ(without_timing(*session.result_json(30)), without_timing(solved_json(solver, 30)));
   ASSERT_EQ(snapshot->paths.size(), 500u);
   for (std::size_t i = 1; i < snapshot->paths.size(); ++i)
     EXPECT_LT(snapshot->paths[i - 1].serial, snapshot->paths[i].serial);
@@ -178,7 +188,7 @@ TEST(Session, AnInlineSessionPumpedBetweenFramesMatchesTheSolver) {
   Solver solver = *Solver::create(*scene, settings);
   solver.run();
   EXPECT_EQ(session.snapshot()->progress.photons, solver.photons_shot());
-  EXPECT_EQ(without_timing(*session.result_json(30)), without_timing(result_to_json(solver, 30)));
+  EXPECT_EQ(without_timing(*session.result_json(30)), without_timing(solved_json(solver, 30)));
 }
 
 TEST(Session, RestartTakesNewSettingsAndReportsRejectedOnes) {

@@ -14,7 +14,7 @@ import csv, os, re, statistics, subprocess, sys, tempfile
 FLATLAND = os.environ.get("FLATLAND", "build/flatland")
 SCENES = [("penumbra", "scenes2d/penumbra.json"), ("curved room", "scenes2d/curved_room.json")]
 BUDGETS = ["1e5", "1e6", "1e7"]
-COMMON = "basis=cubic+sampling=reconstructed+discontinuities=auto+sampler=random+ray-width=0+transport=shooting"
+COMMON = "basis=cubic+sampling=reconstructed+discontinuities=auto+sampler=random+ray-width=0+transport=shooting+gather=none"
 ROWS = [(e, m) for e in ["lumped", "galerkin", "local"] for m in ["16", "auto"]]
 
 

@@ -1,6 +1,7 @@
 #include "flatland/reference/final_gather.hpp"
 
 #include <chrono>
+#include <cstdio>
 #include <thread>
 
 #include "flatland/base/workers.hpp"
@@ -14,7 +15,7 @@ Result<FinalGather> FinalGather::create(const Scene& scene, const GatherSettings
   elements.threads = settings.threads;
   elements.cancel = settings.cancel;
   const std::string subject = "a final gather";
-  const std::string advice = "use --gather none (the storage's own B)";
+  const std::string advice = settings.automatic ? "" : "use --gather none (the storage's own B)";
   Result<ReferenceSolution> fine = reference_elements(scene, elements, subject, advice);
   if (!fine) return fine.error();
   elements.max_element_length = 2.0 * h;
@@ -144,6 +145,38 @@ SampledResult FinalGather::gather_result(const Solver& solver, int samples_per_c
     }
   }
   return result;
+}
+
+Result<GatherChoice> choose_gather(const Scene& scene, const SolverSettings& settings, int samples,
+                                   const std::atomic<bool>* cancel) {
+  GatherChoice choice;
+  if (settings.gather == GatherMode::None) return choice;
+  const bool automatic = settings.gather == GatherMode::Auto;
+  Result<FinalGather> made = FinalGather::create(scene, {0.0, settings.threads, cancel, automatic});
+  if (!made) {
+    if (!automatic || (cancel != nullptr && cancel->load())) return made.error();
+    choice.skipped = made.error().message;
+    return choice;
+  }
+  // The sides a sample is gathered on: those that reflect (the storage's sides).
+  double sides = 0.0;
+  for (const Curve& curve : scene.curves) {
+    const Spectrum& rho = scene.material_of(curve).reflectivity;
+    if (!(rho[0] + rho[1] + rho[2] > 0.0) || scene.material_of(curve).optics != Optics::Diffuse) continue;
+    sides += curve.sides == Sides::Both ? 2.0 : 1.0;
+  }
+  const double work = static_cast<double>(samples) * sides * 1.5 * static_cast<double>(made->elements());
+  if (automatic && work > kAutoGatherWork) {
+    char text[256];
+    std::snprintf(text, sizeof text,
+                  "%.3g sample sides x %zu elements is more than --gather auto sweeps (%.3g pairs); --gather samples "
+                  "gathers all the same",
+                  static_cast<double>(samples) * sides, made->elements(), kAutoGatherWork);
+    choice.skipped = text;
+    return choice;
+  }
+  choice.gather = std::make_unique<FinalGather>(std::move(*made));
+  return choice;
 }
 
 }  // namespace flatland

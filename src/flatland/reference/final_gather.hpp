@@ -22,7 +22,9 @@
 
 #include <atomic>
 #include <cstdint>
+#include <memory>
 #include <span>
+#include <string>
 #include <vector>
 
 #include "flatland/base/status.hpp"
@@ -38,6 +40,9 @@ struct GatherSettings {
   unsigned threads = 0;             // 0: every core
   // Set to stop a gather: evaluate() then returns early with what it has, and cancelled() is true.
   const std::atomic<bool>* cancel = nullptr;
+  // Refusals say only why (for --gather auto, which then gathers nothing); otherwise they end
+  // with what to do instead.
+  bool automatic = false;
 };
 
 class FinalGather final : public ReflectedEvaluator {
@@ -93,5 +98,21 @@ class FinalGather final : public ReflectedEvaluator {
   double max_element_length_ = 0.0;
   mutable double sweep_seconds_ = 0.0;
 };
+
+// The work --gather auto allows at once: pairs of (sample side, element) the sweeps visit over the
+// elements of h and of 2h. A sweep visits each element about once (and sorts them), about 40 ns a
+// pair on the machine of docs/performance.md, so this is about two seconds on two cores.
+inline constexpr double kAutoGatherWork = 5e7;
+
+// What a front end gathers with under `settings.gather` at `samples` per curve: the gather, or none
+// and why not (auto on a scene the gather refuses or that would cost more than kAutoGatherWork;
+// empty with GatherMode::None). --gather samples on a scene the gather refuses is an error (its
+// message names the curves and ends with what to do).
+struct GatherChoice {
+  std::unique_ptr<FinalGather> gather;
+  std::string skipped;
+};
+Result<GatherChoice> choose_gather(const Scene& scene, const SolverSettings& settings, int samples,
+                                   const std::atomic<bool>* cancel = nullptr);
 
 }  // namespace flatland

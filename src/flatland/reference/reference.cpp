@@ -414,7 +414,7 @@ Status ReferenceBuilder::check() const {
   }
   if (!specular.empty())
     return Error{scene_.source + ": " + subject_ + " handles diffuse surfaces and flat mirrors only, and curves " +
-                 specular + " are not; " + advice_};
+                 specular + " are not" + (advice_.empty() ? "" : "; " + advice_)};
   if (Status status = check_single_reflections(); !status) return status;
   for (const Curve& curve : scene_.curves) {
     if (scene_.is_emitter(curve) && scene_.material_of(curve).emission.kind != Emission::Kind::Diffuse)
@@ -431,9 +431,10 @@ Status ReferenceBuilder::check() const {
                     element_total, max_length(), kMaxReferenceElements);
     else
       std::snprintf(message, sizeof message,
-                    "%.4g elements of length %.3g for %s; at most %zu (every sample sweeps them all); ", element_total,
+                    "%.4g elements of length %.3g for %s; at most %zu (every sample sweeps them all)", element_total,
                     max_length(), subject_.c_str(), kMaxReferenceElements);
-    return Error{subject_ == "the reference solver" ? std::string(message) : message + advice_};
+    return Error{subject_ == "the reference solver" || advice_.empty() ? std::string(message)
+                                                                       : message + ("; " + advice_)};
   }
   return ok_status();
 }
@@ -473,8 +474,8 @@ Status ReferenceBuilder::check_single_reflections() const {
       return Error{scene_.source + ": " +
                    (first == second ? "mirror '" + first + "' faces itself (two of its segments face each other)"
                                     : "mirrors '" + first + "' and '" + second + "' face each other") +
-                   ": light reflected by one reaches the other, and " + subject_ + " follows one reflection; " +
-                   advice_};
+                   ": light reflected by one reaches the other, and " + subject_ + " follows one reflection" +
+                   (advice_.empty() ? "" : "; " + advice_)};
     }
   }
   return ok_status();

@@ -51,22 +51,22 @@ Result<ConvergeRow> converge_run(const Scene& scene, const SolverSettings& setti
                                  const std::atomic<bool>* cancel, const ProgressCallback& progress) {
   // A method that gathers is timed with its gather (its elements, the sweeps, and the estimate
   // through them, also when a target error is checked).
-  std::optional<FinalGather> gather;
+  std::unique_ptr<FinalGather> gather;
   std::optional<SampledResult> gathered;
   double gather_seconds = 0.0;
   const auto seconds_since = [](std::chrono::steady_clock::time_point start) {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   };
-  if (settings.gather == GatherMode::Samples) {
+  {
     const auto start = std::chrono::steady_clock::now();
-    Result<FinalGather> made = FinalGather::create(scene, {0.0, settings.threads, cancel});
-    if (!made) return made.error();
-    gather.emplace(std::move(*made));
+    Result<GatherChoice> choice = choose_gather(scene, settings, samples, cancel);
+    if (!choice) return choice.error();
+    gather = std::move(choice->gather);
     gather_seconds += seconds_since(start);
   }
   Result<Solver> solver = Solver::create(scene, settings, cancel);
   if (!solver) return solver.error();
-  if (gather) solver->check_target_through(&*gather);
+  if (gather) solver->check_target_through(gather.get());
   solver->run(cancel, progress);
   if (solver->stop_reason() == StopReason::Cancelled) return Error{kConvergeCancelled};
   if (gather) {
@@ -91,6 +91,7 @@ Result<ConvergeRow> converge_run(const Scene& scene, const SolverSettings& setti
   row.seconds = solver->seconds() + gather_seconds;
   row.error = curve ? comparison->curves[*curve].norms : comparison->scene;
   row.rays = solver->rays_traced();
+  row.gathered = gather != nullptr;
   if (measure == Measure::Reflected) {
     const ErrorEstimate estimate =
         gathered ? *gathered->stats->estimated_error : estimate_error(*solver, {settings.confidence, samples});
@@ -135,7 +136,7 @@ std::vector<ConvergeField> converge_fields(const std::string& method, const Solv
       {"est_l1", row.estimated.l1},
       {"est_l2", row.estimated.l2},
       {"est_linf", row.estimated.linf},
-      {"gather", to_string(s.gather)},
+      {"gather", row.gathered ? "samples" : "none"},
   };
 }
 

@@ -37,6 +37,7 @@ struct ConvergeRow {
   double seconds = 0.0;
   ErrorNorms error;
   std::uint64_t rays = 0;  // rays cast (a walk casts several)
+  bool gathered = false;   // the samples were a final gather (gather samples, or auto where it gathers)
   // The solver's estimated bound of the same error (error_estimate.hpp, under Measure::Reflected;
   // NaN where it has none: one replicate, Measure::Total, or unbounded).
   ErrorNorms estimated{std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::quiet_NaN(),

@@ -50,11 +50,12 @@ const std::vector<SolveOptionSpec>& table() {
        "How light travels: shooting (progressive rounds, each shooting the light the last one "
        "reflected: the paper's method) or walk (each photon a random walk from an emitter, tallied at "
        "every hit and ended by Russian roulette; photons counts walks, tolerance is not used)"},
-      {SolveOption::Gather, "gather", "gather", "gather", {"none", "samples"}, "",
-       "The result's B: none (the storage's own) or samples (a final gather: at every sample, one "
+      {SolveOption::Gather, "gather", "gather", "gather", {"none", "samples", "auto"}, "",
+       "The result's B: none (the storage's own), samples (a final gather: at every sample, one "
        "deterministic bounce of the solution over exactly what the sample sees, with the reference's "
        "elements; direct light then carries no noise; refused where the reference is: glass, curved "
-       "mirrors, detectors)"},
+       "mirrors, detectors) or auto (samples where the scene allows it and it costs about a second or "
+       "less, none elsewhere, saying why)"},
       {SolveOption::RayWidth, "ray width", "ray-width", "ray_width", {}, "W",
        "Width of extended rays in scene units (0: point rays, no extended-ray code runs)"},
       {SolveOption::RayProfile, "ray profile", "ray-profile", "ray_profile",

@@ -27,7 +27,9 @@ Estimator resolve_estimator(Estimator estimator, BasisKind basis) {
 
 const char* to_string(Transport transport) { return transport == Transport::Shooting ? "shooting" : "walk"; }
 
-const char* to_string(GatherMode gather) { return gather == GatherMode::None ? "none" : "samples"; }
+const char* to_string(GatherMode gather) {
+  return gather == GatherMode::None ? "none" : gather == GatherMode::Samples ? "samples" : "auto";
+}
 
 const char* to_string(PositionSampling sampling) {
   return sampling == PositionSampling::Uniform ? "uniform" : "reconstructed";

@@ -55,8 +55,10 @@ enum class Transport { Shooting, Walk };
 const char* to_string(Transport transport);
 // What a result's samples of B are: the storage's own splines (None), or a final gather of them,
 // one deterministic bounce over exactly what each sample sees (Samples; reference/final_gather.hpp,
-// run by the front ends after the solve: the Solver itself does not read it).
-enum class GatherMode { None, Samples };
+// run by the front ends after the solve: the Solver itself does not read it), or Auto: a final
+// gather wherever the scene allows one (diffuse light and flat mirrors) at a bounded cost, the
+// storage's own B elsewhere.
+enum class GatherMode { None, Samples, Auto };
 const char* to_string(GatherMode gather);
 // Walks are refused where a side reflects more than this: a walk would average over 1000 rays,
 // and a batch of 4096 walks (the unit between checks for a cancel) several seconds.
@@ -129,7 +131,7 @@ struct SolverSettings {
   // With Transport::Walk, `photons` counts walks; `tolerance` is not used (a walk ends by itself),
   // and rays must be points or footprints (a band's sub-rays have no single place to go on from).
   Transport transport = Transport::Shooting;
-  GatherMode gather = GatherMode::None;
+  GatherMode gather = GatherMode::Auto;
   // Memory the solver's storage may take (0: default_memory_budget(), three quarters of the
   // machine's); settings that would need more are refused by Solver::create before allocating.
   std::size_t memory_limit = 0;
