@@ -333,6 +333,9 @@ class ReferenceBuilder {
   Status check() const;
   // Refuses scenes where light can meet two flat mirrors in a row (one reflection is followed).
   Status check_single_reflections() const;
+  // check(), then the elements, the mirrors and the chains: what solve_reference and
+  // reference_elements both build.
+  Status geometry();
   // 1. Elements: the chords of every segment, equal in arc length between contacts.
   Status build_elements();
   // Mirrors: every reflecting side of every flat mirror segment, its view of the elements.
@@ -791,15 +794,20 @@ Status ReferenceBuilder::solve_channels() {
   return ok_status();
 }
 
+Status ReferenceBuilder::geometry() {
+  if (Status status = check(); !status) return status;
+  solution_.scene_ = scene_;
+  solution_.settings_ = settings_;
+  if (Status status = build_elements(); !status) return status;
+  build_mirrors();
+  link_neighbours();
+  return ok_status();
+}
+
 Result<ReferenceSolution> solve_reference(const Scene& scene, const ReferenceSettings& settings) {
   ReferenceSolution solution;
   ReferenceBuilder build(scene, settings, solution);
-  if (Status status = build.check(); !status) return status.error();
-  solution.scene_ = scene;
-  solution.settings_ = settings;
-  if (Status status = build.build_elements(); !status) return status.error();
-  build.build_mirrors();
-  build.link_neighbours();
+  if (Status status = build.geometry(); !status) return status.error();
   build.number_patches();
   if (Status status = build.form_factors(); !status) return status.error();
   if (Status status = build.solve_channels(); !status) return status.error();
@@ -810,12 +818,7 @@ Result<ReferenceSolution> reference_elements(const Scene& scene, const Reference
                                              const std::string& subject, const std::string& advice) {
   ReferenceSolution solution;
   ReferenceBuilder build(scene, settings, solution, subject, advice);
-  if (Status status = build.check(); !status) return status.error();
-  solution.scene_ = scene;
-  solution.settings_ = settings;
-  if (Status status = build.build_elements(); !status) return status.error();
-  build.build_mirrors();
-  build.link_neighbours();
+  if (Status status = build.geometry(); !status) return status.error();
   for (int c = 0; c < scene.channels; ++c) {
     std::vector<double>& b = solution.radiosity_[static_cast<std::size_t>(c)];
     b.assign(2 * solution.elements_.size(), 0.0);
