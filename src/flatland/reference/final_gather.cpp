@@ -114,17 +114,8 @@ SampledResult FinalGather::gather_result(const Solver& solver, int samples_per_c
   const ErrorEstimate estimate = estimate_error(solver, options);
   SampledResult result = sample_solver(solver, samples_per_curve, &estimate);
   result.final_gather = max_element_length_;
-  // The same points, in the same order, as the estimate's (so their weights are reused).
-  std::vector<FieldPoint> points;
-  for (std::uint32_t c = 0; c < scene.curves.size(); ++c) {
-    const Curve& curve = scene.curves[c];
-    for (int j = 0; j < samples_per_curve; ++j) {
-      const double s = (j + 0.5) * curve.length / samples_per_curve;
-      const double u = point_at_arc_length(scene, curve, s).u;
-      for (const Side side : {Side::Front, Side::Back})
-        if (solver.has_side(c, side)) points.push_back({c, side, u});
-    }
-  }
+  // The estimate's points, which are the result's samples (so their weights are reused).
+  const std::vector<FieldPoint> points = estimate_points(solver, samples_per_curve);
   const std::vector<ReflectedField> field{solver.reflected_field(solver.received(), solver.chosen_levels())};
   const std::vector<double> gathered = evaluate(solver, points, field)[0];
   std::size_t p = 0;

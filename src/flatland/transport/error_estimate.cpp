@@ -72,6 +72,14 @@ EvaluationPoints evaluation_points(const Solver& solver, int samples) {
   return result;
 }
 
+// The points as an evaluator takes them.
+std::vector<FieldPoint> field_points(const EvaluationPoints& at) {
+  std::vector<FieldPoint> points;
+  points.reserve(at.points.size());
+  for (const auto& point : at.points) points.push_back({point.curve, point.side, point.u});
+  return points;
+}
+
 // B - E of a field at every point and channel: [p * channels + ch].
 std::vector<double> evaluate(const Solver& solver, const ReflectedField& field, const EvaluationPoints& at) {
   const auto channels = static_cast<std::size_t>(at.channels);
@@ -160,8 +168,7 @@ LevelValues level_values(const Solver& solver, const EvaluationPoints& at, const
     std::vector<ReflectedField> fields;
     for (std::size_t r = 0; r < count; ++r)
       fields.push_back(solver.reflected_field(solver.replicate_received(static_cast<int>(r)), levels));
-    std::vector<FieldPoint> points;
-    for (const auto& point : at.points) points.push_back({point.curve, point.side, point.u});
+    const std::vector<FieldPoint> points = field_points(at);
     result.deviation = evaluator->evaluate(solver, points, fields);
   } else {
     result.deviation.resize(count);
@@ -353,6 +360,10 @@ Combined combine(const RelativeErrors& noise, const RelativeErrors& storage, con
 
 }  // namespace
 
+std::vector<FieldPoint> estimate_points(const Solver& solver, int samples_per_curve) {
+  return field_points(evaluation_points(solver, std::max(1, samples_per_curve)));
+}
+
 ErrorEstimate estimate_error(const Solver& solver, const ErrorEstimateOptions& options) {
   ErrorEstimate estimate;
   estimate.confidence = options.confidence;
@@ -439,8 +450,7 @@ ErrorEstimate estimate_error(const Solver& solver, const ErrorEstimateOptions& o
   // The evaluator's own error, at the solver's answer.
   std::vector<double> own;
   if (options.evaluator != nullptr) {
-    std::vector<FieldPoint> points;
-    for (const auto& point : at.points) points.push_back({point.curve, point.side, point.u});
+    const std::vector<FieldPoint> points = field_points(at);
     own =
         options.evaluator->own_error(solver, points, solver.reflected_field(solver.received(), solver.chosen_levels()));
   }

@@ -99,6 +99,10 @@ struct ErrorEstimate {
   std::vector<CurveErrorEstimate> curves;
 };
 
+// Where estimate_error evaluates B - E with `samples_per_curve`: per curve, the midpoints of equal
+// arc-length cells, each side with storage (front before back), in this order.
+std::vector<FieldPoint> estimate_points(const Solver& solver, int samples_per_curve);
+
 // The solver's error estimate; the same bits on any thread and process count (it reads only the
 // solver's deterministic state and draws its Gaussian combinations from a stream named by the seed).
 ErrorEstimate estimate_error(const Solver& solver, const ErrorEstimateOptions& options = {});
