@@ -21,7 +21,8 @@ CLI::App* add_render_command(CLI::App& parent, RenderOptions& o) {
   CLI::App* cmd = parent.add_subcommand(
       "render",
       "Solve a scene and render the viewer's picture to a PNG file offscreen (no display needed): the "
-      "photon paths, each in its light's colour and brightness; along every lit side of a curve a band "
+      "light as a field (the fluence of the photons' flights, tone mapped; or the photon paths, each in its "
+      "light's colour and brightness: --light); along every lit side of a curve a band "
       "coloured by its radiosity B and a graph of B (a thin line offset along the normal, higher where B "
       "is larger); mirrors steel blue, glass cyan, detectors green. docs/viewer.md says more.");
   cmd->add_option("scene", o.solve.scene, "Scene file (JSON, docs/scene-format.md)")->required();
@@ -39,6 +40,19 @@ CLI::App* add_render_command(CLI::App& parent, RenderOptions& o) {
                   "Photon paths drawn, spread over the rounds in proportion to their photons (0: none)")
       ->capture_default_str()
       ->check(CLI::Range(0, 10000000));
+  cmd->add_option("--light", o.light,
+                  "How the light is drawn: paths, each flight a line (every kept path, fading by age); field, the "
+                  "light of the whole solve as a field (the flights' power per unit length per unit area, every "
+                  "recorded flight standing for its share of the photons, tone mapped so that beams, caustics "
+                  "and reflections stand out of the interreflected haze); auto, the field once at least 4096 "
+                  "paths are drawn (--paths), else the paths")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"auto", "paths", "field"}));
+  cmd->add_option("--field-flights", o.field_flights,
+                  "Flights recorded for the light field, spread over the rounds as --paths is (more: a smoother "
+                  "field, for a little more time; 0: no field, the paths are drawn)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 100000000));
   cmd->add_option("--exposure", o.exposure, "Exposure of the photon paths")
       ->capture_default_str()
       ->check(finite_range(1e-3, 1e3));
@@ -70,7 +84,11 @@ int run_render(RenderOptions& o) {
     if (Status status = check_result_size(*scene, o.solve.samples); !status) return usage_error(status.error().message);
   // Drawing holds every curve's trace and overlay at once: refused now if it cannot fit (the solve
   // checks its own storage against the same budget).
-  const double drawing = viewer::render_memory_bound(*scene, static_cast<std::size_t>(o.paths));
+  const int field_resolution = std::clamp(std::max(o.width, o.height) / 2, 16, 2048);
+  // The field's grid and image, and one round's record of flights (a PhotonPath each).
+  const double field_bytes =
+      o.field_flights > 0 ? 40.0 * field_resolution * field_resolution + 160.0 * o.field_flights : 0.0;
+  const double drawing = viewer::render_memory_bound(*scene, static_cast<std::size_t>(o.paths)) + field_bytes;
   if (const double budget = static_cast<double>(default_memory_budget()); drawing > budget)
     return usage_error(o.solve.scene + ": drawing its " + std::to_string(scene->curves.size()) + " curves and " +
                        std::to_string(o.paths) + " paths would take about " + format_bytes(drawing) +
@@ -107,18 +125,35 @@ int run_render(RenderOptions& o) {
   // Paths from every round, in proportion to its photons.
   std::vector<PhotonPath> paths;
   std::vector<std::uint32_t> rounds;
+  // The light field of the recorded flights, each round's standing for all its photons.
+  // (A cell on about two pixels: bilinear filtering between cell centres smooths the rest.)
+  Result<LightField> field = LightField::for_scene(*scene, field_resolution);
+  if (!field) return usage_error(field.error().message);
+  const std::size_t recorded = static_cast<std::size_t>(std::max(o.paths, o.field_flights));
+  std::vector<PhotonPath> round_paths;
+  std::size_t field_flights = 0;
   {
     ProgressLine line(!o.solve.quiet);
     const auto report = [&](const SolverProgress& p) { line.update(p); };
     while (!solver.stopped()) {
       const std::uint32_t round = solver.rounds();
-      const std::size_t before = paths.size();
-      if (solver.step_photons(1, &interrupt_flag(), &paths, before + (o.paths > 0 ? 1 : 0)) == 0) break;
+      const std::uint64_t shot_before = solver.photons_shot();
+      round_paths.clear();
+      if (solver.step_photons(1, &interrupt_flag(), &round_paths, recorded > 0 ? 1 : 0) == 0) break;
       const double share = static_cast<double>(solver.round_photons()) / static_cast<double>(o.solve.settings.photons);
       const auto wanted = static_cast<std::size_t>(std::ceil(o.paths * share));
+      const auto field_wanted = static_cast<std::size_t>(std::ceil(o.field_flights * share));
       if (solver.round_open())
-        solver.step_photons(solver.round_photons() - solver.round_photons_done(), &interrupt_flag(), &paths,
-                            before + wanted, report);
+        solver.step_photons(solver.round_photons() - solver.round_photons_done(), &interrupt_flag(), &round_paths,
+                            std::max(wanted, field_wanted), report);
+      if (o.field_flights > 0)
+        field->add_record(round_paths, solver.photons_shot() - shot_before, solver.settings().transport);
+      field_flights += round_paths.size();
+      const std::size_t drawn = std::min(wanted, round_paths.size());
+      // A walk the drawn share ends inside is marked cut, as a full record marks it.
+      if (drawn > 0 && drawn < round_paths.size() && round_paths[drawn].bounce != 0) round_paths[drawn - 1].cut = true;
+      paths.insert(paths.end(), std::make_move_iterator(round_paths.begin()),
+                   std::make_move_iterator(round_paths.begin() + static_cast<std::ptrdiff_t>(drawn)));
       rounds.resize(paths.size(), round);
     }
   }
@@ -134,7 +169,11 @@ int run_render(RenderOptions& o) {
   std::uint64_t serial = 0;
   for (std::size_t i = 0; i < paths.size(); ++i)
     viewer::append_path_records(paths[i], *scene, serial, rounds[i], snapshot.paths);
+  if (o.field_flights > 0) snapshot.field = viewer::field_image(*field);
   viewer::DrawOptions draw;
+  draw.light = o.light == "paths"   ? viewer::LightView::Paths
+               : o.light == "field" ? viewer::LightView::Field
+                                    : viewer::LightView::Auto;
   draw.graph = o.graph;
   draw.band = o.band;
   draw.journey = o.journey;
@@ -169,7 +208,11 @@ int run_render(RenderOptions& o) {
                  static_cast<unsigned long long>(solver.photons_shot()),
                  solver.settings().transport == Transport::Walk ? "walks" : "photons",
                  static_cast<unsigned long long>(solver.rays_traced()), solver.rounds(), solver.seconds());
-    std::fprintf(out, "wrote     %s (%dx%d, %zu paths)\n", o.out.c_str(), o.width, o.height, paths.size());
+    if (viewer::shows_field(snapshot, draw))
+      std::fprintf(out, "wrote     %s (%dx%d, the light as a field of %zu recorded flights)\n", o.out.c_str(), o.width,
+                   o.height, field_flights);
+    else
+      std::fprintf(out, "wrote     %s (%dx%d, %zu paths)\n", o.out.c_str(), o.width, o.height, paths.size());
   }
   return kExitOk;
 }

@@ -47,6 +47,14 @@ CLI::App* add_view_command(CLI::App& parent, ViewCommandOptions& o) {
                   "(reflections before the flight: a walk's hops, shooting's rounds)")
       ->capture_default_str()
       ->check(CLI::IsMember({"power", "round", "bounce"}));
+  cmd->add_option("--light", o.light,
+                  "How the light is drawn: paths, each flight a line (every kept path, fading by age); field, the "
+                  "light of the whole solve as a field (the flights' power per unit length per unit area, every "
+                  "recorded flight standing for its share of the photons, tone mapped so that beams, caustics "
+                  "and reflections stand out of the interreflected haze); auto, the field once at least 4096 "
+                  "paths are kept and the paths are coloured by power, else the paths")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"auto", "paths", "field"}));
   cmd->add_option("--fade", o.fade,
                   "Fading of the photon paths by age: 0 keeps every kept path equally bright, 1 fades "
                   "the oldest to about 5 %")
@@ -113,6 +121,7 @@ std::optional<int> make_view_options(ViewCommandOptions& o, viewer::ViewOptions&
   options.show_control_points = o.control_points;
   options.select = o.select;
   options.colour_by = o.colour_by;
+  options.light = o.light;
   options.path_exposure = o.exposure;
   options.path_fade = o.fade;
   options.show_ui = !o.no_ui;

@@ -150,6 +150,7 @@ struct ViewCommandOptions {
   bool control_points = false;
   std::string select;
   std::string colour_by = "power";
+  std::string light = "auto";
   float exposure = 1.0f;
   float fade = 1.0f;
   bool no_ui = false;
@@ -174,6 +175,8 @@ struct RenderOptions {
   int width = 1280;
   int height = 800;
   int paths = 20000;
+  int field_flights = 200000;
+  std::string light = "auto";
   float exposure = 1.0f;
   bool graph = true;
   bool band = true;

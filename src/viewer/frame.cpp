@@ -531,6 +531,31 @@ PathInstance PathLayer::instance(const Entry& entry, double factor, int channels
           0.0f};
 }
 
+std::shared_ptr<const FieldImage> field_image(const LightField& field) {
+  auto image = std::make_shared<FieldImage>();
+  image->box = field.box();
+  image->width = field.width();
+  image->height = field.height();
+  image->photons = field.photons();
+  const double level = field.quantile(kFieldQuantile);
+  const double scale = level > 0.0 ? 1.0 / level : 0.0;
+  const std::size_t cells = static_cast<std::size_t>(field.width()) * static_cast<std::size_t>(field.height());
+  const auto channels = static_cast<std::size_t>(field.channels());
+  image->rgba.resize(cells * 4);
+  for (std::size_t i = 0; i < cells; ++i) {
+    const double* v = field.values().data() + i * channels;
+    for (std::size_t k = 0; k < 3; ++k) image->rgba[i * 4 + k] = static_cast<float>(v[channels == 3 ? k : 0] * scale);
+    image->rgba[i * 4 + 3] = 1.0f;
+  }
+  return image;
+}
+
+bool shows_field(const Snapshot& snapshot, const DrawOptions& options) {
+  if (!snapshot.field || options.light == LightView::Paths) return false;
+  return options.light == LightView::Field ||
+         (snapshot.paths.size() >= kFieldAutoPaths && options.path_colour == PathColour::Power);
+}
+
 PathDraw PathLayer::update(const Snapshot& snapshot, const DrawOptions& options, const ViewTransform& view,
                            std::size_t keep, std::size_t budget) {
   PathDraw draw;
@@ -546,6 +571,7 @@ PathDraw PathLayer::update(const Snapshot& snapshot, const DrawOptions& options,
   }
   if (!options.paths) {
     valid_ = false;
+    shown_field_.reset();
     draw.clear = true;
     drawn_ = 0;
     return draw;
@@ -576,6 +602,19 @@ PathDraw PathLayer::update(const Snapshot& snapshot, const DrawOptions& options,
     any_ = true;
     ++arrived;
   }
+  if (shows_field(snapshot, options)) {
+    // The field replaces the paths: they are drawn again, from the ring, when the paths show.
+    for (Entry& entry : ring_) entry.drawn = false;
+    while (ring_.size() > keep) ring_.pop_front();
+    valid_ = false;
+    drawn_ = 0;
+    draw.clear = snapshot.field != shown_field_ || !same_view(view, field_view_);
+    draw.field = snapshot.field;
+    shown_field_ = snapshot.field;
+    field_view_ = view;
+    return draw;
+  }
+  shown_field_.reset();
   if (arrived > 0 && rate > 0.0 && !draw.clear)
     draw.decay = static_cast<float>(std::exp(-rate * static_cast<double>(arrived)));
   const std::uint64_t now = arrivals_ == 0 ? 0 : arrivals_ - 1;

@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "flatland/results/light_field.hpp"
 #include "flatland/scene/scene.hpp"
 #include "flatland/transport/error_estimate.hpp"
 #include "flatland/transport/solver.hpp"
@@ -128,6 +129,20 @@ struct NodeMark {
   bool visibility_event = false;  // added by discontinuity meshing (not a scene joint)
 };
 
+// The light field as the renderer draws it: the fluence of LightField divided by the 99th percentile
+// of its lit cells' luminance (so the brightest percent of the light saturates and the rest keeps
+// its proportions), as RGBA floats (alpha 1), rows from box.lower.y. Remade at most a few times a
+// second; a new image is a new object.
+struct FieldImage {
+  Box box;
+  int width = 0;
+  int height = 0;
+  std::vector<float> rgba;
+  double photons = 0.0;  // photons the field stands for
+};
+inline constexpr double kFieldQuantile = 0.99;
+std::shared_ptr<const FieldImage> field_image(const LightField& field);
+
 // Everything a frame is drawn from, published by the solving thread; immutable once published.
 struct Snapshot {
   std::uint64_t generation = 0;  // changes whenever the solve restarts (new scene or settings)
@@ -140,6 +155,9 @@ struct Snapshot {
   std::vector<std::vector<NodeMark>> nodes;  // per curve: interior storage nodes
   std::vector<double> received_share;        // per curve: its share of all reflected power
   std::vector<PathRecord> paths;             // oldest first
+  // The light of every recorded flight of the solve, each standing for its share of the photons
+  // shot (LightField::add_record); null before anything is recorded.
+  std::shared_ptr<const FieldImage> field;
   SolverProgress progress;
   EnergyBooks books;
   StopReason stop_reason = StopReason::Running;
@@ -187,6 +205,11 @@ struct PathInstance {
 // number of reflections their light has had (a walk's hops; shooting's round number).
 enum class PathColour { Power, Round, Bounce };
 enum class ChannelView { All, Red, Green, Blue };
+// What the light layer shows: the kept paths, each a line; the light field of the whole solve; or,
+// automatically, the paths while few are kept (stepping a photon at a time) and the field once
+// kFieldAutoPaths are.
+enum class LightView { Auto, Paths, Field };
+inline constexpr std::size_t kFieldAutoPaths = 4096;
 // The colour of round or bounce `index` (six saturated colours, repeating).
 std::array<float, 3> path_palette(std::uint32_t index);
 
@@ -215,6 +238,7 @@ struct DrawOptions {
   float graph_height = 60.0f;  // pixels for the largest B
   float fade = 1.0f;           // 0: every kept path equally bright; 1: the oldest fade to ~5 %
   PathColour path_colour = PathColour::Power;
+  LightView light = LightView::Auto;
   ChannelView channel = ChannelView::All;
   int selected_curve = -1;
   int hovered_control_point = -1;  // index into control_point_list()
@@ -257,7 +281,14 @@ struct PathDraw {
   std::vector<PathInstance> instances;  // then add these; a negative colour removes a path
   bool lines = true;                    // point rays: 1-pixel lines; extended rays: quads as wide as the ray
   float normalisation = 1.0f;           // exposure factor that makes the average lit pixel about 1
+  // The light field instead of paths (already normalised): drawn into the cleared buffer when
+  // `clear` is set, else the buffer holds it from an earlier frame.
+  std::shared_ptr<const FieldImage> field;
 };
+
+// Whether the light layer shows the field (LightView; Auto: a field exists, at least
+// kFieldAutoPaths paths are kept and they are coloured by power: the field has no rounds).
+bool shows_field(const Snapshot& snapshot, const DrawOptions& options);
 
 // The photon paths on screen, kept in a floating-point buffer that is updated incrementally: a
 // software rasteriser cannot redraw 20,000 long paths every frame, so each frame draws only the
@@ -292,6 +323,9 @@ class PathLayer {
   DrawOptions options_;
   std::size_t keep_ = 0;
   std::size_t drawn_ = 0;
+  // The field in the buffer (null: paths are) and the view it was drawn for.
+  std::shared_ptr<const FieldImage> shown_field_;
+  ViewTransform field_view_;
 };
 
 // Every control point of the scene, in order (curve by curve), for picking and dragging.

@@ -416,6 +416,16 @@ void Viewer::draw_display_panel() {
     draw_.channel = static_cast<ChannelView>(channel);
   }
   if (draw_.paths) {
+    int light = static_cast<int>(draw_.light);
+    const char* const light_names[] = {"auto", "paths", "field"};
+    combo("light as", &light, light_names, 3);
+    draw_.light = static_cast<LightView>(light);
+    if (ImGui::IsItemHovered())
+      ImGui::SetTooltip(
+          "paths: each kept flight a line. field: the light of the whole solve, every\n"
+          "recorded flight standing for its share of the photons, so more photons\n"
+          "give a smoother, truer picture. auto: the field once 4096 paths are kept\n"
+          "and paths are coloured by power");
     changed |= ImGui::Checkbox("newest journey", &draw_.journey);
     if (ImGui::IsItemHovered())
       ImGui::SetTooltip(

@@ -121,6 +121,9 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const std::string& shader_dir
   Result<unsigned> decay = link("tonemap.vert", "decay.frag", shader_directory);
   if (!decay) return decay.error();
   renderer->decay_program_ = *decay;
+  Result<unsigned> field = link("field.vert", "field.frag", shader_directory);
+  if (!field) return field.error();
+  renderer->field_program_ = *field;
 
   glGenVertexArrays(1, &renderer->lines_vao_);
   glGenBuffers(1, &renderer->lines_vbo_);
@@ -160,6 +163,8 @@ Renderer::~Renderer() {
   glDeleteProgram(tonemap_program_);
   glDeleteProgram(composite_program_);
   glDeleteProgram(decay_program_);
+  glDeleteProgram(field_program_);
+  if (field_texture_ != 0) glDeleteTextures(1, &field_texture_);
   glDeleteVertexArrays(1, &lines_vao_);
   glDeleteVertexArrays(1, &paths_vao_);
   glDeleteVertexArrays(1, &empty_vao_);
@@ -245,6 +250,33 @@ Status Renderer::draw(const std::vector<LineVertex>& overlay, const PathDraw& pa
     glBindVertexArray(empty_vao_);
     glDrawArrays(GL_TRIANGLES, 0, 3);
   }
+  const bool field_drawn = paths.field != nullptr && paths.clear && paths.field->width > 0;
+  if (field_drawn) {
+    const FieldImage& field = *paths.field;
+    if (field_texture_ == 0) glGenTextures(1, &field_texture_);
+    glActiveTexture(GL_TEXTURE0);
+    glBindTexture(GL_TEXTURE_2D, field_texture_);
+    if (uploaded_field_ != paths.field) {
+      // Half floats hold the normalised fluence (about 0 .. 100) to 3 digits; they are filterable
+      // in OpenGL 3.3 and WebGL2 alike (32-bit floats need an extension in WebGL2).
+      glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
+      glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA16F, field.width, field.height, 0, GL_RGBA, GL_FLOAT, field.rgba.data());
+      glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+      glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+      glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+      glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+      uploaded_field_ = paths.field;
+    }
+    glBlendFunc(GL_ONE, GL_ONE);
+    glUseProgram(field_program_);
+    set_view_uniforms(field_program_, path_view);
+    glUniform4f(glGetUniformLocation(field_program_, "u_box"), static_cast<float>(field.box.lower.x),
+                static_cast<float>(field.box.lower.y), static_cast<float>(field.box.upper.x),
+                static_cast<float>(field.box.upper.y));
+    glUniform1i(glGetUniformLocation(field_program_, "u_field"), 0);
+    glBindVertexArray(empty_vao_);
+    glDrawArrays(GL_TRIANGLE_STRIP, 0, 4);
+  }
   if (!paths.instances.empty()) {
     glBlendFunc(GL_ONE, GL_ONE);
     glUseProgram(paths_program_);
@@ -263,12 +295,14 @@ Status Renderer::draw(const std::vector<LineVertex>& overlay, const PathDraw& pa
   // The normalisation is for full-resolution pixels; a coarser buffer holds lines that are as many
   // times shorter in its pixels, over an area smaller by the square.
   const float resolution = static_cast<float>(path_view.width) / static_cast<float>(view.width);
-  const float exposure = path_exposure * paths.normalisation * resolution;
+  // The field comes normalised: its exposure is the user's alone.
+  const float exposure = paths.field ? path_exposure : path_exposure * paths.normalisation * resolution;
   // (With the paths hidden every frame clears an empty buffer: nothing changes.)
   const bool was_empty = hdr_empty_;
   if (paths.clear) hdr_empty_ = true;
-  if (!paths.instances.empty()) hdr_empty_ = false;
-  const bool changed = !paths.instances.empty() || (paths.clear && !was_empty) || (paths.decay != 1.0f && !hdr_empty_);
+  if (!paths.instances.empty() || field_drawn) hdr_empty_ = false;
+  const bool changed =
+      !paths.instances.empty() || field_drawn || (paths.clear && !was_empty) || (paths.decay != 1.0f && !hdr_empty_);
   if (changed || !mapped_valid_ || exposure != mapped_exposure_) {
     glDisable(GL_BLEND);
     glBindFramebuffer(GL_FRAMEBUFFER, mapped_framebuffer_);

@@ -60,6 +60,10 @@ class Renderer {
   unsigned tonemap_program_ = 0;
   unsigned composite_program_ = 0;
   unsigned decay_program_ = 0;
+  unsigned field_program_ = 0;
+  // The light field's texture (RGBA16F) and the image it holds.
+  unsigned field_texture_ = 0;
+  std::shared_ptr<const FieldImage> uploaded_field_;
   unsigned lines_vao_ = 0;
   unsigned lines_vbo_ = 0;
   unsigned paths_vao_ = 0;

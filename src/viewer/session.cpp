@@ -199,12 +199,23 @@ void Session::publish(const Solver* solver, const std::vector<PathRecord>& new_p
   }
   for (const PathRecord& path : new_paths) paths_.push_back(path);
   while (paths_.size() > limit) paths_.pop_front();
+  if (field_.version() != field_version_) {
+    const auto now = std::chrono::steady_clock::now();
+    // Manual steps (force_error) show what they shot at once, as their paths do.
+    if (!field_image_ || force_error || (solver != nullptr && solver->stopped()) ||
+        std::chrono::duration<double>(now - field_time_).count() >= kFieldSeconds) {
+      field_image_ = field_image(field_);
+      field_version_ = field_.version();
+      field_time_ = now;
+    }
+  }
 
   snapshot->generation = generation_;
   snapshot->scene = scene_;
   snapshot->traces = traces_;
   snapshot->error = error_;
   snapshot->paths.assign(paths_.begin(), paths_.end());
+  snapshot->field = field_image_;
   if (solver != nullptr && scene_) {
     describe_solver(*solver, *traces_, *snapshot);
     // The estimated error: R (or 2R) reconstructions of the whole scene, so about twice a second of
@@ -343,6 +354,9 @@ void Session::start_solve(std::shared_ptr<const Scene> scene, const SolverSettin
   estimate_gathered_ = false;
   paths_.clear();
   next_serial_ = 0;
+  field_ = LightField{};
+  field_image_.reset();
+  field_version_ = field_.version();
   clear_error_history();
   chunk_ = Solver::kBatchSize;
   ++generation_;
@@ -352,6 +366,10 @@ void Session::start_solve(std::shared_ptr<const Scene> scene, const SolverSettin
   }
   error_.clear();
   if (scene_) {
+    if (Result<LightField> field = LightField::for_scene(*scene_, kFieldResolution)) {
+      field_ = std::move(*field);
+      field_version_ = field_.version();
+    }
     Result<GatherChoice> choice = choose_gather(*scene_, settings, Solver::kTargetSamples);
     Result<Solver> created = choice ? Solver::create(*scene_, settings) : Result<Solver>(choice.error());
     if (created) {
@@ -406,12 +424,21 @@ void Session::shoot_piece(const Piece& piece) {
   const Clock::time_point start = Clock::now();
   // Paths: all of a manual step (up to the kept number), or the first photons of a running step,
   // about as many as a frame can draw (a subset of the photons is what the eye can follow anyway).
-  const std::size_t recorded =
-      piece.stepping ? piece.path_limit : std::min<std::size_t>(piece.path_limit, kPathsPerStep);
+  // The light field takes more of them (kFieldFlightsPerStep) when paths are kept at all.
+  const std::size_t shown = piece.stepping ? piece.path_limit : std::min<std::size_t>(piece.path_limit, kPathsPerStep);
+  const std::size_t recorded = shown > 0 ? std::max(shown, kFieldFlightsPerStep) : 0;
   const std::uint64_t shot = solver.step_photons(piece.count, &cancel_, recorded > 0 ? &shot_paths : nullptr, recorded);
   const double seconds = std::chrono::duration<double>(Clock::now() - start).count();
   if (shot >= Solver::kBatchSize) adapt_chunk(solver, shot, seconds);
   solver.include_open_round();
+  field_.add_record(shot_paths, shot, solver.settings().transport);
+  // The paths shown: the first `shown` flights (a walk they end inside is marked cut, as a full
+  // record marks it).
+  if (shot_paths.size() > shown) {
+    if (shown > 0 && shot_paths[shown].bounce != 0 && solver.settings().transport == Transport::Walk)
+      shot_paths[shown - 1].cut = true;
+    shot_paths.resize(shown);
+  }
   std::vector<PathRecord> records;
   records.reserve(shot_paths.size());
   for (const PhotonPath& path : shot_paths) append_path_records(path, *scene_, next_serial_, round, records);

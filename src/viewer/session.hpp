@@ -6,6 +6,7 @@
 #pragma once
 
 #include <atomic>
+#include <chrono>
 #include <condition_variable>
 #include <cstdint>
 #include <deque>
@@ -145,6 +146,16 @@ class Session {
   std::uint64_t generation_ = 0;
   std::deque<PathRecord> paths_;
   std::uint64_t next_serial_ = 0;
+  // The light of every recorded flight, each record standing for the photons of its piece, and
+  // its image as last published (remade at most every kFieldSeconds while the field changes).
+  LightField field_;
+  std::uint64_t field_version_ = 0;  // field_.version() the image shows
+  std::shared_ptr<const FieldImage> field_image_;
+  std::chrono::steady_clock::time_point field_time_{};
+  static constexpr double kFieldSeconds = 0.2;
+  // The field's grid: the scene's longer side in cells (a 1000-pixel stage shows a cell on about
+  // two pixels, filtered between them).
+  static constexpr int kFieldResolution = 512;
   // Seconds of shooting a piece: long enough to amortise the per-piece work (the view's estimate
   // and the snapshot, serial while the other threads wait: with 25 ms the viewer shot 10 M photons
   // in 300 frames, with 50 ms 13.6 M; docs/performance-log.md), short enough for a prompt pause and
@@ -157,6 +168,9 @@ class Session {
   // Paths recorded per running piece (frames are paced to 25 ms and draw at most 600 new paths):
   // the display keeps up with what is recorded.
   static constexpr std::size_t kPathsPerStep = 768;
+  // Flights recorded per running piece for the light field (the first kPathsPerStep of them are
+  // also shown as paths): a smoother field for a few percent of a piece's time.
+  static constexpr std::size_t kFieldFlightsPerStep = 4096;
   std::vector<std::array<double, 2>> error_history_;
   std::optional<double> reference_error_;
   double last_error_time_ = -1.0;

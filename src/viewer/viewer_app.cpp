@@ -155,6 +155,11 @@ Status Viewer::set_path_style(const ViewOptions& options) {
   draw_.path_colour = options.colour_by == "round"    ? PathColour::Round
                       : options.colour_by == "bounce" ? PathColour::Bounce
                                                       : PathColour::Power;
+  if (options.light != "auto" && options.light != "paths" && options.light != "field")
+    return Error{"--light: expected auto, paths or field, got '" + options.light + "'"};
+  draw_.light = options.light == "paths"   ? LightView::Paths
+                : options.light == "field" ? LightView::Field
+                                           : LightView::Auto;
   draw_.path_exposure = options.path_exposure;
   draw_.fade = options.path_fade;
   return ok_status();

@@ -41,6 +41,7 @@ struct ViewOptions {
   bool show_control_points = false;
   std::string select;               // a curve to inspect at start: its id or index
   std::string colour_by = "power";  // photon paths coloured by "power", "round" or "bounce"
+  std::string light = "auto";       // the light layer: "auto", "paths" or "field" (LightView)
   float path_exposure = 1.0f;
   float path_fade = 1.0f;  // 0: every kept path equally bright; 1: the oldest fade to about 5 %
   bool show_ui = true;
@@ -99,6 +100,7 @@ class Viewer {
   const Scene& scene() const { return *scene_; }
   int selected_curve() const { return draw_.selected_curve; }
   PathColour path_colour() const { return draw_.path_colour; }
+  LightView light_view() const { return draw_.light; }
   // The view (scene to window pixels), the docked layout of the last frame, and the rectangle of
   // a panel ("Solve", "Display", "Status", "Curve") drawn in the last frame.
   const ViewTransform& view() const { return view_; }

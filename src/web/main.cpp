@@ -76,6 +76,8 @@ EMSCRIPTEN_KEEPALIVE const char* flatland_state_query() {
     add("keep-paths=" + std::to_string(the_viewer->paths_kept()));
   if (the_viewer->path_colour() == viewer::PathColour::Round) add("colour-by=round");
   if (the_viewer->path_colour() == viewer::PathColour::Bounce && !the_viewer->slow_stepping()) add("colour-by=bounce");
+  if (the_viewer->light_view() == viewer::LightView::Paths) add("light=paths");
+  if (the_viewer->light_view() == viewer::LightView::Field) add("light=field");
   return query.c_str();
 }
 

@@ -291,6 +291,78 @@ TEST(Frame, PathLayerDrawsTheNewestFirstWithinItsBudget) {
   EXPECT_EQ(fourth.instances.size(), 3u);
 }
 
+// The field's image is the fluence divided by the 99th percentile of its lit cells (so that
+// percentile shows at 1 and the rest keeps its proportions), grey fields copied to r, g and b.
+TEST(Frame, FieldImageIsTheFluenceOverItsHighPercentile) {
+  Box box;
+  box.lower = {0.0, 0.0};
+  box.upper = {100.0, 1.0};
+  Result<LightField> field = LightField::create(box, 100, 1);
+  ASSERT_TRUE(field.ok());
+  // Cell k crossed by a leg of power k + 1: luminance k + 1 (cells 0..99); the 99th percentile
+  // of the 100 lit cells is the 99th smallest, 99.
+  for (int k = 0; k < 100; ++k) field->add_leg({k + 0.0, 0.5}, {k + 1.0, 0.5}, {k + 1.0, 0.0, 0.0}, 1.0);
+  const std::shared_ptr<const FieldImage> image = field_image(*field);
+  ASSERT_EQ(image->width, 100);
+  ASSERT_EQ(image->height, 1);
+  for (int k = 0; k < 100; ++k) {
+    EXPECT_FLOAT_EQ(image->rgba[static_cast<std::size_t>(k) * 4], static_cast<float>((k + 1.0) / 99.0));
+    EXPECT_EQ(image->rgba[static_cast<std::size_t>(k) * 4 + 2], image->rgba[static_cast<std::size_t>(k) * 4]);
+    EXPECT_EQ(image->rgba[static_cast<std::size_t>(k) * 4 + 3], 1.0f);
+  }
+}
+
+// Auto shows the paths while few are kept (stepping) or while they are coloured by round or
+// bounce, the field otherwise; the field is drawn again only when it or the view changed, and the
+// paths come back whole when they show again.
+TEST(Frame, PathLayerShowsTheFieldInPlaceOfManyPaths) {
+  auto scene = std::make_shared<const Scene>(testing::scene_from_file("scenes2d/penumbra.json"));
+  Result<LightField> made = LightField::for_scene(*scene, 16);
+  ASSERT_TRUE(made.ok());
+  DrawOptions options;
+  options.fade = 0.0f;
+  const ViewTransform view = fit_view(scene->bounds, 400, 300);
+  PathLayer layer;
+  Snapshot few = path_snapshot(scene, 0, 10);
+  few.field = field_image(*made);
+  EXPECT_FALSE(shows_field(few, options));
+  const PathDraw paths = layer.update(few, options, view, kFieldAutoPaths * 2, kFieldAutoPaths * 2);
+  EXPECT_EQ(paths.field, nullptr);
+  EXPECT_EQ(paths.instances.size(), 10u);
+
+  Snapshot many = path_snapshot(scene, 10, kFieldAutoPaths);
+  many.field = few.field;
+  EXPECT_TRUE(shows_field(many, options));
+  const PathDraw field = layer.update(many, options, view, kFieldAutoPaths * 2, kFieldAutoPaths * 2);
+  EXPECT_EQ(field.field, many.field);
+  EXPECT_TRUE(field.clear);
+  EXPECT_TRUE(field.instances.empty());
+  EXPECT_FALSE(layer.update(many, options, view, kFieldAutoPaths * 2, kFieldAutoPaths * 2).clear);
+  ViewTransform moved = view;
+  moved.scale *= 2.0;
+  EXPECT_TRUE(layer.update(many, options, moved, kFieldAutoPaths * 2, kFieldAutoPaths * 2).clear);
+  many.field = field_image(*made);  // a new image
+  EXPECT_TRUE(layer.update(many, options, moved, kFieldAutoPaths * 2, kFieldAutoPaths * 2).clear);
+
+  // Coloured by bounce: the paths again, every kept one redrawn from a cleared buffer.
+  options.path_colour = PathColour::Bounce;
+  EXPECT_FALSE(shows_field(many, options));
+  const PathDraw back = layer.update(many, options, moved, kFieldAutoPaths * 2, kFieldAutoPaths * 2);
+  EXPECT_TRUE(back.clear);
+  EXPECT_EQ(back.field, nullptr);
+  EXPECT_EQ(back.instances.size(), kFieldAutoPaths + 10);
+  // Forced either way.
+  options.light = LightView::Field;
+  EXPECT_TRUE(shows_field(few, options));
+  options.light = LightView::Paths;
+  options.path_colour = PathColour::Power;
+  EXPECT_FALSE(shows_field(many, options));
+  Snapshot none = many;
+  none.field.reset();
+  options.light = LightView::Field;
+  EXPECT_FALSE(shows_field(none, options));
+}
+
 TEST(Frame, OverlayStaysOnTheCurvesWithinItsPixelOffsets) {
   auto scene = std::make_shared<const Scene>(testing::scene_from_file("scenes2d/default.json"));
   Snapshot snapshot;

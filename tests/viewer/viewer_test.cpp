@@ -215,11 +215,46 @@ TEST_F(Viewer, ShaderErrorsPrintTheGlLogAndExitTwo) {
   EXPECT_NE(result.err.find("paths.frag"), std::string::npos) << result.err;
 }
 
+// The light as a field (render's default): in the mirror room the sunbeam between the window and
+// the floor mirror stands out of the interreflected haze, which is not washed out to white; as
+// paths, the haze of the last rounds is as bright as the beam.
+TEST_F(Viewer, RenderFieldShowsTheBeamAboveTheHaze) {
+  const Scene scene = testing::scene_from_file("scenes2d/mirror_room.json");
+  auto contrast = [&](const std::string& light) {
+    const fs::path out = directory_ / ("mirror_" + light + ".png");
+    const CommandRun r =
+        run("render " + this->scene("mirror_room.json") +
+            " --photons 2e5 --width 400 --height 400 --quiet --no-graph --light " + light + " --out " + out.string());
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    Result<png::PngImage> image = png::read_png(out.string());
+    EXPECT_TRUE(image) << image.error().message;
+    const ViewTransform view = fit_view(scene.bounds, 400, 400);
+    auto brightness = [&](Vec2 p) {
+      const Vec2 q = view.to_pixels(p);
+      double sum = 0.0;
+      for (int dy = -2; dy <= 2; ++dy)
+        for (int dx = -2; dx <= 2; ++dx) {
+          const Rgb c = pixel(*image, static_cast<int>(q.x) + dx, static_cast<int>(q.y) + dy);
+          sum += (c.r + c.g + c.b) / 3.0;
+        }
+      return sum / 25.0;
+    };
+    // In the beam halfway from the window to the mirror; in the haze of the upper left corner.
+    return std::pair{brightness({1.0, 0.8}), brightness({0.8, 2.6})};
+  };
+  const auto [beam, haze] = contrast("field");
+  EXPECT_GT(beam, 2.0 * haze) << "beam " << beam << ", haze " << haze;
+  EXPECT_LT(haze, 160.0);
+  const auto [path_beam, path_haze] = contrast("paths");
+  EXPECT_LT(path_beam / path_haze, beam / haze);
+}
+
 TEST_F(Viewer, BadOptionsAreOneLineErrors) {
   for (const char* arguments :
        {"view --step sometimes --frames 1", "view --frames 2 --photons -5", "view no-such-scene.json --frames 1",
         "render --out x.png", "view --exposure nan --frames 1", "render --exposure nan --out x.png",
-        "view --max-fps -5 --frames 1", "view --fade 2 --frames 1"}) {
+        "view --max-fps -5 --frames 1", "view --fade 2 --frames 1", "view --light rays --frames 1",
+        "render --light rays --out x.png", "render --field-flights -1 --out x.png"}) {
     const CommandRun result = run(arguments);
     EXPECT_EQ(result.exit_code, 2) << arguments;
     EXPECT_EQ(std::count(result.err.begin(), result.err.end(), '\n'), 1) << arguments << ": " << result.err;
@@ -543,6 +578,7 @@ TEST_F(Viewer, SteppedFramesDrawEveryKeptPath) {
   options.keep_paths = 12'000;
   options.path_budget = 600;
   options.settings.photons = 200'000;
+  options.light = "paths";
   Result<std::unique_ptr<viewer::Viewer>> created = viewer::Viewer::create(options);
   ASSERT_TRUE(created) << created.error().message;
   viewer::Viewer& viewer = **created;
@@ -550,6 +586,35 @@ TEST_F(Viewer, SteppedFramesDrawEveryKeptPath) {
   const std::uint64_t shot = viewer.session().snapshot()->progress.photons;
   ASSERT_GT(shot, 0u);
   EXPECT_EQ(viewer.paths_drawn(), std::min<std::uint64_t>(shot, 12'000));
+}
+
+// By default (light as auto) the kept paths give way to the field once there are many: it stands
+// for every photon shot, its image is there as soon as the step's snapshot is, and the path
+// buffer holds no paths.
+TEST_F(Viewer, ManyKeptPathsShowTheFieldOfEveryPhoton) {
+  ViewOptions options;
+  options.scene = scene("penumbra.json");
+  options.width = 640;
+  options.height = 480;
+  options.vsync = false;
+  options.show_ui = false;
+  options.step = "rounds=1";
+  options.keep_paths = 12'000;
+  options.settings.photons = 200'000;
+  Result<std::unique_ptr<viewer::Viewer>> created = viewer::Viewer::create(options);
+  ASSERT_TRUE(created) << created.error().message;
+  viewer::Viewer& viewer = **created;
+  viewer.frame();
+  const std::shared_ptr<const viewer::Snapshot> snapshot = viewer.session().snapshot();
+  ASSERT_GE(snapshot->paths.size(), viewer::kFieldAutoPaths);
+  ASSERT_NE(snapshot->field, nullptr);
+  EXPECT_EQ(snapshot->field->photons, static_cast<double>(snapshot->progress.photons));
+  EXPECT_EQ(viewer.paths_drawn(), 0u);
+  ViewOptions bad = options;
+  bad.light = "rays";
+  Result<std::unique_ptr<viewer::Viewer>> refused = viewer::Viewer::create(bad);
+  ASSERT_FALSE(refused);
+  EXPECT_NE(refused.error().message.find("--light"), std::string::npos) << refused.error().message;
 }
 
 TEST_F(Viewer, DraggingAControlPointEditsTheSceneAndRestarts) {
