@@ -15,6 +15,10 @@ run view scenes2d/penumbra.json --frames 2 --step photons=2000 --width 960 --hei
 # every path of the three rounds stays among the kept ones.
 run view scenes2d/room_reflector.json --frames 3 --step rounds=1 --width 960 --height 640 --photons 6000 \
   --keep-paths 6000 --fade 0 --ray-width 0.02 --colour-by round --screenshot docs/figures/viewer_rounds.png
+# The light as a field: the mirror room's sunbeam and its reflection, one round a frame to the end
+# of the solve (deterministic).
+run view scenes2d/mirror_room.json --frames 12 --step rounds=1 --width 1280 --height 800 --select walls \
+  --screenshot-ui docs/figures/viewer_field.png
 # flatland render: the same renderer without a display.
 "$flatland" render scenes2d/mixed.json --photons 1e6 --width 960 --height 640 --out docs/figures/render_mixed.png --quiet
 # Random walks stepped one photon a frame, coloured by bounce, the newest journey on top.
