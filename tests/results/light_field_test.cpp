@@ -208,5 +208,45 @@ TEST(LightField, PartOfARecordEstimatesTheWhole) {
   EXPECT_EQ(part.photons(), whole.photons());
 }
 
+// A beam of known power crossing a known distance: a lamp of length 1 and emittance 1 (power 1)
+// shines a 2-degree beam of 700 nm light straight at a black wall 2 away. The field of every
+// photon's flight integrates to power x length: between 2 (straight up) and 2 / cos 2 degrees.
+// Deep red lies outside sRGB on the red side, so only the red channel holds light.
+TEST(LightField, ABeamsFieldIsItsPowerTimesItsLength) {
+  const Scene scene = testing::scene_from_text(R"({
+    "flatland": 2,
+    "materials": {
+      "lamp": {"emittance": 1.0, "emission": {"beam": 2}, "spectrum": {"line": 700}},
+      "black": {"reflectivity": 0}
+    },
+    "curves": [
+      {"id": "lamp", "material": "lamp", "line": [[0, 0], [1, 0]]},
+      {"id": "wall", "material": "black", "line": [[2, 2], [-1, 2]]}
+    ]
+  })");
+  ASSERT_EQ(scene.channels, 3);
+  SolverSettings settings;
+  settings.photons = 20'000;
+  Result<Solver> solver = Solver::create(scene, settings);
+  ASSERT_TRUE(solver.ok()) << solver.error().message;
+  Result<LightField> field = LightField::for_scene(scene, 64);
+  ASSERT_TRUE(field.ok());
+  while (!solver->stopped()) {
+    std::vector<PhotonPath> record;
+    const std::uint64_t shot = solver->step_photons(settings.photons, nullptr, &record, settings.photons);
+    if (shot == 0) break;
+    EXPECT_EQ(record.size(), shot);
+    field->add_record(record, shot, Transport::Shooting);
+  }
+  EXPECT_EQ(field->photons(), static_cast<double>(settings.photons));
+  const double cos2 = std::cos(2.0 * std::acos(-1.0) / 180.0);
+  // A colour scene's power is the channels' mean (grey light of power P is P in each channel).
+  const double power_x_length = (integral(*field, 0) + integral(*field, 1) + integral(*field, 2)) / 3.0;
+  EXPECT_GE(power_x_length, 2.0 * (1.0 - 1e-12));
+  EXPECT_LE(power_x_length, 2.0 / cos2 * (1.0 + 1e-12));
+  EXPECT_EQ(integral(*field, 1), 0.0);
+  EXPECT_EQ(integral(*field, 2), 0.0);
+}
+
 }  // namespace
 }  // namespace flatland
