@@ -80,7 +80,9 @@ CLI::App* add_view_command(CLI::App& parent, ViewCommandOptions& o) {
                   "cores, otherwise no limit; -1: no limit)")
       ->capture_default_str()
       ->check(CLI::Range(-1, 1000));
-  cmd->add_flag("--report", o.report, "At the end, print the frame rate and the photon rate");
+  cmd->add_flag("--report", o.report,
+                "At the end, print the frame rate, the photon rate and the view's link (the web page's URL "
+                "parameters for it, as Copy link gives them)");
   cmd->add_option("--shaders", o.shaders,
                   "Load the GLSL shaders from this directory instead of the built-in copies of shaders/");
   return cmd;

@@ -713,10 +713,41 @@ Status Viewer::run() {
                 snapshot->photons_per_second, path_layer_.drawn());
     if (snapshot->reference_error)
       std::printf("error     %.4g relative L2 of B against the reference\n", *snapshot->reference_error);
+    const std::string link = link_query();
+    std::printf("link      %s\n", link.empty() ? "(every setting at its default)" : link.c_str());
   }
   if (!message_.empty() && options_.frames > 0 && message_.rfind("loaded", 0) != 0)
     std::fprintf(stderr, "flatland view: %s\n", message_.c_str());
   return ok_status();
+}
+
+std::string Viewer::link_query() const {
+  std::string query;
+  const SolverSettings defaults;
+  const SolverSettings& settings = settings_;
+  for (const SolveOptionSpec& spec : solve_options()) {
+    if (spec.option == SolveOption::Threads) continue;
+    const std::string value = solve_option_text(settings, spec.option);
+    if (value == solve_option_text(defaults, spec.option)) continue;
+    std::string_view flag = spec.flag;
+    while (!flag.empty() && flag.front() == '-') flag.remove_prefix(1);
+    query += (query.empty() ? "" : "&") + std::string(flag) + "=" + value;
+  }
+  const int curve = selected_curve();
+  if (curve >= 0 && static_cast<std::size_t>(curve) < scene().curves.size())
+    query += (query.empty() ? "select=" : "&select=") + std::to_string(curve);
+  if (presentation()) query += query.empty() ? "present=1" : "&present=1";
+  // A lesson's view: the First photons preset while it steps, and the paths' colouring and count
+  // where they differ from the defaults (view::ViewOptions).
+  auto add = [&](const std::string& item) { query += (query.empty() ? "" : "&") + item; };
+  if (slow_stepping()) add("first-photons=1");
+  const ViewOptions view_defaults;
+  if (paths_kept() != view_defaults.keep_paths) add("keep-paths=" + std::to_string(paths_kept()));
+  if (path_colour() == PathColour::Round) add("colour-by=round");
+  if (path_colour() == PathColour::Bounce && !slow_stepping()) add("colour-by=bounce");
+  if (light_view() == LightView::Paths) add("light=paths");
+  if (light_view() == LightView::Field) add("light=field");
+  return query;
 }
 
 }  // namespace flatland::viewer

@@ -101,6 +101,12 @@ class Viewer {
   int selected_curve() const { return draw_.selected_curve; }
   PathColour path_colour() const { return draw_.path_colour; }
   LightView light_view() const { return draw_.light; }
+  // The view as URL parameters, "name=value&..." (the web page's Copy link, and --report's link
+  // line): every solve option that differs from its default (threads aside), the inspected curve
+  // (by index), presentation mode, the First photons preset while it steps, and the paths kept,
+  // their colouring and the light's view where they differ from the defaults (ViewOptions). The
+  // values are names and numbers: URL-safe as they are.
+  std::string link_query() const;
   // The view (scene to window pixels), the docked layout of the last frame, and the rectangle of
   // a panel ("Solve", "Display", "Status", "Curve") drawn in the last frame.
   const ViewTransform& view() const { return view_; }

@@ -51,33 +51,7 @@ EMSCRIPTEN_KEEPALIVE void flatland_resize(int width, int height) {
 // numbers).
 EMSCRIPTEN_KEEPALIVE const char* flatland_state_query() {
   static std::string query;
-  query.clear();
-  if (!the_viewer) return "";
-  const SolverSettings defaults;
-  const SolverSettings& settings = the_viewer->settings();
-  for (const SolveOptionSpec& spec : solve_options()) {
-    if (spec.option == SolveOption::Threads) continue;
-    const std::string value = solve_option_text(settings, spec.option);
-    if (value == solve_option_text(defaults, spec.option)) continue;
-    std::string_view flag = spec.flag;
-    while (!flag.empty() && flag.front() == '-') flag.remove_prefix(1);
-    query += (query.empty() ? "" : "&") + std::string(flag) + "=" + value;
-  }
-  const int curve = the_viewer->selected_curve();
-  if (curve >= 0 && static_cast<std::size_t>(curve) < the_viewer->scene().curves.size())
-    query += (query.empty() ? "select=" : "&select=") + std::to_string(curve);
-  if (the_viewer->presentation()) query += query.empty() ? "present=1" : "&present=1";
-  // A lesson's view: the First photons preset while it steps, and the paths' colouring and count
-  // where they differ from the defaults (view::ViewOptions).
-  auto add = [&](const std::string& item) { query += (query.empty() ? "" : "&") + item; };
-  if (the_viewer->slow_stepping()) add("first-photons=1");
-  const viewer::ViewOptions view_defaults;
-  if (the_viewer->paths_kept() != view_defaults.keep_paths)
-    add("keep-paths=" + std::to_string(the_viewer->paths_kept()));
-  if (the_viewer->path_colour() == viewer::PathColour::Round) add("colour-by=round");
-  if (the_viewer->path_colour() == viewer::PathColour::Bounce && !the_viewer->slow_stepping()) add("colour-by=bounce");
-  if (the_viewer->light_view() == viewer::LightView::Paths) add("light=paths");
-  if (the_viewer->light_view() == viewer::LightView::Field) add("light=field");
+  query = the_viewer ? the_viewer->link_query() : "";
   return query.c_str();
 }
 

@@ -12,6 +12,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <set>
 #include <sstream>
 #include <thread>
 #include <tuple>
@@ -247,6 +248,94 @@ TEST_F(Viewer, RenderFieldShowsTheBeamAboveTheHaze) {
   EXPECT_LT(haze, 160.0);
   const auto [path_beam, path_haze] = contrast("paths");
   EXPECT_LT(path_beam / path_haze, beam / haze);
+}
+
+// Every lesson link of docs/web.md round-trips through the viewer's link (the web page's Copy
+// link; --report prints it): what a link sets that the link carries comes back with its value,
+// and the link of a viewer opened from a link is that link again.
+TEST_F(Viewer, LessonLinksRoundTripThroughTheViewersLink) {
+  const std::string web = read_file(testing::source_path("docs/web.md"));
+  const std::size_t section = web.find("## Lesson links");
+  ASSERT_NE(section, std::string::npos);
+  const std::string lessons = web.substr(section, web.find("\n## ", section + 1) - section);
+  std::vector<std::string> queries;
+  for (std::size_t at = lessons.find("`index.html?"); at != std::string::npos;
+       at = lessons.find("`index.html?", at + 1)) {
+    const std::size_t begin = at + std::string("`index.html?").size();
+    queries.push_back(lessons.substr(begin, lessons.find('`', begin) - begin));
+  }
+  ASSERT_GE(queries.size(), 8u);
+  using Params = std::vector<std::pair<std::string, std::string>>;
+  auto parse = [](const std::string& query) {
+    Params params;
+    std::stringstream items(query);
+    for (std::string item; std::getline(items, item, '&');) {
+      const std::size_t eq = item.find('=');
+      params.emplace_back(item.substr(0, eq), eq == std::string::npos ? "" : item.substr(eq + 1));
+    }
+    return params;
+  };
+  // The page's translation: scene=NAME is scenes2d/NAME.json, flags given as 1, the rest --NAME VALUE.
+  auto link_of = [&](const std::string& scene_name, const Params& params) {
+    std::string arguments = "view " + scene(scene_name + ".json") + " --frames 2 --width 900 --height 640 --report";
+    for (const auto& [key, value] : params) {
+      if (key == "scene") continue;
+      if (key == "present" || key == "first-photons" || key == "paused")
+        arguments += " --" + key;
+      else
+        arguments += " --" + key + " " + value;
+    }
+    const CommandRun r = run(arguments);
+    EXPECT_EQ(r.exit_code, 0) << arguments << ": " << r.err;
+    const std::size_t at = r.out.find("link      ");
+    EXPECT_NE(at, std::string::npos) << r.out;
+    if (at == std::string::npos) return std::string();
+    const std::size_t begin = at + 10;
+    std::string link = r.out.substr(begin, r.out.find('\n', begin) - begin);
+    return link == "(every setting at its default)" ? std::string() : link;
+  };
+  // Parameters the viewer's link does not carry: how frames are stepped and shown.
+  const std::set<std::string> uncarried = {"scene",   "step",     "paused", "ui-scale",
+                                           "no-ui",   "exposure", "fade",   "paths-per-frame",
+                                           "max-fps", "width",    "height", "frames"};
+  for (const std::string& query : queries) {
+    SCOPED_TRACE(query);
+    const Params params = parse(query);
+    std::string scene_name;
+    bool first_photons = false;
+    for (const auto& [key, value] : params) {
+      if (key == "scene") scene_name = value;
+      if (key == "first-photons") first_photons = true;
+    }
+    ASSERT_FALSE(scene_name.empty());
+    const std::string link = link_of(scene_name, params);
+    const Params carried = parse(link);
+    auto value_of = [&](const std::string& key) -> std::optional<std::string> {
+      for (const auto& [k, v] : carried)
+        if (k == key) return v;
+      return std::nullopt;
+    };
+    const Scene loaded = testing::scene_from_file("scenes2d/" + scene_name + ".json");
+    for (const auto& [key, value] : params) {
+      if (uncarried.count(key) != 0) continue;
+      if (key == "colour-by" && first_photons) continue;  // the preset's own colouring
+      const std::optional<std::string> back = value_of(key);
+      ASSERT_TRUE(back.has_value()) << key << " is not in the link " << link;
+      if (key == "select") {
+        // By index: the curve the id names.
+        std::size_t index = loaded.curves.size();
+        for (std::size_t c = 0; c < loaded.curves.size(); ++c)
+          if (loaded.curves[c].id == value) index = c;
+        EXPECT_EQ(*back, std::to_string(index)) << link;
+      } else if (key == "present" || key == "first-photons") {
+        EXPECT_EQ(*back, "1");
+      } else {
+        EXPECT_EQ(*back, value) << key << " in " << link;
+      }
+    }
+    Params again = carried;
+    EXPECT_EQ(link_of(scene_name, again), link);
+  }
 }
 
 TEST_F(Viewer, BadOptionsAreOneLineErrors) {
