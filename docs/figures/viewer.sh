@@ -19,6 +19,12 @@ run view scenes2d/room_reflector.json --frames 3 --step rounds=1 --width 960 --h
 # of the solve (deterministic).
 run view scenes2d/mirror_room.json --frames 12 --step rounds=1 --width 1280 --height 800 --select walls \
   --screenshot-ui docs/figures/viewer_field.png
+# The teaching scenes at 1e6 photons, solved to the end one round a frame (deterministic), the
+# light as a field, without panels.
+for lesson in lens prism light_guide mirror_room parabolic_mirror; do
+  run view scenes2d/$lesson.json --frames 40 --step rounds=1 --width 960 --height 600 \
+    --screenshot docs/figures/lesson_$lesson.png
+done
 # flatland render: the same renderer without a display.
 "$flatland" render scenes2d/mixed.json --photons 1e6 --width 960 --height 640 --out docs/figures/render_mixed.png --quiet
 # Random walks stepped one photon a frame, coloured by bounce, the newest journey on top.
