@@ -8,10 +8,12 @@
 #include "app/output.hpp"
 #include "app/progress.hpp"
 #include "flatland/base/resources.hpp"
+#include "flatland/base/version.hpp"
 #include "flatland/reference/final_gather.hpp"
 #include "flatland/results/result_io.hpp"
 #include "png/png_io.hpp"
 #include "viewer/offscreen.hpp"
+#include "viewer/picture_labels.hpp"
 #include "viewer/renderer.hpp"
 #include "viewer/session.hpp"
 
@@ -58,6 +60,9 @@ CLI::App* add_render_command(CLI::App& parent, RenderOptions& o) {
       ->check(finite_range(1e-3, 1e3));
   cmd->add_flag("--graph,!--no-graph", o.graph, "Draw B(s) as a graph along each curve's normal");
   cmd->add_flag("--band,!--no-band", o.band, "Draw the colour band of B along each curve");
+  cmd->add_flag("--labels,!--no-labels", o.labels,
+                "Write a title above the scene (what is drawn, how it was solved) and the colour key with the "
+                "materials' legend below it (default; pictures under 320x240 have none)");
   cmd->add_flag("--journey", o.journey,
                 "Also draw the newest photon's journey on top (its hops numbered and coloured by bounce), as "
                 "the viewer does");
@@ -179,11 +184,39 @@ int run_render(RenderOptions& o) {
   draw.journey = o.journey;
   draw.discontinuities = o.nodes;
   draw.fade = 0.0f;  // no ages in a finished solve
-  const viewer::ViewTransform view = viewer::fit_view(scene->bounds, o.width, o.height);
+  // The scene on the stage between the title and the key (the whole picture with --no-labels).
+  const viewer::PictureLayout layout = viewer::picture_layout(o.width, o.height, o.labels);
+  const viewer::ViewTransform view = viewer::fit_view(scene->bounds, o.width, o.height, layout.stage);
   viewer::PathLayer layer;
   const viewer::PathDraw path_draw = layer.update(snapshot, draw, view, snapshot.paths.size(), snapshot.paths.size());
-  if (Status drawn = (*renderer)->draw(viewer::build_overlay(snapshot, draw), path_draw, view, o.exposure); !drawn) {
+  if (Status drawn =
+          (*renderer)->draw(viewer::build_overlay(snapshot, draw), path_draw, view, o.exposure, &layout.stage);
+      !drawn) {
     std::fprintf(stderr, "flatland: error: %s\n", drawn.error().message.c_str());
+    return kExitUsage;
+  }
+  const bool field_shown = viewer::shows_field(snapshot, draw);
+  const SolverSettings& used = solver.settings();
+  char what[512];
+  std::snprintf(
+      what, sizeof what, "%s%s%s",
+      field_shown ? "the light as a field (fluence, tone mapped at its 99th percentile)"
+                  : "photon paths, each in its light's colour and brightness",
+      o.band ? "; along every lit side a band of B" : "",
+      o.graph ? (o.band ? " and its graph (the thin line off the side)" : "; B's graph off every lit side") : "");
+  // The commit shortened to 12 digits, keeping its "-dirty" mark (uncommitted changes).
+  const std::string commit = program_commit();
+  const bool dirty = commit.size() > 6 && commit.compare(commit.size() - 6, 6, "-dirty") == 0;
+  const std::string short_commit = commit.substr(0, 12) + (dirty ? "-dirty" : "");
+  char how[512];
+  std::snprintf(how, sizeof how, "%llu %s, %u rounds, %s basis, %s, seed %llu; flatland %s (%s)",
+                static_cast<unsigned long long>(solver.photons_shot()),
+                used.transport == Transport::Walk ? "walks" : "photons", solver.rounds(), to_string(used.basis),
+                used.transport == Transport::Walk ? "random walks" : "shooting",
+                static_cast<unsigned long long>(used.seed), program_version(), short_commit.c_str());
+  const std::vector<std::string> title = {scene->name + ": " + what, how};
+  if (Status labelled = viewer::draw_picture_labels(snapshot, draw, layout, o.width, o.height, title); !labelled) {
+    std::fprintf(stderr, "flatland: error: %s\n", labelled.error().message.c_str());
     return kExitUsage;
   }
   png::PngImage image{o.width, o.height, 4, viewer::Renderer::read_pixels(o.width, o.height)};
@@ -208,7 +241,7 @@ int run_render(RenderOptions& o) {
                  static_cast<unsigned long long>(solver.photons_shot()),
                  solver.settings().transport == Transport::Walk ? "walks" : "photons",
                  static_cast<unsigned long long>(solver.rays_traced()), solver.rounds(), solver.seconds());
-    if (viewer::shows_field(snapshot, draw))
+    if (field_shown)
       std::fprintf(out, "wrote     %s (%dx%d, the light as a field of %zu recorded flights)\n", o.out.c_str(), o.width,
                    o.height, field_flights);
     else

@@ -182,6 +182,7 @@ struct RenderOptions {
   bool band = true;
   bool journey = false;  // the newest photon's journey on top (the viewer's default, not a picture's)
   bool nodes = false;    // the storage's nodes below C1 as diamonds
+  bool labels = true;    // the title above the scene, the colour key and legend below it
   std::string shaders;
 };
 CLI::App* add_render_command(CLI::App& parent, RenderOptions& options);

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <functional>
 #include <vector>
 
 #include "flatland/scene/scene.hpp"
@@ -63,5 +64,14 @@ inline void dock_next(const PixelRect& column, float above) {
   ImGui::SetNextWindowSizeConstraints(ImVec2(column.width(), 0.0f),
                                       ImVec2(column.width(), std::max(column.y1 - top, 40.0f)));
 }
+
+// The key of the band's colours (the colour scale from 0 to the band's range with its values, in
+// the units of B: power per unit length, in the scene's emittance units), its scale's note and
+// the materials' legend, in the current ImGui window. `after_scale` runs right after the scale's
+// item (the viewer's UI tests track its rectangle).
+void colour_key(const Snapshot& snapshot, const DrawOptions& options, const std::function<void()>& after_scale = {});
+// The materials that hold no light, in the colours the stage draws them in: each mirror, glass
+// (with its index) and detector material once, on one line.
+void materials_legend(const Scene& scene);
 
 }  // namespace flatland::viewer::panels

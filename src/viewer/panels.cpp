@@ -309,24 +309,28 @@ void Viewer::draw_solve_panel(const Snapshot& snapshot) {
   ImGui::End();
 }
 
-// The key of the band's colours: the colour scale from 0 to the band's range with its values,
-// in the units of B (power per unit length, in the scene's emittance units).
 void Viewer::draw_colour_key(const Snapshot& snapshot) {
+  panels::colour_key(snapshot, draw_, [this] { track("colour key"); });
+}
+
+namespace panels {
+
+void colour_key(const Snapshot& snapshot, const DrawOptions& options, const std::function<void()>& after_scale) {
   if (!snapshot.scene) return;
   const int channels = snapshot.scene->channels;
-  const double range = radiosity_range(snapshot, draw_.channel) / std::max(draw_.band_exposure, 1e-6f);
+  const double range = radiosity_range(snapshot, options.channel) / std::max(options.band_exposure, 1e-6f);
   ImGui::TextUnformatted("band colour = B, power per unit length");
   ImDrawList* draw = ImGui::GetWindowDrawList();
   const ImVec2 origin = ImGui::GetCursorScreenPos();
   const float width = ImGui::GetContentRegionAvail().x;
   const float height = ImGui::GetTextLineHeight();
   ImGui::InvisibleButton("##colour key", ImVec2(width, height));
-  track("colour key");
+  if (after_scale) after_scale();
   const int steps = 48;
   for (int i = 0; i < steps; ++i) {
     // The band's own mapping at B = (i + 0.5) / steps x range (grey level for colour scenes).
     const double b = (i + 0.5) / steps * range;
-    const std::array<float, 3> colour = radiosity_colour({b, b, b}, range, channels, draw_.channel);
+    const std::array<float, 3> colour = radiosity_colour({b, b, b}, range, channels, options.channel);
     const float x0 = origin.x + width * static_cast<float>(i) / steps;
     draw->AddRectFilled(ImVec2(x0, origin.y), ImVec2(x0 + width / steps + 0.5f, origin.y + height), to_u32(colour));
   }
@@ -342,17 +346,15 @@ void Viewer::draw_colour_key(const Snapshot& snapshot) {
   }
   ImGui::Dummy(ImVec2(width, ImGui::GetTextLineHeight() + 6.0f));
   ImGui::PushStyleColor(ImGuiCol_Text, ImGui::GetStyle().Colors[ImGuiCol_TextDisabled]);
-  ImGui::TextWrapped(channels == 3 && draw_.channel == ChannelView::All
+  ImGui::TextWrapped(channels == 3 && options.channel == ChannelView::All
                          ? "each channel 1 - exp(-2 B / %.3g); emitters saturate"
                          : "scale: the 99th percentile of B off the emitters, %.3g",
                      range);
   ImGui::PopStyleColor();
-  draw_materials_legend(*snapshot.scene);
+  materials_legend(*snapshot.scene);
 }
 
-// The materials that hold no light, in the colours the stage draws them in: each mirror, glass
-// (with its index) and detector material once, on one line (the key strip keeps a line for it).
-void Viewer::draw_materials_legend(const Scene& scene) {
+void materials_legend(const Scene& scene) {
   if (!scene.has_specular()) return;
   std::vector<std::uint32_t> shown;  // material indices
   bool first = true;
@@ -371,6 +373,8 @@ void Viewer::draw_materials_legend(const Scene& scene) {
     first = false;
   }
 }
+
+}  // namespace panels
 
 void Viewer::draw_display_panel() {
   // Under Solve in the left column; where that leaves too little height for it (large type on a

@@ -180,7 +180,6 @@ class Viewer {
   void draw_curve_plot(const Snapshot& snapshot, std::size_t c, bool captions = true);
   void draw_detector_plot(const Snapshot& snapshot, std::size_t c, bool captions);
   void draw_colour_key(const Snapshot& snapshot);
-  void draw_materials_legend(const Scene& scene);
   void draw_key_strip(const Snapshot& snapshot);
   void draw_counter_overlay(const Snapshot& snapshot);
   void draw_curve_overlay(const Snapshot& snapshot);

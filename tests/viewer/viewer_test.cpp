@@ -2,6 +2,7 @@
 // `flatland render` offscreen, their error paths, and a UI smoke test that clicks the ImGui controls
 // and checks that the solve follows. This executable re-runs itself under xvfb-run when no display
 // is set.
+#include "viewer/picture_labels.hpp"
 #include "viewer/viewer_app.hpp"
 #include "viewer/window.hpp"
 
@@ -143,9 +144,10 @@ TEST_F(Viewer, HeadlessViewWritesTheSceneWithCurvesLightAndPaths) {
 TEST_F(Viewer, RenderNeedsNoDisplayAndDrawsTheSamePicture) {
   const fs::path out = directory_ / "render.png";
   const fs::path json = directory_ / "render.json";
-  const CommandRun result = run("render " + scene("penumbra.json") + " --photons 2e5 --width 640 --height 640 --out " +
-                                    out.string() + " --result " + json.string(),
-                                "env -u DISPLAY -u WAYLAND_DISPLAY");
+  const CommandRun result =
+      run("render " + scene("penumbra.json") + " --photons 2e5 --width 640 --height 640 --no-labels --out " +
+              out.string() + " --result " + json.string(),
+          "env -u DISPLAY -u WAYLAND_DISPLAY");
   ASSERT_EQ(result.exit_code, 0) << result.err;
   Result<png::PngImage> image = png::read_png(out.string());
   ASSERT_TRUE(image) << image.error().message;
@@ -223,9 +225,9 @@ TEST_F(Viewer, RenderFieldShowsTheBeamAboveTheHaze) {
   const Scene scene = testing::scene_from_file("scenes2d/mirror_room.json");
   auto contrast = [&](const std::string& light) {
     const fs::path out = directory_ / ("mirror_" + light + ".png");
-    const CommandRun r =
-        run("render " + this->scene("mirror_room.json") +
-            " --photons 2e5 --width 400 --height 400 --quiet --no-graph --light " + light + " --out " + out.string());
+    const CommandRun r = run("render " + this->scene("mirror_room.json") +
+                             " --photons 2e5 --width 400 --height 400 --quiet --no-graph --no-labels --light " + light +
+                             " --out " + out.string());
     EXPECT_EQ(r.exit_code, 0) << r.err;
     Result<png::PngImage> image = png::read_png(out.string());
     EXPECT_TRUE(image) << image.error().message;
@@ -336,6 +338,41 @@ TEST_F(Viewer, LessonLinksRoundTripThroughTheViewersLink) {
     Params again = carried;
     EXPECT_EQ(link_of(scene_name, again), link);
   }
+}
+
+// A picture says what it shows: a title band above the stage and the colour key below it (the
+// key's scale ends in its brightest colour), the scene fitted between them.
+TEST_F(Viewer, RenderLabelsTheSceneAboveAndTheKeyBelow) {
+  const fs::path out = directory_ / "labelled.png";
+  const CommandRun r =
+      run("render " + scene("penumbra.json") + " --photons 2e4 --width 640 --height 480 --quiet --out " + out.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  Result<png::PngImage> image = png::read_png(out.string());
+  ASSERT_TRUE(image) << image.error().message;
+  const PictureLayout layout = picture_layout(640, 480, true);
+  ASSERT_GT(layout.title.height(), 20.0f);
+  ASSERT_GT(layout.key.height(), 60.0f);
+  EXPECT_EQ(layout.stage.y0, layout.title.y1);
+  EXPECT_EQ(layout.stage.y1, layout.key.y0);
+  auto text_pixels = [&](const PixelRect& band) {
+    int count = 0;
+    for (int y = static_cast<int>(band.y0); y < static_cast<int>(band.y1); ++y)
+      for (int x = 0; x < 640; ++x)
+        if (!is_background(pixel(*image, x, y))) ++count;
+    return count;
+  };
+  EXPECT_GT(text_pixels(layout.title), 300);
+  EXPECT_GT(text_pixels(layout.key), 1000);
+  // The scene lies on the stage: the receiver's ends (y = 0) are drawn between the bands.
+  const Scene penumbra = testing::scene_from_file("scenes2d/penumbra.json");
+  const ViewTransform view = fit_view(penumbra.bounds, 640, 480, layout.stage);
+  const Vec2 end = view.to_pixels(penumbra.curves[0].points.front());
+  EXPECT_GT(end.y, layout.stage.y0);
+  EXPECT_LT(end.y, layout.stage.y1);
+  EXPECT_FALSE(is_background(pixel(*image, static_cast<int>(end.x), static_cast<int>(end.y))));
+  // Too small for text: the whole picture is the stage.
+  EXPECT_EQ(picture_layout(300, 200, true).title.height(), 0.0f);
+  EXPECT_EQ(picture_layout(640, 480, false).stage, (PixelRect{0.0f, 0.0f, 640.0f, 480.0f}));
 }
 
 TEST_F(Viewer, BadOptionsAreOneLineErrors) {
