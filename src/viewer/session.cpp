@@ -199,13 +199,19 @@ void Session::publish(const Solver* solver, const std::vector<PathRecord>& new_p
   }
   for (const PathRecord& path : new_paths) paths_.push_back(path);
   while (paths_.size() > limit) paths_.pop_front();
-  if (field_.version() != field_version_) {
+  if (field_changes_ != field_version_) {
     const auto now = std::chrono::steady_clock::now();
     // Manual steps (force_error) show what they shot at once, as their paths do.
     if (!field_image_ || force_error || (solver != nullptr && solver->stopped()) ||
         std::chrono::duration<double>(now - field_time_).count() >= kFieldSeconds) {
-      field_image_ = field_image(field_);
-      field_version_ = field_.version();
+      if (round_record_.empty() || solver == nullptr) {
+        field_image_ = field_image(field_);
+      } else {
+        LightField with_open = field_;
+        with_open.add_record(round_record_, round_shot_, solver->settings().transport);
+        field_image_ = field_image(with_open);
+      }
+      field_version_ = field_changes_;
       field_time_ = now;
     }
   }
@@ -355,8 +361,10 @@ void Session::start_solve(std::shared_ptr<const Scene> scene, const SolverSettin
   paths_.clear();
   next_serial_ = 0;
   field_ = LightField{};
+  round_record_.clear();
+  round_shot_ = 0;
   field_image_.reset();
-  field_version_ = field_.version();
+  field_version_ = field_changes_;
   clear_error_history();
   chunk_ = Solver::kBatchSize;
   ++generation_;
@@ -368,7 +376,6 @@ void Session::start_solve(std::shared_ptr<const Scene> scene, const SolverSettin
   if (scene_) {
     if (Result<LightField> field = LightField::for_scene(*scene_, kFieldResolution)) {
       field_ = std::move(*field);
-      field_version_ = field_.version();
     }
     Result<GatherChoice> choice = choose_gather(*scene_, settings, Solver::kTargetSamples);
     Result<Solver> created = choice ? Solver::create(*scene_, settings) : Result<Solver>(choice.error());
@@ -424,21 +431,48 @@ void Session::shoot_piece(const Piece& piece) {
   const Clock::time_point start = Clock::now();
   // Paths: all of a manual step (up to the kept number), or the first photons of a running step,
   // about as many as a frame can draw (a subset of the photons is what the eye can follow anyway).
-  // The light field takes more of them (kFieldFlightsPerStep) when paths are kept at all.
+  // The light field takes the round's first kFieldFlightsPerRound flights when paths are kept.
   const std::size_t shown = piece.stepping ? piece.path_limit : std::min<std::size_t>(piece.path_limit, kPathsPerStep);
-  const std::size_t recorded = shown > 0 ? std::max(shown, kFieldFlightsPerStep) : 0;
+  // (Only a record that covers the round from its first photon: paths may have been switched on
+  // mid-round.)
+  const std::uint64_t done_before = solver.round_open() ? solver.round_photons_done() : 0;
+  const bool continues = done_before == round_shot_;
+  const std::size_t for_field = shown > 0 && continues && round_record_.size() < kFieldFlightsPerRound
+                                    ? kFieldFlightsPerRound - round_record_.size()
+                                    : 0;
+  const std::size_t recorded = std::max(shown, for_field);
   const std::uint64_t shot = solver.step_photons(piece.count, &cancel_, recorded > 0 ? &shot_paths : nullptr, recorded);
   const double seconds = std::chrono::duration<double>(Clock::now() - start).count();
   if (shot >= Solver::kBatchSize) adapt_chunk(solver, shot, seconds);
   solver.include_open_round();
-  field_.add_record(shot_paths, shot, solver.settings().transport);
-  // The paths shown: the first `shown` flights (a walk they end inside is marked cut, as a full
-  // record marks it).
-  if (shot_paths.size() > shown) {
-    if (shown > 0 && shot_paths[shown].bounce != 0 && solver.settings().transport == Transport::Walk)
-      shot_paths[shown - 1].cut = true;
-    shot_paths.resize(shown);
+  // A record's first n flights; a walk they end inside is marked cut, as a full record marks it.
+  const bool walks = solver.settings().transport == Transport::Walk;
+  auto keep_first = [walks](std::vector<PhotonPath>& paths, std::size_t n) {
+    if (paths.size() <= n) return;
+    if (n > 0 && walks && paths[n].bounce != 0) paths[n - 1].cut = true;
+    paths.resize(n);
+  };
+  // The piece continues the round's record for the field while that is short: its photons follow
+  // the record's without a gap (every earlier piece of the round was recorded whole).
+  if (for_field > 0) {
+    std::vector<PhotonPath> more(
+        shot_paths.begin(), shot_paths.begin() + static_cast<std::ptrdiff_t>(std::min(for_field, shot_paths.size())));
+    if (shot_paths.size() > for_field && walks && shot_paths[for_field].bounce != 0) more.back().cut = true;
+    round_record_.insert(round_record_.end(), std::make_move_iterator(more.begin()),
+                         std::make_move_iterator(more.end()));
   }
+  if (shown > 0 && continues) {
+    round_shot_ += shot;
+    ++field_changes_;
+  }
+  // A round ends: its record, standing for all its photons, joins the field. (A field that holds
+  // whole rounds only is the same whatever pieces the rounds were shot in.)
+  if (!solver.round_open()) {
+    if (!round_record_.empty()) field_.add_record(round_record_, round_shot_, solver.settings().transport);
+    round_record_.clear();
+    round_shot_ = 0;
+  }
+  keep_first(shot_paths, shown);
   std::vector<PathRecord> records;
   records.reserve(shot_paths.size());
   for (const PhotonPath& path : shot_paths) append_path_records(path, *scene_, next_serial_, round, records);

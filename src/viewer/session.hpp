@@ -146,10 +146,16 @@ class Session {
   std::uint64_t generation_ = 0;
   std::deque<PathRecord> paths_;
   std::uint64_t next_serial_ = 0;
-  // The light of every recorded flight, each record standing for the photons of its piece, and
-  // its image as last published (remade at most every kFieldSeconds while the field changes).
+  // The light field: every finished round's first kFieldFlightsPerRound flights, standing for
+  // all its photons (so the field of a solve does not depend on how it was cut into pieces), and
+  // the open round's record so far (round_record_, of round_shot_ photons), which the image
+  // includes provisionally. The image as last published is remade at most every kFieldSeconds
+  // while the field changes, and at once for manual steps and when the solve stops.
   LightField field_;
-  std::uint64_t field_version_ = 0;  // field_.version() the image shows
+  std::vector<PhotonPath> round_record_;
+  std::uint64_t round_shot_ = 0;
+  std::uint64_t field_changes_ = 0;  // pieces that added to the field or the round's record
+  std::uint64_t field_version_ = 0;  // field_changes_ as of the image
   std::shared_ptr<const FieldImage> field_image_;
   std::chrono::steady_clock::time_point field_time_{};
   static constexpr double kFieldSeconds = 0.2;
@@ -168,9 +174,9 @@ class Session {
   // Paths recorded per running piece (frames are paced to 25 ms and draw at most 600 new paths):
   // the display keeps up with what is recorded.
   static constexpr std::size_t kPathsPerStep = 768;
-  // Flights recorded per running piece for the light field (the first kPathsPerStep of them are
-  // also shown as paths): a smoother field for a few percent of a piece's time.
-  static constexpr std::size_t kFieldFlightsPerStep = 4096;
+  // Flights of each round recorded for the light field: about 360,000 over the default scene's
+  // eleven rounds, for a few percent of the solve's time.
+  static constexpr std::size_t kFieldFlightsPerRound = 32768;
   std::vector<std::array<double, 2>> error_history_;
   std::optional<double> reference_error_;
   double last_error_time_ = -1.0;

@@ -50,6 +50,38 @@ TEST(Session, SteppedRoundsGiveTheSolversResult) {
   EXPECT_EQ(without_timing(*stepped), without_timing(solved_json(solver, 40)));
 }
 
+// The light field holds whole rounds only: a session stepped in odd pieces and one stepped round by
+// round (two threads against one) end with the same field, bit for bit, which stands for every
+// photon shot.
+TEST(Session, TheFieldDoesNotDependOnThePieces) {
+  auto scene = std::make_shared<const Scene>(testing::scene_from_file("scenes2d/mirror_room.json"));
+  SolverSettings settings;
+  settings.photons = 120'000;
+  settings.seed = 9;
+  auto field_after = [&](int threads, bool odd) {
+    SolverSettings s = settings;
+    s.threads = threads;
+    Session session;
+    session.restart(scene, s);
+    if (odd) {
+      session.step(StepKind::Photon, 777);
+      session.step(StepKind::Batch);
+      session.step(StepKind::Photon, 50'001);
+    }
+    session.step(StepKind::Round, 100);  // to the end of the solve
+    session.wait_idle();
+    const std::shared_ptr<const Snapshot> snapshot = session.snapshot();
+    EXPECT_EQ(snapshot->stop_reason == StopReason::Running, false);
+    EXPECT_NE(snapshot->field, nullptr);
+    if (snapshot->field) EXPECT_EQ(snapshot->field->photons, static_cast<double>(snapshot->progress.photons));
+    return snapshot->field;
+  };
+  const std::shared_ptr<const FieldImage> odd = field_after(1, true);
+  const std::shared_ptr<const FieldImage> whole = field_after(2, false);
+  ASSERT_TRUE(odd && whole);
+  EXPECT_EQ(odd->rgba, whole->rgba);
+}
+
 TEST(Session, StepsAcrossBatchesRoundsAndThreadCountsMatchTheSolver) {
   // A one-thread session stepped in odd pieces (inside a batch, then partial, whole and partial
   // batches in one piece, then across a round's end) against a three-thread solver.
