@@ -204,11 +204,12 @@ void Session::publish(const Solver* solver, const std::vector<PathRecord>& new_p
     // Manual steps (force_error) show what they shot at once, as their paths do.
     if (!field_image_ || force_error || (solver != nullptr && solver->stopped()) ||
         std::chrono::duration<double>(now - field_time_).count() >= kFieldSeconds) {
-      if (round_record_.empty() || solver == nullptr) {
+      if (round_recorded_ == 0) {
         field_image_ = field_image(field_);
       } else {
         LightField with_open = field_;
-        with_open.add_record(round_record_, round_shot_, solver->settings().transport);
+        with_open.add(round_field_, static_cast<double>(round_shot_) / static_cast<double>(round_recorded_),
+                      static_cast<double>(round_shot_));
         field_image_ = field_image(with_open);
       }
       field_version_ = field_changes_;
@@ -361,7 +362,9 @@ void Session::start_solve(std::shared_ptr<const Scene> scene, const SolverSettin
   paths_.clear();
   next_serial_ = 0;
   field_ = LightField{};
-  round_record_.clear();
+  round_field_ = LightField{};
+  round_flights_ = 0;
+  round_recorded_ = 0;
   round_shot_ = 0;
   field_image_.reset();
   field_version_ = field_changes_;
@@ -375,6 +378,7 @@ void Session::start_solve(std::shared_ptr<const Scene> scene, const SolverSettin
   error_.clear();
   if (scene_) {
     if (Result<LightField> field = LightField::for_scene(*scene_, kFieldResolution)) {
+      round_field_ = *field;
       field_ = std::move(*field);
     }
     Result<GatherChoice> choice = choose_gather(*scene_, settings, Solver::kTargetSamples);
@@ -437,9 +441,8 @@ void Session::shoot_piece(const Piece& piece) {
   // mid-round.)
   const std::uint64_t done_before = solver.round_open() ? solver.round_photons_done() : 0;
   const bool continues = done_before == round_shot_;
-  const std::size_t for_field = shown > 0 && continues && round_record_.size() < kFieldFlightsPerRound
-                                    ? kFieldFlightsPerRound - round_record_.size()
-                                    : 0;
+  const std::size_t for_field =
+      shown > 0 && continues && round_flights_ < kFieldFlightsPerRound ? kFieldFlightsPerRound - round_flights_ : 0;
   const std::size_t recorded = std::max(shown, for_field);
   const std::uint64_t shot = solver.step_photons(piece.count, &cancel_, recorded > 0 ? &shot_paths : nullptr, recorded);
   const double seconds = std::chrono::duration<double>(Clock::now() - start).count();
@@ -458,8 +461,8 @@ void Session::shoot_piece(const Piece& piece) {
     std::vector<PhotonPath> more(
         shot_paths.begin(), shot_paths.begin() + static_cast<std::ptrdiff_t>(std::min(for_field, shot_paths.size())));
     if (shot_paths.size() > for_field && walks && shot_paths[for_field].bounce != 0) more.back().cut = true;
-    round_record_.insert(round_record_.end(), std::make_move_iterator(more.begin()),
-                         std::make_move_iterator(more.end()));
+    round_flights_ += more.size();
+    round_recorded_ += round_field_.add_flights(more, solver.settings().transport);
   }
   if (shown > 0 && continues) {
     round_shot_ += shot;
@@ -468,8 +471,12 @@ void Session::shoot_piece(const Piece& piece) {
   // A round ends: its record, standing for all its photons, joins the field. (A field that holds
   // whole rounds only is the same whatever pieces the rounds were shot in.)
   if (!solver.round_open()) {
-    if (!round_record_.empty()) field_.add_record(round_record_, round_shot_, solver.settings().transport);
-    round_record_.clear();
+    if (round_recorded_ > 0)
+      field_.add(round_field_, static_cast<double>(round_shot_) / static_cast<double>(round_recorded_),
+                 static_cast<double>(round_shot_));
+    if (round_flights_ > 0) round_field_.clear();
+    round_flights_ = 0;
+    round_recorded_ = 0;
     round_shot_ = 0;
   }
   keep_first(shot_paths, shown);

@@ -148,11 +148,15 @@ class Session {
   std::uint64_t next_serial_ = 0;
   // The light field: every finished round's first kFieldFlightsPerRound flights, standing for
   // all its photons (so the field of a solve does not depend on how it was cut into pieces), and
-  // the open round's record so far (round_record_, of round_shot_ photons), which the image
-  // includes provisionally. The image as last published is remade at most every kFieldSeconds
+  // the open round's record so far: round_field_ holds its `round_flights_` flights with weight 1,
+  // `round_recorded_` whole photons of the `round_shot_` the round has shot, and joins the field
+  // weighted round_shot_ / round_recorded_ (provisionally in the image while the round is open;
+  // for good when it ends). The image as last published is remade at most every kFieldSeconds
   // while the field changes, and at once for manual steps and when the solve stops.
   LightField field_;
-  std::vector<PhotonPath> round_record_;
+  LightField round_field_;
+  std::size_t round_flights_ = 0;
+  std::size_t round_recorded_ = 0;
   std::uint64_t round_shot_ = 0;
   std::uint64_t field_changes_ = 0;  // pieces that added to the field or the round's record
   std::uint64_t field_version_ = 0;  // field_changes_ as of the image

@@ -149,6 +149,16 @@ TEST(LightField, RecordStandsForEveryPhotonShot) {
                              Transport::Walk),
             2u);
   EXPECT_NEAR(integral(walks), 10.0 / 2.0 * 3.0, 1e-12);
+  // Built piece by piece with weight 1, then added with the record's weight: the same field.
+  LightField pieces = *made;
+  EXPECT_EQ(pieces.add_flights({flight(0.1, 0), flight(0.2, 1)}, Transport::Walk), 1u);
+  EXPECT_EQ(pieces.add_flights({flight(0.3, 0), flight(0.4, 0), flight(0.5, 1, true)}, Transport::Walk), 1u);
+  EXPECT_EQ(pieces.photons(), 0.0);
+  LightField joined = *made;
+  joined.add(pieces, 10.0 / 2.0, 10.0);
+  EXPECT_EQ(joined.photons(), 10.0);
+  for (std::size_t i = 0; i < joined.values().size(); ++i)
+    EXPECT_NEAR(joined.values()[i], walks.values()[i], 1e-12 * (1.0 + walks.values()[i]));
   EXPECT_EQ(walks.add_record({}, 10, Transport::Walk), 0u);
   EXPECT_EQ(walks.add_record({flight(0.5, 0, true)}, 10, Transport::Walk), 0u);
 }

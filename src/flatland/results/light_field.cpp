@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <string>
+#include <utility>
 
 namespace flatland {
 
@@ -142,25 +143,43 @@ void LightField::add_flight(const PhotonPath& path, double weight) {
   add_leg(from, from + d * (reach / d_len), path.power, weight);
 }
 
+namespace {
+
+// The flights of `record` that make whole photons, [0, whole), and how many photons they are.
+// Shooting: every flight is a photon. Walks: a flight with bounce 0 starts one; the last walk is
+// whole unless its last hop was cut.
+std::pair<std::size_t, std::size_t> whole_photons(const std::vector<PhotonPath>& record, Transport transport) {
+  if (record.empty() || transport != Transport::Walk) return {record.size(), record.size()};
+  std::size_t photons = 0;
+  std::size_t last_start = 0;
+  for (std::size_t i = 0; i < record.size(); ++i)
+    if (record[i].bounce == 0) {
+      ++photons;
+      last_start = i;
+    }
+  if (record.back().cut && photons > 0) return {last_start, photons - 1};
+  return {record.size(), photons};
+}
+
+}  // namespace
+
+std::size_t LightField::add_flights(const std::vector<PhotonPath>& flights, Transport transport) {
+  const auto [whole, photons] = whole_photons(flights, transport);
+  for (std::size_t i = 0; i < whole; ++i) add_flight(flights[i], 1.0);
+  if (whole > 0) ++version_;
+  return photons;
+}
+
+void LightField::add(const LightField& other, double weight, double photons) {
+  if (other.values_.size() != values_.size()) return;
+  for (std::size_t i = 0; i < values_.size(); ++i) values_[i] += weight * other.values_[i];
+  photons_ += photons;
+  ++version_;
+}
+
 std::size_t LightField::add_record(const std::vector<PhotonPath>& record, std::uint64_t shot, Transport transport) {
   if (record.empty() || shot == 0) return 0;
-  // The flights that make whole photons: [0, whole) of the record.
-  std::size_t whole = record.size();
-  std::size_t photons = record.size();
-  if (transport == Transport::Walk) {
-    // Walks: a path with bounce 0 starts one; the last walk is whole unless its last hop was cut.
-    photons = 0;
-    std::size_t last_start = 0;
-    for (std::size_t i = 0; i < record.size(); ++i)
-      if (record[i].bounce == 0) {
-        ++photons;
-        last_start = i;
-      }
-    if (record.back().cut && photons > 0) {
-      --photons;
-      whole = last_start;
-    }
-  }
+  auto [whole, photons] = whole_photons(record, transport);
   photons = std::min<std::size_t>(photons, shot);
   if (photons == 0) return 0;
   const double weight = static_cast<double>(shot) / static_cast<double>(photons);

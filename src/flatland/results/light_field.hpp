@@ -41,6 +41,12 @@ class LightField {
   // (shooting: every path is a photon; walks: a path with bounce 0 starts a walk, and a walk the
   // record cut short is left out with its photon). Returns k (0: nothing added).
   std::size_t add_record(const std::vector<PhotonPath>& record, std::uint64_t shot, Transport transport);
+  // The whole photons of `flights` (as add_record counts them) with weight 1, photons() unchanged:
+  // a record built piece by piece, to be added with its weight once its photons are known.
+  // Returns the photons added.
+  std::size_t add_flights(const std::vector<PhotonPath>& flights, Transport transport);
+  // Adds weight x `other` (a field on the same grid) to every cell, and `photons` to photons().
+  void add(const LightField& other, double weight, double photons);
 
   int width() const { return width_; }
   int height() const { return height_; }
