@@ -269,6 +269,15 @@ void Viewer::draw_solve_panel(const Snapshot& snapshot) {
     ImGui::SetTooltip(
         "shooting: rounds of one hop each (the paper's method)\n"
         "walk: each photon a whole random walk, ended by Russian roulette");
+  changed = option_combo(SolveOption::Gather) || changed;
+  if (ImGui::IsItemHovered())
+    ImGui::SetTooltip(
+        "The answer's B once the solve stops (the saved result, the estimate, the error\n"
+        "against a reference; the plots stay the storage's B):\n"
+        "none: the storage's own\n"
+        "samples: a final gather, one deterministic bounce of the solution over what each\n"
+        "sample sees (diffuse surfaces and flat mirrors only)\n"
+        "auto: samples where the scene allows it at a bounded cost, none elsewhere");
   // Ray width as a fraction of the scene's size; profile and mode only matter for wide rays.
   float width = static_cast<float>(settings_.ray_width / scene_->scale);
   if (ImGui::SliderFloat("ray width", &width, 0.0f, 0.2f, width == 0.0f ? "point rays" : "%.4f x scale",

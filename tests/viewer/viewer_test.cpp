@@ -563,6 +563,30 @@ TEST_F(Viewer, ClassroomSizesKeepLabelsAndTheKeyInView) {
   EXPECT_TRUE(viewer.panel_rect("Solve").has_value());
 }
 
+// The Solve panel's gather menu restarts the solve with the choice; the Display panel's light menu
+// switches the stage between paths and the field.
+TEST_F(Viewer, GatherAndLightMenusTakeEffect) {
+  const ViewOptions options = paused_window("penumbra.json", 10'000);
+  Result<std::unique_ptr<viewer::Viewer>> created = viewer::Viewer::create(options);
+  ASSERT_TRUE(created) << created.error().message;
+  viewer::Viewer& viewer = **created;
+  frames_until(
+      viewer, [] { return false; }, 3);
+  EXPECT_EQ(viewer.settings().gather, GatherMode::Auto);
+  click(viewer, "gather");
+  click(viewer, "gather:none");
+  EXPECT_EQ(viewer.settings().gather, GatherMode::None);
+  viewer.session().wait_idle();
+  frames_until(viewer, [&] { return viewer.session().snapshot()->settings.gather == GatherMode::None; });
+  EXPECT_EQ(viewer.session().snapshot()->settings.gather, GatherMode::None);
+  EXPECT_EQ(viewer.light_view(), LightView::Auto);
+  click(viewer, "light as");
+  click(viewer, "light as:field");
+  EXPECT_EQ(viewer.light_view(), LightView::Field);
+  EXPECT_NE(viewer.link_query().find("light=field"), std::string::npos) << viewer.link_query();
+  EXPECT_NE(viewer.link_query().find("gather=none"), std::string::npos) << viewer.link_query();
+}
+
 // The transport control switches to random walks; stepping photons then keeps whole journeys (a run
 // of paths with bounce 0, 1, 2, ..., each starting where the last landed, ending once), and the
 // paths can be coloured by bounce.

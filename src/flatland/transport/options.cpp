@@ -54,8 +54,8 @@ const std::vector<SolveOptionSpec>& table() {
        "The result's B: none (the storage's own), samples (a final gather: at every sample, one "
        "deterministic bounce of the solution over exactly what the sample sees, with the reference's "
        "elements; direct light then carries no noise; refused where the reference is: glass, curved "
-       "mirrors, detectors) or auto (samples where the scene allows it and it costs about a second or "
-       "less, none elsewhere, saying why)"},
+       "mirrors, detectors) or auto (samples where the scene allows it and it costs at most about two "
+       "seconds on two cores, none elsewhere, saying why)"},
       {SolveOption::RayWidth, "ray width", "ray-width", "ray_width", {}, "W",
        "Width of extended rays in scene units (0: point rays, no extended-ray code runs)"},
       {SolveOption::RayProfile, "ray profile", "ray-profile", "ray_profile",
