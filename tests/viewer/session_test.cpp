@@ -73,7 +73,9 @@ TEST(Session, TheFieldDoesNotDependOnThePieces) {
     const std::shared_ptr<const Snapshot> snapshot = session.snapshot();
     EXPECT_EQ(snapshot->stop_reason == StopReason::Running, false);
     EXPECT_NE(snapshot->field, nullptr);
-    if (snapshot->field) EXPECT_EQ(snapshot->field->photons, static_cast<double>(snapshot->progress.photons));
+    if (snapshot->field) {
+      EXPECT_EQ(snapshot->field->photons, static_cast<double>(snapshot->progress.photons));
+    }
     return snapshot->field;
   };
   const std::shared_ptr<const FieldImage> odd = field_after(1, true);
