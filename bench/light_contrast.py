@@ -10,61 +10,25 @@ end, one round a frame, under a virtual X server (xvfb-run), and writes the stag
 the background by more than 8 of 255), the median and 95th percentile of their brightness (the
 mean of r, g and b), and p95 / p50: near 1 when everything lit is equally bright (a washed-out
 haze), larger when beams, caustics and reflections stand out. Standard library only (the PNG is
-read with zlib).
+read by tests/web/png_pixels.py).
 """
 import argparse
 import os
 import statistics
-import struct
 import subprocess
 import sys
 import tempfile
-import zlib
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "tests", "web"))
+from png_pixels import png_pixels  # noqa: E402 (after the path it needs)
 
 LESSONS = ["mirror_room", "prism", "parabolic_mirror", "lens"]
 
 
 def brightness(path):
     """The brightness (mean of r, g, b) of every pixel of an 8-bit RGB(A) PNG, row by row."""
-    data = open(path, "rb").read()
-    at, idat, header = 8, b"", None
-    while at < len(data):
-        length, kind = struct.unpack(">I4s", data[at:at + 8])
-        body = data[at + 8:at + 8 + length]
-        if kind == b"IHDR":
-            header = struct.unpack(">IIBBBBB", body)
-        elif kind == b"IDAT":
-            idat += body
-        at += 12 + length
-    width, height, depth, colour, _, _, interlace = header
-    if depth != 8 or colour not in (2, 6) or interlace != 0:
-        sys.exit(f"{path}: expected an 8-bit RGB or RGBA PNG without interlacing")
-    channels = 3 if colour == 2 else 4
-    raw = zlib.decompress(idat)
-    stride = width * channels
-    previous = bytearray(stride)
-    values = []
-    for y in range(height):
-        kind = raw[y * (stride + 1)]
-        line = bytearray(raw[y * (stride + 1) + 1:(y + 1) * (stride + 1)])
-        for i in range(stride):
-            left = line[i - channels] if i >= channels else 0
-            up = previous[i]
-            corner = previous[i - channels] if i >= channels else 0
-            if kind == 1:
-                line[i] = (line[i] + left) & 255
-            elif kind == 2:
-                line[i] = (line[i] + up) & 255
-            elif kind == 3:
-                line[i] = (line[i] + (left + up) // 2) & 255
-            elif kind == 4:
-                p = left + up - corner
-                pa, pb, pc = abs(p - left), abs(p - up), abs(p - corner)
-                line[i] = (line[i] + (left if pa <= pb and pa <= pc else up if pb <= pc else corner)) & 255
-        values.extend((line[x * channels] + line[x * channels + 1] + line[x * channels + 2]) / 3.0
-                      for x in range(width))
-        previous = line
-    return values
+    _, _, rows = png_pixels(path)
+    return [sum(pixel) / 3.0 for row in rows for pixel in row]
 
 
 def main():

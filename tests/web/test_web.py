@@ -15,12 +15,12 @@ import json
 import os
 import re
 import shutil
-import struct
 import subprocess
 import threading
-import zlib
 
 import pytest
+
+from png_pixels import png_pixels
 
 SITE = os.path.abspath(os.environ.get("FLATLAND_SITE", "build-web/site"))
 BINARY = os.path.abspath(os.environ.get("FLATLAND_BINARY", "build/flatland"))
@@ -157,46 +157,6 @@ def test_a_result_too_large_for_the_page_is_refused_not_crashed(page, tmp_path):
     web = report(tmp_path, page["url"], "scene=default&elements=65536&photons=10000")
     assert web["error"].startswith("flatland: error: the result is ")
     assert "more than the page shows in its report (32 MB)" in web["error"]
-
-
-def png_pixels(path):
-    """An 8-bit RGB or RGBA PNG (as Chromium writes them): width, height, rows of (r, g, b)."""
-    data = open(path, "rb").read()
-    assert data[:8] == b"\x89PNG\r\n\x1a\n"
-    at, idat, header = 8, b"", None
-    while at < len(data):
-        length, kind = struct.unpack(">I4s", data[at:at + 8])
-        body = data[at + 8:at + 8 + length]
-        if kind == b"IHDR":
-            header = struct.unpack(">IIBBBBB", body)
-        elif kind == b"IDAT":
-            idat += body
-        at += 12 + length
-    width, height, depth, colour, _, _, interlace = header
-    assert depth == 8 and colour in (2, 6) and interlace == 0
-    channels = 3 if colour == 2 else 4
-    raw = zlib.decompress(idat)
-    stride = width * channels
-    rows, previous = [], bytearray(stride)
-    for y in range(height):
-        kind, line = raw[y * (stride + 1)], bytearray(raw[y * (stride + 1) + 1:(y + 1) * (stride + 1)])
-        for i in range(stride):
-            left = line[i - channels] if i >= channels else 0
-            up = previous[i]
-            corner = previous[i - channels] if i >= channels else 0
-            if kind == 1:
-                line[i] = (line[i] + left) & 255
-            elif kind == 2:
-                line[i] = (line[i] + up) & 255
-            elif kind == 3:
-                line[i] = (line[i] + (left + up) // 2) & 255
-            elif kind == 4:
-                p = left + up - corner
-                pa, pb, pc = abs(p - left), abs(p - up), abs(p - corner)
-                line[i] = (line[i] + (left if pa <= pb and pa <= pc else up if pb <= pc else corner)) & 255
-        rows.append([tuple(line[x * channels:x * channels + 3]) for x in range(width)])
-        previous = line
-    return width, height, rows
 
 
 def lit_fraction(rows, x0, x1, y0, y1):
