@@ -450,6 +450,21 @@ TEST_F(Viewer, UiControlsDriveTheSolve) {
   EXPECT_FALSE(viewer.session().running());
   EXPECT_NE(viewer.session().snapshot()->generation, generation);
   EXPECT_EQ(viewer.session().snapshot()->progress.photons, 0u);
+
+  // The gather menu restarts the solve with the choice; the light menu switches the stage between
+  // the paths and the field; the link carries both.
+  EXPECT_EQ(viewer.settings().gather, GatherMode::Auto);
+  click(viewer, "gather");
+  click(viewer, "gather:none");
+  viewer.session().wait_idle();
+  frames_until(viewer, [&] { return viewer.session().snapshot()->settings.gather == GatherMode::None; });
+  EXPECT_EQ(viewer.session().snapshot()->settings.gather, GatherMode::None);
+  EXPECT_EQ(viewer.light_view(), LightView::Auto);
+  click(viewer, "light as");
+  click(viewer, "light as:field");
+  EXPECT_EQ(viewer.light_view(), LightView::Field);
+  EXPECT_NE(viewer.link_query().find("light=field"), std::string::npos) << viewer.link_query();
+  EXPECT_NE(viewer.link_query().find("gather=none"), std::string::npos) << viewer.link_query();
 }
 
 // The docked layout: with every default panel and the curve panel open, at several window sizes
@@ -561,30 +576,6 @@ TEST_F(Viewer, ClassroomSizesKeepLabelsAndTheKeyInView) {
   frames_until(
       viewer, [] { return false; }, 3);
   EXPECT_TRUE(viewer.panel_rect("Solve").has_value());
-}
-
-// The Solve panel's gather menu restarts the solve with the choice; the Display panel's light menu
-// switches the stage between paths and the field.
-TEST_F(Viewer, GatherAndLightMenusTakeEffect) {
-  const ViewOptions options = paused_window("penumbra.json", 10'000);
-  Result<std::unique_ptr<viewer::Viewer>> created = viewer::Viewer::create(options);
-  ASSERT_TRUE(created) << created.error().message;
-  viewer::Viewer& viewer = **created;
-  frames_until(
-      viewer, [] { return false; }, 3);
-  EXPECT_EQ(viewer.settings().gather, GatherMode::Auto);
-  click(viewer, "gather");
-  click(viewer, "gather:none");
-  EXPECT_EQ(viewer.settings().gather, GatherMode::None);
-  viewer.session().wait_idle();
-  frames_until(viewer, [&] { return viewer.session().snapshot()->settings.gather == GatherMode::None; });
-  EXPECT_EQ(viewer.session().snapshot()->settings.gather, GatherMode::None);
-  EXPECT_EQ(viewer.light_view(), LightView::Auto);
-  click(viewer, "light as");
-  click(viewer, "light as:field");
-  EXPECT_EQ(viewer.light_view(), LightView::Field);
-  EXPECT_NE(viewer.link_query().find("light=field"), std::string::npos) << viewer.link_query();
-  EXPECT_NE(viewer.link_query().find("gather=none"), std::string::npos) << viewer.link_query();
 }
 
 // The transport control switches to random walks; stepping photons then keeps whole journeys (a run
