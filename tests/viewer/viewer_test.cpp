@@ -51,6 +51,20 @@ class Viewer : public testing::ScratchDirectoryTest {
     options.settings.photons = photons;
     return options;
   }
+  // 640 x 480 without panels on scenes2d/`name`, one round a frame, 12,000 paths kept of 200,000
+  // photons.
+  ViewOptions stepped_rounds(const std::string& name) {
+    ViewOptions options;
+    options.scene = scene(name);
+    options.width = 640;
+    options.height = 480;
+    options.vsync = false;
+    options.show_ui = false;
+    options.step = "rounds=1";
+    options.keep_paths = 12'000;
+    options.settings.photons = 200'000;
+    return options;
+  }
   // A second window in one process under Xvfb now and then fails to open the display (SDL torn down
   // and set up again; seen about once in a hundred runs under the sanitizers): such a failure is
   // retried, twice, after a pause. Any other error is returned at once.
@@ -709,16 +723,8 @@ TEST_F(Viewer, SteppedWalksDrawTheNewestJourney) {
 // A deterministic step (--step rounds=1) draws every path it kept before the frame is shown; live
 // frames draw at most path_budget new ones each.
 TEST_F(Viewer, SteppedFramesDrawEveryKeptPath) {
-  ViewOptions options;
-  options.scene = scene("penumbra.json");
-  options.width = 640;
-  options.height = 480;
-  options.vsync = false;
-  options.show_ui = false;
-  options.step = "rounds=1";
-  options.keep_paths = 12'000;
+  ViewOptions options = stepped_rounds("penumbra.json");
   options.path_budget = 600;
-  options.settings.photons = 200'000;
   options.light = "paths";
   Result<std::unique_ptr<viewer::Viewer>> created = viewer::Viewer::create(options);
   ASSERT_TRUE(created) << created.error().message;
@@ -733,15 +739,7 @@ TEST_F(Viewer, SteppedFramesDrawEveryKeptPath) {
 // for every photon shot, its image is there as soon as the step's snapshot is, and the path
 // buffer holds no paths.
 TEST_F(Viewer, ManyKeptPathsShowTheFieldOfEveryPhoton) {
-  ViewOptions options;
-  options.scene = scene("penumbra.json");
-  options.width = 640;
-  options.height = 480;
-  options.vsync = false;
-  options.show_ui = false;
-  options.step = "rounds=1";
-  options.keep_paths = 12'000;
-  options.settings.photons = 200'000;
+  const ViewOptions options = stepped_rounds("penumbra.json");
   Result<std::unique_ptr<viewer::Viewer>> created = viewer::Viewer::create(options);
   ASSERT_TRUE(created) << created.error().message;
   viewer::Viewer& viewer = **created;
