@@ -122,7 +122,6 @@ void LightField::add_leg(Vec2 a, Vec2 b, const Spectrum& power, double weight) {
     index[axis] = next;
     t_next[axis] += t_step[axis];
   }
-  ++version_;
 }
 
 void LightField::add_flight(const PhotonPath& path, double weight) {
@@ -166,7 +165,6 @@ std::pair<std::size_t, std::size_t> whole_photons(const std::vector<PhotonPath>&
 std::size_t LightField::add_flights(const std::vector<PhotonPath>& flights, Transport transport) {
   const auto [whole, photons] = whole_photons(flights, transport);
   for (std::size_t i = 0; i < whole; ++i) add_flight(flights[i], 1.0);
-  if (whole > 0) ++version_;
   return photons;
 }
 
@@ -174,7 +172,6 @@ void LightField::add(const LightField& other, double weight, double photons) {
   if (other.values_.size() != values_.size()) return;
   for (std::size_t i = 0; i < values_.size(); ++i) values_[i] += weight * other.values_[i];
   photons_ += photons;
-  ++version_;
 }
 
 std::size_t LightField::add_record(const std::vector<PhotonPath>& record, std::uint64_t shot, Transport transport) {
@@ -185,7 +182,6 @@ std::size_t LightField::add_record(const std::vector<PhotonPath>& record, std::u
   const double weight = static_cast<double>(shot) / static_cast<double>(photons);
   for (std::size_t i = 0; i < whole; ++i) add_flight(record[i], weight);
   photons_ += static_cast<double>(shot);
-  ++version_;
   return photons;
 }
 
@@ -208,7 +204,6 @@ double LightField::quantile(double q) const {
 void LightField::clear() {
   std::fill(values_.begin(), values_.end(), 0.0);
   photons_ = 0.0;
-  ++version_;
 }
 
 }  // namespace flatland

@@ -57,8 +57,6 @@ class LightField {
   const std::vector<double>& values() const { return values_; }
   // Photons the field stands for (the sum of add_record's `shot` over records it used).
   double photons() const { return photons_; }
-  // Number of add_* calls that changed the field: a cheap test for "anything new".
-  std::uint64_t version() const { return version_; }
 
   // The q-quantile (0 < q <= 1) of the cells' luminance (the channels' mean) over the cells with
   // any light; 0 when no cell has any.
@@ -74,7 +72,6 @@ class LightField {
   int channels_ = 1;
   std::vector<double> values_;
   double photons_ = 0.0;
-  std::uint64_t version_ = 0;
 };
 
 }  // namespace flatland
