@@ -154,11 +154,9 @@ int run_render(RenderOptions& o) {
       if (o.field_flights > 0)
         field->add_record(round_paths, solver.photons_shot() - shot_before, solver.settings().transport);
       field_flights += round_paths.size();
-      const std::size_t drawn = std::min(wanted, round_paths.size());
-      // A walk the drawn share ends inside is marked cut, as a full record marks it.
-      if (drawn > 0 && drawn < round_paths.size() && round_paths[drawn].bounce != 0) round_paths[drawn - 1].cut = true;
+      truncate_record(round_paths, wanted, solver.settings().transport);
       paths.insert(paths.end(), std::make_move_iterator(round_paths.begin()),
-                   std::make_move_iterator(round_paths.begin() + static_cast<std::ptrdiff_t>(drawn)));
+                   std::make_move_iterator(round_paths.end()));
       rounds.resize(paths.size(), round);
     }
   }

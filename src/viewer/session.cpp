@@ -448,21 +448,12 @@ void Session::shoot_piece(const Piece& piece) {
   const double seconds = std::chrono::duration<double>(Clock::now() - start).count();
   if (shot >= Solver::kBatchSize) adapt_chunk(solver, shot, seconds);
   solver.include_open_round();
-  // A record's first n flights; a walk they end inside is marked cut, as a full record marks it.
-  const bool walks = solver.settings().transport == Transport::Walk;
-  auto keep_first = [walks](std::vector<PhotonPath>& paths, std::size_t n) {
-    if (paths.size() <= n) return;
-    if (n > 0 && walks && paths[n].bounce != 0) paths[n - 1].cut = true;
-    paths.resize(n);
-  };
+  const Transport transport = solver.settings().transport;
   // The piece continues the round's record for the field while that is short: its photons follow
   // the record's without a gap (every earlier piece of the round was recorded whole).
   if (for_field > 0) {
-    std::vector<PhotonPath> more(
-        shot_paths.begin(), shot_paths.begin() + static_cast<std::ptrdiff_t>(std::min(for_field, shot_paths.size())));
-    if (shot_paths.size() > for_field && walks && shot_paths[for_field].bounce != 0) more.back().cut = true;
-    round_flights_ += more.size();
-    round_recorded_ += round_field_.add_flights(more, solver.settings().transport);
+    round_flights_ += std::min(for_field, shot_paths.size());
+    round_recorded_ += round_field_.add_flights(shot_paths, for_field, transport);
   }
   if (shown > 0 && continues) {
     round_shot_ += shot;
@@ -479,7 +470,7 @@ void Session::shoot_piece(const Piece& piece) {
     round_recorded_ = 0;
     round_shot_ = 0;
   }
-  keep_first(shot_paths, shown);
+  truncate_record(shot_paths, shown, transport);
   std::vector<PathRecord> records;
   records.reserve(shot_paths.size());
   for (const PhotonPath& path : shot_paths) append_path_records(path, *scene_, next_serial_, round, records);

@@ -151,8 +151,16 @@ TEST(LightField, RecordStandsForEveryPhotonShot) {
   EXPECT_NEAR(integral(walks), 10.0 / 2.0 * 3.0, 1e-12);
   // Built piece by piece with weight 1, then added with the record's weight: the same field.
   LightField pieces = *made;
-  EXPECT_EQ(pieces.add_flights({flight(0.1, 0), flight(0.2, 1)}, Transport::Walk), 1u);
-  EXPECT_EQ(pieces.add_flights({flight(0.3, 0), flight(0.4, 0), flight(0.5, 1, true)}, Transport::Walk), 1u);
+  EXPECT_EQ(pieces.add_flights({flight(0.1, 0), flight(0.2, 1)}, 2, Transport::Walk), 1u);
+  // The first three of a record whose fourth flight continues the third's walk: that walk is left
+  // out, and a truncated record marks it cut.
+  const std::vector<PhotonPath> longer = {flight(0.3, 0), flight(0.4, 0), flight(0.5, 1), flight(0.6, 0)};
+  EXPECT_EQ(pieces.add_flights(longer, 2, Transport::Walk), 1u);
+  std::vector<PhotonPath> truncated = longer;
+  truncate_record(truncated, 2, Transport::Walk);
+  ASSERT_EQ(truncated.size(), 2u);
+  EXPECT_TRUE(truncated[1].cut);
+  EXPECT_FALSE(truncated[0].cut);
   EXPECT_EQ(pieces.photons(), 0.0);
   LightField joined = *made;
   joined.add(pieces, 10.0 / 2.0, 10.0);

@@ -144,26 +144,40 @@ void LightField::add_flight(const PhotonPath& path, double weight) {
 
 namespace {
 
-// The flights of `record` that make whole photons, [0, whole), and how many photons they are.
-// Shooting: every flight is a photon. Walks: a flight with bounce 0 starts one; the last walk is
-// whole unless its last hop was cut.
-std::pair<std::size_t, std::size_t> whole_photons(const std::vector<PhotonPath>& record, Transport transport) {
-  if (record.empty() || transport != Transport::Walk) return {record.size(), record.size()};
+// A walk that goes on past the first n flights of `record` (n >= 1): its last kept hop was cut by
+// the solver, or the flight after it continues the walk.
+bool cut_at(const std::vector<PhotonPath>& record, std::size_t n) {
+  return record[n - 1].cut || (n < record.size() && record[n].bounce != 0);
+}
+
+// The flights among the first `count` of `record` that make whole photons, [0, whole), and how
+// many photons they are. Shooting: every flight is a photon. Walks: a flight with bounce 0 starts
+// one; the last walk is whole unless it was cut.
+std::pair<std::size_t, std::size_t> whole_photons(const std::vector<PhotonPath>& record, std::size_t count,
+                                                  Transport transport) {
+  const std::size_t n = std::min(count, record.size());
+  if (n == 0 || transport != Transport::Walk) return {n, n};
   std::size_t photons = 0;
   std::size_t last_start = 0;
-  for (std::size_t i = 0; i < record.size(); ++i)
+  for (std::size_t i = 0; i < n; ++i)
     if (record[i].bounce == 0) {
       ++photons;
       last_start = i;
     }
-  if (record.back().cut && photons > 0) return {last_start, photons - 1};
-  return {record.size(), photons};
+  if (cut_at(record, n) && photons > 0) return {last_start, photons - 1};
+  return {n, photons};
 }
 
 }  // namespace
 
-std::size_t LightField::add_flights(const std::vector<PhotonPath>& flights, Transport transport) {
-  const auto [whole, photons] = whole_photons(flights, transport);
+void truncate_record(std::vector<PhotonPath>& record, std::size_t n, Transport transport) {
+  if (record.size() <= n) return;
+  if (n > 0 && transport == Transport::Walk && cut_at(record, n)) record[n - 1].cut = true;
+  record.resize(n);
+}
+
+std::size_t LightField::add_flights(const std::vector<PhotonPath>& flights, std::size_t count, Transport transport) {
+  const auto [whole, photons] = whole_photons(flights, count, transport);
   for (std::size_t i = 0; i < whole; ++i) add_flight(flights[i], 1.0);
   return photons;
 }
@@ -176,7 +190,7 @@ void LightField::add(const LightField& other, double weight, double photons) {
 
 std::size_t LightField::add_record(const std::vector<PhotonPath>& record, std::uint64_t shot, Transport transport) {
   if (record.empty() || shot == 0) return 0;
-  auto [whole, photons] = whole_photons(record, transport);
+  auto [whole, photons] = whole_photons(record, record.size(), transport);
   photons = std::min<std::size_t>(photons, shot);
   if (photons == 0) return 0;
   const double weight = static_cast<double>(shot) / static_cast<double>(photons);

@@ -20,6 +20,10 @@
 
 namespace flatland {
 
+// Keeps the first n flights of a solver's record; with walks, a walk that goes on past them has its
+// last kept hop marked cut, as the solver marks a record that reached its limit.
+void truncate_record(std::vector<PhotonPath>& record, std::size_t n, Transport transport);
+
 class LightField {
  public:
   LightField() = default;
@@ -41,10 +45,11 @@ class LightField {
   // (shooting: every path is a photon; walks: a path with bounce 0 starts a walk, and a walk the
   // record cut short is left out with its photon). Returns k (0: nothing added).
   std::size_t add_record(const std::vector<PhotonPath>& record, std::uint64_t shot, Transport transport);
-  // The whole photons of `flights` (as add_record counts them) with weight 1, photons() unchanged:
-  // a record built piece by piece, to be added with its weight once its photons are known.
-  // Returns the photons added.
-  std::size_t add_flights(const std::vector<PhotonPath>& flights, Transport transport);
+  // The whole photons among the first `count` flights of `flights` (as add_record counts them; with
+  // walks, one that goes on past them is left out) with weight 1, photons() unchanged: a record
+  // built piece by piece, to be added with its weight once its photons are known. Returns the
+  // photons added.
+  std::size_t add_flights(const std::vector<PhotonPath>& flights, std::size_t count, Transport transport);
   // Adds weight x `other` (a field on the same grid) to every cell, and `photons` to photons().
   void add(const LightField& other, double weight, double photons);
 
