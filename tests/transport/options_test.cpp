@@ -28,6 +28,7 @@ TEST(Options, EveryChoiceSetsTheValueOfItsName) {
         case SolveOption::Gather: named = to_string(settings.gather); break;
         case SolveOption::RayProfile: named = to_string(settings.ray_profile); break;
         case SolveOption::RayMode: named = to_string(settings.ray_mode); break;
+        case SolveOption::ReplicateLayout: named = to_string(settings.replicate_layout); break;
         default: FAIL() << spec.name << " has choices but no enum";
       }
       EXPECT_EQ(named, choice) << spec.name;

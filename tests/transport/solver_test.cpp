@@ -1575,6 +1575,22 @@ TEST(Solver, SobolGivesIdenticalResultsOnAnyThreadCountAndStep) {
   Solver random = make_solver(scene, settings);
   random.run();
   EXPECT_NE(dumps[0].radiosity, dump(random).radiosity);
+  // Replicates as blocks of one net: the same bits on one thread, three, and in steps that cross
+  // the blocks' ends.
+  settings.sampler = SamplerKind::Sobol;
+  settings.replicate_layout = ReplicateLayout::Blocks;
+  settings.threads = 1;
+  Solver blocks = make_solver(scene, settings);
+  blocks.run();
+  settings.threads = 3;
+  Solver blocks_threads = make_solver(scene, settings);
+  blocks_threads.run();
+  EXPECT_EQ(dump(blocks), dump(blocks_threads));
+  Solver blocks_stepped = make_solver(scene, settings);
+  for (std::size_t step = 0; !blocks_stepped.stopped(); ++step)
+    blocks_stepped.step_photons(sizes[step % std::size(sizes)]);
+  EXPECT_EQ(dump(blocks), dump(blocks_stepped));
+  EXPECT_NE(dumps[0].radiosity, dump(blocks).radiosity);
 }
 
 TEST(Solver, SobolEnergyBooksBalanceOnEveryExampleScene) {
@@ -1669,6 +1685,66 @@ TEST(Solver, SobolIsUnbiasedOnThePenumbraClosedForm) {
                 random_variance / sobol_variance);
     EXPECT_LT(sobol_variance, random_variance) << "variant " << variant;
   }
+}
+
+// Replicates laid out as blocks of one net (settings.hpp, ReplicateLayout): the round's answer
+// is the whole net's, the same bits as one replicate (one net a round), where independent
+// replicates are R nets of N / R points; each block is unbiased on its own, so the answer is too;
+// and the one net's variance over seeds is below that of R independent nets.
+TEST(Solver, BlockReplicatesKeepTheRoundsOneNet) {
+  const PenumbraSetup setup;
+  const Scene scene = testing::scene_from_text(setup.scene_text());
+  SolverSettings settings;
+  settings.photons = 1 << 16;
+  settings.elements = 24;
+  settings.estimator = Estimator::Lumped;
+  settings.threads = 2;
+  auto first_round = [&](int replicates, ReplicateLayout layout) {
+    settings.replicates = replicates;
+    settings.replicate_layout = layout;
+    Solver solver = make_solver(scene, settings);
+    EXPECT_TRUE(solver.step_round());
+    return std::make_pair(solver.photons_shot(), solver.radiosity_coefficients(1, Side::Front));
+  };
+  // A round's photons are a multiple of R (one replicate: any number): the first budget whose
+  // first round one replicate shoots as a multiple of 8, so that both shoot the same photons.
+  auto one_net = first_round(1, ReplicateLayout::Independent);
+  while (one_net.first % 8 != 0) {
+    ++settings.photons;
+    one_net = first_round(1, ReplicateLayout::Independent);
+  }
+  const auto blocks = first_round(8, ReplicateLayout::Blocks);
+  const auto independent = first_round(8, ReplicateLayout::Independent);
+  ASSERT_EQ(one_net.first, blocks.first);
+  EXPECT_EQ(one_net.second, blocks.second);
+  EXPECT_NE(one_net.second, independent.second);
+
+  // Unbiased: the mean over 20 seeds of every floor coefficient within 6 standard errors of the
+  // closed form's (as SobolIsUnbiasedOnThePenumbraClosedForm), and less spread than independent
+  // replicates'.
+  const int seeds = 20;
+  settings.photons = 100'000;
+  settings.replicates = 8;
+  settings.replicate_layout = ReplicateLayout::Blocks;
+  const CoefficientStatistics one = penumbra_coefficients(setup, settings, seeds);
+  settings.replicate_layout = ReplicateLayout::Independent;
+  const CoefficientStatistics apart = penumbra_coefficients(setup, settings, seeds);
+  Solver solver = make_solver(scene, settings);
+  const CurveStorage& storage = solver.storage(1);
+  const std::vector<double> expected = expected_floor_power(setup, storage);
+  ASSERT_EQ(one.mean.size(), expected.size());
+  double one_variance = 0.0;
+  double apart_variance = 0.0;
+  for (std::size_t k = 0; k < expected.size(); ++k) {
+    const double b = setup.rho * expected[k] / storage.basis_length[k];
+    EXPECT_LT(std::fabs(one.mean[k] - b), 6.0 * std::sqrt(one.variance[k] / seeds) + 1e-12 * setup.rho)
+        << "coefficient " << k << ": " << one.mean[k] << " vs " << b;
+    one_variance += one.variance[k];
+    apart_variance += apart.variance[k];
+  }
+  std::printf("penumbra, first round: variance of the coefficients, independent / blocks = %.3g\n",
+              apart_variance / one_variance);
+  EXPECT_LT(one_variance, apart_variance);
 }
 
 // ---- Random walks (the collision estimator) ----

@@ -63,6 +63,7 @@ nlohmann::json result_without_curves(const Solver& solver, int samples_per_curve
       {"ray_mode", to_string(settings.ray_mode)},
       {"band_rays", settings.band_rays},
       {"replicates", settings.replicates},
+      {"replicate_layout", to_string(settings.replicate_layout)},
       {"confidence", settings.confidence},
       {"target_error", settings.target_error},
       {"samples", samples_per_curve},

@@ -21,6 +21,9 @@ constexpr double kInfinity = std::numeric_limits<double>::infinity();
 constexpr int kMostDraws = 400;
 constexpr int kFewestDraws = 40;
 constexpr double kDrawValueBudget = 2e7;
+// The least ratio of the pairs' variance to the blocks' believed (stratification_shrink): 2^(1 - beta) with beta = 3,
+// the fastest a scrambled net's variance falls (as n^-3, up to logarithms, for smooth integrands).
+constexpr double kFewestPairRatio = 0.25;
 
 // Where B - E is evaluated: every side that has storage, at the midpoints of K equal arc-length
 // cells of its curve, each channel; point p of curve c lies in [first[c], first[c + 1]).
@@ -150,6 +153,7 @@ struct PointValues {
   std::vector<std::vector<double>> deviation;
   std::vector<double> bias;
   int unestimated = 0;  // curves with storage whose storage part could not be estimated
+  double shrink = 1.0;  // the deviations' factor for the blocks' stratification (stratification_shrink)
 };
 
 // B - E of every replicate at the points with each curve c at level levels[c], as deviations from
@@ -160,7 +164,7 @@ struct LevelValues {
 };
 
 LevelValues level_values(const Solver& solver, const EvaluationPoints& at, const std::vector<int>& levels,
-                         const ReflectedEvaluator* evaluator) {
+                         const ReflectedEvaluator* evaluator, double shrink = 1.0) {
   const auto count = static_cast<std::size_t>(solver.replicates());
   LevelValues result;
   result.mean.assign(at.values(), 0.0);
@@ -179,7 +183,7 @@ LevelValues level_values(const Solver& solver, const EvaluationPoints& at, const
   for (std::size_t r = 0; r < count; ++r)
     for (std::size_t i = 0; i < at.values(); ++i) result.mean[i] += result.deviation[r][i] / static_cast<double>(count);
   for (std::vector<double>& deviation : result.deviation)
-    for (std::size_t i = 0; i < at.values(); ++i) deviation[i] -= result.mean[i];
+    for (std::size_t i = 0; i < at.values(); ++i) deviation[i] = shrink * (deviation[i] - result.mean[i]);
   return result;
 }
 
@@ -224,7 +228,7 @@ std::vector<double> difference_energy(const LevelValues& x, const LevelValues& y
 // signal in it. `unestimated` counts the curves with storage but a single distinct mesh (no
 // difference to measure: their part is 0).
 std::vector<double> storage_bias(const Solver& solver, const EvaluationPoints& at, const LevelValues& chosen,
-                                 const ReflectedEvaluator* evaluator, int& unestimated) {
+                                 const ReflectedEvaluator* evaluator, int& unestimated, double shrink) {
   const SceneStorage& storage = solver.scene_storage();
   const std::vector<int>& levels = solver.chosen_levels();
   const std::size_t curves = at.first.size() - 1;
@@ -264,11 +268,11 @@ std::vector<double> storage_bias(const Solver& solver, const EvaluationPoints& a
       ++unestimated;
     }
   }
-  const LevelValues other_values = level_values(solver, at, other, evaluator);
+  const LevelValues other_values = level_values(solver, at, other, evaluator, shrink);
   const std::vector<double> near_energy = difference_energy(chosen, other_values, at);
   std::vector<double> far_energy(curves, 0.0);
   if (std::find(has_further.begin(), has_further.end(), 1) != has_further.end())
-    far_energy = difference_energy(other_values, level_values(solver, at, further, evaluator), at);
+    far_energy = difference_energy(other_values, level_values(solver, at, further, evaluator, shrink), at);
   std::vector<double> bias(at.values(), 0.0);
   for (std::uint32_t c = 0; c < curves; ++c) {
     if (!estimated[c] || !(near_energy[c] > 0.0)) continue;
@@ -305,12 +309,53 @@ std::vector<double> storage_bias(const Solver& solver, const EvaluationPoints& a
   return bias;
 }
 
+// Laid out as blocks (settings.hpp), the replicates are blocks of consecutive points of every round's one net,
+// stratified against each other, so their spread, read as if they were independent, overstates
+// the variance of their mean. With V(m) the variance of the mean read from R / m groups of m
+// consecutive blocks as if independent, and the variance of a net's estimate falling as n^-beta
+// (beta = 1 for independent points, more where the net stratifies), V(2) / V(1) = 2^(1 - beta) =
+// rho, and the whole net's variance is V(1) rho^(log2 R). rho is measured from the blocks and the
+// pairs of blocks, pooled over the scene's points (arc-length weights), and held to
+// [kFewestPairRatio, 1]: the deviations are multiplied by the returned sqrt(rho^(log2 R)). 1 for
+// independent replicates, for the random sampler (its blocks are independent) and below 4
+// replicates (no pairs to compare).
+double stratification_shrink(const Solver& solver, const LevelValues& values, const EvaluationPoints& at) {
+  const std::size_t count = values.deviation.size();
+  if (solver.settings().replicate_layout != ReplicateLayout::Blocks ||
+      solver.settings().sampler != SamplerKind::Sobol || count < 4)
+    return 1.0;
+  const auto channels = static_cast<std::size_t>(at.channels);
+  const std::size_t pairs = count / 2;
+  double blocks = 0.0;
+  double paired = 0.0;
+  for (std::size_t p = 0; p < at.points.size(); ++p)
+    for (std::size_t ch = 0; ch < channels; ++ch) {
+      const std::size_t i = p * channels + ch;
+      const double w = at.points[p].weight;
+      for (std::size_t r = 0; r < count; ++r) blocks += w * values.deviation[r][i] * values.deviation[r][i];
+      for (std::size_t j = 0; j < pairs; ++j) {
+        const double q = 0.5 * (values.deviation[2 * j][i] + values.deviation[2 * j + 1][i]);
+        paired += w * q * q;
+      }
+    }
+  const double n = static_cast<double>(count);
+  const double m = static_cast<double>(pairs);
+  const double v1 = blocks / (n * (n - 1.0));
+  const double v2 = paired / (m * (m - 1.0));
+  if (!(v1 > 0.0)) return 1.0;
+  const double rho = std::clamp(v2 / v1, kFewestPairRatio, 1.0);
+  return std::sqrt(std::pow(rho, std::log2(n)));
+}
+
 PointValues values_at(const Solver& solver, const EvaluationPoints& at, const ReflectedEvaluator* evaluator) {
   PointValues result;
   LevelValues chosen = level_values(solver, at, solver.chosen_levels(), evaluator);
+  result.shrink = stratification_shrink(solver, chosen, at);
+  for (std::vector<double>& deviation : chosen.deviation)
+    for (double& d : deviation) d *= result.shrink;
   // Storage (storage_bias).
   if (solver.auto_storage())
-    result.bias = storage_bias(solver, at, chosen, evaluator, result.unestimated);
+    result.bias = storage_bias(solver, at, chosen, evaluator, result.unestimated, result.shrink);
   else
     result.bias.assign(at.values(), 0.0);
   result.mean = std::move(chosen.mean);

@@ -71,6 +71,12 @@ const std::vector<SolveOptionSpec>& table() {
       {SolveOption::Replicates, "replicates", "replicates", "replicates", {}, "R",
        "Independent randomisations every round's photons are split into (1, or an even number up to 64): "
        "their spread gives the result's estimated error; 1 gives none (and is refused with --elements auto)"},
+      {SolveOption::ReplicateLayout, "replicate layout", "replicate-layout", "replicate_layout",
+       {"independent", "blocks"}, "",
+       "How a round's photons form the replicates: independent (photon i in replicate i mod R, each its own "
+       "scrambled net: the estimated error is sharpest, but R nets of N / R points stratify less than one net) "
+       "or blocks (the round is one net and the replicates are its blocks of consecutive photons: the answer "
+       "keeps the whole net's accuracy, and the estimated error is more conservative; docs/estimated-error.md)"},
       {SolveOption::TargetError, "target error", "target-error", "target_error", {}, "X",
        "Keep shooting until the estimated relative L1 error of B - E is at most X (e.g. 1e-3), with photons "
        "as the cap; 0: no target, the photon budget and tolerance decide"},
@@ -257,6 +263,7 @@ Status set_solve_option(SolverSettings& s, SolveOption option, std::string_view 
     case SolveOption::Gather: s.gather = static_cast<GatherMode>(*index); return ok_status();
     case SolveOption::RayProfile: s.ray_profile = static_cast<RayProfile>(*index); return ok_status();
     case SolveOption::RayMode: s.ray_mode = static_cast<RayMode>(*index); return ok_status();
+    case SolveOption::ReplicateLayout: s.replicate_layout = static_cast<ReplicateLayout>(*index); return ok_status();
   }
   return ok_status();
 }
@@ -294,6 +301,7 @@ std::string solve_option_text(const SolverSettings& s, SolveOption option) {
     case SolveOption::Gather: return name(s.gather);
     case SolveOption::RayProfile: return name(s.ray_profile);
     case SolveOption::RayMode: return name(s.ray_mode);
+    case SolveOption::ReplicateLayout: return name(s.replicate_layout);
   }
   return {};
 }

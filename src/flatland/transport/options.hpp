@@ -35,6 +35,7 @@ enum class SolveOption {
   BandRays,
   Tolerance,
   Replicates,
+  ReplicateLayout,
   Confidence,
   TargetError,
 };

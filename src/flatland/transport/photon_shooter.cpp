@@ -35,53 +35,78 @@ inline void prefetch(const void* address) {
 
 // A round's sources and its photons' quasi-random points.
 //
-// Randomised quasi-Monte Carlo: photon j of the round takes point j / R of its replicate's
-// scrambled Sobol' net (below), whichever batch, step or thread shoots it; its coordinates
-// (PhotonDimension) and how rejection loops use them are in origins.hpp.
+// Randomised quasi-Monte Carlo: each photon of the round takes a point of a scrambled Sobol' net
+// (below), whichever batch, step or thread shoots it; its coordinates (PhotonDimension) and how
+// rejection loops use them are in origins.hpp.
 //
-// The round's photons form R replicates (SolverSettings::replicates), photon i in replicate
-// i mod R, whose spread measures the estimate's variance (error_estimate.hpp, and choose_levels'
-// halves: the odd replicates). Replicates must be independent, so with Sobol' each is a net of its
-// own, scrambled independently (stream R round + r), photon i taking point i / R of its
-// replicate's. (Parts of one net are stratified against each other: parity fixes the first digit
-// of the first coordinate, and their difference is far from noise.) One replicate keeps one net
-// per round (stream `round`).
+// The round's N photons form R replicates (SolverSettings::replicates, N a multiple of R), whose
+// spread measures the estimate's variance (error_estimate.hpp, and choose_levels' halves: the odd
+// replicates), laid out as settings.hpp's ReplicateLayout says:
+// - Independent: photon i is in replicate i mod R and takes point i / R of that replicate's net,
+//   scrambled on its own (stream R round + r). (Interleaved parts of one net would not do: R fixes
+//   the first digits of the first coordinate, so each part would cover a sliver of it.)
+// - Blocks: photon i takes point i of the round's one net (stream `round`, as with one replicate)
+//   and is in replicate i / (N / R), a block of consecutive points: each block is a well spread
+//   set of uniform points (an unbiased estimate), and the blocks together are the whole net.
 class RoundPoints {
  public:
-  RoundPoints(std::uint64_t seed, std::uint32_t round, bool sobol, std::uint32_t replicates, const RoundPlan& plan)
-      : qmc(sobol), replicates_(replicates), key_(source_key(seed, round)), plan_(plan) {
+  RoundPoints(std::uint64_t seed, std::uint32_t round, bool sobol, std::uint32_t replicates, ReplicateLayout layout,
+              const RoundPlan& plan)
+      : qmc(sobol),
+        blocks_(layout == ReplicateLayout::Blocks),
+        replicates_(replicates),
+        block_(static_cast<std::uint32_t>(std::max<std::uint64_t>(1, plan.photons / replicates))),
+        key_(source_key(seed, round)),
+        plan_(plan) {
     if (!qmc) return;
+    if (blocks_) {
+      nets.emplace_back(seed, round);
+      return;
+    }
     nets.reserve(replicates);
     for (std::uint32_t r = 0; r < replicates; ++r) nets.emplace_back(seed, std::uint64_t{replicates} * round + r);
   }
   RoundPoints(const RoundPoints&) = delete;  // cursors keep pointers to the nets
   RoundPoints& operator=(const RoundPoints&) = delete;
 
-  // A cursor on every replicate's net (none for the random sampler).
+  // A cursor on every net (none for the random sampler).
   std::vector<SobolCursor> cursors() const {
     std::vector<SobolCursor> result;
     result.reserve(nets.size());
     for (const ScrambledSobol& net : nets) result.emplace_back(net);
     return result;
   }
-  // Where photon `index` is: its replicate (index mod R) and its point in that replicate's net
-  // (index / R). A photon loop divides once, at its first photon, and steps on with next().
+  // Where photon `index` is: its replicate, its point in its net, and (blocks) where its block
+  // ends. A photon loop divides once, at its first photon, and steps on with next().
   struct Place {
     std::uint32_t index;
     std::uint32_t replicate;
     std::uint32_t point;
+    std::uint64_t block_end;
   };
-  Place place_of(std::uint32_t index) const { return {index, index % replicates_, index / replicates_}; }
+  Place place_of(std::uint32_t index) const {
+    if (blocks_) {
+      const std::uint32_t replicate = index / block_;
+      return {index, replicate, index, (std::uint64_t{replicate} + 1) * block_};
+    }
+    return {index, index % replicates_, index / replicates_, 0};
+  }
   void next(Place& at) const {
     ++at.index;
-    if (++at.replicate == replicates_) {
+    if (blocks_) {
+      ++at.point;
+      if (at.index == at.block_end) {
+        ++at.replicate;
+        at.block_end += block_;
+      }
+    } else if (++at.replicate == replicates_) {
       at.replicate = 0;
       ++at.point;
     }
   }
   // The cursor of the photon's net, moved to its point.
   SobolCursor& seek(std::vector<SobolCursor>& cursors, const Place& at) const {
-    SobolCursor& point = cursors[at.replicate];
+    SobolCursor& point = cursors[blocks_ ? 0 : at.replicate];
     point.seek(at.point);
     return point;
   }
@@ -98,7 +123,9 @@ class RoundPoints {
   std::vector<ScrambledSobol> nets;
 
  private:
+  const bool blocks_;
   const std::uint32_t replicates_;
+  const std::uint32_t block_;  // photons per replicate (blocks)
   const std::uint64_t key_;
   const RoundPlan& plan_;
 };
@@ -223,6 +250,7 @@ PhotonShooter::PhotonShooter(const Scene& scene, const SolverSettings& settings,
       seed_(settings.seed),
       sobol_(settings.sampler == SamplerKind::Sobol),
       replicates_(static_cast<std::uint32_t>(settings.replicates)),
+      layout_(settings.replicate_layout),
       ray_width_(settings.ray_width),
       ray_profile_(settings.ray_profile),
       accelerator_(std::move(accelerator)),
@@ -309,9 +337,9 @@ void PhotonShooter::shoot_rays(const RoundView& round, Rng& rng, std::uint64_t f
   if constexpr (kRays == RayKind::Footprint) footprint.reserve(64);
   const auto channels = static_cast<std::size_t>(storage.channels());
   static_assert(kAcceptLobe < kSobolDimensions);
-  const RoundPoints points(seed_, round.number, sobol_, replicates_, plan);
+  const RoundPoints points(seed_, round.number, sobol_, replicates_, layout_, plan);
   const bool qmc = points.qmc;
-  // Consecutive photons of a replicate take consecutive points: one XOR per dimension each.
+  // Consecutive photons of a net take consecutive points: one XOR per dimension each.
   std::vector<SobolCursor> cursors = points.cursors();
   const std::size_t replicate_size = storage.coefficient_count() * channels;
   // With many coefficients (their sampler's pieces, units and blocks far beyond the caches) every

@@ -86,7 +86,7 @@ DetectorLayout detector_layout(const Scene& scene);
 // align them).
 struct alignas(64) Deposits {
   // [replicate * coefficients * channels + coefficient * channels + channel]: replicate r of the
-  // round (its photons i with i mod R = r) deposits into part r (replicate_offset, set per photon).
+  // round (photon_shooter.cpp, RoundPoints) deposits into part r (replicate_offset, set per photon).
   std::vector<std::int64_t> received;
   std::size_t replicate_offset = 0;
   std::array<std::int64_t, 3> escaped{};
@@ -201,9 +201,10 @@ class PhotonShooter {
   const Scene* scene_ = nullptr;
   std::uint64_t seed_ = 1;
   bool sobol_ = true;
-  std::uint32_t replicates_ = 1;  // photon i of a round deposits into part i mod replicates_
-  bool by_coefficient_ = false;   // reconstructed origins on a B-spline basis
-  bool by_hermite_ = false;       // reconstructed origins on the Hermite reconstruction
+  std::uint32_t replicates_ = 1;  // photon i of a round deposits into part i mod R or i / (N / R) (layout_)
+  ReplicateLayout layout_ = ReplicateLayout::Independent;
+  bool by_coefficient_ = false;  // reconstructed origins on a B-spline basis
+  bool by_hermite_ = false;      // reconstructed origins on the Hermite reconstruction
   double ray_width_ = 0.0;
   RayProfile ray_profile_ = RayProfile::Box;
   RayKind ray_kind_ = RayKind::Point;

@@ -10,6 +10,10 @@ const char* to_string(RayMode mode) { return mode == RayMode::Footprint ? "footp
 
 const char* to_string(SamplerKind sampler) { return sampler == SamplerKind::Random ? "random" : "sobol"; }
 
+const char* to_string(ReplicateLayout layout) {
+  return layout == ReplicateLayout::Independent ? "independent" : "blocks";
+}
+
 const char* to_string(Estimator estimator) {
   switch (estimator) {
     case Estimator::Lumped: return "lumped";

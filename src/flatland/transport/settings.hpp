@@ -93,11 +93,20 @@ inline constexpr double kAutoSmallBudgetElements = 128.0;
 // this fraction of the ray's width: the footprint's spread smooths every deposit on that scale (its
 // bias is O(width^2)), so finer elements would resolve nothing but cost time on every hit.
 inline constexpr double kFootprintFinestElement = 0.25;
-// The photons of every round are split into R replicates (photon i into replicate i mod R), each an
-// independent randomisation of the round (its own scrambled Sobol' net, or its own photons of the
-// random sampler): the spread of the R estimates gives the error estimate (error_estimate.hpp) and,
-// under automatic storage, the halves the levels are chosen by (odd replicates are odd photons).
+// The photons of every round are split into R replicates, each an unbiased estimate of the round
+// on its own: the spread of the R estimates gives the error estimate (error_estimate.hpp) and,
+// under automatic storage, the halves the levels are chosen by (the odd replicates against the
+// even). How (ReplicateLayout, photon_shooter.cpp):
+// - Independent: photon i is in replicate i mod R, and each replicate is a scrambled Sobol' net of
+//   its own (or photons of the random sampler): the spread is an unbiased estimate of the variance,
+//   but the answer is the mean of R nets of N / R points, which stratify less than one net of N.
+// - Blocks: the round is one net, and replicate r is its block of consecutive photons
+//   [r N / R, (r + 1) N / R): the answer keeps the whole net's stratification; the blocks are
+//   stratified against each other, so their spread overstates the variance, and the estimate takes
+//   off what the pairs of blocks show of it (error_estimate.cpp), conservatively.
 // 1 replicate (one net a round, no estimate) or an even number up to kMaxReplicates.
+enum class ReplicateLayout { Independent, Blocks };
+const char* to_string(ReplicateLayout layout);
 inline constexpr int kDefaultReplicates = 8;
 inline constexpr int kMaxReplicates = 64;
 
@@ -123,6 +132,7 @@ struct SolverSettings {
   // Independent replicates of every round (kDefaultReplicates above), and the confidence of the
   // estimated error's bound (error_estimate.hpp), in [0.5, 0.999].
   int replicates = kDefaultReplicates;
+  ReplicateLayout replicate_layout = ReplicateLayout::Independent;
   double confidence = 0.95;
   // Solve to an accuracy (0: off): shoot until the estimated relative L1 error of B - E over the
   // scene (error_estimate.hpp) is at most this, with `photons` as the cap (Solver, "Passes").

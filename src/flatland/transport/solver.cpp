@@ -35,7 +35,7 @@ const char* to_string(StopReason reason) {
 }
 
 void Solver::sum_odd_parts(const std::vector<double>& parts, std::vector<double>& half) const {
-  // Replicate r holds the photons i with i mod R = r, R even: the odd replicates are the odd photons.
+  // R is even: the odd replicates are half of every round's photons (odd photons, or odd blocks).
   const std::size_t size = received_.size();
   half.assign(size, 0.0);
   for (std::size_t r = 1; r < static_cast<std::size_t>(settings_.replicates); r += 2)

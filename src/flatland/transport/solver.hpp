@@ -9,10 +9,10 @@
 // falls below tolerance x emitted power or the photon budget is spent.
 //
 // Determinism: photon i of a round belongs to batch i / kBatchSize, whose random stream is named
-// by (seed, round, batch), and to replicate i mod R; with the Sobol' sampler its uniforms come
-// first from point i / R of that replicate's scrambled net, named by (seed, R round + r). Deposits are accumulated in
-// 64-bit fixed point (units of 2^-k of the round's power, k chosen so the round cannot overflow), and integer addition
-// does not depend on order, so any number of threads gives bit-identical results.
+// by (seed, round, batch), and to a replicate (settings.hpp, ReplicateLayout); with the Sobol' sampler its uniforms
+// come first from a point of a scrambled net named by the seed and the round (photon_shooter.cpp). Deposits are
+// accumulated in 64-bit fixed point (units of 2^-k of the round's power, k chosen so the round cannot overflow), and
+// integer addition does not depend on order, so any number of threads gives bit-identical results.
 #pragma once
 
 #include <atomic>
