@@ -432,6 +432,18 @@ def test_estimated_error_and_target_error_as_the_command_line(tmp_path):
         flatland.solve(scene, replicates=3)
     with pytest.raises(ValueError, match="target_error"):
         flatland.solve(scene, target_error=2)
+    # Replicates as blocks of one net: the command line's bits and estimate, and the layout named.
+    out_blocks = tmp_path / "blocks.json"
+    cli = run_cli("solve", "scenes2d/penumbra.json", "--photons", "100000", "--seed", "3", "--replicate-layout",
+                  "blocks", "--out", str(out_blocks), "--quiet")
+    assert cli.returncode == 0, cli.stderr
+    blocks = flatland.solve(scene, photons=100_000, seed=3, replicate_layout="blocks")
+    written = json.loads(out_blocks.read_text())
+    assert written["settings"]["replicate_layout"] == "blocks"
+    assert blocks.estimated_error == written["stats"]["estimated_error"]
+    assert blocks.estimated_error["available"]
+    with pytest.raises(ValueError, match="replicate_layout"):
+        flatland.solve(scene, replicate_layout="interleaved")
 
 
 def test_what_was_silently_wrong_is_right_or_refused_as_on_the_command_line():
