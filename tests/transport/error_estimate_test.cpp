@@ -84,14 +84,20 @@ Coverage coverage(const Scene& scene, const SampledResult& reference, SolverSett
 
 // At 95 % confidence the covered runs of 40 are Binomial(40, 0.95) or better: fewer than 34 has
 // probability 1.4 % and is evidence of undercoverage. And a bound far wider than the error is no
-// help: the median of estimate / true is at most 3.
-void expect_coverage(Coverage c, const std::string& what) {
+// help: the median of estimate / true is at most 3 (`sharp`; otherwise it is printed, not held to
+// a limit).
+void expect_coverage(Coverage c, const std::string& what, bool sharp = true) {
   const char* names[3] = {"L1", "L2", "Linf"};
   for (int norm = 0; norm < 3; ++norm) {
     EXPECT_GE(c.covered[norm], 34) << what << " " << names[norm] << ": covered " << c.covered[norm] << " of " << c.runs;
     const double median = c.median_ratio(norm);
-    EXPECT_LE(median, 3.0) << what << " " << names[norm];
+    if (sharp) {
+      EXPECT_LE(median, 3.0) << what << " " << names[norm];
+    }
     EXPECT_GE(median, 1.0) << what << " " << names[norm];
+    if (!sharp)
+      std::printf("%s %s: covered %d of %d, median bound / true %.2f\n", what.c_str(), names[norm], c.covered[norm],
+                  c.runs, median);
   }
 }
 
@@ -133,19 +139,7 @@ INSTANTIATE_TEST_SUITE_P(
 
 // Replicates laid out as blocks of one net: the spread of the blocks, less what the pairs of
 // blocks show of their stratification, still bounds the error as often as it says (the answer is
-// more accurate, and the bound is more conservative: docs/estimated-error.md). The medians of
-// bound / true are printed, not held to a limit.
-void expect_conservative_coverage(Coverage c, const std::string& what) {
-  const char* names[3] = {"L1", "L2", "Linf"};
-  for (int norm = 0; norm < 3; ++norm) {
-    EXPECT_GE(c.covered[norm], 34) << what << " " << names[norm] << ": covered " << c.covered[norm] << " of " << c.runs;
-    const double median = c.median_ratio(norm);
-    EXPECT_GE(median, 1.0) << what << " " << names[norm];
-    std::printf("%s %s: covered %d of %d, median bound / true %.2f\n", what.c_str(), names[norm], c.covered[norm],
-                c.runs, median);
-  }
-}
-
+// more accurate, and the bound is more conservative: docs/estimated-error.md).
 TEST(ErrorEstimate, BlockReplicatesBoundTheTrueError) {
   SolverSettings settings;
   settings.photons = 100'000;
@@ -155,18 +149,18 @@ TEST(ErrorEstimate, BlockReplicatesBoundTheTrueError) {
   const SampledResult penumbra_answer = reference_of(penumbra);
   for (BasisKind basis : {BasisKind::Cubic, BasisKind::Linear, BasisKind::Hermite}) {
     settings.basis = basis;
-    expect_conservative_coverage(coverage(penumbra, penumbra_answer, settings, 40),
-                                 std::string("blocks, penumbra, ") + to_string(basis));
+    expect_coverage(coverage(penumbra, penumbra_answer, settings, 40),
+                    std::string("blocks, penumbra, ") + to_string(basis), false);
   }
   settings.basis = BasisKind::Cubic;
   settings.transport = Transport::Walk;
-  expect_conservative_coverage(coverage(penumbra, penumbra_answer, settings, 40), "blocks, penumbra, walk");
+  expect_coverage(coverage(penumbra, penumbra_answer, settings, 40), "blocks, penumbra, walk", false);
   settings.transport = Transport::Shooting;
   const double rho = 0.9;
   const Scene furnace = testing::scene_from_text(testing::circle_enclosure(rho, 1.0));
-  expect_conservative_coverage(coverage(furnace, furnace_answer(furnace, rho), settings, 40), "blocks, furnace");
+  expect_coverage(coverage(furnace, furnace_answer(furnace, rho), settings, 40), "blocks, furnace", false);
   const Scene occluder = testing::scene_from_file("scenes2d/tests/reference_round_occluder.json");
-  expect_conservative_coverage(coverage(occluder, reference_of(occluder), settings, 40), "blocks, round occluder");
+  expect_coverage(coverage(occluder, reference_of(occluder), settings, 40), "blocks, round occluder", false);
 }
 
 TEST(ErrorEstimate, BoundsTheTrueErrorInAFurnace) {

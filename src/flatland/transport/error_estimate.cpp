@@ -21,9 +21,6 @@ constexpr double kInfinity = std::numeric_limits<double>::infinity();
 constexpr int kMostDraws = 400;
 constexpr int kFewestDraws = 40;
 constexpr double kDrawValueBudget = 2e7;
-// The least ratio of the pairs' variance to the blocks' believed (stratification_shrink): 2^(1 - beta) with beta = 3,
-// the fastest a scrambled net's variance falls (as n^-3, up to logarithms, for smooth integrands).
-constexpr double kFewestPairRatio = 0.25;
 
 // Where B - E is evaluated: every side that has storage, at the midpoints of K equal arc-length
 // cells of its curve, each channel; point p of curve c lies in [first[c], first[c + 1]).
@@ -309,42 +306,28 @@ std::vector<double> storage_bias(const Solver& solver, const EvaluationPoints& a
   return bias;
 }
 
-// Laid out as blocks (settings.hpp), the replicates are blocks of consecutive points of every round's one net,
-// stratified against each other, so their spread, read as if they were independent, overstates
-// the variance of their mean. With V(m) the variance of the mean read from R / m groups of m
-// consecutive blocks as if independent, and the variance of a net's estimate falling as n^-beta
-// (beta = 1 for independent points, more where the net stratifies), V(2) / V(1) = 2^(1 - beta) =
-// rho, and the whole net's variance is V(1) rho^(log2 R). rho is measured from the blocks and the
-// pairs of blocks, pooled over the scene's points (arc-length weights), and held to
-// [kFewestPairRatio, 1]: the deviations are multiplied by the returned sqrt(rho^(log2 R)). 1 for
-// independent replicates, for the random sampler (its blocks are independent) and below 4
-// replicates (no pairs to compare).
+// The factor on the replicates' deviations for the blocks' stratification (settings.hpp,
+// stratification_factor): its square root, from the blocks' and the pairs' deviations pooled over
+// the scene's points (arc-length weights). 1 for independent replicates and for the random sampler
+// (its blocks are independent).
 double stratification_shrink(const Solver& solver, const LevelValues& values, const EvaluationPoints& at) {
   const std::size_t count = values.deviation.size();
-  if (solver.settings().replicate_layout != ReplicateLayout::Blocks ||
-      solver.settings().sampler != SamplerKind::Sobol || count < 4)
+  if (solver.settings().replicate_layout != ReplicateLayout::Blocks || solver.settings().sampler != SamplerKind::Sobol)
     return 1.0;
   const auto channels = static_cast<std::size_t>(at.channels);
-  const std::size_t pairs = count / 2;
   double blocks = 0.0;
-  double paired = 0.0;
+  double pairs = 0.0;
   for (std::size_t p = 0; p < at.points.size(); ++p)
     for (std::size_t ch = 0; ch < channels; ++ch) {
       const std::size_t i = p * channels + ch;
       const double w = at.points[p].weight;
       for (std::size_t r = 0; r < count; ++r) blocks += w * values.deviation[r][i] * values.deviation[r][i];
-      for (std::size_t j = 0; j < pairs; ++j) {
-        const double q = 0.5 * (values.deviation[2 * j][i] + values.deviation[2 * j + 1][i]);
-        paired += w * q * q;
+      for (std::size_t j = 0; j + 1 < count; j += 2) {
+        const double q = 0.5 * (values.deviation[j][i] + values.deviation[j + 1][i]);
+        pairs += w * q * q;
       }
     }
-  const double n = static_cast<double>(count);
-  const double m = static_cast<double>(pairs);
-  const double v1 = blocks / (n * (n - 1.0));
-  const double v2 = paired / (m * (m - 1.0));
-  if (!(v1 > 0.0)) return 1.0;
-  const double rho = std::clamp(v2 / v1, kFewestPairRatio, 1.0);
-  return std::sqrt(std::pow(rho, std::log2(n)));
+  return std::sqrt(stratification_factor(blocks, pairs, static_cast<int>(count)));
 }
 
 PointValues values_at(const Solver& solver, const EvaluationPoints& at, const ReflectedEvaluator* evaluator) {

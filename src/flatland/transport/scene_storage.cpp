@@ -348,9 +348,9 @@ SceneStorage::ReflectedPower SceneStorage::reflected_power(std::uint32_t c, cons
 }
 
 // Per curve, with the reflected power on each side: the estimate f_l at every level l, and f_l^A,
-// f_l^B from the two halves of the photons (odd and even numbers in their round, the odd and even
-// replicates: independent, with equal means; with Sobol' independently scrambled nets, see the
-// shooter). Then, in the L2
+// f_l^B from the two halves of the photons (the odd and even replicates, with equal means:
+// independent, or, laid out as blocks of one net, stratified against each other, when the halves'
+// difference overstates the variance by a factor choose_levels is given). Then, in the L2
 // norm along the curve (LevelNorm),
 //   variance  V_l = |f_l^A - f_l^B|^2     (its expectation is Var f_l^A + Var f_l^B = Var f_l),
 //   bias^2    |f_l - f_m|^2 less its own noise |D^A - D^B|^2 (D^X = f_l^X - f_m^X), m the next
@@ -363,7 +363,7 @@ SceneStorage::ReflectedPower SceneStorage::reflected_power(std::uint32_t c, cons
 // finest level carry the finest level's large variance, both of which push choices off the best;
 // a step to the same mesh (a curve cut by many nodes keeps short regions whole over several
 // levels) would see no bias at all and keep the coarsest level however coarse it is.
-int SceneStorage::best_level(std::uint32_t c, const ReflectedPower& reflected) const {
+int SceneStorage::best_level(std::uint32_t c, const ReflectedPower& reflected, double variance_factor) const {
   const int finest = static_cast<int>(levels_[c].size());
   const auto count = static_cast<std::size_t>(finest) + 1;
   const std::size_t sides = reflected.sides.size();
@@ -393,8 +393,9 @@ int SceneStorage::best_level(std::uint32_t c, const ReflectedPower& reflected) c
       const double kq =
           portable::integer_power(static_cast<double>(level_elements(c, finer)) / level_elements(c, level), order);
       const double difference = norm2([&](std::size_t i) { return full[l][i] - full[m][i]; });
-      const double noise =
-          norm2([&](std::size_t i) { return (part_a[l][i] - part_a[m][i]) - (part_b[l][i] - part_b[m][i]); });
+      const double noise = variance_factor * norm2([&](std::size_t i) {
+                             return (part_a[l][i] - part_a[m][i]) - (part_b[l][i] - part_b[m][i]);
+                           });
       bias2 = std::max(difference - noise, 0.0) * (kq / (kq - 1.0)) * (kq / (kq - 1.0));
     } else if (const int coarser = distinct_level(c, level, -1); coarser >= 0) {
       // The finest distinct mesh: the bias of the distinct level below it, shrunk by its ratio.
@@ -402,7 +403,7 @@ int SceneStorage::best_level(std::uint32_t c, const ReflectedPower& reflected) c
           portable::integer_power(static_cast<double>(level_elements(c, level)) / level_elements(c, coarser), order);
       bias2 = biases2[static_cast<std::size_t>(coarser)] / (kq * kq);
     }
-    const double variance = norm2([&](std::size_t i) { return part_a[l][i] - part_b[l][i]; });
+    const double variance = variance_factor * norm2([&](std::size_t i) { return part_a[l][i] - part_b[l][i]; });
     if (bias2 + variance < best) {
       best = bias2 + variance;
       chosen = static_cast<int>(l);
@@ -411,7 +412,8 @@ int SceneStorage::best_level(std::uint32_t c, const ReflectedPower& reflected) c
   return chosen;
 }
 
-void SceneStorage::choose_levels(const std::vector<double>& received, const std::vector<double>& half) {
+void SceneStorage::choose_levels(const std::vector<double>& received, const std::vector<double>& half,
+                                 double variance_factor) {
   for (std::uint32_t c = 0; c < scene_->curves.size(); ++c) {
     if (levels_[c].empty()) continue;
     // A curve that received nothing keeps its level (as one whose reflected power is zero does).
@@ -423,7 +425,7 @@ void SceneStorage::choose_levels(const std::vector<double>& received, const std:
     if (!received_any) continue;
     const ReflectedPower reflected = reflected_power(c, received, half);
     if (reflected.sides.empty() || !(reflected.total > 0.0)) continue;
-    chosen_level_[c] = best_level(c, reflected);
+    chosen_level_[c] = best_level(c, reflected, variance_factor);
   }
 }
 

@@ -115,7 +115,10 @@ class SceneStorage {
 
   // Automatic storage: each curve's level with the least estimated error, from the power received
   // by all photons and by the odd-numbered half of them (docs/storage-mesh.md, automatic storage).
-  void choose_levels(const std::vector<double>& received, const std::vector<double>& half);
+  // `variance_factor` multiplies the variance the halves' difference shows (1: independent
+  // halves; less for halves stratified against each other, Solver::sum_odd_parts).
+  void choose_levels(const std::vector<double>& received, const std::vector<double>& half,
+                     double variance_factor = 1.0);
 
  private:
   // choose_levels' steps: a curve's reflected power from all photons and from each half, and the
@@ -123,7 +126,7 @@ class SceneStorage {
   struct ReflectedPower;
   ReflectedPower reflected_power(std::uint32_t curve, const std::vector<double>& received,
                                  const std::vector<double>& half) const;
-  int best_level(std::uint32_t curve, const ReflectedPower& reflected) const;
+  int best_level(std::uint32_t curve, const ReflectedPower& reflected, double variance_factor) const;
 
   struct Level {
     CurveStorage storage;

@@ -1,5 +1,6 @@
 #include "flatland/transport/settings.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 #include "flatland/base/text.hpp"
@@ -12,6 +13,16 @@ const char* to_string(SamplerKind sampler) { return sampler == SamplerKind::Rand
 
 const char* to_string(ReplicateLayout layout) {
   return layout == ReplicateLayout::Independent ? "independent" : "blocks";
+}
+
+double stratification_factor(double blocks, double pairs, int replicates) {
+  if (replicates < 4) return 1.0;
+  const double n = replicates;
+  const double m = n / 2.0;
+  const double v1 = blocks / (n * (n - 1.0));
+  const double v2 = pairs / (m * (m - 1.0));
+  if (!(v1 > 0.0) || !(v2 >= 0.0)) return 1.0;
+  return std::pow(std::clamp(v2 / v1, kFewestPairRatio, 1.0), std::log2(n));
 }
 
 const char* to_string(Estimator estimator) {

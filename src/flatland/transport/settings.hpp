@@ -107,6 +107,17 @@ inline constexpr double kFootprintFinestElement = 0.25;
 // 1 replicate (one net a round, no estimate) or an even number up to kMaxReplicates.
 enum class ReplicateLayout { Independent, Blocks };
 const char* to_string(ReplicateLayout layout);
+// Laid out as blocks, the replicates are stratified against each other, so their spread, read as if
+// they were independent, overstates the variance of their mean. With V(m) that variance read from the
+// R / m groups of m neighbouring blocks as if independent, and a net's variance falling as n^-beta
+// (beta = 1 for independent points, more where the net stratifies), V(2) / V(1) = 2^(1 - beta) = rho
+// and the whole net's variance is V(1) rho^(log2 R). Given the summed squared deviations from their
+// mean of the R blocks' estimates (`blocks`) and of the R / 2 pairs' (`pairs`), returns
+// rho^(log2 R), rho held to [kFewestPairRatio, 1]; 1 where nothing is measured.
+double stratification_factor(double blocks, double pairs, int replicates);
+// The least rho believed: 2^(1 - beta) with beta = 3, the fastest a scrambled net's variance falls
+// (as n^-3, up to logarithms, for smooth integrands).
+inline constexpr double kFewestPairRatio = 0.25;
 inline constexpr int kDefaultReplicates = 8;
 inline constexpr int kMaxReplicates = 64;
 

@@ -34,12 +34,31 @@ const char* to_string(StopReason reason) {
   return "?";
 }
 
-void Solver::sum_odd_parts(const std::vector<double>& parts, std::vector<double>& half) const {
+double Solver::sum_odd_parts(const std::vector<double>& parts, std::vector<double>& half) const {
   // R is even: the odd replicates are half of every round's photons (odd photons, or odd blocks).
   const std::size_t size = received_.size();
+  const auto replicates = static_cast<std::size_t>(settings_.replicates);
   half.assign(size, 0.0);
-  for (std::size_t r = 1; r < static_cast<std::size_t>(settings_.replicates); r += 2)
+  for (std::size_t r = 1; r < replicates; r += 2)
     for (std::size_t index = 0; index < size; ++index) half[index] += parts[r * size + index];
+  if (settings_.replicate_layout != ReplicateLayout::Blocks || settings_.sampler != SamplerKind::Sobol) return 1.0;
+  // Replicate r estimates the whole as R times its part, a pair as R / 2 times its two.
+  const auto n = static_cast<double>(replicates);
+  double blocks = 0.0;
+  double pairs = 0.0;
+  for (std::size_t index = 0; index < size; ++index) {
+    double mean = 0.0;
+    for (std::size_t r = 0; r < replicates; ++r) mean += parts[r * size + index];
+    for (std::size_t r = 0; r < replicates; ++r) {
+      const double d = n * parts[r * size + index] - mean;
+      blocks += d * d;
+    }
+    for (std::size_t r = 0; r + 1 < replicates; r += 2) {
+      const double d = 0.5 * n * (parts[r * size + index] + parts[(r + 1) * size + index]) - mean;
+      pairs += d * d;
+    }
+  }
+  return stratification_factor(blocks, pairs, settings_.replicates);
 }
 
 bool Solver::has_side(std::uint32_t curve, Side side) const {
@@ -164,8 +183,8 @@ bool Solver::next_pass_or_stop(double unshot) {
   pass_first_photon_ = photons_shot_;
   pass_first_round_ = rounds_;
   mix_passes();
-  if (auto_storage_) sum_odd_parts(mixed_parts_, received_half_);
-  update_reflected(mixed_received_, received_half_, LevelChoice::Final);
+  if (auto_storage_) half_variance_factor_ = sum_odd_parts(mixed_parts_, received_half_);
+  update_reflected(mixed_received_, received_half_, half_variance_factor_, LevelChoice::Final);
   if (target_met()) {
     stop_reason_ = StopReason::TargetReached;
     return false;
@@ -289,8 +308,9 @@ void Solver::end_round(std::span<const Deposits> deposits) {
     transport().add_tallies(detected_, round_detected, totals);
   }
   if (passes_photons_ > 0.0) mix_passes();
-  if (auto_storage_) sum_odd_parts(passes_photons_ > 0.0 ? mixed_parts_ : received_parts_, received_half_);
-  update_reflected(received(), received_half_);
+  if (auto_storage_)
+    half_variance_factor_ = sum_odd_parts(passes_photons_ > 0.0 ? mixed_parts_ : received_parts_, received_half_);
+  update_reflected(received(), received_half_, half_variance_factor_);
   ++rounds_;
   check_books();
 }
@@ -316,11 +336,11 @@ void Solver::check_books() {
 
 void Solver::choose_final_levels() {
   if (auto_storage_ && (photons_at_choice_ != photons_shot_ || storage_.chosen_levels() != scheduled_level_))
-    update_reflected(received(), received_half_, LevelChoice::Final);
+    update_reflected(received(), received_half_, half_variance_factor_, LevelChoice::Final);
 }
 
 void Solver::update_reflected(const std::vector<double>& received, const std::vector<double>& received_half,
-                              LevelChoice choice) {
+                              double variance_factor, LevelChoice choice) {
   if (auto_storage_) {
     const bool due = scheduled_level_.empty() ||
                      static_cast<double>(photons_shot_) >= kLevelChoiceGrowth * static_cast<double>(photons_at_choice_);
@@ -330,11 +350,11 @@ void Solver::update_reflected(const std::vector<double>& received, const std::ve
       // Between choices the levels stay as the last choice left them (the solve's or the view's).
       const auto last = static_cast<double>(std::max(photons_at_view_choice_, photons_at_choice_));
       if (static_cast<double>(photons_shot_) >= kLevelChoiceGrowth * last) {
-        storage_.choose_levels(received, received_half);
+        storage_.choose_levels(received, received_half, variance_factor);
         photons_at_view_choice_ = photons_shot_;
       }
     } else if (choice == LevelChoice::Final || due) {
-      storage_.choose_levels(received, received_half);
+      storage_.choose_levels(received, received_half, variance_factor);
       scheduled_level_ = storage_.chosen_levels();
       photons_at_choice_ = photons_shot_;
     } else {
@@ -627,8 +647,8 @@ void Solver::include_open_round() {
     passes_mean(passes_received_, received, received);  // (element by element: in place is fine)
     passes_mean(passes_parts_, parts, parts);
   }
-  if (auto_storage_) sum_odd_parts(parts, received_half);
-  update_reflected(received, received_half, LevelChoice::View);
+  const double variance_factor = auto_storage_ ? sum_odd_parts(parts, received_half) : 1.0;
+  update_reflected(received, received_half, variance_factor, LevelChoice::View);
 }
 
 bool Solver::step_round(const std::atomic<bool>* cancel, const ProgressCallback& progress, double progress_interval) {

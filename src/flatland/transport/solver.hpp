@@ -268,8 +268,9 @@ class Solver {
   enum class LevelChoice { Scheduled, View, Final };
   // With automatic storage, the levels chosen from all the photons when the solve stops.
   void choose_final_levels();
+  // `variance_factor`: what sum_odd_parts returned for `received_half`.
   void update_reflected(const std::vector<double>& received, const std::vector<double>& received_half,
-                        LevelChoice choice = LevelChoice::Scheduled);
+                        double variance_factor, LevelChoice choice = LevelChoice::Scheduled);
   // Solving to an accuracy. With shooting, a target error is reached in passes: each a whole
   // progressive solve of its own budget from the emitted power (rounds numbered on, so with fresh
   // random streams), the solution their average weighted by photons. begin_round ends a pass when
@@ -289,8 +290,11 @@ class Solver {
   // and the current one; element by element, so `out` may be `current`.
   void passes_mean(const std::vector<double>& passes, const std::vector<double>& current,
                    std::vector<double>& out) const;
-  // `half` = the sum of the odd replicates' parts in `parts`.
-  void sum_odd_parts(const std::vector<double>& parts, std::vector<double>& half) const;
+  // `half` = the sum of the odd replicates' parts in `parts`. Returns the factor on the variance the
+  // halves' difference shows: replicates laid out as blocks of one net are stratified against each
+  // other, and so are the halves (settings.hpp, stratification_factor, from the parts pooled over
+  // the coefficients); 1 for independent replicates and the random sampler.
+  double sum_odd_parts(const std::vector<double>& parts, std::vector<double>& half) const;
   // The readers' state (readers_) from `received` at the chosen levels.
   void refresh_readers(const std::vector<double>& received);
   // The Hermite reconstruction of every block side's `power` (finest layout, channels summed, at
@@ -329,6 +333,7 @@ class Solver {
   std::vector<double> received_;  // [coefficient * channels + channel]
   std::vector<double> received_parts_;
   std::vector<double> received_half_;
+  double half_variance_factor_ = 1.0;  // sum_odd_parts' factor for received_half_
   // Passes (next_pass_or_stop): the emitted power each pass starts from, the first guess of the
   // pool's decay, the current pass's budget and first photon and round, the finished passes'
   // photons, their received power, parts and books summed times their photons, and the mix of
