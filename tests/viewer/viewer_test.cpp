@@ -40,25 +40,26 @@ class Viewer : public testing::ScratchDirectoryTest {
     return testing::run_flatland(arguments, directory_, environment);
   }
   std::string scene(const std::string& name) { return testing::source_path("scenes2d/" + name); }
-  // A window of 1100 x 760 on scenes2d/`name`, paused (UI tests step it), unpaced.
-  ViewOptions paused_window(const std::string& name, std::uint64_t photons) {
+  // A window of `width` x `height` on scenes2d/`name`, unpaced.
+  ViewOptions window(const std::string& name, int width, int height) {
     ViewOptions options;
     options.scene = scene(name);
-    options.width = 1100;
-    options.height = 760;
-    options.paused = true;
+    options.width = width;
+    options.height = height;
     options.vsync = false;
+    return options;
+  }
+  // 1100 x 760, paused (UI tests step it).
+  ViewOptions paused_window(const std::string& name, std::uint64_t photons) {
+    ViewOptions options = window(name, 1100, 760);
+    options.paused = true;
     options.settings.photons = photons;
     return options;
   }
   // 640 x 480 without panels on scenes2d/`name`, one round a frame, 12,000 paths kept of 200,000
   // photons.
   ViewOptions stepped_rounds(const std::string& name) {
-    ViewOptions options;
-    options.scene = scene(name);
-    options.width = 640;
-    options.height = 480;
-    options.vsync = false;
+    ViewOptions options = window(name, 640, 480);
     options.show_ui = false;
     options.step = "rounds=1";
     options.keep_paths = 12'000;

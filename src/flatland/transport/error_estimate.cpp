@@ -150,7 +150,6 @@ struct PointValues {
   std::vector<std::vector<double>> deviation;
   std::vector<double> bias;
   int unestimated = 0;  // curves with storage whose storage part could not be estimated
-  double shrink = 1.0;  // the deviations' factor for the blocks' stratification (stratification_shrink)
 };
 
 // B - E of every replicate at the points with each curve c at level levels[c], as deviations from
@@ -308,12 +307,10 @@ std::vector<double> storage_bias(const Solver& solver, const EvaluationPoints& a
 
 // The factor on the replicates' deviations for the blocks' stratification (settings.hpp,
 // stratification_factor): its square root, from the blocks' and the pairs' deviations pooled over
-// the scene's points (arc-length weights). 1 for independent replicates and for the random sampler
-// (its blocks are independent).
+// the scene's points (arc-length weights); 1 where the replicates are not stratified.
 double stratification_shrink(const Solver& solver, const LevelValues& values, const EvaluationPoints& at) {
   const std::size_t count = values.deviation.size();
-  if (solver.settings().replicate_layout != ReplicateLayout::Blocks || solver.settings().sampler != SamplerKind::Sobol)
-    return 1.0;
+  if (!replicates_stratified(solver.settings())) return 1.0;
   const auto channels = static_cast<std::size_t>(at.channels);
   double blocks = 0.0;
   double pairs = 0.0;
@@ -333,12 +330,12 @@ double stratification_shrink(const Solver& solver, const LevelValues& values, co
 PointValues values_at(const Solver& solver, const EvaluationPoints& at, const ReflectedEvaluator* evaluator) {
   PointValues result;
   LevelValues chosen = level_values(solver, at, solver.chosen_levels(), evaluator);
-  result.shrink = stratification_shrink(solver, chosen, at);
+  const double shrink = stratification_shrink(solver, chosen, at);
   for (std::vector<double>& deviation : chosen.deviation)
-    for (double& d : deviation) d *= result.shrink;
+    for (double& d : deviation) d *= shrink;
   // Storage (storage_bias).
   if (solver.auto_storage())
-    result.bias = storage_bias(solver, at, chosen, evaluator, result.unestimated, result.shrink);
+    result.bias = storage_bias(solver, at, chosen, evaluator, result.unestimated, shrink);
   else
     result.bias.assign(at.values(), 0.0);
   result.mean = std::move(chosen.mean);

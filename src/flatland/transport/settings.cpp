@@ -15,6 +15,10 @@ const char* to_string(ReplicateLayout layout) {
   return layout == ReplicateLayout::Independent ? "independent" : "blocks";
 }
 
+bool replicates_stratified(const SolverSettings& settings) {
+  return settings.replicate_layout == ReplicateLayout::Blocks && settings.sampler == SamplerKind::Sobol;
+}
+
 double stratification_factor(double blocks, double pairs, int replicates) {
   if (replicates < 4) return 1.0;
   const double n = replicates;

@@ -158,6 +158,10 @@ struct SolverSettings {
   std::size_t memory_limit = 0;
 };
 
+// Whether the replicates are stratified against each other: blocks of one Sobol' net (the random
+// sampler's blocks are independent photons).
+bool replicates_stratified(const SolverSettings& settings);
+
 // Checks ranges; the message names the setting and the accepted range.
 Status validate(const SolverSettings& settings);
 

@@ -41,7 +41,7 @@ double Solver::sum_odd_parts(const std::vector<double>& parts, std::vector<doubl
   half.assign(size, 0.0);
   for (std::size_t r = 1; r < replicates; r += 2)
     for (std::size_t index = 0; index < size; ++index) half[index] += parts[r * size + index];
-  if (settings_.replicate_layout != ReplicateLayout::Blocks || settings_.sampler != SamplerKind::Sobol) return 1.0;
+  if (!replicates_stratified(settings_)) return 1.0;
   // Replicate r estimates the whole as R times its part, a pair as R / 2 times its two.
   const auto n = static_cast<double>(replicates);
   double blocks = 0.0;
