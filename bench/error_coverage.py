@@ -19,6 +19,9 @@ import subprocess
 import sys
 import time
 
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "docs", "figures"))
+import spread  # noqa: E402 (after the path it needs)
+
 # name -> (scene, elements of its reference): the reference must be 10x more accurate than the most
 # accurate method it judges (the round occluder's gathered answer is within 5e-5).
 SCENES = {
@@ -102,20 +105,26 @@ def main():
                 est = [float(r["est_" + norm]) for r in group]
                 entry["covered_" + norm] = sum(e >= t for e, t in zip(est, true))
                 ratios = [e / t for e, t in zip(est, true) if t > 0]
-                entry["ratio_" + norm] = statistics.median(ratios) if ratios else float("nan")
+                entry["ratios_" + norm] = ratios
                 entry["true_" + norm] = statistics.median(true)
+                entry["trues_" + norm] = true
             rows.append(entry)
-    lines = ["| scene | method | photons | runs | covered L1 | L2 | Linf | median est/true L1 | L2 | Linf "
-             "| median true L1 |",
+    lines = ["Runs whose estimate covers the true error (true <= estimate) per norm; estimate / true and the "
+             "true L1 error, each the %s:" % spread.caption(args.seeds, "runs"), "",
+             "| scene | method | photons | runs | covered L1 | L2 | Linf | est/true L1 | L2 | Linf "
+             "| true L1 |",
              "|---|---|---|---|---|---|---|---|---|---|---|"]
+    def ratio(values):
+        return spread.cell(values, lambda v: "%.2f" % v) if values else "nan"
+
     for e in rows:
         if e["true_l1"] < ROUND_OFF:
             lines.append(f"| {e['scene']} | {e['method']} | {e['budget']} | {e['runs']} | exact | (round-off) | | | | "
-                         f"| {e['true_l1']:.2e} |")
+                         f"| {spread.cell(e['trues_l1'], lambda v: '%.2e' % v)} |")
             continue
         lines.append(f"| {e['scene']} | {e['method']} | {e['budget']} | {e['runs']} | {e['covered_l1']} | "
-                     f"{e['covered_l2']} | {e['covered_linf']} | {e['ratio_l1']:.2f} | {e['ratio_l2']:.2f} | "
-                     f"{e['ratio_linf']:.2f} | {e['true_l1']:.2e} |")
+                     f"{e['covered_l2']} | {e['covered_linf']} | {ratio(e['ratios_l1'])} | {ratio(e['ratios_l2'])} | "
+                     f"{ratio(e['ratios_linf'])} | {spread.cell(e['trues_l1'], lambda v: '%.2e' % v)} |")
     lines += ["", "References (relative L2 error of B - E, estimated, against the smallest median error judged): "
               + "; ".join(checks) + "."]
     text = "\n".join(lines) + "\n"

@@ -7,7 +7,7 @@ printed as a Markdown table (also DIR/*.md):
    method, rho (H_lamp + reflectance H_image) with H = (sin a2 - sin a1) / 2 per source; beside it
    the same floor lit by the lamp and an explicit second lamp at the image (the mirror's
    reflectance 1 and the image lamp give the same closed form): relative L1 and Linf of B - E over
-   the floor's samples, the default method, median of the seeds.
+   the floor's samples, the default method, median of the seeds with its interquartile range.
 2. slab: the power through a glass slab (index 1.5) onto a detector under it, a narrow beam at
    angles 0 to 85 degrees, against (1 - R) / (1 + R) with R Fresnel's unpolarised reflectance.
 3. critical: a beam inside glass meeting its top face at angles around the critical angle
@@ -24,9 +24,12 @@ import csv
 import json
 import math
 import os
-import statistics
 import subprocess
+import sys
 import tempfile
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "docs", "figures"))
+import spread  # noqa: E402 (after the path it needs)
 
 
 def fresnel(n1, n2, cos_in):
@@ -106,7 +109,8 @@ def image_irradiance(x):
 
 
 def mirror_table(runner, photons, seeds):
-    lines = ["| floor lit by | photons | median relative L1 | median relative Linf |", "|---|---|---|---|"]
+    lines = ["Relative L1 and Linf of B - E over the floor, each the %s:" % spread.caption(seeds), "",
+             "| floor lit by | photons | relative L1 | relative Linf |", "|---|---|---|---|"]
     for image_lamp in (False, True):
         for n in photons:
             l1s, linfs = [], []
@@ -118,7 +122,8 @@ def mirror_table(runner, photons, seeds):
                 l1s.append(sum(abs(e) for e in errors) / sum(exact))
                 linfs.append(max(abs(e) for e in errors) / max(exact))
             what = "lamp and a second lamp at its image" if image_lamp else "lamp and a flat mirror (reflectance 1)"
-            lines.append(f"| {what} | {n:.0e} | {statistics.median(l1s):.2e} | {statistics.median(linfs):.2e} |")
+            e2 = lambda v: "%.2e" % v  # noqa: E731
+            lines.append(f"| {what} | {n:.0e} | {spread.cell(l1s, e2)} | {spread.cell(linfs, e2)} |")
     return lines
 
 

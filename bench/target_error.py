@@ -19,6 +19,9 @@ import statistics
 import subprocess
 import sys
 
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "docs", "figures"))
+import spread  # noqa: E402 (after the path it needs)
+
 SCENES = {
     "penumbra": "scenes2d/penumbra.json",
     "round occluder": "scenes2d/tests/reference_round_occluder.json",
@@ -43,7 +46,8 @@ def main():
     parser.add_argument("--scenes", default=",".join(SCENES))
     args = parser.parse_args()
     os.makedirs(args.out, exist_ok=True)
-    lines = [f"| scene | target | runs | true error <= 1.2 target | median photons | median true L1 | "
+    lines = [f"Photons spent and true L1 error of `--target-error` solves, each the {spread.caption(args.seeds)}:", "",
+             f"| scene | target | runs | true error <= 1.2 target | photons spent | true L1 | "
              f"smallest fixed budget: true <= target | estimate <= target | photons / those |",
              "|---|---|---|---|---|---|---|---|---|"]
     checks = []
@@ -93,8 +97,8 @@ def main():
                                                                           else "NOT 10x below"))
         used = statistics.median(photons)
         within = sum(e <= 1.2 * args.target for e in errors)
-        lines.append(f"| {name} | {args.target:g} | {args.seeds} | {within} | {used:.3g} | "
-                     f"{statistics.median(errors):.2e} | {true_ok or '> grid':} | {est_ok or '> grid'} | "
+        lines.append(f"| {name} | {args.target:g} | {args.seeds} | {within} | {spread.cell(photons)} | "
+                     f"{spread.cell(errors, lambda v: '%.2e' % v)} | {true_ok or '> grid':} | {est_ok or '> grid'} | "
                      f"{used / true_ok if true_ok else float('nan'):.2f} / {used / est_ok if est_ok else float('nan'):.2f} |")
         print(lines[-1], file=sys.stderr)
     lines += ["", "References (relative L2 error of B - E, estimated, against the smallest median error judged): "

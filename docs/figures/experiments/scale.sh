@@ -36,6 +36,8 @@ python3 - "$work" "$seeds" "$variants" <<'PY'
 import os, sys
 sys.path.insert(0, os.path.join("docs", "figures", "experiments"))
 from analysis import load, samples, l2, bias_and_noise, median, reference_check
+sys.path.insert(0, os.path.join("docs", "figures"))
+import spread
 work, seeds, variants = sys.argv[1], int(sys.argv[2]), [os.path.basename(v) for v in sys.argv[3].split()]
 def values(name):
     result = load(os.path.join(work, name + ".json"))
@@ -46,7 +48,8 @@ reference, weights = samples(load(os.path.join(work, "curved_room-reference.json
 original = [samples(load(os.path.join(work, "curved_room-%d.json" % s)))[0] for s in range(1, seeds + 1)]
 _, noise = bias_and_noise(original, reference, weights)
 print("seed-to-seed noise of the original (one run, relative L2): %.2e\n" % noise)
-print("| scene | its reference vs the original's | rel. L2 error vs reference (median) | same seed vs original (median) | photons/s (median) |")
+print("Each variant's %s:\n" % spread.caption(seeds))
+print("| scene | its reference vs the original's | rel. L2 error vs reference | same seed vs original | photons/s |")
 print("|---|---|---|---|---|")
 smallest = 1.0
 for name in variants:
@@ -58,8 +61,9 @@ for name in variants:
         errors.append(l2(v, reference, weights))
         differences.append(l2(v, original[seed - 1], weights))
         rates.append(result["stats"]["photons"] / result["stats"]["seconds"])
-    print("| %s | %.1e | %.2e | %.1e | %.2fM |" % (name, l2(own_reference, reference, weights),
-          median(errors), median(differences), median(rates) / 1e6))
+    print("| %s | %.1e | %s | %s | %s |" % (name, l2(own_reference, reference, weights),
+          spread.cell(errors, lambda v: "%.2e" % v), spread.cell(differences, lambda v: "%.1e" % v),
+          spread.cell([r / 1e6 for r in rates], lambda v: "%.2f" % v, "M")))
     smallest = min(smallest, median(errors))
 ok, text = reference_check(load(os.path.join(work, "curved_room-reference.json")), smallest)
 print("\nReference of the original (N = 1600): " + text + ".")

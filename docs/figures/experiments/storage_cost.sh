@@ -2,7 +2,7 @@
 # Experiment 3 of docs/experiments.md: run time against the size of the storage mesh. Solves
 # scenes2d/room_reflector.json with a fixed photon count (the whole budget is spent: tolerance
 # 1e-9) at storage meshes of 1 .. 2047 elements per curve, cubic basis, `scene` discontinuities,
-# one thread, SEEDS seeds each, and prints the median seconds and the coefficients per curve.
+# one thread, SEEDS seeds each, and prints the median seconds (with their interquartile range) and the coefficients per curve.
 # Needs build/flatland and python3.
 # Usage: docs/figures/experiments/storage_cost.sh [PHOTONS] [SEEDS]
 set -euo pipefail
@@ -23,8 +23,11 @@ for n in 1 3 15 63 255 1023 2047; do
 done
 python3 - "$work" "$seeds" <<'PY'
 import glob, json, os, statistics, sys
+sys.path.insert(0, os.path.join("docs", "figures"))
+import spread
 work, seeds = sys.argv[1], int(sys.argv[2])
-print("| `--elements` | coefficients per curve | rounds | seconds (median of %d) |" % seeds)
+print("Solve seconds, the %s:\n" % spread.caption(seeds))
+print("| `--elements` | coefficients per curve | rounds | seconds |")
 print("|---|---|---|---|")
 for n in (1, 3, 15, 63, 255, 1023, 2047):
     seconds, rounds, coefficients = [], set(), set()
@@ -35,6 +38,6 @@ for n in (1, 3, 15, 63, 255, 1023, 2047):
         rounds.add(r["stats"]["rounds"])
         for c in r["curves"]:
             coefficients.add(len(c["coefficients"]))
-    print("| %d | %d-%d | %s | %.3f |" % (n, min(coefficients), max(coefficients),
-          "/".join(str(x) for x in sorted(rounds)), statistics.median(seconds)))
+    print("| %d | %d-%d | %s | %s |" % (n, min(coefficients), max(coefficients),
+          "/".join(str(x) for x in sorted(rounds)), spread.cell(seconds, lambda v: "%.3f" % v)))
 PY

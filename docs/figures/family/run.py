@@ -20,6 +20,9 @@ Environment: FLATLAND (default build/flatland), THREADS (default 2), FAMILY_SCEN
 FAMILY_BUDGETS (comma lists, for trying the script on less)."""
 import argparse, csv, json, math, os, statistics, subprocess, sys, time
 
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
+import spread  # noqa: E402 (after the path it needs)
+
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.abspath(os.path.join(HERE, "..", "..", ".."))
 FLATLAND = os.environ.get("FLATLAND", "build/flatland")
@@ -80,6 +83,14 @@ def reference(scene, n, out):
 def l2_error(result, ref):
     out = run([FLATLAND, "compare", result, ref, "--json"]).stdout
     return json.loads(out)["scene"]["l2"]
+
+
+def errors_by(rows):
+    """label -> budget -> [error of each seed]."""
+    groups = {}
+    for r in rows:
+        groups.setdefault(r["method"], {}).setdefault(r["budget"], []).append(float(r["rel_l2"]))
+    return groups
 
 
 def medians(rows):
@@ -145,11 +156,13 @@ def main():
             # The budget a run was given: the nearest of BUDGETS to the photons it shot.
             r["budget"] = min(BUDGETS, key=lambda b: abs(math.log(float(b)) - math.log(max(1.0, float(r["photons"])))))
         med = medians(rows)
-        base = med[BASELINE].get(min(BUDGETS, key=lambda b: abs(float(b) - FIXED)))
+        seeds_errors = errors_by(rows)
+        fixed = min(BUDGETS, key=lambda b: abs(float(b) - FIXED))
+        base = med[BASELINE].get(fixed)
         largest = max(t for by in med.values() for _, t in by.values())
         for label, _ in METHODS:
             by = med[label]
-            at = by.get(min(BUDGETS, key=lambda b: abs(float(b) - FIXED)))
+            at = by.get(fixed)
             exact = at[0] < ROUND_OFF  # the reference's own answer to round-off: no efficiency to speak of
             eff = (base[0] ** 2 * base[1]) / (at[0] ** 2 * at[1]) if not exact else math.inf
             if label == "shooting, cubic, gather":
@@ -158,7 +171,8 @@ def main():
                 blocks_gains.append((scene, eff))
             pts = [(t, e) for e, t in by.values()]
             lines.append("| %s | %s | %s | %.3g s | %s | %s | %s |" % (
-                scene.replace("_", " "), label, "%.2g %%" % (100 * at[0]) if not exact else "round-off", at[1],
+                scene.replace("_", " "), label,
+                spread.percent(seeds_errors[label][fixed]) if not exact else "round-off", at[1],
                 "%.3gx" % eff if not exact else "exact",
                 seconds_text(time_to(pts, TARGETS[0]), largest), seconds_text(time_to(pts, TARGETS[1]), largest)))
         lines.append("| %s | reference (deterministic) | | | | %s | %s |" % (
@@ -168,9 +182,9 @@ def main():
         ref_t = time_to(ref_points, TARGETS[1]) or math.inf
         reference_wins.append((scene, ref_t < best_mc, ref_t, best_mc))
     head = ("%d seeds, budgets %s, %s threads; medians; relative L2 error of B - E against a reference finer than the "
-            "gather's elements; efficiency is 1 / (error^2 x time) over progressive shooting's (cubic, no gather) at 1e6 "
+            "gather's elements, at 1e6 photons the %s; efficiency is 1 / (error^2 x time) over progressive shooting's (cubic, no gather) at 1e6 "
             "photons; the reference's row: the coarsest `flatland reference` that reaches the error:\n\n"
-            % (SEEDS, " ".join(BUDGETS), THREADS))
+            % (SEEDS, " ".join(BUDGETS), THREADS, spread.caption(SEEDS)))
     os.makedirs(a.tables, exist_ok=True)
     with open(os.path.join(a.tables, "family.md"), "w") as f:
         f.write(head + "\n".join(lines) + "\n")

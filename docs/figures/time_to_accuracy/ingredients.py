@@ -6,11 +6,14 @@ at a time, at a fixed budget of 1e6 photons on the five scenes of the time-to-ac
     docs/figures/time_to_accuracy/ingredients.py [--tables DIR]
 
 Writes TABLES/ingredients.md: per step, the median relative L2 error of B - E over SEEDS seeds on
-every scene, the geometric mean of the scenes' errors against the step before, and the median solve
+every scene with its interquartile range, the geometric mean of the scenes' errors against the step before, and the median solve
 time. Environment: FLATLAND (default build/flatland), THREADS (default 2)."""
 import argparse, csv, math, os, statistics, subprocess, sys, tempfile
 
 import run as tta
+
+sys.path.insert(0, os.path.join(tta.ROOT, "docs", "figures"))
+import spread  # noqa: E402 (after the path it needs)
 
 SEEDS = 5
 BUDGET = "1e6"
@@ -38,7 +41,7 @@ def main():
     ap.add_argument("--tables", default=os.path.join(tta.ROOT, "docs", "tables"))
     a = ap.parse_args()
     methods = [s + "+ray-width=0+transport=shooting+gather=none" for _, s in STEPS]
-    err, secs, checks = {}, {}, []
+    err, spreads, secs, checks = {}, {}, {}, []
     for name, (scene, _) in tta.SCENES.items():
         ref = os.path.join(tta.HERE, name, "reference.json")
         if not os.path.exists(ref):
@@ -53,6 +56,7 @@ def main():
         for i, m in enumerate(methods):
             es = [float(r["rel_l2"]) for r in rows if r["method"] == m]
             err[name, i] = statistics.median(es)
+            spreads[name, i] = spread.percent(es)
             secs[name, i] = statistics.median(float(r["seconds"]) for r in rows if r["method"] == m)
         smallest = min(err[name, i] for i in range(len(methods)))
         ratio = smallest / floor if floor > 0 else float("inf")
@@ -60,16 +64,16 @@ def main():
             tta.nice(name), floor, smallest, "%.0fx" % ratio if ratio < 1e4 else "more than 1e4x",
             "good enough" if floor * 10 <= smallest else "NOT 10x below"))
     names = list(tta.SCENES)
-    lines = ["Median relative L2 error of B - E at %s photons, %d seeds, %s thread(s); 'gain': the geometric "
-             "mean over the scenes of the error before the step / after it; time: median solve seconds, "
-             "geometric mean over the scenes:" % (BUDGET, SEEDS, tta.THREADS), "",
+    lines = ["Relative L2 error of B - E at %s photons, the %s, %s thread(s); 'gain': the "
+             "geometric mean over the scenes of the median error before the step / after it; time: median solve "
+             "seconds, geometric mean over the scenes:" % (BUDGET, spread.caption(SEEDS), tta.THREADS), "",
              "| step | %s | gain | time |" % " | ".join(tta.nice(n) for n in names),
              "|---|%s---|---|" % ("---|" * len(names))]
     for i, (what, _) in enumerate(STEPS):
         gain = "" if i == 0 else "%.2fx" % math.exp(statistics.mean(
             math.log(err[n, i - 1] / err[n, i]) for n in names))
         t = math.exp(statistics.mean(math.log(secs[n, i]) for n in names))
-        lines.append("| %s | %s | %s | %.2g s |" % (what, " | ".join(tta.fmt_e(err[n, i]) for n in names), gain, t))
+        lines.append("| %s | %s | %s | %.2g s |" % (what, " | ".join(spreads[n, i] for n in names), gain, t))
     lines += ["", "Settings of each step (with ray-width=0, transport=shooting): " +
               "; ".join("%d. `%s`" % (i, s) for i, (_, s) in enumerate(STEPS)) + ".",
               "", "References: " + "; ".join(checks) + "."]
