@@ -34,8 +34,7 @@ int reference_samples(const SampledResult& reference) {
 
 }  // namespace
 
-void describe_solver(const Solver& solver, const std::vector<CurveTrace>& traces, Snapshot& snapshot) {
-  const Scene& scene = solver.scene();
+void describe_progress(const Solver& solver, Snapshot& snapshot) {
   snapshot.settings = solver.settings();
   snapshot.progress = solver.progress();
   snapshot.books = solver.books();
@@ -44,6 +43,12 @@ void describe_solver(const Solver& solver, const std::vector<CurveTrace>& traces
   snapshot.round_done = solver.round_photons_done();
   snapshot.photons_per_second =
       solver.seconds() > 0.0 ? static_cast<double>(solver.photons_shot()) / solver.seconds() : 0.0;
+}
+
+void describe_solution(const Solver& solver, const std::vector<CurveTrace>& traces, Snapshot& snapshot) {
+  const Scene& scene = solver.scene();
+  snapshot.radiosity.clear();
+  snapshot.nodes.clear();
   snapshot.radiosity.resize(scene.curves.size());
   snapshot.nodes.resize(scene.curves.size());
   snapshot.detected.assign(scene.curves.size(), {});
@@ -92,6 +97,11 @@ void describe_solver(const Solver& solver, const std::vector<CurveTrace>& traces
     for (double& share : snapshot.received_share) share /= total_reflected;
 }
 
+void describe_solver(const Solver& solver, const std::vector<CurveTrace>& traces, Snapshot& snapshot) {
+  describe_progress(solver, snapshot);
+  describe_solution(solver, traces, snapshot);
+}
+
 Session::Session(Threading threading) : threading_(threading) {
   snapshot_ = std::make_shared<const Snapshot>();
   if (threading_ == Threading::Inline) {
@@ -130,6 +140,9 @@ void Session::set_running(bool running) {
   {
     std::lock_guard lock(mutex_);
     running_ = running;
+    // A pause shows the answer as far as it has been shot (a running piece describes it only
+    // every so often).
+    if (!running) refresh_pending_ = true;
   }
   wake_.notify_all();
 }
@@ -187,7 +200,7 @@ Result<nlohmann::json> Session::result_json(int samples_per_curve) {
   return result_to_json(*solver_, samples_per_curve);
 }
 
-void Session::publish(const Solver* solver, const std::vector<PathRecord>& new_paths, bool force_error) {
+void Session::publish(Solver* solver, const std::vector<PathRecord>& new_paths, bool force) {
   auto snapshot = std::make_shared<Snapshot>();
   std::shared_ptr<const SampledResult> reference;
   std::size_t limit = 0;
@@ -201,8 +214,8 @@ void Session::publish(const Solver* solver, const std::vector<PathRecord>& new_p
   while (paths_.size() > limit) paths_.pop_front();
   if (field_changes_ != field_version_) {
     const auto now = std::chrono::steady_clock::now();
-    // Manual steps (force_error) show what they shot at once, as their paths do.
-    if (!field_image_ || force_error || (solver != nullptr && solver->stopped()) ||
+    // Manual steps (force) show what they shot at once, as their paths do.
+    if (!field_image_ || force || (solver != nullptr && solver->stopped()) ||
         std::chrono::duration<double>(now - field_time_).count() >= kFieldSeconds) {
       if (round_recorded_ == 0) {
         field_image_ = field_image(field_);
@@ -224,7 +237,22 @@ void Session::publish(const Solver* solver, const std::vector<PathRecord>& new_p
   snapshot->paths.assign(paths_.begin(), paths_.end());
   snapshot->field = field_image_;
   if (solver != nullptr && scene_) {
-    describe_solver(*solver, *traces_, *snapshot);
+    describe_progress(*solver, *snapshot);
+    const Clock::time_point start = Clock::now();
+    const double since = std::chrono::duration<double>(start - solution_time_).count();
+    if (!solution_valid_ || force || solver->stopped() || solver->rounds() != solution_rounds_ ||
+        since >= std::min(kSolutionSeconds, solution_cost_ / kSolutionShare)) {
+      solver->include_open_round();
+      describe_solution(*solver, *traces_, solution_);
+      solution_valid_ = true;
+      solution_rounds_ = solver->rounds();
+      solution_time_ = start;
+      solution_cost_ = std::chrono::duration<double>(Clock::now() - start).count();
+    }
+    snapshot->radiosity = solution_.radiosity;
+    snapshot->nodes = solution_.nodes;
+    snapshot->detected = solution_.detected;
+    snapshot->received_share = solution_.received_share;
     // The estimated error: R (or 2R) reconstructions of the whole scene, so about twice a second of
     // solving, and once more when the solve stops.
     const double now = solver->seconds();
@@ -249,7 +277,7 @@ void Session::publish(const Solver* solver, const std::vector<PathRecord>& new_p
     snapshot->error_band = error_band_;
     if (reference) {
       // The error against the reference, at most about twice a second while running.
-      if (force_error || last_error_time_ < 0.0 || now - last_error_time_ >= 0.5 || solver->stopped()) {
+      if (force || last_error_time_ < 0.0 || now - last_error_time_ >= 0.5 || solver->stopped()) {
         last_error_time_ = now;
         const int samples = reference_samples(*reference);
         if (samples > 0) {
@@ -284,7 +312,13 @@ void Session::pump(double seconds) {
   if (threading_ != Threading::Inline) return;
   const Clock::time_point end =
       Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(seconds));
-  while (work_once() && Clock::now() < end) {
+  // Another command only where one as long as the last still ends in time: a piece is adapted to
+  // about the whole budget, so a second one would double the frame.
+  for (Clock::time_point start = Clock::now();;) {
+    if (!work_once()) return;
+    const Clock::time_point now = Clock::now();
+    if (now + (now - start) >= end) return;
+    start = now;
   }
 }
 
@@ -369,6 +403,7 @@ void Session::start_solve(std::shared_ptr<const Scene> scene, const SolverSettin
   field_image_.reset();
   field_version_ = field_changes_;
   clear_error_history();
+  solution_valid_ = false;
   chunk_ = Solver::kBatchSize;
   ++generation_;
   if (scene_ != scene) {
@@ -447,7 +482,6 @@ void Session::shoot_piece(const Piece& piece) {
   const std::uint64_t shot = solver.step_photons(piece.count, &cancel_, recorded > 0 ? &shot_paths : nullptr, recorded);
   const double seconds = std::chrono::duration<double>(Clock::now() - start).count();
   if (shot >= Solver::kBatchSize) adapt_chunk(solver, shot, seconds);
-  solver.include_open_round();
   const Transport transport = solver.settings().transport;
   // The piece continues the round's record for the field while that is short: its photons follow
   // the record's without a gap (every earlier piece of the round was recorded whole).

@@ -31,9 +31,13 @@ enum class StepKind {
   Round,   // to the end of the current round (or a whole round when none is open)
 };
 
-// Fills the solver's state into a snapshot: settings, progress, books, B at every trace sample,
-// storage nodes and each curve's share of the reflected power.
+// Fills the solver's state into a snapshot: describe_progress and describe_solution.
 void describe_solver(const Solver& solver, const std::vector<CurveTrace>& traces, Snapshot& snapshot);
+// The solver's counters, cheap to read: settings, progress, books, the open round's photons, the rate.
+void describe_progress(const Solver& solver, Snapshot& snapshot);
+// What the solver's answer draws, which costs a pass over every curve: B at every trace sample,
+// detector bins, storage nodes and each curve's share of the reflected power.
+void describe_solution(const Solver& solver, const std::vector<CurveTrace>& traces, Snapshot& snapshot);
 
 class Session {
  public:
@@ -68,7 +72,8 @@ class Session {
   // them to that point on the calling thread).
   void wait_idle();
   // Inline: runs queued commands and the free run for about `seconds` (at least one piece when
-  // there is work), then returns; the next call goes on. Worker: does nothing.
+  // there is work; no further one that would end later), then returns; the next call goes on.
+  // Worker: does nothing.
   void pump(double seconds);
   Threading threading() const { return threading_; }
   // The current result in the format of `flatland solve --out` (docs/result-format.md).
@@ -106,7 +111,9 @@ class Session {
   void adapt_chunk(const Solver& solver, std::uint64_t shot, double seconds);
   // Under mutex_: what is left of the piece's step after `shot` photons; a finished step is dropped.
   void count_step(const Piece& piece, const Solver& solver, std::uint64_t shot);
-  void publish(const Solver* solver, const std::vector<PathRecord>& new_paths, bool force_error);
+  // A new snapshot: the new paths, the solver's counters, and its answer (the open round included)
+  // when due (see solution_). `force`: a manual step or a refresh, which show everything at once.
+  void publish(Solver* solver, const std::vector<PathRecord>& new_paths, bool force);
 
   mutable std::mutex mutex_;
   std::condition_variable wake_;
@@ -126,7 +133,7 @@ class Session {
   bool reference_changed_ = false;
   bool running_ = false;
   bool busy_ = false;             // the worker is executing a command
-  bool refresh_pending_ = false;  // publish again (the reference changed)
+  bool refresh_pending_ = false;  // publish again, forced (the reference changed, or a pause)
   bool can_run_ = false;          // a solver exists and has not stopped
   std::size_t path_limit_ = 20'000;
   std::shared_ptr<const SampledResult> reference_;
@@ -181,6 +188,19 @@ class Session {
   // Flights of each round recorded for the light field: about 360,000 over the default scene's
   // eleven rounds, for a few percent of the solve's time.
   static constexpr std::size_t kFieldFlightsPerRound = 32768;
+  // The solver's answer as last described (describe_solution's fields only). Including the open
+  // round and describing it costs a pass over the storage of every level and every curve: 22 ms on
+  // the default scene, as long as a 20 ms piece of shooting on one thread, so per piece it halved
+  // the rate. It is remade when a round ends, the solve stops, a step or refresh asks (`force`),
+  // and otherwise once kSolutionSeconds have passed or, where it is cheap, once it would take at
+  // most kSolutionShare of the time since the last; the counters and paths go out every piece.
+  Snapshot solution_;
+  bool solution_valid_ = false;
+  std::uint32_t solution_rounds_ = 0;
+  std::chrono::steady_clock::time_point solution_time_{};
+  double solution_cost_ = 0.0;  // seconds the last one took
+  static constexpr double kSolutionSeconds = 0.2;
+  static constexpr double kSolutionShare = 0.1;
   std::vector<std::array<double, 2>> error_history_;
   std::optional<double> reference_error_;
   double last_error_time_ = -1.0;

@@ -225,6 +225,40 @@ TEST(Session, AnInlineSessionPumpedBetweenFramesMatchesTheSolver) {
   EXPECT_EQ(without_timing(*session.result_json(30)), without_timing(solved_json(solver, 30)));
 }
 
+TEST(Session, APauseShowsTheOpenRoundAsFarAsItWasShot) {
+  // A running piece describes the answer only every so often (on the default scene's storage it
+  // costs about as much as the piece's shooting); a pause describes it at once: B of every photon
+  // shot, the open round's deposits included, the same bits as a solver stepped as far in one call.
+  auto scene = std::make_shared<const Scene>(testing::scene_from_file("scenes2d/default.json"));
+  SolverSettings settings;
+  settings.photons = 100'000'000;  // a first round far longer than the frames below
+  settings.tolerance = 1e-12;
+  settings.threads = 1;
+  Session session(Session::Threading::Inline);
+  session.restart(scene, settings);
+  session.set_running(true);
+  session.pump(0.02);
+  // Pump until a frame shot photons but left B as it was (the throttle at work), then pause.
+  for (int frame = 0;; ++frame) {
+    ASSERT_LT(frame, 1000) << "every piece described B";
+    const std::shared_ptr<const Snapshot> before = session.snapshot();
+    session.pump(0.02);
+    const std::shared_ptr<const Snapshot> after = session.snapshot();
+    if (after->progress.photons > before->progress.photons && after->radiosity == before->radiosity) break;
+  }
+  session.set_running(false);
+  session.wait_idle();
+  const std::shared_ptr<const Snapshot> snapshot = session.snapshot();
+  ASSERT_GT(snapshot->round_done, 0u);  // the round is open
+  Solver solver = *Solver::create(*scene, settings);
+  ASSERT_EQ(solver.step_photons(snapshot->progress.photons), snapshot->progress.photons);
+  solver.include_open_round();
+  Snapshot expected;
+  describe_solution(solver, *snapshot->traces, expected);
+  EXPECT_EQ(snapshot->radiosity, expected.radiosity);
+  EXPECT_EQ(snapshot->received_share, expected.received_share);
+}
+
 TEST(Session, RestartTakesNewSettingsAndReportsRejectedOnes) {
   auto scene = std::make_shared<const Scene>(testing::scene_from_file("scenes2d/penumbra.json"));
   SolverSettings settings;
