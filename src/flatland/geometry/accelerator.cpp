@@ -8,7 +8,7 @@
 #include <limits>
 #include <utility>
 
-#include "flatland/base/bits.hpp"
+#include "flatland/geometry/nearest.hpp"
 
 #if defined(__SSE2__)
 #include <emmintrin.h>
@@ -17,44 +17,13 @@
 namespace flatland {
 namespace {
 
+using detail::Nearest;
+
 constexpr double kInfinity = std::numeric_limits<double>::infinity();
 constexpr std::uint32_t kLeafSize = 2;       // measured against 1 and 4 with the wide tree (docs/performance.md)
 constexpr std::size_t kLinearScanLimit = 8;  // up to this many segments a scan beats the tree
 constexpr int kMaxSahDepth = 32;             // below it median splits: depth <= 32 + log2(n) + 1
 constexpr int kStackSize = 72;
-
-// One segment against the ray. The origin segment is special: a straight line cannot see itself,
-// and a cubic deflates the root at the origin's parameter (a concave cubic lights itself).
-inline bool test_geometry(const SegmentGeometry& g, bool is_origin, double t_origin, const Ray& ray,
-                          double max_distance, SegmentHit* hit) {
-  if (g.kind == SegmentKind::Line) {
-    return !is_origin && intersect_line(g.shape.p[0], g.shape.p[3], ray, max_distance, hit);
-  }
-  return is_origin ? intersect_cubic_from(g.shape, t_origin, ray, max_distance, hit)
-                   : intersect_cubic(g.shape, ray, max_distance, hit);
-}
-
-// The running answer. Segments are tested with the limit just above the best distance so that an
-// equal distance (a ray through a joint hits both segments there) is still reported, and ties go
-// to the smaller index: the answer is then the same whatever order the segments are visited in,
-// so the tree and the linear scan agree bit for bit.
-struct Nearest {
-  SceneHit hit;
-  double limit = kInfinity;
-
-  void consider(std::uint32_t index, const SegmentGeometry& g, const Ray& ray, const RayOrigin& from) {
-    SegmentHit h;
-    if (!test_geometry(g, index == from.segment, from.t, ray, limit, &h)) return;
-    if (h.distance < hit.distance || (h.distance == hit.distance && index < hit.segment)) {
-      hit.segment = index;
-      hit.t = h.t;
-      hit.distance = h.distance;
-      // The next double up: h.distance is positive and finite, so that is its bits plus one
-      // (std::nextafter is a library call, once per accepted hit).
-      limit = bit_cast<double>(bit_cast<std::uint64_t>(h.distance) + 1);
-    }
-  }
-};
 
 // Slab test with the inverse direction computed once per ray. An axis along which the ray does not
 // move (a zero component, or one so small that its inverse overflows) is tested by containment
@@ -316,11 +285,9 @@ std::uint32_t SegmentAccelerator::build_node(std::uint32_t first, std::uint32_t 
 
 SceneHit SegmentAccelerator::closest_hit_brute_force(const Ray& ray, const RayOrigin& from) const {
   Nearest nearest;
-  nearest.hit.distance = kInfinity;
   const auto n = static_cast<std::uint32_t>(segments_.size());
   for (std::uint32_t i = 0; i < n; ++i) nearest.consider(i, segments_[i], ray, from);
-  if (nearest.hit.segment == kNoSegment) return SceneHit{};
-  return nearest.hit;
+  return nearest.answer();
 }
 
 // Depth-first over the wide tree: a node slab-tests its four boxes at once (floats, relative to
@@ -335,7 +302,6 @@ SceneHit SegmentAccelerator::closest_hit(const Ray& ray, const RayOrigin& from) 
   if (!(std::fabs(relative.x) <= wide_reach_ && std::fabs(relative.y) <= wide_reach_))
     return closest_hit_binary(ray, from);
   Nearest nearest;
-  nearest.hit.distance = kInfinity;
   const float ox = static_cast<float>(relative.x);
   const float oy = static_cast<float>(relative.y);
   auto inverse = [](double d) {
@@ -411,8 +377,7 @@ SceneHit SegmentAccelerator::closest_hit(const Ray& ray, const RayOrigin& from) 
     }
     if (!resume(stack, top, float_bound(), current)) break;
   }
-  if (nearest.hit.segment == kNoSegment) return SceneHit{};
-  return nearest.hit;
+  return nearest.answer();
 }
 
 // Depth-first traversal with an explicit stack: at an interior node both children are slab-tested
@@ -420,7 +385,6 @@ SceneHit SegmentAccelerator::closest_hit(const Ray& ray, const RayOrigin& from) 
 // which is checked again when it is popped (the best distance may have shrunk meanwhile).
 SceneHit SegmentAccelerator::closest_hit_binary(const Ray& ray, const RayOrigin& from) const {
   Nearest nearest;
-  nearest.hit.distance = kInfinity;
   const SlabRay slab(ray);
   struct Pending {
     std::uint32_t node;
@@ -461,8 +425,7 @@ SceneHit SegmentAccelerator::closest_hit_binary(const Ray& ray, const RayOrigin&
     }
     if (!resume(stack, top, nearest.hit.distance, current)) break;
   }
-  if (nearest.hit.segment == kNoSegment) return SceneHit{};
-  return nearest.hit;
+  return nearest.answer();
 }
 
 }  // namespace flatland
