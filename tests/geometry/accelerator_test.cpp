@@ -29,6 +29,7 @@ TEST(Bvh, ClosestHitEqualsBruteForceOnRandomScenes) {
       const std::vector<SegmentGeometry> scene = random_scene(rng, 200, setting.scale, setting.offset);
       const SegmentAccelerator accelerator(scene);
       ASSERT_TRUE(accelerator.uses_hierarchy());
+      ASSERT_TRUE(accelerator.uses_line_space());
       ASSERT_TRUE(accelerator.has_cubics());
       ASSERT_EQ(accelerator.segments().size(), scene.size());
       int hits = 0;
@@ -38,6 +39,7 @@ TEST(Bvh, ClosestHitEqualsBruteForceOnRandomScenes) {
         const SceneHit fast = accelerator.closest_hit(q.ray, q.from);
         const SceneHit slow = accelerator.closest_hit_brute_force(q.ray, q.from);
         expect_same(fast, slow, i);
+        expect_same(accelerator.closest_hit_tree(q.ray, q.from), slow, i);
         if (fast.segment != kNoSegment) {
           ++hits;
           self_hits += fast.segment == q.from.segment;
@@ -71,6 +73,8 @@ TEST(Bvh, FarAndAxisParallelRaysEqualBruteForce) {
     const Ray ray{origin, direction};
     const SceneHit fast = accelerator.closest_hit(ray, RayOrigin{});
     expect_same(fast, accelerator.closest_hit_brute_force(ray, RayOrigin{}), i);
+    expect_same(accelerator.closest_hit_tree(ray, RayOrigin{}), accelerator.closest_hit_brute_force(ray, RayOrigin{}),
+                i);
     hits += fast.segment != kNoSegment;
   }
   EXPECT_GT(hits, 5000);
@@ -196,6 +200,7 @@ TEST(Bvh, SmallScenesUseTheLinearScan) {
     for (int i = 0; i < 1000 && !scene.empty(); ++i) {
       const Query q = random_query(rng, scene, 1.0, {0, 0});
       expect_same(accelerator.closest_hit(q.ray, q.from), accelerator.closest_hit_brute_force(q.ray, q.from), i);
+      expect_same(accelerator.closest_hit_tree(q.ray, q.from), accelerator.closest_hit_brute_force(q.ray, q.from), i);
     }
   }
   const SegmentAccelerator empty;
@@ -229,6 +234,8 @@ TEST(Bvh, DegenerateLayouts) {
       ray.direction = {std::cos(angle), std::sin(angle)};
     }
     expect_same(accelerator.closest_hit(ray, RayOrigin{}), accelerator.closest_hit_brute_force(ray, RayOrigin{}), i);
+    expect_same(accelerator.closest_hit_tree(ray, RayOrigin{}), accelerator.closest_hit_brute_force(ray, RayOrigin{}),
+                i);
   }
 }
 

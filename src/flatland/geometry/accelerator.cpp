@@ -91,12 +91,17 @@ struct SegmentAccelerator::Build {
   std::vector<std::uint8_t> left;                // per segment: in the left child
 };
 
-SegmentAccelerator::SegmentAccelerator(std::vector<SegmentGeometry> segments) : segments_(std::move(segments)) {
+SegmentAccelerator::SegmentAccelerator(std::vector<SegmentGeometry> segments, Queries queries)
+    : segments_(std::move(segments)) {
   has_cubics_ = std::any_of(segments_.begin(), segments_.end(),
                             [](const SegmentGeometry& g) { return g.kind == SegmentKind::Cubic; });
   boxes_.reserve(segments_.size());
   for (const SegmentGeometry& segment : segments_) boxes_.push_back(segment_box(segment));
   if (segments_.size() <= kLinearScanLimit) return;
+  if (queries == Queries::Rays && segments_.size() <= kLineSpaceLimit) {
+    line_space_ = LineSpaceCaster(segments_, LineSpaceCaster::Shape{});
+    use_line_space_ = true;
+  }
 
   const auto n = static_cast<std::uint32_t>(segments_.size());
   std::vector<Box> boxes = boxes_;
@@ -290,13 +295,24 @@ SceneHit SegmentAccelerator::closest_hit_brute_force(const Ray& ray, const RayOr
   return nearest.answer();
 }
 
+// The grid over the space of lines where it is built and the ray's cell holds its segments (it
+// gives the tree's answer bit for bit), the tree otherwise.
+SceneHit SegmentAccelerator::closest_hit(const Ray& ray, const RayOrigin& from) const {
+  if (nodes_.empty()) return closest_hit_brute_force(ray, from);
+  if (use_line_space_) {
+    SceneHit hit;
+    if (line_space_.closest_hit(ray, from, &hit)) return hit;
+  }
+  return closest_hit_tree(ray, from);
+}
+
 // Depth-first over the wide tree: a node slab-tests its four boxes at once (floats, relative to
 // the centre; an axis the ray does not move along gets a large finite inverse, so a box either
 // contains the origin's coordinate or lies at an enormous distance, never 0 x infinity), visits
 // the boxes it meets nearest first and stacks the others with their entry distances, which are
 // checked again when popped. A box is entered when its entry is at most the best distance so far
 // (plus its rounding): the same segments as the binary walk may skip are skipped, no others.
-SceneHit SegmentAccelerator::closest_hit(const Ray& ray, const RayOrigin& from) const {
+SceneHit SegmentAccelerator::closest_hit_tree(const Ray& ray, const RayOrigin& from) const {
   if (nodes_.empty()) return closest_hit_brute_force(ray, from);
   const Vec2 relative = ray.origin - wide_centre_;
   if (!(std::fabs(relative.x) <= wide_reach_ && std::fabs(relative.y) <= wide_reach_))

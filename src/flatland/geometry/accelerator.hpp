@@ -1,6 +1,8 @@
 // Nearest-hit queries against all segments of a scene: a bounding volume hierarchy over the
 // segments' boxes (built binary, walked as nodes of four with one SIMD slab test each), with a
-// linear scan for scenes too small to profit.
+// linear scan for scenes too small to profit; for scenes of up to kLineSpaceLimit segments a grid
+// over the space of lines (line_space.hpp) answers first, and the tree takes the rays of its
+// overfull cells.
 #pragma once
 
 #include <cstdint>
@@ -9,19 +11,30 @@
 
 #include "flatland/geometry/bezier.hpp"
 #include "flatland/geometry/intersect.hpp"
+#include "flatland/geometry/line_space.hpp"
 #include "flatland/geometry/segments.hpp"
 
 namespace flatland {
 
 class SegmentAccelerator {
  public:
+  // Up to this many segments the line-space grid is built (beyond it its cells grow too full to
+  // beat the tree: docs/performance.md, "A caster made for the plane").
+  static constexpr std::size_t kLineSpaceLimit = 512;
+
+  // What the accelerator will be asked: nearest hits (the grid is built where it helps), or only
+  // which segments overlap a box (the tree alone).
+  enum class Queries { Rays, Overlaps };
+
   SegmentAccelerator() = default;
-  explicit SegmentAccelerator(std::vector<SegmentGeometry> segments);
+  explicit SegmentAccelerator(std::vector<SegmentGeometry> segments, Queries queries = Queries::Rays);
 
   // Nearest hit with distance in (0, infinity), or segment == kNoSegment for a miss. Of hits at
   // the same distance (a ray through a joint) the smaller segment index wins, so the answer does
   // not depend on the order of the search and equals closest_hit_brute_force bit for bit.
   SceneHit closest_hit(const Ray& ray, const RayOrigin& from) const;
+  // The same answer from the tree alone (the grid not asked); for tests and benchmarks.
+  SceneHit closest_hit_tree(const Ray& ray, const RayOrigin& from) const;
   // The same answer by testing every segment; for tests and tiny scenes.
   SceneHit closest_hit_brute_force(const Ray& ray, const RayOrigin& from) const;
 
@@ -53,6 +66,7 @@ class SegmentAccelerator {
 
   std::span<const SegmentGeometry> segments() const { return segments_; }
   bool uses_hierarchy() const { return !nodes_.empty(); }
+  bool uses_line_space() const { return use_line_space_; }
   bool has_cubics() const { return has_cubics_; }
 
  private:
@@ -91,6 +105,8 @@ class SegmentAccelerator {
   std::vector<SegmentGeometry> ordered_;   // segments_[order_[i]], so leaves read memory linearly
   std::vector<Node> nodes_;
   bool has_cubics_ = false;
+  LineSpaceCaster line_space_;
+  bool use_line_space_ = false;
 };
 
 }  // namespace flatland

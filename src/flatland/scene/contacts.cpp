@@ -147,7 +147,7 @@ std::vector<DiscontinuityNode> find_contacts(const Scene& scene) {
   std::vector<SegmentGeometry> geometry;
   geometry.reserve(scene.segments.size());
   for (const SceneSegment& segment : scene.segments) geometry.push_back(segment.geometry);
-  return find_contacts(scene, SegmentAccelerator(std::move(geometry)));
+  return find_contacts(scene, SegmentAccelerator(std::move(geometry), SegmentAccelerator::Queries::Overlaps));
 }
 
 std::vector<DiscontinuityNode> find_contacts(const Scene& scene, const SegmentAccelerator& tree) {
