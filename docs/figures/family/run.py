@@ -85,21 +85,18 @@ def l2_error(result, ref):
     return json.loads(out)["scene"]["l2"]
 
 
-def errors_by(rows):
-    """label -> budget -> [error of each seed]."""
+def samples_by(rows):
+    """label -> budget -> [(error, seconds) of each seed]."""
     groups = {}
     for r in rows:
-        groups.setdefault(r["method"], {}).setdefault(r["budget"], []).append(float(r["rel_l2"]))
+        groups.setdefault(r["method"], {}).setdefault(r["budget"], []).append((float(r["rel_l2"]), float(r["seconds"])))
     return groups
 
 
-def medians(rows):
-    """label -> budget -> (median error, median seconds)."""
-    groups = {}
-    for r in rows:
-        groups.setdefault(r["method"], {}).setdefault(r["budget"], []).append(r)
-    return {m: {b: (statistics.median(float(x["rel_l2"]) for x in rs), statistics.median(float(x["seconds"]) for x in rs))
-                for b, rs in by.items()} for m, by in groups.items()}
+def medians(samples):
+    """label -> budget -> (median error, median seconds), from samples_by."""
+    return {m: {b: (statistics.median(e for e, _ in runs), statistics.median(t for _, t in runs)) for b, runs in by.items()}
+            for m, by in samples.items()}
 
 
 def time_to(points, target):
@@ -155,8 +152,8 @@ def main():
             r["method"] = labels[r["method"]]
             # The budget a run was given: the nearest of BUDGETS to the photons it shot.
             r["budget"] = min(BUDGETS, key=lambda b: abs(math.log(float(b)) - math.log(max(1.0, float(r["photons"])))))
-        med = medians(rows)
-        seeds_errors = errors_by(rows)
+        samples = samples_by(rows)
+        med = medians(samples)
         fixed = min(BUDGETS, key=lambda b: abs(float(b) - FIXED))
         base = med[BASELINE].get(fixed)
         largest = max(t for by in med.values() for _, t in by.values())
@@ -172,7 +169,7 @@ def main():
             pts = [(t, e) for e, t in by.values()]
             lines.append("| %s | %s | %s | %.3g s | %s | %s | %s |" % (
                 scene.replace("_", " "), label,
-                spread.percent(seeds_errors[label][fixed]) if not exact else "round-off", at[1],
+                spread.percent([e for e, _ in samples[label][fixed]]) if not exact else "round-off", at[1],
                 "%.3gx" % eff if not exact else "exact",
                 seconds_text(time_to(pts, TARGETS[0]), largest), seconds_text(time_to(pts, TARGETS[1]), largest)))
         lines.append("| %s | reference (deterministic) | | | | %s | %s |" % (

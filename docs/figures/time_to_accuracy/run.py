@@ -35,6 +35,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.abspath(os.path.join(HERE, "..", "..", ".."))
 sys.path.insert(0, os.path.dirname(HERE))  # docs/figures: the Markdown table parser
 from compare_tables import parse_tables  # noqa: E402
+import spread  # noqa: E402
 FLATLAND = os.environ.get("FLATLAND", "build/flatland")
 THREADS = os.environ.get("THREADS", "2")
 SEEDS = 5
@@ -214,13 +215,6 @@ def mesh_of(row):
     return row[7] if len(row) > 7 else None
 
 
-def quartiles(row):
-    """(first, third) quartile of a row's errors over the seeds: statistics.quantiles(n=4,
-    method='inclusive'), which for 5 seeds are the second smallest and the second largest."""
-    q = statistics.quantiles(sorted(row[6].values()), n=4, method="inclusive")
-    return q[0], q[2]
-
-
 def fmt_t(tk):
     t, kind = tk
     if kind == ">":
@@ -234,11 +228,9 @@ def fmt_e(e):
 
 
 def fmt_e_iqr(row):
-    """A row's median error in percent with its interquartile range over the seeds, and the mesh
-    of an envelope's row: '3.2 % [3.1–3.3 %] (64)'."""
-    q1, q3 = quartiles(row)
-    text = "%s [%.2g–%.2g %%]" % (fmt_e(row[2]), 100 * q1, 100 * q3)
-    return text + (" (%d)" % mesh_of(row) if mesh_of(row) else "")
+    """A row's median error in percent with its interquartile range over the seeds (spread.py), and
+    the mesh of an envelope's row: '3.2 % [3.1–3.3 %] (64)'."""
+    return spread.percent(list(row[6].values())) + (" (%d)" % mesh_of(row) if mesh_of(row) else "")
 
 
 def median_text(cell):
@@ -383,8 +375,7 @@ def tables(d, tdir, plots=True):
         w("|---|%s" % ("---|" * len(BUDGETS)))
         for label, _, _ in series("all"):
             w("| %s | %s |" % (label, " | ".join(
-                "%.3g [%.3g–%.3g] (%s%.2g s)" % ((r[2],) + quartiles(r) + ("%d, " % mesh_of(r) if mesh_of(r) else "",
-                                                                           r[1]))
+                "%s (%s%.2g s)" % (spread.cell(list(r[6].values())), "%d, " % mesh_of(r) if mesh_of(r) else "", r[1])
                 for r in med[label])))
     write(tdir, "time-to-accuracy-errors", lines)
 
