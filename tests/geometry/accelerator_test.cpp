@@ -197,6 +197,11 @@ TEST(Bvh, SmallScenesUseTheLinearScan) {
     const std::vector<SegmentGeometry> scene = n ? random_scene(rng, n) : std::vector<SegmentGeometry>{};
     const SegmentAccelerator accelerator(scene);
     EXPECT_EQ(accelerator.uses_hierarchy(), scene.size() > 8) << n;
+    // The line-space grid answers first from 9 segments to kLineSpaceLimit, and never for an
+    // accelerator asked only for overlaps.
+    EXPECT_EQ(accelerator.uses_line_space(), scene.size() > 8 && scene.size() <= SegmentAccelerator::kLineSpaceLimit)
+        << n;
+    EXPECT_FALSE(SegmentAccelerator(scene, SegmentAccelerator::Queries::Overlaps).uses_line_space()) << n;
     for (int i = 0; i < 1000 && !scene.empty(); ++i) {
       const Query q = random_query(rng, scene, 1.0, {0, 0});
       expect_same(accelerator.closest_hit(q.ray, q.from), accelerator.closest_hit_brute_force(q.ray, q.from), i);
