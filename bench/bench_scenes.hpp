@@ -1,5 +1,6 @@
 // The benchmarks' scene: one layout of 49 segments (a closed wavy wall of 40, 8 two-sided
-// obstacles, a lamp) as real cubics, as straight lines, or as the same lines written as cubics.
+// obstacles, a lamp) as real cubics, as straight lines, or as the same lines written as cubics; and
+// the ray the casters' benchmarks cast.
 #pragma once
 
 #include <cmath>
@@ -9,7 +10,17 @@
 #include <utility>
 #include <vector>
 
+#include "flatland/geometry/intersect.hpp"
+#include "flatland/geometry/segments.hpp"
+
 namespace flatland::bench {
+
+// A ray of the casters' benchmarks, and how many of them they cycle through.
+struct CastRay {
+  Ray ray;
+  RayOrigin from;
+};
+constexpr std::size_t kRays = 1 << 16;
 
 enum class Layout { Cubics, Lines, LinesAsCubics };
 

@@ -29,12 +29,8 @@ namespace {
 
 using namespace flatland;
 
-constexpr std::size_t kRays = 1 << 16;
-
-struct CastRay {
-  Ray ray;
-  RayOrigin from;
-};
+using bench::CastRay;
+using bench::kRays;
 
 std::vector<CastRay> shooter_rays(const std::vector<SegmentGeometry>& segments, double scale) {
   std::vector<double> lengths;

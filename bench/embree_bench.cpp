@@ -30,12 +30,8 @@ namespace {
 
 using namespace flatland;
 
-constexpr std::size_t kRays = 1 << 16;
-
-struct CastRay {
-  Ray ray;
-  RayOrigin from;
-};
+using bench::CastRay;
+using bench::kRays;
 
 // Appends the end points of straight pieces of c (after its start point) whose control points lie
 // within `tolerance` of their chord: the curve, inside its control hull, is then too.
@@ -146,33 +142,23 @@ const Setup& setup() {
   return instance;
 }
 
-// The exact caster as the shooter calls it (the line-space grid, the tree for its overfull cells).
-void ExactCaster(benchmark::State& state) {
+// The exact caster on every ray in turn: as the shooter calls it (ExactCaster: the line-space grid,
+// the tree for its overfull cells) or its tree alone (ExactTree: the caster before the grid).
+void cast_exact(benchmark::State& state, bool tree_only) {
   const Setup& s = setup();
   std::size_t i = 0;
   std::uint64_t casts = 0;
   for (auto _ : state) {
     const CastRay& r = s.rays[i++ % kRays];
-    benchmark::DoNotOptimize(s.exact.closest_hit(r.ray, r.from));
+    benchmark::DoNotOptimize(tree_only ? s.exact.closest_hit_tree(r.ray, r.from) : s.exact.closest_hit(r.ray, r.from));
     ++casts;
   }
   state.counters["casts_per_second"] = benchmark::Counter(static_cast<double>(casts), benchmark::Counter::kIsRate);
   state.counters["segments"] = static_cast<double>(s.scene.segments.size());
 }
 
-// The exact caster's tree alone (the caster before the grid).
-void ExactTree(benchmark::State& state) {
-  const Setup& s = setup();
-  std::size_t i = 0;
-  std::uint64_t casts = 0;
-  for (auto _ : state) {
-    const CastRay& r = s.rays[i++ % kRays];
-    benchmark::DoNotOptimize(s.exact.closest_hit_tree(r.ray, r.from));
-    ++casts;
-  }
-  state.counters["casts_per_second"] = benchmark::Counter(static_cast<double>(casts), benchmark::Counter::kIsRate);
-  state.counters["segments"] = static_cast<double>(s.scene.segments.size());
-}
+void ExactCaster(benchmark::State& state) { cast_exact(state, false); }
+void ExactTree(benchmark::State& state) { cast_exact(state, true); }
 
 void EmbreeIntersect1(benchmark::State& state) {
   const Setup& s = setup();
