@@ -100,7 +100,6 @@ SegmentAccelerator::SegmentAccelerator(std::vector<SegmentGeometry> segments, Qu
   if (segments_.size() <= kLinearScanLimit) return;
   if (queries == Queries::Rays && segments_.size() <= kLineSpaceLimit) {
     line_space_ = LineSpaceCaster(segments_, LineSpaceCaster::Shape{});
-    use_line_space_ = true;
   }
 
   const auto n = static_cast<std::uint32_t>(segments_.size());
@@ -299,10 +298,8 @@ SceneHit SegmentAccelerator::closest_hit_brute_force(const Ray& ray, const RayOr
 // gives the tree's answer bit for bit), the tree otherwise.
 SceneHit SegmentAccelerator::closest_hit(const Ray& ray, const RayOrigin& from) const {
   if (nodes_.empty()) return closest_hit_brute_force(ray, from);
-  if (use_line_space_) {
-    SceneHit hit;
-    if (line_space_.closest_hit(ray, from, &hit)) return hit;
-  }
+  SceneHit hit;
+  if (line_space_.closest_hit(ray, from, &hit)) return hit;  // false where it is not built
   return closest_hit_tree(ray, from);
 }
 

@@ -66,7 +66,7 @@ class SegmentAccelerator {
 
   std::span<const SegmentGeometry> segments() const { return segments_; }
   bool uses_hierarchy() const { return !nodes_.empty(); }
-  bool uses_line_space() const { return use_line_space_; }
+  bool uses_line_space() const { return line_space_.built(); }
   bool has_cubics() const { return has_cubics_; }
 
  private:
@@ -106,7 +106,6 @@ class SegmentAccelerator {
   std::vector<Node> nodes_;
   bool has_cubics_ = false;
   LineSpaceCaster line_space_;
-  bool use_line_space_ = false;
 };
 
 }  // namespace flatland

@@ -78,7 +78,6 @@ LineSpaceCaster::LineSpaceCaster(std::span<const SegmentGeometry> segments, Shap
   for (const SegmentGeometry& g : segments_)
     for_each_point(g, [this](Vec2 p) { radius_ = std::max(radius_, length(p - centre_)); });
   if (!(radius_ > 0.0) || !std::isfinite(radius_)) return;
-  degenerate_ = false;
   // Relative to the scene's size and its distance from the origin: the rounding of a hit's
   // distance (world coordinates) and of the bounds below are both far smaller.
   pad_ = 1e-9 * (radius_ + std::max(std::fabs(centre_.x), std::fabs(centre_.y)));
@@ -201,7 +200,7 @@ SceneHit LineSpaceCaster::closest_hit_or_scan(const Ray& ray, const RayOrigin& f
 }
 
 bool LineSpaceCaster::closest_hit(const Ray& ray, const RayOrigin& from, SceneHit* hit) const {
-  if (degenerate_) return false;
+  if (heads_.empty()) return false;  // not built
   const Vec2 d = ray.direction;
   const double a = diamond_angle(d) * (shape_.angle_bins / 4.0);
   if (!(a >= 0.0 && a <= shape_.angle_bins)) return false;  // not a direction

@@ -45,6 +45,8 @@ class LineSpaceCaster {
   SceneHit closest_hit_or_scan(const Ray& ray, const RayOrigin& from) const;
 
   // The entries the grid holds (a segment counts once per cell it is listed in) and its bytes.
+  // Whether the grid was built (a default one, or one of a scene without extent, answers no query).
+  bool built() const { return !heads_.empty(); }
   std::size_t entries() const { return entries_.size(); }
   // The cells left to another caster (more than cell_limit segments), of angle_bins x offset_cells.
   std::size_t cells_left() const { return cells_left_; }
@@ -66,7 +68,6 @@ class LineSpaceCaster {
   double radius_ = 0.0;  // every control point lies within this of the centre
   double pad_ = 0.0;     // what every bound is widened by, far above its rounding
   double cell_width_ = 0.0;
-  bool degenerate_ = true;  // no extent (or no segments): the grid answers no query
   // Per (bin, cell), one more at the end: its first entry, and the largest upper - lower of its
   // entries (NaN for a cell left to another caster), side by side so that a ray reads its cell's
   // head, and the next cell's first entry, from one cache line.
