@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <string>
 
 #include "app/commands.hpp"
 #include "app/output.hpp"
@@ -206,12 +207,14 @@ int run_render(RenderOptions& o) {
   const std::string commit = program_commit();
   const bool dirty = commit.size() > 6 && commit.compare(commit.size() - 6, 6, "-dirty") == 0;
   const std::string short_commit = commit.substr(0, 12) + (dirty ? "-dirty" : "");
+  std::string transport = used.transport == Transport::Walk ? "random walks" : "shooting";
+  if (used.transport == Transport::Walk && used.walk_score != WalkScore::Collision)
+    transport += std::string(", ") + to_string(used.walk_score) + " score";
   char how[512];
   std::snprintf(how, sizeof how, "%llu %s, %u rounds, %s basis, %s, seed %llu; flatland %s (%s)",
                 static_cast<unsigned long long>(solver.photons_shot()),
                 used.transport == Transport::Walk ? "walks" : "photons", solver.rounds(), to_string(used.basis),
-                used.transport == Transport::Walk ? "random walks" : "shooting",
-                static_cast<unsigned long long>(used.seed), program_version(), short_commit.c_str());
+                transport.c_str(), static_cast<unsigned long long>(used.seed), program_version(), short_commit.c_str());
   const std::vector<std::string> title = {scene->name + ": " + what, how};
   if (Status labelled = viewer::draw_picture_labels(snapshot, draw, layout, o.width, o.height, title); !labelled) {
     std::fprintf(stderr, "flatland: error: %s\n", labelled.error().message.c_str());

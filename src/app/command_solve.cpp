@@ -8,6 +8,7 @@
 #include <limits>
 #include <map>
 #include <optional>
+#include <string>
 #include <thread>
 
 #include "app/commands.hpp"
@@ -130,12 +131,14 @@ void print_summary(const Solver& solver, const ErrorEstimate& estimate) {
   } else {
     std::snprintf(storage_text, sizeof storage_text, "%d elements per curve", settings.elements);
   }
+  std::string walks_text;
+  if (settings.transport == Transport::Walk)
+    walks_text = std::string("random walks (") + to_string(settings.walk_score) + " score), ";
   std::fprintf(out,
                "method    %s%s basis (%s), %s, %s positions, discontinuities %s, "
                "%s, %s sampler\n",
-               settings.transport == Transport::Walk ? "random walks, " : "", to_string(settings.basis),
-               to_string(settings.estimator), storage_text, to_string(settings.sampling),
-               to_string(settings.discontinuities), rays, to_string(settings.sampler));
+               walks_text.c_str(), to_string(settings.basis), to_string(settings.estimator), storage_text,
+               to_string(settings.sampling), to_string(settings.discontinuities), rays, to_string(settings.sampler));
   // What the scene made the solver use (and so what it left out).
   std::fprintf(out,
                "features  %s (%d channel%s), %s, %zu discontinuity nodes (%zu at the scene's corners and joints, %zu "

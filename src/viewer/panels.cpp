@@ -269,6 +269,17 @@ void Viewer::draw_solve_panel(const Snapshot& snapshot) {
     ImGui::SetTooltip(
         "shooting: rounds of one hop each (the paper's method)\n"
         "walk: each photon a whole random walk, ended by Russian roulette");
+  // A score is a walk's: back to shooting, the score goes back to collision (shooting refuses others).
+  if (settings_.transport != Transport::Walk) settings_.walk_score = WalkScore::Collision;
+  if (settings_.transport == Transport::Walk) {
+    changed = option_combo(SolveOption::WalkScore) || changed;
+    if (ImGui::IsItemHovered())
+      ImGui::SetTooltip(
+          "What a walk tallies where it lands (the same answer, different noise):\n"
+          "collision: the power that arrived, at every landing\n"
+          "absorption: power / (1 - q) where the walk ends (q: its chance of going on)\n"
+          "survival: power / q where it goes on");
+  }
   changed = option_combo(SolveOption::Gather) || changed;
   if (ImGui::IsItemHovered())
     ImGui::SetTooltip(

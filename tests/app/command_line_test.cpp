@@ -77,20 +77,25 @@ TEST(CommandLine, DefaultsAreTheSolversOwn) {
 }
 
 // Each option, set alone to a value other than its default, reaches the settings and nothing else
-// changes.
+// changes. A walk's score is set with the transport it needs (alone it is refused: validate).
 TEST(CommandLine, EachOptionReachesItsSettingAlone) {
   const SolverSettings defaults;
   for (const SolveOptionSpec& spec : solve_options()) {
     CommandLine command_line;
     const std::string value = other_value(spec, defaults);
-    ASSERT_EQ(parse(command_line, {"solve", "scene.json", "--" + std::string(spec.flag), value}), std::nullopt)
-        << spec.flag;
+    std::vector<std::string> arguments = {"solve", "scene.json", "--" + std::string(spec.flag), value};
+    const bool needs_walks = spec.option == SolveOption::WalkScore;
+    if (needs_walks) arguments.insert(arguments.end(), {"--transport", "walk"});
+    ASSERT_EQ(parse(command_line, arguments), std::nullopt) << spec.flag;
     const Status status = validate_command_line(command_line);
     ASSERT_TRUE(status) << "--" << spec.flag << " " << value << ": " << status.error().message;
     for (const SolveOptionSpec& other : solve_options()) {
       const std::string got = solve_option_text(command_line.solve.settings, other.option);
-      EXPECT_EQ(got, other.option == spec.option ? value : solve_option_text(defaults, other.option))
-          << "--" << spec.flag << " " << value << ", read back as --" << other.flag;
+      const std::string expected = other.option == spec.option ? value
+                                   : needs_walks && other.option == SolveOption::Transport
+                                       ? "walk"
+                                       : solve_option_text(defaults, other.option);
+      EXPECT_EQ(got, expected) << "--" << spec.flag << " " << value << ", read back as --" << other.flag;
     }
   }
 }

@@ -58,6 +58,17 @@ def test_same_seed_gives_the_same_bits_as_the_command_line(tmp_path):
     assert cli.returncode == 0, cli.stderr
     result = flatland.solve(scene, photons=50_000, basis="linear", elements=24, transport="walk", ray_width=0.05)
     assert without_timing(result.to_json()) == without_timing(out.read_text())
+    # A walk's score, named alike, and refused with shooting in the command line's words.
+    cli = run_cli("solve", "scenes2d/mixed.json", "--photons", "50000", "--transport", "walk", "--walk-score",
+                  "absorption", "--out", str(out), "--quiet")
+    assert cli.returncode == 0, cli.stderr
+    result = flatland.solve(scene, photons=50_000, transport="walk", walk_score="absorption")
+    assert without_timing(result.to_json()) == without_timing(out.read_text())
+    assert json.loads(out.read_text())["settings"]["walk_score"] == "absorption"
+    cli = run_cli("solve", "scenes2d/mixed.json", "--walk-score", "survival")
+    assert cli.returncode == 2 and "--walk-score: survival" in cli.stderr and "transport walk" in cli.stderr
+    with pytest.raises(ValueError, match="walk_score: survival"):
+        flatland.solve(scene, walk_score="survival")
 
 
 def test_a_final_gather_is_the_command_lines(tmp_path):

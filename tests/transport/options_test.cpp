@@ -25,6 +25,7 @@ TEST(Options, EveryChoiceSetsTheValueOfItsName) {
         case SolveOption::Estimator: named = to_string(settings.estimator); break;
         case SolveOption::Sampler: named = to_string(settings.sampler); break;
         case SolveOption::Transport: named = to_string(settings.transport); break;
+        case SolveOption::WalkScore: named = to_string(settings.walk_score); break;
         case SolveOption::Gather: named = to_string(settings.gather); break;
         case SolveOption::RayProfile: named = to_string(settings.ray_profile); break;
         case SolveOption::RayMode: named = to_string(settings.ray_mode); break;

@@ -631,6 +631,19 @@ TEST_F(Viewer, WalkTransportStepsWholeJourneys) {
   click(viewer, "colour by");
   click(viewer, "colour by:bounce");
   EXPECT_EQ(viewer.path_colour(), PathColour::Bounce);
+  // With walks the panel offers their score; back to shooting, the score is collision again (a
+  // score with shooting would be refused).
+  click(viewer, "walk score");
+  click(viewer, "walk score:survival");
+  EXPECT_EQ(viewer.settings().walk_score, WalkScore::Survival);
+  viewer.session().wait_idle();
+  frames_until(viewer, [&] { return viewer.session().snapshot()->settings.walk_score == WalkScore::Survival; });
+  click(viewer, "transport");
+  click(viewer, "transport:shooting");
+  EXPECT_EQ(viewer.settings().transport, Transport::Shooting);
+  EXPECT_EQ(viewer.settings().walk_score, WalkScore::Collision);
+  viewer.session().wait_idle();
+  frames_until(viewer, [&] { return viewer.session().snapshot()->settings.transport == Transport::Shooting; });
 }
 
 // The lecture preset: one button switches to random walks coloured by bounce and steps a photon

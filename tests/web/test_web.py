@@ -94,19 +94,20 @@ def same_as_solve(page, tmp_path, scene, options, scene_file):
     ("penumbra", {"photons": "200000", "seed": "3", "basis": "linear"}),          # grey
     ("default", {"photons": "100000", "seed": "2", "estimator": "local"}),       # colour
     ("enclosure", {"photons": "100000", "transport": "walk", "sampler": "random"}),  # a closed curve
-    # Every shipped scene, and every basis, estimator, sampler, transport, ray mode and profile.
+    # Every shipped scene, and every basis, estimator, sampler, transport, walk score, ray mode and profile.
     ("curved_room", {"photons": "100000", "basis": "hermite"}),
     ("arch", {"photons": "100000", "estimator": "galerkin", "discontinuities": "secondary"}),
     ("syndrome", {"photons": "100000", "basis": "constant", "sampling": "uniform"}),
     ("mixed", {"photons": "100000", "estimator": "lumped", "elements": "64"}),
-    ("room_reflector", {"photons": "100000", "transport": "walk", "ray-width": "0.02", "ray-profile": "tent"}),
+    ("room_reflector", {"photons": "100000", "transport": "walk", "walk-score": "absorption", "ray-width": "0.02",
+                        "ray-profile": "tent"}),
     ("penumbra", {"photons": "100000", "ray-width": "0.05", "ray-profile": "gauss"}),
     ("penumbra", {"photons": "100000", "ray-width": "0.05", "ray-profile": "cosine", "ray-mode": "band"}),
     ("default", {"photons": "100000", "ray-width": "0.03", "ray-profile": "epanechnikov", "ray-mode": "band"}),
     # Mirrors, glass, detectors and spectral light: the same bits (its wavelengths, Fresnel draws and
     # dispersion use no library function that differs between platforms).
     ("prism", {"photons": "100000", "seed": "4"}),
-    ("lens", {"photons": "100000", "transport": "walk"}),
+    ("lens", {"photons": "100000", "transport": "walk", "walk-score": "survival"}),
     ("light_guide", {"photons": "50000"}),
     ("mirror_room", {"photons": "100000", "ray-width": "0.02"}),
     ("parabolic_mirror", {"photons": "100000", "sampler": "random"}),

@@ -62,7 +62,13 @@ METHODS = [  # (label, method string)
     ("shooting, cubic, blocks, gather", "basis=cubic+estimator=galerkin+transport=shooting+gather=samples+" + BLOCKS),
     ("walks, cubic", "basis=cubic+estimator=galerkin+transport=walk+gather=none+" + COMMON),
     ("walks, cubic, gather", "basis=cubic+estimator=galerkin+transport=walk+gather=samples+" + COMMON),
+    ("walks, cubic, absorption", "basis=cubic+estimator=galerkin+transport=walk+walk-score=absorption+gather=none+"
+     + COMMON),
+    ("walks, cubic, survival", "basis=cubic+estimator=galerkin+transport=walk+walk-score=survival+gather=none+"
+     + COMMON),
 ]
+# The walks' scores (method.md, Random walks) against collision, the walks' default.
+SCORES = {"walks, cubic, absorption": "absorption", "walks, cubic, survival": "survival"}
 BASELINE = "shooting, cubic"
 for _name in [n for n in SCENES if n not in os.environ.get("FAMILY_SCENES", ",".join(SCENES)).split(",")]:
     del SCENES[_name]
@@ -128,6 +134,7 @@ def main():
              "|---|---|---|---|---|---|---|"]
     gains = {}  # scene class -> [gather's efficiency over shooting at 1e6]
     blocks_gains = []  # [(scene, blocks' efficiency over shooting at 1e6)]
+    score_gains = {}  # score -> [(scene, its efficiency over collision-scored walks at 1e6)]
     reference_wins = []
     for scene, (path, kind, n) in SCENES.items():
         folder = os.path.join(a.out, scene)
@@ -166,6 +173,10 @@ def main():
                 gains.setdefault(kind, []).append((scene, eff))
             if label == "shooting, cubic, blocks":
                 blocks_gains.append((scene, eff))
+            if label in SCORES:
+                by_walks = med["walks, cubic"].get(fixed)
+                score_gains.setdefault(SCORES[label], []).append(
+                    (scene, (by_walks[0] ** 2 * by_walks[1]) / (at[0] ** 2 * at[1])))
             pts = [(t, e) for e, t in by.values()]
             lines.append("| %s | %s | %s | %.3g s | %s | %s | %s |" % (
                 scene.replace("_", " "), label,
@@ -206,6 +217,13 @@ def main():
         findings.append("- Replicates as blocks of one net (no gather) have an efficiency over independent replicates' "
                         "at 1e6 photons with a geometric mean of %.3gx over %d scenes (from %.3gx on %s to %.3gx on %s)." % (
                             g, len(finite), low[1], low[0].replace("_", " "), high[1], high[0].replace("_", " ")))
+    for score, values in score_gains.items():
+        g = math.exp(statistics.mean(math.log(v) for _, v in values))
+        low, high = min(values, key=lambda p: p[1]), max(values, key=lambda p: p[1])
+        findings.append("- Walks scored by %s have an efficiency over collision-scored walks at 1e6 walks with a "
+                        "geometric mean of %.3gx over %d scenes (from %.3gx on %s to %.3gx on %s)." % (
+                            score, g, len(values), low[1], low[0].replace("_", " "), high[1],
+                            high[0].replace("_", " ")))
     wins = [s for s, w, _, _ in reference_wins if w]
     findings.append("- The deterministic reference reaches 0.1 %% sooner than every Monte Carlo method here on %d of %d "
                     "scenes%s." % (len(wins), len(reference_wins),

@@ -70,6 +70,8 @@ nlohmann::json result_without_curves(const Solver& solver, int samples_per_curve
       {"final_gather",
        sampled.final_gather ? nlohmann::json{{"element_length", *sampled.final_gather}} : nlohmann::json(false)},
   };
+  // What a walk tallied; shooting has no such choice.
+  if (settings.transport == Transport::Walk) result["settings"]["walk_score"] = to_string(settings.walk_score);
   result["stats"] = stats_to_json(*sampled.stats);
   if (solver.detector_layout().size > 0) result["detectors"] = detectors_to_json(solver);
   result["curves"] = nlohmann::json::array();

@@ -50,6 +50,11 @@ const std::vector<SolveOptionSpec>& table() {
        "How light travels: shooting (progressive rounds, each shooting the light the last one "
        "reflected: the paper's method) or walk (each photon a random walk from an emitter, tallied at "
        "every hit and ended by Russian roulette; photons counts walks, tolerance is not used)"},
+      {SolveOption::WalkScore, "walk score", "walk-score", "walk_score", {"collision", "absorption", "survival"}, "",
+       "What a random walk tallies where it lands (transport walk only): collision (the power that arrived, "
+       "at every landing), absorption (that power / (1 - q) where the walk ends, q its chance of going on "
+       "there) or survival (power / q where it goes on); the same expected answer, different noise "
+       "(docs/method.md, Random walks)"},
       {SolveOption::Gather, "gather", "gather", "gather", {"none", "samples", "auto"}, "",
        "The result's B: none (the storage's own), samples (a final gather: at every sample, one "
        "deterministic bounce of the solution over exactly what the sample sees, with the reference's "
@@ -260,6 +265,7 @@ Status set_solve_option(SolverSettings& s, SolveOption option, std::string_view 
     case SolveOption::Estimator: s.estimator = static_cast<Estimator>(*index); return ok_status();
     case SolveOption::Sampler: s.sampler = static_cast<SamplerKind>(*index); return ok_status();
     case SolveOption::Transport: s.transport = static_cast<Transport>(*index); return ok_status();
+    case SolveOption::WalkScore: s.walk_score = static_cast<WalkScore>(*index); return ok_status();
     case SolveOption::Gather: s.gather = static_cast<GatherMode>(*index); return ok_status();
     case SolveOption::RayProfile: s.ray_profile = static_cast<RayProfile>(*index); return ok_status();
     case SolveOption::RayMode: s.ray_mode = static_cast<RayMode>(*index); return ok_status();
@@ -298,6 +304,7 @@ std::string solve_option_text(const SolverSettings& s, SolveOption option) {
     case SolveOption::Estimator: return name(s.estimator);
     case SolveOption::Sampler: return name(s.sampler);
     case SolveOption::Transport: return name(s.transport);
+    case SolveOption::WalkScore: return name(s.walk_score);
     case SolveOption::Gather: return name(s.gather);
     case SolveOption::RayProfile: return name(s.ray_profile);
     case SolveOption::RayMode: return name(s.ray_mode);

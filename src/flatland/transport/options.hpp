@@ -28,6 +28,7 @@ enum class SolveOption {
   Estimator,
   Sampler,
   Transport,
+  WalkScore,
   Gather,
   RayWidth,
   RayProfile,

@@ -251,6 +251,7 @@ PhotonShooter::PhotonShooter(const Scene& scene, const SolverSettings& settings,
       sobol_(settings.sampler == SamplerKind::Sobol),
       replicates_(static_cast<std::uint32_t>(settings.replicates)),
       layout_(settings.replicate_layout),
+      walk_score_(settings.walk_score),
       ray_width_(settings.ray_width),
       ray_profile_(settings.ray_profile),
       accelerator_(std::move(accelerator)),
@@ -400,9 +401,11 @@ void PhotonShooter::shoot_rays(const RoundView& round, Rng& rng, std::uint64_t f
       Ray ray{leaves.position, direction};
       SceneHit hit = accelerator_.closest_hit(ray, RayOrigin{leaves.segment, leaves.t});
       ++acc.rays;
-      const bool lands = receive<kRays, kChains>(round, rng, hit, ray, units, wavelength, acc, path, footprint);
+      bool goes_on = false;
+      const bool lands =
+          receive<kRays, kChains>(round, rng, hit, ray, units, wavelength, acc, path, footprint, goes_on);
       if (lands && round.photons_go_on)
-        walk_on<kRays, kChains>(round, rng, hit, ray, units, acc, paths, path_limit, path, footprint);
+        walk_on<kRays, kChains>(round, rng, hit, ray, units, goes_on, acc, paths, path_limit, path, footprint);
     }
   }
 }
@@ -447,8 +450,9 @@ void PhotonShooter::shoot_band(const RoundView& round, Rng& rng, const Origin& l
     }
     Ray sub{start, direction};
     SceneHit hit = accelerator_.closest_hit(sub, RayOrigin{leaves.segment, t_i});
+    bool goes_on = false;  // (bands are shooting's only: no walk goes on)
     receive<RayKind::Point, kChains>(round, rng, hit, sub, share, wavelength, acc,
-                                     ray_index == band_offsets_.size() / 2 ? path : nullptr, footprint);
+                                     ray_index == band_offsets_.size() / 2 ? path : nullptr, footprint, goes_on);
   }
   acc.rays += band_offsets_.size();
 }
@@ -471,8 +475,8 @@ Side PhotonShooter::side_hit(const SceneHit& hit, const Ray& ray, Vec2& tangent)
 
 template <PhotonShooter::RayKind kRays, bool kChains>
 void PhotonShooter::walk_on(const RoundView& round, Rng& rng, SceneHit hit, Ray ray, std::array<std::int64_t, 3> units,
-                            Deposits& acc, std::vector<PhotonPath>* paths, std::size_t path_limit, PhotonPath* last,
-                            std::vector<FootprintWeight>& footprint) const {
+                            bool goes_on, Deposits& acc, std::vector<PhotonPath>* paths, std::size_t path_limit,
+                            PhotonPath* last, std::vector<FootprintWeight>& footprint) const {
   const SceneStorage& storage = *round.storage;
   const RoundPlan& plan = *round.plan;
   const auto channels = static_cast<std::size_t>(storage.channels());
@@ -487,14 +491,14 @@ void PhotonShooter::walk_on(const RoundView& round, Rng& rng, SceneHit hit, Ray 
       if (last != nullptr) last->absorbed = true;
       return;
     }
-    // Russian roulette: go on with probability q = max rho, each channel then carrying rho / q of
-    // its power, so every channel's expected power after the bounce is rho times what arrived.
-    // What the reweighting leaves behind (channels below the maximum, and rounding) is absorbed,
-    // so every walk's units end exactly as absorbed or escaped.
+    // Russian roulette (drawn by receive, before the deposit): go on with probability q = max rho,
+    // each channel then carrying rho / q of its power, so every channel's expected power after the
+    // bounce is rho times what arrived. What the reweighting leaves behind (channels below the
+    // maximum, and rounding) is absorbed, so every walk's units end exactly as absorbed or escaped.
     const Spectrum& rho = storage.block_reflectivity(block);
     double survive = 0.0;
     for (std::size_t ch = 0; ch < channels; ++ch) survive = std::max(survive, rho[ch]);
-    if (!(rng.uniform() < survive)) {
+    if (!goes_on) {
       for (std::size_t ch = 0; ch < channels; ++ch) acc.absorbed[ch] += units[ch];
       if (last != nullptr) last->absorbed = true;
       return;
@@ -535,14 +539,14 @@ void PhotonShooter::walk_on(const RoundView& round, Rng& rng, SceneHit hit, Ray 
     }
     last = path;
     // (A diffuse bounce keeps the light's colour in its channels, not a wavelength.)
-    if (!receive<kRays, kChains>(round, rng, hit, ray, units, 0.0, acc, path, footprint)) return;
+    if (!receive<kRays, kChains>(round, rng, hit, ray, units, 0.0, acc, path, footprint, goes_on)) return;
   }
 }
 
 template <PhotonShooter::RayKind kRays, bool kChains>
 bool PhotonShooter::receive(const RoundView& round, Rng& rng, SceneHit& hit, Ray& ray,
                             std::array<std::int64_t, 3>& units, double wavelength, Deposits& acc, PhotonPath* path,
-                            std::vector<FootprintWeight>& footprint) const {
+                            std::vector<FootprintWeight>& footprint, bool& goes_on) const {
   const SceneStorage& storage = *round.storage;
   const auto channels = static_cast<std::size_t>(storage.channels());
   if constexpr (kChains) {
@@ -571,9 +575,25 @@ bool PhotonShooter::receive(const RoundView& round, Rng& rng, SceneHit& hit, Ray
   const std::uint32_t offset = storage.block_offset(info.curve, side);
   // A side that reflects nothing (rho = 0 in every channel) turns all it receives into absorbed
   // power whatever the deposit's shape: no footprint or deposit is computed for it.
-  if (offset == SceneStorage::kNoBlock || storage.block_black(info.curve * 2 + static_cast<std::uint32_t>(side))) {
+  const std::uint32_t block = info.curve * 2 + static_cast<std::uint32_t>(side);
+  if (offset == SceneStorage::kNoBlock || storage.block_black(block)) {
     for (std::size_t ch = 0; ch < channels; ++ch) acc.absorbed[ch] += units[ch];
     return true;
+  }
+  // What is deposited: the units that arrived, or for a walk its score's tally of them. The walk's
+  // roulette is drawn here, where walk_on drew it before the scores (after the specular chain,
+  // before the next direction), so the collision score's bits are the same as they were.
+  std::array<std::int64_t, 3> tally = units;
+  if (round.photons_go_on) {
+    const Spectrum& rho = storage.block_reflectivity(block);
+    double survive = 0.0;
+    for (std::size_t ch = 0; ch < channels; ++ch) survive = std::max(survive, rho[ch]);
+    goes_on = rng.uniform() < survive;
+    const double weight = walk_score_weight(walk_score_, survive, goes_on);
+    if (weight == 0.0) return true;
+    if (weight != 1.0)
+      for (std::size_t ch = 0; ch < channels; ++ch)
+        tally[ch] = static_cast<std::int64_t>(static_cast<double>(units[ch]) * weight + 0.5);
   }
   const double u = info.index_in_curve + hit.t;
   if constexpr (kRays == RayKind::Footprint) {
@@ -588,10 +608,10 @@ bool PhotonShooter::receive(const RoundView& round, Rng& rng, SceneHit& hit, Ray
     for (std::size_t i = 1; i < footprint.size(); ++i)
       if (footprint[i].weight > footprint[largest].weight) largest = i;
     for (std::size_t ch = 0; ch < channels; ++ch) {
-      std::int64_t left = units[ch];
+      std::int64_t left = tally[ch];
       for (std::size_t i = 0; i < footprint.size(); ++i) {
         if (i == largest) continue;
-        const auto share = static_cast<std::int64_t>(footprint[i].weight * static_cast<double>(units[ch]) + 0.5);
+        const auto share = static_cast<std::int64_t>(footprint[i].weight * static_cast<double>(tally[ch]) + 0.5);
         acc.received[acc.replicate_offset + (offset + footprint[i].coefficient) * channels + ch] += share;
         left -= share;
       }
@@ -606,10 +626,10 @@ bool PhotonShooter::receive(const RoundView& round, Rng& rng, SceneHit& hit, Ray
     const auto degree = static_cast<std::size_t>(basis.degree());
     std::int64_t* target = acc.received.data() + acc.replicate_offset + offset * channels;
     for (std::size_t ch = 0; ch < channels; ++ch) {
-      std::int64_t left = units[ch];
+      std::int64_t left = tally[ch];
       for (std::size_t j = 0; j < degree; ++j) {
         // Round half up by truncation (the product is >= 0); std::llround is a library call.
-        const auto share = static_cast<std::int64_t>(phi[j] * static_cast<double>(units[ch]) + 0.5);
+        const auto share = static_cast<std::int64_t>(phi[j] * static_cast<double>(tally[ch]) + 0.5);
         target[basis.index(first + j) * channels + ch] += share;
         left -= share;
       }

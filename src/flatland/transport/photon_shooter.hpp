@@ -177,10 +177,13 @@ class PhotonShooter {
   // What a photon (or a band's sub-ray) carrying `units` does where it lands: with kChains, first
   // its specular chain, after which `hit`, `ray` and `units` are its last flight's and what that
   // brings. Returns false when the photon ended in the chain (booked there). `wavelength`: the
-  // photon's (nm), or 0 for light without one.
+  // photon's (nm), or 0 for light without one. A walk (round.photons_go_on) that lands on a side
+  // with storage draws its Russian roulette here, before the deposit, since the walk's score
+  // deposits by the outcome: `goes_on` receives it, and walk_on carries it out.
   template <RayKind kRays, bool kChains>
   bool receive(const RoundView& round, Rng& rng, SceneHit& hit, Ray& ray, std::array<std::int64_t, 3>& units,
-               double wavelength, Deposits& deposits, PhotonPath* path, std::vector<FootprintWeight>& footprint) const;
+               double wavelength, Deposits& deposits, PhotonPath* path, std::vector<FootprintWeight>& footprint,
+               bool& goes_on) const;
   // The specular chain of a flight that landed at `hit`: while it is on a mirror, a dielectric or
   // a detector, the photon reflects, refracts (by the Fresnel weight, drawn from `rng`, so every
   // photon keeps its power) or passes, and flies on. Returns true with `hit` on a diffuse side or
@@ -190,11 +193,12 @@ class PhotonShooter {
   // The side of a curve that `ray` hits; `tangent` gets the curve's (unnormalised) tangent there.
   Side side_hit(const SceneHit& hit, const Ray& ray, Vec2& tangent) const;
   // Walks: the rest of a walk whose first flight `ray` landed at `hit` carrying `units` (already
-  // received there): Russian roulette, a diffuse bounce from the side hit, the next flight's
-  // deposit, until the walk ends. Its flights' paths are appended while `paths` has room;
-  // `first_path` is the first flight's (or null), marked when the walk ends where it landed.
+  // received there, its roulette drawn: `goes_on`): the roulette's outcome, a diffuse bounce from
+  // the side hit, the next flight's deposit, until the walk ends. Its flights' paths are appended
+  // while `paths` has room; `first_path` is the first flight's (or null), marked when the walk ends
+  // where it landed.
   template <RayKind kRays, bool kChains>
-  void walk_on(const RoundView& round, Rng& rng, SceneHit hit, Ray ray, std::array<std::int64_t, 3> units,
+  void walk_on(const RoundView& round, Rng& rng, SceneHit hit, Ray ray, std::array<std::int64_t, 3> units, bool goes_on,
                Deposits& deposits, std::vector<PhotonPath>* paths, std::size_t path_limit, PhotonPath* first_path,
                std::vector<FootprintWeight>& footprint) const;
 
@@ -203,6 +207,7 @@ class PhotonShooter {
   bool sobol_ = true;
   std::uint32_t replicates_ = 1;  // photon i of a round deposits into part i mod R or i / (N / R) (layout_)
   ReplicateLayout layout_ = ReplicateLayout::Independent;
+  WalkScore walk_score_ = WalkScore::Collision;
   bool by_coefficient_ = false;  // reconstructed origins on a B-spline basis
   bool by_hermite_ = false;      // reconstructed origins on the Hermite reconstruction
   double ray_width_ = 0.0;

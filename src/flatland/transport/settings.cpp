@@ -46,6 +46,10 @@ Estimator resolve_estimator(Estimator estimator, BasisKind basis) {
 
 const char* to_string(Transport transport) { return transport == Transport::Shooting ? "shooting" : "walk"; }
 
+const char* to_string(WalkScore score) {
+  return score == WalkScore::Collision ? "collision" : score == WalkScore::Absorption ? "absorption" : "survival";
+}
+
 const char* to_string(GatherMode gather) {
   return gather == GatherMode::None ? "none" : gather == GatherMode::Samples ? "samples" : "auto";
 }
@@ -85,6 +89,10 @@ Status validate(const SolverSettings& settings) {
     return Error{
         "transport: a walk goes on from where its photon lands, and a band's sub-rays land in many "
         "places; use ray mode footprint with walks (or transport shooting with bands)"};
+  if (settings.transport != Transport::Walk && settings.walk_score != WalkScore::Collision)
+    return Error{std::string("walk score: ") + to_string(settings.walk_score) +
+                 " scores random walks, and shooting's photons make one hop each; use transport walk with it "
+                 "(or leave the walk score at collision)"};
   return ok_status();
 }
 

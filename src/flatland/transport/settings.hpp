@@ -53,6 +53,30 @@ const char* to_string(SamplerKind sampler);
 //   1 / (1 - rho) rays, and its whole journey can be shown.
 enum class Transport { Shooting, Walk };
 const char* to_string(Transport transport);
+// What a random walk tallies where it lands on a reflecting side (docs/method.md, "Random walks").
+// With q the side's chance of going on (max rho), a walk arriving with power P tallies:
+// - Collision: P at every landing, whatever happens next (the default).
+// - Absorption: P / (1 - q) where the walk ends, nothing where it goes on: one tally per walk.
+// - Survival: P / q where the walk goes on, nothing where it ends.
+// Each landing's expected tally is P under all three, so they estimate the same received power;
+// only the noise differs. On an element that a landing hits with a small chance p, the variance of
+// its tally per walk is about p P^2 / (1 - q) by collision, 1 / (1 - q) times that by absorption
+// and 1 / q times that by survival: collision is the least noisy, absorption comes near it where
+// sides reflect little and survival where they reflect much. (In a closed grey room of one
+// reflectivity the absorption score of the whole received power is exact: every walk ends there
+// once, with weight 1 / (1 - q).)
+enum class WalkScore { Collision, Absorption, Survival };
+const char* to_string(WalkScore score);
+// A walk's tally at a landing, as a multiple of the power that arrived: q the side's chance of
+// going on (0 < q < 1 on a side walks deposit on), `goes_on` the roulette's outcome there.
+inline double walk_score_weight(WalkScore score, double q, bool goes_on) {
+  switch (score) {
+    case WalkScore::Collision: return 1.0;
+    case WalkScore::Absorption: return goes_on ? 0.0 : 1.0 / (1.0 - q);
+    case WalkScore::Survival: return goes_on ? 1.0 / q : 0.0;
+  }
+  return 1.0;
+}
 // What a result's samples of B are: the storage's own splines (None), or a final gather of them,
 // one deterministic bounce over exactly what each sample sees (Samples; reference/final_gather.hpp,
 // run by the front ends after the solve: the Solver itself does not read it), or Auto: a final
@@ -152,6 +176,8 @@ struct SolverSettings {
   // With Transport::Walk, `photons` counts walks; `tolerance` is not used (a walk ends by itself),
   // and rays must be points or footprints (a band's sub-rays have no single place to go on from).
   Transport transport = Transport::Shooting;
+  // What a walk tallies (Transport::Walk only; shooting refuses any score but collision).
+  WalkScore walk_score = WalkScore::Collision;
   GatherMode gather = GatherMode::Auto;
   // Memory the solver's storage may take (0: default_memory_budget(), three quarters of the
   // machine's); settings that would need more are refused by Solver::create before allocating.

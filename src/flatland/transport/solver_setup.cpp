@@ -243,7 +243,7 @@ Status Solver::start_transport() {
                  "reflected light B - E is exactly zero and its relative error is not defined; solve without a "
                  "target error"};
   if (settings_.transport == Transport::Walk) {
-    Result<RandomWalks> walks = RandomWalks::create(scene, std::move(emission));
+    Result<RandomWalks> walks = RandomWalks::create(scene, std::move(emission), settings_.walk_score);
     if (!walks) return walks.error();
     transport_ = std::move(*walks);
   } else if (settings_.target_error > 0.0) {

@@ -6,17 +6,23 @@
 
 namespace flatland {
 
-Result<RandomWalks> RandomWalks::create(const Scene& scene, std::vector<double> emission) {
+Result<RandomWalks> RandomWalks::create(const Scene& scene, std::vector<double> emission, WalkScore score) {
   // A walk goes on with probability max rho at every hit, so its number of rays is at most
   // geometric with mean 1 / (1 - max rho) over the scene's reflecting sides.
   double most = 0.0;
+  double least_reflecting = 1.0;  // the least q of a side that reflects at all
   const Curve* brightest = nullptr;
-  for (const Curve& curve : scene.curves)
-    for (std::size_t ch = 0; ch < static_cast<std::size_t>(scene.channels); ++ch)
+  for (const Curve& curve : scene.curves) {
+    double q = 0.0;
+    for (std::size_t ch = 0; ch < static_cast<std::size_t>(scene.channels); ++ch) {
+      q = std::max(q, scene.material_of(curve).reflectivity[ch]);
       if (scene.material_of(curve).reflectivity[ch] > most) {
         most = scene.material_of(curve).reflectivity[ch];
         brightest = &curve;
       }
+    }
+    if (q > 0.0) least_reflecting = std::min(least_reflecting, q);
+  }
   if (most > kWalkMaxReflectivity) {
     char message[320];
     std::snprintf(message, sizeof message,
@@ -27,6 +33,11 @@ Result<RandomWalks> RandomWalks::create(const Scene& scene, std::vector<double> 
   }
   RandomWalks walks;
   walks.expected_rays_ = 1.0 / (1.0 - most);
+  // The tallies' bound for the headroom: collision tallies at most the arriving power at each
+  // hit; absorption tallies once, P / (1 - q) <= P / (1 - max rho), within the same bound as R
+  // collision tallies; survival tallies P / q at each hit it goes on from, at most 1 / q times a
+  // collision tally.
+  if (score == WalkScore::Survival) walks.largest_weight_ = 1.0 / least_reflecting;
   walks.nothing_.assign(emission.size(), 0.0);
   walks.emission_ = std::move(emission);
   return walks;
@@ -41,8 +52,10 @@ int RandomWalks::headroom_bits(std::uint64_t photons) {
   // walk's power, R the mean rays per walk (at most expected_rays_): the scale gives up H bits,
   // 2^H >= R (1 + 64 / n), so the total stays below 2^63 unless the round's rays exceed
   // 4 R n + 256 R, which for a sum of n geometric counts is rarer than e^-60. With n <= 2^20 and
-  // R <= 1e6 a walk still carries at least 2^18 units.
-  const double rays = expected_rays_ * (1.0 + 64.0 / static_cast<double>(photons));
+  // R <= 1e6 a walk still carries at least 2^18 units. The absorption score's one tally of at
+  // most P R keeps within it; the survival score's tallies of up to 1 / q times the power give
+  // up log2(1 / q) bits more (largest_weight_).
+  const double rays = largest_weight_ * expected_rays_ * (1.0 + 64.0 / static_cast<double>(photons));
   // ceil(log2(rays)) from the binary exponent: rays = m 2^e, m in [1/2, 1).
   int exponent = 0;
   const double mantissa = std::frexp(rays, &exponent);

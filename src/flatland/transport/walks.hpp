@@ -1,7 +1,8 @@
-// Random walks, the collision estimator: every photon is a walk from an emitter that, at each
-// hit, tallies the power it carries as received there and goes on with probability max rho
-// (Russian roulette) in a new diffuse direction, its channels weighted by rho / max rho. Every
-// round's tallies estimate the whole received power; the solve averages them.
+// Random walks: every photon is a walk from an emitter that, at each hit, goes on with
+// probability max rho (Russian roulette) in a new diffuse direction, its channels weighted by
+// rho / max rho, and tallies by its score (WalkScore, settings.hpp): the power it carries at every
+// hit (collision), or that power reweighted where it ends (absorption) or goes on (survival).
+// Every round's tallies estimate the whole received power; the solve averages them.
 #pragma once
 
 #include <array>
@@ -11,6 +12,7 @@
 #include "flatland/base/status.hpp"
 #include "flatland/scene/scene.hpp"
 #include "flatland/transport/light_transport.hpp"
+#include "flatland/transport/settings.hpp"
 
 namespace flatland {
 
@@ -22,9 +24,11 @@ class RandomWalks final : public LightTransport {
   static constexpr std::uint64_t kMaxWalksPerRound = std::uint64_t{1} << 20;
 
   RandomWalks() = default;
-  // Walks of `scene` starting from `emission` (power per coefficient and channel). Refused where
-  // a side reflects more than kWalkMaxReflectivity: a walk would average over 1000 rays.
-  static Result<RandomWalks> create(const Scene& scene, std::vector<double> emission);
+  // Walks of `scene` starting from `emission` (power per coefficient and channel), tallied by
+  // `score`. Refused where a side reflects more than kWalkMaxReflectivity: a walk would average
+  // over 1000 rays.
+  static Result<RandomWalks> create(const Scene& scene, std::vector<double> emission,
+                                    WalkScore score = WalkScore::Collision);
 
   bool photons_go_on() const override { return true; }
   bool emitted_light(std::uint32_t) const override { return true; }
@@ -48,6 +52,7 @@ class RandomWalks final : public LightTransport {
   std::vector<double> emission_;  // where every round's walks start, per coefficient and channel
   std::vector<double> nothing_;   // nothing waits to be shot: zeros, laid out as emission_
   double expected_rays_ = 1.0;    // an upper bound on a walk's mean number of rays
+  double largest_weight_ = 1.0;   // the largest multiple of its power one tally may be (survival: 1 / q)
   int most_headroom_bits_ = 0;
   // Absorbed and escaped power per channel, averaged over rounds as the received power is.
   std::array<double, 3> absorbed_{};
