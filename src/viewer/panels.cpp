@@ -50,7 +50,7 @@ const char* const kHelp[][2] = {
 
 }  // namespace
 
-bool Viewer::option_combo(SolveOption option) {
+bool Viewer::option_combo(SolveOption option, const char* tooltip) {
   // The option's names as the command line and Python take them (options.hpp).
   const SolveOptionSpec& spec = spec_of(option);
   std::vector<std::string> names(spec.choices.begin(), spec.choices.end());
@@ -62,8 +62,9 @@ bool Viewer::option_combo(SolveOption option) {
     if (names[i] == current) index = static_cast<int>(i);
   }
   const std::string label(spec.name);
-  if (!combo(label.c_str(), &index, pointers.data(), static_cast<int>(pointers.size()))) return false;
-  return set_solve_option(settings_, option, names[static_cast<std::size_t>(index)]).ok();
+  const bool chosen = combo(label.c_str(), &index, pointers.data(), static_cast<int>(pointers.size()));
+  if (tooltip != nullptr && ImGui::IsItemHovered()) ImGui::SetTooltip("%s", tooltip);
+  return chosen && set_solve_option(settings_, option, names[static_cast<std::size_t>(index)]).ok();
 }
 
 bool Viewer::combo(const char* label, int* index, const char* const* names, int count) {
@@ -264,31 +265,27 @@ void Viewer::draw_solve_panel(const Snapshot& snapshot) {
   changed = option_combo(SolveOption::Sampling) || changed;
   changed = option_combo(SolveOption::Discontinuities) || changed;
   changed = option_combo(SolveOption::Estimator) || changed;
-  changed = option_combo(SolveOption::Transport) || changed;
-  if (ImGui::IsItemHovered())
-    ImGui::SetTooltip(
-        "shooting: rounds of one hop each (the paper's method)\n"
-        "walk: each photon a whole random walk, ended by Russian roulette");
+  changed = option_combo(SolveOption::Transport,
+                         "shooting: rounds of one hop each (the paper's method)\n"
+                         "walk: each photon a whole random walk, ended by Russian roulette") ||
+            changed;
   // A score is a walk's: back to shooting, the score goes back to collision (shooting refuses others).
   if (settings_.transport != Transport::Walk) settings_.walk_score = WalkScore::Collision;
-  if (settings_.transport == Transport::Walk) {
-    changed = option_combo(SolveOption::WalkScore) || changed;
-    if (ImGui::IsItemHovered())
-      ImGui::SetTooltip(
-          "What a walk tallies where it lands (the same answer, different noise):\n"
-          "collision: the power that arrived, at every landing\n"
-          "absorption: power / (1 - q) where the walk ends (q: its chance of going on)\n"
-          "survival: power / q where it goes on");
-  }
-  changed = option_combo(SolveOption::Gather) || changed;
-  if (ImGui::IsItemHovered())
-    ImGui::SetTooltip(
-        "The answer's B once the solve stops (the saved result, the estimate, the error\n"
-        "against a reference; the plots stay the storage's B):\n"
-        "none: the storage's own\n"
-        "samples: a final gather, one deterministic bounce of the solution over what each\n"
-        "sample sees (diffuse surfaces and flat mirrors only)\n"
-        "auto: samples where the scene allows it at a bounded cost, none elsewhere");
+  if (settings_.transport == Transport::Walk)
+    changed = option_combo(SolveOption::WalkScore,
+                           "What a walk tallies where it lands (the same answer, different noise):\n"
+                           "collision: the power that arrived, at every landing\n"
+                           "absorption: power / (1 - q) where the walk ends (q: its chance of going on)\n"
+                           "survival: power / q where it goes on") ||
+              changed;
+  changed = option_combo(SolveOption::Gather,
+                         "The answer's B once the solve stops (the saved result, the estimate, the error\n"
+                         "against a reference; the plots stay the storage's B):\n"
+                         "none: the storage's own\n"
+                         "samples: a final gather, one deterministic bounce of the solution over what each\n"
+                         "sample sees (diffuse surfaces and flat mirrors only)\n"
+                         "auto: samples where the scene allows it at a bounded cost, none elsewhere") ||
+            changed;
   // Ray width as a fraction of the scene's size; profile and mode only matter for wide rays.
   float width = static_cast<float>(settings_.ray_width / scene_->scale);
   if (ImGui::SliderFloat("ray width", &width, 0.0f, 0.2f, width == 0.0f ? "point rays" : "%.4f x scale",

@@ -187,8 +187,9 @@ class Viewer {
   void track(const char* label);
   // ImGui::Combo with every item tracked as "label:item" for the UI tests.
   bool combo(const char* label, int* index, const char* const* names, int count);
-  // A combo of a solve option's names (options.hpp), labelled with its name; true when changed.
-  bool option_combo(SolveOption option);
+  // A combo of a solve option's names (options.hpp), labelled with its name, with `tooltip` (if
+  // any) while it is hovered; true when changed.
+  bool option_combo(SolveOption option, const char* tooltip = nullptr);
   // `stage`: the part of the window the scene is drawn on (none: all of it).
   void render_scene(const Snapshot& snapshot, const ViewTransform& view, const PixelRect* stage = nullptr);
   // Records the current ImGui window's rectangle as panel `name` (call between Begin and End).
