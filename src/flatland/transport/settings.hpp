@@ -67,13 +67,20 @@ const char* to_string(Transport transport);
 // once, with weight 1 / (1 - q).)
 enum class WalkScore { Collision, Absorption, Survival };
 const char* to_string(WalkScore score);
+// Survival's weight 1 / q is held to at most 1 / kSurvivalLeastChance: on a side whose q is
+// smaller a survival-scored walk tallies as a collision-scored one (P, whatever happens next),
+// which is as unbiased, and the fixed point gives up at most log2(1 / kSurvivalLeastChance) = 10
+// bits for it (walks.cpp). Without the hold a side of rho = 1e-12 took 40 bits, leaving walks a
+// few units each: rounding then unbalanced the books by 4 % and biased B by 5 %. (Absorption's
+// weight 1 / (1 - q) is held to 1000 by the walks' refusal of rho > kWalkMaxReflectivity.)
+inline constexpr double kSurvivalLeastChance = 1.0 / 1024.0;
 // A walk's tally at a landing, as a multiple of the power that arrived: q the side's chance of
 // going on (0 < q < 1 on a side walks deposit on), `goes_on` the roulette's outcome there.
 inline double walk_score_weight(WalkScore score, double q, bool goes_on) {
   switch (score) {
     case WalkScore::Collision: return 1.0;
     case WalkScore::Absorption: return goes_on ? 0.0 : 1.0 / (1.0 - q);
-    case WalkScore::Survival: return goes_on ? 1.0 / q : 0.0;
+    case WalkScore::Survival: return q < kSurvivalLeastChance ? 1.0 : goes_on ? 1.0 / q : 0.0;
   }
   return 1.0;
 }

@@ -35,9 +35,9 @@ Result<RandomWalks> RandomWalks::create(const Scene& scene, std::vector<double> 
   walks.expected_rays_ = 1.0 / (1.0 - most);
   // The tallies' bound for the headroom: collision tallies at most the arriving power at each
   // hit; absorption tallies once, P / (1 - q) <= P / (1 - max rho), within the same bound as R
-  // collision tallies; survival tallies P / q at each hit it goes on from, at most 1 / q times a
-  // collision tally.
-  if (score == WalkScore::Survival) walks.largest_weight_ = 1.0 / least_reflecting;
+  // collision tallies; survival tallies P / q at each hit it goes on from (q held to at least
+  // kSurvivalLeastChance), at most 1 / q times a collision tally.
+  if (score == WalkScore::Survival) walks.largest_weight_ = 1.0 / std::max(least_reflecting, kSurvivalLeastChance);
   walks.nothing_.assign(emission.size(), 0.0);
   walks.emission_ = std::move(emission);
   return walks;
