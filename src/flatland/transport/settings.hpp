@@ -70,9 +70,9 @@ const char* to_string(WalkScore score);
 // Survival's weight 1 / q is held to at most 1 / kSurvivalLeastChance: on a side whose q is
 // smaller a survival-scored walk tallies as a collision-scored one (P, whatever happens next),
 // which is as unbiased, and the fixed point gives up at most log2(1 / kSurvivalLeastChance) = 10
-// bits for it (walks.cpp). Without the hold a side of rho = 1e-12 took 40 bits, leaving walks a
-// few units each: rounding then unbalanced the books by 4 % and biased B by 5 %. (Absorption's
-// weight 1 / (1 - q) is held to 1000 by the walks' refusal of rho > kWalkMaxReflectivity.)
+// bits for it (walks.cpp), where an unheld 1 / q of a nearly black side would take so many that a
+// walk's few remaining units round its power away. (Absorption's weight 1 / (1 - q) is held to
+// 1000 by the walks' refusal of rho > kWalkMaxReflectivity.)
 inline constexpr double kSurvivalLeastChance = 1.0 / 1024.0;
 // A walk's tally at a landing, as a multiple of the power that arrived: q the side's chance of
 // going on (0 < q < 1 on a side walks deposit on), `goes_on` the roulette's outcome there.
