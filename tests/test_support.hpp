@@ -89,16 +89,19 @@ inline void PrintTo(const SolutionData& data, std::ostream* out) {
 
 // The solves on which rounds shared among processes are checked against one process (solver_test,
 // threads standing in for processes; mpi_test, under mpirun): shooting with point rays, with
-// footprints in colour, random walks, and shooting through glass onto a detector.
+// footprints in colour, random walks, shooting through glass onto a detector, and shooting with
+// importance (its rounds' sources counted by every process).
 struct SharingCase {
   const char* scene;
   Transport transport;
   double ray_width;
+  const char* importance = nullptr;  // a curve's id, or none
 };
 inline constexpr SharingCase kSharingCases[] = {{"scenes2d/mixed.json", Transport::Shooting, 0.0},
                                                 {"scenes2d/syndrome.json", Transport::Shooting, 0.02},
                                                 {"scenes2d/curved_room.json", Transport::Walk, 0.0},
-                                                {"scenes2d/prism.json", Transport::Shooting, 0.0}};
+                                                {"scenes2d/prism.json", Transport::Shooting, 0.0},
+                                                {"scenes2d/row_of_rooms.json", Transport::Shooting, 0.0, "desk"}};
 inline SolverSettings sharing_settings(const SharingCase& c, std::uint64_t photons, std::uint64_t seed) {
   SolverSettings settings;
   settings.photons = photons;
@@ -106,6 +109,7 @@ inline SolverSettings sharing_settings(const SharingCase& c, std::uint64_t photo
   settings.threads = 1;
   settings.transport = c.transport;
   settings.ray_width = c.ray_width;
+  if (c.importance != nullptr) settings.importance = {c.importance};
   return settings;
 }
 

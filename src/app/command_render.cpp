@@ -12,6 +12,7 @@
 #include "flatland/base/version.hpp"
 #include "flatland/reference/final_gather.hpp"
 #include "flatland/results/result_io.hpp"
+#include "flatland/transport/options.hpp"
 #include "png/png_io.hpp"
 #include "viewer/offscreen.hpp"
 #include "viewer/picture_labels.hpp"
@@ -210,6 +211,7 @@ int run_render(RenderOptions& o) {
   std::string transport = used.transport == Transport::Walk ? "random walks" : "shooting";
   if (used.transport == Transport::Walk && used.walk_score != WalkScore::Collision)
     transport += std::string(", ") + to_string(used.walk_score) + " score";
+  if (!used.importance.empty()) transport += ", importance " + solve_option_text(used, SolveOption::Importance);
   char how[512];
   std::snprintf(how, sizeof how, "%llu %s, %u rounds, %s basis, %s, seed %llu; flatland %s (%s)",
                 static_cast<unsigned long long>(solver.photons_shot()),

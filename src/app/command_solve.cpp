@@ -20,6 +20,8 @@
 #include "flatland/reference/final_gather.hpp"
 #include "flatland/results/result_io.hpp"
 #include "flatland/scene/scene.hpp"
+#include "flatland/transport/importance.hpp"
+#include "flatland/transport/options.hpp"
 
 namespace flatland::app {
 
@@ -156,6 +158,13 @@ void print_summary(const Solver& solver, const ErrorEstimate& estimate) {
                  count[static_cast<std::size_t>(Optics::Mirror)], count[static_cast<std::size_t>(Optics::Dielectric)],
                  count[static_cast<std::size_t>(Optics::Detector)], kChainLimit);
   }
+  if (!settings.importance.empty())
+    std::fprintf(out,
+                 "importance %s: sources drawn by power times importance, from an adjoint solve of %s photons "
+                 "(%.3f s); the least weight is 1/%.0f of the most\n",
+                 solve_option_text(settings, SolveOption::Importance).c_str(),
+                 human_count(static_cast<double>(solver.importance_photons())).c_str(), solver.importance_seconds(),
+                 1.0 / kImportanceFloor);
   const bool walks = settings.transport == Transport::Walk;
   char workers[64];
   if (process_count() > 1)

@@ -165,12 +165,27 @@ PyScene from_dict(const py::dict& document, const std::string& name) {
 
 // A keyword's value as the text the command line would take for the option (options.hpp): an int
 // as its digits, a float as its shortest round-trip form, a string as it is, a NumPy scalar as the
-// Python number it holds. Booleans and other types are refused here, with the keyword's name.
+// Python number it holds; importance's curve ids also as a list or tuple of strings (joined by
+// commas, as the command line takes them), or None for none. Booleans and other types are refused here, with the
+// keyword's name.
 std::string option_text(const py::handle& value, const SolveOptionSpec& spec) {
+  const bool ids = spec.option == SolveOption::Importance;
   const auto refuse = [&] {
-    fail(std::string(spec.keyword) + ": expected " + (spec.choices.empty() ? "a number" : "a name") + ", got " +
-         py::repr(value).cast<std::string>());
+    fail(std::string(spec.keyword) + ": expected " +
+         (ids                    ? "curve ids (a string such as 'desk,floor', or a list of strings)"
+          : spec.choices.empty() ? "a number"
+                                 : "a name") +
+         ", got " + py::repr(value).cast<std::string>());
   };
+  if (ids && value.is_none()) return {};
+  if (ids && (py::isinstance<py::list>(value) || py::isinstance<py::tuple>(value))) {
+    std::string text;
+    for (const py::handle item : value) {
+      if (!py::isinstance<py::str>(item)) refuse();
+      text += (text.empty() ? "" : ",") + item.cast<std::string>();
+    }
+    return text;
+  }
   if (py::isinstance<py::bool_>(value) || value.is_none()) refuse();
   if (py::isinstance<py::int_>(value)) return py::str(value).cast<std::string>();
   if (py::isinstance<py::float_>(value)) return format_number(value.cast<double>());

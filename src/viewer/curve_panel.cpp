@@ -322,6 +322,24 @@ void Viewer::draw_curve_panel(const Snapshot& snapshot) {
   ImGui::SetNextWindowSize(ImVec2(column.width(), std::max(column.y1 - top, 120.0f)), ImGuiCond_Always);
   ImGui::Begin("Curve", nullptr, kDocked);
   record_panel("Curve");
+  // Importance (shooting only, curves that hold light): a checkbox at the right end of the
+  // facts' first row, so the panel keeps its height.
+  const Curve& curve = scene_->curves[c];
+  if (settings_.transport == Transport::Shooting &&
+      (scene_->stores(curve, Side::Front) || scene_->stores(curve, Side::Back))) {
+    const ImVec2 start = ImGui::GetCursorPos();
+    const float width =
+        ImGui::GetFrameHeight() + ImGui::GetStyle().ItemInnerSpacing.x + ImGui::CalcTextSize("importance").x;
+    ImGui::SetCursorPosX(std::max(start.x, ImGui::GetWindowContentRegionMax().x - width));
+    if (importance_checkbox(c)) restart();
+    track("importance");
+    if (ImGui::IsItemHovered())
+      ImGui::SetTooltip(
+          "Favour this curve: photons leave the sources by power times their importance\n"
+          "for the ticked curves (from a short solve of the adjoint scene). The same expected\n"
+          "answer, less noise on the ticked curves and more elsewhere (shooting only)");
+    ImGui::SetCursorPos(start);
+  }
   draw_curve_facts(*scene_, snapshot, c);
   // (Mirrors, glass and detectors store no light: no nodes to list.)
   if (scene_->material_of(scene_->curves[c]).optics == Optics::Diffuse) draw_node_list(snapshot, c);

@@ -67,6 +67,19 @@ bool Viewer::option_combo(SolveOption option, const char* tooltip) {
   return chosen && set_solve_option(settings_, option, names[static_cast<std::size_t>(index)]).ok();
 }
 
+bool Viewer::importance_checkbox(std::size_t c) {
+  const Curve& curve = scene_->curves[c];
+  std::vector<std::string>& ids = settings_.importance;
+  const auto named = std::find(ids.begin(), ids.end(), curve.id);
+  bool in_region = named != ids.end();
+  if (!ImGui::Checkbox("importance", &in_region)) return false;
+  if (in_region)
+    ids.push_back(curve.id);
+  else
+    ids.erase(named);
+  return true;
+}
+
 bool Viewer::combo(const char* label, int* index, const char* const* names, int count) {
   bool changed = false;
   const bool open = ImGui::BeginCombo(label, names[std::clamp(*index, 0, count - 1)]);
@@ -278,6 +291,8 @@ void Viewer::draw_solve_panel(const Snapshot& snapshot) {
                            "absorption: power / (1 - q) where the walk ends (q: its chance of going on)\n"
                            "survival: power / q where it goes on") ||
               changed;
+  // Importance belongs to shooting: with walks it is cleared (the pair is refused).
+  if (settings_.transport == Transport::Walk) settings_.importance.clear();
   changed = option_combo(SolveOption::Gather,
                          "The answer's B once the solve stops (the saved result, the estimate, the error\n"
                          "against a reference; the plots stay the storage's B):\n"
@@ -529,6 +544,8 @@ void Viewer::draw_status_panel(const Snapshot& snapshot) {
     ImGui::ProgressBar(static_cast<float>(snapshot.round_done) / static_cast<float>(snapshot.round_photons),
                        ImVec2(-1, 0), "open round");
   ImGui::Text("rate     %.3g photons/s", snapshot.photons_per_second);
+  if (!settings_.importance.empty())
+    ImGui::TextWrapped("importance %s", solve_option_text(settings_, SolveOption::Importance).c_str());
   ImGui::Text("state    %s", snapshot.stop_reason != StopReason::Running ? to_string(snapshot.stop_reason)
                              : session_->running()                       ? "running"
                                                                          : "paused");

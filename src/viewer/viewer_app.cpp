@@ -3,6 +3,7 @@
 #include <imgui.h>
 
 #include <algorithm>
+#include <cctype>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -721,6 +722,28 @@ Status Viewer::run() {
   return ok_status();
 }
 
+namespace {
+
+// `text` as a URL query value: letters, digits and - _ . ~ , kept, every other byte as %XX (the
+// options' names and numbers pass unchanged; importance's curve ids may hold any character).
+std::string url_encoded(const std::string& text) {
+  static const char kHex[] = "0123456789ABCDEF";
+  std::string out;
+  for (const char c : text) {
+    const auto byte = static_cast<unsigned char>(c);
+    if (std::isalnum(byte) != 0 || c == '-' || c == '_' || c == '.' || c == '~' || c == ',') {
+      out += c;
+    } else {
+      out += '%';
+      out += kHex[byte >> 4];
+      out += kHex[byte & 15];
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
 std::string Viewer::link_query() const {
   std::string query;
   const SolverSettings defaults;
@@ -731,7 +754,7 @@ std::string Viewer::link_query() const {
     if (value == solve_option_text(defaults, spec.option)) continue;
     std::string_view flag = spec.flag;
     while (!flag.empty() && flag.front() == '-') flag.remove_prefix(1);
-    query += (query.empty() ? "" : "&") + std::string(flag) + "=" + value;
+    query += (query.empty() ? "" : "&") + std::string(flag) + "=" + url_encoded(value);
   }
   const int curve = selected_curve();
   if (curve >= 0 && static_cast<std::size_t>(curve) < scene().curves.size())

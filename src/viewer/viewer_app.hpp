@@ -190,6 +190,9 @@ class Viewer {
   // A combo of a solve option's names (options.hpp), labelled with its name, with `tooltip` (if
   // any) while it is hovered; true when changed.
   bool option_combo(SolveOption option, const char* tooltip = nullptr);
+  // The inspected curve c's "importance" checkbox: whether it is one of the curves the solve's
+  // importance favours; true when it was toggled.
+  bool importance_checkbox(std::size_t c);
   // `stage`: the part of the window the scene is drawn on (none: all of it).
   void render_scene(const Snapshot& snapshot, const ViewTransform& view, const PixelRect* stage = nullptr);
   // Records the current ImGui window's rectangle as panel `name` (call between Begin and End).

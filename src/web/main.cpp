@@ -48,7 +48,7 @@ EMSCRIPTEN_KEEPALIVE void flatland_resize(int width, int height) {
 // The viewer's state as URL parameters (Copy link): every solve option that differs from its
 // default, the inspected curve, presentation mode, the First photons preset, and the paths'
 // colouring and count, as "name=value&..." (values URL-safe: the options' texts are names and
-// numbers).
+// numbers, and importance's curve ids are percent-encoded).
 EMSCRIPTEN_KEEPALIVE const char* flatland_state_query() {
   static std::string query;
   query = the_viewer ? the_viewer->link_query() : "";

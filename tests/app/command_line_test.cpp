@@ -42,6 +42,7 @@ std::string other_value(const SolveOptionSpec& spec, const SolverSettings& defau
     case SolveOption::Replicates: return "4";
     case SolveOption::Confidence: return "0.9";
     case SolveOption::TargetError: return "0.01";
+    case SolveOption::Importance: return "desk,floor";
     default: break;
   }
   ADD_FAILURE() << "no other value for --" << spec.flag;

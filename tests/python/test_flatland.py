@@ -69,6 +69,25 @@ def test_same_seed_gives_the_same_bits_as_the_command_line(tmp_path):
     assert cli.returncode == 2 and "--walk-score: survival" in cli.stderr and "transport walk" in cli.stderr
     with pytest.raises(ValueError, match="walk_score: survival"):
         flatland.solve(scene, walk_score="survival")
+    # Importance, named alike (a string of ids or a list of them), and an unknown id refused in each
+    # front end's words.
+    cli = run_cli("solve", "scenes2d/row_of_rooms.json", "--photons", "50000", "--importance", "desk,floor_1",
+                  "--out", str(out), "--quiet")
+    assert cli.returncode == 0, cli.stderr
+    rooms = flatland.Scene.load("scenes2d/row_of_rooms.json")
+    result = flatland.solve(rooms, photons=50_000, importance=["desk", "floor_1"])
+    assert without_timing(result.to_json()) == without_timing(out.read_text())
+    assert json.loads(out.read_text())["settings"]["importance"]["curves"] == ["desk", "floor_1"]
+    assert without_timing(flatland.solve(rooms, photons=50_000, importance="desk,floor_1").to_json()) == \
+        without_timing(out.read_text())
+    cli = run_cli("solve", "scenes2d/row_of_rooms.json", "--importance", "dsk")
+    assert cli.returncode == 2 and "--importance: scenes2d/row_of_rooms.json has no curve 'dsk'; did you mean 'desk'?" \
+        in cli.stderr
+    with pytest.raises(ValueError, match="importance: .* has no curve 'dsk'"):
+        flatland.solve(rooms, importance="dsk")
+    with pytest.raises(ValueError, match="importance: expected curve ids"):
+        flatland.solve(rooms, importance=["desk", 3])
+    assert flatland.solve(rooms, photons=20_000, importance=None).to_json() is not None
 
 
 def test_a_final_gather_is_the_command_lines(tmp_path):

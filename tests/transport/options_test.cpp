@@ -3,6 +3,7 @@
 
 #include <set>
 #include <string>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -65,6 +66,24 @@ TEST(Options, DefaultsReadBackAndNamesAreUnique) {
   EXPECT_EQ(read.ray_width, defaults.ray_width);
   EXPECT_EQ(read.elements, kAutoElements);
   EXPECT_FALSE(option_by_flag("ray_width").has_value());
+}
+
+// Importance takes curve ids separated by commas, each once; empty text names none.
+TEST(Options, ImportanceTakesCurveIdsOnce) {
+  SolverSettings s;
+  ASSERT_TRUE(set_solve_option(s, SolveOption::Importance, "desk,left floor").ok());
+  EXPECT_EQ(s.importance, (std::vector<std::string>{"desk", "left floor"}));
+  EXPECT_EQ(solve_option_text(s, SolveOption::Importance), "desk,left floor");
+  for (const char* bad : {",desk", "desk,", "desk,,floor", "desk,desk"}) {
+    const Status status = set_solve_option(s, SolveOption::Importance, bad);
+    ASSERT_FALSE(status) << bad;
+    EXPECT_EQ(status.error().message.rfind("importance: ", 0), 0u) << status.error().message;
+  }
+  EXPECT_EQ(s.importance.size(), 2u);  // a refused value leaves the setting as it was
+  ASSERT_TRUE(set_solve_option(s, SolveOption::Importance, "").ok());
+  EXPECT_TRUE(s.importance.empty());
+  EXPECT_EQ(spelled("importance: s.json has no curve 'x'", Spelling::CommandLine),
+            "--importance: s.json has no curve 'x'");
 }
 
 // Numbers read back exactly as written; bad values name the option in the core's words, and each

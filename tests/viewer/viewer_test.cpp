@@ -646,6 +646,43 @@ TEST_F(Viewer, WalkTransportStepsWholeJourneys) {
   frames_until(viewer, [&] { return viewer.session().snapshot()->settings.transport == Transport::Shooting; });
 }
 
+// The inspected curve's "importance" box adds it to the curves importance favours (the solve
+// restarts with them, and the link carries them); unticked, it leaves them; with walks, which
+// refuse importance, the curves are cleared.
+TEST_F(Viewer, ImportanceBoxFavoursTheInspectedCurve) {
+  const ViewOptions options = paused_window("row_of_rooms.json", 20'000);
+  Result<std::unique_ptr<viewer::Viewer>> created = viewer::Viewer::create(options);
+  ASSERT_TRUE(created) << created.error().message;
+  viewer::Viewer& viewer = **created;
+  std::size_t desk = 0;
+  while (desk < viewer.scene().curves.size() && viewer.scene().curves[desk].id != "desk") ++desk;
+  ASSERT_LT(desk, viewer.scene().curves.size());
+  viewer.select_curve(static_cast<int>(desk));
+  frames_until(
+      viewer, [] { return false; }, 3);
+  click(viewer, "importance");
+  EXPECT_EQ(viewer.settings().importance, std::vector<std::string>{"desk"});
+  viewer.session().wait_idle();
+  frames_until(viewer, [&] { return viewer.session().snapshot()->settings.importance.size() == 1; });
+  EXPECT_NE(viewer.link_query().find("importance=desk"), std::string::npos) << viewer.link_query();
+  // The status panel's new line moves the curve panel, and the box with it.
+  frames_until(
+      viewer, [] { return false; }, 3);
+  click(viewer, "importance");
+  EXPECT_TRUE(viewer.settings().importance.empty());
+  frames_until(
+      viewer, [] { return false; }, 3);
+  click(viewer, "importance");
+  EXPECT_EQ(viewer.settings().importance.size(), 1u);
+  click(viewer, "transport");
+  click(viewer, "transport:walk");
+  EXPECT_EQ(viewer.settings().transport, Transport::Walk);
+  EXPECT_TRUE(viewer.settings().importance.empty());
+  viewer.session().wait_idle();
+  frames_until(viewer, [&] { return viewer.session().snapshot()->settings.transport == Transport::Walk; });
+  EXPECT_TRUE(viewer.session().snapshot()->settings.importance.empty());
+}
+
 // The lecture preset: one button switches to random walks coloured by bounce and steps a photon
 // every kFirstPhotonsSeconds on its own; stepping by hand takes over.
 TEST_F(Viewer, FirstPhotonsPresetStepsWalksSlowly) {

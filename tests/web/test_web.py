@@ -111,6 +111,8 @@ def same_as_solve(page, tmp_path, scene, options, scene_file):
     ("light_guide", {"photons": "50000"}),
     ("mirror_room", {"photons": "100000", "ray-width": "0.02"}),
     ("parabolic_mirror", {"photons": "100000", "sampler": "random"}),
+    # Importance: its adjoint solve and each round's count of the sources run in the page too.
+    ("row_of_rooms", {"photons": "100000", "importance": "desk,floor_1"}),
 ])
 def test_the_report_is_what_solve_writes(page, tmp_path, scene, options):
     file, same = same_as_solve(page, tmp_path, scene, options, os.path.join(SOURCE, "scenes2d", scene + ".json"))

@@ -72,6 +72,10 @@ nlohmann::json result_without_curves(const Solver& solver, int samples_per_curve
   };
   // What a walk tallied; shooting has no such choice.
   if (settings.transport == Transport::Walk) result["settings"]["walk_score"] = to_string(settings.walk_score);
+  // The region that importance favoured, and the adjoint solve's photons; absent without one.
+  if (!settings.importance.empty())
+    result["settings"]["importance"] = {{"curves", settings.importance},
+                                        {"adjoint_photons", solver.importance_photons()}};
   result["stats"] = stats_to_json(*sampled.stats);
   if (solver.detector_layout().size > 0) result["detectors"] = detectors_to_json(solver);
   result["curves"] = nlohmann::json::array();

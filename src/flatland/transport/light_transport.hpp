@@ -53,6 +53,9 @@ struct RoundTotals {
   std::uint64_t photons = 0;       // of this round
   std::uint64_t photons_shot = 0;  // of the solve, this round's included
   std::size_t replicates = 1;      // parts of the deposits, each coefficients x channels long
+  // Importance: the pool's power that no photon of the round took (its curve side drew none), per
+  // coefficient and channel; it stays in the pool. Empty: every side with power was shot.
+  std::span<const double> kept;
 };
 
 class LightTransport {

@@ -30,6 +30,7 @@ enum class SolveOption {
   Transport,
   WalkScore,
   Gather,
+  Importance,
   RayWidth,
   RayProfile,
   RayMode,

@@ -288,6 +288,19 @@ bool PhotonShooter::prepare_footprints(const SceneStorage& storage, const std::a
   return true;
 }
 
+void PhotonShooter::count_sources(const RoundView& round, std::uint64_t first, std::uint64_t count,
+                                  std::vector<std::uint64_t>& per_block) const {
+  const SceneStorage& storage = *round.storage;
+  const RoundPoints points(seed_, round.number, sobol_, replicates_, layout_, *round.plan);
+  std::vector<SobolCursor> cursors = points.cursors();
+  RoundPoints::Place at = points.place_of(static_cast<std::uint32_t>(first));
+  for (std::uint64_t i = 0; i < count; ++i, points.next(at)) {
+    double place = 0.0;
+    const std::size_t source = points.choose_source(cursors, at, place);
+    ++per_block[by_coefficient_ ? storage.coefficient_block(source) : source];
+  }
+}
+
 void PhotonShooter::shoot(const RoundView& round, Rng& rng, std::uint64_t first, std::uint64_t count, Deposits& acc,
                           std::vector<PhotonPath>* paths, std::size_t path_limit) const {
   // The ray kind is fixed per solve: each kind gets its own compiled loop, so point rays carry no

@@ -153,6 +153,12 @@ class PhotonShooter {
   void shoot(const RoundView& round, Rng& rng, std::uint64_t first, std::uint64_t count, Deposits& deposits,
              std::vector<PhotonPath>* paths, std::size_t path_limit) const;
 
+  // Adds to per_block[b] the photons first .. first + count - 1 of the round that leave from
+  // block b (curve * 2 + side): the same choice of source, from the same Sobol' point or indexed
+  // uniform, that shoot() makes. Importance sets the power a side's photons carry by their count.
+  void count_sources(const RoundView& round, std::uint64_t first, std::uint64_t count,
+                     std::vector<std::uint64_t>& per_block) const;
+
   const SegmentAccelerator& accelerator() const { return accelerator_; }
   const DetectorLayout& detector_layout() const { return detectors_; }
 

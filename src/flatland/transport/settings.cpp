@@ -93,6 +93,10 @@ Status validate(const SolverSettings& settings) {
     return Error{std::string("walk score: ") + to_string(settings.walk_score) +
                  " scores random walks, and shooting's photons make one hop each; use transport walk with it "
                  "(or leave the walk score at collision)"};
+  if (settings.transport == Transport::Walk && !settings.importance.empty())
+    return Error{
+        "importance: it shares shooting's rounds among the sources, and every walk starts afresh from an "
+        "emitter; use transport shooting with it (or no importance)"};
   return ok_status();
 }
 

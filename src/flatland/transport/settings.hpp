@@ -8,6 +8,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "flatland/base/status.hpp"
 #include "flatland/scene/discontinuities.hpp"
@@ -186,6 +187,12 @@ struct SolverSettings {
   // What a walk tallies (Transport::Walk only; shooting refuses any score but collision).
   WalkScore walk_score = WalkScore::Collision;
   GatherMode gather = GatherMode::Auto;
+  // Importance (shooting only): the ids of the curves whose light matters most. Empty: none. Each
+  // round's photons are shared among the curve sides by their unshot power times the side's
+  // importance for those curves, found by a short solve of the adjoint scene (Solver,
+  // "Importance"); the answer's expectation is the same everywhere, its noise lower on those
+  // curves and higher elsewhere.
+  std::vector<std::string> importance;
   // Memory the solver's storage may take (0: default_memory_budget(), three quarters of the
   // machine's); settings that would need more are refused by Solver::create before allocating.
   std::size_t memory_limit = 0;

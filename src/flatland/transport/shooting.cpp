@@ -34,7 +34,8 @@ std::uint64_t ProgressiveShooting::round_photons(double unshot, std::uint64_t sh
 
 void ProgressiveShooting::end_round(const SceneStorage& storage, const RoundTotals& round,
                                     std::vector<double>& received, std::vector<double>& parts) {
-  // Power shot this round leaves the pool; what was received comes back as rho times itself. Each
+  // Power shot this round leaves the pool (all of it but what the round kept); what was received
+  // comes back as rho times itself. Each
   // replicate's part adds to its own running total (the parts sum to the received power).
   const auto channels = static_cast<std::size_t>(storage.channels());
   const std::size_t size = storage.coefficient_count() * channels;
@@ -58,8 +59,9 @@ void ProgressiveShooting::end_round(const SceneStorage& storage, const RoundTota
         }
         const double power = static_cast<double>(units) * round.inverse_scale;
         received[index] += power;
-        unshot_[index] = rho[ch] * power;
-        absorbed_[ch].add(power - unshot_[index]);
+        const double reflected = rho[ch] * power;
+        absorbed_[ch].add(power - reflected);
+        unshot_[index] = round.kept.empty() ? reflected : reflected + round.kept[index];
       }
     }
   }

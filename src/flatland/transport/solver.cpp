@@ -270,14 +270,85 @@ void Solver::plan_sources(const std::vector<double>& pool, const std::vector<Spe
     });
   }
   const std::vector<double>& coefficient_power = density_power.empty() ? pool : density_power;
+  const auto source_power = [&](std::size_t j) {
+    return by_coefficient ? &coefficient_power[j * channels] : block_unshot[j].data();
+  };
+  kept_any_ = false;
+  if (!importance_.empty()) {
+    plan_important_sources(pool, by_coefficient, source_power);
+    return;
+  }
   for (std::size_t j = 0; j < sources; ++j) {
-    const double* power = by_coefficient ? &coefficient_power[j * channels] : block_unshot[j].data();
+    const double* power = source_power(j);
     for (std::size_t ch = 0; ch < channels; ++ch) source_weights[j] += power[ch];
     if (!(source_weights[j] > 0.0)) continue;
     for (std::size_t ch = 0; ch < channels; ++ch)
       round_.photon_units[j][ch] = std::llround(power[ch] / source_weights[j] * per_photon * round_.scale);
   }
   round_.sources.assign(source_weights);
+}
+
+void Solver::plan_important_sources(const std::vector<double>& pool, bool by_coefficient,
+                                    const std::function<const double*(std::size_t)>& source_power) {
+  // Source j of block b (a curve side, or one of its coefficients) has power w_j (channels summed;
+  // the side's w_j sum to its unshot power P_b) and is chosen with probability proportional to
+  // w_j I_b, I_b the side's weight (importance.hpp: the square root of its importance, held to a
+  // floor). The round's photons are counted per side first (the same
+  // choices the shooter makes), and each of side b's n_b photons carries P_b / n_b, in its
+  // source's colour: given n_b, they carry exactly the side's power, so its expected deposits are
+  // those of shooting it all, and the books balance photon by photon. A side that no photon chose
+  // keeps its power in the pool for the next round.
+  const auto channels = static_cast<std::size_t>(channels_);
+  const std::size_t sources = source_weights_.size();
+  const auto block_of = [&](std::size_t j) {
+    return by_coefficient ? storage_.coefficient_block(static_cast<std::uint32_t>(j)) : static_cast<std::uint32_t>(j);
+  };
+  std::vector<double> side_power(storage_.block_count(), 0.0);
+  std::vector<double> chosen(sources, 0.0);
+  for (std::size_t j = 0; j < sources; ++j) {
+    const double* power = source_power(j);
+    for (std::size_t ch = 0; ch < channels; ++ch) source_weights_[j] += power[ch];
+    if (!(source_weights_[j] > 0.0)) continue;
+    const std::uint32_t block = block_of(j);
+    side_power[block] += source_weights_[j];
+    chosen[j] = source_weights_[j] * importance_[block];
+  }
+  round_.sources.assign(chosen);
+  // The count, shared among the threads by runs of photons (the sums do not depend on the split).
+  const std::uint64_t photons = round_.photons;
+  const RoundView view = round_view();
+  const unsigned workers = threads_ > 1 && photons >= 4 * kBatchSize ? worker_pool().threads() : 1u;
+  std::vector<std::vector<std::uint64_t>> counts(workers, std::vector<std::uint64_t>(storage_.block_count(), 0));
+  const auto count = [&](unsigned w) {
+    const std::uint64_t first = photons * w / workers;
+    const std::uint64_t last = photons * (w + 1) / workers;
+    shooter_.count_sources(view, first, last - first, counts[w]);
+  };
+  if (workers > 1)
+    worker_pool().run(workers, count);
+  else
+    count(0);
+  block_photons_.assign(storage_.block_count(), 0);
+  for (const std::vector<std::uint64_t>& part : counts)
+    for (std::size_t b = 0; b < part.size(); ++b) block_photons_[b] += part[b];
+  for (std::size_t j = 0; j < sources; ++j) {
+    if (!(source_weights_[j] > 0.0)) continue;
+    const std::uint32_t block = block_of(j);
+    if (block_photons_[block] == 0) continue;
+    const double per_photon = side_power[block] / static_cast<double>(block_photons_[block]);
+    const double* power = source_power(j);
+    for (std::size_t ch = 0; ch < channels; ++ch)
+      round_.photon_units[j][ch] = std::llround(power[ch] / source_weights_[j] * per_photon * round_.scale);
+  }
+  // What stays: the pool's entries of every side with power that no photon chose.
+  kept_.assign(pool.size(), 0.0);
+  for (std::uint32_t block = 0; block < storage_.block_count(); ++block) {
+    const std::uint32_t offset = storage_.block_offset(block);
+    if (offset == SceneStorage::kNoBlock || block_photons_[block] != 0 || !(side_power[block] > 0.0)) continue;
+    const std::size_t count_k = storage_.finest(block / 2).basis.size();
+    for (std::size_t i = offset * channels; i < (offset + count_k) * channels; ++i) kept_[i] = pool[i];
+    kept_any_ = true;
+  }
 }
 
 void Solver::end_round(std::span<const Deposits> deposits) {
@@ -288,6 +359,7 @@ void Solver::end_round(std::span<const Deposits> deposits) {
   totals.photons = round_.photons;
   totals.photons_shot = photons_shot_;
   totals.replicates = static_cast<std::size_t>(settings_.replicates);
+  if (kept_any_) totals.kept = kept_;
   std::vector<std::int64_t> detected_units(shooter_.detector_layout().size, 0);
   for (const Deposits& d : deposits) {
     for (std::size_t ch = 0; ch < channels; ++ch) {

@@ -223,6 +223,11 @@ class Solver {
   Spectrum reflected_at(const ReflectedField& field, std::uint32_t curve, Side side, double u) const;
   const std::vector<int>& chosen_levels() const { return storage_.chosen_levels(); }
   const SceneStorage& scene_storage() const { return storage_; }
+  // Importance (settings().importance): each curve side's weight, per block (curve * 2 + side;
+  // empty without importance), and what the adjoint solve that found them took.
+  const std::vector<double>& side_importance() const { return importance_; }
+  std::uint64_t importance_photons() const { return importance_photons_; }
+  double importance_seconds() const { return importance_seconds_; }
 
  private:
   Solver() = default;
@@ -255,6 +260,11 @@ class Solver {
   // The sources of the round (sides of curves, or coefficients for reconstructed origins) and the
   // units each one's photons carry, from the pool `pool` of `pool_power`.
   void plan_sources(const std::vector<double>& pool, const std::vector<Spectrum>& block_unshot, double pool_power);
+  // The same with importance: sources chosen by power times their side's importance, and each
+  // side's photons, counted first, carrying its power between them (`by_coefficient`: the sources
+  // are coefficients, else curve sides; `source_power(j)`: source j's power per channel).
+  void plan_important_sources(const std::vector<double>& pool, bool by_coefficient,
+                              const std::function<const double*(std::size_t)>& source_power);
   void end_round(std::span<const Deposits> deposits);
   // Always-on: emitted = absorbed + escaped + unshot within the fixed point's rounding, or the
   // solve stops (StopReason::BooksUnbalanced).
@@ -377,6 +387,15 @@ class Solver {
   RoundPlan round_;
   std::vector<double> source_weights_;  // plan_sources' scratch, kept between rounds
   std::vector<double> density_power_;
+  // Importance (importance.hpp): per block, the weight its sources' power takes (empty: none);
+  // the adjoint solve's photons and seconds; per block, the photons of the round that chose it
+  // (plan_sources); the pool's power no photon of the round took, which stays in the pool.
+  std::vector<double> importance_;
+  std::uint64_t importance_photons_ = 0;
+  double importance_seconds_ = 0.0;
+  std::vector<std::uint64_t> block_photons_;
+  std::vector<double> kept_;
+  bool kept_any_ = false;
   bool round_open_ = false;
   std::uint64_t round_done_ = 0;          // photons of the open round shot so far
   std::vector<Deposits> round_deposits_;  // per worker thread, for the open round

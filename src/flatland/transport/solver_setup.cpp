@@ -13,6 +13,7 @@
 #include "flatland/base/resources.hpp"
 #include "flatland/scene/discontinuities.hpp"
 #include "flatland/transport/error_estimate.hpp"
+#include "flatland/transport/importance.hpp"
 
 namespace flatland {
 
@@ -72,6 +73,7 @@ Status check_memory(const Scene& scene, const SolverSettings& settings, const St
 Status Solver::check_scene(const Scene& scene, const SolverSettings& settings) {
   if (Status status = validate(settings); !status) return status;
   if (scene.curves.empty() || scene.segments.empty()) return Error{scene.source + ": the scene has no curves"};
+  if (Result<std::vector<std::uint32_t>> region = importance_curves(scene, settings); !region) return region.error();
   // A ray wider than the whole scene spreads every photon over everything it meets: the answer
   // is a blur of the scene, not of the light.
   if (settings.ray_width > scene.scale) {
@@ -307,7 +309,18 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
   if (!storage || cancelled()) return Error{kSolverCancelled};
   solver.storage_ = std::move(*storage);
   solver.count_node_sources(events);
-  // 4. The transport, starting from the emitted power, and the footprints' tables.
+  // 4. Importance: each curve side's weight from the adjoint solve.
+  if (!settings.importance.empty()) {
+    Result<std::vector<std::uint32_t>> region = importance_curves(scene, settings);
+    if (!region) return region.error();
+    Result<ImportanceSolve> importance =
+        solve_importance(scene, *region, settings, flatland::importance_photons(settings.photons), cancel);
+    if (!importance) return importance.error();
+    solver.importance_ = std::move(importance->side_weight);
+    solver.importance_photons_ = importance->photons;
+    solver.importance_seconds_ = importance->seconds;
+  }
+  // 5. The transport, starting from the emitted power, and the footprints' tables.
   if (Status status = solver.start_transport(); !status) return status.error();
   if (!solver.shooter_.prepare_footprints(solver.storage_, cancel) || cancelled()) return Error{kSolverCancelled};
   return solver;
