@@ -161,6 +161,14 @@ inline CommandRun run_flatland(const std::string& arguments, const std::filesyst
   return result;
 }
 
+// A solver of `scene` with `settings`; a test failure with Solver::create's message when it
+// refuses them.
+inline Solver make_solver(const Scene& scene, const SolverSettings& settings) {
+  Result<Solver> solver = Solver::create(scene, settings);
+  EXPECT_TRUE(solver.ok()) << (solver.ok() ? "" : solver.error().message);
+  return std::move(solver).value();
+}
+
 inline Scene scene_from_text(const std::string& text) {
   Result<Scene> scene = parse_scene(text, "test-scene");
   if (!scene) {

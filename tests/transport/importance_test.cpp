@@ -16,11 +16,7 @@
 namespace flatland {
 namespace {
 
-Solver make_solver(const Scene& scene, const SolverSettings& settings) {
-  Result<Solver> solver = Solver::create(scene, settings);
-  EXPECT_TRUE(solver.ok()) << (solver.ok() ? "" : solver.error().message);
-  return std::move(solver).value();
-}
+using testing::make_solver;
 
 std::uint32_t curve_index(const Scene& scene, const std::string& id) {
   for (std::uint32_t c = 0; c < scene.curves.size(); ++c)

@@ -18,11 +18,7 @@ namespace {
 
 constexpr double kPi = std::numbers::pi;
 
-Solver make_solver(const Scene& scene, const SolverSettings& settings) {
-  Result<Solver> solver = Solver::create(scene, settings);
-  EXPECT_TRUE(solver.ok()) << (solver.ok() ? "" : solver.error().message);
-  return std::move(solver).value();
-}
+using testing::make_solver;
 
 // The first round of a solve on 4 elements a curve: the light straight from the emitters, through
 // every chain, and what side `side` of curve `curve` received of it, per channel.

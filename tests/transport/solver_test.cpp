@@ -22,11 +22,7 @@
 namespace flatland {
 namespace {
 
-Solver make_solver(const Scene& scene, const SolverSettings& settings) {
-  Result<Solver> solver = Solver::create(scene, settings);
-  EXPECT_TRUE(solver.ok()) << (solver.ok() ? "" : solver.error().message);
-  return std::move(solver).value();
-}
+using testing::make_solver;
 
 // Closed enclosure with uniform E and rho: B = E / (1 - rho) everywhere. The reflected part
 // rho H of a coefficient is a sum over photons of binomial hits: its relative standard deviation
