@@ -79,6 +79,20 @@ TEST(Importance, TheAdjointSceneLightsTheRegionAlone) {
   EXPECT_NEAR(adjoint.emitted_power(), scene.curves[desk].length, 1e-12);
 }
 
+// A sixteenth of the budget within [2^14, 2^20], the least with a target error (a cap's sixteenth
+// could be far more than the solve shoots).
+TEST(Importance, TheAdjointSolveTakesASixteenthOfTheBudget) {
+  SolverSettings settings;
+  settings.photons = 1'000'000;
+  EXPECT_EQ(importance_photons(settings), 62'500u);
+  settings.photons = 1'000;
+  EXPECT_EQ(importance_photons(settings), 16'384u);
+  settings.photons = 1'000'000'000;
+  EXPECT_EQ(importance_photons(settings), 1'048'576u);
+  settings.target_error = 1e-3;
+  EXPECT_EQ(importance_photons(settings), 16'384u);
+}
+
 // Three black plates in the open: the region A at y = 0 facing up, B1 above it facing down and B2
 // beside B1 (the scene's lamp, far off and facing away, is dark in the adjoint). With A glowing, B receives L_A F_AB =
 // L_B F_BA, so W_B = F_BA: the share of B's power that reaches A. The adjoint solve tallies B's hits of its 2^20

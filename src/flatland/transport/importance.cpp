@@ -70,8 +70,10 @@ Scene adjoint_scene(const Scene& scene, const std::vector<std::uint32_t>& region
   return adjoint;
 }
 
-std::uint64_t importance_photons(std::uint64_t photons) {
-  return std::clamp<std::uint64_t>(photons / 16, std::uint64_t{1} << 14, std::uint64_t{1} << 20);
+std::uint64_t importance_photons(const SolverSettings& settings) {
+  constexpr std::uint64_t kFewest = std::uint64_t{1} << 14;
+  if (settings.target_error > 0.0) return kFewest;
+  return std::clamp<std::uint64_t>(settings.photons / 16, kFewest, std::uint64_t{1} << 20);
 }
 
 Result<ImportanceSolve> solve_importance(const Scene& scene, const std::vector<std::uint32_t>& region,

@@ -62,7 +62,8 @@ Result<ImportanceSolve> solve_importance(const Scene& scene, const std::vector<s
                                          const SolverSettings& settings, std::uint64_t photons,
                                          const std::atomic<bool>* cancel);
 
-// The adjoint solve's photons for a solve of `photons`: a sixteenth of them, within [2^14, 2^20].
-std::uint64_t importance_photons(std::uint64_t photons);
+// The adjoint solve's photons for a solve with `settings`: a sixteenth of its photons, within
+// [2^14, 2^20]; 2^14 when it solves to a target error (its photons are then only a cap).
+std::uint64_t importance_photons(const SolverSettings& settings);
 
 }  // namespace flatland

@@ -314,7 +314,7 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
     Result<std::vector<std::uint32_t>> region = importance_curves(scene, settings);
     if (!region) return region.error();
     Result<ImportanceSolve> importance =
-        solve_importance(scene, *region, settings, flatland::importance_photons(settings.photons), cancel);
+        solve_importance(scene, *region, settings, flatland::importance_photons(settings), cancel);
     if (!importance) return importance.error();
     solver.importance_ = std::move(importance->side_weight);
     solver.importance_photons_ = importance->photons;
