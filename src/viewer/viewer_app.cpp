@@ -15,6 +15,7 @@
 #include <thread>
 
 #include "flatland/results/result_io.hpp"
+#include "flatland/transport/importance.hpp"
 #include "png/png_io.hpp"
 #include "viewer/gl.hpp"
 #include "viewer/renderer.hpp"
@@ -275,7 +276,17 @@ Status Viewer::open_scene(const std::string& path) {
   drop_reference("the scene changed");  // a reference belongs to one scene, as it was
   if (draw_.selected_curve >= static_cast<int>(scene_->curves.size())) draw_.selected_curve = -1;
   impl_->window->set_title("flatland - " + scene_->name);
-  set_message("loaded " + path);
+  // Importance names curves of the scene it was given for: those this one lacks (or that hold no
+  // light in it) are dropped, and the message says so.
+  std::string dropped;
+  std::erase_if(settings_.importance, [&](const std::string& id) {
+    SolverSettings one;
+    one.importance = {id};
+    if (importance_curves(*scene_, one)) return false;
+    dropped += (dropped.empty() ? "'" : ", '") + id + "'";
+    return true;
+  });
+  set_message("loaded " + path + (dropped.empty() ? "" : "; importance no longer names " + dropped));
   restart();
   return ok_status();
 }
@@ -533,6 +544,7 @@ void Viewer::handle_events() {
 
 void Viewer::first_photons() {
   settings_.transport = Transport::Walk;
+  settings_.importance.clear();  // walks refuse importance
   draw_.path_colour = PathColour::Bounce;
   draw_.paths = true;
   draw_.journey = true;

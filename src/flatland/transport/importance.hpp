@@ -6,7 +6,7 @@
 // importance of side j for the region R is W_j = sum_k F_jk (chi_R(k) + rho_k W_k). Diffuse
 // exchange is reciprocal, L_j F_jk = L_k F_kj, so w_j = L_j W_j obeys
 // w_j = sum_k F_kj (L_k chi_R(k) + rho_k w_k): the power that side j receives when the region's
-// sides emit a radiosity of 1, everything else dark and the reflectivities unchanged. W_j is that
+// sides emit with an emittance of 1, everything else dark and the reflectivities unchanged. W_j is that
 // received power per unit length (the adjoint's irradiance), found by a short Monte Carlo solve
 // of the adjoint scene with constant storage.
 //
@@ -41,7 +41,7 @@ inline constexpr double kImportanceFloor = 1.0 / 64.0;
 Result<std::vector<std::uint32_t>> importance_curves(const Scene& scene, const SolverSettings& settings);
 
 // The scene whose solution gives the importance of `region`: every emitter dark, the region's
-// curves emitting a grey radiosity of 1 diffusely from the sides they store, no spectra, and sides
+// curves emitting diffusely, with a grey emittance of 1, from the sides they store; no spectra; sides
 // that reflect nothing given a reflectivity of 1e-9 so that what they receive is tallied.
 Scene adjoint_scene(const Scene& scene, const std::vector<std::uint32_t>& region);
 

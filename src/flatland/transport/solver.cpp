@@ -275,8 +275,10 @@ void Solver::plan_sources(const std::vector<double>& pool, const std::vector<Spe
   };
   kept_any_ = false;
   if (!importance_.empty()) {
-    plan_important_sources(pool, by_coefficient, source_power);
-    return;
+    if (plan_important_sources(pool, by_coefficient, source_power)) return;
+    // Planned without importance after all: from nothing again.
+    std::fill(source_weights.begin(), source_weights.end(), 0.0);
+    std::fill(round_.photon_units.begin(), round_.photon_units.end(), std::array<std::int64_t, 3>{});
   }
   for (std::size_t j = 0; j < sources; ++j) {
     const double* power = source_power(j);
@@ -288,7 +290,7 @@ void Solver::plan_sources(const std::vector<double>& pool, const std::vector<Spe
   round_.sources.assign(source_weights);
 }
 
-void Solver::plan_important_sources(const std::vector<double>& pool, bool by_coefficient,
+bool Solver::plan_important_sources(const std::vector<double>& pool, bool by_coefficient,
                                     const std::function<const double*(std::size_t)>& source_power) {
   // Source j of block b (a curve side, or one of its coefficients) has power w_j (channels summed;
   // the side's w_j sum to its unshot power P_b) and is chosen with probability proportional to
@@ -297,7 +299,10 @@ void Solver::plan_important_sources(const std::vector<double>& pool, bool by_coe
   // choices the shooter makes), and each of side b's n_b photons carries P_b / n_b, in its
   // source's colour: given n_b, they carry exactly the side's power, so its expected deposits are
   // those of shooting it all, and the books balance photon by photon. A side that no photon chose
-  // keeps its power in the pool for the next round.
+  // keeps its power in the pool for the next round, except in a round of emitted light: kept, the
+  // power would later leave as reflected light (diffusely, from anywhere on the side, without a
+  // wavelength), not as its emitter sends it. Such a round, when it would keep any power, is
+  // planned without importance instead (false).
   const auto channels = static_cast<std::size_t>(channels_);
   const std::size_t sources = source_weights_.size();
   const auto block_of = [&](std::size_t j) {
@@ -345,10 +350,12 @@ void Solver::plan_important_sources(const std::vector<double>& pool, bool by_coe
   for (std::uint32_t block = 0; block < storage_.block_count(); ++block) {
     const std::uint32_t offset = storage_.block_offset(block);
     if (offset == SceneStorage::kNoBlock || block_photons_[block] != 0 || !(side_power[block] > 0.0)) continue;
+    if (view.emitted_light) return false;
     const std::size_t count_k = storage_.finest(block / 2).basis.size();
     for (std::size_t i = offset * channels; i < (offset + count_k) * channels; ++i) kept_[i] = pool[i];
     kept_any_ = true;
   }
+  return true;
 }
 
 void Solver::end_round(std::span<const Deposits> deposits) {

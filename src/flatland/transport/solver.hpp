@@ -262,8 +262,10 @@ class Solver {
   void plan_sources(const std::vector<double>& pool, const std::vector<Spectrum>& block_unshot, double pool_power);
   // The same with importance: sources chosen by power times their side's importance, and each
   // side's photons, counted first, carrying its power between them (`by_coefficient`: the sources
-  // are coefficients, else curve sides; `source_power(j)`: source j's power per channel).
-  void plan_important_sources(const std::vector<double>& pool, bool by_coefficient,
+  // are coefficients, else curve sides; `source_power(j)`: source j's power per channel). False
+  // (nothing planned) for a round of emitted light in which some side with power would draw no
+  // photon.
+  bool plan_important_sources(const std::vector<double>& pool, bool by_coefficient,
                               const std::function<const double*(std::size_t)>& source_power);
   void end_round(std::span<const Deposits> deposits);
   // Always-on: emitted = absorbed + escaped + unshot within the fixed point's rounding, or the
