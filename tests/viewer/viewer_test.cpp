@@ -682,21 +682,19 @@ TEST_F(Viewer, ImportanceBoxFavoursTheInspectedCurve) {
   frames_until(viewer, [&] { return viewer.session().snapshot()->settings.transport == Transport::Walk; });
   EXPECT_TRUE(viewer.session().snapshot()->settings.importance.empty());
   // The First photons preset (walks) clears them too; another scene keeps only the ids it has.
-  click(viewer, "transport");
-  click(viewer, "transport:shooting");
-  frames_until(
-      viewer, [] { return false; }, 3);
-  click(viewer, "importance");
-  ASSERT_EQ(viewer.settings().importance.size(), 1u);
+  const auto favour_the_desk_with_shooting = [&] {
+    click(viewer, "transport");
+    click(viewer, "transport:shooting");
+    frames_until(
+        viewer, [] { return false; }, 3);
+    click(viewer, "importance");
+    return viewer.settings().importance.size() == 1;
+  };
+  ASSERT_TRUE(favour_the_desk_with_shooting());
   click(viewer, "First photons");
   EXPECT_EQ(viewer.settings().transport, Transport::Walk);
   EXPECT_TRUE(viewer.settings().importance.empty());
-  click(viewer, "transport");
-  click(viewer, "transport:shooting");
-  frames_until(
-      viewer, [] { return false; }, 3);
-  click(viewer, "importance");
-  ASSERT_EQ(viewer.settings().importance.size(), 1u);
+  ASSERT_TRUE(favour_the_desk_with_shooting());
   ASSERT_TRUE(viewer.open_scene(testing::source_path("scenes2d/penumbra.json")));
   EXPECT_TRUE(viewer.settings().importance.empty());
   viewer.session().wait_idle();

@@ -73,7 +73,6 @@ Status check_memory(const Scene& scene, const SolverSettings& settings, const St
 Status Solver::check_scene(const Scene& scene, const SolverSettings& settings) {
   if (Status status = validate(settings); !status) return status;
   if (scene.curves.empty() || scene.segments.empty()) return Error{scene.source + ": the scene has no curves"};
-  if (Result<std::vector<std::uint32_t>> region = importance_curves(scene, settings); !region) return region.error();
   // A ray wider than the whole scene spreads every photon over everything it meets: the answer
   // is a blur of the scene, not of the light.
   if (settings.ray_width > scene.scale) {
@@ -284,6 +283,9 @@ Status Solver::start_transport() {
 Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings, const std::atomic<bool>* cancel) {
   const auto cancelled = [cancel] { return cancel != nullptr && cancel->load(std::memory_order_relaxed); };
   if (Status status = check_scene(scene, settings); !status) return status.error();
+  // The curves importance favours, refused before any work when the scene lacks them.
+  Result<std::vector<std::uint32_t>> region = importance_curves(scene, settings);
+  if (!region) return region.error();
   Solver solver;
   solver.scene_ = &scene;
   solver.settings_ = settings;
@@ -310,9 +312,7 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
   solver.storage_ = std::move(*storage);
   solver.count_node_sources(events);
   // 4. Importance: each curve side's weight from the adjoint solve.
-  if (!settings.importance.empty()) {
-    Result<std::vector<std::uint32_t>> region = importance_curves(scene, settings);
-    if (!region) return region.error();
+  if (!region->empty()) {
     Result<ImportanceSolve> importance =
         solve_importance(scene, *region, settings, flatland::importance_photons(settings), cancel);
     if (!importance) return importance.error();
