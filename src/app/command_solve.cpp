@@ -160,7 +160,7 @@ void print_summary(const Solver& solver, const ErrorEstimate& estimate) {
   }
   if (!settings.importance.empty())
     std::fprintf(out,
-                 "importance %s: sources drawn by power times importance, from an adjoint solve of %s photons "
+                 "importance %s: sources drawn by power times sqrt(importance), from an adjoint solve of %s photons "
                  "(%.3f s); the least weight is 1/%.0f of the most\n",
                  solve_option_text(settings, SolveOption::Importance).c_str(),
                  human_count(static_cast<double>(solver.importance_photons())).c_str(), solver.importance_seconds(),

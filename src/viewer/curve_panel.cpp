@@ -325,8 +325,7 @@ void Viewer::draw_curve_panel(const Snapshot& snapshot) {
   // Importance (shooting only, curves that hold light): a checkbox at the right end of the
   // facts' first row, so the panel keeps its height.
   const Curve& curve = scene_->curves[c];
-  if (settings_.transport == Transport::Shooting &&
-      (scene_->stores(curve, Side::Front) || scene_->stores(curve, Side::Back))) {
+  if (settings_.transport == Transport::Shooting && scene_->holds_light(curve)) {
     const ImVec2 start = ImGui::GetCursorPos();
     const float width =
         ImGui::GetFrameHeight() + ImGui::GetStyle().ItemInnerSpacing.x + ImGui::CalcTextSize("importance").x;
@@ -335,9 +334,10 @@ void Viewer::draw_curve_panel(const Snapshot& snapshot) {
     track("importance");
     if (ImGui::IsItemHovered())
       ImGui::SetTooltip(
-          "Favour this curve: photons leave the sources by power times their importance\n"
-          "for the ticked curves (from a short solve of the adjoint scene). The same expected\n"
-          "answer, less noise on the ticked curves and more elsewhere (shooting only)");
+          "Favour this curve: photons leave the sources by power times the square root\n"
+          "of their importance for the ticked curves (from a short solve of the adjoint\n"
+          "scene). The same expected answer, less noise on the ticked curves and more\n"
+          "elsewhere (shooting only)");
     ImGui::SetCursorPos(start);
   }
   draw_curve_facts(*scene_, snapshot, c);

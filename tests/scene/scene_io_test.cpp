@@ -547,6 +547,8 @@ TEST(SceneIo, SpecularMaterialsAndTheirDefaults) {
   // A specular curve holds no diffuse light on either side.
   EXPECT_FALSE(s.stores(s.curves[1], Side::Front));
   EXPECT_TRUE(s.stores(s.curves[0], Side::Front));
+  EXPECT_FALSE(s.holds_light(s.curves[1]));
+  EXPECT_TRUE(s.holds_light(s.curves[0]));
 }
 
 TEST(SceneIoErrors, SpecularMaterials) {

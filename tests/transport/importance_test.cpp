@@ -313,7 +313,7 @@ TEST(Importance, BooksBalanceOnEveryExampleSceneAndStorage) {
     const Scene scene = testing::scene_from_file("scenes2d/" + entry.path().filename().string());
     std::string region;
     for (const Curve& curve : scene.curves)
-      if (region.empty() && (scene.stores(curve, Side::Front) || scene.stores(curve, Side::Back))) region = curve.id;
+      if (region.empty() && scene.holds_light(curve)) region = curve.id;
     ASSERT_FALSE(region.empty()) << entry.path();
     ++scenes;
     for (BasisKind basis : {BasisKind::Constant, BasisKind::Linear, BasisKind::Cubic, BasisKind::Hermite}) {

@@ -156,6 +156,8 @@ struct Scene {
   const Material& material_of(const Curve& c) const { return materials[c.material]; }
   // Whether the curve's side `s` holds diffuse illumination (a diffuse material's named side).
   bool stores(const Curve& c, Side s) const { return material_of(c).optics == Optics::Diffuse && c.has_side(s); }
+  // Whether either side of the curve holds diffuse illumination (mirrors, glass and detectors do not).
+  bool holds_light(const Curve& c) const { return stores(c, Side::Front) || stores(c, Side::Back); }
   // Whether some curve is a mirror, a dielectric or a detector (photons then follow chains).
   bool has_specular() const;
   // Whether some material has a spectrum (its photons carry wavelengths).

@@ -31,7 +31,7 @@ Result<std::vector<std::uint32_t>> importance_curves(const Scene& scene, const S
     }
     const auto c = static_cast<std::uint32_t>(found - ids.begin());
     const Curve& curve = scene.curves[c];
-    if (!scene.stores(curve, Side::Front) && !scene.stores(curve, Side::Back))
+    if (!scene.holds_light(curve))
       return Error{"importance: curve '" + id +
                    "' keeps no diffuse light (a mirror, glass or detector has no radiosity to make accurate); "
                    "name the diffuse curves that its light reaches"};

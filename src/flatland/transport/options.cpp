@@ -64,8 +64,8 @@ const std::vector<SolveOptionSpec>& table() {
        "seconds on two cores, none elsewhere, saying why)"},
       {SolveOption::Importance, "importance", "importance", "importance", {}, "IDS",
        "Curves whose light matters most, as ids separated by commas (e.g. desk,floor; empty: none; transport "
-       "shooting only): each round's photons go to the sources by their unshot power times their importance "
-       "for those curves, from a short solve of the adjoint scene; the same expected answer everywhere, less "
+       "shooting only): each round's photons go to the sources by their unshot power times the square root "
+       "of their importance for those curves, from a short solve of the adjoint scene; the same expected answer everywhere, less "
        "noise on those curves and more elsewhere (docs/method.md, Importance)"},
       {SolveOption::RayWidth, "ray width", "ray-width", "ray_width", {}, "W",
        "Width of extended rays in scene units (0: point rays, no extended-ray code runs)"},

@@ -56,7 +56,7 @@ Result<SceneStorage> SceneStorage::build(const Scene& scene, const SolverSetting
     if (is_cancelled(cancel)) return;
     const Curve& curve = scene.curves[c];
     CurveStorage& finest = built.storage_[c];
-    if (!scene.stores(curve, Side::Front) && !scene.stores(curve, Side::Back)) {
+    if (!scene.holds_light(curve)) {
       // Mirrors, glass and detectors hold no light: no block, no deposit, no estimate. They keep
       // the smallest storage (one element a segment, no levels) so that every curve has a basis
       // to name in results, at a cost that does not grow with the plan.

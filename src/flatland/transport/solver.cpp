@@ -273,7 +273,7 @@ void Solver::plan_sources(const std::vector<double>& pool, const std::vector<Spe
   const auto source_power = [&](std::size_t j) {
     return by_coefficient ? &coefficient_power[j * channels] : block_unshot[j].data();
   };
-  kept_any_ = false;
+  kept_.clear();
   if (!importance_.empty()) {
     if (plan_important_sources(pool, by_coefficient, source_power)) return;
     // Planned without importance after all: from nothing again.
@@ -333,27 +333,27 @@ bool Solver::plan_important_sources(const std::vector<double>& pool, bool by_coe
     worker_pool().run(workers, count);
   else
     count(0);
-  block_photons_.assign(storage_.block_count(), 0);
+  std::vector<std::uint64_t> block_photons(storage_.block_count(), 0);
   for (const std::vector<std::uint64_t>& part : counts)
-    for (std::size_t b = 0; b < part.size(); ++b) block_photons_[b] += part[b];
+    for (std::size_t b = 0; b < part.size(); ++b) block_photons[b] += part[b];
   for (std::size_t j = 0; j < sources; ++j) {
     if (!(source_weights_[j] > 0.0)) continue;
     const std::uint32_t block = block_of(j);
-    if (block_photons_[block] == 0) continue;
-    const double per_photon = side_power[block] / static_cast<double>(block_photons_[block]);
+    if (block_photons[block] == 0) continue;
+    const double per_photon = side_power[block] / static_cast<double>(block_photons[block]);
     const double* power = source_power(j);
     for (std::size_t ch = 0; ch < channels; ++ch)
       round_.photon_units[j][ch] = std::llround(power[ch] / source_weights_[j] * per_photon * round_.scale);
   }
-  // What stays: the pool's entries of every side with power that no photon chose.
-  kept_.assign(pool.size(), 0.0);
+  // What stays: the pool's entries of every side with power that no photon chose (kept_ stays
+  // empty when nothing does).
   for (std::uint32_t block = 0; block < storage_.block_count(); ++block) {
     const std::uint32_t offset = storage_.block_offset(block);
-    if (offset == SceneStorage::kNoBlock || block_photons_[block] != 0 || !(side_power[block] > 0.0)) continue;
+    if (offset == SceneStorage::kNoBlock || block_photons[block] != 0 || !(side_power[block] > 0.0)) continue;
     if (view.emitted_light) return false;
+    if (kept_.empty()) kept_.assign(pool.size(), 0.0);
     const std::size_t count_k = storage_.finest(block / 2).basis.size();
     for (std::size_t i = offset * channels; i < (offset + count_k) * channels; ++i) kept_[i] = pool[i];
-    kept_any_ = true;
   }
   return true;
 }
@@ -366,7 +366,7 @@ void Solver::end_round(std::span<const Deposits> deposits) {
   totals.photons = round_.photons;
   totals.photons_shot = photons_shot_;
   totals.replicates = static_cast<std::size_t>(settings_.replicates);
-  if (kept_any_) totals.kept = kept_;
+  totals.kept = kept_;
   std::vector<std::int64_t> detected_units(shooter_.detector_layout().size, 0);
   for (const Deposits& d : deposits) {
     for (std::size_t ch = 0; ch < channels; ++ch) {

@@ -390,14 +390,12 @@ class Solver {
   std::vector<double> source_weights_;  // plan_sources' scratch, kept between rounds
   std::vector<double> density_power_;
   // Importance (importance.hpp): per block, the weight its sources' power takes (empty: none);
-  // the adjoint solve's photons and seconds; per block, the photons of the round that chose it
-  // (plan_sources); the pool's power no photon of the round took, which stays in the pool.
+  // the adjoint solve's photons and seconds; the pool's power no photon of the round took, which
+  // stays in the pool (plan_sources; empty when the round keeps nothing).
   std::vector<double> importance_;
   std::uint64_t importance_photons_ = 0;
   double importance_seconds_ = 0.0;
-  std::vector<std::uint64_t> block_photons_;
   std::vector<double> kept_;
-  bool kept_any_ = false;
   bool round_open_ = false;
   std::uint64_t round_done_ = 0;          // photons of the open round shot so far
   std::vector<Deposits> round_deposits_;  // per worker thread, for the open round

@@ -49,8 +49,7 @@ Status check_memory(const Scene& scene, const SolverSettings& settings, const St
   const std::size_t limit = settings.memory_limit != 0 ? settings.memory_limit : default_memory_budget();
   if (bytes <= static_cast<double>(limit)) return ok_status();
   std::size_t holding = 0;
-  for (const Curve& curve : scene.curves)
-    holding += scene.stores(curve, Side::Front) || scene.stores(curve, Side::Back);
+  for (const Curve& curve : scene.curves) holding += scene.holds_light(curve);
   char message[400];
   if (plan.automatic)
     std::snprintf(message, sizeof message,
@@ -135,9 +134,7 @@ std::vector<std::vector<MeshNode>> Solver::find_events(const SegmentAccelerator&
   contacts_per_curve_.assign(scene.curves.size(), 0);
   // Only curves that hold light need nodes: a mirror's, a dielectric's or a detector's would
   // refine a storage nothing is deposited on.
-  const auto holds_light = [&](std::uint32_t c) {
-    return scene.stores(scene.curves[c], Side::Front) || scene.stores(scene.curves[c], Side::Back);
-  };
+  const auto holds_light = [&](std::uint32_t c) { return scene.holds_light(scene.curves[c]); };
   if (settings_.discontinuities != DiscontinuityMode::None) {
     // Contacts are part of the geometry (light on the two sides is unrelated): a value jump there
     // whenever the scene's joints are honoured.
