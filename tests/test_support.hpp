@@ -100,6 +100,7 @@ struct SharingCase {
 inline constexpr SharingCase kSharingCases[] = {{"scenes2d/mixed.json", Transport::Shooting, 0.0},
                                                 {"scenes2d/syndrome.json", Transport::Shooting, 0.02},
                                                 {"scenes2d/curved_room.json", Transport::Walk, 0.0},
+                                                {"scenes2d/default.json", Transport::Jacobi, 0.0},
                                                 {"scenes2d/prism.json", Transport::Shooting, 0.0},
                                                 {"scenes2d/row_of_rooms.json", Transport::Shooting, 0.0, "desk"}};
 inline SolverSettings sharing_settings(const SharingCase& c, std::uint64_t photons, std::uint64_t seed) {

@@ -208,7 +208,9 @@ int run_render(RenderOptions& o) {
   const std::string commit = program_commit();
   const bool dirty = commit.size() > 6 && commit.compare(commit.size() - 6, 6, "-dirty") == 0;
   const std::string short_commit = commit.substr(0, 12) + (dirty ? "-dirty" : "");
-  std::string transport = used.transport == Transport::Walk ? "random walks" : "shooting";
+  std::string transport = used.transport == Transport::Walk     ? "random walks"
+                          : used.transport == Transport::Jacobi ? "averaged Jacobi iterations"
+                                                                : "shooting";
   if (used.transport == Transport::Walk && used.walk_score != WalkScore::Collision)
     transport += std::string(", ") + to_string(used.walk_score) + " score";
   if (!used.importance.empty()) transport += ", importance " + solve_option_text(used, SolveOption::Importance);

@@ -136,6 +136,9 @@ void print_summary(const Solver& solver, const ErrorEstimate& estimate) {
   std::string walks_text;
   if (settings.transport == Transport::Walk)
     walks_text = std::string("random walks (") + to_string(settings.walk_score) + " score), ";
+  if (settings.transport == Transport::Jacobi)
+    walks_text = solver.iterating() ? "averaged Jacobi iterations, "
+                                    : "averaged Jacobi (the budget ended before any iteration), ";
   std::fprintf(out,
                "method    %s%s basis (%s), %s, %s positions, discontinuities %s, "
                "%s, %s sampler\n",

@@ -280,7 +280,9 @@ void Viewer::draw_solve_panel(const Snapshot& snapshot) {
   changed = option_combo(SolveOption::Estimator) || changed;
   changed = option_combo(SolveOption::Transport,
                          "shooting: rounds of one hop each (the paper's method)\n"
-                         "walk: each photon a whole random walk, ended by Russian roulette") ||
+                         "walk: each photon a whole random walk, ended by Russian roulette\n"
+                         "jacobi: shooting for a quarter of the photons, then iterations that each shoot\n"
+                         "the emitted and all the reflected light, averaged (the estimate moves per iteration)") ||
             changed;
   // A score is a walk's: back to shooting, the score goes back to collision (shooting refuses others).
   if (settings_.transport != Transport::Walk) settings_.walk_score = WalkScore::Collision;
@@ -291,8 +293,8 @@ void Viewer::draw_solve_panel(const Snapshot& snapshot) {
                            "absorption: power / (1 - q) where the walk ends (q: its chance of going on)\n"
                            "survival: power / q where it goes on") ||
               changed;
-  // Importance belongs to shooting: with walks it is cleared (the pair is refused).
-  if (settings_.transport == Transport::Walk) settings_.importance.clear();
+  // Importance belongs to shooting: with walks or Jacobi iterations it is cleared (the pairs are refused).
+  if (settings_.transport != Transport::Shooting) settings_.importance.clear();
   changed = option_combo(SolveOption::Gather,
                          "The answer's B once the solve stops (the saved result, the estimate, the error\n"
                          "against a reference; the plots stay the storage's B):\n"

@@ -58,6 +58,13 @@ def test_same_seed_gives_the_same_bits_as_the_command_line(tmp_path):
     assert cli.returncode == 0, cli.stderr
     result = flatland.solve(scene, photons=50_000, basis="linear", elements=24, transport="walk", ray_width=0.05)
     assert without_timing(result.to_json()) == without_timing(out.read_text())
+    # Averaged Jacobi iterations, named alike.
+    cli = run_cli("solve", "scenes2d/mixed.json", "--photons", "50000", "--transport", "jacobi", "--out", str(out),
+                  "--quiet")
+    assert cli.returncode == 0, cli.stderr
+    result = flatland.solve(scene, photons=50_000, transport="jacobi")
+    assert without_timing(result.to_json()) == without_timing(out.read_text())
+    assert json.loads(out.read_text())["settings"]["transport"] == "jacobi"
     # A walk's score, named alike, and refused with shooting in the command line's words.
     cli = run_cli("solve", "scenes2d/mixed.json", "--photons", "50000", "--transport", "walk", "--walk-score",
                   "absorption", "--out", str(out), "--quiet")

@@ -353,7 +353,7 @@ TEST(ErrorEstimate, TargetErrorStopsAtTheCap) {
 // keeps the books balanced.
 TEST(ErrorEstimate, TargetErrorWorksForWalksAndKeepsTheBooks) {
   const Scene scene = testing::scene_from_file("scenes2d/mixed.json");
-  for (Transport transport : {Transport::Shooting, Transport::Walk}) {
+  for (Transport transport : {Transport::Shooting, Transport::Walk, Transport::Jacobi}) {
     SolverSettings settings;
     settings.photons = 20'000'000;
     settings.target_error = 0.02;

@@ -58,6 +58,12 @@ TEST(Importance, CurvesAreNamedByTheirIdsAndMustHoldLight) {
   ASSERT_FALSE(walks);
   EXPECT_EQ(walks.error().message.rfind("importance: ", 0), 0u);
   EXPECT_NE(walks.error().message.find("use transport shooting"), std::string::npos);
+  // Nor do Jacobi iterations, which keep no pool between them.
+  settings.transport = Transport::Jacobi;
+  const Status jacobi = validate(settings);
+  ASSERT_FALSE(jacobi);
+  EXPECT_EQ(jacobi.error().message.rfind("importance: ", 0), 0u);
+  EXPECT_NE(jacobi.error().message.find("use transport shooting"), std::string::npos);
 }
 
 TEST(Importance, TheAdjointSceneLightsTheRegionAlone) {

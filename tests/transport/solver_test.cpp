@@ -1936,6 +1936,97 @@ TEST(Solver, WalksMatchTheLitRingsClosedForm) { check_lit_ring_by_walks(WalkScor
 TEST(Solver, AbsorptionScoredWalksMatchTheLitRingsClosedForm) { check_lit_ring_by_walks(WalkScore::Absorption); }
 TEST(Solver, SurvivalScoredWalksMatchTheLitRingsClosedForm) { check_lit_ring_by_walks(WalkScore::Survival); }
 
+// ---- Averaged Jacobi iterations ----
+
+// The closed enclosure (B = E / (1 - rho) everywhere) by averaged iterations, over seeds: the mean
+// of B at every sample within 5 standard errors of the seeds' own spread, plus the only bias the
+// method has, the increments' truncation. In a closed enclosure of one reflectivity every photon
+// lands, so the pool after round k is exactly rho^(k+1) times the emitted power: the increments
+// stop shooting with at most the tolerance's share of it unshot, which takes at most that share of
+// the received power from r_0 (and the iterations shrink it further).
+void check_jacobi_enclosure(double rho, BasisKind basis) {
+  const Scene scene = testing::scene_from_text(testing::circle_enclosure(rho, 1.0));
+  SolverSettings settings;
+  settings.photons = 400'000;
+  settings.basis = basis;
+  settings.elements = 16;
+  settings.tolerance = 1e-6;
+  settings.transport = Transport::Jacobi;
+  constexpr int kSeeds = 12;
+  constexpr int kSamples = 50;
+  std::vector<double> sum(kSamples, 0.0), sum_squares(kSamples, 0.0);
+  for (int seed = 1; seed <= kSeeds; ++seed) {
+    settings.seed = static_cast<std::uint64_t>(seed);
+    Solver solver = make_solver(scene, settings);
+    solver.run();
+    ASSERT_EQ(solver.stop_reason(), StopReason::BudgetSpent);
+    ASSERT_TRUE(solver.iterating());
+    const EnergyBooks books = solver.books();
+    EXPECT_EQ(books.escaped, 0.0);
+    EXPECT_NEAR(books.imbalance(), 0.0, 1e-9 * books.emitted);
+    for (int j = 0; j < kSamples; ++j) {
+      const CurvePoint point =
+          point_at_arc_length(scene, scene.curves[0], (j + 0.5) * scene.curves[0].length / kSamples);
+      const double b = solver.radiosity(0, Side::Front, point.u)[0];
+      sum[static_cast<std::size_t>(j)] += b;
+      sum_squares[static_cast<std::size_t>(j)] += b * b;
+    }
+  }
+  const double exact = 1.0 / (1.0 - rho);
+  const double truncation = settings.tolerance * (exact - 1.0);
+  for (std::size_t j = 0; j < kSamples; ++j) {
+    const double mean = sum[j] / kSeeds;
+    const double variance = std::max(0.0, (sum_squares[j] - kSeeds * mean * mean) / (kSeeds - 1));
+    EXPECT_NEAR(mean, exact, 5.0 * std::sqrt(variance / kSeeds) + truncation + 1e-12 * exact) << "at sample " << j;
+  }
+}
+
+TEST(Solver, JacobiMatchesTheClosedEnclosureLinear) { check_jacobi_enclosure(0.5, BasisKind::Linear); }
+TEST(Solver, JacobiMatchesTheStiffClosedEnclosureCubic) { check_jacobi_enclosure(0.9, BasisKind::Cubic); }
+
+// The books of the average balance exactly on scenes with mirrors, glass and detectors, and the
+// iterations begin after the increments' quarter of the budget.
+TEST(Solver, JacobiKeepsTheBooksOnEveryExampleScene) {
+  for (const char* path : {"scenes2d/mixed.json", "scenes2d/prism.json", "scenes2d/curved_room.json",
+                           "scenes2d/default.json", "scenes2d/penumbra.json"}) {
+    const Scene scene = testing::scene_from_file(path);
+    SolverSettings settings;
+    settings.photons = 200'000;
+    settings.transport = Transport::Jacobi;
+    Solver solver = make_solver(scene, settings);
+    std::uint64_t before_iterations = 0;
+    while (!solver.stopped()) {
+      if (!solver.iterating()) before_iterations = solver.photons_shot();
+      ASSERT_TRUE(solver.step_round() || solver.stopped()) << path;
+      const EnergyBooks books = solver.books();
+      ASSERT_NEAR(books.imbalance(), 0.0, 1e-9 * books.emitted) << path << " after round " << solver.rounds();
+    }
+    EXPECT_NE(solver.stop_reason(), StopReason::BooksUnbalanced) << path;
+    EXPECT_TRUE(solver.iterating()) << path;
+    EXPECT_LE(before_iterations, settings.photons / 4 + ProgressiveShooting::kMinPhotonsPerRound) << path;
+    // What the average leaves unshot is its iterates' small residual, not the pool.
+    EXPECT_LT(std::fabs(solver.books().unshot), 0.05 * solver.books().emitted) << path;
+  }
+}
+
+TEST(Solver, JacobiGivesIdenticalResultsOnAnyThreadCountAndStep) {
+  const Scene scene = testing::scene_from_file("scenes2d/mixed.json");
+  SolverSettings settings;
+  settings.photons = 60'000;
+  settings.seed = 43;
+  settings.transport = Transport::Jacobi;
+  const testing::SolutionData whole = dump_on_one_and_three_threads(scene, settings);
+  settings.threads = 2;
+  Solver stepped = make_solver(scene, settings);
+  const std::uint64_t sizes[] = {1, 2, 3, 4000, 97, 8192, 1, 10'000};
+  for (std::size_t step = 0; !stepped.stopped(); ++step) stepped.step_photons(sizes[step % std::size(sizes)]);
+  EXPECT_TRUE(stepped.iterating());
+  EXPECT_EQ(whole, dump(stepped));
+  // Its own answer, not shooting's.
+  settings.transport = Transport::Shooting;
+  EXPECT_NE(dump_on_one_and_three_threads(scene, settings).radiosity, whole.radiosity);
+}
+
 TEST(Solver, WalksGiveIdenticalResultsOnAnyThreadCountAndStep) {
   const Scene scene = testing::scene_from_file("scenes2d/mixed.json");
   SolverSettings settings;

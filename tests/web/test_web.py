@@ -108,7 +108,7 @@ def same_as_solve(page, tmp_path, scene, options, scene_file):
     # dispersion use no library function that differs between platforms).
     ("prism", {"photons": "100000", "seed": "4"}),
     ("lens", {"photons": "100000", "transport": "walk", "walk-score": "survival"}),
-    ("light_guide", {"photons": "50000"}),
+    ("light_guide", {"photons": "50000", "transport": "jacobi"}),
     ("mirror_room", {"photons": "100000", "ray-width": "0.02"}),
     ("parabolic_mirror", {"photons": "100000", "sampler": "random"}),
     # Importance: its adjoint solve and each round's count of the sources run in the page too.

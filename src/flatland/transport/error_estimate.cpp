@@ -346,9 +346,10 @@ PointValues values_at(const Solver& solver, const EvaluationPoints& at, const Re
 // Unshot light: a round shoots the pool U and receives at most U of it, of which rho_max
 // reflects; so all later rounds add at most rho_max U / (1 - rho_max) to the integral of B - E.
 // Its share of B - E's integral (`reflected`) is taken as its relative error in every norm (it is
-// spread like B - E: an assumption, not a bound, for L2 and L-infinity). Walks leave nothing.
+// spread like B - E: an assumption, not a bound, for L2 and L-infinity). Walks leave nothing;
+// Jacobi iterations leave their average's books' small residual (shooting.hpp), taken the same way.
 double unshot_share_of(const Solver& solver, double reflected) {
-  if (solver.settings().transport != Transport::Shooting) return 0.0;
+  if (solver.settings().transport == Transport::Walk) return 0.0;
   const Scene& scene = solver.scene();
   double rho_max = 0.0;
   for (const Curve& curve : scene.curves)

@@ -5,7 +5,8 @@
 //
 // A new transport is a class of its own file that implements this interface and an alternative
 // of the Solver's variant (solver.hpp); the two below are
-//   ProgressiveShooting (shooting.hpp): rounds of one hop each, shooting what the last reflected;
+//   ProgressiveShooting (shooting.hpp): rounds of one hop each, shooting what the last reflected
+//   (and, for Transport::Jacobi, then averaged regular iterations);
 //   RandomWalks (walks.hpp): every photon a whole walk from an emitter, ended by Russian roulette.
 #pragma once
 
@@ -94,9 +95,10 @@ class LightTransport {
                               const std::vector<double>& open, const std::vector<double>& open_parts, double before,
                               double done, double photons) const = 0;
   // A finished round's tallies (power per entry, e.g. the detectors') into their running values
-  // as the received power is (shooting: summed over rounds; walks: averaged).
+  // as the received power is (shooting: summed over rounds; walks and iterations: averaged),
+  // called after end_round for the same round.
   virtual void add_tallies(std::vector<double>& running, const std::vector<double>& round_values,
-                           const RoundTotals& round) const = 0;
+                           const RoundTotals& round) = 0;
   // Adds the absorbed, escaped and unshot power to `books` (emitted already in it).
   virtual void add_books(EnergyBooks& books, int channels, std::uint32_t rounds) const = 0;
 };

@@ -47,10 +47,12 @@ const std::vector<SolveOptionSpec>& table() {
        "Where each photon's uniforms come from: random (independent pseudo-random numbers) or sobol "
        "(randomised quasi-Monte Carlo: an Owen-scrambled Sobol' point per photon; same seed, same bits "
        "on any thread count)"},
-      {SolveOption::Transport, "transport", "transport", "transport", {"shooting", "walk"}, "",
+      {SolveOption::Transport, "transport", "transport", "transport", {"shooting", "walk", "jacobi"}, "",
        "How light travels: shooting (progressive rounds, each shooting the light the last one "
-       "reflected: the paper's method) or walk (each photon a random walk from an emitter, tallied at "
-       "every hit and ended by Russian roulette; photons counts walks, tolerance is not used)"},
+       "reflected: the paper's method), walk (each photon a random walk from an emitter, tallied at "
+       "every hit and ended by Russian roulette; photons counts walks, tolerance is not used) or jacobi "
+       "(shooting for a quarter of the photons, then regular iterations that each shoot the emitted and "
+       "all the reflected light, averaged with it; docs/method.md, Averaged Jacobi iterations)"},
       {SolveOption::WalkScore, "walk score", "walk-score", "walk_score", {"collision", "absorption", "survival"}, "",
        "What a random walk tallies where it lands (transport walk only): collision (the power that arrived, "
        "at every landing), absorption (that power / (1 - q) where the walk ends, q its chance of going on "

@@ -44,7 +44,9 @@ Estimator resolve_estimator(Estimator estimator, BasisKind basis) {
   return basis == BasisKind::Hermite ? Estimator::Local : Estimator::Galerkin;
 }
 
-const char* to_string(Transport transport) { return transport == Transport::Shooting ? "shooting" : "walk"; }
+const char* to_string(Transport transport) {
+  return transport == Transport::Shooting ? "shooting" : transport == Transport::Walk ? "walk" : "jacobi";
+}
 
 const char* to_string(WalkScore score) {
   return score == WalkScore::Collision ? "collision" : score == WalkScore::Absorption ? "absorption" : "survival";
@@ -97,6 +99,10 @@ Status validate(const SolverSettings& settings) {
     return Error{
         "importance: it shares shooting's rounds among the sources, and every walk starts afresh from an "
         "emitter; use transport shooting with it (or no importance)"};
+  if (settings.transport == Transport::Jacobi && !settings.importance.empty())
+    return Error{
+        "importance: it keeps unshot power in shooting's pool, and Jacobi iterations shoot all the reflected "
+        "light every iteration; use transport shooting with it (or no importance)"};
   return ok_status();
 }
 

@@ -7,11 +7,80 @@
 
 namespace flatland {
 
-ProgressiveShooting::ProgressiveShooting(std::vector<double> emission, double emitted, double decay, double tolerance)
-    : unshot_(std::move(emission)), emitted_(emitted), initial_ratio_(decay), tolerance_(tolerance) {}
+namespace {
+
+// `to` = rho `from` on every reflecting side's coefficients (zero elsewhere); adds (1 - rho) `from`
+// per channel to `absorbed` and returns the sum of `to`.
+double reflect(const SceneStorage& storage, const std::vector<double>& from, std::vector<double>& to,
+               std::array<double, 3>& absorbed) {
+  const auto channels = static_cast<std::size_t>(storage.channels());
+  to.assign(from.size(), 0.0);
+  double reflected_sum = 0.0;
+  for (std::uint32_t block = 0; block < storage.block_count(); ++block) {
+    const std::uint32_t offset = storage.block_offset(block);
+    if (offset == SceneStorage::kNoBlock) continue;
+    const Spectrum& rho = storage.block_reflectivity(block);
+    const std::size_t count = storage.finest(block / 2).basis.size();
+    for (std::size_t k = 0; k < count; ++k)
+      for (std::size_t ch = 0; ch < channels; ++ch) {
+        const std::size_t index = (offset + k) * channels + ch;
+        to[index] = rho[ch] * from[index];
+        absorbed[ch] += from[index] - to[index];
+        reflected_sum += to[index];
+      }
+  }
+  return reflected_sum;
+}
+
+double sum_of(const std::vector<double>& values) {
+  double sum = 0.0;
+  for (double value : values) sum += value;
+  return sum;
+}
+
+}  // namespace
+
+ProgressiveShooting::ProgressiveShooting(std::vector<double> emission, double emitted, double decay, double tolerance,
+                                         std::uint64_t averaged_budget)
+    : unshot_(std::move(emission)),
+      emitted_(emitted),
+      initial_ratio_(decay),
+      tolerance_(tolerance),
+      budget_(averaged_budget) {
+  if (budget_ > 0) emission_ = unshot_;
+}
+
+std::uint64_t ProgressiveShooting::increment_budget() const {
+  return std::max(budget_ / 4, std::min(budget_, kMinPhotonsPerRound));
+}
 
 std::uint64_t ProgressiveShooting::round_photons(double unshot, std::uint64_t shot, std::uint64_t budget,
                                                  std::uint32_t rounds) const {
+  if (budget_ == 0) return incremental_photons(unshot, shot, budget, rounds);
+  if (!regular_) return incremental_photons(unshot, shot, std::min(budget, increment_budget()), rounds);
+  // An iteration takes a quarter of the photons shot before it (at least kMinPhotonsPerIteration),
+  // the last one all that is left; its first round shoots the emitted light, with the iteration's
+  // photons shared between its two rounds by power (photons of about equal power).
+  std::uint64_t size = std::max(kMinPhotonsPerIteration, iteration_start_ / 4);
+  const std::uint64_t left_at_start = budget - std::min(budget, iteration_start_);
+  if (size + size / 2 > left_at_start) size = left_at_start;
+  std::uint64_t photons = 0;
+  if (emitted_light(rounds)) {
+    const double reflected = sum_of(unshot_);
+    const double share = emitted_ / (emitted_ + reflected);
+    const std::uint64_t least = std::min(size, kMinPhotonsPerRound);
+    photons = std::clamp<std::uint64_t>(static_cast<std::uint64_t>(std::llround(static_cast<double>(size) * share)),
+                                        least, std::max(least, size - least));
+  } else {
+    const std::uint64_t taken = shot - iteration_start_;
+    photons = size > taken ? size - taken : 0;
+  }
+  photons = std::max(photons, kMinPhotonsPerRound);
+  return std::min({photons, budget - shot, kMaxPhotonsPerRound});
+}
+
+std::uint64_t ProgressiveShooting::incremental_photons(double unshot, std::uint64_t shot, std::uint64_t budget,
+                                                       std::uint32_t rounds) const {
   // Photons of (about) equal power in every round: this round gets the share of the remaining
   // budget that its power is of all the power still to be shot. With the observed decay ratio r
   // of the unshot power, that is about U / (1 - r) (the geometric tail; ignoring where the
@@ -19,7 +88,7 @@ std::uint64_t ProgressiveShooting::round_photons(double unshot, std::uint64_t sh
   // Every round shoots at least kMinPhotonsPerRound, so the rounds still needed to reach the
   // tolerance, K = ln(tolerance E / U) / ln r, each get that much set aside first; when the budget
   // cannot pay for them all, the solve ends with its budget spent and says how much is unshot.
-  const std::uint64_t remaining = budget - shot;
+  const std::uint64_t remaining = budget - std::min(budget, shot);
   const double ratio = std::clamp(rounds == 0 ? initial_ratio_ : unshot / previous_unshot_, 0.0, 0.999999);
   const double target = tolerance_ * emitted_;
   double later_rounds = 0.0;
@@ -34,6 +103,100 @@ std::uint64_t ProgressiveShooting::round_photons(double unshot, std::uint64_t sh
 
 void ProgressiveShooting::end_round(const SceneStorage& storage, const RoundTotals& round,
                                     std::vector<double>& received, std::vector<double>& parts) {
+  shot_ += round.photons;
+  if (regular_) {
+    end_iteration_round(storage, round, received, parts);
+    ++rounds_;
+    return;
+  }
+  end_increment(storage, round, received, parts);
+  ended_ = Ended::Increment;
+  ++rounds_;
+  // The iterations begin once the increments have taken their quarter of the budget or the pool
+  // is below the tolerance (not where nothing reflects: there they would shoot nothing).
+  if (budget_ > 0 && (shot_ >= increment_budget() || !(sum_of(unshot_) > tolerance_ * emitted_)))
+    begin_iterations(storage, received);
+}
+
+void ProgressiveShooting::begin_iterations(const SceneStorage& storage, const std::vector<double>& received) {
+  // The shooting's answer and books are the average's first entry, weighted by its photons.
+  Books first;
+  for (std::size_t ch = 0; ch < 3; ++ch) {
+    first.absorbed[ch] = absorbed_[ch].value();
+    first.escaped[ch] = escaped_[ch].value();
+    for (std::size_t loss = 0; loss < kChainLosses; ++loss) first.lost[loss][ch] = lost_[loss][ch].value();
+  }
+  first.unshot = sum_of(unshot_);
+  std::vector<double> reflected;
+  std::array<double, 3> ignored{};
+  if (!(reflect(storage, received, reflected, ignored) > 0.0)) return;
+  mean_books_ = first;
+  unshot_ = std::move(reflected);  // the first iteration reflects the shooting's answer
+  nothing_.assign(unshot_.size(), 0.0);
+  regular_ = true;
+  first_regular_round_ = rounds_;
+  iteration_start_ = shot_;
+  averaged_photons_ = static_cast<double>(shot_);
+}
+
+void ProgressiveShooting::end_iteration_round(const SceneStorage& storage, const RoundTotals& round,
+                                              std::vector<double>& received, std::vector<double>& parts) {
+  // An iteration's first round shoots the emitted light (its deposits D_j), the second all that
+  // iterate j - 1 reflects (R_j); the iterate is r_j = D_j + R_j, and it joins the average.
+  const auto channels = static_cast<std::size_t>(storage.channels());
+  const std::size_t size = storage.coefficient_count() * channels;
+  const bool split = round.replicates > 1;
+  const bool emitted = emitted_light(rounds_);
+  if (emitted) {
+    iterate_.assign(size, 0.0);
+    iterate_parts_.assign(split ? parts.size() : 0, 0.0);
+    iterate_books_ = Books{};
+  } else {
+    iterate_books_.unshot -= sum_of(unshot_);  // what this round shot
+  }
+  for (std::size_t index = 0; index < size; ++index) {
+    std::int64_t units = 0;
+    for (std::size_t r = 0; r < round.replicates; ++r) {
+      std::int64_t part = 0;
+      for (const Deposits& deposits : round.deposits) part += deposits.received[r * size + index];
+      if (split) iterate_parts_[r * size + index] += static_cast<double>(part) * round.inverse_scale;
+      units += part;
+    }
+    iterate_[index] += static_cast<double>(units) * round.inverse_scale;
+  }
+  for (std::size_t ch = 0; ch < channels; ++ch) {
+    iterate_books_.escaped[ch] += static_cast<double>(round.escaped[ch]) * round.inverse_scale;
+    iterate_books_.absorbed[ch] += static_cast<double>(round.absorbed[ch]) * round.inverse_scale;
+    for (std::size_t loss = 0; loss < kChainLosses; ++loss)
+      iterate_books_.lost[loss][ch] += static_cast<double>(round.lost[loss][ch]) * round.inverse_scale;
+  }
+  if (emitted) {
+    ended_ = Ended::IterationEmitted;
+    return;
+  }
+  // The iterate's books: rho r_j waits (the next iteration shoots it), (1 - rho) r_j is absorbed.
+  iterate_books_.unshot += reflect(storage, iterate_, unshot_, iterate_books_.absorbed);
+  const double photons = static_cast<double>(shot_ - iteration_start_);
+  averaged_photons_ += photons;
+  last_weight_ = photons / averaged_photons_;
+  const double w = last_weight_;
+  for (std::size_t index = 0; index < size; ++index) received[index] += w * (iterate_[index] - received[index]);
+  if (split)
+    for (std::size_t index = 0; index < parts.size(); ++index)
+      parts[index] += w * (iterate_parts_[index] - parts[index]);
+  for (std::size_t ch = 0; ch < 3; ++ch) {
+    mean_books_.absorbed[ch] += w * (iterate_books_.absorbed[ch] - mean_books_.absorbed[ch]);
+    mean_books_.escaped[ch] += w * (iterate_books_.escaped[ch] - mean_books_.escaped[ch]);
+    for (std::size_t loss = 0; loss < kChainLosses; ++loss)
+      mean_books_.lost[loss][ch] += w * (iterate_books_.lost[loss][ch] - mean_books_.lost[loss][ch]);
+  }
+  mean_books_.unshot += w * (iterate_books_.unshot - mean_books_.unshot);
+  iteration_start_ = shot_;
+  ended_ = Ended::IterationDone;
+}
+
+void ProgressiveShooting::end_increment(const SceneStorage& storage, const RoundTotals& round,
+                                        std::vector<double>& received, std::vector<double>& parts) {
   // Power shot this round leaves the pool (all of it but what the round kept); what was received
   // comes back as rho times itself. Each
   // replicate's part adds to its own running total (the parts sum to the received power).
@@ -77,16 +240,39 @@ void ProgressiveShooting::end_round(const SceneStorage& storage, const RoundTota
 void ProgressiveShooting::add_open_round(std::vector<double>& received, std::vector<double>& parts,
                                          const std::vector<double>& open, const std::vector<double>& open_parts, double,
                                          double, double) const {
+  // An iteration joins the average when it is finished: until then a reader sees the average.
+  if (regular_) return;
   for (std::size_t index = 0; index < received.size(); ++index) received[index] += open[index];
   for (std::size_t index = 0; index < open_parts.size(); ++index) parts[index] += open_parts[index];
 }
 
 void ProgressiveShooting::add_tallies(std::vector<double>& running, const std::vector<double>& round_values,
-                                      const RoundTotals&) const {
-  for (std::size_t i = 0; i < running.size(); ++i) running[i] += round_values[i];
+                                      const RoundTotals&) {
+  // As the received power: summed over the increments, then averaged with each finished iterate.
+  switch (ended_) {
+    case Ended::Increment:
+      for (std::size_t i = 0; i < running.size(); ++i) running[i] += round_values[i];
+      break;
+    case Ended::IterationEmitted: iterate_tallies_ = round_values; break;
+    case Ended::IterationDone:
+      for (std::size_t i = 0; i < running.size(); ++i)
+        running[i] += last_weight_ * (iterate_tallies_[i] + round_values[i] - running[i]);
+      break;
+  }
 }
 
 void ProgressiveShooting::add_books(EnergyBooks& books, int channels, std::uint32_t) const {
+  if (regular_) {
+    for (std::size_t ch = 0; ch < static_cast<std::size_t>(channels); ++ch) {
+      books.absorbed += mean_books_.absorbed[ch];
+      books.escaped += mean_books_.escaped[ch];
+      books.absorbed_mirrors += mean_books_.lost[static_cast<std::size_t>(ChainLoss::Mirrors)][ch];
+      books.absorbed_glass += mean_books_.lost[static_cast<std::size_t>(ChainLoss::Glass)][ch];
+      books.cut += mean_books_.lost[static_cast<std::size_t>(ChainLoss::Limit)][ch];
+    }
+    books.unshot += mean_books_.unshot;
+    return;
+  }
   for (int ch = 0; ch < channels; ++ch) {
     const auto c = static_cast<std::size_t>(ch);
     books.absorbed += absorbed_[c].value();

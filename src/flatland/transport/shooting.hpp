@@ -1,6 +1,14 @@
 // Progressive shooting, the paper's transport: each round shoots the power that the last round's
 // deposits reflected (the first round the emitted power), one hop a photon, until what is left
 // falls below the tolerance or the budget is spent.
+//
+// Averaged Jacobi iterations (Transport::Jacobi) begin the same way, and after the first quarter
+// of the budget (or once the pool is below the tolerance) go on with regular iterations: each is
+// a round of the emitted light and a round of all the light the last iterate reflects, so that
+// iterate j's received power is r_j = D_j + R_j, with E[r_j | r_(j-1)] = K E + K rho r_(j-1), the
+// deterministic Jacobi step. The shooting's answer r_0 and every finished iterate are averaged,
+// weighted by their photons: if r_0 is unbiased so is every iterate, and so is the average, whose
+// noise is that of all the photons instead of the first rounds' frozen in.
 #pragma once
 
 #include <array>
@@ -25,17 +33,29 @@ class ProgressiveShooting final : public LightTransport {
   // by at most n 2^-61 of itself; 2^30 photons keep that below 5e-10.
   static constexpr std::uint64_t kMaxPhotonsPerRound = std::uint64_t{1} << 30;
 
+  // Regular iterations take at least this many photons each, and each at least a quarter of
+  // all the photons shot before it (so that a budget of N has about log(4) / log(1.25), 6, of them).
+  static constexpr std::uint64_t kMinPhotonsPerIteration = 4 * kMinPhotonsPerRound;
+
   ProgressiveShooting() = default;
   // Starts from `emission` (power per coefficient and channel), `emitted` in all; `decay` is the
   // first guess of the pool's decay per round (the reflecting sides' mean reflectivity).
-  ProgressiveShooting(std::vector<double> emission, double emitted, double decay, double tolerance);
+  // `averaged_budget`: the photons of the solve (or pass) for averaged Jacobi iterations; 0 for
+  // shooting alone.
+  ProgressiveShooting(std::vector<double> emission, double emitted, double decay, double tolerance,
+                      std::uint64_t averaged_budget = 0);
 
   bool photons_go_on() const override { return false; }
-  bool emitted_light(std::uint32_t round) const override { return round == 0; }
-  std::uint32_t bounce(std::uint32_t round) const override { return round; }
-  const std::vector<double>& pool() const override { return unshot_; }
-  const std::vector<double>& unshot() const override { return unshot_; }
-  bool converged(double pool_power) const override { return !(pool_power > tolerance_ * emitted_); }
+  bool emitted_light(std::uint32_t round) const override {
+    return round == 0 || (regular_ && (round - first_regular_round_) % 2 == 0);
+  }
+  std::uint32_t bounce(std::uint32_t round) const override { return regular_ ? (emitted_light(round) ? 0 : 1) : round; }
+  const std::vector<double>& pool() const override { return regular_ && emitted_light(rounds_) ? emission_ : unshot_; }
+  // Iterations leave nothing waiting: each shoots all the light its iterate reflects.
+  const std::vector<double>& unshot() const override { return regular_ ? nothing_ : unshot_; }
+  bool converged(double pool_power) const override {
+    return budget_ == 0 ? !(pool_power > tolerance_ * emitted_) : !(pool_power > 0.0);
+  }
   std::uint64_t round_photons(double pool_power, std::uint64_t shot, std::uint64_t budget,
                               std::uint32_t rounds) const override;
   int headroom_bits(std::uint64_t) override { return 0; }
@@ -45,10 +65,31 @@ class ProgressiveShooting final : public LightTransport {
   void add_open_round(std::vector<double>& received, std::vector<double>& parts, const std::vector<double>& open,
                       const std::vector<double>& open_parts, double before, double done, double photons) const override;
   void add_tallies(std::vector<double>& running, const std::vector<double>& round_values,
-                   const RoundTotals& round) const override;
+                   const RoundTotals& round) override;
   void add_books(EnergyBooks& books, int channels, std::uint32_t rounds) const override;
 
+  // Whether the iterations have begun (always false for shooting alone).
+  bool iterating() const { return regular_; }
+
  private:
+  // The books of one estimate per channel: absorbed (on reflecting sides and elsewhere), escaped,
+  // lost in chains, and (channels summed) unshot; for iterations, unshot is rho times the iterate's
+  // received power less what its rounds shot (each iterate's books balance exactly).
+  struct Books {
+    std::array<double, 3> absorbed{}, escaped{};
+    std::array<std::array<double, 3>, kChainLosses> lost{};
+    double unshot = 0.0;
+  };
+  enum class Ended { Increment, IterationEmitted, IterationDone };
+  void end_increment(const SceneStorage& storage, const RoundTotals& round, std::vector<double>& received,
+                     std::vector<double>& parts);
+  void end_iteration_round(const SceneStorage& storage, const RoundTotals& round, std::vector<double>& received,
+                           std::vector<double>& parts);
+  void begin_iterations(const SceneStorage& storage, const std::vector<double>& received);
+  std::uint64_t incremental_photons(double pool_power, std::uint64_t shot, std::uint64_t budget,
+                                    std::uint32_t rounds) const;
+  std::uint64_t increment_budget() const;  // the increments' share of an averaged budget
+
   std::vector<double> unshot_;                // the pool, per coefficient and channel
   std::array<CompensatedSum, 3> absorbed_{};  // over all rounds
   std::array<CompensatedSum, 3> escaped_{};
@@ -57,6 +98,23 @@ class ProgressiveShooting final : public LightTransport {
   double initial_ratio_ = 0.5;
   double previous_unshot_ = 0.0;
   double tolerance_ = 1e-3;
+  // Averaged Jacobi iterations (all unused when budget_ is 0).
+  std::uint64_t budget_ = 0;  // photons of the solve or pass
+  std::uint64_t shot_ = 0;    // photons of the finished rounds
+  std::uint32_t rounds_ = 0;  // finished rounds
+  bool regular_ = false;      // the iterations have begun
+  std::uint32_t first_regular_round_ = 0;
+  std::uint64_t iteration_start_ = 0;  // shot_ when the open iteration began
+  std::vector<double> emission_;       // what every iteration's first round shoots
+  std::vector<double> nothing_;        // unshot() during the iterations: zeros
+  std::vector<double> iterate_;        // the open iteration's received power, per coefficient and channel
+  std::vector<double> iterate_parts_;  // and each replicate's part of it
+  std::vector<double> iterate_tallies_;
+  Books iterate_books_;             // the open iteration's tallies (absorbed elsewhere, escaped, lost, shot)
+  Books mean_books_;                // the average's books
+  double averaged_photons_ = 0.0;   // photons behind the average
+  double last_weight_ = 0.0;        // the finished iteration's weight in the average
+  Ended ended_ = Ended::Increment;  // what the last end_round finished
 };
 
 }  // namespace flatland

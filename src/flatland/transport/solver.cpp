@@ -201,7 +201,7 @@ bool Solver::next_pass_or_stop(double unshot) {
   const double wanted = std::isfinite(ratio) ? 1.1 * shot * (ratio * ratio - 1.0) : shot;
   const double budget = std::clamp(wanted, 0.25 * shot, shot);
   pass_budget_ = std::min(static_cast<std::uint64_t>(budget), settings_.photons - photons_shot_);
-  transport_ = ProgressiveShooting(emission_, emitted_total_, decay_, pass_tolerance());
+  transport_ = ProgressiveShooting(emission_, emitted_total_, decay_, pass_tolerance(), averaged_budget(pass_budget_));
   return true;
 }
 

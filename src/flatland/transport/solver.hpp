@@ -156,6 +156,11 @@ class Solver {
   std::uint32_t passes() const { return passes_; }
   double checked_error() const { return checked_error_; }
   double seconds() const { return seconds_; }
+  // Transport::Jacobi: whether the averaged iterations have begun (the current pass's).
+  bool iterating() const {
+    const auto* shooting = std::get_if<ProgressiveShooting>(&transport_);
+    return shooting != nullptr && shooting->iterating();
+  }
   EnergyBooks books() const;
   SolverProgress progress() const;
 
@@ -294,6 +299,10 @@ class Solver {
   // A pass's unshot-power tolerance: the settings' or, when smaller, a tenth of the target (light
   // left unshot adds to the estimated error, and no pass may leave more than the target allows).
   double pass_tolerance() const { return std::min(settings_.tolerance, 0.1 * settings_.target_error); }
+  // The budget a shooting transport averages Jacobi iterations over (Transport::Jacobi), else 0.
+  std::uint64_t averaged_budget(std::uint64_t budget) const {
+    return settings_.transport == Transport::Jacobi ? budget : 0;
+  }
   bool target_met();
   // The finished passes and the current one mixed (received_ and received_parts_ of the current
   // pass with passes_received_ and passes_parts_), into mixed_received_ and mixed_parts_.

@@ -249,9 +249,11 @@ Status Solver::start_transport() {
     emission_ = emission;
     decay_ = decay;
     pass_budget_ = std::min(settings_.photons, kFirstPassPhotons);
-    transport_ = ProgressiveShooting(std::move(emission), emitted_total_, decay, pass_tolerance());
+    transport_ = ProgressiveShooting(std::move(emission), emitted_total_, decay, pass_tolerance(),
+                                     averaged_budget(pass_budget_));
   } else {
-    transport_ = ProgressiveShooting(std::move(emission), emitted_total_, decay, settings_.tolerance);
+    transport_ = ProgressiveShooting(std::move(emission), emitted_total_, decay, settings_.tolerance,
+                                     averaged_budget(settings_.photons));
   }
   if (!(emitted_total_ > 0.0))
     return Error{scene.source + ": no curve emits light (give a material or curve an emittance > 0)"};

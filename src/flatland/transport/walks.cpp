@@ -108,7 +108,7 @@ void RandomWalks::add_open_round(std::vector<double>& received, std::vector<doub
 }
 
 void RandomWalks::add_tallies(std::vector<double>& running, const std::vector<double>& round_values,
-                              const RoundTotals& round) const {
+                              const RoundTotals& round) {
   const double weight = static_cast<double>(round.photons) / static_cast<double>(round.photons_shot);
   for (std::size_t i = 0; i < running.size(); ++i) running[i] += weight * (round_values[i] - running[i]);
 }

@@ -45,7 +45,7 @@ class RandomWalks final : public LightTransport {
   void add_open_round(std::vector<double>& received, std::vector<double>& parts, const std::vector<double>& open,
                       const std::vector<double>& open_parts, double before, double done, double photons) const override;
   void add_tallies(std::vector<double>& running, const std::vector<double>& round_values,
-                   const RoundTotals& round) const override;
+                   const RoundTotals& round) override;
   void add_books(EnergyBooks& books, int channels, std::uint32_t rounds) const override;
 
  private:
