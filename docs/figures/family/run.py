@@ -60,6 +60,8 @@ METHODS = [  # (label, method string)
     ("shooting, hermite, gather", "basis=hermite+estimator=local+transport=shooting+gather=samples+" + COMMON),
     ("shooting, cubic, blocks", "basis=cubic+estimator=galerkin+transport=shooting+gather=none+" + BLOCKS),
     ("shooting, cubic, blocks, gather", "basis=cubic+estimator=galerkin+transport=shooting+gather=samples+" + BLOCKS),
+    ("jacobi, cubic", "basis=cubic+estimator=galerkin+transport=jacobi+gather=none+" + COMMON),
+    ("jacobi, cubic, gather", "basis=cubic+estimator=galerkin+transport=jacobi+gather=samples+" + COMMON),
     ("walks, cubic", "basis=cubic+estimator=galerkin+transport=walk+gather=none+" + COMMON),
     ("walks, cubic, gather", "basis=cubic+estimator=galerkin+transport=walk+gather=samples+" + COMMON),
     ("walks, cubic, absorption", "basis=cubic+estimator=galerkin+transport=walk+walk-score=absorption+gather=none+"
@@ -134,6 +136,7 @@ def main():
              "|---|---|---|---|---|---|---|"]
     gains = {}  # scene class -> [gather's efficiency over shooting at 1e6]
     blocks_gains = []  # [(scene, blocks' efficiency over shooting at 1e6)]
+    jacobi_gains = []  # [(scene, averaged Jacobi iterations' efficiency over shooting at 1e6)]
     score_gains = {}  # score -> [(scene, its efficiency over collision-scored walks at 1e6)]
     reference_wins = []
     for scene, (path, kind, n) in SCENES.items():
@@ -173,6 +176,8 @@ def main():
                 gains.setdefault(kind, []).append((scene, eff))
             if label == "shooting, cubic, blocks":
                 blocks_gains.append((scene, eff))
+            if label == "jacobi, cubic":
+                jacobi_gains.append((scene, eff))
             if label in SCORES:
                 by_walks = med["walks, cubic"].get(fixed)
                 score_gains.setdefault(SCORES[label], []).append(
@@ -210,13 +215,18 @@ def main():
                         "has a geometric mean of %.3gx (from %.3gx to %.3gx)." % (
                             kind, ", ".join(s.replace("_", " ") for s, _ in values), g,
                             min(v for _, v in values), max(v for _, v in values)))
-    finite = [(sc, v) for sc, v in blocks_gains if not math.isinf(v)]
-    if finite:
+    for what, pairs in (("Replicates as blocks of one net (no gather) have an efficiency over independent replicates'",
+                         blocks_gains),
+                        ("Averaged Jacobi iterations (no gather) have an efficiency over progressive shooting's",
+                         jacobi_gains)):
+        finite = [(sc, v) for sc, v in pairs if not math.isinf(v)]
+        if not finite:
+            continue
         g = math.exp(statistics.mean(math.log(v) for _, v in finite))
         low, high = min(finite, key=lambda p: p[1]), max(finite, key=lambda p: p[1])
-        findings.append("- Replicates as blocks of one net (no gather) have an efficiency over independent replicates' "
-                        "at 1e6 photons with a geometric mean of %.3gx over %d scenes (from %.3gx on %s to %.3gx on %s)." % (
-                            g, len(finite), low[1], low[0].replace("_", " "), high[1], high[0].replace("_", " ")))
+        findings.append("- %s at 1e6 photons with a geometric mean of %.3gx over %d scenes (from %.3gx on %s to %.3gx "
+                        "on %s)." % (what, g, len(finite), low[1], low[0].replace("_", " "), high[1],
+                                     high[0].replace("_", " ")))
     for score, values in score_gains.items():
         g = math.exp(statistics.mean(math.log(v) for _, v in values))
         low, high = min(values, key=lambda p: p[1]), max(values, key=lambda p: p[1])
