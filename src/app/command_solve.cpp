@@ -137,8 +137,12 @@ void print_summary(const Solver& solver, const ErrorEstimate& estimate) {
   if (settings.transport == Transport::Walk)
     walks_text = std::string("random walks (") + to_string(settings.walk_score) + " score), ";
   if (settings.transport == Transport::Jacobi)
-    walks_text = solver.iterating() ? "averaged Jacobi iterations, "
-                                    : "averaged Jacobi (the budget ended before any iteration), ";
+    walks_text =
+        solver.jacobi_iterations() > 0
+            ? "averaged Jacobi iterations (" + std::to_string(solver.jacobi_iterations()) + " after the increments), "
+            : std::string(
+                  "averaged Jacobi iterations (none: the increments did not reach the tolerance with "
+                  "photons to spare, so this is shooting's answer), ");
   std::fprintf(out,
                "method    %s%s basis (%s), %s, %s positions, discontinuities %s, "
                "%s, %s sampler\n",
@@ -181,6 +185,9 @@ void print_summary(const Solver& solver, const ErrorEstimate& estimate) {
   if (walks)
     std::fprintf(out, "stopped   %s (walks end by themselves: nothing is left unshot)\n",
                  to_string(solver.stop_reason()));
+  else if (solver.jacobi_iterations() > 0)
+    std::fprintf(out, "stopped   %s: the books' unshot power, the average's residual, %.3g%% of emitted\n",
+                 to_string(solver.stop_reason()), 100.0 * books.unshot / books.emitted);
   else
     std::fprintf(out, "stopped   %s: unshot power %.3g%% of emitted (tolerance %.3g%%)\n",
                  to_string(solver.stop_reason()), 100.0 * books.unshot / books.emitted,

@@ -51,8 +51,8 @@ const std::vector<SolveOptionSpec>& table() {
        "How light travels: shooting (progressive rounds, each shooting the light the last one "
        "reflected: the paper's method), walk (each photon a random walk from an emitter, tallied at "
        "every hit and ended by Russian roulette; photons counts walks, tolerance is not used) or jacobi "
-       "(shooting for a quarter of the photons, then regular iterations that each shoot the emitted and "
-       "all the reflected light, averaged with it; docs/method.md, Averaged Jacobi iterations)"},
+       "(shooting until the pool is below the tolerance, then regular iterations that each shoot the emitted "
+       "and all the reflected light, averaged with it; docs/method.md, Averaged Jacobi iterations)"},
       {SolveOption::WalkScore, "walk score", "walk-score", "walk_score", {"collision", "absorption", "survival"}, "",
        "What a random walk tallies where it lands (transport walk only): collision (the power that arrived, "
        "at every landing), absorption (that power / (1 - q) where the walk ends, q its chance of going on "
@@ -80,7 +80,8 @@ const std::vector<SolveOptionSpec>& table() {
        "trace band-rays parallel sub-rays across the width"},
       {SolveOption::BandRays, "band rays", "band-rays", "band_rays", {}, "K", "Sub-rays per photon in band mode"},
       {SolveOption::Tolerance, "tolerance", "tolerance", "tolerance", {}, "X",
-       "Stop when the unshot power falls below this fraction of the emitted power"},
+       "Stop when the unshot power falls below this fraction of the emitted power (transport jacobi: begin the "
+       "iterations then)"},
       {SolveOption::Replicates, "replicates", "replicates", "replicates", {}, "R",
        "Independent randomisations every round's photons are split into (1, or an even number up to 64): "
        "their spread gives the result's estimated error; 1 gives none (and is refused with --elements auto)"},

@@ -38,6 +38,13 @@ double sum_of(const std::vector<double>& values) {
   return sum;
 }
 
+// The bits by which `pool` exceeds `emitted` (0 when it does not): a round's fixed point has
+// units of 2^(ilogb(pool) - 60), and each photon's power rounds by at most half a unit.
+int pool_bits(double pool, double emitted) {
+  if (!(pool > emitted)) return 0;
+  return std::ilogb(pool) - std::ilogb(emitted) + 1;
+}
+
 }  // namespace
 
 ProgressiveShooting::ProgressiveShooting(std::vector<double> emission, double emitted, double decay, double tolerance,
@@ -46,18 +53,18 @@ ProgressiveShooting::ProgressiveShooting(std::vector<double> emission, double em
       emitted_(emitted),
       initial_ratio_(decay),
       tolerance_(tolerance),
-      budget_(averaged_budget) {
+      budget_(averaged_budget),
+      increment_budget_(std::max(averaged_budget / 4, std::min(averaged_budget, kMinPhotonsPerRound))) {
   if (budget_ > 0) emission_ = unshot_;
-}
-
-std::uint64_t ProgressiveShooting::increment_budget() const {
-  return std::max(budget_ / 4, std::min(budget_, kMinPhotonsPerRound));
+  // Where nothing reflects there is nothing to iterate: the first round takes the whole budget,
+  // as shooting's does.
+  if (!(decay > 0.0)) increment_budget_ = budget_;
 }
 
 std::uint64_t ProgressiveShooting::round_photons(double unshot, std::uint64_t shot, std::uint64_t budget,
                                                  std::uint32_t rounds) const {
   if (budget_ == 0) return incremental_photons(unshot, shot, budget, rounds);
-  if (!regular_) return incremental_photons(unshot, shot, std::min(budget, increment_budget()), rounds);
+  if (!regular_) return incremental_photons(unshot, shot, std::min(budget, increment_budget_), rounds);
   // An iteration takes a quarter of the photons shot before it (at least kMinPhotonsPerIteration),
   // the last one all that is left; its first round shoots the emitted light, with the iteration's
   // photons shared between its two rounds by power (photons of about equal power).
@@ -112,10 +119,17 @@ void ProgressiveShooting::end_round(const SceneStorage& storage, const RoundTota
   end_increment(storage, round, received, parts);
   ended_ = Ended::Increment;
   ++rounds_;
-  // The iterations begin once the increments have taken their quarter of the budget or the pool
-  // is below the tolerance (not where nothing reflects: there they would shoot nothing).
-  if (budget_ > 0 && (shot_ >= increment_budget() || !(sum_of(unshot_) > tolerance_ * emitted_)))
-    begin_iterations(storage, received);
+  if (budget_ == 0) return;
+  // The iterations begin once the pool is below the tolerance, so that r_0 lacks at most the
+  // tolerance's share of the light (each iteration only shrinks the shortfall by rho), and while
+  // an iteration's photons are left. Until then the increments' share of the budget doubles
+  // whenever they are about to spend it (before a last round of a few photons, which would shoot
+  // the whole pool); with the budget spent first, the answer is shooting's.
+  if (!(sum_of(unshot_) > tolerance_ * emitted_)) {
+    if (budget_ - std::min(budget_, shot_) >= kMinPhotonsPerIteration) begin_iterations(storage, received);
+  } else if (shot_ + kMinPhotonsPerRound > increment_budget_) {
+    increment_budget_ = std::min(budget_, 2 * increment_budget_);
+  }
 }
 
 void ProgressiveShooting::begin_iterations(const SceneStorage& storage, const std::vector<double>& received) {
@@ -132,6 +146,7 @@ void ProgressiveShooting::begin_iterations(const SceneStorage& storage, const st
   if (!(reflect(storage, received, reflected, ignored) > 0.0)) return;
   mean_books_ = first;
   unshot_ = std::move(reflected);  // the first iteration reflects the shooting's answer
+  largest_pool_bits_ = std::max(largest_pool_bits_, pool_bits(sum_of(unshot_), emitted_));
   nothing_.assign(unshot_.size(), 0.0);
   regular_ = true;
   first_regular_round_ = rounds_;
@@ -170,12 +185,21 @@ void ProgressiveShooting::end_iteration_round(const SceneStorage& storage, const
     for (std::size_t loss = 0; loss < kChainLosses; ++loss)
       iterate_books_.lost[loss][ch] += static_cast<double>(round.lost[loss][ch]) * round.inverse_scale;
   }
-  if (emitted) {
+  // An iteration whose last iterate reflects nothing has no second round: r_j = D_j.
+  if (emitted && sum_of(unshot_) > 0.0) {
     ended_ = Ended::IterationEmitted;
     return;
   }
+  finish_iteration(storage, received, parts);
+}
+
+void ProgressiveShooting::finish_iteration(const SceneStorage& storage, std::vector<double>& received,
+                                           std::vector<double>& parts) {
+  const std::size_t size = iterate_.size();
+  const bool split = !iterate_parts_.empty();
   // The iterate's books: rho r_j waits (the next iteration shoots it), (1 - rho) r_j is absorbed.
   iterate_books_.unshot += reflect(storage, iterate_, unshot_, iterate_books_.absorbed);
+  largest_pool_bits_ = std::max(largest_pool_bits_, pool_bits(sum_of(unshot_), emitted_));
   const double photons = static_cast<double>(shot_ - iteration_start_);
   averaged_photons_ += photons;
   last_weight_ = photons / averaged_photons_;
@@ -193,6 +217,7 @@ void ProgressiveShooting::end_iteration_round(const SceneStorage& storage, const
   mean_books_.unshot += w * (iterate_books_.unshot - mean_books_.unshot);
   iteration_start_ = shot_;
   ended_ = Ended::IterationDone;
+  ++iterations_;
 }
 
 void ProgressiveShooting::end_increment(const SceneStorage& storage, const RoundTotals& round,

@@ -2,8 +2,9 @@
 // deposits reflected (the first round the emitted power), one hop a photon, until what is left
 // falls below the tolerance or the budget is spent.
 //
-// Averaged Jacobi iterations (Transport::Jacobi) begin the same way, and after the first quarter
-// of the budget (or once the pool is below the tolerance) go on with regular iterations: each is
+// Averaged Jacobi iterations (Transport::Jacobi) begin the same way (planned for a quarter of the
+// budget, more while they need it), and once the pool is below the tolerance go on with regular
+// iterations: each is
 // a round of the emitted light and a round of all the light the last iterate reflects, so that
 // iterate j's received power is r_j = D_j + R_j, with E[r_j | r_(j-1)] = K E + K rho r_(j-1), the
 // deterministic Jacobi step. The shooting's answer r_0 and every finished iterate are averaged,
@@ -53,13 +54,18 @@ class ProgressiveShooting final : public LightTransport {
   const std::vector<double>& pool() const override { return regular_ && emitted_light(rounds_) ? emission_ : unshot_; }
   // Iterations leave nothing waiting: each shoots all the light its iterate reflects.
   const std::vector<double>& unshot() const override { return regular_ ? nothing_ : unshot_; }
+  // Increments stop at the tolerance (with iterations to follow, they begin instead); an iteration
+  // stops only where there is nothing to shoot.
   bool converged(double pool_power) const override {
-    return budget_ == 0 ? !(pool_power > tolerance_ * emitted_) : !(pool_power > 0.0);
+    return regular_ ? !(pool_power > 0.0) : !(pool_power > tolerance_ * emitted_);
   }
   std::uint64_t round_photons(double pool_power, std::uint64_t shot, std::uint64_t budget,
                               std::uint32_t rounds) const override;
   int headroom_bits(std::uint64_t) override { return 0; }
-  int most_headroom_bits() const override { return 0; }
+  // The books' rounding allowance is per photon a fraction of the emitted power; an iteration's
+  // round shoots up to rho / (1 - rho) times that (all the reflected light), so it gives the bits
+  // by which its largest pool exceeds the emitted power.
+  int most_headroom_bits() const override { return largest_pool_bits_; }
   void end_round(const SceneStorage& storage, const RoundTotals& round, std::vector<double>& received,
                  std::vector<double>& parts) override;
   void add_open_round(std::vector<double>& received, std::vector<double>& parts, const std::vector<double>& open,
@@ -68,8 +74,8 @@ class ProgressiveShooting final : public LightTransport {
                    const RoundTotals& round) override;
   void add_books(EnergyBooks& books, int channels, std::uint32_t rounds) const override;
 
-  // Whether the iterations have begun (always false for shooting alone).
-  bool iterating() const { return regular_; }
+  // The iterations finished and averaged into the answer (always 0 for shooting alone).
+  std::uint32_t iterations() const { return iterations_; }
 
  private:
   // The books of one estimate per channel: absorbed (on reflecting sides and elsewhere), escaped,
@@ -86,9 +92,9 @@ class ProgressiveShooting final : public LightTransport {
   void end_iteration_round(const SceneStorage& storage, const RoundTotals& round, std::vector<double>& received,
                            std::vector<double>& parts);
   void begin_iterations(const SceneStorage& storage, const std::vector<double>& received);
+  void finish_iteration(const SceneStorage& storage, std::vector<double>& received, std::vector<double>& parts);
   std::uint64_t incremental_photons(double pool_power, std::uint64_t shot, std::uint64_t budget,
                                     std::uint32_t rounds) const;
-  std::uint64_t increment_budget() const;  // the increments' share of an averaged budget
 
   std::vector<double> unshot_;                // the pool, per coefficient and channel
   std::array<CompensatedSum, 3> absorbed_{};  // over all rounds
@@ -99,10 +105,13 @@ class ProgressiveShooting final : public LightTransport {
   double previous_unshot_ = 0.0;
   double tolerance_ = 1e-3;
   // Averaged Jacobi iterations (all unused when budget_ is 0).
-  std::uint64_t budget_ = 0;  // photons of the solve or pass
-  std::uint64_t shot_ = 0;    // photons of the finished rounds
-  std::uint32_t rounds_ = 0;  // finished rounds
-  bool regular_ = false;      // the iterations have begun
+  std::uint64_t budget_ = 0;            // photons of the solve or pass
+  std::uint64_t increment_budget_ = 0;  // the increments' share of it (doubled while they need more)
+  std::uint64_t shot_ = 0;              // photons of the finished rounds
+  std::uint32_t iterations_ = 0;        // finished iterations
+  int largest_pool_bits_ = 0;           // most_headroom_bits
+  std::uint32_t rounds_ = 0;            // finished rounds
+  bool regular_ = false;                // the iterations have begun
   std::uint32_t first_regular_round_ = 0;
   std::uint64_t iteration_start_ = 0;  // shot_ when the open iteration began
   std::vector<double> emission_;       // what every iteration's first round shoots

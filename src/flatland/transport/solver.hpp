@@ -156,10 +156,10 @@ class Solver {
   std::uint32_t passes() const { return passes_; }
   double checked_error() const { return checked_error_; }
   double seconds() const { return seconds_; }
-  // Transport::Jacobi: whether the averaged iterations have begun (the current pass's).
-  bool iterating() const {
+  // Transport::Jacobi: the iterations averaged into the answer so far (the current pass's).
+  std::uint32_t jacobi_iterations() const {
     const auto* shooting = std::get_if<ProgressiveShooting>(&transport_);
-    return shooting != nullptr && shooting->iterating();
+    return shooting != nullptr ? shooting->iterations() : 0;
   }
   EnergyBooks books() const;
   SolverProgress progress() const;
