@@ -59,6 +59,21 @@ struct RoundTotals {
   std::span<const double> kept;
 };
 
+// Entry `index` (of `size` per replicate) of the round's deposits: its units summed over the
+// threads and replicates; with `parts` (more than one replicate), each replicate's power added to
+// parts[r * size + index].
+inline std::int64_t round_units(const RoundTotals& round, std::size_t size, std::size_t index,
+                                std::vector<double>* parts) {
+  std::int64_t units = 0;
+  for (std::size_t r = 0; r < round.replicates; ++r) {
+    std::int64_t part = 0;
+    for (const Deposits& deposits : round.deposits) part += deposits.received[r * size + index];
+    if (parts != nullptr) (*parts)[r * size + index] += static_cast<double>(part) * round.inverse_scale;
+    units += part;
+  }
+  return units;
+}
+
 class LightTransport {
  public:
   virtual ~LightTransport() = default;

@@ -170,13 +170,7 @@ void ProgressiveShooting::end_iteration_round(const SceneStorage& storage, const
     iterate_books_.unshot -= sum_of(unshot_);  // what this round shot
   }
   for (std::size_t index = 0; index < size; ++index) {
-    std::int64_t units = 0;
-    for (std::size_t r = 0; r < round.replicates; ++r) {
-      std::int64_t part = 0;
-      for (const Deposits& deposits : round.deposits) part += deposits.received[r * size + index];
-      if (split) iterate_parts_[r * size + index] += static_cast<double>(part) * round.inverse_scale;
-      units += part;
-    }
+    const std::int64_t units = round_units(round, size, index, split ? &iterate_parts_ : nullptr);
     iterate_[index] += static_cast<double>(units) * round.inverse_scale;
   }
   for (std::size_t ch = 0; ch < channels; ++ch) {
@@ -238,13 +232,7 @@ void ProgressiveShooting::end_increment(const SceneStorage& storage, const Round
     for (std::size_t k = 0; k < count; ++k) {
       for (std::size_t ch = 0; ch < channels; ++ch) {
         const std::size_t index = (offset + k) * channels + ch;
-        std::int64_t units = 0;
-        for (std::size_t r = 0; r < round.replicates; ++r) {
-          std::int64_t part = 0;
-          for (const Deposits& deposits : round.deposits) part += deposits.received[r * size + index];
-          if (split) parts[r * size + index] += static_cast<double>(part) * round.inverse_scale;
-          units += part;
-        }
+        const std::int64_t units = round_units(round, size, index, split ? &parts : nullptr);
         const double power = static_cast<double>(units) * round.inverse_scale;
         received[index] += power;
         const double reflected = rho[ch] * power;
