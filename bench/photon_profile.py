@@ -4,8 +4,9 @@
 For each scene: `perf record` of one `flatland solve` on one thread, then `perf report --sort
 symbol`, each function's share of the samples put in one part of a photon's work by its name
 (PARTS below; the first pattern that matches wins), and the parts' shares turned into nanoseconds
-a photon with the whole command's wall time (so reading the scene, building the storage, the
-estimated error and writing the result are in "the rest"). Prints a Markdown table.
+a photon with the whole command's CPU time (perf's cpu-clock event count, in nanoseconds; so
+reading the scene, building the storage, the estimated error and writing the result are in "the
+rest"). Prints a Markdown table.
 
   bench/photon_profile.py [--flatland build/flatland] [--photons 2e6] [--runs 3]
 
@@ -18,7 +19,6 @@ import re
 import subprocess
 import sys
 import tempfile
-import time
 
 SCENES = [  # (class, scene)
     ("direct light (lines)", "scenes2d/penumbra.json"),
@@ -43,13 +43,15 @@ ORDER = [p for p, _ in PARTS] + ["the rest (rounds, set-up, estimate)"]
 def profile(flatland, scene, photons, directory):
     data = os.path.join(directory, "perf.data")
     out = os.path.join(directory, "result.json")
-    started = time.perf_counter()
-    subprocess.run(["perf", "record", "-q", "-o", data, "--", flatland, "solve", scene, "--photons", photons,
-                    "--threads", "1", "--gather", "none", "--quiet", "--out", out],
+    subprocess.run(["perf", "record", "-q", "-e", "cpu-clock", "-o", data, "--", flatland, "solve", scene,
+                    "--photons", photons, "--threads", "1", "--gather", "none", "--quiet", "--out", out],
                    check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    seconds = time.perf_counter() - started
     report = subprocess.run(["perf", "report", "-i", data, "--no-children", "--sort", "symbol", "--stdio"],
                             check=True, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True).stdout
+    count = re.search(r"Event count \(approx\.\): (\d+)", report)
+    if not count:
+        sys.exit("perf report gave no event count for " + scene)
+    seconds = int(count.group(1)) * 1e-9  # cpu-clock counts nanoseconds
     shares = dict.fromkeys(ORDER, 0.0)
     for line in report.splitlines():
         match = re.match(r"\s*([0-9.]+)%\s+\[[.k]\]\s+(.*?)\s*$", line)
