@@ -1,12 +1,13 @@
 #!/usr/bin/env python3
-"""Where a photon's time goes, per scene class (docs/performance.md, "A photon's time by scene class").
+"""Where a photon's time goes, per scene class (docs/performance.md, "By scene class").
 
 For each scene: `perf record` of one `flatland solve` on one thread, then `perf report --sort
 symbol`, each function's share of the samples put in one part of a photon's work by its name
 (PARTS below; the first pattern that matches wins), and the parts' shares turned into nanoseconds
 a photon with the whole command's CPU time (perf's cpu-clock event count, in nanoseconds; so
 reading the scene, building the storage, the estimated error and writing the result are in "the
-rest"). Prints a Markdown table.
+rest", except set-up functions whose names match a part, such as the tree's build under the
+cast). Prints a Markdown table.
 
   bench/photon_profile.py [--flatland build/flatland] [--photons 2e6] [--runs 3]
 
@@ -29,7 +30,7 @@ SCENES = [  # (class, scene)
 ]
 # (part, pattern of the demangled function name); the first match wins, the rest is "the rest".
 PARTS = [
-    ("specular chains", r"follow_chain|fresnel|channel_shares|refract|reflect_dir|EmitterSpectrum|dispersion"),
+    ("specular chains", r"follow_chain|channel_shares|EmitterSpectrum"),
     ("the cast", r"intersect_|closest_hit|bracketed_root|quadratic_roots|cubic_roots|LineGrid|line_grid|"
                  r"SegmentAccelerator|^flatland::evaluate$|hull"),
     ("the origin and direction", r"BasisSampler|sample_simplex|sample_.*origin|derivative|scramble|Sobol|"

@@ -89,8 +89,8 @@ inline void PrintTo(const SolutionData& data, std::ostream* out) {
 
 // The solves on which rounds shared among processes are checked against one process (solver_test,
 // threads standing in for processes; mpi_test, under mpirun): shooting with point rays, with
-// footprints in colour, random walks, shooting through glass onto a detector, and shooting with
-// importance (its rounds' sources counted by every process).
+// footprints in colour, random walks, averaged Jacobi iterations, shooting through glass onto a
+// detector, and shooting with importance (its rounds' sources counted by every process).
 struct SharingCase {
   const char* scene;
   Transport transport;

@@ -137,12 +137,12 @@ void print_summary(const Solver& solver, const ErrorEstimate& estimate) {
   if (settings.transport == Transport::Walk)
     walks_text = std::string("random walks (") + to_string(settings.walk_score) + " score), ";
   if (settings.transport == Transport::Jacobi)
-    walks_text =
-        solver.jacobi_iterations() > 0
-            ? "averaged Jacobi iterations (" + std::to_string(solver.jacobi_iterations()) + " after the increments), "
-            : std::string(
-                  "averaged Jacobi iterations (none: the increments did not reach the tolerance with "
-                  "photons to spare, so this is shooting's answer), ");
+    walks_text = solver.jacobi_iterations() > 0
+                     ? "averaged Jacobi iterations (" + std::to_string(solver.jacobi_iterations()) +
+                           (settings.target_error > 0.0 ? " in the last pass), " : " after the increments), ")
+                     : std::string(
+                           "averaged Jacobi iterations (none finished: the increments did not reach the "
+                           "tolerance with photons to spare, or nothing reflects; this is shooting's answer), ");
   std::fprintf(out,
                "method    %s%s basis (%s), %s, %s positions, discontinuities %s, "
                "%s, %s sampler\n",

@@ -349,8 +349,8 @@ TEST(ErrorEstimate, TargetErrorStopsAtTheCap) {
   EXPECT_NEAR(books.imbalance(), 0.0, 1e-9 * books.emitted);
 }
 
-// Walks reach the target by rounds (each estimates the whole); shooting by passes whose mean
-// keeps the books balanced.
+// Walks reach the target by rounds (each estimates the whole); shooting and Jacobi iterations by
+// passes whose mean keeps the books balanced.
 TEST(ErrorEstimate, TargetErrorWorksForWalksAndKeepsTheBooks) {
   const Scene scene = testing::scene_from_file("scenes2d/mixed.json");
   for (Transport transport : {Transport::Shooting, Transport::Walk, Transport::Jacobi}) {
@@ -360,6 +360,7 @@ TEST(ErrorEstimate, TargetErrorWorksForWalksAndKeepsTheBooks) {
     settings.transport = transport;
     const Solver solver = solved(scene, settings);
     EXPECT_EQ(solver.stop_reason(), StopReason::TargetReached) << to_string(transport);
+    if (transport == Transport::Jacobi) EXPECT_GT(solver.jacobi_iterations(), 0u);
     const EnergyBooks books = solver.books();
     EXPECT_NEAR(books.imbalance(), 0.0, 1e-9 * books.emitted);
     EXPECT_LE(estimate_error(solver).bound.l1, 0.02 * 1.05);

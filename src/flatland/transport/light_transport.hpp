@@ -95,7 +95,9 @@ class LightTransport {
                                       std::uint32_t rounds) const = 0;
   // Bits of the fixed point's scale a round of `photons` gives up so that its deposits fit.
   virtual int headroom_bits(std::uint64_t photons) = 0;
-  // The most bits any round gave up: the books' rounding allowance.
+  // The books' rounding allowance in bits: each photon's fixed-point power rounds by at most
+  // half a unit, 2^(this - 61) of the emitted power (the most bits any round gave up, or by which a
+  // round's pool exceeded the emitted power).
   virtual int most_headroom_bits() const = 0;
 
   // A finished round into the received power and, with more than one replicate, each replicate's

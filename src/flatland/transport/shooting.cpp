@@ -149,7 +149,7 @@ void ProgressiveShooting::begin_iterations(const SceneStorage& storage, const st
   largest_pool_bits_ = std::max(largest_pool_bits_, pool_bits(sum_of(unshot_), emitted_));
   nothing_.assign(unshot_.size(), 0.0);
   regular_ = true;
-  first_regular_round_ = rounds_;
+  iteration_round_ = rounds_;
   iteration_start_ = shot_;
   averaged_photons_ = static_cast<double>(shot_);
 }
@@ -165,6 +165,7 @@ void ProgressiveShooting::end_iteration_round(const SceneStorage& storage, const
   if (emitted) {
     iterate_.assign(size, 0.0);
     iterate_parts_.assign(split ? parts.size() : 0, 0.0);
+    iterate_tallies_.clear();
     iterate_books_ = Books{};
   } else {
     iterate_books_.unshot -= sum_of(unshot_);  // what this round shot
@@ -210,6 +211,7 @@ void ProgressiveShooting::finish_iteration(const SceneStorage& storage, std::vec
   }
   mean_books_.unshot += w * (iterate_books_.unshot - mean_books_.unshot);
   iteration_start_ = shot_;
+  iteration_round_ = rounds_ + 1;  // (end_round counts this round after)
   ended_ = Ended::IterationDone;
   ++iterations_;
 }
@@ -268,8 +270,11 @@ void ProgressiveShooting::add_tallies(std::vector<double>& running, const std::v
       break;
     case Ended::IterationEmitted: iterate_tallies_ = round_values; break;
     case Ended::IterationDone:
-      for (std::size_t i = 0; i < running.size(); ++i)
-        running[i] += last_weight_ * (iterate_tallies_[i] + round_values[i] - running[i]);
+      // (An iteration of one round, the emitted light's, has no tallies before this round's.)
+      for (std::size_t i = 0; i < running.size(); ++i) {
+        const double before = iterate_tallies_.empty() ? 0.0 : iterate_tallies_[i];
+        running[i] += last_weight_ * (before + round_values[i] - running[i]);
+      }
       break;
   }
 }

@@ -48,7 +48,7 @@ class ProgressiveShooting final : public LightTransport {
 
   bool photons_go_on() const override { return false; }
   bool emitted_light(std::uint32_t round) const override {
-    return round == 0 || (regular_ && (round - first_regular_round_) % 2 == 0);
+    return round == 0 || (regular_ && round == iteration_round_);
   }
   std::uint32_t bounce(std::uint32_t round) const override { return regular_ ? (emitted_light(round) ? 0 : 1) : round; }
   const std::vector<double>& pool() const override { return regular_ && emitted_light(rounds_) ? emission_ : unshot_; }
@@ -80,7 +80,7 @@ class ProgressiveShooting final : public LightTransport {
  private:
   // The books of one estimate per channel: absorbed (on reflecting sides and elsewhere), escaped,
   // lost in chains, and (channels summed) unshot; for iterations, unshot is rho times the iterate's
-  // received power less what its rounds shot (each iterate's books balance exactly).
+  // received power less what its second round shot (each iterate's books balance exactly).
   struct Books {
     std::array<double, 3> absorbed{}, escaped{};
     std::array<std::array<double, 3>, kChainLosses> lost{};
@@ -112,12 +112,12 @@ class ProgressiveShooting final : public LightTransport {
   int largest_pool_bits_ = 0;           // most_headroom_bits
   std::uint32_t rounds_ = 0;            // finished rounds
   bool regular_ = false;                // the iterations have begun
-  std::uint32_t first_regular_round_ = 0;
-  std::uint64_t iteration_start_ = 0;  // shot_ when the open iteration began
-  std::vector<double> emission_;       // what every iteration's first round shoots
-  std::vector<double> nothing_;        // unshot() during the iterations: zeros
-  std::vector<double> iterate_;        // the open iteration's received power, per coefficient and channel
-  std::vector<double> iterate_parts_;  // and each replicate's part of it
+  std::uint32_t iteration_round_ = 0;   // the round the open (or next) iteration's emitted light is
+  std::uint64_t iteration_start_ = 0;   // shot_ when the open iteration began
+  std::vector<double> emission_;        // what every iteration's first round shoots
+  std::vector<double> nothing_;         // unshot() during the iterations: zeros
+  std::vector<double> iterate_;         // the open iteration's received power, per coefficient and channel
+  std::vector<double> iterate_parts_;   // and each replicate's part of it
   std::vector<double> iterate_tallies_;
   Books iterate_books_;             // the open iteration's tallies (absorbed elsewhere, escaped, lost, shot)
   Books mean_books_;                // the average's books
