@@ -1528,7 +1528,9 @@ TEST(Solver, SharedRoundsGiveTheBitsOfOneProcess) {
     Solver alone = make_solver(scene, settings);
     alone.run();
     ASSERT_GT(alone.rounds(), 1u);
-    if (c.transport == Transport::Jacobi) ASSERT_GT(alone.jacobi_iterations(), 0u);
+    if (c.transport == Transport::Jacobi) {
+      ASSERT_GT(alone.jacobi_iterations(), 0u);
+    }
     const testing::SolutionData expected = dump(alone);
     for (unsigned k : {2u, 3u, 64u}) {  // 64: more processes than a small round has batches
       SCOPED_TRACE(k);
