@@ -55,35 +55,22 @@ ProgressiveShooting::ProgressiveShooting(std::vector<double> emission, double em
       tolerance_(tolerance),
       budget_(averaged_budget),
       increment_budget_(std::max(averaged_budget / 4, std::min(averaged_budget, kMinPhotonsPerRound))) {
-  if (budget_ > 0) emission_ = unshot_;
-  // Where nothing reflects there is nothing to iterate: the first round takes the whole budget,
-  // as shooting's does.
+  // Where nothing reflects there is nothing to iterate: the increments take the whole budget, as
+  // shooting's do.
   if (!(decay > 0.0)) increment_budget_ = budget_;
 }
 
 std::uint64_t ProgressiveShooting::round_photons(double unshot, std::uint64_t shot, std::uint64_t budget,
                                                  std::uint32_t rounds) const {
-  if (budget_ == 0) return incremental_photons(unshot, shot, budget, rounds);
+  // The first round, the emitted light's, is planned as shooting plans it (the same photons).
+  if (budget_ == 0 || rounds == 0) return incremental_photons(unshot, shot, budget, rounds);
   if (!regular_) return incremental_photons(unshot, shot, std::min(budget, increment_budget_), rounds);
-  // An iteration takes a quarter of the photons shot before it (at least kMinPhotonsPerIteration),
-  // the last one all that is left; its first round shoots the emitted light, with the iteration's
-  // photons shared between its two rounds by power (photons of about equal power).
-  std::uint64_t size = std::max(kMinPhotonsPerIteration, iteration_start_ / 4);
-  const std::uint64_t left_at_start = budget - std::min(budget, iteration_start_);
-  if (size + size / 2 > left_at_start) size = left_at_start;
-  std::uint64_t photons = 0;
-  if (emitted_light(rounds)) {
-    const double reflected = sum_of(unshot_);
-    const double share = emitted_ / (emitted_ + reflected);
-    const std::uint64_t least = std::min(size, kMinPhotonsPerRound);
-    photons = std::clamp<std::uint64_t>(static_cast<std::uint64_t>(std::llround(static_cast<double>(size) * share)),
-                                        least, std::max(least, size - least));
-  } else {
-    const std::uint64_t taken = shot - iteration_start_;
-    photons = size > taken ? size - taken : 0;
-  }
-  photons = std::max(photons, kMinPhotonsPerRound);
-  return std::min({photons, budget - shot, kMaxPhotonsPerRound});
+  // An iteration (one round) takes a quarter of the photons shot on reflected light before it (at
+  // least kMinPhotonsPerIteration), the last one all that is left.
+  std::uint64_t photons = std::max(kMinPhotonsPerIteration, (shot - direct_photons_) / 4);
+  const std::uint64_t left = budget - std::min(budget, shot);
+  if (photons + photons / 2 > left) photons = left;
+  return std::min({photons, kMaxPhotonsPerRound});
 }
 
 std::uint64_t ProgressiveShooting::incremental_photons(double unshot, std::uint64_t shot, std::uint64_t budget,
@@ -120,6 +107,23 @@ void ProgressiveShooting::end_round(const SceneStorage& storage, const RoundTota
   ended_ = Ended::Increment;
   ++rounds_;
   if (budget_ == 0) return;
+  if (rounds_ == 1) {
+    // The first round's deposits are the direct light D that every iterate starts from (received
+    // was empty before it); the later increments get a quarter of the photons left.
+    direct_ = received;
+    direct_photons_ = shot_;
+    direct_parts_ = round.replicates > 1 ? parts : std::vector<double>{};
+    direct_books_ = Books{};
+    for (std::size_t ch = 0; ch < 3; ++ch) {
+      direct_books_.escaped[ch] = static_cast<double>(round.escaped[ch]) * round.inverse_scale;
+      direct_books_.absorbed[ch] = static_cast<double>(round.absorbed[ch]) * round.inverse_scale;
+      for (std::size_t loss = 0; loss < kChainLosses; ++loss)
+        direct_books_.lost[loss][ch] = static_cast<double>(round.lost[loss][ch]) * round.inverse_scale;
+    }
+    if (initial_ratio_ > 0.0)
+      increment_budget_ =
+          std::min(budget_, shot_ + std::max((budget_ - std::min(budget_, shot_)) / 4, kMinPhotonsPerRound));
+  }
   // The iterations begin once the pool is below the tolerance, so that r_0 lacks at most the
   // tolerance's share of the light (each iteration only shrinks the shortfall by rho), and while
   // an iteration's photons are left. Until then the increments' share of the budget doubles
@@ -149,27 +153,22 @@ void ProgressiveShooting::begin_iterations(const SceneStorage& storage, const st
   largest_pool_bits_ = std::max(largest_pool_bits_, pool_bits(sum_of(unshot_), emitted_));
   nothing_.assign(unshot_.size(), 0.0);
   regular_ = true;
-  iteration_round_ = rounds_;
-  iteration_start_ = shot_;
-  averaged_photons_ = static_cast<double>(shot_);
+  // Every entry of the average holds the same D: each is weighted by the photons of its reflected
+  // light (the increments after the first round, for r_0).
+  averaged_photons_ = static_cast<double>(shot_ - direct_photons_);
 }
 
 void ProgressiveShooting::end_iteration_round(const SceneStorage& storage, const RoundTotals& round,
                                               std::vector<double>& received, std::vector<double>& parts) {
-  // An iteration's first round shoots the emitted light (its deposits D_j), the second all that
-  // iterate j - 1 reflects (R_j); the iterate is r_j = D_j + R_j, and it joins the average.
+  // An iteration's round shoots all that iterate j - 1 reflects (its deposits R_j); the iterate is
+  // r_j = D + R_j, and it joins the average.
   const auto channels = static_cast<std::size_t>(storage.channels());
   const std::size_t size = storage.coefficient_count() * channels;
   const bool split = round.replicates > 1;
-  const bool emitted = emitted_light(rounds_);
-  if (emitted) {
-    iterate_.assign(size, 0.0);
-    iterate_parts_.assign(split ? parts.size() : 0, 0.0);
-    iterate_tallies_.clear();
-    iterate_books_ = Books{};
-  } else {
-    iterate_books_.unshot -= sum_of(unshot_);  // what this round shot
-  }
+  iterate_ = direct_;
+  iterate_parts_ = split ? direct_parts_ : std::vector<double>{};
+  iterate_books_ = direct_books_;
+  iterate_books_.unshot = -sum_of(unshot_);  // what this round shot
   for (std::size_t index = 0; index < size; ++index) {
     const std::int64_t units = round_units(round, size, index, split ? &iterate_parts_ : nullptr);
     iterate_[index] += static_cast<double>(units) * round.inverse_scale;
@@ -180,22 +179,16 @@ void ProgressiveShooting::end_iteration_round(const SceneStorage& storage, const
     for (std::size_t loss = 0; loss < kChainLosses; ++loss)
       iterate_books_.lost[loss][ch] += static_cast<double>(round.lost[loss][ch]) * round.inverse_scale;
   }
-  // An iteration whose last iterate reflects nothing has no second round: r_j = D_j.
-  if (emitted && sum_of(unshot_) > 0.0) {
-    ended_ = Ended::IterationEmitted;
-    return;
-  }
-  finish_iteration(storage, received, parts);
+  finish_iteration(storage, received, parts, static_cast<double>(round.photons));
 }
 
 void ProgressiveShooting::finish_iteration(const SceneStorage& storage, std::vector<double>& received,
-                                           std::vector<double>& parts) {
+                                           std::vector<double>& parts, double photons) {
   const std::size_t size = iterate_.size();
   const bool split = !iterate_parts_.empty();
   // The iterate's books: rho r_j waits (the next iteration shoots it), (1 - rho) r_j is absorbed.
   iterate_books_.unshot += reflect(storage, iterate_, unshot_, iterate_books_.absorbed);
   largest_pool_bits_ = std::max(largest_pool_bits_, pool_bits(sum_of(unshot_), emitted_));
-  const double photons = static_cast<double>(shot_ - iteration_start_);
   averaged_photons_ += photons;
   last_weight_ = photons / averaged_photons_;
   const double w = last_weight_;
@@ -210,8 +203,6 @@ void ProgressiveShooting::finish_iteration(const SceneStorage& storage, std::vec
       mean_books_.lost[loss][ch] += w * (iterate_books_.lost[loss][ch] - mean_books_.lost[loss][ch]);
   }
   mean_books_.unshot += w * (iterate_books_.unshot - mean_books_.unshot);
-  iteration_start_ = shot_;
-  iteration_round_ = rounds_ + 1;  // (end_round counts this round after)
   ended_ = Ended::IterationDone;
   ++iterations_;
 }
@@ -263,18 +254,16 @@ void ProgressiveShooting::add_open_round(std::vector<double>& received, std::vec
 
 void ProgressiveShooting::add_tallies(std::vector<double>& running, const std::vector<double>& round_values,
                                       const RoundTotals&) {
-  // As the received power: summed over the increments, then averaged with each finished iterate.
+  // As the received power: summed over the increments (the first round's kept as the direct
+  // light's), then averaged with each finished iterate, the direct light's and its round's.
   switch (ended_) {
     case Ended::Increment:
       for (std::size_t i = 0; i < running.size(); ++i) running[i] += round_values[i];
+      if (budget_ > 0 && rounds_ == 1) direct_tallies_ = round_values;
       break;
-    case Ended::IterationEmitted: iterate_tallies_ = round_values; break;
     case Ended::IterationDone:
-      // (An iteration of one round, the emitted light's, has no tallies before this round's.)
-      for (std::size_t i = 0; i < running.size(); ++i) {
-        const double before = iterate_tallies_.empty() ? 0.0 : iterate_tallies_[i];
-        running[i] += last_weight_ * (before + round_values[i] - running[i]);
-      }
+      for (std::size_t i = 0; i < running.size(); ++i)
+        running[i] += last_weight_ * (direct_tallies_[i] + round_values[i] - running[i]);
       break;
   }
 }

@@ -2,14 +2,18 @@
 // deposits reflected (the first round the emitted power), one hop a photon, until what is left
 // falls below the tolerance or the budget is spent.
 //
-// Averaged Jacobi iterations (Transport::Jacobi) begin the same way (planned for a quarter of the
-// budget, more while they need it), and once the pool is below the tolerance go on with regular
-// iterations: each is
-// a round of the emitted light and a round of all the light the last iterate reflects, so that
-// iterate j's received power is r_j = D_j + R_j, with E[r_j | r_(j-1)] = K E + K rho r_(j-1), the
-// deterministic Jacobi step. The shooting's answer r_0 and every finished iterate are averaged,
-// weighted by their photons: if r_0 is unbiased so is every iterate, and so is the average, whose
-// noise is that of all the photons instead of the first rounds' frozen in.
+// Averaged Jacobi iterations (Transport::Jacobi) begin the same way: the first round, the emitted
+// light's, is planned for the whole budget as shooting plans it (its deposits D are shooting's bit
+// for bit), the later increments for a quarter of what is left (more while they need it). Once the
+// pool is below the tolerance come regular iterations: each is one round of all the light the last
+// iterate reflects (deposits R_j), and iterate j's received power is r_j = D + R_j, with
+// E[r_j | r_(j-1), D] = D + K rho r_(j-1), the deterministic Jacobi step from D. The shooting's
+// answer r_0 and every finished iterate are averaged, each weighted by the photons that estimated
+// its reflected light (r_0's: the increments after the first round): given D each
+// iterate's expectation moves towards the solution for D, whose expectation is the solution, so
+// the average is unbiased (up to the tolerance's share left in r_0), and the reflected light's
+// noise is that of all the iterations' photons instead of the increments' frozen in. The direct
+// light D is estimated once, by the one net of the first round.
 #pragma once
 
 #include <array>
@@ -47,11 +51,10 @@ class ProgressiveShooting final : public LightTransport {
                       std::uint64_t averaged_budget = 0);
 
   bool photons_go_on() const override { return false; }
-  bool emitted_light(std::uint32_t round) const override {
-    return round == 0 || (regular_ && round == iteration_round_);
-  }
-  std::uint32_t bounce(std::uint32_t round) const override { return regular_ ? (emitted_light(round) ? 0 : 1) : round; }
-  const std::vector<double>& pool() const override { return regular_ && emitted_light(rounds_) ? emission_ : unshot_; }
+  // The emitted light is shot once, in the first round; an iteration is one round of reflected light.
+  bool emitted_light(std::uint32_t round) const override { return round == 0; }
+  std::uint32_t bounce(std::uint32_t round) const override { return regular_ ? 1 : round; }
+  const std::vector<double>& pool() const override { return unshot_; }
   // Iterations leave nothing waiting: each shoots all the light its iterate reflects.
   const std::vector<double>& unshot() const override { return regular_ ? nothing_ : unshot_; }
   // Increments stop at the tolerance (with iterations to follow, they begin instead); an iteration
@@ -80,19 +83,20 @@ class ProgressiveShooting final : public LightTransport {
  private:
   // The books of one estimate per channel: absorbed (on reflecting sides and elsewhere), escaped,
   // lost in chains, and (channels summed) unshot; for iterations, unshot is rho times the iterate's
-  // received power less what its second round shot (each iterate's books balance exactly).
+  // received power less what its round shot (each iterate's books balance exactly).
   struct Books {
     std::array<double, 3> absorbed{}, escaped{};
     std::array<std::array<double, 3>, kChainLosses> lost{};
     double unshot = 0.0;
   };
-  enum class Ended { Increment, IterationEmitted, IterationDone };
+  enum class Ended { Increment, IterationDone };
   void end_increment(const SceneStorage& storage, const RoundTotals& round, std::vector<double>& received,
                      std::vector<double>& parts);
   void end_iteration_round(const SceneStorage& storage, const RoundTotals& round, std::vector<double>& received,
                            std::vector<double>& parts);
   void begin_iterations(const SceneStorage& storage, const std::vector<double>& received);
-  void finish_iteration(const SceneStorage& storage, std::vector<double>& received, std::vector<double>& parts);
+  void finish_iteration(const SceneStorage& storage, std::vector<double>& received, std::vector<double>& parts,
+                        double photons);
   std::uint64_t incremental_photons(double pool_power, std::uint64_t shot, std::uint64_t budget,
                                     std::uint32_t rounds) const;
 
@@ -106,24 +110,28 @@ class ProgressiveShooting final : public LightTransport {
   double tolerance_ = 1e-3;
   // Averaged Jacobi iterations (all unused when budget_ is 0).
   std::uint64_t budget_ = 0;            // photons of the solve or pass
-  std::uint64_t increment_budget_ = 0;  // the increments' share of it (doubled while they need more)
+  std::uint64_t increment_budget_ = 0;  // the increments' photons (doubled while they need more)
   std::uint64_t shot_ = 0;              // photons of the finished rounds
   std::uint32_t iterations_ = 0;        // finished iterations
   int largest_pool_bits_ = 0;           // most_headroom_bits
   std::uint32_t rounds_ = 0;            // finished rounds
   bool regular_ = false;                // the iterations have begun
-  std::uint32_t iteration_round_ = 0;   // the round the open (or next) iteration's emitted light is
-  std::uint64_t iteration_start_ = 0;   // shot_ when the open iteration began
-  std::vector<double> emission_;        // what every iteration's first round shoots
   std::vector<double> nothing_;         // unshot() during the iterations: zeros
-  std::vector<double> iterate_;         // the open iteration's received power, per coefficient and channel
-  std::vector<double> iterate_parts_;   // and each replicate's part of it
-  std::vector<double> iterate_tallies_;
-  Books iterate_books_;             // the open iteration's tallies (absorbed elsewhere, escaped, lost, shot)
-  Books mean_books_;                // the average's books
-  double averaged_photons_ = 0.0;   // photons behind the average
-  double last_weight_ = 0.0;        // the finished iteration's weight in the average
-  Ended ended_ = Ended::Increment;  // what the last end_round finished
+  // The first round's deposits D (the emitted light's, per coefficient and channel), each
+  // replicate's part of them, the detectors' tallies and that round's books (absorbed elsewhere,
+  // escaped, lost): every iterate starts from them.
+  std::vector<double> direct_;
+  std::uint64_t direct_photons_ = 0;  // the first round's photons
+  std::vector<double> direct_parts_;
+  std::vector<double> direct_tallies_;
+  Books direct_books_;
+  std::vector<double> iterate_;        // the open iteration's received power, per coefficient and channel
+  std::vector<double> iterate_parts_;  // and each replicate's part of it
+  Books iterate_books_;                // the open iteration's books
+  Books mean_books_;                   // the average's books
+  double averaged_photons_ = 0.0;      // photons behind the average
+  double last_weight_ = 0.0;           // the finished iteration's weight in the average
+  Ended ended_ = Ended::Increment;     // what the last end_round finished
 };
 
 }  // namespace flatland
