@@ -53,9 +53,9 @@ const char* to_string(SamplerKind sampler);
 //   storage and estimators turn its tallies into B = E + rho x received; a walk costs about
 //   1 / (1 - rho) rays, and its whole journey can be shown.
 // - Jacobi: shooting until the pool falls below the tolerance, then regular stochastic Jacobi
-//   iterations, each shooting the emitted light and all the light the last iterate reflects,
-//   averaged with the shooting's answer by photons (shooting.hpp; docs/method.md, "Averaged Jacobi
-//   iterations").
+//   iterations, each shooting all the light the last iterate reflects and adding it to the first
+//   round's direct light, averaged with the shooting's answer by the photons of their reflected
+//   light (shooting.hpp; docs/method.md, "Averaged Jacobi iterations").
 enum class Transport { Shooting, Walk, Jacobi };
 const char* to_string(Transport transport);
 // What a random walk tallies where it lands on a reflecting side (docs/method.md, "Random walks").

@@ -54,20 +54,19 @@ ProgressiveShooting::ProgressiveShooting(std::vector<double> emission, double em
       initial_ratio_(decay),
       tolerance_(tolerance),
       budget_(averaged_budget),
-      increment_budget_(std::max(averaged_budget / 4, std::min(averaged_budget, kMinPhotonsPerRound))) {
-  // Where nothing reflects there is nothing to iterate: the increments take the whole budget, as
-  // shooting's do.
-  if (!(decay > 0.0)) increment_budget_ = budget_;
-}
+      increment_budget_(averaged_budget) {}
 
 std::uint64_t ProgressiveShooting::round_photons(double unshot, std::uint64_t shot, std::uint64_t budget,
                                                  std::uint32_t rounds) const {
   // The first round, the emitted light's, is planned as shooting plans it (the same photons).
   if (budget_ == 0 || rounds == 0) return incremental_photons(unshot, shot, budget, rounds);
   if (!regular_) return incremental_photons(unshot, shot, std::min(budget, increment_budget_), rounds);
-  // An iteration (one round) takes a quarter of the photons shot on reflected light before it (at
-  // least kMinPhotonsPerIteration), the last one all that is left.
-  std::uint64_t photons = std::max(kMinPhotonsPerIteration, (shot - direct_photons_) / 4);
+  // An iteration (one round) takes a quarter of the photons shot on reflected light before it, and
+  // at least a sixteenth of the budget after the first round (where the iterations begin right
+  // after it, so that they are about six, not many small ones) and kMinPhotonsPerIteration; the
+  // last one takes all that is left.
+  const std::uint64_t reflected_budget = budget_ - std::min(budget_, direct_photons_);
+  std::uint64_t photons = std::max({kMinPhotonsPerIteration, (shot - direct_photons_) / 4, reflected_budget / 16});
   const std::uint64_t left = budget - std::min(budget, shot);
   if (photons + photons / 2 > left) photons = left;
   return std::min({photons, kMaxPhotonsPerRound});
@@ -120,6 +119,8 @@ void ProgressiveShooting::end_round(const SceneStorage& storage, const RoundTota
       for (std::size_t loss = 0; loss < kChainLosses; ++loss)
         direct_books_.lost[loss][ch] = static_cast<double>(round.lost[loss][ch]) * round.inverse_scale;
     }
+    // (Where nothing reflects there is nothing to iterate: the increments take the whole budget, as
+    // shooting's do.)
     if (initial_ratio_ > 0.0)
       increment_budget_ =
           std::min(budget_, shot_ + std::max((budget_ - std::min(budget_, shot_)) / 4, kMinPhotonsPerRound));
@@ -132,12 +133,14 @@ void ProgressiveShooting::end_round(const SceneStorage& storage, const RoundTota
   if (!(sum_of(unshot_) > tolerance_ * emitted_)) {
     if (budget_ - std::min(budget_, shot_) >= kMinPhotonsPerIteration) begin_iterations(storage, received);
   } else if (shot_ + kMinPhotonsPerRound > increment_budget_) {
-    increment_budget_ = std::min(budget_, 2 * increment_budget_);
+    // (Their share, not counting the first round's photons, doubles.)
+    increment_budget_ = std::min(budget_, 2 * increment_budget_ - direct_photons_);
   }
 }
 
 void ProgressiveShooting::begin_iterations(const SceneStorage& storage, const std::vector<double>& received) {
-  // The shooting's answer and books are the average's first entry, weighted by its photons.
+  // The shooting's answer and books are the average's first entry, weighted by the photons of its
+  // reflected light (below).
   Books first;
   for (std::size_t ch = 0; ch < 3; ++ch) {
     first.absorbed[ch] = absorbed_[ch].value();

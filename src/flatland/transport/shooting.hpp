@@ -38,8 +38,9 @@ class ProgressiveShooting final : public LightTransport {
   // by at most n 2^-61 of itself; 2^30 photons keep that below 5e-10.
   static constexpr std::uint64_t kMaxPhotonsPerRound = std::uint64_t{1} << 30;
 
-  // Regular iterations take at least this many photons each, and each at least a quarter of
-  // all the photons shot before it (so that a budget of N has about log(4) / log(1.25), 6, of them).
+  // Regular iterations take at least this many photons each, and each at least a quarter of the
+  // photons shot on reflected light before it (so that the budget after the first round has about
+  // log(4) / log(1.25), 6, of them) and a sixteenth of that budget.
   static constexpr std::uint64_t kMinPhotonsPerIteration = 4 * kMinPhotonsPerRound;
 
   ProgressiveShooting() = default;
@@ -109,14 +110,16 @@ class ProgressiveShooting final : public LightTransport {
   double previous_unshot_ = 0.0;
   double tolerance_ = 1e-3;
   // Averaged Jacobi iterations (all unused when budget_ is 0).
-  std::uint64_t budget_ = 0;            // photons of the solve or pass
-  std::uint64_t increment_budget_ = 0;  // the increments' photons (doubled while they need more)
-  std::uint64_t shot_ = 0;              // photons of the finished rounds
-  std::uint32_t iterations_ = 0;        // finished iterations
-  int largest_pool_bits_ = 0;           // most_headroom_bits
-  std::uint32_t rounds_ = 0;            // finished rounds
-  bool regular_ = false;                // the iterations have begun
-  std::vector<double> nothing_;         // unshot() during the iterations: zeros
+  std::uint64_t budget_ = 0;  // photons of the solve or pass
+  // The photons the increments may shoot in all, the first round's included (the share of the
+  // rest doubled while they need more).
+  std::uint64_t increment_budget_ = 0;
+  std::uint64_t shot_ = 0;        // photons of the finished rounds
+  std::uint32_t iterations_ = 0;  // finished iterations
+  int largest_pool_bits_ = 0;     // most_headroom_bits
+  std::uint32_t rounds_ = 0;      // finished rounds
+  bool regular_ = false;          // the iterations have begun
+  std::vector<double> nothing_;   // unshot() during the iterations: zeros
   // The first round's deposits D (the emitted light's, per coefficient and channel), each
   // replicate's part of them, the detectors' tallies and that round's books (absorbed elsewhere,
   // escaped, lost): every iterate starts from them.
