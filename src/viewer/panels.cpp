@@ -281,8 +281,8 @@ void Viewer::draw_solve_panel(const Snapshot& snapshot) {
   changed = option_combo(SolveOption::Transport,
                          "shooting: rounds of one hop each (the paper's method)\n"
                          "walk: each photon a whole random walk, ended by Russian roulette\n"
-                         "jacobi: shooting to the tolerance, then iterations that each shoot the emitted\n"
-                         "and all the reflected light, averaged (the estimate moves per iteration)") ||
+                         "jacobi: shooting to the tolerance, then iterations that each shoot all the\n"
+                         "reflected light again, averaged (the estimate moves per iteration)") ||
             changed;
   // A score is a walk's: back to shooting, the score goes back to collision (shooting refuses others).
   if (settings_.transport != Transport::Walk) settings_.walk_score = WalkScore::Collision;

@@ -51,8 +51,9 @@ const std::vector<SolveOptionSpec>& table() {
        "How light travels: shooting (progressive rounds, each shooting the light the last one "
        "reflected: the paper's method), walk (each photon a random walk from an emitter, tallied at "
        "every hit and ended by Russian roulette; photons counts walks, tolerance is not used) or jacobi "
-       "(shooting until the pool is below the tolerance, then regular iterations that each shoot the emitted "
-       "and all the reflected light, averaged with it; docs/method.md, Averaged Jacobi iterations)"},
+       "(shooting until the pool is below the tolerance, then regular iterations that each shoot all the "
+       "reflected light again from the first round's direct light, averaged with it; docs/method.md, Averaged "
+       "Jacobi iterations)"},
       {SolveOption::WalkScore, "walk score", "walk-score", "walk_score", {"collision", "absorption", "survival"}, "",
        "What a random walk tallies where it lands (transport walk only): collision (the power that arrived, "
        "at every landing), absorption (that power / (1 - q) where the walk ends, q its chance of going on "
