@@ -113,12 +113,7 @@ void ProgressiveShooting::end_round(const SceneStorage& storage, const RoundTota
     direct_photons_ = shot_;
     direct_parts_ = round.replicates > 1 ? parts : std::vector<double>{};
     direct_books_ = Books{};
-    for (std::size_t ch = 0; ch < 3; ++ch) {
-      direct_books_.escaped[ch] = static_cast<double>(round.escaped[ch]) * round.inverse_scale;
-      direct_books_.absorbed[ch] = static_cast<double>(round.absorbed[ch]) * round.inverse_scale;
-      for (std::size_t loss = 0; loss < kChainLosses; ++loss)
-        direct_books_.lost[loss][ch] = static_cast<double>(round.lost[loss][ch]) * round.inverse_scale;
-    }
+    add_round(direct_books_, round);
     // (Where nothing reflects there is nothing to iterate: the increments take the whole budget, as
     // shooting's do.)
     if (initial_ratio_ > 0.0)
@@ -176,22 +171,12 @@ void ProgressiveShooting::end_iteration_round(const SceneStorage& storage, const
     const std::int64_t units = round_units(round, size, index, split ? &iterate_parts_ : nullptr);
     iterate_[index] += static_cast<double>(units) * round.inverse_scale;
   }
-  for (std::size_t ch = 0; ch < channels; ++ch) {
-    iterate_books_.escaped[ch] += static_cast<double>(round.escaped[ch]) * round.inverse_scale;
-    iterate_books_.absorbed[ch] += static_cast<double>(round.absorbed[ch]) * round.inverse_scale;
-    for (std::size_t loss = 0; loss < kChainLosses; ++loss)
-      iterate_books_.lost[loss][ch] += static_cast<double>(round.lost[loss][ch]) * round.inverse_scale;
-  }
-  finish_iteration(storage, received, parts, static_cast<double>(round.photons));
-}
-
-void ProgressiveShooting::finish_iteration(const SceneStorage& storage, std::vector<double>& received,
-                                           std::vector<double>& parts, double photons) {
-  const std::size_t size = iterate_.size();
-  const bool split = !iterate_parts_.empty();
+  add_round(iterate_books_, round);
   // The iterate's books: rho r_j waits (the next iteration shoots it), (1 - rho) r_j is absorbed.
   iterate_books_.unshot += reflect(storage, iterate_, unshot_, iterate_books_.absorbed);
   largest_pool_bits_ = std::max(largest_pool_bits_, pool_bits(sum_of(unshot_), emitted_));
+  // It joins the average, weighted by its round's photons.
+  const auto photons = static_cast<double>(round.photons);
   averaged_photons_ += photons;
   last_weight_ = photons / averaged_photons_;
   const double w = last_weight_;
@@ -208,6 +193,15 @@ void ProgressiveShooting::finish_iteration(const SceneStorage& storage, std::vec
   mean_books_.unshot += w * (iterate_books_.unshot - mean_books_.unshot);
   ended_ = Ended::IterationDone;
   ++iterations_;
+}
+
+void ProgressiveShooting::add_round(Books& books, const RoundTotals& round) {
+  for (std::size_t ch = 0; ch < 3; ++ch) {
+    books.escaped[ch] += static_cast<double>(round.escaped[ch]) * round.inverse_scale;
+    books.absorbed[ch] += static_cast<double>(round.absorbed[ch]) * round.inverse_scale;
+    for (std::size_t loss = 0; loss < kChainLosses; ++loss)
+      books.lost[loss][ch] += static_cast<double>(round.lost[loss][ch]) * round.inverse_scale;
+  }
 }
 
 void ProgressiveShooting::end_increment(const SceneStorage& storage, const RoundTotals& round,

@@ -96,8 +96,8 @@ class ProgressiveShooting final : public LightTransport {
   void end_iteration_round(const SceneStorage& storage, const RoundTotals& round, std::vector<double>& received,
                            std::vector<double>& parts);
   void begin_iterations(const SceneStorage& storage, const std::vector<double>& received);
-  void finish_iteration(const SceneStorage& storage, std::vector<double>& received, std::vector<double>& parts,
-                        double photons);
+  // Adds a round's escaped, absorbed elsewhere and lost power to `books`.
+  static void add_round(Books& books, const RoundTotals& round);
   std::uint64_t incremental_photons(double pool_power, std::uint64_t shot, std::uint64_t budget,
                                     std::uint32_t rounds) const;
 
