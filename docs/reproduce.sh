@@ -40,6 +40,7 @@ logs=build/reproduce
 STEPS=(
   "time-to-accuracy|error against solve time of every storage, with the defaults and the paper's settings, and of random walks, on five scenes|python3 docs/figures/time_to_accuracy/run.py|time-to-accuracy time-to-accuracy-errors time-to-accuracy-findings walks readme-answer"
   "family|the Monte Carlo radiosity family side by side: shooting, averaged Jacobi iterations, walks (each score) and the final gather against the deterministic reference, on eight scenes|python3 docs/figures/family/run.py|family family-findings"
+  "control-variates|control variates for shooting predicted in the reference's discrete model before they are built: a constant and a coarse reference's answer, on five rooms and a furnace|build/flatland_control_variates scenes2d/interreflection/office.json scenes2d/interreflection/window_room.json scenes2d/curved_room.json scenes2d/default.json scenes2d/row_of_rooms.json scenes2d/experiments/enclosure_rho0.9.json --coarse 25,50|>control-variates"
   "importance|importance toward a region of interest: the region's error, the rest's and the time, with and without, on five scenes|python3 docs/figures/importance/run.py|importance"
   "ingredients|what each ingredient buys, one setting at a time from classic to the defaults, at 1e6 photons|python3 docs/figures/time_to_accuracy/ingredients.py|ingredients"
   "syndrome|the constant radiosity assumption syndrome|docs/figures/experiments/syndrome.sh 1e6 5|>syndrome"
