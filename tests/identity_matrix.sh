@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # The matrix of solves that says whether a change kept every result's bits: eight scenes (lines,
-# cubics, colour, closed curves, contacts) x ten settings (every basis and estimator, both samplers,
-# walks, footprints, bands, secondary events with uniform origins), then MPI with two processes and
-# Python on three scenes: 86 result documents, written without what may differ between runs of the
+# cubics, colour, closed curves, contacts) x twelve settings (every basis and estimator, both
+# samplers, every transport, replicates as blocks, footprints, bands, secondary events with uniform
+# origins), then MPI with two processes and Python on three scenes: 102 result documents, written without what may differ between runs of the
 # same solve (timings, thread and process counts, the program's version and commit).
 #
 # Usage: tests/identity_matrix.sh OUT_DIR            (with build/flatland and build/python)
@@ -28,6 +28,8 @@ settings=(
   "--ray-width 0.02"
   "--ray-width 0.02 --ray-mode band --band-rays 4"
   "--discontinuities secondary --sampling uniform"
+  "--transport jacobi"
+  "--replicate-layout blocks"
 )
 
 # Drops what may differ between runs of the same solve, and writes the rest with sorted keys.
