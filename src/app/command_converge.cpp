@@ -583,7 +583,9 @@ CLI::App* add_converge_command(CLI::App& parent, ConvergeOptions& o) {
   cmd->add_option("--curve", o.curve,
                   "Measure the error on the curve with this id (as in the scene file) instead of "
                   "over the whole scene");
-  cmd->add_option("--out", o.out, "Output directory (created if missing)")->required();
+  cmd->add_option("--out", o.out, "Output directory (created when the results are written, in an existing directory)")
+      ->required()
+      ->check(output_path());
   cmd->add_flag("--replot", o.replot,
                 "Solve nothing: draw the plot again from DIR/convergence.csv, with the measure it "
                 "was written with (the floor from --reference, when given)");
@@ -753,12 +755,16 @@ std::optional<int> ConvergeStudy::check_curve_and_measure() {
   return std::nullopt;
 }
 
+// The output directory is made only when the results are written (write_outputs), so that a run
+// refused or stopped on the way leaves nothing behind; here it must exist, or its parent must.
 std::optional<int> ConvergeStudy::check_outputs() const {
   std::error_code ec;
-  fs::create_directories(o_.out, ec);
-  if (ec || !fs::is_directory(o_.out)) return usage_error(o_.out + ": cannot create the output directory");
-  if (Status status = check_output_file((fs::path(o_.out) / "convergence.csv").string()); !status)
-    return usage_error(status.error().message);
+  const bool exists = fs::exists(o_.out, ec);
+  if (exists && !fs::is_directory(o_.out, ec))
+    return usage_error("--out " + o_.out + ": is not a directory; give a directory for the results");
+  // (A directory still to be made is checked as a file to be made in its parent.)
+  const std::string target = exists ? (fs::path(o_.out) / "convergence.csv").string() : o_.out;
+  if (Status status = check_output_file(target); !status) return usage_error("--out " + status.error().message);
   if (Status status = check_result_size(scene_, o_.samples); !status) return usage_error(status.error().message);
   return std::nullopt;
 }
@@ -931,6 +937,9 @@ std::string ConvergeStudy::csv() const {
 
 int ConvergeStudy::write_outputs() const {
   const fs::path directory(o_.out);
+  std::error_code ec;
+  fs::create_directory(directory, ec);
+  if (ec || !fs::is_directory(directory)) return usage_error("--out " + o_.out + ": cannot create the directory");
   if (Status status = write_file_atomically((directory / "convergence.csv").string(), csv(), &interrupt_flag());
       !status)
     return usage_error(status.error().message);

@@ -46,7 +46,8 @@ CLI::App* add_reference_command(CLI::App& parent, ReferenceOptions& o) {
   cmd->add_option("--samples", o.samples, "Radiosity samples per curve in the result, at arc length (j + 0.5) L / K")
       ->capture_default_str()
       ->check(CLI::Range(1, 1000000));
-  cmd->add_option("--out", o.out, "Write the result as JSON to this file (docs/result-format.md)");
+  cmd->add_option("--out", o.out, "Write the result as JSON to this file (docs/result-format.md)")
+      ->check(output_path());
   cmd->add_flag("--quiet", o.quiet, "No summary (errors only)");
   return cmd;
 }

@@ -31,8 +31,8 @@ CLI::App* add_render_command(CLI::App& parent, RenderOptions& o) {
       "is larger); mirrors steel blue, glass cyan, detectors green. docs/viewer.md says more.");
   cmd->add_option("scene", o.solve.scene, "Scene file (JSON, docs/scene-format.md)")->required();
   add_solver_options(cmd, o.solve);
-  cmd->add_option("--out", o.out, "The picture (PNG)")->required();
-  cmd->add_option("--result", o.result, "Also write the result as JSON (as solve --out)");
+  cmd->add_option("--out", o.out, "The picture (PNG)")->required()->check(output_path());
+  cmd->add_option("--result", o.result, "Also write the result as JSON (as solve --out)")->check(output_path());
   cmd->add_option("--samples", o.solve.samples, "Radiosity samples per curve in the --result file")
       ->capture_default_str()
       ->check(CLI::Range(1, 1000000));
@@ -60,11 +60,12 @@ CLI::App* add_render_command(CLI::App& parent, RenderOptions& o) {
   cmd->add_option("--exposure", o.exposure, "Exposure of the photon paths")
       ->capture_default_str()
       ->check(finite_range(1e-3, 1e3));
-  cmd->add_flag("--graph,!--no-graph", o.graph, "Draw B(s) as a graph along each curve's normal");
-  cmd->add_flag("--band,!--no-band", o.band, "Draw the colour band of B along each curve");
+  cmd->add_flag("--graph,!--no-graph", o.graph,
+                "Draw B(s) as a graph along each curve's normal (on unless --no-graph)");
+  cmd->add_flag("--band,!--no-band", o.band, "Draw the colour band of B along each curve (on unless --no-band)");
   cmd->add_flag("--labels,!--no-labels", o.labels,
                 "Write a title above the scene (what is drawn, how it was solved) and the colour key with the "
-                "materials' legend below it (default; pictures under 320x240 have none)");
+                "materials' legend below it (on unless --no-labels; pictures under 320x240 have none)");
   cmd->add_flag("--journey", o.journey,
                 "Also draw the newest photon's journey on top (its hops numbered and coloured by bounce), as "
                 "the viewer does");

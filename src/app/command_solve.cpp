@@ -56,11 +56,14 @@ CLI::App* add_solve_command(CLI::App& parent, SolveOptions& o) {
   cmd->add_option("--samples", o.samples, "Radiosity samples per curve in the result, at arc length (j + 0.5) L / K")
       ->capture_default_str()
       ->check(CLI::Range(1, 1000000));
-  cmd->add_option("--out", o.out, "Write the result as JSON to this file (docs/result-format.md)");
-  cmd->add_option("--picture", o.picture, "Write a PNG picture of the curves coloured by their radiosity");
+  cmd->add_option("--out", o.out, "Write the result as JSON to this file (docs/result-format.md)")
+      ->check(output_path());
+  cmd->add_option("--picture", o.picture, "Write a PNG picture of the curves coloured by their radiosity")
+      ->check(output_path());
   cmd->add_option("--detectors", o.detectors,
                   "Write the power crossing each bin of the scene's detector curves as CSV to this file "
-                  "(docs/result-format.md)");
+                  "(docs/result-format.md)")
+      ->check(output_path());
   cmd->add_option("--reference", o.reference,
                   "A reference result (same scene, same --samples): print the errors against it");
   cmd->add_flag("--quiet", o.quiet, "No progress line and no summary (errors only)");

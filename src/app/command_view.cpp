@@ -30,9 +30,11 @@ CLI::App* add_view_command(CLI::App& parent, ViewCommandOptions& o) {
       ->capture_default_str();
   cmd->add_flag("--paused", o.paused, "Start paused (Space runs)");
   cmd->add_option("--screenshot", o.screenshot,
-                  "After the last frame, write the scene view (no panels) to this PNG file");
+                  "After the last frame, write the scene view (no panels) to this PNG file")
+      ->check(output_path());
   cmd->add_option("--screenshot-ui", o.screenshot_ui,
-                  "After the last frame, write the whole window, panels included, to this PNG file");
+                  "After the last frame, write the whole window, panels included, to this PNG file")
+      ->check(output_path());
   cmd->add_option("--keep-paths", o.keep_paths, "Photon paths kept on screen")
       ->capture_default_str()
       ->check(CLI::Range(0, 10000000));

@@ -27,6 +27,16 @@ inline constexpr int kExitFailure = 1;
 inline constexpr int kExitUsage = 2;
 inline constexpr int kExitInterrupted = 130;
 
+// A path to write: not empty (an empty value would otherwise read as the option not given, and
+// the command would write nothing without a word).
+inline CLI::Validator output_path() {
+  return CLI::Validator(
+      [](std::string& text) -> std::string {
+        return text.empty() ? "an empty path; give the file to write (or leave the option out)" : std::string();
+      },
+      "PATH");
+}
+
 // A number in [low, high]. CLI::Range lets NaN through (every comparison with NaN is false);
 // this check does not: the value must compare inside the range.
 inline CLI::Validator finite_range(double low, double high) {

@@ -322,10 +322,10 @@ void Viewer::draw_curve_panel(const Snapshot& snapshot) {
   ImGui::SetNextWindowSize(ImVec2(column.width(), std::max(column.y1 - top, 120.0f)), ImGuiCond_Always);
   ImGui::Begin("Curve", nullptr, kDocked);
   record_panel("Curve");
-  // Importance (shooting only, curves that hold light): a checkbox at the right end of the
-  // facts' first row, so the panel keeps its height.
+  // Importance (shooting only, curves whose light the solve estimates): a checkbox at the right
+  // end of the facts' first row, so the panel keeps its height.
   const Curve& curve = scene_->curves[c];
-  if (settings_.transport == Transport::Shooting && scene_->holds_light(curve)) {
+  if (settings_.transport == Transport::Shooting && scene_->reflects_light(curve)) {
     const ImVec2 start = ImGui::GetCursorPos();
     const float width =
         ImGui::GetFrameHeight() + ImGui::GetStyle().ItemInnerSpacing.x + ImGui::CalcTextSize("importance").x;

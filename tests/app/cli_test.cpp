@@ -87,6 +87,12 @@ TEST_F(Cli, BadInputGetsOneLineAndExitCodeTwo) {
       {"solve " + good + " --sampling sideways", "--sampling"},
       {"solve " + good + " --estimator magic", "--estimator"},
       {"solve " + good + " --samples -3", "--samples"},
+      // A budget below the replicates would shoot nothing; an empty path would write nothing.
+      {"solve " + good + " --photons 5", "--photons"},
+      {"solve " + good + " --photons 5 --transport walk", "replicates"},
+      {"solve " + good + " --out ''", "--out"},
+      {"solve " + good + " --picture ''", "--picture"},
+      {"converge " + good + " --out " + (directory_ / "no-such" / "deeper").string(), "does not exist"},
       {"solve " + (directory_ / "missing.json").string(), "missing.json"},
       {"solve " + directory_.string(), directory_.filename().string()},
   };
@@ -96,6 +102,17 @@ TEST_F(Cli, BadInputGetsOneLineAndExitCodeTwo) {
     EXPECT_EQ(lines(r.err), 1) << arguments << "\n" << r.err;
     EXPECT_NE(r.err.find(mentions), std::string::npos) << arguments << "\n" << r.err;
   }
+}
+
+// converge makes its output directory only when it writes the results: a run refused on the way
+// (here: a reference that cannot be read) leaves no directory behind.
+TEST_F(Cli, RefusedConvergeLeavesNoDirectory) {
+  const fs::path out = directory_ / "study";
+  const CommandRun r = run("converge " + scene("penumbra.json") + " --reference " +
+                           (directory_ / "missing.json").string() + " --out " + out.string() + " --budgets 1e4");
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_EQ(lines(r.err), 1) << r.err;
+  EXPECT_FALSE(fs::exists(out));
 }
 
 TEST_F(Cli, MalformedSceneNamesFileAndLine) {
@@ -739,6 +756,9 @@ TEST_F(Cli, ConvergeNeverRunsCommandsFromScenesOrPaths) {
   const fs::path stem = directory_ / "`touch ran`.json";
   std::ofstream(stem) << scene_json.dump();
   const fs::path out = directory_ / ("x'$(" + touch + ")'y it's");
+  // (The marker's path holds slashes, so the name is a path of several parts: converge makes only
+  // the last one.)
+  fs::create_directories(out.parent_path());
   for (const fs::path& scene_file : {named, stem}) {
     const CommandRun r =
         run("converge " + shell_quoted(scene_file.string()) +

@@ -3,6 +3,7 @@
 // region's expectation and variance, the books, the power no photon took, and determinism.
 #include "flatland/transport/importance.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <string>
@@ -34,10 +35,17 @@ double crossed_strings(Vec2 p1, Vec2 p2, Vec2 q1, Vec2 q2) {
 TEST(Importance, CurvesAreNamedByTheirIdsAndMustHoldLight) {
   const Scene rooms = testing::scene_from_file("scenes2d/row_of_rooms.json");
   SolverSettings settings;
-  settings.importance = {"desk", "lamp_1"};
+  settings.importance = {"desk", "floor_1"};
   Result<std::vector<std::uint32_t>> region = importance_curves(rooms, settings);
   ASSERT_TRUE(region) << region.error().message;
-  EXPECT_EQ(*region, (std::vector<std::uint32_t>{curve_index(rooms, "desk"), curve_index(rooms, "lamp_1")}));
+  EXPECT_EQ(*region, (std::vector<std::uint32_t>{curve_index(rooms, "desk"), curve_index(rooms, "floor_1")}));
+
+  // A lamp that reflects nothing has B = E exactly: nothing to make accurate.
+  settings.importance = {"desk", "lamp_1"};
+  region = importance_curves(rooms, settings);
+  ASSERT_FALSE(region);
+  EXPECT_NE(region.error().message.find("importance: curve 'lamp_1' reflects no light"), std::string::npos)
+      << region.error().message;
 
   settings.importance = {"dsk"};
   region = importance_curves(rooms, settings);
@@ -319,7 +327,7 @@ TEST(Importance, BooksBalanceOnEveryExampleSceneAndStorage) {
     const Scene scene = testing::scene_from_file("scenes2d/" + entry.path().filename().string());
     std::string region;
     for (const Curve& curve : scene.curves)
-      if (region.empty() && scene.holds_light(curve)) region = curve.id;
+      if (region.empty() && scene.reflects_light(curve)) region = curve.id;
     ASSERT_FALSE(region.empty()) << entry.path();
     ++scenes;
     for (BasisKind basis : {BasisKind::Constant, BasisKind::Linear, BasisKind::Cubic, BasisKind::Hermite}) {

@@ -2,6 +2,7 @@
 // and flattened into the segment list the ray caster and the solver share.
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <atomic>
 #include <cstdint>
@@ -158,6 +159,12 @@ struct Scene {
   bool stores(const Curve& c, Side s) const { return material_of(c).optics == Optics::Diffuse && c.has_side(s); }
   // Whether either side of the curve holds diffuse illumination (mirrors, glass and detectors do not).
   bool holds_light(const Curve& c) const { return stores(c, Side::Front) || stores(c, Side::Back); }
+  // Whether it holds diffuse light that the solve estimates: it reflects in some channel (on a
+  // curve that reflects nothing B is its emittance, exact).
+  bool reflects_light(const Curve& c) const {
+    const Spectrum& rho = material_of(c).reflectivity;
+    return holds_light(c) && std::any_of(rho.begin(), rho.begin() + channels, [](double r) { return r > 0.0; });
+  }
   // Whether some curve is a mirror, a dielectric or a detector (photons then follow chains).
   bool has_specular() const;
   // Whether some material has a spectrum (its photons carry wavelengths).

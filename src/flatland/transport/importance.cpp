@@ -35,6 +35,10 @@ Result<std::vector<std::uint32_t>> importance_curves(const Scene& scene, const S
       return Error{"importance: curve '" + id +
                    "' keeps no diffuse light (a mirror, glass or detector has no radiosity to make accurate); "
                    "name the diffuse curves that its light reaches"};
+    if (!scene.reflects_light(curve))
+      return Error{"importance: curve '" + id +
+                   "' reflects no light (its B is its emittance, exact whatever the photons do); name the "
+                   "curves that reflect the light you want accurate"};
     region.push_back(c);
   }
   return region;

@@ -37,7 +37,8 @@ namespace flatland {
 inline constexpr double kImportanceFloor = 1.0 / 64.0;
 
 // The curves `settings.importance` names, as indices; the error names an unknown id (and the
-// likely one meant) or a curve that keeps no diffuse light (a mirror, glass or detector).
+// likely one meant), a curve that keeps no diffuse light (a mirror, glass or detector) or one that
+// reflects nothing (a black curve or an emitter of reflectivity 0: its B is exact).
 Result<std::vector<std::uint32_t>> importance_curves(const Scene& scene, const SolverSettings& settings);
 
 // The scene whose solution gives the importance of `region`: every emitter dark, the region's

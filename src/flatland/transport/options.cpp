@@ -16,7 +16,8 @@ const std::vector<SolveOptionSpec>& table() {
   // clang-format off
   static const std::vector<SolveOptionSpec> options = {
       {SolveOption::Photons, "photons", "photons", "photons", {}, "N",
-       "Total photon budget over all rounds, e.g. 250000 or 1e6", false},
+       "Total photon budget over all rounds, e.g. 250000 or 1e6 (every round shoots a multiple of the "
+       "replicates: at least that many)", false},
       {SolveOption::Seed, "seed", "seed", "seed", {}, "S",
        "Random seed; the same seed gives bit-identical results on any thread count", false},
       {SolveOption::Threads, "threads", "threads", "threads", {}, "T", "Worker threads (0: every core)", false},
@@ -63,7 +64,7 @@ const std::vector<SolveOptionSpec>& table() {
        "The result's B: none (the storage's own), samples (a final gather: at every sample, one "
        "deterministic bounce of the solution over exactly what the sample sees, with the reference's "
        "elements; direct light then carries no noise; refused where the reference is: glass, curved "
-       "mirrors, detectors) or auto (samples where the scene allows it and it costs at most about two "
+       "mirrors, detectors, emitters that are not diffuse) or auto (samples where the scene allows it and it costs at most about two "
        "seconds on two cores, none elsewhere, saying why)"},
       {SolveOption::Importance, "importance", "importance", "importance", {}, "IDS",
        "Curves whose light matters most, as ids separated by commas (e.g. desk,floor; empty: none; transport "
@@ -85,7 +86,8 @@ const std::vector<SolveOptionSpec>& table() {
        "iterations then)"},
       {SolveOption::Replicates, "replicates", "replicates", "replicates", {}, "R",
        "Independent randomisations every round's photons are split into (1, or an even number up to 64): "
-       "their spread gives the result's estimated error; 1 gives none (and is refused with --elements auto)"},
+       "their spread gives the result's estimated error; 1 gives none (and is refused with --elements auto and "
+       "with --target-error)"},
       {SolveOption::ReplicateLayout, "replicate layout", "replicate-layout", "replicate_layout",
        {"independent", "blocks"}, "",
        "How a round's photons form the replicates: independent (photon i in replicate i mod R, each its own "

@@ -75,6 +75,12 @@ Status validate(const SolverSettings& settings) {
   if (settings.replicates < 1 || settings.replicates > kMaxReplicates ||
       (settings.replicates > 1 && settings.replicates % 2 != 0))
     return Error{"replicates: must be 1 or an even number up to " + std::to_string(kMaxReplicates)};
+  // Every round shoots a multiple of the replicates (each an equal share of it), so a smaller
+  // budget would shoot nothing and report all the light unshot.
+  if (settings.photons < static_cast<std::uint64_t>(settings.replicates))
+    return Error{"photons: every round shoots a multiple of the " + std::to_string(settings.replicates) +
+                 " replicates, so " + std::to_string(settings.photons) + " photons would shoot none; give at least " +
+                 std::to_string(settings.replicates) + " (or fewer replicates)"};
   if (!(settings.confidence >= 0.5 && settings.confidence <= 0.999))
     return Error{"confidence: must be a probability from 0.5 to 0.999, e.g. 0.95"};
   if (!(settings.target_error >= 0.0 && settings.target_error < 1.0))
@@ -93,7 +99,8 @@ Status validate(const SolverSettings& settings) {
         "places; use ray mode footprint with walks (or transport shooting with bands)"};
   if (settings.transport != Transport::Walk && settings.walk_score != WalkScore::Collision)
     return Error{std::string("walk score: ") + to_string(settings.walk_score) +
-                 " scores random walks, and shooting's photons make one hop each; use transport walk with it "
+                 " scores random walks, and the photons of shooting and of Jacobi iterations make one hop each; use "
+                 "transport walk with it "
                  "(or leave the walk score at collision)"};
   if (settings.transport == Transport::Walk && !settings.importance.empty())
     return Error{
