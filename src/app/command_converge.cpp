@@ -549,7 +549,8 @@ CLI::App* add_converge_command(CLI::App& parent, ConvergeOptions& o) {
   cmd->add_option("--methods", o.methods,
                   "Comma-separated methods: a basis name, or key=value pairs joined by '+' (" + keys +
                       "; as solve's options), e.g. constant,cubic,cubic+sampling=uniform,"
-                      "cubic+elements=64+sampler=sobol,cubic+transport=walk")
+                      "cubic+elements=64+sampler=sobol,cubic+transport=walk; commas separate methods, so "
+                      "importance=ID names one curve here (Python's converge takes the methods as a list, so several)")
       ->capture_default_str();
   auto* budgets = cmd->add_option("--budgets", o.budgets, "Comma-separated photon budgets")->capture_default_str();
   auto* times = cmd->add_option("--times", o.times,

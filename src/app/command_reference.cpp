@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <optional>
 #include <thread>
 
@@ -24,7 +25,16 @@ CLI::App* add_reference_command(CLI::App& parent, ReferenceOptions& o) {
       "solve, with \"method\": \"reference\"");
   cmd->add_option("scene", o.scene, "Scene file (JSON, docs/scene-format.md)")->required();
   auto* length = cmd->add_option("--max-element-length", o.max_element_length,
-                                 "Longest element in scene units (default: scene size / 400)");
+                                 "Longest element in scene units (default: scene size / 400)")
+                     ->check(CLI::Validator(
+                         [](std::string& text) -> std::string {
+                           char* end = nullptr;
+                           const double value = std::strtod(text.c_str(), &end);
+                           if (end == text.c_str() || *end != '\0' || !(value > 0.0) || !std::isfinite(value))
+                             return "must be a positive length in scene units, not " + text;
+                           return {};
+                         },
+                         "LENGTH"));
   auto* elements = cmd->add_option("--elements", o.elements,
                                    "Elements across the scene: the longest element is the scene's "
                                    "size (bounding-box diagonal) / N")

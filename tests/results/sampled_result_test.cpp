@@ -152,6 +152,13 @@ TEST(SampledResult, MalformedDocumentsAreErrors) {
   nlohmann::json text = good;
   text["curves"][0]["samples"][0]["B"] = "bright";
   EXPECT_NE(error_of(text).find("expected a number or [r, g, b]"), std::string::npos);
+  // In a colour document whose first B is malformed, that B is named, not the curve's emittance
+  // read as grey before it (the channels come from the first B that is a number or an array).
+  nlohmann::json colour = good;
+  colour["curves"][0]["emittance"] = {1.0, 0.5, 0.25};
+  colour["curves"][0]["samples"] = {{{"s", 0.3}, {"B", "bright"}}, {{"s", 0.7}, {"B", {1.0, 2.0, 3.0}}}};
+  EXPECT_NE(error_of(colour).find("samples[0].B (reference): expected a number or [r, g, b]"), std::string::npos)
+      << error_of(colour);
   // Found by fuzz_result (fuzz/corpus/result/regression-segments-beyond-int.json): a segment count
   // beyond an int was converted anyway (undefined behaviour).
   for (const nlohmann::json& count :

@@ -426,7 +426,12 @@ Status ReferenceBuilder::check() const {
   const double element_total = reference_element_count(scene_, settings_);
   if (element_total > static_cast<double>(kMaxReferenceElements)) {
     char message[320];
-    if (subject_ == "the reference solver")
+    if (subject_ == "the reference solver" && !std::isfinite(element_total))
+      std::snprintf(message, sizeof message,
+                    "more reference elements than can be counted (elements of length %.3g); at most %zu: "
+                    "use fewer elements (--elements or --max-element-length)",
+                    max_length(), kMaxReferenceElements);
+    else if (subject_ == "the reference solver")
       std::snprintf(message, sizeof message,
                     "%.4g reference elements (elements of length %.3g); at most %zu: form factors "
                     "take time and memory growing as the square of the count; use fewer elements "

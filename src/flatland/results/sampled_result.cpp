@@ -39,12 +39,16 @@ Result<Spectrum> spectrum_of(const nlohmann::json& value, int channels, const st
   return Error{where + ": expected a number or [r, g, b]"};
 }
 
-// The document's channels: those of its first B (1 when it has none).
+// The document's channels: those of its first B that is a number or an array (1 when it has
+// none); a B that is neither is reported where it stands, not blamed on a value read before it.
 int channels_of_document(const nlohmann::json& curves) {
   for (const nlohmann::json& curve : curves) {
     if (!curve.is_object() || !curve.contains("samples") || !curve["samples"].is_array()) continue;
-    for (const nlohmann::json& sample : curve["samples"])
-      if (sample.is_object() && sample.contains("B")) return sample["B"].is_array() ? 3 : 1;
+    for (const nlohmann::json& sample : curve["samples"]) {
+      if (!sample.is_object() || !sample.contains("B")) continue;
+      if (sample["B"].is_array()) return 3;
+      if (sample["B"].is_number()) return 1;
+    }
   }
   return 1;
 }
