@@ -517,6 +517,12 @@ Result<Plan> parse_plan(const ConvergeOptions& o) {
                    std::to_string(static_cast<long>(kMaxRunSeconds)) + " s, about 12 days)"};
     if (!plan.by_time) {
       if (Result<std::uint64_t> count = parse_count(text, "--budgets"); !count) return count.error();
+      // Every round shoots a multiple of the replicates: a smaller budget would shoot nothing.
+      for (const Method& method : plan.methods)
+        if (value < method.settings.replicates)
+          return Error{"--budgets: '" + text + "' photons is fewer than the " +
+                       std::to_string(method.settings.replicates) + " replicates of method '" + method.name +
+                       "', whose every round shoots a multiple of them; give at least that many"};
     }
     plan.budgets.push_back(value);
   }
@@ -763,8 +769,11 @@ std::optional<int> ConvergeStudy::check_outputs() const {
   const bool exists = fs::exists(o_.out, ec);
   if (exists && !fs::is_directory(o_.out, ec))
     return usage_error("--out " + o_.out + ": is not a directory; give a directory for the results");
-  // (A directory still to be made is checked as a file to be made in its parent.)
-  const std::string target = exists ? (fs::path(o_.out) / "convergence.csv").string() : o_.out;
+  // (A directory still to be made is checked as a file to be made in its parent, without the
+  // trailing separators that would leave it no name.)
+  fs::path directory(o_.out);
+  while (directory.has_parent_path() && !directory.has_filename()) directory = directory.parent_path();
+  const std::string target = exists ? (fs::path(o_.out) / "convergence.csv").string() : directory.string();
   if (Status status = check_output_file(target); !status) return usage_error("--out " + status.error().message);
   if (Status status = check_result_size(scene_, o_.samples); !status) return usage_error(status.error().message);
   return std::nullopt;
@@ -858,7 +867,9 @@ std::optional<int> ConvergeStudy::run_one(std::size_t m, std::size_t b, int seed
       (m * budgets.size() + b) * static_cast<std::size_t>(o_.seeds) + static_cast<std::size_t>(seed - 1);
   if (run % process_count() != process_rank()) return std::nullopt;
   SolverSettings settings = plan_.methods[m].settings;
-  const double photons = std::max(1.0, plan_.by_time ? std::floor(budgets[b] * rate) : budgets[b]);
+  // (A time too short for the replicates still shoots one photon each.)
+  const double photons =
+      std::max(static_cast<double>(settings.replicates), plan_.by_time ? std::floor(budgets[b] * rate) : budgets[b]);
   if (photons > static_cast<double>(kMaxPhotons))
     return usage_error("--times: " + std::to_string(budgets[b]) + " s at the measured " + human_count(rate) +
                        " photons/s is more than the 2^50 photons a solve may shoot");

@@ -93,6 +93,7 @@ TEST_F(Cli, BadInputGetsOneLineAndExitCodeTwo) {
       {"solve " + good + " --out ''", "--out"},
       {"solve " + good + " --picture ''", "--picture"},
       {"converge " + good + " --out " + (directory_ / "no-such" / "deeper").string(), "does not exist"},
+      {"converge " + good + " --budgets 4,1e4 --out " + (directory_ / "study").string(), "--budgets"},
       {"solve " + (directory_ / "missing.json").string(), "missing.json"},
       {"solve " + directory_.string(), directory_.filename().string()},
   };
@@ -113,6 +114,11 @@ TEST_F(Cli, RefusedConvergeLeavesNoDirectory) {
   EXPECT_EQ(r.exit_code, 2) << r.err;
   EXPECT_EQ(lines(r.err), 1) << r.err;
   EXPECT_FALSE(fs::exists(out));
+  // A directory named with a trailing separator is made as well.
+  const CommandRun made = run("converge " + scene("penumbra.json") +
+                              " --methods constant --budgets 2000 --seeds 1 --samples 10 --out " + out.string() + "/");
+  EXPECT_EQ(made.exit_code, 0) << made.err;
+  EXPECT_TRUE(fs::exists(out / "convergence.csv"));
 }
 
 TEST_F(Cli, MalformedSceneNamesFileAndLine) {

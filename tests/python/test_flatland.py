@@ -393,6 +393,11 @@ def test_misused_keywords_raise_value_errors_as_the_command_line_refuses_them(tm
         flatland.converge(scene, budgets=[1e3], seeds=1001)  # the command line's --seeds limit
     with pytest.raises(ValueError, match="given twice"):
         flatland.converge(scene, budgets=[1e3], methods=["cubic", "cubic"])
+    # Every round shoots a multiple of the replicates: fewer photons would shoot none.
+    with pytest.raises(ValueError, match="multiple of the 8 replicates, so 5 photons would shoot none"):
+        flatland.solve(scene, photons=5)
+    with pytest.raises(ValueError, match="budgets: 4 photons is fewer than the 8 replicates"):
+        flatland.converge(scene, budgets=[4, 1e3], methods=["cubic"])
     with pytest.raises(ValueError, match="wider than the scene"):
         flatland.solve(scene, photons=1000, ray_width=1e300)
     cli = run_cli("solve", "scenes2d/penumbra.json", "--photons", "1000", "--ray-width", "1e300")
