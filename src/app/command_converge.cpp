@@ -24,6 +24,7 @@
 #include "flatland/reference/reference.hpp"
 #include "flatland/results/result_io.hpp"
 #include "flatland/studies/converge.hpp"
+#include "flatland/transport/solver.hpp"
 
 namespace flatland::app {
 
@@ -831,6 +832,11 @@ std::optional<int> ConvergeStudy::check_reference_measures() {
 
 std::optional<int> ConvergeStudy::prepare() {
   if (std::optional<int> code = check_curve_and_measure()) return code;
+  // What the scene refuses of a method (a curve importance names that it lacks, say): said now, on
+  // every process, before the reference is computed and any run is shot.
+  for (const Method& method : plan_.methods)
+    if (Status status = Solver::check_settings_on(scene_, method.settings); !status)
+      return usage_error(status.error().message + " (method '" + method.name + "')");
   if (!speaks_for_the_run()) return std::nullopt;
   if (std::optional<int> code = check_outputs()) return code;
   if (std::optional<int> code = o_.reference.empty() ? compute_reference() : read_reference()) return code;

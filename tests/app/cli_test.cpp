@@ -114,6 +114,14 @@ TEST_F(Cli, RefusedConvergeLeavesNoDirectory) {
   EXPECT_EQ(r.exit_code, 2) << r.err;
   EXPECT_EQ(lines(r.err), 1) << r.err;
   EXPECT_FALSE(fs::exists(out));
+  // What the scene refuses of a method is said before the reference is computed (which would say
+  // so on a line of its own).
+  const CommandRun importance = run("converge " + scene("penumbra.json") + " --methods cubic+importance=nosuch --out " +
+                                    out.string() + " --budgets 1e4");
+  EXPECT_EQ(importance.exit_code, 2) << importance.err;
+  EXPECT_EQ(lines(importance.err), 1) << importance.err;
+  EXPECT_NE(importance.err.find("'nosuch'"), std::string::npos) << importance.err;
+  EXPECT_FALSE(fs::exists(out));
   // A directory named with a trailing separator is made as well.
   const CommandRun made = run("converge " + scene("penumbra.json") +
                               " --methods constant --budgets 2000 --seeds 1 --samples 10 --out " + out.string() + "/");

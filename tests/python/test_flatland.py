@@ -398,6 +398,9 @@ def test_misused_keywords_raise_value_errors_as_the_command_line_refuses_them(tm
         flatland.solve(scene, photons=5)
     with pytest.raises(ValueError, match="budgets: 4 photons is fewer than the 8 replicates"):
         flatland.converge(scene, budgets=[4, 1e3], methods=["cubic"])
+    # What the scene refuses of a method is said before the reference is computed.
+    with pytest.raises(ValueError, match="no curve 'nosuch'.*method 'cubic\\+importance=nosuch'"):
+        flatland.converge(scene, budgets=[1e3], methods=["cubic+importance=nosuch"])
     with pytest.raises(ValueError, match="wider than the scene"):
         flatland.solve(scene, photons=1000, ray_width=1e300)
     cli = run_cli("solve", "scenes2d/penumbra.json", "--photons", "1000", "--ray-width", "1e300")

@@ -234,6 +234,11 @@ class Solver {
   std::uint64_t importance_photons() const { return importance_photons_; }
   double importance_seconds() const { return importance_seconds_; }
 
+  // What Solver::create refuses of `settings` on `scene` without building anything (the scene's
+  // optics, spectra and emitters against the transport and storage, and the curves importance
+  // names): for a caller that checks many settings before any work (converge's methods).
+  static Status check_settings_on(const Scene& scene, const SolverSettings& settings);
+
  private:
   Solver() = default;
 

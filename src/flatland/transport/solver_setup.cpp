@@ -279,6 +279,12 @@ Status Solver::start_transport() {
   return ok_status();
 }
 
+Status Solver::check_settings_on(const Scene& scene, const SolverSettings& settings) {
+  if (Status status = check_scene(scene, settings); !status) return status;
+  if (Result<std::vector<std::uint32_t>> region = importance_curves(scene, settings); !region) return region.error();
+  return ok_status();
+}
+
 Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings, const std::atomic<bool>* cancel) {
   const auto cancelled = [cancel] { return cancel != nullptr && cancel->load(std::memory_order_relaxed); };
   if (Status status = check_scene(scene, settings); !status) return status.error();
