@@ -518,12 +518,8 @@ Result<Plan> parse_plan(const ConvergeOptions& o) {
                    std::to_string(static_cast<long>(kMaxRunSeconds)) + " s, about 12 days)"};
     if (!plan.by_time) {
       if (Result<std::uint64_t> count = parse_count(text, "--budgets"); !count) return count.error();
-      // Every round shoots a multiple of the replicates: a smaller budget would shoot nothing.
-      for (const Method& method : plan.methods)
-        if (value < method.settings.replicates)
-          return Error{"--budgets: '" + text + "' photons is fewer than the " +
-                       std::to_string(method.settings.replicates) + " replicates of method '" + method.name +
-                       "', whose every round shoots a multiple of them; give at least that many"};
+      if (Status status = check_converge_budget(value, plan.methods); !status)
+        return Error{"--" + status.error().message};
     }
     plan.budgets.push_back(value);
   }
@@ -763,15 +759,13 @@ std::optional<int> ConvergeStudy::check_curve_and_measure() {
   return std::nullopt;
 }
 
-// The output directory is made only when the results are written (write_outputs), so that a run
-// refused or stopped on the way leaves nothing behind; here it must exist, or its parent must.
+// The output directory is made when the results are written (a refused run leaves none): here it
+// must exist, or its parent must (checked as a file to be made there, trailing separators off).
 std::optional<int> ConvergeStudy::check_outputs() const {
   std::error_code ec;
   const bool exists = fs::exists(o_.out, ec);
   if (exists && !fs::is_directory(o_.out, ec))
     return usage_error("--out " + o_.out + ": is not a directory; give a directory for the results");
-  // (A directory still to be made is checked as a file to be made in its parent, without the
-  // trailing separators that would leave it no name.)
   fs::path directory(o_.out);
   while (directory.has_parent_path() && !directory.has_filename()) directory = directory.parent_path();
   const std::string target = exists ? (fs::path(o_.out) / "convergence.csv").string() : directory.string();
@@ -832,8 +826,7 @@ std::optional<int> ConvergeStudy::check_reference_measures() {
 
 std::optional<int> ConvergeStudy::prepare() {
   if (std::optional<int> code = check_curve_and_measure()) return code;
-  // What the scene refuses of a method (a curve importance names that it lacks, say): said now, on
-  // every process, before the reference is computed and any run is shot.
+  // What the scene refuses of a method, said before the reference is computed.
   for (const Method& method : plan_.methods)
     if (Status status = Solver::check_settings_on(scene_, method.settings); !status)
       return usage_error(status.error().message + " (method '" + method.name + "')");

@@ -600,13 +600,8 @@ py::list converge(const PyScene& scene, const std::vector<std::string>& methods,
   if (!curve.is_none() && !py::isinstance<py::str>(curve))
     fail("curve: expected a curve's id (a string), got " + py::repr(curve).cast<std::string>());
   const std::vector<ConvergeMethod> parsed = converge_methods(methods, threads, elements, tolerance);
-  // Every round shoots a multiple of the replicates: a smaller budget would shoot nothing.
   for (const double budget : budgets)
-    for (const ConvergeMethod& method : parsed)
-      if (budget < method.settings.replicates)
-        fail("budgets: " + std::to_string(static_cast<long long>(budget)) + " photons is fewer than the " +
-             std::to_string(method.settings.replicates) + " replicates of method '" + method.name +
-             "', whose every round shoots a multiple of them; give at least that many");
+    if (Status status = check_converge_budget(budget, parsed); !status) fail(status.error().message);
   std::optional<std::size_t> curve_index;
   if (!curve.is_none()) curve_index = scene.curve_index(curve.cast<std::string>());
   const Measure measured = measure == "total" ? Measure::Total : Measure::Reflected;

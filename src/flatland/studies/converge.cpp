@@ -46,6 +46,15 @@ Result<ConvergeMethod> parse_converge_method(const std::string& text, const Solv
   return method;
 }
 
+Status check_converge_budget(double budget, const std::vector<ConvergeMethod>& methods) {
+  for (const ConvergeMethod& method : methods)
+    if (budget < method.settings.replicates)
+      return Error{"budgets: " + std::to_string(static_cast<long long>(budget)) + " photons is fewer than the " +
+                   std::to_string(method.settings.replicates) + " replicates of method '" + method.name +
+                   "', whose every round shoots a multiple of them; give at least that many"};
+  return ok_status();
+}
+
 Result<ConvergeRow> converge_run(const Scene& scene, const SolverSettings& settings, const SampledResult& reference,
                                  Measure measure, std::optional<std::size_t> curve, int samples,
                                  const std::atomic<bool>* cancel, const ProgressCallback& progress) {

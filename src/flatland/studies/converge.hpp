@@ -27,6 +27,10 @@ struct ConvergeMethod {
 // named as the solve command's options; the rest from `defaults`. Errors begin "methods: 'TEXT': ".
 Result<ConvergeMethod> parse_converge_method(const std::string& text, const SolverSettings& defaults);
 
+// Whether every method can shoot a budget of `budget` photons: at least its replicates, since every
+// round shoots a multiple of them (a smaller budget would shoot nothing). Errors begin "budgets: ".
+Status check_converge_budget(double budget, const std::vector<ConvergeMethod>& methods);
+
 struct ConvergeRow {
   std::size_t method = 0;  // index into the study's methods
   std::size_t budget = 0;  // index into its budgets
