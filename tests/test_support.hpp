@@ -19,6 +19,7 @@
 #include <gtest/gtest.h>
 
 #include "flatland/geometry/bezier.hpp"
+#include "flatland/reference/coarse_answer.hpp"
 #include "flatland/scene/scene.hpp"
 #include "flatland/transport/solver.hpp"
 
@@ -165,7 +166,7 @@ inline CommandRun run_flatland(const std::string& arguments, const std::filesyst
 // A solver of `scene` with `settings`; a test failure with Solver::create's message when it
 // refuses them.
 inline Solver make_solver(const Scene& scene, const SolverSettings& settings) {
-  Result<Solver> solver = Solver::create(scene, settings);
+  Result<Solver> solver = create_solver(scene, settings);
   EXPECT_TRUE(solver.ok()) << (solver.ok() ? "" : solver.error().message);
   return std::move(solver).value();
 }

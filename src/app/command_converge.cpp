@@ -21,6 +21,7 @@
 #include "app/output.hpp"
 #include "app/processes.hpp"
 #include "app/progress.hpp"
+#include "flatland/reference/coarse_answer.hpp"
 #include "flatland/reference/reference.hpp"
 #include "flatland/results/result_io.hpp"
 #include "flatland/studies/converge.hpp"
@@ -853,7 +854,7 @@ std::optional<int> ConvergeStudy::measure_rate(std::size_t m, double& rate) cons
   if (!plan_.by_time) return std::nullopt;
   SolverSettings probe = plan_.methods[m].settings;
   probe.photons = 100'000;
-  Result<Solver> solver = Solver::create(scene_, probe, &interrupt_flag());
+  Result<Solver> solver = create_solver(scene_, probe, &interrupt_flag());
   if (!solver) return interrupt_flag().load() ? interrupted() : usage_error(solver.error().message);
   solver->run(&interrupt_flag());
   rate = static_cast<double>(solver->photons_shot()) / std::max(solver->seconds(), 1e-6);

@@ -10,6 +10,7 @@
 #include "app/progress.hpp"
 #include "flatland/base/resources.hpp"
 #include "flatland/base/version.hpp"
+#include "flatland/reference/coarse_answer.hpp"
 #include "flatland/reference/final_gather.hpp"
 #include "flatland/results/result_io.hpp"
 #include "flatland/transport/options.hpp"
@@ -121,7 +122,7 @@ int run_render(RenderOptions& o) {
     std::fprintf(stderr, "flatland: error: --gather samples: %s\n", choice.error().message.c_str());
     return kExitUsage;
   }
-  Result<Solver> created = Solver::create(*scene, o.solve.settings, &interrupt_flag());
+  Result<Solver> created = create_solver(*scene, o.solve.settings, &interrupt_flag());
   if (!created) {
     if (interrupt_flag().load()) return interrupted();
     std::fprintf(stderr, "flatland: error: %s\n", created.error().message.c_str());

@@ -17,6 +17,7 @@
 #include "app/processes.hpp"
 #include "app/progress.hpp"
 #include "flatland/base/text.hpp"
+#include "flatland/reference/coarse_answer.hpp"
 #include "flatland/reference/final_gather.hpp"
 #include "flatland/results/result_io.hpp"
 #include "flatland/scene/scene.hpp"
@@ -175,6 +176,12 @@ void print_summary(const Solver& solver, const ErrorEstimate& estimate) {
                  solve_option_text(settings, SolveOption::Importance).c_str(),
                  human_count(static_cast<double>(solver.importance_photons())).c_str(), solver.importance_seconds(),
                  1.0 / kImportanceFloor);
+  if (settings.control_variate == ControlVariate::Coarse)
+    std::fprintf(out,
+                 "variate   a coarse reference's answer (%zu elements, %.3f s with its projections) is carried "
+                 "exactly; the photons shoot the signed difference it leaves, %.3g%% of the emitted power\n",
+                 solver.control_variate_elements(), solver.control_variate_seconds(),
+                 100.0 * solver.control_variate_source_fraction());
   const bool walks = settings.transport == Transport::Walk;
   char workers[64];
   if (process_count() > 1)
@@ -191,6 +198,13 @@ void print_summary(const Solver& solver, const ErrorEstimate& estimate) {
   else if (solver.jacobi_iterations() > 0)
     std::fprintf(out, "stopped   %s: the books' unshot power, the average's residual, %.3g%% of emitted\n",
                  to_string(solver.stop_reason()), 100.0 * books.unshot / books.emitted);
+  else if (settings.control_variate == ControlVariate::Coarse)
+    std::fprintf(out,
+                 "stopped   %s: unshot power %.3g%% of emitted, its magnitude %.3g%% (tolerance %.3g%% of the "
+                 "difference's %.3g%%)\n",
+                 to_string(solver.stop_reason()), 100.0 * books.unshot / books.emitted,
+                 100.0 * solver.pool_magnitude() / books.emitted, 100.0 * solver.settings().tolerance,
+                 100.0 * solver.control_variate_source_fraction());
   else
     std::fprintf(out, "stopped   %s: unshot power %.3g%% of emitted (tolerance %.3g%%)\n",
                  to_string(solver.stop_reason()), 100.0 * books.unshot / books.emitted,
@@ -314,7 +328,7 @@ int run_solve(SolveOptions& o) {
       return interrupt_flag().load() ? interrupted() : usage_error("--gather samples: " + choice.error().message);
     gather = std::move(choice->gather);
     gather_skipped = choice->skipped;
-    Result<Solver> created = Solver::create(*scene, o.settings, &interrupt_flag());
+    Result<Solver> created = create_solver(*scene, o.settings, &interrupt_flag());
     if (!created) return interrupt_flag().load() ? interrupted() : usage_error(created.error().message);
     solver_slot.emplace(std::move(*created));
     return std::nullopt;

@@ -22,6 +22,7 @@
 
 #include "flatland/base/text.hpp"
 #include "flatland/base/version.hpp"
+#include "flatland/reference/coarse_answer.hpp"
 #include "flatland/reference/final_gather.hpp"
 #include "flatland/reference/reference.hpp"
 #include "flatland/reference/reference_io.hpp"
@@ -235,7 +236,7 @@ class PySolver {
     // A final gather's elements first: a scene it cannot gather is refused before any set-up.
     // (auto decides at the default 100 samples per curve).
     gather_ = value_or_fail(choose_gather(*scene_.scene, settings, Solver::kTargetSamples)).gather;
-    solver_ = std::make_unique<Solver>(value_or_fail(Solver::create(*scene_.scene, settings)));
+    solver_ = std::make_unique<Solver>(value_or_fail(create_solver(*scene_.scene, settings)));
     if (gather_) solver_->check_target_through(gather_.get());
   }
 

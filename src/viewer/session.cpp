@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 
+#include "flatland/reference/coarse_answer.hpp"
 #include "flatland/results/metrics.hpp"
 #include "flatland/results/result_io.hpp"
 
@@ -417,7 +418,7 @@ void Session::start_solve(std::shared_ptr<const Scene> scene, const SolverSettin
       field_ = std::move(*field);
     }
     Result<GatherChoice> choice = choose_gather(*scene_, settings, Solver::kTargetSamples);
-    Result<Solver> created = choice ? Solver::create(*scene_, settings) : Result<Solver>(choice.error());
+    Result<Solver> created = choice ? create_solver(*scene_, settings) : Result<Solver>(choice.error());
     if (created) {
       solver_.emplace(std::move(*created));
       gather_ = std::move(choice->gather);

@@ -117,6 +117,31 @@ def test_a_final_gather_is_the_command_lines(tmp_path):
     assert "a final gather handles diffuse surfaces" in cli.stderr
 
 
+def test_the_coarse_control_variate_is_the_command_lines(tmp_path):
+    # control_variate="coarse": the command line's bits (with and without the gather), the variate
+    # named in the result, and what it refuses refused in the command line's words.
+    out = tmp_path / "variate.json"
+    for gather in ("none", "samples"):
+        cli = run_cli("solve", "scenes2d/default.json", "--photons", "100000", "--seed", "4", "--gather", gather,
+                      "--control-variate", "coarse", "--out", str(out), "--quiet")
+        assert cli.returncode == 0, cli.stderr
+        result = flatland.solve(flatland.Scene.load("scenes2d/default.json"), photons=100_000, seed=4,
+                                gather=gather, control_variate="coarse")
+        assert without_timing(result.to_json()) == without_timing(out.read_text())
+    variate = json.loads(out.read_text())["settings"]["control_variate"]
+    assert variate["kind"] == "coarse"
+    assert variate["coarse_elements"] > 0
+    assert 0 < variate["source_fraction"] < 1
+    cli = run_cli("solve", "scenes2d/mirror_room.json", "--control-variate", "coarse")
+    assert cli.returncode == 2
+    with pytest.raises(ValueError) as error:
+        flatland.solve(flatland.Scene.load("scenes2d/mirror_room.json"), control_variate="coarse")
+    assert "needs diffuse surfaces only" in str(error.value)
+    assert "needs diffuse surfaces only" in cli.stderr
+    with pytest.raises(ValueError, match="control_variate"):
+        flatland.solve(flatland.Scene.load("scenes2d/default.json"), control_variate="fine")
+
+
 def test_mirrors_glass_and_detectors_are_the_command_lines(tmp_path):
     # The prism's glass and detector, as the command line solves them: the same bits, the chain's
     # books and the detector's tallies.

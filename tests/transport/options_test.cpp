@@ -28,6 +28,7 @@ TEST(Options, EveryChoiceSetsTheValueOfItsName) {
         case SolveOption::Transport: named = to_string(settings.transport); break;
         case SolveOption::WalkScore: named = to_string(settings.walk_score); break;
         case SolveOption::Gather: named = to_string(settings.gather); break;
+        case SolveOption::ControlVariate: named = to_string(settings.control_variate); break;
         case SolveOption::RayProfile: named = to_string(settings.ray_profile); break;
         case SolveOption::RayMode: named = to_string(settings.ray_mode); break;
         case SolveOption::ReplicateLayout: named = to_string(settings.replicate_layout); break;

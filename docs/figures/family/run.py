@@ -60,6 +60,12 @@ METHODS = [  # (label, method string)
     ("shooting, hermite, gather", "basis=hermite+estimator=local+transport=shooting+gather=samples+" + COMMON),
     ("shooting, cubic, blocks", "basis=cubic+estimator=galerkin+transport=shooting+gather=none+" + BLOCKS),
     ("shooting, cubic, blocks, gather", "basis=cubic+estimator=galerkin+transport=shooting+gather=samples+" + BLOCKS),
+    ("shooting, cubic, coarse variate",
+     "basis=cubic+estimator=galerkin+transport=shooting+control-variate=coarse+gather=none+" + COMMON),
+    ("shooting, cubic, coarse variate, gather",
+     "basis=cubic+estimator=galerkin+transport=shooting+control-variate=coarse+gather=samples+" + COMMON),
+    ("shooting, linear, coarse variate, gather",
+     "basis=linear+estimator=galerkin+transport=shooting+control-variate=coarse+gather=samples+" + COMMON),
     ("jacobi, cubic", "basis=cubic+estimator=galerkin+transport=jacobi+gather=none+" + COMMON),
     ("jacobi, cubic, gather", "basis=cubic+estimator=galerkin+transport=jacobi+gather=samples+" + COMMON),
     ("walks, cubic", "basis=cubic+estimator=galerkin+transport=walk+gather=none+" + COMMON),
@@ -137,6 +143,8 @@ def main():
     gains = {}  # scene class -> [gather's efficiency over shooting at 1e6]
     blocks_gains = []  # [(scene, blocks' efficiency over shooting at 1e6)]
     jacobi_gains = []  # [(scene, averaged Jacobi iterations' efficiency over shooting at 1e6)]
+    variate_gains = []  # [(scene, the coarse control variate's efficiency over shooting at 1e6)]
+    gathered_variate_gains = []  # [(scene, the same under the gather over the gather alone)]
     score_gains = {}  # score -> [(scene, its efficiency over collision-scored walks at 1e6)]
     reference_wins = []
     for scene, (path, kind, n) in SCENES.items():
@@ -178,6 +186,13 @@ def main():
                 blocks_gains.append((scene, eff))
             if label == "jacobi, cubic":
                 jacobi_gains.append((scene, eff))
+            if label == "shooting, cubic, coarse variate":
+                variate_gains.append((scene, eff))
+            if label == "shooting, cubic, coarse variate, gather":
+                gathered = med["shooting, cubic, gather"].get(fixed)
+                gathered_variate_gains.append(
+                    (scene, (gathered[0] ** 2 * gathered[1]) / (at[0] ** 2 * at[1])
+                     if not exact and gathered[0] >= ROUND_OFF else math.inf))
             if label in SCORES:
                 by_walks = med["walks, cubic"].get(fixed)
                 score_gains.setdefault(SCORES[label], []).append(
@@ -218,7 +233,11 @@ def main():
     for what, pairs in (("Replicates as blocks of one net (no gather) have an efficiency over independent replicates'",
                          blocks_gains),
                         ("Averaged Jacobi iterations (no gather) have an efficiency over progressive shooting's",
-                         jacobi_gains)):
+                         jacobi_gains),
+                        ("The coarse control variate (no gather) has an efficiency over progressive shooting's",
+                         variate_gains),
+                        ("Under the gather, the coarse control variate has an efficiency over the gather alone",
+                         gathered_variate_gains)):
         finite = [(sc, v) for sc, v in pairs if not math.isinf(v)]
         if not finite:
             continue

@@ -274,6 +274,18 @@ void ReferenceSolution::gather_weights(std::uint32_t curve_index, Side side, dou
                      });
 }
 
+std::vector<double> ReferenceSolution::element_parameters(std::uint32_t segment_index) const {
+  const SceneSegment& segment = scene_.segments[segment_index];
+  const std::uint32_t pieces = segment_count_[segment_index];
+  const auto first = static_cast<std::size_t>(segment_first_[segment_index] + segment_index);
+  std::vector<double> t(pieces + 1);
+  t.front() = 0.0;
+  t.back() = 1.0;
+  for (std::uint32_t k = 1; k < pieces; ++k)
+    t[k] = segment.arc_length.parameter_at(segment.geometry.shape, boundary_[first + k]);
+  return t;
+}
+
 Spectrum ReferenceSolution::radiosity(std::uint32_t curve_index, Side side, double u) const {
   Spectrum result{0.0, 0.0, 0.0};
   const Curve& curve = scene_.curves[curve_index];

@@ -166,6 +166,11 @@ class ReferenceSolution {
   // nothing.
   void gather_weights(std::uint32_t curve, Side side, double u,
                       std::vector<std::pair<std::uint32_t, double>>& seen) const;
+  // The parameters t in [0, 1] of segment `segment`'s element boundaries, from its start to its
+  // end (its elements' count + 1 of them), and its first element: element first + i lies between
+  // boundaries i and i + 1 (what a quadrature over a curve needs to integrate b exactly).
+  std::vector<double> element_parameters(std::uint32_t segment) const;
+  std::uint32_t first_element(std::uint32_t segment) const { return segment_first_[segment]; }
   // Replaces the element radiosities (per channel, per patch 2 element + side; channels the
   // scene does not use may be empty): a final gather of another method's solution
   // (final_gather.hpp) feeds its own.

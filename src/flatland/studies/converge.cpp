@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "flatland/base/text.hpp"
+#include "flatland/reference/coarse_answer.hpp"
 #include "flatland/reference/final_gather.hpp"
 #include "flatland/transport/footprint.hpp"
 #include "flatland/transport/options.hpp"
@@ -73,7 +74,7 @@ Result<ConvergeRow> converge_run(const Scene& scene, const SolverSettings& setti
     gather = std::move(choice->gather);
     gather_seconds += seconds_since(start);
   }
-  Result<Solver> solver = Solver::create(scene, settings, cancel);
+  Result<Solver> solver = create_solver(scene, settings, cancel);
   if (!solver) return solver.error();
   if (gather) solver->check_target_through(gather.get());
   solver->run(cancel, progress);

@@ -347,7 +347,8 @@ PointValues values_at(const Solver& solver, const EvaluationPoints& at, const Re
 // reflects; so all later rounds add at most rho_max U / (1 - rho_max) to the integral of B - E.
 // Its share of B - E's integral (`reflected`) is taken as its relative error in every norm (it is
 // spread like B - E: an assumption, not a bound, for L2 and L-infinity). Walks leave nothing;
-// Jacobi iterations leave their average's books' small residual (shooting.hpp), taken the same way.
+// Jacobi iterations leave their average's books' small residual (shooting.hpp), taken the same way;
+// a control variate's signed pool, the sum of its magnitudes.
 double unshot_share_of(const Solver& solver, double reflected) {
   if (solver.settings().transport == Transport::Walk) return 0.0;
   const Scene& scene = solver.scene();
@@ -355,7 +356,8 @@ double unshot_share_of(const Solver& solver, double reflected) {
   for (const Curve& curve : scene.curves)
     for (int ch = 0; ch < scene.channels; ++ch)
       rho_max = std::max(rho_max, scene.material_of(curve).reflectivity[static_cast<std::size_t>(ch)]);
-  const double unshot = solver.books().unshot;
+  // (A control variate's pool is signed: its magnitude bounds what it would bring.)
+  const double unshot = solver.pool_magnitude();
   const double missing = unshot > 0.0 ? rho_max * unshot / (1.0 - rho_max) : 0.0;
   return reflected > 0.0 ? missing / reflected : (missing > 0.0 ? kInfinity : 0.0);
 }

@@ -50,6 +50,7 @@ struct RoundTotals {
   std::array<std::int64_t, 3> escaped{};
   std::array<std::int64_t, 3> absorbed{};
   std::array<std::array<std::int64_t, 3>, kChainLosses> lost{};  // by ChainLoss
+  std::array<std::int64_t, 3> shot{};                            // the photons' units as they left
   double inverse_scale = 0.0;
   std::uint64_t photons = 0;       // of this round
   std::uint64_t photons_shot = 0;  // of the solve, this round's included

@@ -71,6 +71,12 @@ const std::vector<SolveOptionSpec>& table() {
        "shooting only): each round's photons go to the sources by their unshot power times the square root "
        "of their importance for those curves, from a short solve of the adjoint scene; the same expected answer everywhere, less "
        "noise on those curves and more elsewhere (docs/method.md, Importance)"},
+      {SolveOption::ControlVariate, "control variate", "control-variate", "control_variate", {"none", "coarse"}, "",
+       "none, or coarse: a deterministic reference solve on coarse elements (a 50th of the scene's size) gives "
+       "an answer whose transport is added exactly, and the photons shoot only the signed difference it leaves, a "
+       "few per cent of the light (transport shooting with reconstructed origins on constant, linear or cubic "
+       "storage; diffuse scenes: no mirrors, glass, detectors or spectra; docs/method.md, A coarse answer as "
+       "control variate)"},
       {SolveOption::RayWidth, "ray width", "ray-width", "ray_width", {}, "W",
        "Width of extended rays in scene units (0: point rays, no extended-ray code runs)"},
       {SolveOption::RayProfile, "ray profile", "ray-profile", "ray_profile",
@@ -83,7 +89,7 @@ const std::vector<SolveOptionSpec>& table() {
       {SolveOption::BandRays, "band rays", "band-rays", "band_rays", {}, "K", "Sub-rays per photon in band mode"},
       {SolveOption::Tolerance, "tolerance", "tolerance", "tolerance", {}, "X",
        "Stop when the unshot power falls below this fraction of the emitted power (transport jacobi: begin the "
-       "iterations then)"},
+       "iterations then; control variate coarse: of the power its difference carries, in magnitude)"},
       {SolveOption::Replicates, "replicates", "replicates", "replicates", {}, "R",
        "Independent randomisations every round's photons are split into (1, or an even number up to 64): "
        "their spread gives the result's estimated error; 1 gives none (and is refused with --elements auto and "
@@ -296,6 +302,7 @@ Status set_solve_option(SolverSettings& s, SolveOption option, std::string_view 
     case SolveOption::Transport: s.transport = static_cast<Transport>(*index); return ok_status();
     case SolveOption::WalkScore: s.walk_score = static_cast<WalkScore>(*index); return ok_status();
     case SolveOption::Gather: s.gather = static_cast<GatherMode>(*index); return ok_status();
+    case SolveOption::ControlVariate: s.control_variate = static_cast<ControlVariate>(*index); return ok_status();
     case SolveOption::RayProfile: s.ray_profile = static_cast<RayProfile>(*index); return ok_status();
     case SolveOption::RayMode: s.ray_mode = static_cast<RayMode>(*index); return ok_status();
     case SolveOption::ReplicateLayout: s.replicate_layout = static_cast<ReplicateLayout>(*index); return ok_status();
@@ -340,6 +347,7 @@ std::string solve_option_text(const SolverSettings& s, SolveOption option) {
     case SolveOption::Transport: return name(s.transport);
     case SolveOption::WalkScore: return name(s.walk_score);
     case SolveOption::Gather: return name(s.gather);
+    case SolveOption::ControlVariate: return name(s.control_variate);
     case SolveOption::RayProfile: return name(s.ray_profile);
     case SolveOption::RayMode: return name(s.ray_mode);
     case SolveOption::ReplicateLayout: return name(s.replicate_layout);

@@ -31,6 +31,7 @@ enum class SolveOption {
   WalkScore,
   Gather,
   Importance,
+  ControlVariate,
   RayWidth,
   RayProfile,
   RayMode,

@@ -56,6 +56,8 @@ const char* to_string(GatherMode gather) {
   return gather == GatherMode::None ? "none" : gather == GatherMode::Samples ? "samples" : "auto";
 }
 
+const char* to_string(ControlVariate variate) { return variate == ControlVariate::None ? "none" : "coarse"; }
+
 const char* to_string(PositionSampling sampling) {
   return sampling == PositionSampling::Uniform ? "uniform" : "reconstructed";
 }
@@ -110,6 +112,26 @@ Status validate(const SolverSettings& settings) {
     return Error{
         "importance: it keeps unshot power in shooting's pool, and Jacobi iterations shoot all the reflected "
         "light every iteration; use transport shooting with it (or no importance)"};
+  if (settings.control_variate == ControlVariate::Coarse) {
+    // The difference D is signed light leaving diffusely from the storage's coefficients: it needs
+    // rounds that shoot a pool (not walks from the emitters, nor iterations of all the reflected
+    // light), reconstructed origins on B-spline storage (a coefficient's sign is its photons'), and
+    // every side's share of the round by its power alone.
+    if (settings.transport != Transport::Shooting)
+      return Error{std::string("control variate: coarse shoots what a coarse answer leaves in progressive "
+                               "shooting's rounds, and transport ") +
+                   to_string(settings.transport) + " does not shoot rounds of a pool; use transport shooting with it"};
+    if (settings.sampling != PositionSampling::Reconstructed)
+      return Error{
+          "control variate: coarse shoots signed light whose sign changes along a curve, so photons must leave "
+          "from the storage's coefficients; use sampling reconstructed with it"};
+    if (settings.basis == BasisKind::Hermite)
+      return Error{
+          "control variate: coarse needs a B-spline basis (constant, linear or cubic), whose coefficients carry "
+          "the signed light; Hermite storage's origins follow a positive density"};
+    if (!settings.importance.empty())
+      return Error{"control variate: coarse is not combined with importance yet; use one or the other"};
+  }
   return ok_status();
 }
 

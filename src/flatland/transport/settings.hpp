@@ -96,6 +96,14 @@ inline double walk_score_weight(WalkScore score, double q, bool goes_on) {
 // storage's own B elsewhere.
 enum class GatherMode { None, Samples, Auto };
 const char* to_string(GatherMode gather);
+// A control variate for progressive shooting (docs/method.md, "A coarse answer as control
+// variate"): None, or Coarse: a deterministic reference solve on coarse constant elements (at most
+// kControlVariateFraction of the scene's size long) gives b_c; its transport G = K b_c is added to
+// the received power exactly, and the photons shoot only the signed difference D = E + rho G - b_c
+// (with its reflections), which carries a few per cent of the emitted power.
+enum class ControlVariate { None, Coarse };
+const char* to_string(ControlVariate variate);
+inline constexpr double kControlVariateFraction = 1.0 / 50.0;
 // Walks are refused where a side reflects more than this: a walk would average over 1000 rays,
 // and a batch of 4096 walks (the unit between checks for a cancel) several seconds.
 inline constexpr double kWalkMaxReflectivity = 0.999;
@@ -191,6 +199,9 @@ struct SolverSettings {
   // What a walk tallies (Transport::Walk only; shooting refuses any score but collision).
   WalkScore walk_score = WalkScore::Collision;
   GatherMode gather = GatherMode::Auto;
+  // Progressive shooting of what a coarse reference's answer leaves (ControlVariate::Coarse), or
+  // of all the light (None).
+  ControlVariate control_variate = ControlVariate::None;
   // Importance (shooting only): the ids of the curves whose light matters most. Empty: none. Each
   // round's photons are shared among the curve sides by their unshot power times the side's
   // importance for those curves, found by a short solve of the adjoint scene (Solver,

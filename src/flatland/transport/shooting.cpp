@@ -48,13 +48,14 @@ int pool_bits(double pool, double emitted) {
 }  // namespace
 
 ProgressiveShooting::ProgressiveShooting(std::vector<double> emission, double emitted, double decay, double tolerance,
-                                         std::uint64_t averaged_budget)
+                                         std::uint64_t averaged_budget, bool difference)
     : unshot_(std::move(emission)),
       emitted_(emitted),
       initial_ratio_(decay),
       tolerance_(tolerance),
       budget_(averaged_budget),
-      increment_budget_(averaged_budget) {}
+      increment_budget_(averaged_budget),
+      difference_(difference) {}
 
 std::uint64_t ProgressiveShooting::round_photons(double unshot, std::uint64_t shot, std::uint64_t budget,
                                                  std::uint32_t rounds) const {
@@ -213,7 +214,18 @@ void ProgressiveShooting::end_increment(const SceneStorage& storage, const Round
   const std::size_t size = storage.coefficient_count() * channels;
   const bool split = round.replicates > 1;
   double previous_pool = 0.0;
-  for (double value : unshot_) previous_pool += value;
+  for (double value : unshot_) previous_pool += difference_ ? std::fabs(value) : value;
+  if (difference_) {
+    // A signed pool's photons each carry the same magnitude with their source's signs, so what they
+    // carried, the units they left with, is the pool's power (less what the round kept) only in
+    // expectation: the books hold the difference as unshot.
+    double held = 0.0;
+    for (double value : unshot_) held += value;
+    for (double value : round.kept) held -= value;
+    double carried = 0.0;
+    for (std::size_t ch = 0; ch < channels; ++ch) carried += static_cast<double>(round.shot[ch]) * round.inverse_scale;
+    sampling_residual_.add(held - carried);
+  }
   for (std::uint32_t block = 0; block < storage.block_count(); ++block) {
     const std::uint32_t offset = storage.block_offset(block);
     if (offset == SceneStorage::kNoBlock) continue;
@@ -286,6 +298,7 @@ void ProgressiveShooting::add_books(EnergyBooks& books, int channels, std::uint3
     books.cut += lost_[static_cast<std::size_t>(ChainLoss::Limit)][c].value();
   }
   for (double value : unshot_) books.unshot += value;
+  if (difference_) books.unshot += sampling_residual_.value();
 }
 
 }  // namespace flatland

@@ -48,12 +48,15 @@ class ProgressiveShooting final : public LightTransport {
   // first guess of the pool's decay per round (the reflecting sides' mean reflectivity).
   // `averaged_budget`: the photons of the solve (or pass) for averaged Jacobi iterations; 0 for
   // shooting alone.
+  // `difference`: the pool is a control variate's signed difference D (control_variate.hpp), shot
+  // diffusely from the storage from the first round on (no round of emitted light), its power the
+  // sum of magnitudes.
   ProgressiveShooting(std::vector<double> emission, double emitted, double decay, double tolerance,
-                      std::uint64_t averaged_budget = 0);
+                      std::uint64_t averaged_budget = 0, bool difference = false);
 
   bool photons_go_on() const override { return false; }
   // The emitted light is shot once, in the first round; an iteration is one round of reflected light.
-  bool emitted_light(std::uint32_t round) const override { return round == 0; }
+  bool emitted_light(std::uint32_t round) const override { return round == 0 && !difference_; }
   std::uint32_t bounce(std::uint32_t round) const override { return regular_ ? 1 : round; }
   const std::vector<double>& pool() const override { return unshot_; }
   // Iterations leave nothing waiting: each shoots all the light its iterate reflects.
@@ -119,7 +122,11 @@ class ProgressiveShooting final : public LightTransport {
   int largest_pool_bits_ = 0;     // most_headroom_bits
   std::uint32_t rounds_ = 0;      // finished rounds
   bool regular_ = false;          // the iterations have begun
-  std::vector<double> nothing_;   // unshot() during the iterations: zeros
+  bool difference_ = false;       // the pool is a control variate's signed difference
+  // A signed pool's rounds: what the pools held less what their photons carried (end_increment),
+  // zero in expectation; the books count it as unshot.
+  CompensatedSum sampling_residual_;
+  std::vector<double> nothing_;  // unshot() during the iterations: zeros
   // The first round's deposits D (the emitted light's, per coefficient and channel), each
   // replicate's part of them, the detectors' tallies and that round's books (absorbed elsewhere,
   // escaped, lost): every iterate starts from them.

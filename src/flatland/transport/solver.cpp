@@ -100,7 +100,9 @@ bool Solver::begin_round() {
       if (offset == SceneStorage::kNoBlock) continue;
       const std::size_t count = storage_.finest(block / 2).basis.size();
       for (std::size_t k = 0; k < count; ++k)
-        for (std::size_t ch = 0; ch < channels; ++ch) block_unshot[block][ch] += pool[(offset + k) * channels + ch];
+        for (std::size_t ch = 0; ch < channels; ++ch)
+          block_unshot[block][ch] +=
+              signed_pool_ ? std::fabs(pool[(offset + k) * channels + ch]) : pool[(offset + k) * channels + ch];
       for (std::size_t ch = 0; ch < channels; ++ch) weights[block] += block_unshot[block][ch];
     }
     return std::accumulate(weights.begin(), weights.end(), 0.0);
@@ -178,8 +180,7 @@ bool Solver::next_pass_or_stop(double unshot) {
   std::fill(detected_.begin(), detected_.end(), 0.0);
   passes_photons_ += n;
   ++passes_;
-  std::fill(received_.begin(), received_.end(), 0.0);
-  std::fill(received_parts_.begin(), received_parts_.end(), 0.0);
+  start_received();
   pass_first_photon_ = photons_shot_;
   pass_first_round_ = rounds_;
   mix_passes();
@@ -201,7 +202,8 @@ bool Solver::next_pass_or_stop(double unshot) {
   const double wanted = std::isfinite(ratio) ? 1.1 * shot * (ratio * ratio - 1.0) : shot;
   const double budget = std::clamp(wanted, 0.25 * shot, shot);
   pass_budget_ = std::min(static_cast<std::uint64_t>(budget), settings_.photons - photons_shot_);
-  transport_ = ProgressiveShooting(emission_, emitted_total_, decay_, pass_tolerance(), averaged_budget(pass_budget_));
+  transport_ = ProgressiveShooting(emission_, tolerance_power(), decay_, pass_tolerance(),
+                                   averaged_budget(pass_budget_), signed_pool_);
   return true;
 }
 
@@ -244,7 +246,12 @@ void Solver::plan_sources(const std::vector<double>& pool, const std::vector<Spe
   // finest basis carries the power g_k integral(phi_k ds).
   std::vector<double>& density_power = density_power_;
   density_power.clear();
-  if (by_coefficient && (settings_.estimator != Estimator::Lumped || auto_storage_)) {
+  // A signed pool's later rounds (a control variate's reflections of D, noisy) leave by the lumped
+  // density, the pool itself: its magnitude is at most the pool's, where the Galerkin density of
+  // signed noise (M^-1 of it) can be many times larger, and reflected round after round would grow
+  // without bound. Its first round, D itself, has no noise and takes the storage's estimate.
+  const bool lumped_signed = signed_pool_ && rounds_ != pass_first_round_;
+  if (by_coefficient && (settings_.estimator != Estimator::Lumped || auto_storage_) && !lumped_signed) {
     density_power.assign(pool.size(), 0.0);
     // A solve per curve side and channel: shared among the threads, by runs of curves.
     for_each_curve([&](std::uint32_t c) {
@@ -258,7 +265,8 @@ void Solver::plan_sources(const std::vector<double>& pool, const std::vector<Spe
           // left (a local estimate on a region too short for its window can), the lumped density.
           double power = 0.0;
           for (std::size_t k = 0; k < storage.basis.size(); ++k) power += pool[(offset + k) * channels + ch];
-          if (!clamp_keeping_power(storage, &density_power[offset * channels + ch], channels, power))
+          // A signed pool (a control variate's difference) keeps its signs: its photons carry them.
+          if (!signed_pool_ && !clamp_keeping_power(storage, &density_power[offset * channels + ch], channels, power))
             for (std::size_t k = 0; k < storage.basis.size(); ++k)
               density_power[(offset + k) * channels + ch] =
                   pool[(offset + k) * channels + ch] / storage.basis_length[k];
@@ -280,10 +288,39 @@ void Solver::plan_sources(const std::vector<double>& pool, const std::vector<Spe
     std::fill(source_weights.begin(), source_weights.end(), 0.0);
     std::fill(round_.photon_units.begin(), round_.photon_units.end(), std::array<std::int64_t, 3>{});
   }
+  if (signed_pool_) {
+    plan_signed_sources(source_power);
+    return;
+  }
   for (std::size_t j = 0; j < sources; ++j) {
     const double* power = source_power(j);
     for (std::size_t ch = 0; ch < channels; ++ch) source_weights[j] += power[ch];
     if (!(source_weights[j] > 0.0)) continue;
+    for (std::size_t ch = 0; ch < channels; ++ch)
+      round_.photon_units[j][ch] = std::llround(power[ch] / source_weights[j] * per_photon * round_.scale);
+  }
+  round_.sources.assign(source_weights);
+}
+
+void Solver::plan_signed_sources(const std::function<const double*(std::size_t)>& source_power) {
+  // Source j (a coefficient) has signed power w_j[ch] and is chosen with probability |w_j| / T, |w_j|
+  // = sum over channels of |w_j[ch]| and T the sum of |w_j|; each of the n photons carries w_j[ch]
+  // T / (n |w_j|), so the source's expected power shot is w_j[ch], signs included. The fixed point's
+  // scale follows T (which a Galerkin density's magnitudes can make larger than the pool's).
+  const auto channels = static_cast<std::size_t>(channels_);
+  std::vector<double>& source_weights = source_weights_;
+  double total = 0.0;
+  for (std::size_t j = 0; j < source_weights.size(); ++j) {
+    const double* power = source_power(j);
+    for (std::size_t ch = 0; ch < channels; ++ch) source_weights[j] += std::fabs(power[ch]);
+    total += source_weights[j];
+  }
+  if (total > 0.0)
+    round_.scale = std::min(round_.scale, std::ldexp(1.0, 60 - round_.headroom_bits - std::ilogb(total)));
+  const double per_photon = total / static_cast<double>(round_.photons);
+  for (std::size_t j = 0; j < source_weights.size(); ++j) {
+    if (!(source_weights[j] > 0.0)) continue;
+    const double* power = source_power(j);
     for (std::size_t ch = 0; ch < channels; ++ch)
       round_.photon_units[j][ch] = std::llround(power[ch] / source_weights[j] * per_photon * round_.scale);
   }
@@ -372,6 +409,7 @@ void Solver::end_round(std::span<const Deposits> deposits) {
     for (std::size_t ch = 0; ch < channels; ++ch) {
       totals.escaped[ch] += d.escaped[ch];
       totals.absorbed[ch] += d.absorbed[ch];
+      totals.shot[ch] += d.shot[ch];
       for (std::size_t loss = 0; loss < kChainLosses; ++loss) totals.lost[loss][ch] += d.lost[loss][ch];
     }
     for (std::size_t i = 0; i < shooter_.detector_layout().size; ++i) detected_units[i] += d.detected[i];
@@ -752,6 +790,13 @@ void Solver::run(const std::atomic<bool>* cancel, const ProgressCallback& progre
   if (readers_stale_) refresh_readers(received());
 }
 
+double Solver::pool_magnitude() const {
+  if (!signed_pool_) return books().unshot;
+  double magnitude = 0.0;
+  for (double value : transport().unshot()) magnitude += std::fabs(value);
+  return magnitude;
+}
+
 EnergyBooks Solver::books() const {
   EnergyBooks books;
   for (int ch = 0; ch < channels_; ++ch) books.emitted += emitted_[static_cast<std::size_t>(ch)];
@@ -766,6 +811,11 @@ EnergyBooks Solver::books() const {
     mixed.add_outcomes(passes_books_, 1.0 / total);
     mixed.add_outcomes(books, n / total);
     books = mixed;
+  }
+  // The control variate's exact part (every pass's estimate holds it whole).
+  for (int ch = 0; ch < channels_ && signed_pool_; ++ch) {
+    books.absorbed += variate_absorbed_[static_cast<std::size_t>(ch)];
+    books.escaped += variate_escaped_[static_cast<std::size_t>(ch)];
   }
   return books;
 }

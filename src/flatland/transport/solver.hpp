@@ -19,6 +19,7 @@
 #include <cstdint>
 #include <functional>
 #include <limits>
+#include <memory>
 #include <optional>
 #include <span>
 #include <string>
@@ -41,6 +42,7 @@
 namespace flatland {
 
 class ReflectedEvaluator;  // error_estimate.hpp
+class CoarseAnswer;        // control_variate.hpp
 
 enum class StopReason { Running, Converged, BudgetSpent, Cancelled, BooksUnbalanced, TargetReached };
 
@@ -92,8 +94,11 @@ class Solver {
 
   // `cancel` is checked between the curves' storage levels (building them all for a large budget
   // takes a moment): once it is set, create returns the error kSolverCancelled.
+  // With settings.control_variate coarse, `coarse` is the coarse answer (reference/coarse_answer.hpp's
+  // create_solver solves it and calls this).
   static Result<Solver> create(const Scene& scene, const SolverSettings& settings,
-                               const std::atomic<bool>* cancel = nullptr);
+                               const std::atomic<bool>* cancel = nullptr,
+                               std::shared_ptr<const CoarseAnswer> coarse = nullptr);
 
   // Shoot one whole round; returns false (and does nothing) once the solve has stopped.
   // `progress` is called from the calling thread about every `progress_interval` seconds.
@@ -161,6 +166,9 @@ class Solver {
     const auto* shooting = std::get_if<ProgressiveShooting>(&transport_);
     return shooting != nullptr ? shooting->iterations() : 0;
   }
+  // What the pool holds: its power (the books' unshot), or for a control variate's signed pool the
+  // sum of its magnitudes.
+  double pool_magnitude() const;
   EnergyBooks books() const;
   SolverProgress progress() const;
 
@@ -233,6 +241,12 @@ class Solver {
   const std::vector<double>& side_importance() const { return importance_; }
   std::uint64_t importance_photons() const { return importance_photons_; }
   double importance_seconds() const { return importance_seconds_; }
+  // The coarse control variate (settings().control_variate): the coarse reference's elements and
+  // the seconds its solve and projections took (0 without one).
+  std::size_t control_variate_elements() const { return variate_elements_; }
+  double control_variate_seconds() const { return variate_seconds_; }
+  // The magnitude of the difference D the photons start from (sum of |d_k|) over the emitted power.
+  double control_variate_source_fraction() const { return variate_source_fraction_; }
 
   // What Solver::create refuses of `settings` on `scene` without building anything (the scene's
   // optics, spectra and emitters against the transport and storage, and the curves importance
@@ -270,6 +284,21 @@ class Solver {
   // The sources of the round (sides of curves, or coefficients for reconstructed origins) and the
   // units each one's photons carry, from the pool `pool` of `pool_power`.
   void plan_sources(const std::vector<double>& pool, const std::vector<Spectrum>& block_unshot, double pool_power);
+  // plan_sources for a signed pool: sources by the magnitude of their power, photons with its signs.
+  void plan_signed_sources(const std::function<const double*(std::size_t)>& source_power);
+  // The coarse control variate (its answer kept in coarse_ until the transport starts): its elements'
+  // ends added to `events` as value jumps; then g, the source d (replacing `emission`) and the
+  // exact part's books.
+  void add_coarse_nodes(std::vector<std::vector<MeshNode>>& events) const;
+  // The power the tolerance is a fraction of: the emitted power, or with the control variate the
+  // magnitude of the difference D its photons start from (so that the light left unshot is as small
+  // a share of what the photons carry as without it).
+  double tolerance_power() const { return signed_pool_ ? variate_source_fraction_ * emitted_total_ : emitted_total_; }
+
+  Status start_control_variate(std::vector<double>& emission);
+  // Every estimate's received power and replicates' parts before any photon: g (and g / R each), or
+  // zero.
+  void start_received();
   // The same with importance: sources chosen by power times their side's importance, and each
   // side's photons, counted first, carrying its power between them (`by_coefficient`: the sources
   // are coefficients, else curve sides; `source_power(j)`: source j's power per channel). False
@@ -410,6 +439,18 @@ class Solver {
   std::uint64_t importance_photons_ = 0;
   double importance_seconds_ = 0.0;
   std::vector<double> kept_;
+  // The coarse control variate (control_variate.hpp): the pool is signed (its power is the sum of
+  // magnitudes); every estimate's received power starts at g (variate_received_, per coefficient and
+  // channel), and the exact part's books are what its light leaves the scene by and the rest of the
+  // emitted power that D does not carry, absorbed.
+  bool signed_pool_ = false;
+  std::shared_ptr<const CoarseAnswer> coarse_;
+  std::vector<double> variate_received_;
+  Spectrum variate_absorbed_{};
+  Spectrum variate_escaped_{};
+  std::size_t variate_elements_ = 0;
+  double variate_seconds_ = 0.0;
+  double variate_source_fraction_ = 0.0;
   bool round_open_ = false;
   std::uint64_t round_done_ = 0;          // photons of the open round shot so far
   std::vector<Deposits> round_deposits_;  // per worker thread, for the open round

@@ -4,14 +4,17 @@
 #include "flatland/transport/solver.hpp"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <memory>
 #include <numeric>
 #include <thread>
 
 #include "flatland/base/resources.hpp"
 #include "flatland/scene/discontinuities.hpp"
+#include "flatland/transport/control_variate.hpp"
 #include "flatland/transport/error_estimate.hpp"
 #include "flatland/transport/importance.hpp"
 
@@ -72,6 +75,8 @@ Status check_memory(const Scene& scene, const SolverSettings& settings, const St
 Status Solver::check_scene(const Scene& scene, const SolverSettings& settings) {
   if (Status status = validate(settings); !status) return status;
   if (scene.curves.empty() || scene.segments.empty()) return Error{scene.source + ": the scene has no curves"};
+  if (settings.control_variate == ControlVariate::Coarse)
+    if (Status status = check_control_variate(scene); !status) return status;
   // A ray wider than the whole scene spreads every photon over everything it meets: the answer
   // is a blur of the scene, not of the light.
   if (settings.ray_width > scene.scale) {
@@ -240,6 +245,10 @@ Status Solver::start_transport() {
                  ": target error: no diffuse side of the scene reflects light (every reflectivity is 0), so the "
                  "reflected light B - E is exactly zero and its relative error is not defined; solve without a "
                  "target error"};
+  if (!(emitted_total_ > 0.0))
+    return Error{scene.source + ": no curve emits light (give a material or curve an emittance > 0)"};
+  if (settings_.control_variate == ControlVariate::Coarse)
+    if (Status status = start_control_variate(emission); !status) return status;
   if (settings_.transport == Transport::Walk) {
     Result<RandomWalks> walks = RandomWalks::create(scene, std::move(emission), settings_.walk_score);
     if (!walks) return walks.error();
@@ -249,14 +258,12 @@ Status Solver::start_transport() {
     emission_ = emission;
     decay_ = decay;
     pass_budget_ = std::min(settings_.photons, kFirstPassPhotons);
-    transport_ = ProgressiveShooting(std::move(emission), emitted_total_, decay, pass_tolerance(),
-                                     averaged_budget(pass_budget_));
+    transport_ = ProgressiveShooting(std::move(emission), tolerance_power(), decay, pass_tolerance(),
+                                     averaged_budget(pass_budget_), signed_pool_);
   } else {
-    transport_ = ProgressiveShooting(std::move(emission), emitted_total_, decay, settings_.tolerance,
-                                     averaged_budget(settings_.photons));
+    transport_ = ProgressiveShooting(std::move(emission), tolerance_power(), decay, settings_.tolerance,
+                                     averaged_budget(settings_.photons), signed_pool_);
   }
-  if (!(emitted_total_ > 0.0))
-    return Error{scene.source + ": no curve emits light (give a material or curve an emittance > 0)"};
   // Emittance (<= 1e100 with profile factors <= 1e100) times a length (<= 1e100 x segments) fits
   // a double, but the books and fixed-point units need headroom: refuse what comes near the edge.
   if (!(emitted_total_ < 1e290) || !(emitted_total_ > 1e-290)) {
@@ -267,15 +274,83 @@ Status Solver::start_transport() {
                   scene.source.c_str(), emitted_total_);
     return Error{message};
   }
-  received_.assign(size, 0.0);
   detected_.assign(shooter_.detector_layout().size, 0.0);
-  if (settings_.replicates > 1) received_parts_.assign(size * static_cast<std::size_t>(settings_.replicates), 0.0);
-  if (auto_storage_) received_half_.assign(size, 0.0);
+  start_received();
   readers_.coefficients.assign(size, 0.0);
   if (settings_.basis == BasisKind::Hermite) {
     readers_.hermite.resize(storage_.block_count());
     hermite_unshot_.resize(storage_.block_count());
   }
+  // With the control variate the answer holds g before any photon.
+  if (signed_pool_) update_reflected(received_, received_half_, half_variance_factor_);
+  return ok_status();
+}
+
+void Solver::start_received() {
+  const std::size_t size = storage_.coefficient_count() * static_cast<std::size_t>(channels_);
+  const auto replicates = static_cast<std::size_t>(settings_.replicates);
+  received_.assign(size, 0.0);
+  if (replicates > 1) received_parts_.assign(size * replicates, 0.0);
+  if (auto_storage_) received_half_.assign(size, 0.0);
+  if (variate_received_.empty()) return;
+  // Each replicate estimates the whole as R times its part: its part of g is g / R, and the odd
+  // replicates' half is g / 2.
+  received_ = variate_received_;
+  const double share = 1.0 / static_cast<double>(replicates);
+  if (replicates > 1)
+    for (std::size_t r = 0; r < replicates; ++r)
+      for (std::size_t index = 0; index < size; ++index) received_parts_[r * size + index] = share * received_[index];
+  if (auto_storage_)
+    for (std::size_t index = 0; index < size; ++index) received_half_[index] = 0.5 * received_[index];
+}
+
+void Solver::add_coarse_nodes(std::vector<std::vector<MeshNode>>& events) const {
+  // D = E + rho G - b_c jumps wherever b_c does, at every coarse element's ends: value jumps there
+  // let the storage hold D as it is (photons leave from its coefficients), not smoothed across.
+  const Scene& scene = *scene_;
+  for (std::uint32_t c = 0; c < scene.curves.size(); ++c) {
+    const Curve& curve = scene.curves[c];
+    if (!scene.holds_light(curve)) continue;
+    for (std::uint32_t local = 0; local < curve.segment_count; ++local) {
+      const std::vector<double> ends = coarse_->element_parameters(curve.first_segment + local);
+      for (std::size_t i = local == 0 ? 0 : 1; i < ends.size(); ++i) {
+        const double u = local + ends[i];
+        if (curve.closed || (u > 0.0 && u < curve.segment_count)) events[c].push_back({u, Continuity::Jump});
+      }
+    }
+  }
+}
+
+Status Solver::start_control_variate(std::vector<double>& emission) {
+  const auto start = std::chrono::steady_clock::now();
+  const std::shared_ptr<const CoarseAnswer> coarse = std::move(coarse_);
+  const std::size_t size = emission.size();
+  variate_received_.assign(size, 0.0);
+  std::vector<double> source(size, 0.0);
+  for_each_curve([&](std::uint32_t c) {
+    project_control_variate(*coarse, *scene_, storage_, c, emission, variate_received_, source);
+  });
+  const auto channels = static_cast<std::size_t>(channels_);
+  // The books: the photons carry D (its sum, signed), the coarse light leaves the scene by
+  // `escaped`, and the rest of the emitted power is absorbed, exactly (the coarse light that lands
+  // on a side less what the side reflects of it, up to the quadrature).
+  std::array<double, 3> shot{};
+  double magnitude = 0.0;
+  for (std::size_t index = 0; index < size; ++index) {
+    shot[index % channels] += source[index];
+    magnitude += std::fabs(source[index]);
+  }
+  variate_source_fraction_ = magnitude / emitted_total_;
+  const std::array<double, 3> escaped = coarse->escaped();
+  for (std::size_t ch = 0; ch < channels; ++ch) {
+    variate_escaped_[ch] = escaped[ch];
+    variate_absorbed_[ch] = emitted_[ch] - shot[ch] - escaped[ch];
+  }
+  variate_elements_ = coarse->elements();
+  variate_seconds_ =
+      coarse->seconds() + std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  emission = std::move(source);
+  signed_pool_ = true;
   return ok_status();
 }
 
@@ -285,7 +360,8 @@ Status Solver::check_settings_on(const Scene& scene, const SolverSettings& setti
   return ok_status();
 }
 
-Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings, const std::atomic<bool>* cancel) {
+Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings, const std::atomic<bool>* cancel,
+                              std::shared_ptr<const CoarseAnswer> coarse) {
   const auto cancelled = [cancel] { return cancel != nullptr && cancel->load(std::memory_order_relaxed); };
   if (Status status = check_scene(scene, settings); !status) return status.error();
   // The curves importance favours, refused before any work when the scene lacks them.
@@ -307,8 +383,17 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
   for (const SceneSegment& segment : scene.segments) geometry.push_back(segment.geometry);
   SegmentAccelerator accelerator(std::move(geometry));
   std::vector<std::vector<double>> walls;
-  const std::vector<std::vector<MeshNode>> events = solver.find_events(accelerator, plan, walls, cancel);
+  std::vector<std::vector<MeshNode>> events = solver.find_events(accelerator, plan, walls, cancel);
   if (cancelled()) return Error{kSolverCancelled};
+  // The coarse control variate's elements' ends as storage nodes.
+  if (settings.control_variate == ControlVariate::Coarse) {
+    if (coarse == nullptr)
+      return Error{
+          "control variate: coarse needs the coarse reference's answer; create the solver with "
+          "create_solver (reference/coarse_answer.hpp)"};
+    solver.coarse_ = std::move(coarse);
+    solver.add_coarse_nodes(events);
+  }
   solver.shooter_ = PhotonShooter(scene, solver.settings_, std::move(accelerator), std::move(walls));
   // 3. Every curve's storage, its levels and the coefficients' layout.
   Result<SceneStorage> storage =

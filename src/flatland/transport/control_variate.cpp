@@ -1,0 +1,112 @@
+#include "flatland/transport/control_variate.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "flatland/base/quadrature.hpp"
+#include "flatland/geometry/bezier.hpp"
+
+namespace flatland {
+
+Status check_control_variate(const Scene& scene) {
+  const std::string what = scene.source + ": control variate: coarse ";
+  if (scene.has_spectra())
+    return Error{what +
+                 "follows the light of each channel, and this scene's emitters have spectra (photons of "
+                 "one wavelength each); solve it without the control variate"};
+  for (const Curve& curve : scene.curves) {
+    const Material& material = scene.material_of(curve);
+    if (material.optics != Optics::Diffuse)
+      return Error{what + "needs diffuse surfaces only, and curve '" + curve.id + "' is " +
+                   (material.optics == Optics::Mirror       ? "a mirror"
+                    : material.optics == Optics::Dielectric ? "glass"
+                                                            : "a detector") +
+                   "; solve it without the control variate"};
+  }
+  for (const Curve& curve : scene.curves)
+    if (scene.is_emitter(curve) && scene.material_of(curve).emission.kind != Emission::Kind::Diffuse)
+      return Error{what + "shoots its difference diffusely, and curve '" + curve.id +
+                   "' emits a lobe or a beam; solve it without the control variate"};
+  return ok_status();
+}
+
+void project_control_variate(const CoarseAnswer& coarse, const Scene& scene, const SceneStorage& storage,
+                             std::uint32_t curve_index, const std::vector<double>& emission,
+                             std::vector<double>& received, std::vector<double>& source) {
+  const Curve& curve = scene.curves[curve_index];
+  const auto channels = static_cast<std::size_t>(scene.channels);
+  std::array<std::uint32_t, 2> offsets{};
+  bool any = false;
+  for (Side side : {Side::Front, Side::Back}) {
+    offsets[static_cast<std::size_t>(side)] = storage.block_offset(curve_index, side);
+    any = any || offsets[static_cast<std::size_t>(side)] != SceneStorage::kNoBlock;
+  }
+  if (!any) return;
+  const CurveStorage& finest = storage.finest(curve_index);
+  const SplineBasis& basis = finest.basis;
+  const std::vector<double>& knots = basis.knots();
+  const auto p = static_cast<std::size_t>(basis.degree());
+  const Spectrum& rho = scene.material_of(curve).reflectivity;
+  std::vector<double> bc(received.size(), 0.0);  // integral(phi_k b_c ds), this curve's entries only
+  std::array<double, SplineBasis::kMaxDegree + 1> values{};
+  std::uint32_t cached_segment = 0xffffffffu;
+  std::vector<double> ends;  // the cached segment's element ends, in t
+  for (std::size_t k = basis.first_span(); k < basis.end_span(); ++k) {
+    const double a = knots[k];
+    const double b = knots[k + 1];
+    if (!(b > a)) continue;
+    const auto local = static_cast<std::uint32_t>(std::min<double>(std::floor(0.5 * (a + b)), curve.segment_count - 1));
+    const std::uint32_t segment_index = curve.first_segment + local;
+    if (segment_index != cached_segment) {
+      ends = coarse.element_parameters(segment_index);
+      cached_segment = segment_index;
+    }
+    const Cubic& shape = scene.segments[segment_index].geometry.shape;
+    // The span in t, cut at the coarse elements' ends inside it.
+    const double ta = a - local;
+    const double tb = b - local;
+    std::size_t piece = static_cast<std::size_t>(std::upper_bound(ends.begin(), ends.end(), ta) - ends.begin());
+    piece = std::clamp<std::size_t>(piece, 1, ends.size() - 1) - 1;  // the element holding ta
+    double t0 = ta;
+    while (t0 < tb) {
+      const double t1 = piece + 1 < ends.size() - 1 ? std::min(tb, ends[piece + 1]) : tb;
+      const std::uint32_t element = coarse.first_element(segment_index) + static_cast<std::uint32_t>(piece);
+      if (t1 > t0) {
+        const double half = 0.5 * (t1 - t0);
+        for (std::size_t g = 0; g < gauss::kNodes8.size(); ++g) {
+          const double t = 0.5 * (t0 + t1) + half * gauss::kNodes8[g];
+          const double u = local + t;
+          const double weight = gauss::kWeights8[g] * half * length(derivative(shape, t));
+          basis.evaluate_in_span(k, u, values.data());
+          for (Side side : {Side::Front, Side::Back}) {
+            const std::uint32_t offset = offsets[static_cast<std::size_t>(side)];
+            if (offset == SceneStorage::kNoBlock) continue;
+            const Spectrum b_c = coarse.element_radiosity(element, side);
+            const Spectrum gathered = coarse.irradiance(curve_index, side, u);
+            for (std::size_t j = 0; j <= p; ++j) {
+              const std::size_t index = (offset + basis.index(k - p + j)) * channels;
+              const double w = weight * values[j];
+              for (std::size_t ch = 0; ch < channels; ++ch) {
+                received[index + ch] += w * gathered[ch];
+                bc[index + ch] += w * b_c[ch];
+              }
+            }
+          }
+        }
+      }
+      t0 = t1;
+      ++piece;
+    }
+  }
+  for (Side side : {Side::Front, Side::Back}) {
+    const std::uint32_t offset = offsets[static_cast<std::size_t>(side)];
+    if (offset == SceneStorage::kNoBlock) continue;
+    for (std::size_t k = 0; k < basis.size(); ++k)
+      for (std::size_t ch = 0; ch < channels; ++ch) {
+        const std::size_t index = (offset + k) * channels + ch;
+        source[index] = emission[index] + rho[ch] * received[index] - bc[index];
+      }
+  }
+}
+
+}  // namespace flatland

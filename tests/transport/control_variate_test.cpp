@@ -1,0 +1,212 @@
+#include "flatland/transport/control_variate.hpp"
+
+#include <cmath>
+#include <numbers>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "flatland/reference/coarse_answer.hpp"
+#include "flatland/transport/solver.hpp"
+#include "test_support.hpp"
+#include "transport/closed_forms.hpp"
+
+namespace flatland {
+namespace {
+
+using namespace closed_forms;
+using testing::make_solver;
+
+SolverSettings variate_settings(BasisKind basis = BasisKind::Cubic) {
+  SolverSettings settings;
+  settings.control_variate = ControlVariate::Coarse;
+  settings.basis = basis;
+  return settings;
+}
+
+// In a closed furnace of uniform E and rho the coarse answer is exact, b_c = E / (1 - rho) (the
+// reference's gather sees the whole enclosure, its own arc included), so D = E + rho G - b_c is zero
+// to the reference's solve tolerance (1e-10): whatever the photons shoot of it (the tolerance is a
+// share of D's own power) moves B by less than 1e-9 of itself, and B is E / (1 - rho) everywhere.
+// The books: nothing escapes, the coarse light's absorption is all the emitted power.
+void check_furnace(double rho, BasisKind basis) {
+  const Scene scene = testing::scene_from_text(testing::circle_enclosure(rho, 1.0));
+  SolverSettings settings = variate_settings(basis);
+  settings.photons = 100'000;
+  settings.elements = 16;
+  Solver solver = make_solver(scene, settings);
+  solver.run();
+  EXPECT_EQ(solver.stop_reason(), StopReason::Converged);
+  EXPECT_LT(solver.control_variate_source_fraction(), 1e-9);
+  const double exact = 1.0 / (1.0 - rho);
+  for (int j = 0; j < 200; ++j) {
+    const CurvePoint point = point_at_arc_length(scene, scene.curves[0], (j + 0.5) * scene.curves[0].length / 200);
+    EXPECT_NEAR(solver.radiosity(0, Side::Front, point.u)[0], exact, 1e-8 * exact) << "at sample " << j;
+  }
+  const EnergyBooks books = solver.books();
+  EXPECT_NEAR(books.imbalance(), 0.0, 1e-12 * books.emitted);
+  EXPECT_NEAR(books.escaped, 0.0, 1e-9 * books.emitted);
+  EXPECT_NEAR(books.absorbed, books.emitted, 1e-8 * books.emitted);
+  EXPECT_GT(solver.control_variate_elements(), 0u);
+}
+
+TEST(ControlVariate, IsExactInAFurnace) {
+  for (BasisKind basis : {BasisKind::Constant, BasisKind::Linear, BasisKind::Cubic}) {
+    SCOPED_TRACE(to_string(basis));
+    check_furnace(0.5, basis);
+    check_furnace(0.9, basis);
+  }
+}
+
+// On the one-bounce penumbra (a black lamp, a black occluder, a reflecting floor) the floor's light
+// is all direct: b_c on the lamp is E exactly, so G = K b_c is the floor's true irradiance H, and D
+// on the floor (its own light less its coarse constant) leaves upwards and never comes back to it.
+// The floor's lumped coefficients are then rho integral(phi_k H ds) / integral(phi_k ds) with no
+// noise at all: the closed form, to the quadrature's accuracy, and the same for any seed (up to the
+// lamp's D, E less its constant, which is zero to rounding).
+TEST(ControlVariate, GivesThePenumbraWithoutNoise) {
+  const PenumbraSetup setup;
+  const Scene scene = testing::scene_from_text(setup.scene_text());
+  for (BasisKind basis : {BasisKind::Constant, BasisKind::Linear, BasisKind::Cubic}) {
+    SCOPED_TRACE(to_string(basis));
+    std::vector<std::vector<double>> floors;
+    for (std::uint64_t seed : {1u, 2u}) {
+      SolverSettings settings = variate_settings(basis);
+      settings.photons = 100'000;
+      settings.elements = 24;
+      settings.estimator = Estimator::Lumped;
+      settings.seed = seed;
+      Solver solver = make_solver(scene, settings);
+      solver.run();
+      EXPECT_NE(solver.stop_reason(), StopReason::BooksUnbalanced) << solver.books_error();
+      const CurveStorage& storage = solver.storage(1);
+      const std::vector<double> expected = expected_floor_power(setup, storage);
+      const std::vector<double> b = solver.radiosity_coefficients(1, Side::Front);
+      ASSERT_EQ(b.size(), storage.basis.size());
+      for (std::size_t k = 0; k < b.size(); ++k)
+        EXPECT_NEAR(b[k], setup.rho * expected[k] / storage.basis_length[k], 1e-7) << "coefficient " << k;
+      floors.push_back(b);
+    }
+    for (std::size_t k = 0; k < floors[0].size(); ++k) EXPECT_NEAR(floors[0][k], floors[1][k], 1e-12) << k;
+  }
+}
+
+// The lit ring (E(phi) = 1 + 0.8 sin(phi), rho = 0.5; B in closed form by Fourier series): the mean
+// over 10 seeds of B's Fourier coefficients a0 and b1 must match the closed form within 5 standard
+// errors from the seeds' spread (Student's t, 9 degrees of freedom), plus 1e-6 of a0 for the 2000
+// midpoints of the quadrature below. The control variate takes almost all the noise away, so this
+// also bounds any bias it would add (the storage's hold of D, the projections' quadrature) by the
+// remaining noise.
+TEST(ControlVariate, IsUnbiasedOnTheLitRing) {
+  const Scene scene = testing::scene_from_text(ring_with_profile(2));
+  const RingSolution exact = solve_ring(scene, 0.5);
+  const Curve& ring = scene.curves[0];
+  const int seeds = 10;
+  std::vector<double> a0, b1;
+  for (int seed = 1; seed <= seeds; ++seed) {
+    SolverSettings settings = variate_settings();
+    settings.photons = 200'000;
+    settings.elements = 16;
+    settings.seed = static_cast<std::uint64_t>(seed);
+    Solver solver = make_solver(scene, settings);
+    solver.run();
+    ASSERT_NE(solver.stop_reason(), StopReason::BooksUnbalanced) << solver.books_error();
+    double a = 0.0, b = 0.0;
+    const int steps = 2000;
+    for (int j = 0; j < steps; ++j) {
+      const double u = ring.segment_count * (j + 0.5) / steps;
+      const auto i = static_cast<std::uint32_t>(u);
+      const Cubic& shape = scene.segments[ring.first_segment + i].geometry.shape;
+      const Vec2 p = evaluate(shape, u - i);
+      const double dphi = cross(p, derivative(shape, u - i)) / dot(p, p) * ring.segment_count / steps;
+      const double phi = std::atan2(p.y, p.x);
+      const double value = solver.radiosity(0, Side::Front, u)[0];
+      a += value * dphi / std::numbers::pi;
+      b += value * std::sin(phi) * dphi / std::numbers::pi;
+    }
+    a0.push_back(a);
+    b1.push_back(b);
+  }
+  auto check = [&](const std::vector<double>& values, double expected, const char* name) {
+    double mean = 0.0;
+    for (double v : values) mean += v / seeds;
+    double variance = 0.0;
+    for (double v : values) variance += (v - mean) * (v - mean) / (seeds - 1);
+    const double error = std::sqrt(variance / seeds);
+    EXPECT_LT(std::fabs(mean - expected), 5.0 * error + 1e-6 * std::fabs(exact.a[0]))
+        << name << ": " << mean << " vs " << expected << " (standard error " << error << ")";
+  };
+  check(a0, exact.a[0], "a0");
+  check(b1, exact.b[1], "b1");
+}
+
+// The books balance on rooms that are closed and open, coloured and grey (the solver checks them
+// after every round), and the exact part's split between escaped and absorbed light agrees with
+// plain shooting's: the coarse answer's escape by its form factors, the photons' by where they went.
+// Plain shooting's escaped fraction at 1e6 photons has a standard deviation below 1e-3 of the
+// emitted power here; 5e-3 allows five of them.
+TEST(ControlVariate, KeepsTheBooksOnExampleScenes) {
+  for (const char* file :
+       {"scenes2d/default.json", "scenes2d/interreflection/window_room.json", "scenes2d/row_of_rooms.json"}) {
+    SCOPED_TRACE(file);
+    const Scene scene = testing::scene_from_file(file);
+    SolverSettings settings = variate_settings();
+    settings.photons = 200'000;
+    Solver variate = make_solver(scene, settings);
+    variate.run();
+    ASSERT_NE(variate.stop_reason(), StopReason::BooksUnbalanced) << variate.books_error();
+    settings.control_variate = ControlVariate::None;
+    settings.photons = 1'000'000;
+    Solver plain = make_solver(scene, settings);
+    plain.run();
+    const EnergyBooks a = variate.books();
+    const EnergyBooks b = plain.books();
+    EXPECT_NEAR(a.imbalance(), 0.0, 1e-9 * a.emitted);
+    EXPECT_NEAR(a.escaped, b.escaped, 5e-3 * a.emitted);
+    EXPECT_NEAR(a.absorbed + a.unshot, b.absorbed + b.unshot, 5e-3 * a.emitted);
+  }
+}
+
+TEST(ControlVariate, GivesTheSameBitsOnAnyThreadCountAndStep) {
+  const Scene scene = testing::scene_from_file("scenes2d/default.json");
+  SolverSettings settings = variate_settings();
+  settings.photons = 100'000;
+  settings.threads = 1;
+  Solver one = make_solver(scene, settings);
+  one.run();
+  settings.threads = 2;
+  Solver two = make_solver(scene, settings);
+  while (two.step_photons(7'777) > 0) {
+  }
+  EXPECT_GT(one.photons_shot(), 0u);
+  EXPECT_EQ(testing::solution_data(one), testing::solution_data(two));
+}
+
+TEST(ControlVariate, RefusesWhatItCannotCarry) {
+  const Scene room = testing::scene_from_file("scenes2d/default.json");
+  const auto refused = [&](const Scene& scene, const SolverSettings& settings, const std::string& words) {
+    const Result<Solver> solver = create_solver(scene, settings);
+    ASSERT_FALSE(solver.ok()) << words;
+    EXPECT_NE(solver.error().message.find("control variate"), std::string::npos) << solver.error().message;
+    EXPECT_NE(solver.error().message.find(words), std::string::npos) << solver.error().message;
+  };
+  SolverSettings settings = variate_settings();
+  settings.transport = Transport::Walk;
+  refused(room, settings, "transport walk");
+  settings.transport = Transport::Jacobi;
+  refused(room, settings, "transport jacobi");
+  settings = variate_settings();
+  settings.sampling = PositionSampling::Uniform;
+  refused(room, settings, "sampling reconstructed");
+  settings = variate_settings(BasisKind::Hermite);
+  refused(room, settings, "Hermite");
+  settings = variate_settings();
+  settings.importance = {"floor"};
+  refused(room, settings, "importance");
+  refused(testing::scene_from_file("scenes2d/mirror_room.json"), variate_settings(), "a mirror");
+  refused(testing::scene_from_file("scenes2d/prism.json"), variate_settings(), "spectra");
+}
+
+}  // namespace
+}  // namespace flatland
