@@ -829,7 +829,7 @@ std::optional<int> ConvergeStudy::prepare() {
   if (std::optional<int> code = check_curve_and_measure()) return code;
   // What the scene refuses of a method, said before the reference is computed.
   for (const Method& method : plan_.methods)
-    if (Status status = Solver::check_settings_on(scene_, method.settings); !status)
+    if (Status status = check_solver_settings(scene_, method.settings); !status)
       return usage_error(status.error().message + " (method '" + method.name + "')");
   if (!speaks_for_the_run()) return std::nullopt;
   if (std::optional<int> code = check_outputs()) return code;

@@ -153,15 +153,20 @@ void print_summary(const Solver& solver, const ErrorEstimate& estimate) {
                walks_text.c_str(), to_string(settings.basis), to_string(settings.estimator), storage_text,
                to_string(settings.sampling), to_string(settings.discontinuities), rays, to_string(settings.sampler));
   // What the scene made the solver use (and so what it left out).
-  std::fprintf(out,
-               "features  %s (%d channel%s), %s, %zu discontinuity nodes (%zu at the scene's corners and joints, %zu "
-               "at contacts, %zu at visibility events), %zu storage coefficients\n",
-               scene.channels == 1 ? "grey" : "colour", scene.channels, scene.channels == 1 ? "" : "s",
-               cubic_segments == 0                       ? "lines only (no cubic solver)"
-               : cubic_segments == scene.segments.size() ? "cubics only"
-                                                         : "lines and cubics",
-               solver.discontinuity_nodes(), solver.node_sources().scene, solver.node_sources().contacts,
-               solver.node_sources().events, solver.coefficient_count());
+  std::fprintf(
+      out,
+      "features  %s (%d channel%s), %s, %zu discontinuity nodes (%zu at the scene's corners and joints, %zu "
+      "at contacts, %zu at visibility events%s), %zu storage coefficients\n",
+      scene.channels == 1 ? "grey" : "colour", scene.channels, scene.channels == 1 ? "" : "s",
+      cubic_segments == 0                       ? "lines only (no cubic solver)"
+      : cubic_segments == scene.segments.size() ? "cubics only"
+                                                : "lines and cubics",
+      solver.discontinuity_nodes(), solver.node_sources().scene, solver.node_sources().contacts,
+      solver.node_sources().events,
+      solver.node_sources().variate > 0
+          ? (", " + std::to_string(solver.node_sources().variate) + " at the coarse variate's element ends").c_str()
+          : "",
+      solver.coefficient_count());
   if (scene.has_specular()) {
     std::size_t count[4] = {};
     for (const Curve& curve : scene.curves) ++count[static_cast<std::size_t>(scene.material_of(curve).optics)];
@@ -179,7 +184,7 @@ void print_summary(const Solver& solver, const ErrorEstimate& estimate) {
   if (settings.control_variate == ControlVariate::Coarse)
     std::fprintf(out,
                  "variate   a coarse reference's answer (%zu elements, %.3f s with its projections) is carried "
-                 "exactly; the photons shoot the signed difference it leaves, %.3g%% of the emitted power\n",
+                 "without photons; they shoot the signed difference it leaves, %.3g%% of the emitted power\n",
                  solver.control_variate_elements(), solver.control_variate_seconds(),
                  100.0 * solver.control_variate_source_fraction());
   const bool walks = settings.transport == Transport::Walk;

@@ -608,7 +608,7 @@ py::list converge(const PyScene& scene, const std::vector<std::string>& methods,
   const Measure measured = measure == "total" ? Measure::Total : Measure::Reflected;
   // What the scene refuses of a method, before the reference is computed.
   for (const ConvergeMethod& method : parsed)
-    if (Status status = Solver::check_settings_on(*scene.scene, method.settings); !status)
+    if (Status status = check_solver_settings(*scene.scene, method.settings); !status)
       fail(spelled(status.error().message, Spelling::Python) + " (method '" + method.name + "')");
   const SampledResult document = converge_reference(scene, reference, samples, threads, measured, curve_index, curve);
 

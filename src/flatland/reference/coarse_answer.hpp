@@ -27,6 +27,10 @@ ReferenceSettings coarse_reference_settings(const Scene& scene, unsigned threads
 Result<std::shared_ptr<const CoarseAnswer>> solve_coarse_answer(const Scene& scene, unsigned threads,
                                                                 const std::atomic<bool>* cancel);
 
+// What create_solver would refuse of `settings` on `scene` before any work: Solver::check_settings_on,
+// and with the control variate, a coarse reference of more than kControlVariateMaxElements.
+Status check_solver_settings(const Scene& scene, const SolverSettings& settings);
+
 // Solver::create, with the coarse answer solved first when the settings ask for the control
 // variate: what every front end calls.
 Result<Solver> create_solver(const Scene& scene, const SolverSettings& settings,

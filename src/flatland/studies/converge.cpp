@@ -98,7 +98,8 @@ Result<ConvergeRow> converge_run(const Scene& scene, const SolverSettings& setti
   row.photons = solver->photons_shot();
   row.rounds = solver->rounds();
   row.unshot = books.emitted > 0.0 ? books.unshot / books.emitted : 0.0;
-  row.seconds = solver->seconds() + gather_seconds;
+  // (The control variate's coarse solve and projections are part of the method's time.)
+  row.seconds = solver->seconds() + solver->control_variate_seconds() + gather_seconds;
   row.error = curve ? comparison->curves[*curve].norms : comparison->scene;
   row.rays = solver->rays_traced();
   row.gathered = gather != nullptr;

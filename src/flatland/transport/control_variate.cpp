@@ -47,7 +47,9 @@ void project_control_variate(const CoarseAnswer& coarse, const Scene& scene, con
   const std::vector<double>& knots = basis.knots();
   const auto p = static_cast<std::size_t>(basis.degree());
   const Spectrum& rho = scene.material_of(curve).reflectivity;
-  std::vector<double> bc(received.size(), 0.0);  // integral(phi_k b_c ds), this curve's entries only
+  // integral(phi_k b_c ds) per side, coefficient and channel of this curve.
+  const std::size_t count = basis.size() * channels;
+  std::array<std::vector<double>, 2> bc{std::vector<double>(count, 0.0), std::vector<double>(count, 0.0)};
   std::array<double, SplineBasis::kMaxDegree + 1> values{};
   std::uint32_t cached_segment = 0xffffffffu;
   std::vector<double> ends;  // the cached segment's element ends, in t
@@ -83,12 +85,14 @@ void project_control_variate(const CoarseAnswer& coarse, const Scene& scene, con
             if (offset == SceneStorage::kNoBlock) continue;
             const Spectrum b_c = coarse.element_radiosity(element, side);
             const Spectrum gathered = coarse.irradiance(curve_index, side, u);
+            std::vector<double>& own = bc[static_cast<std::size_t>(side)];
             for (std::size_t j = 0; j <= p; ++j) {
-              const std::size_t index = (offset + basis.index(k - p + j)) * channels;
+              const std::size_t function = basis.index(k - p + j);
+              const std::size_t index = (offset + function) * channels;
               const double w = weight * values[j];
               for (std::size_t ch = 0; ch < channels; ++ch) {
                 received[index + ch] += w * gathered[ch];
-                bc[index + ch] += w * b_c[ch];
+                own[function * channels + ch] += w * b_c[ch];
               }
             }
           }
@@ -104,7 +108,8 @@ void project_control_variate(const CoarseAnswer& coarse, const Scene& scene, con
     for (std::size_t k = 0; k < basis.size(); ++k)
       for (std::size_t ch = 0; ch < channels; ++ch) {
         const std::size_t index = (offset + k) * channels + ch;
-        source[index] = emission[index] + rho[ch] * received[index] - bc[index];
+        source[index] =
+            emission[index] + rho[ch] * received[index] - bc[static_cast<std::size_t>(side)][k * channels + ch];
       }
   }
 }

@@ -2,16 +2,18 @@
 // coarse answer as control variate").
 //
 // With b_c the reference's answer on coarse constant elements and G = K b_c the irradiance it sends
-// to a point (the reference's final gather without E and rho), C = E + rho G is known exactly, and
-// B = C + B' with
+// to a point (the reference's final gather without E and rho), C = E + rho G is known without
+// photons, and B = C + B' with
 //
 //   B' = rho K (D + B'),   D = C - b_c = E + rho G - b_c,
 //
-// since B = E + rho K B and C - E = rho K b_c. So the received power starts at the projection of G
-// (exact, no photons) and the photons shoot D, signed and small where b_c is close to B, as the first
-// round of reflected light, whose reflections follow as in plain shooting. Nothing is approximated
-// but the storage's representation of D, as of any pool: the answer's expectation is plain
-// shooting's, its noise that of the few per cent of the power that D carries.
+// since B = E + rho K B and C - E = rho K b_c, for any b_c. So the received power starts at the
+// projection of G (no photons) and the photons shoot D, signed and small where b_c is close to B, as
+// the first round of reflected light, whose reflections follow as in plain shooting: the noise is
+// that of the few per cent of the power that D carries. What differs from plain shooting's
+// expectation is on the scale of the discretisation: G is gathered over chords (a 400th of the
+// scene's size on curves: coarse_answer.cpp) and by quadrature, and the storage holds D (with value
+// jumps at the coarse elements' ends) and later rounds' pools (lumped) as it holds any pool.
 //
 // Projections onto the storage's finest basis, per coefficient k of a side: g_k = integral(phi_k G
 // ds) and d_k = e_k + rho g_k - integral(phi_k b_c ds), with e_k the emitted power the basis function

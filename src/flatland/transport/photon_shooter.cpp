@@ -641,8 +641,9 @@ bool PhotonShooter::receive(const RoundView& round, Rng& rng, SceneHit& hit, Ray
     for (std::size_t ch = 0; ch < channels; ++ch) {
       std::int64_t left = tally[ch];
       for (std::size_t j = 0; j < degree; ++j) {
-        // Round half up by truncation (toward zero for a control variate's negative units, within a
-        // unit either way; the remainder below keeps the sum exact); std::llround is a library call.
+        // Round half up by truncation (the product is >= 0, but for a control variate's negative
+        // units, where truncation toward zero moves a share by up to 1.5 units; the remainder below
+        // keeps every photon's sum exact either way); std::llround is a library call.
         const auto share = static_cast<std::int64_t>(phi[j] * static_cast<double>(tally[ch]) + 0.5);
         target[basis.index(first + j) * channels + ch] += share;
         left -= share;

@@ -131,6 +131,10 @@ Status validate(const SolverSettings& settings) {
           "the signed light; Hermite storage's origins follow a positive density"};
     if (!settings.importance.empty())
       return Error{"control variate: coarse is not combined with importance yet; use one or the other"};
+    if (settings.estimator == Estimator::Local)
+      return Error{
+          "control variate: coarse shoots its difference from the storage's estimate of it, and the local "
+          "estimator does not keep a signed side's power; use estimator galerkin, lumped or auto with it"};
   }
   return ok_status();
 }

@@ -198,12 +198,14 @@ class Solver {
   // discontinuities scene or auto.
   std::size_t contact_nodes() const { return contact_nodes_; }
   // The storage's discontinuity nodes (discontinuity_nodes()) by what put each there, counted
-  // once: the scene's corners and joints first, then contacts, then visibility events (the counts
-  // above are the nodes asked for, some of which coincide with others and merge).
+  // once: the scene's corners and joints first, then contacts, then visibility events, then the
+  // coarse control variate's element ends (the counts above are the nodes asked for, some of which
+  // coincide with others and merge).
   struct NodeSources {
     std::size_t scene = 0;
     std::size_t contacts = 0;
     std::size_t events = 0;
+    std::size_t variate = 0;
   };
   const NodeSources& node_sources() const { return node_sources_; }
   std::size_t coefficient_count() const { return storage_.coefficient_count(); }
@@ -289,7 +291,7 @@ class Solver {
   // The coarse control variate (its answer kept in coarse_ until the transport starts): its elements'
   // ends added to `events` as value jumps; then g, the source d (replacing `emission`) and the
   // exact part's books.
-  void add_coarse_nodes(std::vector<std::vector<MeshNode>>& events) const;
+  void add_coarse_nodes(std::vector<std::vector<MeshNode>>& events);
   // The power the tolerance is a fraction of: the emitted power, or with the control variate the
   // magnitude of the difference D its photons start from (so that the light left unshot is as small
   // a share of what the photons carry as without it).
@@ -445,6 +447,7 @@ class Solver {
   // emitted power that D does not carry, absorbed.
   bool signed_pool_ = false;
   std::shared_ptr<const CoarseAnswer> coarse_;
+  std::vector<std::size_t> coarse_nodes_per_curve_;  // set-up: the coarse ends last in each curve's events
   std::vector<double> variate_received_;
   Spectrum variate_absorbed_{};
   Spectrum variate_escaped_{};

@@ -168,7 +168,8 @@ std::vector<std::vector<MeshNode>> Solver::find_events(const SegmentAccelerator&
 }
 
 void Solver::count_node_sources(const std::vector<std::vector<MeshNode>>& events) {
-  // find_events lists a curve's contacts first (contacts_per_curve_), then its visibility events; a storage node within
+  // find_events lists a curve's contacts first (contacts_per_curve_), then its visibility events, and
+  // add_coarse_nodes the coarse element ends after them (coarse_nodes_per_curve_); a storage node within
   // 1e-9 of one of them is that one's (the storage merges nodes that close, curve_storage.cpp).
   const Scene& scene = *scene_;
   const std::vector<std::size_t>& contacts = contacts_per_curve_;
@@ -193,12 +194,15 @@ void Solver::count_node_sources(const std::vector<std::vector<MeshNode>>& events
         else if (curve.closed && (joint == 0.0 || joint == count))
           at_joint = curve.joints.back() != Continuity::C1;
       }
+      const std::size_t coarse = coarse_nodes_per_curve_.empty() ? 0 : coarse_nodes_per_curve_[c];
       if (at_joint)
         ++node_sources_.scene;
       else if (near(node.u, 0, contacts[c]))
         ++node_sources_.contacts;
-      else
+      else if (near(node.u, contacts[c], events[c].size() - coarse))
         ++node_sources_.events;
+      else
+        ++node_sources_.variate;
     }
   }
 }
@@ -304,13 +308,15 @@ void Solver::start_received() {
     for (std::size_t index = 0; index < size; ++index) received_half_[index] = 0.5 * received_[index];
 }
 
-void Solver::add_coarse_nodes(std::vector<std::vector<MeshNode>>& events) const {
+void Solver::add_coarse_nodes(std::vector<std::vector<MeshNode>>& events) {
   // D = E + rho G - b_c jumps wherever b_c does, at every coarse element's ends: value jumps there
   // let the storage hold D as it is (photons leave from its coefficients), not smoothed across.
   const Scene& scene = *scene_;
+  coarse_nodes_per_curve_.assign(scene.curves.size(), 0);
   for (std::uint32_t c = 0; c < scene.curves.size(); ++c) {
     const Curve& curve = scene.curves[c];
     if (!scene.holds_light(curve)) continue;
+    const std::size_t before = events[c].size();
     for (std::uint32_t local = 0; local < curve.segment_count; ++local) {
       const std::vector<double> ends = coarse_->element_parameters(curve.first_segment + local);
       for (std::size_t i = local == 0 ? 0 : 1; i < ends.size(); ++i) {
@@ -318,6 +324,7 @@ void Solver::add_coarse_nodes(std::vector<std::vector<MeshNode>>& events) const 
         if (curve.closed || (u > 0.0 && u < curve.segment_count)) events[c].push_back({u, Continuity::Jump});
       }
     }
+    coarse_nodes_per_curve_[c] = events[c].size() - before;
   }
 }
 
