@@ -17,9 +17,12 @@
 #include "flatland/results/metrics.hpp"
 #include "flatland/results/result_io.hpp"
 #include "test_support.hpp"
+#include "transport/closed_forms.hpp"
 
 namespace flatland {
 namespace {
+
+using closed_forms::round_occluder_floor;
 
 ReferenceSolution solve(const Scene& scene, const ReferenceSettings& settings) {
   Result<ReferenceSolution> solution = solve_reference(scene, settings);
@@ -42,52 +45,6 @@ std::vector<double> samples(const ReferenceSolution& solution, std::uint32_t cur
 constexpr double kPi = std::numbers::pi;
 
 // --- Closed forms (derived independently, each from the scene's own geometry) -----------------
-
-// One bounce onto a flat floor (y = 0, normal up) from a black line lamp at height 2 (E = 1,
-// x in [-0.5, 0.5]) past a black convex occluder: B(x) = rho (1/2) (measure of the lamp's sin(theta)
-// interval minus the part the occluder's tangent lines cut out), sin(theta) = (p.x - x) / |p - x|.
-// The occluder's extreme directions come from its Bezier segments themselves: the extremes of
-// sin(theta) along C(t) are roots of g(t) = cross(C(t) - x, C'(t)) (the ray touches the curve);
-// a coarse search per segment brackets them and Newton on g (g' = cross(C - x, C'')) polishes.
-double round_occluder_floor(const Scene& scene, std::uint32_t occluder, double x, double rho) {
-  const Vec2 p{x, 0.0};
-  auto sine = [p](Vec2 q) { return (q.x - p.x) / length(q - p); };
-  double low = INFINITY;
-  double high = -INFINITY;
-  const Curve& curve = scene.curves[occluder];
-  for (std::uint32_t k = 0; k < curve.segment_count; ++k) {
-    const Cubic& c = scene.segments[curve.first_segment + k].geometry.shape;
-    for (const int sign : {-1, 1}) {
-      double best_t = 0.0;
-      double best = -INFINITY;
-      for (int m = 0; m <= 64; ++m) {
-        const double t = m / 64.0;
-        const double value = sign * sine(evaluate(c, t));
-        if (value > best) best = value, best_t = t;
-      }
-      double t = best_t;
-      for (int iteration = 0; iteration < 50; ++iteration) {
-        const Vec2 r = evaluate(c, t) - p;
-        const double g = cross(r, derivative(c, t));
-        const double slope = cross(r, second_derivative(c, t));
-        if (slope == 0.0) break;
-        const double next = std::clamp(t - g / slope, 0.0, 1.0);
-        if (std::fabs(next - t) < 1e-15) break;
-        t = next;
-      }
-      const double value = sine(evaluate(c, t));
-      const double coarse = sine(evaluate(c, best_t));
-      // Newton must not lose the bracketed extreme (it may only improve it).
-      const double extreme = sign > 0 ? std::max(value, coarse) : std::min(value, coarse);
-      low = std::min(low, extreme);
-      high = std::max(high, extreme);
-    }
-  }
-  const double a = sine({-0.5, 2.0});
-  const double b = sine({0.5, 2.0});
-  const double hidden = std::max(0.0, std::min(b, high) - std::max(a, low));
-  return rho * 0.5 * ((b - a) - hidden);
-}
 
 // A closed ring (the circle r = 1 about the origin, front inward) with uniform rho and emittance
 // E(phi): the kernel per unit angle is k(psi) = |sin(psi / 2)| / 4, so the equation is diagonal in
