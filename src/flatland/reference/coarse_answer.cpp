@@ -38,6 +38,19 @@ class ReferenceAnswer final : public CoarseAnswer {
     return solution_.element_radiosity(element, side);
   }
   Spectrum irradiance(std::uint32_t curve, Side side, double u) const override;
+  Spectrum coarse_irradiance(std::uint32_t curve, Side side, double u) const override {
+    // The reference's own gather over its coarse chords, without E and rho.
+    thread_local std::vector<std::pair<std::uint32_t, double>> seen;
+    solution_.gather_weights(curve, side, u, seen);
+    Spectrum gathered{};
+    const auto channels = static_cast<std::size_t>(solution_.scene().channels);
+    for (const auto& [patch, f] : seen) {
+      const Spectrum b = solution_.element_radiosity(patch / 2, static_cast<Side>(patch % 2));
+      for (std::size_t ch = 0; ch < channels; ++ch) gathered[ch] += f * b[ch];
+    }
+    return gathered;
+  }
+  double model_ratio() const override { return static_cast<double>(kGatherSplit * kGatherSplit); }
   std::array<double, 3> escaped() const override;
   double seconds() const override { return solution_.form_factor_seconds() + solution_.solve_seconds(); }
 

@@ -32,7 +32,8 @@ Status check_control_variate(const Scene& scene) {
 
 void project_control_variate(const CoarseAnswer& coarse, const Scene& scene, const SceneStorage& storage,
                              std::uint32_t curve_index, const std::vector<double>& emission,
-                             std::vector<double>& received, std::vector<double>& source) {
+                             std::vector<double>& received, std::vector<double>& source,
+                             std::vector<double>* coarse_received) {
   const Curve& curve = scene.curves[curve_index];
   const auto channels = static_cast<std::size_t>(scene.channels);
   std::array<std::uint32_t, 2> offsets{};
@@ -85,6 +86,8 @@ void project_control_variate(const CoarseAnswer& coarse, const Scene& scene, con
             if (offset == SceneStorage::kNoBlock) continue;
             const Spectrum b_c = coarse.element_radiosity(element, side);
             const Spectrum gathered = coarse.irradiance(curve_index, side, u);
+            const Spectrum modelled =
+                coarse_received != nullptr ? coarse.coarse_irradiance(curve_index, side, u) : Spectrum{};
             std::vector<double>& own = bc[static_cast<std::size_t>(side)];
             for (std::size_t j = 0; j <= p; ++j) {
               const std::size_t function = basis.index(k - p + j);
@@ -93,6 +96,7 @@ void project_control_variate(const CoarseAnswer& coarse, const Scene& scene, con
               for (std::size_t ch = 0; ch < channels; ++ch) {
                 received[index + ch] += w * gathered[ch];
                 own[function * channels + ch] += w * b_c[ch];
+                if (coarse_received != nullptr) (*coarse_received)[index + ch] += w * modelled[ch];
               }
             }
           }

@@ -51,6 +51,12 @@ class CoarseAnswer {
   // G = K b_c at a curve's side at curve parameter u: the irradiance the answer sends there (zero on
   // a side that reflects nothing, where it is not needed).
   virtual Spectrum irradiance(std::uint32_t curve, Side side, double u) const = 0;
+  // The same gathered over a coarser model of the curves (the coarse elements' own chords): how far
+  // irradiance() is from the transport on the true curves is estimated from the two.
+  virtual Spectrum coarse_irradiance(std::uint32_t curve, Side side, double u) const = 0;
+  // How much closer to the true curves irradiance()'s model is than coarse_irradiance()'s, in the
+  // error (its chords' sagitta over theirs, h^2: the split's square).
+  virtual double model_ratio() const = 0;
   // What of the answer's light leaves the scene, per channel.
   virtual std::array<double, 3> escaped() const = 0;
   // The seconds its solve took.
@@ -64,10 +70,11 @@ class CoarseAnswer {
 Status check_control_variate(const Scene& scene);
 
 // Curve `curve`'s coefficients of g (`received`) and d (`source`), finest layout (per coefficient
-// and channel), from `emission` (e_k, the same layout). Writes only that curve's coefficients, so
-// curves may be done on different threads.
+// and channel), from `emission` (e_k, the same layout); with `coarse_received`, also g over the
+// coarser model (coarse_irradiance). Writes only that curve's coefficients, so curves may be done on
+// different threads.
 void project_control_variate(const CoarseAnswer& coarse, const Scene& scene, const SceneStorage& storage,
                              std::uint32_t curve, const std::vector<double>& emission, std::vector<double>& received,
-                             std::vector<double>& source);
+                             std::vector<double>& source, std::vector<double>* coarse_received = nullptr);
 
 }  // namespace flatland

@@ -338,6 +338,21 @@ PointValues values_at(const Solver& solver, const EvaluationPoints& at, const Re
     result.bias = storage_bias(solver, at, chosen, evaluator, result.unestimated, shrink);
   else
     result.bias.assign(at.values(), 0.0);
+  // The control variate's own discretisation (the transport of b_c over chords), a bias no photon
+  // corrects: its estimate's reflected radiosity joins the storage part, in magnitude. Under a
+  // gather the gather's own part holds the same kind of error and this is left to it.
+  if (evaluator == nullptr && !solver.control_variate_bias().empty()) {
+    const ReflectedField field = solver.reflected_field(solver.control_variate_bias(), solver.chosen_levels());
+    const auto channels = static_cast<std::size_t>(at.channels);
+    for (std::size_t p = 0; p < at.points.size(); ++p) {
+      const EvaluationPoints::Point& point = at.points[p];
+      const Spectrum variate = solver.reflected_at(field, point.curve, point.side, point.u);
+      for (std::size_t ch = 0; ch < channels; ++ch) {
+        double& b = result.bias[p * channels + ch];
+        b = (b < 0.0 ? -1.0 : 1.0) * (std::fabs(b) + std::fabs(variate[ch]));
+      }
+    }
+  }
   result.mean = std::move(chosen.mean);
   result.deviation = std::move(chosen.deviation);
   return result;

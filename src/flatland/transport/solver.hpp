@@ -247,6 +247,10 @@ class Solver {
   // the seconds its solve and projections took (0 without one).
   std::size_t control_variate_elements() const { return variate_elements_; }
   double control_variate_seconds() const { return variate_seconds_; }
+  // The control variate's own discretisation, estimated: g over the coarse chords less g over the
+  // finer ones, over the ratio of their errors less one (per coefficient and channel, as received
+  // power; empty without the variate or where the scene has no curves to model, only lines).
+  const std::vector<double>& control_variate_bias() const { return variate_bias_; }
   // The magnitude of the difference D the photons start from (sum of |d_k|) over the emitted power.
   double control_variate_source_fraction() const { return variate_source_fraction_; }
 
@@ -449,6 +453,7 @@ class Solver {
   std::shared_ptr<const CoarseAnswer> coarse_;
   std::vector<std::size_t> coarse_nodes_per_curve_;  // set-up: the coarse ends last in each curve's events
   std::vector<double> variate_received_;
+  std::vector<double> variate_bias_;
   Spectrum variate_absorbed_{};
   Spectrum variate_escaped_{};
   std::size_t variate_elements_ = 0;

@@ -334,9 +334,26 @@ Status Solver::start_control_variate(std::vector<double>& emission) {
   const std::size_t size = emission.size();
   variate_received_.assign(size, 0.0);
   std::vector<double> source(size, 0.0);
-  for_each_curve([&](std::uint32_t c) {
-    project_control_variate(*coarse, *scene_, storage_, c, emission, variate_received_, source);
-  });
+  // On a scene of lines the coarse chords are the curves: no model error to estimate.
+  const bool modelled = scene_->has_cubics();
+  std::vector<double> coarse_received(modelled ? size : 0, 0.0);
+  // Curve by curve on the workers (each writes only its own coefficients, so the bits do not depend
+  // on the split): a sweep at every quadrature point is most of the variate's set-up.
+  const auto project = [&](std::size_t c) {
+    project_control_variate(*coarse, *scene_, storage_, static_cast<std::uint32_t>(c), emission, variate_received_,
+                            source, modelled ? &coarse_received : nullptr);
+  };
+  if (threads_ > 1)
+    worker_pool().for_each(scene_->curves.size(), project);
+  else
+    for (std::size_t c = 0; c < scene_->curves.size(); ++c) project(c);
+  // The finer chords' error is the coarse ones' over the model ratio r: g_coarse - g is (r - 1) times
+  // it, where both errors scale alike.
+  if (modelled) {
+    variate_bias_.resize(size);
+    const double scale = 1.0 / (coarse->model_ratio() - 1.0);
+    for (std::size_t i = 0; i < size; ++i) variate_bias_[i] = scale * (coarse_received[i] - variate_received_[i]);
+  }
   const auto channels = static_cast<std::size_t>(channels_);
   // The books: the photons carry D (its sum, signed), the coarse light leaves the scene by
   // `escaped`, and the rest of the emitted power is absorbed, exactly (the coarse light that lands
