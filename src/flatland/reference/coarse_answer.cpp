@@ -51,6 +51,7 @@ class ReferenceAnswer final : public CoarseAnswer {
     return gathered;
   }
   double model_ratio() const override { return static_cast<double>(kGatherSplit * kGatherSplit); }
+  double amplification() const override;
   std::array<double, 3> escaped() const override;
   double seconds() const override { return solution_.form_factor_seconds() + solution_.solve_seconds(); }
 
@@ -97,7 +98,8 @@ ReferenceAnswer::ReferenceAnswer(ReferenceSolution solution) : solution_(std::mo
           continue;
         }
         e.normal = (1.0 / e.length) * perp(end - start);
-        e.u_mid = segment.index_in_curve + 0.5 * (fine_ends.back() + t1);
+        e.u_mid =
+            segment.index_in_curve + segment.arc_length.parameter_at(shape, s0 + (s1 - s0) * (piece + 0.5) / split);
         e.previous = kNoElement;
         e.next = kNoElement;
         fine_.push_back(e);
@@ -115,8 +117,7 @@ Spectrum ReferenceAnswer::irradiance(std::uint32_t curve_index, Side side, doubl
   const Scene& scene = solution_.scene();
   const Curve& curve = scene.curves[curve_index];
   Spectrum gathered{};
-  const Spectrum& rho = scene.material_of(curve).reflectivity;
-  if (!curve.has_side(side) || !(rho[0] > 0.0 || rho[1] > 0.0 || rho[2] > 0.0)) return gathered;
+  if (!curve.has_side(side) || !scene.reflects_light(curve)) return gathered;
   const double clamped = std::clamp(u, 0.0, static_cast<double>(curve.segment_count));
   const auto local =
       static_cast<std::uint32_t>(std::min(std::floor(clamped), static_cast<double>(curve.segment_count) - 1.0));
@@ -140,6 +141,22 @@ Spectrum ReferenceAnswer::irradiance(std::uint32_t curve_index, Side side, doubl
     for (std::size_t ch = 0; ch < channels; ++ch) gathered[ch] += v.form_factor * b[ch];
   }
   return gathered;
+}
+
+double ReferenceAnswer::amplification() const {
+  const std::vector<ReferenceElement>& elements = solution_.element_list();
+  const auto channels = static_cast<std::size_t>(solution_.scene().channels);
+  double answer = 0.0;
+  double emitted = 0.0;
+  for (std::uint32_t e = 0; e < elements.size(); ++e)
+    for (Side side : {Side::Front, Side::Back}) {
+      const Spectrum b = solution_.element_radiosity(e, side);
+      for (std::size_t ch = 0; ch < channels; ++ch) {
+        answer += std::fabs(b[ch]) * elements[e].length;
+        emitted += std::fabs(elements[e].emittance[static_cast<std::size_t>(side)][ch]) * elements[e].length;
+      }
+    }
+  return emitted > 0.0 ? std::max(1.0, answer / emitted) : 1.0;
 }
 
 std::array<double, 3> ReferenceAnswer::escaped() const {

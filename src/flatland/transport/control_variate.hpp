@@ -57,6 +57,9 @@ class CoarseAnswer {
   // How much closer to the true curves irradiance()'s model is than coarse_irradiance()'s, in the
   // error (its chords' sagitta over theirs, h^2: the split's square).
   virtual double model_ratio() const = 0;
+  // The answer's power over the emitted power (at least 1): how much the scene's interreflection
+  // multiplies light, an error's later bounces included.
+  virtual double amplification() const = 0;
   // What of the answer's light leaves the scene, per channel.
   virtual std::array<double, 3> escaped() const = 0;
   // The seconds its solve took.

@@ -339,8 +339,9 @@ PointValues values_at(const Solver& solver, const EvaluationPoints& at, const Re
   else
     result.bias.assign(at.values(), 0.0);
   // The control variate's own discretisation (the transport of b_c over chords), a bias no photon
-  // corrects: its estimate's reflected radiosity joins the storage part, in magnitude. Under a
-  // gather the gather's own part holds the same kind of error and this is left to it.
+  // corrects: its estimate's reflected radiosity (with the later bounces' share,
+  // control_variate_bias) joins the storage part, in magnitude. Under a gather it is left to the
+  // gather's own part, which measured covers it (docs/estimated-error.md).
   if (evaluator == nullptr && !solver.control_variate_bias().empty()) {
     const ReflectedField field = solver.reflected_field(solver.control_variate_bias(), solver.chosen_levels());
     const auto channels = static_cast<std::size_t>(at.channels);
@@ -429,11 +430,16 @@ ErrorEstimate estimate_error(const Solver& solver, const ErrorEstimateOptions& o
   const std::vector<double>& mean = point_values.mean;
   const std::vector<std::vector<double>>& replicate = point_values.deviation;
   const std::vector<double>& bias = point_values.bias;
-  estimate.storage_estimated = solver.auto_storage();
+  // The control variate's own part joins the storage part (values_at) without a gather.
+  const bool variate_part = options.evaluator == nullptr && !solver.control_variate_bias().empty();
+  estimate.storage_estimated = solver.auto_storage() || variate_part;
   if (!solver.auto_storage())
-    estimate.caveat =
-        "the storage mesh is fixed, so its discretisation error is not estimated (the bound holds for "
-        "the noise and the unshot light only; --elements auto estimates it)";
+    estimate.caveat = variate_part ? "the storage mesh is fixed, so its discretisation error is not estimated (the "
+                                     "bound holds for the noise, the unshot light and the control variate's own "
+                                     "discretisation, the storage part here, only; --elements auto estimates it)"
+                                   : "the storage mesh is fixed, so its discretisation error is not estimated (the "
+                                     "bound holds for the noise and the unshot light only; --elements auto "
+                                     "estimates it)";
   else if (point_values.unestimated > 0)
     estimate.caveat = "the storage's discretisation error is not estimated on " +
                       std::to_string(point_values.unestimated) +

@@ -199,10 +199,11 @@ void Solver::count_node_sources(const std::vector<std::vector<MeshNode>>& events
         ++node_sources_.scene;
       else if (near(node.u, 0, contacts[c]))
         ++node_sources_.contacts;
-      else if (near(node.u, contacts[c], events[c].size() - coarse))
-        ++node_sources_.events;
-      else
+      else if (coarse > 0 && !near(node.u, contacts[c], events[c].size() - coarse) &&
+               near(node.u, events[c].size() - coarse, events[c].size()))
         ++node_sources_.variate;
+      else
+        ++node_sources_.events;
     }
   }
 }
@@ -348,10 +349,12 @@ Status Solver::start_control_variate(std::vector<double>& emission) {
   else
     for (std::size_t c = 0; c < scene_->curves.size(); ++c) project(c);
   // The finer chords' error is the coarse ones' over the model ratio r: g_coarse - g is (r - 1) times
-  // it, where both errors scale alike.
+  // it, where both errors scale alike. D carries rho times it too, and the photons pass it on: its
+  // later bounces multiply it about as the scene multiplies light (the coarse answer's power over
+  // the emitted power).
   if (modelled) {
     variate_bias_.resize(size);
-    const double scale = 1.0 / (coarse->model_ratio() - 1.0);
+    const double scale = coarse->amplification() / (coarse->model_ratio() - 1.0);
     for (std::size_t i = 0; i < size; ++i) variate_bias_[i] = scale * (coarse_received[i] - variate_received_[i]);
   }
   const auto channels = static_cast<std::size_t>(channels_);
