@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <numbers>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "flatland/geometry/bezier.hpp"
@@ -217,6 +218,38 @@ inline double round_occluder_floor(const Scene& scene, std::uint32_t occluder, d
   const double b = sine({0.5, 2.0});
   const double hidden = std::max(0.0, std::min(b, high) - std::max(a, low));
   return rho * 0.5 * ((b - a) - hidden);
+}
+
+// The Fourier coefficients a0 and b1 of B along the ring (ring_with_profile) from B at curve
+// parameters: the midpoint rule over 2000 steps in the curve parameter, dphi = cross(p, p') / |p|^2
+// du (as solve_ring).
+template <typename Radiosity>
+std::pair<double, double> ring_a0_b1(const Scene& scene, Radiosity radiosity) {
+  const Curve& ring = scene.curves[0];
+  double a = 0.0, b = 0.0;
+  const int steps = 2000;
+  for (int j = 0; j < steps; ++j) {
+    const double u = ring.segment_count * (j + 0.5) / steps;
+    const auto i = static_cast<std::uint32_t>(u);
+    const Cubic& shape = scene.segments[ring.first_segment + i].geometry.shape;
+    const Vec2 p = evaluate(shape, u - i);
+    const double dphi = cross(p, derivative(shape, u - i)) / dot(p, p) * ring.segment_count / steps;
+    const double phi = std::atan2(p.y, p.x);
+    const double value = radiosity(u);
+    a += value * dphi / std::numbers::pi;
+    b += value * std::sin(phi) * dphi / std::numbers::pi;
+  }
+  return {a, b};
+}
+
+// The mean of independent runs' values and its standard error (the runs' spread over sqrt(n)).
+inline std::pair<double, double> mean_and_standard_error(const std::vector<double>& values) {
+  const auto n = static_cast<double>(values.size());
+  double mean = 0.0;
+  for (double v : values) mean += v / n;
+  double variance = 0.0;
+  for (double v : values) variance += (v - mean) * (v - mean) / (n - 1.0);
+  return {mean, std::sqrt(variance / n)};
 }
 
 }  // namespace flatland::closed_forms

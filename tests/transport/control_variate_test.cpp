@@ -107,28 +107,22 @@ TEST(ControlVariate, FollowsTheCurvesThePhotonsMeet) {
   Solver solver = make_solver(scene, settings);
   solver.run();
   ASSERT_NE(solver.stop_reason(), StopReason::BooksUnbalanced) << solver.books_error();
+  // The floor's relative L2 and L1 errors along its arc length.
   const Curve& floor = scene.curves[2];
-  double squared_error = 0.0;
-  double squared = 0.0;
+  double squared_error = 0.0, squared = 0.0, absolute = 0.0, total = 0.0;
   for (int j = 0; j < 400; ++j) {
     const CurvePoint point = point_at_arc_length(scene, floor, (j + 0.5) * floor.length / 400);
     const double exact = round_occluder_floor(scene, 1, point.position.x, 0.5);
     const double b = solver.radiosity(2, Side::Front, point.u)[0];
     squared_error += (b - exact) * (b - exact);
     squared += exact * exact;
+    absolute += std::fabs(b - exact);
+    total += std::fabs(exact);
   }
   EXPECT_LT(std::sqrt(squared_error / squared), 5e-4);
   // That bias is all the floor's error (no noise is left on direct light), so the estimated error
   // must hold it: the variate's own part (G over the coarse chords against the finer ones, scaled by
   // 1 / 63) joins the storage part. Without it the bound was 0.17 to 0.40 of the true error.
-  double absolute = 0.0;
-  double total = 0.0;
-  for (int j = 0; j < 400; ++j) {
-    const CurvePoint point = point_at_arc_length(scene, floor, (j + 0.5) * floor.length / 400);
-    const double exact = round_occluder_floor(scene, 1, point.position.x, 0.5);
-    absolute += std::fabs(solver.radiosity(2, Side::Front, point.u)[0] - exact);
-    total += std::fabs(exact);
-  }
   const ErrorEstimate estimate = estimate_error(solver, {0.95, 100});
   ASSERT_TRUE(estimate.available && estimate.bounded);
   EXPECT_LE(absolute / total, estimate.bound.l1);
@@ -143,7 +137,6 @@ TEST(ControlVariate, FollowsTheCurvesThePhotonsMeet) {
 TEST(ControlVariate, IsUnbiasedOnTheLitRing) {
   const Scene scene = testing::scene_from_text(ring_with_profile(2));
   const RingSolution exact = solve_ring(scene, 0.5);
-  const Curve& ring = scene.curves[0];
   const int seeds = 10;
   std::vector<double> a0, b1;
   for (int seed = 1; seed <= seeds; ++seed) {
@@ -154,28 +147,12 @@ TEST(ControlVariate, IsUnbiasedOnTheLitRing) {
     Solver solver = make_solver(scene, settings);
     solver.run();
     ASSERT_NE(solver.stop_reason(), StopReason::BooksUnbalanced) << solver.books_error();
-    double a = 0.0, b = 0.0;
-    const int steps = 2000;
-    for (int j = 0; j < steps; ++j) {
-      const double u = ring.segment_count * (j + 0.5) / steps;
-      const auto i = static_cast<std::uint32_t>(u);
-      const Cubic& shape = scene.segments[ring.first_segment + i].geometry.shape;
-      const Vec2 p = evaluate(shape, u - i);
-      const double dphi = cross(p, derivative(shape, u - i)) / dot(p, p) * ring.segment_count / steps;
-      const double phi = std::atan2(p.y, p.x);
-      const double value = solver.radiosity(0, Side::Front, u)[0];
-      a += value * dphi / std::numbers::pi;
-      b += value * std::sin(phi) * dphi / std::numbers::pi;
-    }
+    const auto [a, b] = ring_a0_b1(scene, [&](double u) { return solver.radiosity(0, Side::Front, u)[0]; });
     a0.push_back(a);
     b1.push_back(b);
   }
   auto check = [&](const std::vector<double>& values, double expected, const char* name) {
-    double mean = 0.0;
-    for (double v : values) mean += v / seeds;
-    double variance = 0.0;
-    for (double v : values) variance += (v - mean) * (v - mean) / (seeds - 1);
-    const double error = std::sqrt(variance / seeds);
+    const auto [mean, error] = mean_and_standard_error(values);
     EXPECT_LT(std::fabs(mean - expected), 5.0 * error + 1e-6 * std::fabs(exact.a[0]))
         << name << ": " << mean << " vs " << expected << " (standard error " << error << ")";
   };

@@ -1748,7 +1748,6 @@ TEST(Solver, SurvivalScoredWalksConserveEveryChannelsPower) { check_coloured_enc
 void check_lit_ring_by_walks(WalkScore score) {
   const Scene scene = testing::scene_from_text(ring_with_profile(2));
   const RingSolution exact = solve_ring(scene, 0.5);
-  const Curve& ring = scene.curves[0];
   const int seeds = 10;
   std::vector<double> a0, b1;
   for (int seed = 1; seed <= seeds; ++seed) {
@@ -1760,29 +1759,12 @@ void check_lit_ring_by_walks(WalkScore score) {
     settings.walk_score = score;
     Solver solver = make_solver(scene, settings);
     solver.run();
-    double a = 0.0, b = 0.0;
-    const int steps = 2000;
-    for (int j = 0; j < steps; ++j) {
-      // Midpoint rule in the curve parameter, dphi = cross(p, p') / |p|^2 du (as solve_ring).
-      const double u = ring.segment_count * (j + 0.5) / steps;
-      const auto i = static_cast<std::uint32_t>(u);
-      const Cubic& shape = scene.segments[ring.first_segment + i].geometry.shape;
-      const Vec2 p = evaluate(shape, u - i);
-      const double dphi = cross(p, derivative(shape, u - i)) / dot(p, p) * ring.segment_count / steps;
-      const double phi = std::atan2(p.y, p.x);
-      const double value = solver.radiosity(0, Side::Front, u)[0];
-      a += value * dphi / std::numbers::pi;
-      b += value * std::sin(phi) * dphi / std::numbers::pi;
-    }
+    const auto [a, b] = ring_a0_b1(scene, [&](double u) { return solver.radiosity(0, Side::Front, u)[0]; });
     a0.push_back(a);
     b1.push_back(b);
   }
   auto check = [&](const std::vector<double>& values, double expected, const char* name) {
-    double mean = 0.0;
-    for (double v : values) mean += v / seeds;
-    double variance = 0.0;
-    for (double v : values) variance += (v - mean) * (v - mean) / (seeds - 1);
-    const double error = std::sqrt(variance / seeds);
+    const auto [mean, error] = mean_and_standard_error(values);
     EXPECT_GT(error, 0.0) << name;
     EXPECT_LT(std::fabs(mean - expected), 5.0 * error + 1e-6 * std::fabs(exact.a[0]))
         << to_string(score) << " " << name << ": " << mean << " vs " << expected;
