@@ -187,6 +187,8 @@ void print_summary(const Solver& solver, const ErrorEstimate& estimate) {
                  "without photons; they shoot the signed difference it leaves, %.3g%% of the emitted power\n",
                  solver.control_variate_elements(), solver.control_variate_seconds(),
                  100.0 * solver.control_variate_source_fraction());
+  else if (!solver.control_variate_skipped().empty())
+    std::fprintf(out, "variate   no: %s (--control-variate auto)\n", solver.control_variate_skipped().c_str());
   const bool walks = settings.transport == Transport::Walk;
   char workers[64];
   if (process_count() > 1)

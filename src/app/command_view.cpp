@@ -13,6 +13,10 @@ CLI::App* add_view_command(CLI::App& parent, ViewCommandOptions& o) {
       "Open the interactive viewer: photon paths and the reconstructed illumination drawn live as the "
       "solve runs (docs/viewer.md; press F1 in the window for the keyboard shortcuts).");
   cmd->add_option("scene", o.solve.scene, "Scene file (JSON); the default scene when omitted");
+  // The viewer's own defaults (viewer_app.hpp: no control variate), shown as such by --help.
+  o.solve.settings = viewer::view_default_settings();
+  for (const SolveOptionSpec& spec : solve_options())
+    o.solve.text[spec.option] = solve_option_text(o.solve.settings, spec.option);
   add_solver_options(cmd, o.solve);
   cmd->add_option("--reference", o.reference,
                   "A reference result of the same scene (flatland reference --out): show the error "

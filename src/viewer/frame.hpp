@@ -178,6 +178,8 @@ struct Snapshot {
   // why --gather auto gathers nothing on this scene.
   bool estimate_gathered = false;
   std::string gather_skipped;
+  // Why --control-variate auto runs without the variate on this scene (empty where it runs it).
+  std::string variate_skipped;
   std::shared_ptr<const std::vector<std::array<std::vector<double>, 2>>> error_band;
   // Detector curves: per curve and side (the side the light arrives on), the power per unit
   // length that crossed each bin (empty for other curves).

@@ -268,19 +268,21 @@ void Viewer::draw_solve_panel(const Snapshot& snapshot) {
     settings_.elements = auto_elements ? kAutoElements : 16;
     changed = true;
   }
-  // The coarse control variate (--control-variate coarse), on the same line: the panel's height is
-  // the classroom's 720 pixels' budget. The solver refuses it by name where it does not apply.
+  // The coarse control variate (--control-variate auto when ticked, as solve's default; none when
+  // not), on the same line: the panel's height is the classroom's 720 pixels' budget. Where auto
+  // does without it, the estimated error's tooltip says why.
   ImGui::SameLine();
-  bool variate = settings_.control_variate == ControlVariate::Coarse;
+  bool variate = settings_.control_variate != ControlVariate::None;
   if (ImGui::Checkbox("coarse variate", &variate)) {
-    settings_.control_variate = variate ? ControlVariate::Coarse : ControlVariate::None;
+    settings_.control_variate = variate ? ControlVariate::Auto : ControlVariate::None;
     changed = true;
   }
   if (ImGui::IsItemHovered())
     ImGui::SetTooltip(
         "A control variate: a reference solve on coarse elements carries most of the light exactly,\n"
         "and the photons (of either sign) shoot only what it misses: far less noise for the same\n"
-        "photons (diffuse scenes, transport shooting, reconstructed origins, B-spline storage)");
+        "photons, where it applies (diffuse scenes, transport shooting, reconstructed origins,\n"
+        "B-spline storage; the estimated error's tooltip says where it does not)");
   if (!auto_elements) {
     int elements = settings_.elements;
     if (ImGui::SliderInt("elements", &elements, 1, 256, "%d", ImGuiSliderFlags_Logarithmic)) {
@@ -583,7 +585,7 @@ void Viewer::draw_status_panel(const Snapshot& snapshot) {
     if (ImGui::IsItemHovered())
       ImGui::SetTooltip(
           "Upper bound of the relative L1 error of B - E over the scene at %g %% confidence\n"
-          "noise %.2g %%, storage %s, unshot %.2g %%%s%s%s%s",
+          "noise %.2g %%, storage %s, unshot %.2g %%%s%s%s%s%s",
           100.0 * estimate.confidence, 100.0 * estimate.noise.l1,
           estimate.storage_estimated ? (format_number(100.0 * estimate.storage.l1, 2) + " %").c_str() : "not estimated",
           100.0 * estimate.unshot.l1,
@@ -593,6 +595,7 @@ void Viewer::draw_status_panel(const Snapshot& snapshot) {
                     .c_str()
               : "",
           snapshot.gather_skipped.empty() ? "" : ("\nno final gather: " + snapshot.gather_skipped).c_str(),
+          snapshot.variate_skipped.empty() ? "" : ("\nno control variate: " + snapshot.variate_skipped).c_str(),
           estimate.caveat.empty() ? "" : "\n", estimate.caveat.c_str());
     if (settings_.target_error > 0.0)
       ImGui::Text("target   %.2g %%%s", 100.0 * settings_.target_error,

@@ -275,6 +275,7 @@ void Session::publish(Solver* solver, const std::vector<PathRecord>& new_paths, 
     snapshot->estimated_error = estimated_error_;
     snapshot->estimate_gathered = estimate_gathered_;
     snapshot->gather_skipped = gather_skipped_;
+    snapshot->variate_skipped = solver->control_variate_skipped();
     snapshot->error_band = error_band_;
     if (reference) {
       // The error against the reference, at most about twice a second while running.

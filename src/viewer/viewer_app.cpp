@@ -23,6 +23,12 @@
 
 namespace flatland::viewer {
 
+SolverSettings view_default_settings() {
+  SolverSettings settings;
+  settings.control_variate = ControlVariate::None;
+  return settings;
+}
+
 using png::PngImage;
 using png::write_png;
 
@@ -758,7 +764,7 @@ std::string url_encoded(const std::string& text) {
 
 std::string Viewer::link_query() const {
   std::string query;
-  const SolverSettings defaults;
+  const SolverSettings defaults = view_default_settings();
   const SolverSettings& settings = settings_;
   for (const SolveOptionSpec& spec : solve_options()) {
     if (spec.option == SolveOption::Threads) continue;

@@ -22,10 +22,16 @@
 
 namespace flatland::viewer {
 
+// The viewer's solver settings before any option: the solver's defaults without the control
+// variate. The viewer is for watching photons carry the light; with the variate they carry a signed
+// correction to a coarse answer, from everywhere at once (the "coarse variate" box, or
+// --control-variate, turns it on).
+SolverSettings view_default_settings();
+
 struct ViewOptions {
   std::string scene;      // scene file; empty: the default scene
   std::string reference;  // a reference result to measure the error against (optional)
-  SolverSettings settings;
+  SolverSettings settings = view_default_settings();
   int width = 1280;
   int height = 800;
   int frames = 0;  // 0: until the window is closed

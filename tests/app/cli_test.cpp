@@ -515,16 +515,19 @@ std::vector<std::map<std::string, std::string>> csv_rows(const std::string& csv,
 // slope (the least-squares fit of its table rows) and puts it in the plot's legend.
 TEST_F(Cli, ConvergeMeasuresTheReflectedPartAndPrintsSlopes) {
   const fs::path out = directory_ / "reflected";
-  const CommandRun r = run("converge " + scene("penumbra.json") +
-                           " --methods constant+gather=none,linear+gather=none --budgets 2000,8000,32000 --seeds 2 "
-                           "--samples 20 --elements 16 --out " +
-                           out.string());
-  // (Without the final gather: gathered, the penumbra's B - E is exact at any budget.)
+  const CommandRun r =
+      run("converge " + scene("penumbra.json") +
+          " --methods constant+gather=none+control-variate=none,linear+gather=none+control-variate=none --budgets "
+          "2000,8000,32000 --seeds 2 "
+          "--samples 20 --elements 16 --out " +
+          out.string());
+  // (Without the final gather and the control variate: with either, the penumbra's B - E is exact
+  // at any budget.)
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const std::string csv = read_file(out / "convergence.csv");
-  EXPECT_EQ(csv_rows(csv, "constant+gather=none").size(), 6u);
+  EXPECT_EQ(csv_rows(csv, "constant+gather=none+control-variate=none").size(), 6u);
   std::vector<double> photons, errors;
-  for (auto& row : csv_rows(csv, "linear+gather=none")) {
+  for (auto& row : csv_rows(csv, "linear+gather=none+control-variate=none")) {
     EXPECT_EQ(row["measure"], "reflected");
     EXPECT_EQ(row["curve"], "");
     photons.push_back(std::stod(row["photons"]));
@@ -533,7 +536,7 @@ TEST_F(Cli, ConvergeMeasuresTheReflectedPartAndPrintsSlopes) {
   ASSERT_EQ(photons.size(), 6u);
   // The printed slope of linear against photons is the fit of its rows.
   EXPECT_NE(r.out.find("observed slopes of the relative L2 error of B - E"), std::string::npos) << r.out;
-  const std::size_t at = r.out.find("  linear+gather=none ");
+  const std::size_t at = r.out.find("  linear+gather=none+control-variate=none ");
   ASSERT_NE(at, std::string::npos) << r.out;
   std::istringstream printed(r.out.substr(at));
   std::string name;
@@ -543,7 +546,7 @@ TEST_F(Cli, ConvergeMeasuresTheReflectedPartAndPrintsSlopes) {
   EXPECT_LT(slope_photons, -0.2) << r.out;  // the noise falls with the photons
   const std::string script = read_file(out / "convergence.gp");
   EXPECT_NE(script.find("relative L2 error of B - E"), std::string::npos) << script;
-  EXPECT_NE(script.find("'linear: slope "), std::string::npos) << script;  // gather=none is shared
+  EXPECT_NE(script.find("'linear: slope "), std::string::npos) << script;  // the rest is shared
   EXPECT_NE(script.find(" vs photons'"), std::string::npos) << script;
   // --replot prints the same slopes from the table.
   const CommandRun replot = run("converge " + scene("penumbra.json") + " --replot --out " + out.string());
@@ -554,12 +557,12 @@ TEST_F(Cli, ConvergeMeasuresTheReflectedPartAndPrintsSlopes) {
   // scene's B - E, so the same errors as above, seed for seed.
   const fs::path receiver = directory_ / "receiver";
   const CommandRun one = run("converge " + scene("penumbra.json") +
-                             " --methods linear+gather=none --budgets 2000,8000,32000 --seeds 2 --samples 20 "
-                             "--elements 16 --curve receiver --out " +
+                             " --methods linear+gather=none+control-variate=none --budgets 2000,8000,32000 --seeds 2 "
+                             "--samples 20 --elements 16 --curve receiver --out " +
                              receiver.string());
   ASSERT_EQ(one.exit_code, 0) << one.err;
   std::vector<double> receiver_errors;
-  for (auto& row : csv_rows(read_file(receiver / "convergence.csv"), "linear+gather=none")) {
+  for (auto& row : csv_rows(read_file(receiver / "convergence.csv"), "linear+gather=none+control-variate=none")) {
     EXPECT_EQ(row["measure"], "reflected");
     EXPECT_EQ(row["curve"], "receiver");
     receiver_errors.push_back(std::stod(row["rel_l2"]));
@@ -606,6 +609,34 @@ TEST_F(Cli, FailedWriteLeavesNoFile) {
   EXPECT_NE(r.err.find("no-such-dir"), std::string::npos) << r.err;
 }
 
+// The control variate is auto by default in solve (coarse where it applies, none elsewhere with
+// the reason in the summary and the result), and none by default in the viewer, whose photons show
+// the light's way.
+TEST_F(Cli, ControlVariateIsAutoInSolveAndNoneInTheViewer) {
+  const fs::path used = directory_ / "used.json";
+  CommandRun r = run("solve " + scene("default.json") + " --photons 20000 --out " + used.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("variate   a coarse reference's answer"), std::string::npos) << r.out;
+  EXPECT_EQ(nlohmann::json::parse(read_file(used))["settings"]["control_variate"]["kind"], "coarse");
+  const fs::path skipped = directory_ / "skipped.json";
+  r = run("solve " + scene("mirror_room.json") + " --photons 20000 --out " + skipped.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("variate   no: coarse needs diffuse surfaces only, and curve 'mirror' is a mirror "
+                       "(--control-variate auto)"),
+            std::string::npos)
+      << r.out;
+  const nlohmann::json variate = nlohmann::json::parse(read_file(skipped))["settings"]["control_variate"];
+  EXPECT_EQ(variate["kind"], "none");
+  EXPECT_NE(variate["skipped"].get<std::string>().find("is a mirror"), std::string::npos) << variate;
+  const fs::path none = directory_ / "none.json";
+  r = run("solve " + scene("default.json") + " --photons 20000 --control-variate none --out " + none.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.out.find("variate "), std::string::npos) << r.out;
+  EXPECT_FALSE(nlohmann::json::parse(read_file(none))["settings"].contains("control_variate"));
+  EXPECT_NE(run("solve --help").out.find("none|coarse|auto=auto"), std::string::npos);
+  EXPECT_NE(run("view --help").out.find("none|coarse|auto=none"), std::string::npos);
+}
+
 // The estimated error where people look: the summary, the result's stats, compare beside the true
 // errors; and solving to an accuracy says what ended the solve.
 TEST_F(Cli, SolveReportsItsEstimatedErrorAndReachesATarget) {
@@ -628,11 +659,16 @@ TEST_F(Cli, SolveReportsItsEstimatedErrorAndReachesATarget) {
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.out.find("stopped   target error reached"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("target    1 % reached"), std::string::npos) << r.out;
-  r = run("solve " + scene("penumbra.json") + " --photons 20000 --target-error 1e-6 --gather none");
+  r = run("solve " + scene("penumbra.json") +
+          " --photons 20000 --target-error 1e-6 --gather none --control-variate none");
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.out.find("not reached: photon budget spent first"), std::string::npos) << r.out;
-  // Gathered (the default), the penumbra's reflected light is direct only, and exact: the same
-  // target is reached at once.
+  // With the control variate (auto, the default) the penumbra's reflected light, direct only, is
+  // the coarse answer's exact transport, and ...
+  r = run("solve " + scene("penumbra.json") + " --photons 20000 --target-error 1e-6 --gather none");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("target    0.0001 % reached"), std::string::npos) << r.out;
+  // ... gathered (the default), it is exact too: the same target is reached at once.
   r = run("solve " + scene("penumbra.json") + " --photons 20000 --target-error 1e-6");
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.out.find("target    0.0001 % reached"), std::string::npos) << r.out;

@@ -227,5 +227,70 @@ TEST(ControlVariate, RefusesWhatItCannotCarry) {
   refused(testing::scene_from_file("scenes2d/prism.json"), variate_settings(), "spectra");
 }
 
+// --control-variate auto (the default of create_solver's callers): the variate where it applies,
+// with the bits of asking for it; elsewhere none, with the bits of asking for none and the refusal
+// that coarse would give as its reason (without the file name and the advice to do without).
+TEST(ControlVariate, AutoUsesItWhereItAppliesAndSaysWhyNotElsewhere) {
+  const Scene room = testing::scene_from_file("scenes2d/default.json");
+  const Scene mirrors = testing::scene_from_file("scenes2d/mirror_room.json");
+  const auto solved = [](const Scene& scene, SolverSettings settings, ControlVariate variate) {
+    settings.control_variate = variate;
+    Result<Solver> solver = create_solver(scene, settings);
+    EXPECT_TRUE(solver.ok()) << (solver.ok() ? "" : solver.error().message);
+    solver->run();
+    return std::move(*solver);
+  };
+  SolverSettings settings;
+  EXPECT_EQ(settings.control_variate, ControlVariate::Auto);  // the default
+  settings.photons = 20'000;
+  const auto check = [&](const Scene& scene, const SolverSettings& s, ControlVariate chosen, const std::string& words) {
+    const Solver automatic = solved(scene, s, ControlVariate::Auto);
+    const Solver asked = solved(scene, s, chosen);
+    EXPECT_EQ(automatic.settings().control_variate, chosen) << words;
+    EXPECT_EQ(testing::solution_data(automatic), testing::solution_data(asked)) << words;
+    EXPECT_EQ(automatic.control_variate_skipped().empty(), words.empty()) << automatic.control_variate_skipped();
+    EXPECT_NE(automatic.control_variate_skipped().find(words), std::string::npos)
+        << automatic.control_variate_skipped();
+    EXPECT_EQ(automatic.control_variate_skipped().find(scene.source), std::string::npos);
+    EXPECT_EQ(automatic.control_variate_skipped().find("without the control variate"), std::string::npos);
+  };
+  check(room, settings, ControlVariate::Coarse, "");
+  check(mirrors, settings, ControlVariate::None, "curve 'mirror' is a mirror");
+  SolverSettings other = settings;
+  other.transport = Transport::Walk;
+  check(room, other, ControlVariate::None, "transport walk");
+  other = settings;
+  other.basis = BasisKind::Hermite;
+  check(room, other, ControlVariate::None, "Hermite");
+  // Solver::create alone, with no coarse answer, runs auto as none.
+  Result<Solver> plain = Solver::create(room, settings);
+  ASSERT_TRUE(plain.ok());
+  EXPECT_EQ(plain->settings().control_variate, ControlVariate::None);
+}
+
+// Auto's bound on the set-up: the projection's point-chord pairs grow with the storage (here its
+// elements per curve) and are checked before any work; above the bound, the reason says so and
+// coarse takes it all the same. The bound grows with the photons (three times their own time).
+TEST(ControlVariate, AutoSkipsASetUpAboveItsBound) {
+  const Scene room = testing::scene_from_file("scenes2d/curved_room.json");
+  SolverSettings settings;
+  settings.photons = 10'000;
+  settings.elements = 16;
+  const double small = control_variate_work(room, settings);
+  EXPECT_GT(small, 0.0);
+  EXPECT_LT(small, kAutoControlVariateWork);
+  EXPECT_EQ(control_variate_auto_skip(room, settings), "");
+  settings.elements = 16 * 1024;
+  const double large = control_variate_work(room, settings);
+  EXPECT_GT(large, 500.0 * small);  // the pairs grow as the spans
+  ASSERT_GT(large, kAutoControlVariateWork);
+  const std::string reason = control_variate_auto_skip(room, settings);
+  EXPECT_NE(reason.find("point-chord pairs"), std::string::npos) << reason;
+  settings.photons = static_cast<std::uint64_t>(std::ceil(large / kAutoControlVariateWorkPerPhoton));
+  EXPECT_EQ(control_variate_auto_skip(room, settings), "");
+  settings.control_variate = ControlVariate::Coarse;
+  EXPECT_TRUE(check_solver_settings(room, settings).ok());
+}
+
 }  // namespace
 }  // namespace flatland

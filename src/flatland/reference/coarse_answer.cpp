@@ -218,8 +218,61 @@ Status check_coarse_size(const Scene& scene, const ReferenceSettings& settings) 
 
 Status check_solver_settings(const Scene& scene, const SolverSettings& settings) {
   if (Status status = Solver::check_settings_on(scene, settings); !status) return status;
-  if (settings.control_variate == ControlVariate::None) return ok_status();
+  if (settings.control_variate != ControlVariate::Coarse) return ok_status();
   return check_coarse_size(scene, coarse_reference_settings(scene, 1, nullptr));
+}
+
+double control_variate_work(const Scene& scene, const SolverSettings& settings) {
+  // Chords: a line's coarse elements, a cubic segment's split kGatherSplit-fold, plus the coarse
+  // chords themselves where the scene has cubics (the error part's second sweep).
+  const std::vector<double> counts = reference_element_counts(scene, coarse_reference_settings(scene, 1, nullptr));
+  double chords = 0.0;
+  double coarse = 0.0;
+  for (std::size_t s = 0; s < counts.size(); ++s) {
+    chords += counts[s] * (scene.segments[s].geometry.kind == SegmentKind::Line ? 1.0 : ReferenceAnswer::kGatherSplit);
+    coarse += counts[s];
+  }
+  if (scene.has_cubics()) chords += coarse;
+  return Solver::coefficient_bound(scene, settings) * static_cast<double>(gauss::kNodes8.size()) * chords;
+}
+
+namespace {
+
+// A refusal of --control-variate coarse as auto's reason: without the scene's file name and the
+// option's name, which the report prints beside it, and without the advice after the last "; "
+// ("use ...", "solve ..."), which is to do what auto does.
+std::string auto_reason(const Scene& scene, std::string message) {
+  if (message.rfind(scene.source + ": ", 0) == 0) message.erase(0, scene.source.size() + 2);
+  if (const std::string option = "control variate: "; message.rfind(option, 0) == 0) message.erase(0, option.size());
+  if (const std::size_t advice = message.rfind("; ");
+      advice != std::string::npos &&
+      (message.compare(advice + 2, 4, "use ") == 0 || message.compare(advice + 2, 6, "solve ") == 0))
+    message.resize(advice);
+  return message;
+}
+
+}  // namespace
+
+std::string control_variate_auto_skip(const Scene& scene, const SolverSettings& settings) {
+  SolverSettings coarse = settings;
+  coarse.control_variate = ControlVariate::Coarse;
+  if (Status status = validate(coarse); !status) return auto_reason(scene, status.error().message);
+  if (Status status = check_control_variate(scene); !status) return auto_reason(scene, status.error().message);
+  const ReferenceSettings reference = coarse_reference_settings(scene, 1, nullptr);
+  if (Status status = check_coarse_size(scene, reference); !status) return auto_reason(scene, status.error().message);
+  const double work = control_variate_work(scene, coarse);
+  const double budget =
+      std::max(kAutoControlVariateWork, kAutoControlVariateWorkPerPhoton * static_cast<double>(settings.photons));
+  if (work > budget) {
+    char text[320];
+    std::snprintf(
+        text, sizeof text,
+        "its projection would sweep %.3g point-chord pairs, more than auto spends (%.3g: about two "
+        "seconds on two cores, or three times the photons' own); --control-variate coarse uses it all the same",
+        work, budget);
+    return text;
+  }
+  return {};
 }
 
 Result<std::shared_ptr<const CoarseAnswer>> solve_coarse_answer(const Scene& scene, unsigned threads,
@@ -239,6 +292,13 @@ Result<Solver> create_solver(const Scene& scene, const SolverSettings& settings,
   if (settings.control_variate == ControlVariate::None) return Solver::create(scene, settings, cancel);
   // Settings and scene first, as Solver::create checks them, before the coarse solve's work.
   if (Status status = Solver::check_settings_on(scene, settings); !status) return status.error();
+  if (settings.control_variate == ControlVariate::Auto) {
+    if (std::string skipped = control_variate_auto_skip(scene, settings); !skipped.empty()) {
+      Result<Solver> solver = Solver::create(scene, settings, cancel);
+      if (solver) solver->set_control_variate_skipped(std::move(skipped));
+      return solver;
+    }
+  }
   const unsigned threads = settings.threads != 0 ? settings.threads : std::max(1u, std::thread::hardware_concurrency());
   Result<std::shared_ptr<const CoarseAnswer>> coarse = solve_coarse_answer(scene, threads, cancel);
   if (!coarse) return coarse.error();

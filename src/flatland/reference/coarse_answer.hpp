@@ -5,6 +5,7 @@
 #include <atomic>
 #include <cstddef>
 #include <memory>
+#include <string>
 
 #include "flatland/base/status.hpp"
 #include "flatland/reference/reference.hpp"
@@ -17,6 +18,17 @@ namespace flatland {
 // The most elements the coarse reference may have: its form factors take time that grows as the
 // square of their number (a few seconds for 3,000 on two cores).
 inline constexpr std::size_t kControlVariateMaxElements = 3000;
+
+// --control-variate auto's bound on the variate's set-up, in point-chord pairs: the projection
+// visits 8 Gauss points on every storage span and sweeps, at each, the chords G is gathered over
+// and the coarse chords (its error part). Measured on the curved room (2 cores): about 2e-8 s a
+// pair, so that kAutoControlVariateWork is about two seconds (the final gather's auto budget), and
+// kAutoControlVariateWorkPerPhoton times the photons about three times their own time (2e-7 s a
+// photon at 5 M photons/s); auto spends the larger. The variate lowers the error 20- to 4,000-fold
+// (docs/family.md), so that a set-up of three times the photons' time still gains a hundredfold
+// in efficiency.
+inline constexpr double kAutoControlVariateWork = 1e8;
+inline constexpr double kAutoControlVariateWorkPerPhoton = 30.0;
 
 // The coarse reference's settings for `scene`: elements at most kControlVariateFraction of its size.
 ReferenceSettings coarse_reference_settings(const Scene& scene, unsigned threads, const std::atomic<bool>* cancel);
@@ -31,8 +43,18 @@ Result<std::shared_ptr<const CoarseAnswer>> solve_coarse_answer(const Scene& sce
 // and with the control variate, a coarse reference of more than kControlVariateMaxElements.
 Status check_solver_settings(const Scene& scene, const SolverSettings& settings);
 
+// The point-chord pairs the variate's projection would sweep for `settings` on `scene` (from the
+// storage's coefficient bound, so from above).
+double control_variate_work(const Scene& scene, const SolverSettings& settings);
+
+// Why --control-variate auto solves `scene` with `settings` without the variate: the settings or
+// the scene it refuses (its refusal, by name), or a set-up above both kAutoControlVariateWork and
+// kAutoControlVariateWorkPerPhoton times the photons, or above kControlVariateMaxElements. Empty where auto uses it.
+std::string control_variate_auto_skip(const Scene& scene, const SolverSettings& settings);
+
 // Solver::create, with the coarse answer solved first when the settings ask for the control
-// variate: what every front end calls.
+// variate (coarse, or auto where control_variate_auto_skip is empty; otherwise the solver keeps the
+// reason in control_variate_skipped()): what every front end calls.
 Result<Solver> create_solver(const Scene& scene, const SolverSettings& settings,
                              const std::atomic<bool>* cancel = nullptr);
 

@@ -313,13 +313,21 @@ void ReferenceSolution::set_element_radiosity(std::array<std::vector<double>, 3>
   radiosity_ = std::move(radiosity);
 }
 
-double reference_element_count(const Scene& scene, const ReferenceSettings& settings) {
+std::vector<double> reference_element_counts(const Scene& scene, const ReferenceSettings& settings) {
   const double max_length = settings.max_element_length > 0.0 ? settings.max_element_length : scene.scale / 400.0;
-  double count = 0.0;
-  for (const std::vector<double>& b : element_boundaries(scene, max_length)) {
-    if (!std::isfinite(b.back())) return INFINITY;
-    count += static_cast<double>(b.size() - 1);
+  std::vector<double> counts(scene.segments.size(), 0.0);
+  const std::vector<std::vector<double>> boundaries = element_boundaries(scene, max_length);
+  for (std::size_t s = 0; s < boundaries.size(); ++s) {
+    const std::vector<double>& b = boundaries[s];
+    if (b.empty()) continue;  // after a segment marked unbounded
+    counts[s] = std::isfinite(b.back()) ? static_cast<double>(b.size() - 1) : INFINITY;
   }
+  return counts;
+}
+
+double reference_element_count(const Scene& scene, const ReferenceSettings& settings) {
+  double count = 0.0;
+  for (const double n : reference_element_counts(scene, settings)) count += n;
   return count;
 }
 

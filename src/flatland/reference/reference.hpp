@@ -227,6 +227,9 @@ class ReferenceSolution {
 // The number of elements solve_reference makes of the scene with these settings (a double: it
 // may be far beyond any integer type for a tiny element length).
 double reference_element_count(const Scene& scene, const ReferenceSettings& settings);
+// The same per segment (INFINITY on a segment that would have too many to count; a segment after it
+// counts 0).
+std::vector<double> reference_element_counts(const Scene& scene, const ReferenceSettings& settings);
 
 Result<ReferenceSolution> solve_reference(const Scene& scene, const ReferenceSettings& settings);
 // The reference's elements and mirrors without form factors or a solve (element radiosity b = e,

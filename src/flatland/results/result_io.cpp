@@ -72,12 +72,15 @@ nlohmann::json result_without_curves(const Solver& solver, int samples_per_curve
   };
   // What a walk tallied; shooting has no such choice.
   if (settings.transport == Transport::Walk) result["settings"]["walk_score"] = to_string(settings.walk_score);
-  // The control variate, where one was used (absent: none): its coarse reference's elements and the
-  // power its photons started from (the magnitude of D) over the emitted power.
+  // The control variate, where one was used: its coarse reference's elements and the power its
+  // photons started from (the magnitude of D) over the emitted power; where auto chose none, why;
+  // absent where none was asked for.
   if (settings.control_variate != ControlVariate::None)
     result["settings"]["control_variate"] = {{"kind", to_string(settings.control_variate)},
                                              {"coarse_elements", solver.control_variate_elements()},
                                              {"source_fraction", solver.control_variate_source_fraction()}};
+  else if (!solver.control_variate_skipped().empty())
+    result["settings"]["control_variate"] = {{"kind", "none"}, {"skipped", solver.control_variate_skipped()}};
   // The region that importance favoured, and the adjoint solve's photons; absent without one.
   if (!settings.importance.empty())
     result["settings"]["importance"] = {{"curves", settings.importance},

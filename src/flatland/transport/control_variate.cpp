@@ -33,7 +33,7 @@ Status check_control_variate(const Scene& scene) {
 void project_control_variate(const CoarseAnswer& coarse, const Scene& scene, const SceneStorage& storage,
                              std::uint32_t curve_index, const std::vector<double>& emission,
                              std::vector<double>& received, std::vector<double>& source,
-                             std::vector<double>* coarse_received) {
+                             std::vector<double>* coarse_received, const std::atomic<bool>* cancel) {
   const Curve& curve = scene.curves[curve_index];
   const auto channels = static_cast<std::size_t>(scene.channels);
   std::array<std::uint32_t, 2> offsets{};
@@ -55,6 +55,8 @@ void project_control_variate(const CoarseAnswer& coarse, const Scene& scene, con
   std::uint32_t cached_segment = 0xffffffffu;
   std::vector<double> ends;  // the cached segment's element ends, in t
   for (std::size_t k = basis.first_span(); k < basis.end_span(); ++k) {
+    // A span costs a few sweeps of the chords: the cancel is checked every 64.
+    if (cancel != nullptr && (k & 63u) == 0 && cancel->load(std::memory_order_relaxed)) return;
     const double a = knots[k];
     const double b = knots[k + 1];
     if (!(b > a)) continue;

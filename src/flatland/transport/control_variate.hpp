@@ -26,6 +26,7 @@
 #pragma once
 
 #include <array>
+#include <atomic>
 #include <cstddef>
 #include <cstdint>
 #include <vector>
@@ -75,9 +76,11 @@ Status check_control_variate(const Scene& scene);
 // Curve `curve`'s coefficients of g (`received`) and d (`source`), finest layout (per coefficient
 // and channel), from `emission` (e_k, the same layout); with `coarse_received`, also g over the
 // coarser model (coarse_irradiance). Writes only that curve's coefficients, so curves may be done on
-// different threads.
+// different threads. Once `cancel` is set it returns, the coefficients unfinished (the caller
+// discards them).
 void project_control_variate(const CoarseAnswer& coarse, const Scene& scene, const SceneStorage& storage,
                              std::uint32_t curve, const std::vector<double>& emission, std::vector<double>& received,
-                             std::vector<double>& source, std::vector<double>* coarse_received = nullptr);
+                             std::vector<double>& source, std::vector<double>* coarse_received = nullptr,
+                             const std::atomic<bool>* cancel = nullptr);
 
 }  // namespace flatland

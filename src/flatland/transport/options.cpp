@@ -71,12 +71,14 @@ const std::vector<SolveOptionSpec>& table() {
        "shooting only): each round's photons go to the sources by their unshot power times the square root "
        "of their importance for those curves, from a short solve of the adjoint scene; the same expected answer everywhere, less "
        "noise on those curves and more elsewhere (docs/method.md, Importance)"},
-      {SolveOption::ControlVariate, "control variate", "control-variate", "control_variate", {"none", "coarse"}, "",
-       "none, or coarse: a deterministic reference solve on coarse elements (a 50th of the scene's size) gives "
-       "an answer whose transport is added exactly, and the photons shoot only the signed difference it leaves, a "
-       "few per cent of the light (transport shooting with reconstructed origins on constant, linear or cubic "
-       "storage; diffuse scenes: no mirrors, glass, detectors or spectra; docs/method.md, A coarse answer as "
-       "control variate)"},
+      {SolveOption::ControlVariate, "control variate", "control-variate", "control_variate", {"none", "coarse", "auto"},
+       "",
+       "none, coarse or auto. coarse: a deterministic reference solve on coarse elements (a 50th of the scene's size) "
+       "gives an answer whose transport is added exactly, and the photons shoot only the signed difference it "
+       "leaves, a few per cent of the light (transport shooting with reconstructed origins on constant, linear or "
+       "cubic storage; diffuse scenes: no mirrors, glass, detectors or spectra; docs/method.md, A coarse answer as "
+       "control variate). auto: coarse where the scene and the other settings allow it and its set-up costs at "
+       "most about two seconds on two cores, none elsewhere, saying why"},
       {SolveOption::RayWidth, "ray width", "ray-width", "ray_width", {}, "W",
        "Width of extended rays in scene units (0: point rays, no extended-ray code runs)"},
       {SolveOption::RayProfile, "ray profile", "ray-profile", "ray_profile",

@@ -56,7 +56,9 @@ const char* to_string(GatherMode gather) {
   return gather == GatherMode::None ? "none" : gather == GatherMode::Samples ? "samples" : "auto";
 }
 
-const char* to_string(ControlVariate variate) { return variate == ControlVariate::None ? "none" : "coarse"; }
+const char* to_string(ControlVariate variate) {
+  return variate == ControlVariate::None ? "none" : variate == ControlVariate::Coarse ? "coarse" : "auto";
+}
 
 const char* to_string(PositionSampling sampling) {
   return sampling == PositionSampling::Uniform ? "uniform" : "reconstructed";

@@ -100,8 +100,11 @@ const char* to_string(GatherMode gather);
 // variate"): None, or Coarse: a deterministic reference solve on coarse constant elements (at most
 // kControlVariateFraction of the scene's size long) gives b_c; its transport G = K b_c is added to
 // the received power exactly, and the photons shoot only the signed difference D = E + rho G - b_c
-// (with its reflections), which carries a few per cent of the emitted power.
-enum class ControlVariate { None, Coarse };
+// (with its reflections), which carries a few per cent of the emitted power. Auto: Coarse where the
+// scene and the other settings allow it at a bounded cost, None elsewhere, saying why
+// (reference/coarse_answer.hpp's create_solver decides; Solver::create alone runs Auto as Coarse
+// when it is given a coarse answer and as None without one).
+enum class ControlVariate { None, Coarse, Auto };
 const char* to_string(ControlVariate variate);
 inline constexpr double kControlVariateFraction = 1.0 / 50.0;
 // Walks are refused where a side reflects more than this: a walk would average over 1000 rays,
@@ -199,9 +202,9 @@ struct SolverSettings {
   // What a walk tallies (Transport::Walk only; shooting refuses any score but collision).
   WalkScore walk_score = WalkScore::Collision;
   GatherMode gather = GatherMode::Auto;
-  // Progressive shooting of what a coarse reference's answer leaves (ControlVariate::Coarse), or
-  // of all the light (None).
-  ControlVariate control_variate = ControlVariate::None;
+  // Progressive shooting of what a coarse reference's answer leaves (ControlVariate::Coarse), of
+  // all the light (None), or the first where it applies (Auto).
+  ControlVariate control_variate = ControlVariate::Auto;
   // Importance (shooting only): the ids of the curves whose light matters most. Empty: none. Each
   // round's photons are shared among the curve sides by their unshot power times the side's
   // importance for those curves, found by a short solve of the adjoint scene (Solver,

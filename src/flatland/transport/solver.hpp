@@ -95,7 +95,8 @@ class Solver {
   // `cancel` is checked between the curves' storage levels (building them all for a large budget
   // takes a moment): once it is set, create returns the error kSolverCancelled.
   // With settings.control_variate coarse, `coarse` is the coarse answer (reference/coarse_answer.hpp's
-  // create_solver solves it and calls this).
+  // create_solver solves it and calls this); with auto, the solver runs coarse when it is given one
+  // and none without (settings().control_variate says which).
   static Result<Solver> create(const Scene& scene, const SolverSettings& settings,
                                const std::atomic<bool>* cancel = nullptr,
                                std::shared_ptr<const CoarseAnswer> coarse = nullptr);
@@ -253,6 +254,14 @@ class Solver {
   const std::vector<double>& control_variate_bias() const { return variate_bias_; }
   // The magnitude of the difference D the photons start from (sum of |d_k|) over the emitted power.
   double control_variate_source_fraction() const { return variate_source_fraction_; }
+  // Why --control-variate auto runs without the variate (empty where it runs it, or was not asked
+  // for auto): create_solver's reason, reported by every front end.
+  const std::string& control_variate_skipped() const { return variate_skipped_; }
+  void set_control_variate_skipped(std::string reason) { variate_skipped_ = std::move(reason); }
+
+  // The storage coefficients (the finest level's, over every side that stores light, one channel)
+  // that create would make at most: what a caller sizes work by before building anything.
+  static double coefficient_bound(const Scene& scene, const SolverSettings& settings);
 
   // What Solver::create refuses of `settings` on `scene` without building anything (the scene's
   // optics, spectra and emitters against the transport and storage, and the curves importance
@@ -275,7 +284,7 @@ class Solver {
                                                  const std::atomic<bool>* cancel);
   // The power the emitters put on each coefficient (E times the basis integrals), the emitted
   // books, and the transport that starts from it.
-  Status start_transport();
+  Status start_transport(const std::atomic<bool>* cancel);
 
   LightTransport& transport() {
     return std::visit([](auto& t) -> LightTransport& { return t; }, transport_);
@@ -301,7 +310,7 @@ class Solver {
   // a share of what the photons carry as without it).
   double tolerance_power() const { return signed_pool_ ? variate_source_fraction_ * emitted_total_ : emitted_total_; }
 
-  Status start_control_variate(std::vector<double>& emission);
+  Status start_control_variate(std::vector<double>& emission, const std::atomic<bool>* cancel);
   // Every estimate's received power and replicates' parts before any photon: g (and g / R each), or
   // zero.
   void start_received();
@@ -459,6 +468,7 @@ class Solver {
   std::size_t variate_elements_ = 0;
   double variate_seconds_ = 0.0;
   double variate_source_fraction_ = 0.0;
+  std::string variate_skipped_;
   bool round_open_ = false;
   std::uint64_t round_done_ = 0;          // photons of the open round shot so far
   std::vector<Deposits> round_deposits_;  // per worker thread, for the open round

@@ -28,7 +28,8 @@ namespace {
 // its knots, basis integral, origin sampler and source weight (about 160 bytes). A curve's segments share its elements,
 // at least one each (at most elements + segments); the regions between event nodes round their shares up, so that a
 // curve has at most twice that many, plus per segment a joint of multiplicity up to the degree + 1.
-Status check_memory(const Scene& scene, const SolverSettings& settings, const StoragePlan& plan, unsigned threads) {
+// The coefficients' bound above (all sides, one channel), and the most elements any curve is given.
+double coefficient_bound(const Scene& scene, const StoragePlan& plan, int* most_elements = nullptr) {
   double coefficients = 0.0;
   int most = 0;  // elements a curve, the most any curve is given
   for (std::size_t c = 0; c < scene.curves.size(); ++c) {
@@ -46,6 +47,13 @@ Status check_memory(const Scene& scene, const SolverSettings& settings, const St
     coefficients +=
         sides * (2.0 * (static_cast<double>(elements) + curve.segment_count) + 4.0 * curve.segment_count + 4.0);
   }
+  if (most_elements != nullptr) *most_elements = most;
+  return coefficients;
+}
+
+Status check_memory(const Scene& scene, const SolverSettings& settings, const StoragePlan& plan, unsigned threads) {
+  int most = 0;
+  const double coefficients = coefficient_bound(scene, plan, &most);
   const double replicates = settings.replicates;
   const double per_coefficient = scene.channels * 8.0 * (4.0 + replicates * (1.0 + threads)) + 160.0;
   const double bytes = coefficients * per_coefficient + 2048.0 * static_cast<double>(scene.segments.size());
@@ -208,7 +216,7 @@ void Solver::count_node_sources(const std::vector<std::vector<MeshNode>>& events
   }
 }
 
-Status Solver::start_transport() {
+Status Solver::start_transport(const std::atomic<bool>* cancel) {
   const Scene& scene = *scene_;
   const auto channels = static_cast<std::size_t>(channels_);
   const std::size_t size = storage_.coefficient_count() * channels;
@@ -253,7 +261,7 @@ Status Solver::start_transport() {
   if (!(emitted_total_ > 0.0))
     return Error{scene.source + ": no curve emits light (give a material or curve an emittance > 0)"};
   if (settings_.control_variate == ControlVariate::Coarse)
-    if (Status status = start_control_variate(emission); !status) return status;
+    if (Status status = start_control_variate(emission, cancel); !status) return status;
   if (settings_.transport == Transport::Walk) {
     Result<RandomWalks> walks = RandomWalks::create(scene, std::move(emission), settings_.walk_score);
     if (!walks) return walks.error();
@@ -329,7 +337,7 @@ void Solver::add_coarse_nodes(std::vector<std::vector<MeshNode>>& events) {
   }
 }
 
-Status Solver::start_control_variate(std::vector<double>& emission) {
+Status Solver::start_control_variate(std::vector<double>& emission, const std::atomic<bool>* cancel) {
   const auto start = std::chrono::steady_clock::now();
   const std::shared_ptr<const CoarseAnswer> coarse = std::move(coarse_);
   const std::size_t size = emission.size();
@@ -342,12 +350,13 @@ Status Solver::start_control_variate(std::vector<double>& emission) {
   // on the split): a sweep at every quadrature point is most of the variate's set-up.
   const auto project = [&](std::size_t c) {
     project_control_variate(*coarse, *scene_, storage_, static_cast<std::uint32_t>(c), emission, variate_received_,
-                            source, modelled ? &coarse_received : nullptr);
+                            source, modelled ? &coarse_received : nullptr, cancel);
   };
   if (threads_ > 1)
     worker_pool().for_each(scene_->curves.size(), project);
   else
     for (std::size_t c = 0; c < scene_->curves.size(); ++c) project(c);
+  if (cancel != nullptr && cancel->load()) return Error{kSolverCancelled};
   // The finer chords' error is the coarse ones' over the model ratio r: g_coarse - g is (r - 1) times
   // it, where both errors scale alike. D carries rho times it too, and the photons pass it on: its
   // later bounces multiply it about as the scene multiplies light (the coarse answer's power over
@@ -381,6 +390,10 @@ Status Solver::start_control_variate(std::vector<double>& emission) {
   return ok_status();
 }
 
+double Solver::coefficient_bound(const Scene& scene, const SolverSettings& settings) {
+  return flatland::coefficient_bound(scene, plan_storage(scene, settings));
+}
+
 Status Solver::check_settings_on(const Scene& scene, const SolverSettings& settings) {
   if (Status status = check_scene(scene, settings); !status) return status;
   if (Result<std::vector<std::uint32_t>> region = importance_curves(scene, settings); !region) return region.error();
@@ -398,6 +411,9 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
   solver.scene_ = &scene;
   solver.settings_ = settings;
   solver.settings_.estimator = resolve_estimator(settings.estimator, settings.basis);
+  // Auto is create_solver's choice, made before this call: given a coarse answer it chose Coarse.
+  if (settings.control_variate == ControlVariate::Auto)
+    solver.settings_.control_variate = coarse != nullptr ? ControlVariate::Coarse : ControlVariate::None;
   solver.channels_ = scene.channels;
   solver.threads_ = settings.threads != 0 ? settings.threads : std::max(1u, std::thread::hardware_concurrency());
   solver.auto_storage_ = settings.elements == kAutoElements;
@@ -413,7 +429,7 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
   std::vector<std::vector<MeshNode>> events = solver.find_events(accelerator, plan, walls, cancel);
   if (cancelled()) return Error{kSolverCancelled};
   // The coarse control variate's elements' ends as storage nodes.
-  if (settings.control_variate == ControlVariate::Coarse) {
+  if (solver.settings_.control_variate == ControlVariate::Coarse) {
     if (coarse == nullptr)
       return Error{
           "control variate: coarse needs the coarse reference's answer; create the solver with "
@@ -438,7 +454,7 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
     solver.importance_seconds_ = importance->seconds;
   }
   // 5. The transport, starting from the emitted power, and the footprints' tables.
-  if (Status status = solver.start_transport(); !status) return status.error();
+  if (Status status = solver.start_transport(cancel); !status) return status.error();
   if (!solver.shooter_.prepare_footprints(solver.storage_, cancel) || cancelled()) return Error{kSolverCancelled};
   return solver;
 }
