@@ -45,7 +45,7 @@ def profile(flatland, scene, photons, directory):
     data = os.path.join(directory, "perf.data")
     out = os.path.join(directory, "result.json")
     subprocess.run(["perf", "record", "-q", "-e", "cpu-clock", "-o", data, "--", flatland, "solve", scene,
-                    "--photons", photons, "--threads", "1", "--gather", "none", "--quiet", "--out", out],
+                    "--photons", photons, "--threads", "1", "--gather", "none", "--control-variate", "none", "--quiet", "--out", out],
                    check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     report = subprocess.run(["perf", "report", "-i", data, "--no-children", "--sort", "symbol", "--stdio"],
                             check=True, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True).stdout

@@ -69,7 +69,7 @@ class Runner:
         # so a change of defaults does not change what this measures.
         args = [self.flatland, "solve", path, "--photons", str(photons), "--seed", str(seed), "--quiet", "--out", out,
                 "--basis", "cubic", "--estimator", "galerkin", "--elements", "auto", "--sampling", "reconstructed",
-                "--discontinuities", "auto", "--sampler", "sobol", "--ray-width", "0", "--transport", "shooting", "--gather", "none",
+                "--discontinuities", "auto", "--sampler", "sobol", "--ray-width", "0", "--transport", "shooting", "--gather", "none", "--control-variate", "none",
                 "--threads", "2"]
         if any(m.get("type") == "detector" for m in scene["materials"].values()):
             args += ["--detectors", csv_path]

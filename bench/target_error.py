@@ -34,7 +34,7 @@ SCENES = {
 # change what this measures: the default method (cubic storage, Galerkin, storage that follows the
 # photons, reconstructed origins, direct-light events, Sobol' points, point rays).
 PINNED_ARGS = ["--basis", "cubic", "--estimator", "galerkin", "--elements", "auto", "--sampling", "reconstructed",
-               "--discontinuities", "auto", "--sampler", "sobol", "--ray-width", "0", "--transport", "shooting", "--gather", "none"]
+               "--discontinuities", "auto", "--sampler", "sobol", "--ray-width", "0", "--transport", "shooting", "--gather", "none", "--control-variate", "none"]
 
 
 def main():
@@ -75,7 +75,7 @@ def main():
         directory = os.path.join(args.out, tag)
         converged = subprocess.run([args.flatland, "converge", scene, "--reference", reference, "--methods",
                         "basis=cubic+estimator=galerkin+elements=auto+sampling=reconstructed+discontinuities=auto"
-                        "+sampler=sobol+ray-width=0+transport=shooting+gather=none",
+                        "+sampler=sobol+ray-width=0+transport=shooting+gather=none+control-variate=none",
                         "--budgets", ",".join(map(str, grid)), "--seeds", str(args.seeds), "--tolerance", "1e-3",
                         "--threads", "2", "--out", directory], check=True, stdout=subprocess.PIPE, text=True)
         with open(os.path.join(directory, "convergence.csv")) as table:

@@ -8,7 +8,7 @@ cd "$(dirname "$0")/../.."
 flatland=${FLATLAND:-build/flatland}
 # So that a change of the program's defaults does not change what this measures, every setting
 # it does not vary is pinned to the paper's setting (lumped deposits, reconstructed origins, direct-light events, pseudo-random numbers, point rays).
-pin=(--estimator lumped --sampling reconstructed --discontinuities auto --sampler random --tolerance 1e-6 --ray-width 0 --transport shooting --gather none --threads 2)
+pin=(--estimator lumped --sampling reconstructed --discontinuities auto --sampler random --tolerance 1e-6 --ray-width 0 --transport shooting --gather none --control-variate none --threads 2)
 photons=${1:-400000}
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT

@@ -9,7 +9,7 @@ cd "$(dirname "$0")/../.."
 flatland=${FLATLAND:-build/flatland}
 # So that a change of the program's defaults does not change what this measures, every setting
 # it does not vary is pinned to the paper's setting (16 elements per curve, lumped deposits, direct-light events, pseudo-random numbers).
-pin=(--elements 16 --estimator lumped --discontinuities auto --sampler random --tolerance 1e-6 --transport shooting --gather none)
+pin=(--elements 16 --estimator lumped --discontinuities auto --sampler random --tolerance 1e-6 --transport shooting --gather none --control-variate none)
 photons=${1:-400000}
 seeds=${2:-5}
 work=$(mktemp -d)

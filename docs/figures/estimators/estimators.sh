@@ -43,7 +43,7 @@ for scene in "${scenes[@]}"; do
             # A solve that fails leaves RUN.failed (its message) and the table says "fails".
             "$flatland" solve "scenes2d/$scene.json" --basis "$basis" --estimator "$estimator" \
               --elements "$n" --photons "$photons" --seed "$seed" --tolerance 1e-6 \
-              --sampling reconstructed --discontinuities auto --sampler random --ray-width 0 --transport shooting --gather none \
+              --sampling reconstructed --discontinuities auto --sampler random --ray-width 0 --transport shooting --gather none --control-variate none \
               --threads "$threads" --quiet --out "$out" 2>"$work/stderr" ||
               cp "$work/stderr" "${out%.json}.failed"
           done

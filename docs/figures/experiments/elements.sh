@@ -12,7 +12,7 @@ set -euo pipefail
 cd "$(dirname "$0")/../../.."
 flatland=${FLATLAND:-build/flatland}
 # So that a change of the program's defaults does not change what this measures, what the experiment does not vary is pinned to plain Monte Carlo as Shirley's bound assumes it (lumped deposits, pseudo-random numbers, point rays).
-pin=(--estimator lumped --sampler random --sampling reconstructed --ray-width 0 --transport shooting --gather none --threads 2)
+pin=(--estimator lumped --sampler random --sampling reconstructed --ray-width 0 --transport shooting --gather none --control-variate none --threads 2)
 photons=${1:-1000000}
 seeds=${2:-8}
 work=$(mktemp -d)

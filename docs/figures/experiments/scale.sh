@@ -13,7 +13,7 @@ set -euo pipefail
 cd "$(dirname "$0")/../../.."
 flatland=${FLATLAND:-build/flatland}
 # So that a change of the program's defaults does not change what this measures, every other setting is pinned to the defaults (cubic, Galerkin, auto mesh, Sobol' points).
-pin=(--basis cubic --estimator galerkin --elements auto --sampling reconstructed --discontinuities auto --sampler sobol --ray-width 0 --transport shooting --gather none --threads 2)
+pin=(--basis cubic --estimator galerkin --elements auto --sampling reconstructed --discontinuities auto --sampler sobol --ray-width 0 --transport shooting --gather none --control-variate none --threads 2)
 photons=${1:-1000000}
 seeds=${2:-5}
 work=$(mktemp -d)

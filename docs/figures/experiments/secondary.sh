@@ -10,7 +10,7 @@ cd "$(dirname "$0")/../../.."
 flatland=${FLATLAND:-build/flatland}
 # Every setting the methods do not name is pinned to the defaults (cubic, Galerkin, auto mesh,
 # reconstructed origins, Sobol' points, point rays), so a change of defaults does not move the table.
-pin=basis=cubic+sampling=reconstructed+sampler=sobol+ray-width=0+transport=shooting+gather=none
+pin=basis=cubic+sampling=reconstructed+sampler=sobol+ray-width=0+transport=shooting+gather=none+control-variate=none
 default=estimator=galerkin+elements=auto
 seeds=${SEEDS:-3}
 work=$(mktemp -d)

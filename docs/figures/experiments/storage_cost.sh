@@ -9,7 +9,7 @@ set -euo pipefail
 cd "$(dirname "$0")/../../.."
 flatland=${FLATLAND:-build/flatland}
 # So that a change of the program's defaults does not change what this measures, what the experiment does not vary is pinned to the defaults (cubic, Galerkin, reconstructed origins, Sobol' points, point rays).
-pin=(--basis cubic --estimator galerkin --sampling reconstructed --sampler sobol --ray-width 0 --transport shooting --gather none)
+pin=(--basis cubic --estimator galerkin --sampling reconstructed --sampler sobol --ray-width 0 --transport shooting --gather none --control-variate none)
 photons=${1:-2e6}
 seeds=${2:-3}
 work=$(mktemp -d)

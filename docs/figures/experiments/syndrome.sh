@@ -10,7 +10,7 @@ set -euo pipefail
 cd "$(dirname "$0")/../../.."
 flatland=${FLATLAND:-build/flatland}
 # So that a change of the program's defaults does not change what this measures, what the experiment does not vary is pinned to the defaults (Galerkin estimator, direct-light events, Sobol' points, point rays).
-pin=(--estimator galerkin --discontinuities auto --sampler sobol --ray-width 0 --transport shooting --gather none)
+pin=(--estimator galerkin --discontinuities auto --sampler sobol --ray-width 0 --transport shooting --gather none --control-variate none)
 photons=${1:-1e6}
 seeds=${2:-5}
 threads=(--threads "${THREADS:-2}")

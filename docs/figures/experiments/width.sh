@@ -10,7 +10,7 @@ set -euo pipefail
 cd "$(dirname "$0")/../../.."
 flatland=${FLATLAND:-build/flatland}
 # So that a change of the program's defaults does not change what this measures, what the experiment does not vary is pinned to the paper's method (cubic, lumped deposits, reconstructed origins, direct-light events, pseudo-random numbers: the noise ~ 1/sqrt(N W) is Monte Carlo's).
-pin=(--basis cubic --estimator lumped --sampler random --sampling reconstructed --discontinuities auto --ray-profile box --transport shooting --gather none --threads 2)
+pin=(--basis cubic --estimator lumped --sampler random --sampling reconstructed --discontinuities auto --ray-profile box --transport shooting --gather none --control-variate none --threads 2)
 seeds=${1:-16}
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT

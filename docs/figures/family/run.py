@@ -56,26 +56,26 @@ COMMON = ("elements=auto+sampler=sobol+discontinuities=auto+sampling=reconstruct
 # Replicates as blocks of one round's net (docs/estimated-error.md), everything else as COMMON.
 BLOCKS = COMMON.replace("replicate-layout=independent", "replicate-layout=blocks")
 METHODS = [  # (label, method string)
-    ("shooting, cubic", "basis=cubic+estimator=galerkin+transport=shooting+gather=none+" + COMMON),
-    ("shooting, cubic, gather", "basis=cubic+estimator=galerkin+transport=shooting+gather=samples+" + COMMON),
-    ("shooting, linear, gather", "basis=linear+estimator=galerkin+transport=shooting+gather=samples+" + COMMON),
-    ("shooting, constant, gather", "basis=constant+estimator=galerkin+transport=shooting+gather=samples+" + COMMON),
-    ("shooting, hermite, gather", "basis=hermite+estimator=local+transport=shooting+gather=samples+" + COMMON),
-    ("shooting, cubic, blocks", "basis=cubic+estimator=galerkin+transport=shooting+gather=none+" + BLOCKS),
-    ("shooting, cubic, blocks, gather", "basis=cubic+estimator=galerkin+transport=shooting+gather=samples+" + BLOCKS),
+    ("shooting, cubic", "basis=cubic+estimator=galerkin+transport=shooting+control-variate=none+gather=none+" + COMMON),
+    ("shooting, cubic, gather", "basis=cubic+estimator=galerkin+transport=shooting+control-variate=none+gather=samples+" + COMMON),
+    ("shooting, linear, gather", "basis=linear+estimator=galerkin+transport=shooting+control-variate=none+gather=samples+" + COMMON),
+    ("shooting, constant, gather", "basis=constant+estimator=galerkin+transport=shooting+control-variate=none+gather=samples+" + COMMON),
+    ("shooting, hermite, gather", "basis=hermite+estimator=local+transport=shooting+control-variate=none+gather=samples+" + COMMON),
+    ("shooting, cubic, blocks", "basis=cubic+estimator=galerkin+transport=shooting+control-variate=none+gather=none+" + BLOCKS),
+    ("shooting, cubic, blocks, gather", "basis=cubic+estimator=galerkin+transport=shooting+control-variate=none+gather=samples+" + BLOCKS),
     ("shooting, cubic, coarse variate",
      "basis=cubic+estimator=galerkin+transport=shooting+control-variate=coarse+gather=none+" + COMMON),
     ("shooting, cubic, coarse variate, gather",
      "basis=cubic+estimator=galerkin+transport=shooting+control-variate=coarse+gather=samples+" + COMMON),
     ("shooting, linear, coarse variate, gather",
      "basis=linear+estimator=galerkin+transport=shooting+control-variate=coarse+gather=samples+" + COMMON),
-    ("jacobi, cubic", "basis=cubic+estimator=galerkin+transport=jacobi+gather=none+" + COMMON),
-    ("jacobi, cubic, gather", "basis=cubic+estimator=galerkin+transport=jacobi+gather=samples+" + COMMON),
-    ("walks, cubic", "basis=cubic+estimator=galerkin+transport=walk+gather=none+" + COMMON),
-    ("walks, cubic, gather", "basis=cubic+estimator=galerkin+transport=walk+gather=samples+" + COMMON),
-    ("walks, cubic, absorption", "basis=cubic+estimator=galerkin+transport=walk+walk-score=absorption+gather=none+"
+    ("jacobi, cubic", "basis=cubic+estimator=galerkin+transport=jacobi+control-variate=none+gather=none+" + COMMON),
+    ("jacobi, cubic, gather", "basis=cubic+estimator=galerkin+transport=jacobi+control-variate=none+gather=samples+" + COMMON),
+    ("walks, cubic", "basis=cubic+estimator=galerkin+transport=walk+control-variate=none+gather=none+" + COMMON),
+    ("walks, cubic, gather", "basis=cubic+estimator=galerkin+transport=walk+control-variate=none+gather=samples+" + COMMON),
+    ("walks, cubic, absorption", "basis=cubic+estimator=galerkin+transport=walk+control-variate=none+walk-score=absorption+gather=none+"
      + COMMON),
-    ("walks, cubic, survival", "basis=cubic+estimator=galerkin+transport=walk+walk-score=survival+gather=none+"
+    ("walks, cubic, survival", "basis=cubic+estimator=galerkin+transport=walk+control-variate=none+walk-score=survival+gather=none+"
      + COMMON),
 ]
 # The walks' scores (method.md, Random walks) against collision, the walks' default.

@@ -28,7 +28,7 @@ ELEMENTS=16
 SAMPLES=1000
 SOLVE_FLAGS="--photons $PHOTONS --seed $SEED --elements $ELEMENTS --estimator galerkin --sampler sobol
   --sampling reconstructed --discontinuities auto --ray-width 0 --tolerance 1e-6 --samples $SAMPLES
-  --transport shooting --gather none --replicates 8 --target-error 0 --threads 2 --quiet"
+  --transport shooting --gather none --control-variate none --replicates 8 --target-error 0 --threads 2 --quiet"
 REF_FLAGS="--elements 1600 --samples $SAMPLES --threads 2 --quiet"
 RENDER_FLAGS="--photons 2e5 --seed 1 --threads 2 --width 480 --height 300 --graph --band --quiet"
 
@@ -525,7 +525,7 @@ and cubic. Vertical lines mark the storage mesh's nodes: dotted grey the plain e
 1600 --samples $SAMPLES --threads 2 --out ref.json\` and, per basis, \`flatland solve SCENE --basis
 constant|linear|cubic --photons $PHOTONS --seed $SEED --elements $ELEMENTS --estimator galerkin --sampler
 sobol --sampling reconstructed --discontinuities auto --ray-width 0 --tolerance 1e-6 --samples
-$SAMPLES --transport shooting --gather none --replicates 8 --target-error 0 --threads 2 --out B.json\`; B - B_ref
+$SAMPLES --transport shooting --gather none --control-variate none --replicates 8 --target-error 0 --threads 2 --out B.json\`; B - B_ref
 is taken sample by sample (both at s = (j + 0.5) L / $SAMPLES). The result gives its nodes in the curve
 parameter u (\`knots\`, \`continuity\`), not in arc length, so the script maps u to s from the scene's
 geometry (a line segment is linear in u; a Bezier segment's arc length is integrated) and checks the

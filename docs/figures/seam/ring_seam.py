@@ -29,7 +29,7 @@ photons = sys.argv[2] if len(sys.argv) > 2 else "1e7"
 seeds = int(sys.argv[3]) if len(sys.argv) > 3 else 3
 bases = (sys.argv[4] if len(sys.argv) > 4 else "cubic,linear").split(",")
 PIN = ["--elements", "16", "--estimator", "lumped", "--sampler", "random", "--sampling", "reconstructed",
-       "--discontinuities", "auto", "--ray-width", "0", "--transport", "shooting", "--gather", "none", "--threads", "2"]
+       "--discontinuities", "auto", "--ray-width", "0", "--transport", "shooting", "--gather", "none", "--control-variate", "none", "--threads", "2"]
 RHO = 0.5
 SAMPLES = 400
 

@@ -40,7 +40,7 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--tables", default=os.path.join(tta.ROOT, "docs", "tables"))
     a = ap.parse_args()
-    methods = [s + "+ray-width=0+transport=shooting+gather=none" for _, s in STEPS]
+    methods = [s + "+ray-width=0+transport=shooting+gather=none+control-variate=none" for _, s in STEPS]
     err, spreads, secs, checks = {}, {}, {}, []
     for name, (scene, _) in tta.SCENES.items():
         ref = os.path.join(tta.HERE, name, "reference.json")

@@ -56,7 +56,8 @@ SCENES = {
 
 # Settings common to every method; each method names the rest. "elements=N" is a fixed mesh of N
 # elements per curve; "auto" lets each curve's mesh follow its photons.
-COMMON = "discontinuities=auto+sampling=reconstructed+ray-width=0+transport=shooting+gather=none"
+COMMON = ("discontinuities=auto+sampling=reconstructed+ray-width=0+transport=shooting+gather=none"
+          "+control-variate=none")
 DEFAULT_ESTIMATOR = {"constant": "galerkin", "linear": "galerkin", "cubic": "galerkin", "hermite": "local"}
 BASES = ["constant", "linear", "cubic", "hermite"]
 # The paper's settings run on these fixed meshes (elements per curve): 16, the mesh of the paper's
@@ -73,10 +74,10 @@ for basis in BASES:
         METHODS.append(("%s, paper, %d elements" % (basis, n), "paper", basis,
                         "basis=%s+estimator=lumped+elements=%d+sampler=random+%s" % (basis, n, COMMON)))
 CLASSIC = ("basis=constant+estimator=lumped+elements=16+sampler=random+discontinuities=none+sampling=uniform"
-           "+ray-width=0+transport=shooting+gather=none")
+           "+ray-width=0+transport=shooting+gather=none+control-variate=none")
 METHODS.append(("classic", "classic", "constant", CLASSIC))
 METHODS.append(("cubic, walks", "walk", "cubic", "basis=cubic+estimator=galerkin+elements=auto+sampler=sobol"
-                "+discontinuities=auto+sampling=reconstructed+ray-width=0+transport=walk+gather=none"))
+                "+discontinuities=auto+sampling=reconstructed+ray-width=0+transport=walk+gather=none+control-variate=none"))
 for _name in [n for n in SCENES if n not in os.environ.get("TTA_SCENES", ",".join(SCENES)).split(",")]:
     del SCENES[_name]
 QUICK_SCENES = ["penumbra", "round_occluder"]
@@ -142,9 +143,10 @@ def load(out, methods, budgets):
     converge writes each method's budgets in order, seeds 1..S within each; the budget of a row is
     taken from its position (the rounds round the photons shot, so they do not name the budget)."""
     by_method = {m[3]: m[0] for m in methods}
-    # Runs from before the final gather existed name their methods without "+gather=none", which is
-    # what they did.
-    by_method.update({m[3].replace("+gather=none", ""): m[0] for m in methods})
+    # Runs from before the control variate existed name their methods without "+control-variate=none",
+    # and runs from before the final gather also without "+gather=none": that is what they did.
+    by_method.update({m[3].replace("+control-variate=none", ""): m[0] for m in methods})
+    by_method.update({m[3].replace("+gather=none+control-variate=none", ""): m[0] for m in methods})
     runs = {}
     paths = [os.path.join(out, "convergence.csv"), os.path.join(out, MESHES_DIR, "convergence.csv")]
     for path in [p for p in paths if os.path.exists(p)]:
