@@ -301,7 +301,15 @@ Result<Solver> create_solver(const Scene& scene, const SolverSettings& settings,
   }
   const unsigned threads = settings.threads != 0 ? settings.threads : std::max(1u, std::thread::hardware_concurrency());
   Result<std::shared_ptr<const CoarseAnswer>> coarse = solve_coarse_answer(scene, threads, cancel);
-  if (!coarse) return coarse.error();
+  if (!coarse) {
+    // Auto does without a coarse solve that fails (its GMRES short of its tolerance, its memory):
+    // the photons then carry all the light, as with none, and the reason says why.
+    if (settings.control_variate != ControlVariate::Auto || coarse.error().message == kSolverCancelled)
+      return coarse.error();
+    Result<Solver> solver = Solver::create(scene, settings, cancel);
+    if (solver) solver->set_control_variate_skipped(auto_reason(scene, coarse.error().message));
+    return solver;
+  }
   return Solver::create(scene, settings, cancel, std::move(*coarse));
 }
 

@@ -134,7 +134,10 @@ KrylovOutcome gmres(const Apply& apply, const std::vector<double>& rhs, std::vec
         h[i + 1][jj] = -sines[i] * h[i][jj] + cosines[i] * h[i + 1][jj];
         h[i][jj] = upper;
       }
-      const double radius = std::hypot(h[jj][jj], norm);
+      // sqrt of the sum of squares, not std::hypot: sqrt is correctly rounded everywhere, hypot is
+      // not (glibc's and the web build's differ in the last bit, and the coarse control variate
+      // must give the same bits in the browser); both terms are of the order of |A v_j| <= 2.
+      const double radius = std::sqrt(h[jj][jj] * h[jj][jj] + norm * norm);
       cosines[jj] = radius > 0.0 ? h[jj][jj] / radius : 1.0;
       sines[jj] = radius > 0.0 ? norm / radius : 0.0;
       h[jj][jj] = radius;
