@@ -47,7 +47,7 @@ ROUND_OFF = 1e-12
 # defaults does not change what this measures.
 PINNED = {"basis": "cubic", "elements": "auto", "sampling": "reconstructed", "discontinuities": "auto",
           "sampler": "sobol", "ray-width": "0", "transport": "shooting", "gather": "none",
-          "replicate-layout": "independent"}
+          "control-variate": "none", "replicate-layout": "independent"}
 
 
 def pinned(method):
