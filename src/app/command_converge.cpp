@@ -723,6 +723,8 @@ class ConvergeStudy {
   const ConvergeOptions& o_;
   const Scene& scene_;
   const Plan& plan_;
+  // Per method, --control-variate auto's choice, made once at its largest budget (empty: none made).
+  std::vector<std::optional<ControlVariate>> variates_;
   // What is measured; a curve is named by its id in the scene file.
   const Measured measured_;
   std::size_t curve_index_ = 0;
@@ -867,6 +869,7 @@ std::optional<int> ConvergeStudy::run_one(std::size_t m, std::size_t b, int seed
       (m * budgets.size() + b) * static_cast<std::size_t>(o_.seeds) + static_cast<std::size_t>(seed - 1);
   if (run % process_count() != process_rank()) return std::nullopt;
   SolverSettings settings = plan_.methods[m].settings;
+  if (variates_[m]) settings.control_variate = *variates_[m];
   // (A time too short for the replicates still shoots one photon each.)
   const double photons =
       std::max(static_cast<double>(settings.replicates), plan_.by_time ? std::floor(budgets[b] * rate) : budgets[b]);
@@ -896,11 +899,26 @@ std::optional<int> ConvergeStudy::run_all() {
   const std::size_t processes = process_count();
   own_total_ = total / processes + (process_rank() < total % processes ? 1 : 0);
   done_.assign(total, std::nullopt);
+  variates_.assign(methods.size(), std::nullopt);
   std::optional<int> failure;
   const bool tty = ::isatty(STDERR_FILENO) == 1;
   for (std::size_t m = 0; m < methods.size() && !failure; ++m) {
     double rate = 0.0;
     failure = measure_rate(m, rate);
+    // Auto's choice grows with the photons (the storage does): made once, at the method's largest
+    // budget, so that a method is the same method at every budget and on every process.
+    if (!failure && methods[m].settings.control_variate == ControlVariate::Auto) {
+      SolverSettings largest = methods[m].settings;
+      const double top = *std::max_element(plan_.budgets.begin(), plan_.budgets.end());
+      largest.photons = static_cast<std::uint64_t>(std::clamp(plan_.by_time ? std::floor(top * rate) : top,
+                                                              static_cast<double>(largest.replicates),
+                                                              static_cast<double>(kMaxPhotons)));
+      const std::string skipped = control_variate_auto_skip(scene_, largest);
+      variates_[m] = skipped.empty() ? ControlVariate::Coarse : ControlVariate::None;
+      if (!skipped.empty() && speaks_for_the_run())
+        std::fprintf(stderr, "converge: method %s runs without the control variate: %s (--control-variate auto)\n",
+                     methods[m].name.c_str(), skipped.c_str());
+    }
     for (std::size_t b = 0; b < plan_.budgets.size() && !failure; ++b)
       for (int seed = 1; seed <= o_.seeds && !failure; ++seed) failure = run_one(m, b, seed, rate);
     if (!failure && !tty && speaks_for_the_run())

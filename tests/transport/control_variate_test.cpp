@@ -282,7 +282,7 @@ TEST(ControlVariate, AutoSkipsASetUpAboveItsBound) {
   EXPECT_EQ(control_variate_auto_skip(room, settings), "");
   settings.elements = 16 * 1024;
   const double large = control_variate_work(room, settings);
-  EXPECT_GT(large, 500.0 * small);  // the pairs grow as the spans
+  EXPECT_GT(large, 100.0 * small);  // the pairs grow with the spans (1024 times the elements)
   ASSERT_GT(large, kAutoControlVariateWork);
   const std::string reason = control_variate_auto_skip(room, settings);
   EXPECT_NE(reason.find("point-chord pairs"), std::string::npos) << reason;

@@ -224,7 +224,9 @@ Status check_solver_settings(const Scene& scene, const SolverSettings& settings)
 
 double control_variate_work(const Scene& scene, const SolverSettings& settings) {
   // Chords: a line's coarse elements, a cubic segment's split kGatherSplit-fold, plus the coarse
-  // chords themselves where the scene has cubics (the error part's second sweep).
+  // chords themselves where the scene has cubics (the error part's second sweep). Points: 8 on
+  // every storage span, whose count the coarse element ends (storage nodes) can raise by one each
+  // a side. And the coarse reference: kCoarsePairWork pairs' worth per pair of coarse elements.
   const std::vector<double> counts = reference_element_counts(scene, coarse_reference_settings(scene, 1, nullptr));
   double chords = 0.0;
   double coarse = 0.0;
@@ -233,7 +235,8 @@ double control_variate_work(const Scene& scene, const SolverSettings& settings) 
     coarse += counts[s];
   }
   if (scene.has_cubics()) chords += coarse;
-  return Solver::coefficient_bound(scene, settings) * static_cast<double>(gauss::kNodes8.size()) * chords;
+  const double spans = Solver::coefficient_bound(scene, settings) + 2.0 * coarse;
+  return spans * static_cast<double>(gauss::kNodes8.size()) * chords + kCoarsePairWork * coarse * coarse;
 }
 
 namespace {
@@ -300,16 +303,10 @@ Result<Solver> create_solver(const Scene& scene, const SolverSettings& settings,
     }
   }
   const unsigned threads = settings.threads != 0 ? settings.threads : std::max(1u, std::thread::hardware_concurrency());
+  // A coarse solve that fails is an error for auto too (its memory, which depends on the machine):
+  // falling back would let the processes of one MPI solve choose differently.
   Result<std::shared_ptr<const CoarseAnswer>> coarse = solve_coarse_answer(scene, threads, cancel);
-  if (!coarse) {
-    // Auto does without a coarse solve that fails (its GMRES short of its tolerance, its memory):
-    // the photons then carry all the light, as with none, and the reason says why.
-    if (settings.control_variate != ControlVariate::Auto || coarse.error().message == kSolverCancelled)
-      return coarse.error();
-    Result<Solver> solver = Solver::create(scene, settings, cancel);
-    if (solver) solver->set_control_variate_skipped(auto_reason(scene, coarse.error().message));
-    return solver;
-  }
+  if (!coarse) return coarse.error();
   return Solver::create(scene, settings, cancel, std::move(*coarse));
 }
 

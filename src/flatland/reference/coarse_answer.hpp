@@ -28,6 +28,9 @@ inline constexpr std::size_t kControlVariateMaxElements = 3000;
 // (docs/family.md), so that a set-up of three times the photons' time still gains a hundredfold
 // in efficiency.
 inline constexpr double kAutoControlVariateWork = 1e8;
+// A pair of coarse elements' form factor and its share of the GMRES, in projection pairs' time:
+// 2.5e-7 s on two cores (the row of rooms at 603 elements: 0.089 s of form factors), 12 pairs.
+inline constexpr double kCoarsePairWork = 15.0;
 inline constexpr double kAutoControlVariateWorkPerPhoton = 30.0;
 
 // The coarse reference's settings for `scene`: elements at most kControlVariateFraction of its size.
@@ -43,8 +46,9 @@ Result<std::shared_ptr<const CoarseAnswer>> solve_coarse_answer(const Scene& sce
 // and with the control variate, a coarse reference of more than kControlVariateMaxElements.
 Status check_solver_settings(const Scene& scene, const SolverSettings& settings);
 
-// The point-chord pairs the variate's projection would sweep for `settings` on `scene` (from the
-// storage's coefficient bound, so from above).
+// The variate's set-up for `settings` on `scene`, in point-chord pairs: those its projection would
+// sweep (from the storage's coefficient bound and the coarse nodes it adds) and its coarse
+// reference's element pairs, weighted by kCoarsePairWork.
 double control_variate_work(const Scene& scene, const SolverSettings& settings);
 
 // Why --control-variate auto solves `scene` with `settings` without the variate: the settings or
