@@ -19,6 +19,7 @@
 #include "viewer/picture_labels.hpp"
 #include "viewer/renderer.hpp"
 #include "viewer/session.hpp"
+#include "viewer/viewer_app.hpp"
 
 namespace flatland::app {
 
@@ -31,6 +32,11 @@ CLI::App* add_render_command(CLI::App& parent, RenderOptions& o) {
       "coloured by its radiosity B and a graph of B (a thin line offset along the normal, higher where B "
       "is larger); mirrors steel blue, glass cyan, detectors green. docs/viewer.md says more.");
   cmd->add_option("scene", o.solve.scene, "Scene file (JSON, docs/scene-format.md)")->required();
+  // The viewer's defaults (viewer_app.hpp: no control variate): the picture is of the photons'
+  // flights, which with the variate would be a signed correction, not the light.
+  o.solve.settings = viewer::view_default_settings();
+  for (const SolveOptionSpec& spec : solve_options())
+    o.solve.text[spec.option] = solve_option_text(o.solve.settings, spec.option);
   add_solver_options(cmd, o.solve);
   cmd->add_option("--out", o.out, "The picture (PNG)")->required()->check(output_path());
   cmd->add_option("--result", o.result, "Also write the result as JSON (as solve --out)")->check(output_path());

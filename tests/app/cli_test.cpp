@@ -635,6 +635,7 @@ TEST_F(Cli, ControlVariateIsAutoInSolveAndNoneInTheViewer) {
   EXPECT_FALSE(nlohmann::json::parse(read_file(none))["settings"].contains("control_variate"));
   EXPECT_NE(run("solve --help").out.find("none|coarse|auto=auto"), std::string::npos);
   EXPECT_NE(run("view --help").out.find("none|coarse|auto=none"), std::string::npos);
+  EXPECT_NE(run("render --help").out.find("none|coarse|auto=none"), std::string::npos);  // the viewer's picture
 }
 
 // The estimated error where people look: the summary, the result's stats, compare beside the true
