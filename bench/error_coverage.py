@@ -30,9 +30,12 @@ SCENES = {
     "ring profile": ("scenes2d/tests/reference_ring_profile.json", 1600),
     "furnace rho 0.9": ("scenes2d/experiments/enclosure_rho0.9.json", 1600),
     "row of rooms": ("scenes2d/row_of_rooms.json", 1600),
+    "office": ("scenes2d/interreflection/office.json", 1600),
+    "window room": ("scenes2d/interreflection/window_room.json", 1600),
 }
 # Measured unless --scenes names others: the row of rooms is there for importance's methods
-# (e.g. --scenes "row of rooms" --methods cubic,cubic+importance=desk).
+# (e.g. --scenes "row of rooms" --methods cubic,cubic+importance=desk), the office and the window
+# room (rooms of strong interreflection) for the default's methods.
 DEFAULT_SCENES = "penumbra,round occluder,ring profile,furnace rho 0.9"
 METHODS = ("cubic,linear,constant,hermite,cubic+sampler=random,cubic+transport=walk,cubic+elements=64,"
            "cubic+gather=samples,cubic+replicate-layout=blocks,hermite+replicate-layout=blocks")

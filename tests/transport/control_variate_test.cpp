@@ -1,5 +1,6 @@
 #include "flatland/transport/control_variate.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 #include <string>
@@ -247,6 +248,10 @@ TEST(ControlVariate, AutoUsesItWhereItAppliesAndSaysWhyNotElsewhere) {
     const Solver automatic = solved(scene, s, ControlVariate::Auto);
     const Solver asked = solved(scene, s, chosen);
     EXPECT_EQ(automatic.settings().control_variate, chosen) << words;
+    // The replicates' layout follows: blocks of one net under the variate, independent without.
+    EXPECT_EQ(automatic.settings().replicate_layout,
+              chosen == ControlVariate::Coarse ? ReplicateLayout::Blocks : ReplicateLayout::Independent)
+        << words;
     EXPECT_EQ(testing::solution_data(automatic), testing::solution_data(asked)) << words;
     EXPECT_EQ(automatic.control_variate_skipped().empty(), words.empty()) << automatic.control_variate_skipped();
     EXPECT_NE(automatic.control_variate_skipped().find(words), std::string::npos)
@@ -266,6 +271,58 @@ TEST(ControlVariate, AutoUsesItWhereItAppliesAndSaysWhyNotElsewhere) {
   Result<Solver> plain = Solver::create(room, settings);
   ASSERT_TRUE(plain.ok());
   EXPECT_EQ(plain->settings().control_variate, ControlVariate::None);
+}
+
+// The replicates' layout by default (ReplicateLayout::Auto) is blocks under the variate and
+// independent without it: the same bits as asking for each, and under the variate the answer is
+// the one net's (a round of 8 blocks deposits what a round of one replicate does).
+TEST(ControlVariate, AutoLayoutIsOneNetUnderTheVariate) {
+  const Scene room = testing::scene_from_file("scenes2d/default.json");
+  SolverSettings settings;
+  EXPECT_EQ(settings.replicate_layout, ReplicateLayout::Auto);  // the default
+  settings.photons = 20'000;
+  settings.elements = 12;
+  settings.control_variate = ControlVariate::Coarse;
+  const auto solved = [&](ReplicateLayout layout, int replicates, bool one_round) {
+    SolverSettings s = settings;
+    s.replicate_layout = layout;
+    s.replicates = replicates;
+    Result<Solver> solver = create_solver(room, s);
+    EXPECT_TRUE(solver.ok()) << (solver.ok() ? "" : solver.error().message);
+    if (one_round)
+      EXPECT_TRUE(solver->step_round());
+    else
+      solver->run();
+    return std::move(*solver);
+  };
+  const Solver automatic = solved(ReplicateLayout::Auto, 8, false);
+  EXPECT_EQ(automatic.settings().replicate_layout, ReplicateLayout::Blocks);
+  EXPECT_EQ(testing::solution_data(automatic), testing::solution_data(solved(ReplicateLayout::Blocks, 8, false)));
+  EXPECT_NE(testing::solution_data(automatic).radiosity,
+            testing::solution_data(solved(ReplicateLayout::Independent, 8, false)).radiosity);
+  // One round: 8 blocks shoot the photons of one net, deposited in 8 parts, so the coefficients
+  // agree with one replicate's to the round-off of summing the parts.
+  // A round's photons are a multiple of R (one replicate: any number): the first budget whose first
+  // round one replicate shoots as a multiple of 8, so that both shoot the same photons.
+  Solver one_net = solved(ReplicateLayout::Independent, 1, true);
+  while (one_net.photons_shot() % 8 != 0) {
+    ++settings.photons;
+    one_net = solved(ReplicateLayout::Independent, 1, true);
+  }
+  const Solver blocks = solved(ReplicateLayout::Auto, 8, true);
+  ASSERT_EQ(blocks.photons_shot(), one_net.photons_shot());
+  ASSERT_EQ(blocks.photons_shot() % 8, 0u);
+  for (std::uint32_t curve = 0; curve < room.curves.size(); ++curve) {
+    const std::vector<double> a = blocks.radiosity_coefficients(curve, Side::Front);
+    const std::vector<double> b = one_net.radiosity_coefficients(curve, Side::Front);
+    ASSERT_EQ(a.size(), b.size());
+    double scale = 0.0;
+    for (const double value : b) scale = std::max(scale, std::fabs(value));
+    for (std::size_t k = 0; k < a.size(); ++k) EXPECT_NEAR(a[k], b[k], 1e-12 * scale) << curve << " " << k;
+  }
+  // Without the variate, auto is independent replicates.
+  settings.control_variate = ControlVariate::None;
+  EXPECT_EQ(solved(ReplicateLayout::Auto, 8, false).settings().replicate_layout, ReplicateLayout::Independent);
 }
 
 // Auto's bound on the set-up: the projection's point-chord pairs grow with the storage (here its

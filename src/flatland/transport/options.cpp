@@ -97,11 +97,12 @@ const std::vector<SolveOptionSpec>& table() {
        "their spread gives the result's estimated error; 1 gives none (and is refused with --elements auto and "
        "with --target-error)"},
       {SolveOption::ReplicateLayout, "replicate layout", "replicate-layout", "replicate_layout",
-       {"independent", "blocks"}, "",
+       {"independent", "blocks", "auto"}, "",
        "How a round's photons form the replicates: independent (photon i in replicate i mod R, each its own "
-       "scrambled net: the estimated error is sharpest, but R nets of N / R points stratify less than one net) "
-       "or blocks (the round is one net and the replicates are its blocks of consecutive photons: the answer "
-       "keeps the whole net's accuracy, and the estimated error is more conservative; docs/estimated-error.md)"},
+       "scrambled net: the estimated error is sharpest, but R nets of N / R points stratify less than one net), "
+       "blocks (the round is one net and the replicates are its blocks of consecutive photons: the answer "
+       "keeps the whole net's accuracy, and the estimated error is more conservative) or auto (blocks where the "
+       "coarse control variate runs, independent elsewhere; docs/estimated-error.md)"},
       {SolveOption::TargetError, "target error", "target-error", "target_error", {}, "X",
        "Keep shooting until the estimated relative L1 error of B - E is at most X (e.g. 1e-3), with photons "
        "as the cap; 0: no target, the photon budget and tolerance decide"},

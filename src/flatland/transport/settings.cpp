@@ -12,7 +12,12 @@ const char* to_string(RayMode mode) { return mode == RayMode::Footprint ? "footp
 const char* to_string(SamplerKind sampler) { return sampler == SamplerKind::Random ? "random" : "sobol"; }
 
 const char* to_string(ReplicateLayout layout) {
-  return layout == ReplicateLayout::Independent ? "independent" : "blocks";
+  switch (layout) {
+    case ReplicateLayout::Independent: return "independent";
+    case ReplicateLayout::Blocks: return "blocks";
+    case ReplicateLayout::Auto: return "auto";
+  }
+  return "auto";
 }
 
 bool replicates_stratified(const SolverSettings& settings) {

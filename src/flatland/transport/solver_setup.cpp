@@ -414,6 +414,11 @@ Result<Solver> Solver::create(const Scene& scene, const SolverSettings& settings
   // Auto is create_solver's choice, made before this call: given a coarse answer it chose Coarse.
   if (settings.control_variate == ControlVariate::Auto)
     solver.settings_.control_variate = coarse != nullptr ? ControlVariate::Coarse : ControlVariate::None;
+  // The replicates' layout follows the variate (settings.hpp, ReplicateLayout::Auto).
+  if (settings.replicate_layout == ReplicateLayout::Auto)
+    solver.settings_.replicate_layout = solver.settings_.control_variate == ControlVariate::Coarse
+                                            ? ReplicateLayout::Blocks
+                                            : ReplicateLayout::Independent;
   solver.channels_ = scene.channels;
   solver.threads_ = settings.threads != 0 ? settings.threads : std::max(1u, std::thread::hardware_concurrency());
   solver.auto_storage_ = settings.elements == kAutoElements;
