@@ -225,8 +225,9 @@ Status check_solver_settings(const Scene& scene, const SolverSettings& settings)
 double control_variate_work(const Scene& scene, const SolverSettings& settings) {
   // Chords: a line's coarse elements, a cubic segment's split kGatherSplit-fold, plus the coarse
   // chords themselves where the scene has cubics (the error part's second sweep). Points: 8 on
-  // every storage span, whose count the coarse element ends (storage nodes) can raise by one each
-  // a side. And the coarse reference: kCoarsePairWork pairs' worth per pair of coarse elements.
+  // every storage span, or 4 where the spans are shorter than kShortPiece of a coarse element on
+  // average, their count raised by one each side by the coarse element ends (storage nodes). And
+  // the coarse reference: kCoarsePairWork pairs' worth per pair of coarse elements.
   const std::vector<double> counts = reference_element_counts(scene, coarse_reference_settings(scene, 1, nullptr));
   double chords = 0.0;
   double coarse = 0.0;
@@ -236,7 +237,8 @@ double control_variate_work(const Scene& scene, const SolverSettings& settings) 
   }
   if (scene.has_cubics()) chords += coarse;
   const double spans = Solver::coefficient_bound(scene, settings) + 2.0 * coarse;
-  return spans * static_cast<double>(gauss::kNodes8.size()) * chords + kCoarsePairWork * coarse * coarse;
+  const std::size_t points = coarse < kShortPiece * spans ? gauss::kNodes4.size() : gauss::kNodes8.size();
+  return spans * static_cast<double>(points) * chords + kCoarsePairWork * coarse * coarse;
 }
 
 namespace {

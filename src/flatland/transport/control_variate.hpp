@@ -73,6 +73,12 @@ class CoarseAnswer {
 // The error names the scene and the first thing it has that is refused.
 Status check_control_variate(const Scene& scene);
 
+// The projection's Gauss points on a piece of a storage span inside one coarse element: 4 where
+// the piece is shorter than this share of the element (in the segment's parameter), 8 elsewhere.
+// Measured at 1e7 photons with the variate: the answers of 4 and 8 points everywhere differ by
+// 2.5e-10 relative L2 on the closed ring profile (the same photons), and the set-up halves.
+inline constexpr double kShortPiece = 1.0 / 8.0;
+
 // Curve `curve`'s coefficients of g (`received`) and d (`source`), finest layout (per coefficient
 // and channel), from `emission` (e_k, the same layout); with `coarse_received`, also g over the
 // coarser model (coarse_irradiance). Writes only that curve's coefficients, so curves may be done on
