@@ -193,8 +193,8 @@ struct SolverSettings {
   RayProfile ray_profile = RayProfile::Box;
   RayMode ray_mode = RayMode::Footprint;
   int band_rays = 8;
-  // Independent replicates of every round (kDefaultReplicates above), and the confidence of the
-  // estimated error's bound (error_estimate.hpp), in [0.5, 0.999].
+  // Replicates of every round (kDefaultReplicates above) and how they are laid out, and the
+  // confidence of the estimated error's bound (error_estimate.hpp), in [0.5, 0.999].
   int replicates = kDefaultReplicates;
   ReplicateLayout replicate_layout = ReplicateLayout::Auto;
   double confidence = 0.95;
