@@ -1,5 +1,7 @@
 // flatland converge: error against run time for several methods, photon budgets and seeds, as a
 // CSV table and a log-log plot drawn by gnuplot.
+#include <unistd.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -453,13 +455,12 @@ std::optional<int> ConvergeStudy::run_all() {
     // Auto's choice grows with the photons (the storage does): made once, at the method's largest
     // budget, so that a method is the same method at every budget and on every process.
     if (!failure && methods[m].settings.control_variate == ControlVariate::Auto) {
-      SolverSettings largest = methods[m].settings;
       const double top = *std::max_element(plan_.budgets.begin(), plan_.budgets.end());
-      largest.photons = static_cast<std::uint64_t>(std::clamp(plan_.by_time ? std::floor(top * rate) : top,
-                                                              static_cast<double>(largest.replicates),
-                                                              static_cast<double>(kMaxPhotons)));
-      const std::string skipped = control_variate_auto_skip(scene_, largest);
-      variates_[m] = skipped.empty() ? ControlVariate::Coarse : ControlVariate::None;
+      const auto largest = static_cast<std::uint64_t>(std::clamp(plan_.by_time ? std::floor(top * rate) : top,
+                                                                 static_cast<double>(methods[m].settings.replicates),
+                                                                 static_cast<double>(kMaxPhotons)));
+      std::string skipped;
+      variates_[m] = converge_variate(scene_, methods[m].settings, largest, skipped);
       if (!skipped.empty() && speaks_for_the_run())
         std::fprintf(stderr, "converge: method %s runs without the control variate: %s (--control-variate auto)\n",
                      methods[m].name.c_str(), skipped.c_str());

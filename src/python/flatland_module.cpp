@@ -8,6 +8,7 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -614,10 +615,16 @@ py::list converge(const PyScene& scene, const std::vector<std::string>& methods,
 
   py::list rows;
   const std::size_t total = parsed.size() * budgets.size() * static_cast<std::size_t>(seeds);
+  const double largest = budgets.empty() ? 0.0 : *std::max_element(budgets.begin(), budgets.end());
   for (const ConvergeMethod& method : parsed) {
+    // Auto's choice once per method, at its largest budget, as `flatland converge` makes it.
+    std::string skipped;
+    const ControlVariate variate =
+        converge_variate(*scene.scene, method.settings, static_cast<std::uint64_t>(largest), skipped);
     for (const double budget : budgets) {
       for (int seed = 1; seed <= seeds; ++seed) {
         SolverSettings settings = method.settings;
+        settings.control_variate = variate;
         settings.photons = static_cast<std::uint64_t>(budget);
         settings.seed = static_cast<std::uint64_t>(seed);
         const py::dict d = converge_row(scene, method, settings, document, measured, curve_index, curve, samples);

@@ -56,6 +56,15 @@ Status check_converge_budget(double budget, const std::vector<ConvergeMethod>& m
   return ok_status();
 }
 
+ControlVariate converge_variate(const Scene& scene, SolverSettings settings, std::uint64_t photons,
+                                std::string& skipped) {
+  skipped.clear();
+  if (settings.control_variate != ControlVariate::Auto) return settings.control_variate;
+  settings.photons = photons;
+  skipped = control_variate_auto_skip(scene, settings);
+  return skipped.empty() ? ControlVariate::Coarse : ControlVariate::None;
+}
+
 Result<ConvergeRow> converge_run(const Scene& scene, const SolverSettings& settings, const SampledResult& reference,
                                  Measure measure, std::optional<std::size_t> curve, int samples,
                                  const std::atomic<bool>* cancel, const ProgressCallback& progress) {

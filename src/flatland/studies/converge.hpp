@@ -64,6 +64,14 @@ struct ConvergeField {
 std::vector<ConvergeField> converge_fields(const std::string& method, const SolverSettings& settings,
                                            const ConvergeRow& row, Measure measure, const std::string& curve);
 
+// `--control-variate auto` in a study: auto's choice grows with the photons (the storage does), so a
+// study makes it once per method, at the method's largest budget `photons`, so that a method is the
+// same method at every budget, in every front end and on every process. Returns ControlVariate::Coarse
+// or None for a method asking for auto (`skipped`: auto's reason where it does without), and the
+// method's own variate otherwise.
+ControlVariate converge_variate(const Scene& scene, SolverSettings settings, std::uint64_t photons,
+                                std::string& skipped);
+
 // Solves `scene` with `settings` and compares the result, sampled `samples` times per curve, with
 // `reference` by `measure`, over the scene or the curve with index `curve`.
 // The error kConvergeCancelled when `cancel` stopped the solve; `progress` as Solver::run calls it.
