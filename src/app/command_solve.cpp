@@ -81,7 +81,17 @@ std::string gather_part(const ErrorEstimate& estimate) {
   return ", gather " + format_number(100.0 * estimate.gather.l1, 2) + " %";
 }
 
-void print_estimated_error(std::FILE* out, const ErrorEstimate& estimate) {
+// " (8 blocks of one net)": how the replicates the noise part is read from were laid out.
+std::string replicates_part(const SolverSettings& settings) {
+  const bool blocks = settings.replicate_layout == ReplicateLayout::Blocks;
+  return " (" + std::to_string(settings.replicates) +
+         (blocks                                   ? " blocks of one net"
+          : settings.sampler == SamplerKind::Sobol ? " independent nets"
+                                                   : " replicates") +
+         ")";
+}
+
+void print_estimated_error(std::FILE* out, const ErrorEstimate& estimate, const SolverSettings& settings) {
   if (!estimate.available) {
     std::fprintf(out, "error     not estimated: %s\n", estimate.unavailable.c_str());
     return;
@@ -90,9 +100,9 @@ void print_estimated_error(std::FILE* out, const ErrorEstimate& estimate) {
     std::fprintf(
         out,
         "error     ~ %.2g %% or less (relative L1 of B - E at %g %% confidence; L2 %.2g %%, Linf %.2g %%; "
-        "noise %.2g %%, storage %s, unshot %.2g %%%s)\n",
+        "noise %.2g %%%s, storage %s, unshot %.2g %%%s)\n",
         100.0 * estimate.bound.l1, 100.0 * estimate.confidence, 100.0 * estimate.bound.l2, 100.0 * estimate.bound.linf,
-        100.0 * estimate.noise.l1,
+        100.0 * estimate.noise.l1, replicates_part(settings).c_str(),
         estimate.storage_estimated ? (format_number(100.0 * estimate.storage.l1, 2) + " %").c_str() : "not estimated",
         100.0 * estimate.unshot.l1, gather_part(estimate).c_str());
   else
@@ -244,7 +254,7 @@ void print_summary(const Solver& solver, const ErrorEstimate& estimate) {
                  scene.curves[reading.curve].id.c_str(), front, back, 100.0 * front / books.emitted,
                  100.0 * back / books.emitted);
   }
-  print_estimated_error(out, estimate);
+  print_estimated_error(out, estimate, solver.settings());
   if (const double target = solver.settings().target_error; target > 0.0) {
     if (solver.stop_reason() == StopReason::TargetReached)
       std::fprintf(out, "target    %.3g %% reached (estimated %.3g %% when checked%s)\n", 100.0 * target,
