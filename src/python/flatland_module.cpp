@@ -237,7 +237,11 @@ class PySolver {
     // A final gather's elements first: a scene it cannot gather is refused before any set-up.
     // (auto decides at the default 100 samples per curve).
     gather_ = value_or_fail(choose_gather(*scene_.scene, settings, Solver::kTargetSamples)).gather;
-    solver_ = std::make_unique<Solver>(value_or_fail(create_solver(*scene_.scene, settings)));
+    // The set-up (the control variate's coarse solve and projection) stops on Ctrl-C too.
+    std::optional<Result<Solver>> created;
+    run_watching_signals(
+        [&](const std::atomic<bool>* cancel) { created.emplace(create_solver(*scene_.scene, settings, cancel)); });
+    solver_ = std::make_unique<Solver>(value_or_fail(std::move(*created)));
     if (gather_) solver_->check_target_through(gather_.get());
   }
 

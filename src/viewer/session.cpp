@@ -419,13 +419,15 @@ void Session::start_solve(std::shared_ptr<const Scene> scene, const SolverSettin
       field_ = std::move(*field);
     }
     Result<GatherChoice> choice = choose_gather(*scene_, settings, Solver::kTargetSamples);
-    Result<Solver> created = choice ? create_solver(*scene_, settings) : Result<Solver>(choice.error());
+    // The set-up (the control variate's coarse solve and projection) ends early when a restart or
+    // the viewer's end sets cancel_; the restart then starts the next solve, so it is no error.
+    Result<Solver> created = choice ? create_solver(*scene_, settings, &cancel_) : Result<Solver>(choice.error());
     if (created) {
       solver_.emplace(std::move(*created));
       gather_ = std::move(choice->gather);
       gather_skipped_ = choice->skipped;
       if (gather_) solver_->check_target_through(gather_.get());
-    } else {
+    } else if (created.error().message != kSolverCancelled) {
       error_ = created.error().message;
     }
   }

@@ -372,6 +372,21 @@ def test_ctrl_c_interrupts_a_solve():
     assert time.perf_counter() - start < 10
 
 
+def test_ctrl_c_interrupts_a_solves_set_up():
+    # The control variate's projection onto 16,384 elements a curve takes tens of seconds; Ctrl-C
+    # stops it within 64 spans.
+    scene = flatland.Scene.load("scenes2d/curved_room.json")
+    timer = threading.Timer(0.5, lambda: os.kill(os.getpid(), signal.SIGINT))
+    timer.start()
+    start = time.perf_counter()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            flatland.solve(scene, photons=10**6, elements=16384, control_variate="coarse")
+    finally:
+        timer.cancel()
+    assert time.perf_counter() - start < 3
+
+
 def test_ctrl_c_interrupts_a_reference():
     # The form factors of 12,000 elements take about a minute; Ctrl-C stops them within a row.
     scene = flatland.Scene.load("scenes2d/default.json")
