@@ -81,14 +81,13 @@ std::string gather_part(const ErrorEstimate& estimate) {
   return ", gather " + format_number(100.0 * estimate.gather.l1, 2) + " %";
 }
 
-// " (8 blocks of one net)": how the replicates the noise part is read from were laid out.
+// " (8 blocks of one net)": how the replicates the noise part is read from were laid out. With the
+// random sampler there is no net: blocks and independent replicates are alike independent photons.
 std::string replicates_part(const SolverSettings& settings) {
-  const bool blocks = settings.replicate_layout == ReplicateLayout::Blocks;
-  return " (" + std::to_string(settings.replicates) +
-         (blocks                                   ? " blocks of one net"
-          : settings.sampler == SamplerKind::Sobol ? " independent nets"
-                                                   : " replicates") +
-         ")";
+  const char* kind = settings.sampler != SamplerKind::Sobol                 ? " replicates"
+                     : settings.replicate_layout == ReplicateLayout::Blocks ? " blocks of one net"
+                                                                            : " independent nets";
+  return " (" + std::to_string(settings.replicates) + kind + ")";
 }
 
 void print_estimated_error(std::FILE* out, const ErrorEstimate& estimate, const SolverSettings& settings) {

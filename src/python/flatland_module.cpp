@@ -562,26 +562,15 @@ SampledResult converge_reference(const PyScene& scene, const py::object& referen
   return document;
 }
 
-// One converge run, Ctrl-C (checked about every 0.1 s) stopping it with KeyboardInterrupt: the
-// columns of the command line's convergence.csv as a dict, with Python's types.
+// One converge run, Ctrl-C stopping it (its set-up too) with KeyboardInterrupt: the columns of the
+// command line's convergence.csv as a dict, with Python's types.
 py::dict converge_row(const PyScene& scene, const ConvergeMethod& method, const SolverSettings& settings,
                       const SampledResult& document, Measure measured, const std::optional<std::size_t>& curve_index,
                       const py::object& curve, int samples) {
-  std::atomic<bool> cancel{false};
-  std::optional<py::error_already_set> raised;
-  const ProgressCallback poll = [&](const SolverProgress&) {
-    py::gil_scoped_acquire gil;
-    if (!raised && PyErr_CheckSignals() != 0) {
-      raised.emplace();
-      cancel.store(true);
-    }
-  };
   std::optional<Result<ConvergeRow>> run;
-  {
-    py::gil_scoped_release release;
-    run.emplace(converge_run(*scene.scene, settings, document, measured, curve_index, samples, &cancel, poll));
-  }
-  if (raised) throw *raised;
+  run_watching_signals([&](const std::atomic<bool>* cancel) {
+    run.emplace(converge_run(*scene.scene, settings, document, measured, curve_index, samples, cancel));
+  });
   const ConvergeRow row = value_or_fail(std::move(*run));
   py::dict d;
   for (const ConvergeField& field : converge_fields(method.name, settings, row, measured,

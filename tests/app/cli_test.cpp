@@ -647,6 +647,13 @@ TEST_F(Cli, SolveReportsItsEstimatedErrorAndReachesATarget) {
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.out.find("error     ~ "), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("95 % confidence"), std::string::npos) << r.out;
+  // The noise part names its replicates' layout: blocks of one net under the variate (auto's), one
+  // net each without it, neither with the random sampler.
+  EXPECT_NE(r.out.find("(8 blocks of one net)"), std::string::npos) << r.out;
+  const CommandRun independent = run("solve " + scene("penumbra.json") + " --photons 100000 --control-variate none");
+  EXPECT_NE(independent.out.find("(8 independent nets)"), std::string::npos) << independent.out;
+  const CommandRun random = run("solve " + scene("penumbra.json") + " --photons 100000 --sampler random");
+  EXPECT_NE(random.out.find("(8 replicates)"), std::string::npos) << random.out;
   const nlohmann::json result = nlohmann::json::parse(read_file(out));
   const nlohmann::json& estimate = result["stats"]["estimated_error"];
   for (const char* key : {"l1", "l2", "linf", "confidence", "replicates", "parts", "curves"})

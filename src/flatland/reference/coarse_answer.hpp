@@ -20,7 +20,8 @@ namespace flatland {
 inline constexpr std::size_t kControlVariateMaxElements = 3000;
 
 // --control-variate auto's bound on the variate's set-up, in point-chord pairs: the projection
-// visits 8 Gauss points on every storage span and sweeps, at each, the chords G is gathered over
+// visits 8 Gauss points on every storage span (4 on spans short against their coarse element,
+// kShortPiece) and sweeps, at each, the chords G is gathered over
 // and the coarse chords (its error part). Measured on the curved room (2 cores): about 2e-8 s a
 // pair, so that kAutoControlVariateWork is about two seconds (the final gather's auto budget), and
 // kAutoControlVariateWorkPerPhoton times the photons about three times their own time (2e-7 s a
